@@ -1,0 +1,132 @@
+//! Articulated-body algorithm: forward dynamics `q̈ = M(q)⁻¹ (τ − h(q, v))` in O(nb).
+
+use super::Data;
+use crate::model::{Joint, Model};
+use crate::spatial::{Force, Motion};
+use nalgebra::{DVector, Matrix6, Vector3, Vector6};
+
+fn subspace_matrix(j: &Joint) -> Matrix6<f64> {
+    let mut s = Matrix6::zeros();
+    for k in 0..j.kind.nv() {
+        s.set_column(k, &j.subspace[k].to_vector());
+    }
+    s
+}
+
+/// Inverse of the leading k × k block of a symmetric positive-definite `d` (zero elsewhere).
+fn inverse_leading_block(d: &Matrix6<f64>, k: usize) -> Matrix6<f64> {
+    let mut padded = *d;
+    for r in 0..6 {
+        for c in 0..6 {
+            if r >= k || c >= k {
+                padded[(r, c)] = if r == c { 1.0 } else { 0.0 };
+            }
+        }
+    }
+    let mut inv = padded
+        .try_inverse()
+        .unwrap_or_else(|| Matrix6::from_element(f64::NAN));
+    for r in 0..6 {
+        for c in 0..6 {
+            if r >= k || c >= k {
+                inv[(r, c)] = 0.0;
+            }
+        }
+    }
+    inv
+}
+
+/// q̈ = FD(q, v, τ) into `data.qdd` (Featherstone's three passes, body frames, gravity as a base
+/// acceleration −g). A massless leaf joint makes its articulated inertia singular: q̈ then holds
+/// NaN, which callers check (the constrained solvers do not use ABA).
+pub fn aba<'a>(
+    model: &Model,
+    data: &'a mut Data,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+) -> &'a DVector<f64> {
+    let nb = model.nbodies();
+    for i in 1..nb {
+        let b = &model.bodies[i];
+        let j = &b.joint;
+        let li = b
+            .placement
+            .compose(&j.kind.transform(&q[j.idx_q..j.idx_q + j.kind.nq()]));
+        data.li_m_i[i] = li;
+        data.o_m_i[i] = data.o_m_i[b.parent].compose(&li);
+        let mut vj = Motion::zero();
+        for k in 0..j.kind.nv() {
+            vj += j.subspace[k] * v[j.idx_v + k];
+        }
+        let vi = li.act_inv_motion(&data.v[b.parent]) + vj;
+        data.v[i] = vi;
+        data.c[i] = vi.cross_motion(&vj);
+        data.ia[i] = b.inertia.matrix();
+        data.pa[i] = vi.cross_force(&b.inertia.mul_motion(&vi)).to_vector();
+    }
+    for i in (1..nb).rev() {
+        let b = &model.bodies[i];
+        let j = &b.joint;
+        let nvj = j.kind.nv();
+        let c = data.c[i].to_vector();
+        let (ia, pa) = if nvj == 1 {
+            let s = j.subspace[0].to_vector();
+            let u = data.ia[i] * s;
+            let dinv = 1.0 / s.dot(&u);
+            let ui = tau[j.idx_v] - s.dot(&data.pa[i]);
+            data.u_mat[i].set_column(0, &u);
+            data.d_inv[i][(0, 0)] = dinv;
+            data.u_vec[i][0] = ui;
+            let ia = data.ia[i] - u * u.transpose() * dinv;
+            let pa = data.pa[i] + ia * c + u * (dinv * ui);
+            (ia, pa)
+        } else {
+            let s = subspace_matrix(j);
+            let u = data.ia[i] * s;
+            let dinv = inverse_leading_block(&(s.transpose() * u), nvj);
+            let mut ui = Vector6::zeros();
+            let stp = s.transpose() * data.pa[i];
+            for k in 0..nvj {
+                ui[k] = tau[j.idx_v + k] - stp[k];
+            }
+            data.u_mat[i] = u;
+            data.d_inv[i] = dinv;
+            data.u_vec[i] = ui;
+            let ia = data.ia[i] - u * dinv * u.transpose();
+            let pa = data.pa[i] + ia * c + u * (dinv * ui);
+            (ia, pa)
+        };
+        if b.parent != 0 {
+            let x = &data.li_m_i[i];
+            let iap = x.act_inertia_matrix(&ia);
+            data.ia[b.parent] += iap;
+            let fp = x.act_force(&Force::from_vector(&pa)).to_vector();
+            data.pa[b.parent] += fp;
+        }
+    }
+    data.a_gf[0] = Motion::new(-model.gravity, Vector3::zeros());
+    for i in 1..nb {
+        let b = &model.bodies[i];
+        let j = &b.joint;
+        let nvj = j.kind.nv();
+        let ap = data.li_m_i[i].act_inv_motion(&data.a_gf[b.parent]) + data.c[i];
+        let apv = ap.to_vector();
+        let mut ai = ap;
+        if nvj == 1 {
+            let u = data.u_mat[i].column(0);
+            let qdd = data.d_inv[i][(0, 0)] * (data.u_vec[i][0] - u.dot(&apv));
+            data.qdd[j.idx_v] = qdd;
+            ai += j.subspace[0] * qdd;
+        } else {
+            let rhs = data.u_vec[i] - data.u_mat[i].transpose() * apv;
+            let qdd = data.d_inv[i] * rhs;
+            for k in 0..nvj {
+                data.qdd[j.idx_v + k] = qdd[k];
+                ai += j.subspace[k] * qdd[k];
+            }
+        }
+        data.a_gf[i] = ai;
+    }
+    &data.qdd
+}

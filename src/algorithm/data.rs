@@ -1,0 +1,65 @@
+//! The reusable workspace of the algorithms.
+
+use crate::model::Model;
+use crate::spatial::{Force, Inertia, Motion, SE3};
+use nalgebra::{DMatrix, DVector, Matrix6, Vector6};
+
+/// Every result and intermediate of the algorithms, sized once for a model.
+#[derive(Clone, Debug)]
+pub struct Data {
+    /// `parent_m_body` at the current q.
+    pub li_m_i: Vec<SE3>,
+    /// `world_m_body` at the current q.
+    pub o_m_i: Vec<SE3>,
+    /// Body twists in body frames.
+    pub v: Vec<Motion>,
+    /// Body spatial accelerations in body frames (without the gravity offset).
+    pub a: Vec<Motion>,
+    /// Body accelerations with the gravity offset (RNEA, ABA).
+    pub a_gf: Vec<Motion>,
+    /// Body wrenches in body frames (RNEA).
+    pub f: Vec<Force>,
+    /// Composite inertias (CRBA), body frames.
+    pub ycrb: Vec<Inertia>,
+    /// Joint-space inertia matrix M(q), nv × nv, symmetric.
+    pub mass_matrix: DMatrix<f64>,
+    /// RNEA output τ (or bias h = C v + g when called with q̈ = 0), nv.
+    pub tau: DVector<f64>,
+    /// ABA output q̈, nv.
+    pub qdd: DVector<f64>,
+    /// A frame Jacobian, 6 × nv, rows [lin; ang].
+    pub jacobian: DMatrix<f64>,
+    // ABA workspace.
+    pub(crate) ia: Vec<Matrix6<f64>>,
+    pub(crate) pa: Vec<Vector6<f64>>,
+    pub(crate) u_mat: Vec<Matrix6<f64>>,
+    pub(crate) d_inv: Vec<Matrix6<f64>>,
+    pub(crate) u_vec: Vec<Vector6<f64>>,
+    pub(crate) c: Vec<Motion>,
+}
+
+impl Data {
+    pub fn new(model: &Model) -> Self {
+        let nb = model.nbodies();
+        let nv = model.nv;
+        Self {
+            li_m_i: vec![SE3::identity(); nb],
+            o_m_i: vec![SE3::identity(); nb],
+            v: vec![Motion::zero(); nb],
+            a: vec![Motion::zero(); nb],
+            a_gf: vec![Motion::zero(); nb],
+            f: vec![Force::zero(); nb],
+            ycrb: vec![Inertia::zero(); nb],
+            mass_matrix: DMatrix::zeros(nv, nv),
+            tau: DVector::zeros(nv),
+            qdd: DVector::zeros(nv),
+            jacobian: DMatrix::zeros(6, nv),
+            ia: vec![Matrix6::zeros(); nb],
+            pa: vec![Vector6::zeros(); nb],
+            u_mat: vec![Matrix6::zeros(); nb],
+            d_inv: vec![Matrix6::zeros(); nb],
+            u_vec: vec![Vector6::zeros(); nb],
+            c: vec![Motion::zero(); nb],
+        }
+    }
+}

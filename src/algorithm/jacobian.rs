@@ -1,0 +1,82 @@
+//! Frame and point Jacobians (after `forward_kinematics_pos`).
+
+use super::Data;
+use crate::model::Model;
+use crate::spatial::skew;
+use nalgebra::{DMatrix, Vector3};
+
+/// Where a Jacobian's twist is expressed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReferenceFrame {
+    /// Spatial twist at the world origin, world axes.
+    World,
+    /// Twist of the frame, frame axes.
+    Local,
+    /// Twist of the frame origin, world axes.
+    LocalWorldAligned,
+}
+
+/// 6 × nv Jacobian of `frame`, rows `[lin; ang]`: `twist = J v`. Columns of joints that do not
+/// support the frame are zero.
+pub fn frame_jacobian(
+    model: &Model,
+    data: &Data,
+    frame: usize,
+    rf: ReferenceFrame,
+    j: &mut DMatrix<f64>,
+) {
+    j.fill(0.0);
+    let f = &model.frames[frame];
+    let o_m_f = data.o_m_i[f.body].compose(&f.placement);
+    let mut i = f.body;
+    while i != 0 {
+        let jt = &model.bodies[i].joint;
+        for k in 0..jt.kind.nv() {
+            let col = data.o_m_i[i].act_motion(&jt.subspace[k]);
+            let col = match rf {
+                ReferenceFrame::World => col,
+                ReferenceFrame::Local => o_m_f.act_inv_motion(&col),
+                ReferenceFrame::LocalWorldAligned => crate::spatial::Motion::new(
+                    col.lin - o_m_f.translation.cross(&col.ang),
+                    col.ang,
+                ),
+            };
+            let c = jt.idx_v + k;
+            for r in 0..3 {
+                j[(r, c)] = col.lin[r];
+                j[(r + 3, c)] = col.ang[r];
+            }
+        }
+        i = model.bodies[i].parent;
+    }
+}
+
+/// 3 × nv world-axes linear-velocity Jacobian of the material point `p` (in `frame`) written into
+/// rows `row..row+3` of `j` (other columns of those rows set to zero).
+pub fn point_jacobian(
+    model: &Model,
+    data: &Data,
+    frame: usize,
+    p: &Vector3<f64>,
+    j: &mut DMatrix<f64>,
+    row: usize,
+) {
+    for r in 0..3 {
+        j.row_mut(row + r).fill(0.0);
+    }
+    let f = &model.frames[frame];
+    let pw = data.o_m_i[f.body].act_point(&f.placement.act_point(p));
+    let s = skew(&pw);
+    let mut i = f.body;
+    while i != 0 {
+        let jt = &model.bodies[i].joint;
+        for k in 0..jt.kind.nv() {
+            let col = data.o_m_i[i].act_motion(&jt.subspace[k]);
+            let lin = col.lin - s * col.ang;
+            for r in 0..3 {
+                j[(row + r, jt.idx_v + k)] = lin[r];
+            }
+        }
+        i = model.bodies[i].parent;
+    }
+}

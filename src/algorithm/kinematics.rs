@@ -1,0 +1,90 @@
+//! Forward kinematics: poses, twists and accelerations of bodies, frames and points.
+
+use super::Data;
+use crate::model::Model;
+use crate::spatial::{Motion, SE3};
+use nalgebra::Vector3;
+
+/// Joint placements: `li_m_i = placement · X_J(q)`, `o_m_i = o_m_parent · li_m_i`.
+pub fn forward_kinematics_pos(model: &Model, data: &mut Data, q: &[f64]) {
+    for i in 1..model.nbodies() {
+        let b = &model.bodies[i];
+        let j = &b.joint;
+        data.li_m_i[i] = b
+            .placement
+            .compose(&j.kind.transform(&q[j.idx_q..j.idx_q + j.kind.nq()]));
+        data.o_m_i[i] = data.o_m_i[b.parent].compose(&data.li_m_i[i]);
+    }
+}
+
+/// Placements, body twists `v_i = li_m_iᵀ v_λ + S q̇_i` and accelerations
+/// `a_i = li_m_iᵀ a_λ + S q̈_i + v_i × S q̇_i` (body frames, no gravity).
+pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64]) {
+    for i in 1..model.nbodies() {
+        let b = &model.bodies[i];
+        let j = &b.joint;
+        data.li_m_i[i] = b
+            .placement
+            .compose(&j.kind.transform(&q[j.idx_q..j.idx_q + j.kind.nq()]));
+        data.o_m_i[i] = data.o_m_i[b.parent].compose(&data.li_m_i[i]);
+        let (vj, aj) = joint_motion(j, v, a);
+        let vi = data.li_m_i[i].act_inv_motion(&data.v[b.parent]) + vj;
+        data.a[i] = data.li_m_i[i].act_inv_motion(&data.a[b.parent]) + aj + vi.cross_motion(&vj);
+        data.v[i] = vi;
+    }
+}
+
+/// `(S q̇_i, S q̈_i)` of one joint.
+#[inline]
+pub(crate) fn joint_motion(j: &crate::model::Joint, v: &[f64], a: &[f64]) -> (Motion, Motion) {
+    let mut vj = Motion::zero();
+    let mut aj = Motion::zero();
+    for k in 0..j.kind.nv() {
+        vj += j.subspace[k] * v[j.idx_v + k];
+        aj += j.subspace[k] * a[j.idx_v + k];
+    }
+    (vj, aj)
+}
+
+/// `world_m_frame` (after a kinematics pass).
+pub fn frame_placement(model: &Model, data: &Data, frame: usize) -> SE3 {
+    let f = &model.frames[frame];
+    data.o_m_i[f.body].compose(&f.placement)
+}
+
+/// Twist of a frame expressed in that frame (after `forward_kinematics`).
+pub fn frame_velocity(model: &Model, data: &Data, frame: usize) -> Motion {
+    let f = &model.frames[frame];
+    f.placement.act_inv_motion(&data.v[f.body])
+}
+
+/// World position of a point `p` given in `frame` [m].
+pub fn point_position(model: &Model, data: &Data, frame: usize, p: &Vector3<f64>) -> Vector3<f64> {
+    let f = &model.frames[frame];
+    data.o_m_i[f.body].act_point(&f.placement.act_point(p))
+}
+
+/// World-axes velocity of the material point `p` of `frame` [m/s].
+pub fn point_velocity(model: &Model, data: &Data, frame: usize, p: &Vector3<f64>) -> Vector3<f64> {
+    let f = &model.frames[frame];
+    let pb = f.placement.act_point(p);
+    let v = &data.v[f.body];
+    data.o_m_i[f.body].rotation * (v.lin + v.ang.cross(&pb))
+}
+
+/// World-axes classical acceleration of the material point `p` of `frame` [m/s²]:
+/// `R (a_lin + α × p + ω × (v_lin + ω × p))`. With the accelerations of `forward_kinematics`
+/// at q̈ = 0 this is the `J̇ v` term of a point constraint.
+pub fn point_classical_acceleration(
+    model: &Model,
+    data: &Data,
+    frame: usize,
+    p: &Vector3<f64>,
+) -> Vector3<f64> {
+    let f = &model.frames[frame];
+    let pb = f.placement.act_point(p);
+    let v = &data.v[f.body];
+    let a = &data.a[f.body];
+    let vp = v.lin + v.ang.cross(&pb);
+    data.o_m_i[f.body].rotation * (a.lin + a.ang.cross(&pb) + v.ang.cross(&vp))
+}

@@ -1,0 +1,23 @@
+//! Rigid-body algorithms as free functions `algo(model, data, …)`, Featherstone's recurrences in
+//! the body frames. Results land in the `Data` workspace; nothing allocates after `Data::new`.
+//!
+//! Sizes: nq configuration coordinates, nv velocity coordinates, nb bodies (world included).
+
+mod aba;
+mod crba;
+mod data;
+mod energy;
+mod jacobian;
+mod kinematics;
+mod rnea;
+
+pub use aba::aba;
+pub use crba::crba;
+pub use data::Data;
+pub use energy::{center_of_mass, kinetic_energy, potential_energy};
+pub use jacobian::{ReferenceFrame, frame_jacobian, point_jacobian};
+pub use kinematics::{
+    forward_kinematics, forward_kinematics_pos, frame_placement, frame_velocity,
+    point_classical_acceleration, point_position, point_velocity,
+};
+pub use rnea::{nonlinear_effects, rnea};

@@ -1,0 +1,72 @@
+//! Recursive Newton–Euler: inverse dynamics `τ = M(q) q̈ + C(q, v) v + g(q)`.
+
+use super::Data;
+use crate::model::Model;
+use crate::spatial::Motion;
+use nalgebra::{DVector, Vector3};
+
+/// τ = ID(q, v, q̈) into `data.tau`. Gravity enters as a fictitious base acceleration `−g`.
+pub fn rnea<'a>(
+    model: &Model,
+    data: &'a mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+) -> &'a DVector<f64> {
+    rnea_impl(model, data, q, v, Some(a))
+}
+
+/// Bias forces `h(q, v) = C(q, v) v + g(q)` (RNEA with q̈ = 0) into `data.tau`.
+pub fn nonlinear_effects<'a>(
+    model: &Model,
+    data: &'a mut Data,
+    q: &[f64],
+    v: &[f64],
+) -> &'a DVector<f64> {
+    rnea_impl(model, data, q, v, None)
+}
+
+fn rnea_impl<'a>(
+    model: &Model,
+    data: &'a mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: Option<&[f64]>,
+) -> &'a DVector<f64> {
+    data.a_gf[0] = Motion::new(-model.gravity, Vector3::zeros());
+    for i in 1..model.nbodies() {
+        let b = &model.bodies[i];
+        let j = &b.joint;
+        let li = b
+            .placement
+            .compose(&j.kind.transform(&q[j.idx_q..j.idx_q + j.kind.nq()]));
+        data.li_m_i[i] = li;
+        data.o_m_i[i] = data.o_m_i[b.parent].compose(&li);
+        let mut vj = Motion::zero();
+        let mut aj = Motion::zero();
+        for k in 0..j.kind.nv() {
+            vj += j.subspace[k] * v[j.idx_v + k];
+            if let Some(a) = a {
+                aj += j.subspace[k] * a[j.idx_v + k];
+            }
+        }
+        let vi = li.act_inv_motion(&data.v[b.parent]) + vj;
+        let ai = li.act_inv_motion(&data.a_gf[b.parent]) + aj + vi.cross_motion(&vj);
+        data.v[i] = vi;
+        data.a_gf[i] = ai;
+        let iv = b.inertia.mul_motion(&vi);
+        data.f[i] = b.inertia.mul_motion(&ai) + vi.cross_force(&iv);
+    }
+    for i in (1..model.nbodies()).rev() {
+        let b = &model.bodies[i];
+        let j = &b.joint;
+        for k in 0..j.kind.nv() {
+            data.tau[j.idx_v + k] = j.subspace[k].dot(&data.f[i]);
+        }
+        if b.parent > 0 {
+            let fp = data.li_m_i[i].act_force(&data.f[i]);
+            data.f[b.parent] += fp;
+        }
+    }
+    &data.tau
+}

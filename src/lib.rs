@@ -1,0 +1,17 @@
+//! `constraint_dynamics`: constrained rigid-body dynamics from URDF.
+//!
+//! Layers, each a folder: [`spatial`] (6D algebra), [`model`] (URDF → bodies, joints, frames,
+//! coordinates), [`algorithm`] (kinematics, Jacobians, RNEA, CRBA, ABA, energies), [`scene`] (the
+//! YAML scene file). The crate knows nothing of ROS; the nodes in `nodes/` adapt it.
+//!
+//! Dynamics convention: `M(q) q̈ + h(q, v) = τ + Jᵀλ`, SI units, gravity in world axes.
+
+pub mod algorithm;
+pub mod constraints;
+pub mod error;
+pub mod model;
+pub mod scene;
+pub mod spatial;
+
+pub use error::{Error, Result};
+pub use model::{BaseType, Model, ModelOptions};

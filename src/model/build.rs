@@ -1,0 +1,525 @@
+//! Building a `Model` from URDF text: validation with errors that name the file and element,
+//! merging of fixed (and locked) joints, and the scene's choice of base.
+
+use super::{Body, Frame, Joint, JointKind, Limits, Mimic, Model};
+use crate::error::{Error, Result};
+use crate::spatial::{Inertia, SE3, rotation_from_rpy};
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use serde::Deserialize;
+use std::collections::HashMap;
+
+/// How the URDF root link is attached to the world.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BaseType {
+    /// Root link welded to the world.
+    #[default]
+    Fixed,
+    /// Root link moves in the world x-y plane: q = [x, y, yaw], v = [vx, vy, ωz] in the base frame.
+    Planar,
+    /// Free-flyer: q = [x, y, z, qx, qy, qz, qw], v = [v_lin; ω] in the base frame.
+    Floating,
+}
+
+/// What a scene decides about the model.
+#[derive(Clone, Debug)]
+pub struct ModelOptions {
+    pub base: BaseType,
+    /// Gravity in world axes [m/s²].
+    pub gravity: Vector3<f64>,
+    /// Joints held at a position [rad or m]: merged like fixed joints, so they cost nothing.
+    pub locked_joints: Vec<(String, f64)>,
+}
+
+impl Default for ModelOptions {
+    fn default() -> Self {
+        Self {
+            base: BaseType::Fixed,
+            gravity: Vector3::new(0.0, 0.0, -9.81),
+            locked_joints: vec![],
+        }
+    }
+}
+
+const KNOWN_JOINT_TYPES: [&str; 7] = [
+    "revolute",
+    "continuous",
+    "prismatic",
+    "fixed",
+    "floating",
+    "planar",
+    "spherical",
+];
+
+impl Model {
+    /// Build a model from a URDF file.
+    pub fn from_urdf_file(path: impl AsRef<std::path::Path>, opts: &ModelOptions) -> Result<Model> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
+            path: path.display().to_string(),
+            source: e,
+        })?;
+        Self::from_urdf_str(&text, &path.display().to_string(), opts)
+    }
+
+    /// Build a model from URDF text; `file` names the source in errors.
+    pub fn from_urdf_str(text: &str, file: &str, opts: &ModelOptions) -> Result<Model> {
+        let text = precheck_xml(text, file)?;
+        let robot = urdf_rs::read_from_string(&text).map_err(|e| Error::Urdf {
+            file: file.to_string(),
+            element: "robot".to_string(),
+            message: e.to_string(),
+        })?;
+        Builder::new(&robot, file, opts)?.build()
+    }
+}
+
+/// Parse with roxmltree for precise XML errors, refuse unknown joint types by name, and fill in
+/// `velocity`/`effort` limits that real URDFs often omit (treated as unbounded).
+fn precheck_xml(text: &str, file: &str) -> Result<String> {
+    let doc = roxmltree::Document::parse(text).map_err(|e| {
+        let pos = e.pos();
+        Error::Xml {
+            file: file.to_string(),
+            line: pos.row,
+            column: pos.col,
+            message: e.to_string(),
+        }
+    })?;
+    let root = doc.root_element();
+    if root.tag_name().name() != "robot" {
+        return Err(Error::Urdf {
+            file: file.to_string(),
+            element: format!("<{}>", root.tag_name().name()),
+            message: "the root element must be <robot>".to_string(),
+        });
+    }
+    let mut inserts: Vec<(usize, String)> = vec![];
+    for joint in root.children().filter(|n| n.has_tag_name("joint")) {
+        let name = joint.attribute("name").unwrap_or("?");
+        let ty = joint.attribute("type").unwrap_or("");
+        if !KNOWN_JOINT_TYPES.contains(&ty) {
+            return Err(Error::Urdf {
+                file: file.to_string(),
+                element: format!("joint '{name}'"),
+                message: format!(
+                    "unknown joint type '{ty}' (known: {})",
+                    KNOWN_JOINT_TYPES.join(", ")
+                ),
+            });
+        }
+        for limit in joint.children().filter(|n| n.has_tag_name("limit")) {
+            let mut extra = String::new();
+            for attr in ["velocity", "effort"] {
+                if limit.attribute(attr).is_none() {
+                    extra.push_str(&format!(" {attr}=\"inf\""));
+                }
+            }
+            if !extra.is_empty() {
+                // Insert right after "<limit".
+                inserts.push((limit.range().start + "<limit".len(), extra));
+            }
+        }
+    }
+    let mut out = text.to_string();
+    for (pos, s) in inserts.into_iter().rev() {
+        out.insert_str(pos, &s);
+    }
+    Ok(out)
+}
+
+fn pose_to_se3(p: &urdf_rs::Pose) -> SE3 {
+    SE3::new(rotation_from_rpy(&p.rpy.0), Vector3::from(p.xyz.0))
+}
+
+struct Builder<'a> {
+    robot: &'a urdf_rs::Robot,
+    file: &'a str,
+    opts: &'a ModelOptions,
+    children: HashMap<&'a str, Vec<usize>>,
+    locked: HashMap<&'a str, f64>,
+    model: Model,
+}
+
+impl<'a> Builder<'a> {
+    fn new(robot: &'a urdf_rs::Robot, file: &'a str, opts: &'a ModelOptions) -> Result<Self> {
+        let err = |element: String, message: String| Error::Urdf {
+            file: file.to_string(),
+            element,
+            message,
+        };
+        let mut link_names: HashMap<&str, usize> = HashMap::new();
+        for (i, l) in robot.links.iter().enumerate() {
+            if link_names.insert(l.name.as_str(), i).is_some() {
+                return Err(err(
+                    format!("link '{}'", l.name),
+                    "duplicate link name".into(),
+                ));
+            }
+            validate_inertial(&l.inertial).map_err(|m| err(format!("link '{}'", l.name), m))?;
+        }
+        let mut children: HashMap<&str, Vec<usize>> = HashMap::new();
+        let mut parent_of: HashMap<&str, &str> = HashMap::new();
+        for (i, j) in robot.joints.iter().enumerate() {
+            let el = format!("joint '{}'", j.name);
+            for l in [&j.parent.link, &j.child.link] {
+                if !link_names.contains_key(l.as_str()) {
+                    return Err(err(el, format!("refers to unknown link '{l}'")));
+                }
+            }
+            if let Some(p) = parent_of.insert(j.child.link.as_str(), j.name.as_str()) {
+                return Err(err(
+                    el,
+                    format!(
+                        "link '{}' already has parent joint '{p}': the joint graph is not a tree \
+                         (a closed loop must be declared as a constraint in the scene)",
+                        j.child.link
+                    ),
+                ));
+            }
+            children.entry(j.parent.link.as_str()).or_default().push(i);
+        }
+        let roots: Vec<&str> = robot
+            .links
+            .iter()
+            .map(|l| l.name.as_str())
+            .filter(|n| !parent_of.contains_key(n))
+            .collect();
+        match roots.len() {
+            1 => {}
+            0 => {
+                return Err(err(
+                    "robot".into(),
+                    "the joint graph has a cycle: no root link".into(),
+                ));
+            }
+            _ => {
+                return Err(err(
+                    "robot".into(),
+                    format!(
+                        "the joint graph has {} root links: {}",
+                        roots.len(),
+                        roots.join(", ")
+                    ),
+                ));
+            }
+        }
+        let mut locked = HashMap::new();
+        for (name, value) in &opts.locked_joints {
+            if !robot.joints.iter().any(|j| &j.name == name) {
+                return Err(err(
+                    format!("locked joint '{name}'"),
+                    "no joint of that name in the URDF".into(),
+                ));
+            }
+            locked.insert(name.as_str(), *value);
+        }
+        let model = Model {
+            name: robot.name.clone(),
+            bodies: vec![Body {
+                name: "world".into(),
+                parent: 0,
+                joint: Joint {
+                    name: "universe".into(),
+                    kind: JointKind::Revolute { axis: Vector3::z() },
+                    idx_q: 0,
+                    idx_v: 0,
+                    subspace: [Default::default(); 6],
+                },
+                placement: SE3::identity(),
+                inertia: Inertia::zero(),
+            }],
+            frames: vec![Frame {
+                name: "world".into(),
+                body: 0,
+                placement: SE3::identity(),
+            }],
+            nq: 0,
+            nv: 0,
+            q_names: vec![],
+            v_names: vec![],
+            gravity: opts.gravity,
+            limits: Limits::default(),
+            mimics: vec![],
+            base: opts.base,
+        };
+        Ok(Self {
+            robot,
+            file,
+            opts,
+            children,
+            locked,
+            model,
+        })
+    }
+
+    fn build(mut self) -> Result<Model> {
+        let root = self
+            .robot
+            .links
+            .iter()
+            .find(|l| !self.robot.joints.iter().any(|j| j.child.link == l.name))
+            .map(|l| l.name.clone())
+            .unwrap_or_default();
+        let root_body = match self.opts.base {
+            super::BaseType::Fixed => 0,
+            super::BaseType::Planar => self.add_body(
+                &root,
+                "root_joint",
+                JointKind::Planar,
+                0,
+                SE3::identity(),
+                None,
+            ),
+            super::BaseType::Floating => self.add_body(
+                &root,
+                "root_joint",
+                JointKind::FreeFlyer,
+                0,
+                SE3::identity(),
+                None,
+            ),
+        };
+        self.visit(&root, root_body, SE3::identity())?;
+        self.check_unreachable()?;
+        for j in &self.robot.joints {
+            if let Some(m) = &j.mimic {
+                self.model.mimics.push(Mimic {
+                    joint: j.name.clone(),
+                    mimicked: m.joint.clone(),
+                    multiplier: m.multiplier.unwrap_or(1.0),
+                    offset: m.offset.unwrap_or(0.0),
+                });
+            }
+        }
+        Ok(self.model)
+    }
+
+    fn check_unreachable(&self) -> Result<()> {
+        for l in &self.robot.links {
+            if !self.model.frames.iter().any(|f| f.name == l.name) {
+                return Err(Error::Urdf {
+                    file: self.file.to_string(),
+                    element: format!("link '{}'", l.name),
+                    message: "not reachable from the root link: the joint graph has a cycle".into(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Attach `link` (and its inertia) to `body` at `body_m_link`, then recurse into its children.
+    fn visit(&mut self, link: &str, body: usize, body_m_link: SE3) -> Result<()> {
+        let l = self
+            .robot
+            .links
+            .iter()
+            .find(|l| l.name == link)
+            .expect("link exists");
+        if !(body == 0 && link == "world") {
+            self.model.frames.push(Frame {
+                name: link.to_string(),
+                body,
+                placement: body_m_link,
+            });
+        }
+        if body != 0 {
+            let inertia = link_inertia(&l.inertial).transformed(&body_m_link);
+            let b = &mut self.model.bodies[body];
+            b.inertia = b.inertia.add(&inertia);
+        }
+        let kids = self.children.get(link).cloned().unwrap_or_default();
+        for ji in kids {
+            let j = &self.robot.joints[ji];
+            let body_m_joint = body_m_link.compose(&pose_to_se3(&j.origin));
+            let kind = self.joint_kind(j)?;
+            let child = j.child.link.clone();
+            match (kind, self.locked.get(j.name.as_str()).copied()) {
+                (None, _) => self.visit(&child, body, body_m_joint)?,
+                (Some(kind), Some(value)) => {
+                    let q = [value; 1];
+                    if kind.nq() != 1 {
+                        return Err(self.err_joint(j, "only 1-DOF joints can be locked"));
+                    }
+                    self.visit(&child, body, body_m_joint.compose(&kind.transform(&q)))?
+                }
+                (Some(kind), None) => {
+                    let nb = self.add_body(&child, &j.name, kind, body, body_m_joint, Some(j));
+                    self.visit(&child, nb, SE3::identity())?
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn err_joint(&self, j: &urdf_rs::Joint, message: &str) -> Error {
+        Error::Urdf {
+            file: self.file.to_string(),
+            element: format!("joint '{}'", j.name),
+            message: message.to_string(),
+        }
+    }
+
+    fn joint_kind(&self, j: &urdf_rs::Joint) -> Result<Option<JointKind>> {
+        let axis = Vector3::from(j.axis.xyz.0);
+        let unit = || {
+            let n = axis.norm();
+            if !(n > 1e-12 && n.is_finite()) {
+                Err(self.err_joint(j, "axis is zero or not finite"))
+            } else {
+                Ok(axis / n)
+            }
+        };
+        use urdf_rs::JointType as T;
+        Ok(match j.joint_type {
+            T::Fixed => None,
+            T::Revolute | T::Continuous => Some(JointKind::Revolute { axis: unit()? }),
+            T::Prismatic => Some(JointKind::Prismatic { axis: unit()? }),
+            T::Floating => Some(JointKind::FreeFlyer),
+            T::Planar => {
+                let a = unit()?;
+                if (a - Vector3::z()).norm() > 1e-12 {
+                    return Err(
+                        self.err_joint(j, "planar joints are supported with axis 0 0 1 only")
+                    );
+                }
+                Some(JointKind::Planar)
+            }
+            T::Spherical => {
+                return Err(self.err_joint(j, "joint type 'spherical' is not supported"));
+            }
+        })
+    }
+
+    fn add_body(
+        &mut self,
+        link: &str,
+        joint_name: &str,
+        kind: JointKind,
+        parent: usize,
+        placement: SE3,
+        urdf_joint: Option<&urdf_rs::Joint>,
+    ) -> usize {
+        let m = &mut self.model;
+        let (nq, nv) = (kind.nq(), kind.nv());
+        let (idx_q, idx_v) = (m.nq, m.nv);
+        m.nq += nq;
+        m.nv += nv;
+        let base_names = |suffixes: &[&str]| -> Vec<String> {
+            suffixes
+                .iter()
+                .map(|s| format!("{joint_name}:{s}"))
+                .collect()
+        };
+        let (qn, vn) = match kind {
+            JointKind::FreeFlyer => (
+                base_names(&["x", "y", "z", "qx", "qy", "qz", "qw"]),
+                base_names(&[
+                    "vx_local", "vy_local", "vz_local", "wx_local", "wy_local", "wz_local",
+                ]),
+            ),
+            JointKind::Planar => (
+                base_names(&["x", "y", "yaw"]),
+                base_names(&["vx_local", "vy_local", "wz"]),
+            ),
+            _ => (vec![joint_name.to_string()], vec![joint_name.to_string()]),
+        };
+        m.q_names.extend(qn);
+        m.v_names.extend(vn);
+        let lim = &mut m.limits;
+        let (lo, hi, vel, eff, damp) = match (urdf_joint, &kind) {
+            (Some(j), JointKind::Revolute { .. } | JointKind::Prismatic { .. }) => {
+                let continuous = j.joint_type == urdf_rs::JointType::Continuous;
+                let (lo, hi) = if continuous || j.limit.lower >= j.limit.upper {
+                    (f64::NEG_INFINITY, f64::INFINITY)
+                } else {
+                    (j.limit.lower, j.limit.upper)
+                };
+                let vel = if j.limit.velocity > 0.0 {
+                    j.limit.velocity
+                } else {
+                    f64::INFINITY
+                };
+                let eff = if j.limit.effort > 0.0 {
+                    j.limit.effort
+                } else {
+                    f64::INFINITY
+                };
+                let damp = j.dynamics.as_ref().map(|d| d.damping).unwrap_or(0.0);
+                (lo, hi, vel, eff, damp)
+            }
+            _ => (
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::INFINITY,
+                f64::INFINITY,
+                0.0,
+            ),
+        };
+        lim.q_lower.extend(std::iter::repeat_n(lo, nq));
+        lim.q_upper.extend(std::iter::repeat_n(hi, nq));
+        lim.velocity.extend(std::iter::repeat_n(vel, nv));
+        lim.effort.extend(std::iter::repeat_n(eff, nv));
+        lim.damping.extend(std::iter::repeat_n(damp, nv));
+        let subspace = kind.motion_subspace();
+        m.bodies.push(Body {
+            name: link.to_string(),
+            parent,
+            joint: Joint {
+                name: joint_name.to_string(),
+                kind,
+                idx_q,
+                idx_v,
+                subspace,
+            },
+            placement,
+            inertia: Inertia::zero(),
+        });
+        m.bodies.len() - 1
+    }
+}
+
+fn link_inertia(i: &urdf_rs::Inertial) -> Inertia {
+    let t = &i.inertia;
+    let ic = Matrix3::new(
+        t.ixx, t.ixy, t.ixz, t.ixy, t.iyy, t.iyz, t.ixz, t.iyz, t.izz,
+    );
+    let r = rotation_from_rpy(&i.origin.rpy.0);
+    Inertia::new(
+        i.mass.value,
+        Vector3::from(i.origin.xyz.0),
+        r * ic * r.transpose(),
+    )
+}
+
+/// Mass ≥ 0; rotational inertia symmetric positive semi-definite (zero principal moments are
+/// accepted for point masses and thin rods) with principal moments obeying the triangle inequality.
+fn validate_inertial(i: &urdf_rs::Inertial) -> std::result::Result<(), String> {
+    let m = i.mass.value;
+    if !m.is_finite() || m < 0.0 {
+        return Err(format!("<inertial>: mass {m} kg is negative or not finite"));
+    }
+    let t = &i.inertia;
+    let ic = Matrix3::new(
+        t.ixx, t.ixy, t.ixz, t.ixy, t.iyy, t.iyz, t.ixz, t.iyz, t.izz,
+    );
+    if ic.iter().any(|x| !x.is_finite()) {
+        return Err("<inertia>: entry not finite".into());
+    }
+    let ev = SymmetricEigen::new(ic).eigenvalues;
+    let scale = ev.abs().max().max(1e-300);
+    let tol = 1e-9 * scale;
+    if ev.iter().any(|&e| e < -tol) {
+        return Err(format!(
+            "<inertia> is not positive definite: principal moments {:.6e}, {:.6e}, {:.6e} kg·m²",
+            ev[0], ev[1], ev[2]
+        ));
+    }
+    let (a, b, c) = (ev[0], ev[1], ev[2]);
+    if a + b < c - tol || a + c < b - tol || b + c < a - tol {
+        return Err(format!(
+            "<inertia> violates the triangle inequality: principal moments {a:.6e}, {b:.6e}, {c:.6e} kg·m²"
+        ));
+    }
+    Ok(())
+}

@@ -1,0 +1,206 @@
+//! Joint kinds: their configuration space (nq), tangent space (nv), transform, motion subspace and
+//! integration on their Lie group.
+//!
+//! Every joint's motion subspace S is constant in the joint's child frame, so the joint velocity
+//! twist is `S q̇` and its bias acceleration `c_J` is zero (free-flyer and planar velocities are
+//! expressed in the child frame, as a ROS odometry twist is in `child_frame_id`).
+
+use crate::spatial::{Motion, SE3, rotation_about_axis};
+use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
+
+/// Kind of a movable joint.
+#[derive(Clone, Debug, PartialEq)]
+pub enum JointKind {
+    /// Rotation about a unit axis of the joint frame; q [rad], v [rad/s].
+    Revolute { axis: Vector3<f64> },
+    /// Translation along a unit axis of the joint frame; q [m], v [m/s].
+    Prismatic { axis: Vector3<f64> },
+    /// Free-flyer: q = [x, y, z, qx, qy, qz, qw] (child pose in the parent frame, unit quaternion),
+    /// v = [v_lin; ω] of the child, both in the child frame.
+    FreeFlyer,
+    /// Planar in the joint frame's x-y plane: q = [x, y, yaw], v = [vx, vy, ωz] in the child frame.
+    Planar,
+}
+
+impl JointKind {
+    /// Number of configuration coordinates.
+    pub fn nq(&self) -> usize {
+        match self {
+            JointKind::Revolute { .. } | JointKind::Prismatic { .. } => 1,
+            JointKind::FreeFlyer => 7,
+            JointKind::Planar => 3,
+        }
+    }
+
+    /// Number of velocity coordinates.
+    pub fn nv(&self) -> usize {
+        match self {
+            JointKind::Revolute { .. } | JointKind::Prismatic { .. } => 1,
+            JointKind::FreeFlyer => 6,
+            JointKind::Planar => 3,
+        }
+    }
+
+    /// Columns of the motion subspace S (in the child frame), `nv` of them.
+    pub fn motion_subspace(&self) -> [Motion; 6] {
+        let z = Vector3::zeros();
+        let e = |i: usize| Vector3::ith(i, 1.0);
+        let mut s = [Motion::zero(); 6];
+        match self {
+            JointKind::Revolute { axis } => s[0] = Motion::new(z, *axis),
+            JointKind::Prismatic { axis } => s[0] = Motion::new(*axis, z),
+            JointKind::FreeFlyer => {
+                for i in 0..3 {
+                    s[i] = Motion::new(e(i), z);
+                    s[i + 3] = Motion::new(z, e(i));
+                }
+            }
+            JointKind::Planar => {
+                s[0] = Motion::new(e(0), z);
+                s[1] = Motion::new(e(1), z);
+                s[2] = Motion::new(z, e(2));
+            }
+        }
+        s
+    }
+
+    /// Transform `joint_frame_m_child` at configuration `q` (slice of length nq).
+    #[inline]
+    pub fn transform(&self, q: &[f64]) -> SE3 {
+        match self {
+            JointKind::Revolute { axis } => {
+                SE3::new(rotation_about_axis(axis, q[0]), Vector3::zeros())
+            }
+            JointKind::Prismatic { axis } => SE3::new(Matrix3::identity(), axis * q[0]),
+            JointKind::FreeFlyer => {
+                let quat = Quaternion::new(q[6], q[3], q[4], q[5]);
+                let r = UnitQuaternion::new_unchecked(quat).to_rotation_matrix();
+                SE3::new(*r.matrix(), Vector3::new(q[0], q[1], q[2]))
+            }
+            JointKind::Planar => {
+                let (s, c) = q[2].sin_cos();
+                let r = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+                SE3::new(r, Vector3::new(q[0], q[1], 0.0))
+            }
+        }
+    }
+
+    /// Neutral configuration (zero, identity quaternion).
+    pub fn neutral(&self, q: &mut [f64]) {
+        q.iter_mut().for_each(|x| *x = 0.0);
+        if let JointKind::FreeFlyer = self {
+            q[6] = 1.0;
+        }
+    }
+
+    /// `q_out = q ⊕ v·dt` on the joint's Lie group (SE(3) exponential for a free-flyer, SE(2)
+    /// for planar); the quaternion is renormalised.
+    pub fn integrate(&self, q: &[f64], v: &[f64], dt: f64, q_out: &mut [f64]) {
+        match self {
+            JointKind::Revolute { .. } | JointKind::Prismatic { .. } => q_out[0] = q[0] + v[0] * dt,
+            JointKind::FreeFlyer => {
+                let m0 = self.transform(q);
+                let nu = Motion::new(
+                    Vector3::new(v[0], v[1], v[2]) * dt,
+                    Vector3::new(v[3], v[4], v[5]) * dt,
+                );
+                let m1 = m0.compose(&SE3::exp(&nu));
+                write_free_flyer(&m1, q_out);
+            }
+            JointKind::Planar => {
+                let (vx, vy, w) = (v[0] * dt, v[1] * dt, v[2] * dt);
+                // SE(2) exponential of (vx, vy, w) in the body frame.
+                let (a, b) = if w.abs() < 1e-9 {
+                    (1.0 - w * w / 6.0, w / 2.0)
+                } else {
+                    (w.sin() / w, (1.0 - w.cos()) / w)
+                };
+                let dx = a * vx - b * vy;
+                let dy = b * vx + a * vy;
+                let (s, c) = q[2].sin_cos();
+                q_out[0] = q[0] + c * dx - s * dy;
+                q_out[1] = q[1] + s * dx + c * dy;
+                q_out[2] = q[2] + w;
+            }
+        }
+    }
+
+    /// `v_out = (q1 ⊖ q0)`: the constant velocity that takes q0 to q1 in unit time.
+    pub fn difference(&self, q0: &[f64], q1: &[f64], v_out: &mut [f64]) {
+        match self {
+            JointKind::Revolute { .. } | JointKind::Prismatic { .. } => v_out[0] = q1[0] - q0[0],
+            JointKind::FreeFlyer => {
+                let d = self
+                    .transform(q0)
+                    .inverse()
+                    .compose(&self.transform(q1))
+                    .log();
+                v_out[..3].copy_from_slice(d.lin.as_slice());
+                v_out[3..6].copy_from_slice(d.ang.as_slice());
+            }
+            JointKind::Planar => {
+                let w = q1[2] - q0[2];
+                let (s, c) = q0[2].sin_cos();
+                let (gx, gy) = (q1[0] - q0[0], q1[1] - q0[1]);
+                let (dx, dy) = (c * gx + s * gy, -s * gx + c * gy);
+                let (a, b) = if w.abs() < 1e-9 {
+                    (1.0 - w * w / 6.0, w / 2.0)
+                } else {
+                    (w.sin() / w, (1.0 - w.cos()) / w)
+                };
+                let det = a * a + b * b;
+                v_out[0] = (a * dx + b * dy) / det;
+                v_out[1] = (-b * dx + a * dy) / det;
+                v_out[2] = w;
+            }
+        }
+    }
+
+    /// Renormalise the quaternion of a free-flyer (no-op otherwise).
+    pub fn normalize(&self, q: &mut [f64]) {
+        if let JointKind::FreeFlyer = self {
+            let n = (q[3] * q[3] + q[4] * q[4] + q[5] * q[5] + q[6] * q[6]).sqrt();
+            if n > 0.0 {
+                q[3..7].iter_mut().for_each(|x| *x /= n);
+            }
+        }
+    }
+
+    /// `q̇ = G(q) v`: the time derivative of this joint's coordinates for velocity `v`.
+    pub fn qdot(&self, q: &[f64], v: &[f64], qdot: &mut [f64]) {
+        match self {
+            JointKind::Revolute { .. } | JointKind::Prismatic { .. } => qdot[0] = v[0],
+            JointKind::FreeFlyer => {
+                let m = self.transform(q);
+                let pdot = m.rotation * Vector3::new(v[0], v[1], v[2]);
+                qdot[..3].copy_from_slice(pdot.as_slice());
+                // q̇uat = ½ quat ⊗ (ω, 0)
+                let quat = Quaternion::new(q[6], q[3], q[4], q[5]);
+                let w = Quaternion::new(0.0, v[3], v[4], v[5]);
+                let d = quat * w * 0.5;
+                qdot[3] = d.i;
+                qdot[4] = d.j;
+                qdot[5] = d.k;
+                qdot[6] = d.w;
+            }
+            JointKind::Planar => {
+                let (s, c) = q[2].sin_cos();
+                qdot[0] = c * v[0] - s * v[1];
+                qdot[1] = s * v[0] + c * v[1];
+                qdot[2] = v[2];
+            }
+        }
+    }
+}
+
+fn write_free_flyer(m: &SE3, q: &mut [f64]) {
+    let r = nalgebra::Rotation3::from_matrix_unchecked(m.rotation);
+    let quat = UnitQuaternion::from_rotation_matrix(&r);
+    q[0] = m.translation.x;
+    q[1] = m.translation.y;
+    q[2] = m.translation.z;
+    q[3] = quat.i;
+    q[4] = quat.j;
+    q[5] = quat.k;
+    q[6] = quat.w;
+}

@@ -1,0 +1,225 @@
+//! The immutable robot `Model`: bodies (URDF links merged across fixed and locked joints), their
+//! joints, named frames (every URDF link) and the named generalized coordinates.
+//!
+//! Body 0 is the world ("universe"). Bodies are numbered depth-first over the URDF tree, children in
+//! the order their joints appear in the file, so a parent always precedes its children and the
+//! coordinates follow the same order (base coordinates first).
+
+mod build;
+mod joint;
+
+pub use build::{BaseType, ModelOptions};
+pub use joint::JointKind;
+
+use crate::error::{Error, Result};
+use crate::spatial::{Inertia, Motion, SE3};
+use nalgebra::Vector3;
+
+/// A movable joint between a body and its parent.
+#[derive(Clone, Debug)]
+pub struct Joint {
+    /// URDF joint name (`root_joint` for a planar or floating base).
+    pub name: String,
+    pub kind: JointKind,
+    /// First configuration coordinate.
+    pub idx_q: usize,
+    /// First velocity coordinate.
+    pub idx_v: usize,
+    /// Motion subspace columns in the child frame (first `kind.nv()` used).
+    pub subspace: [Motion; 6],
+}
+
+/// A rigid body: one or more URDF links rigidly attached.
+#[derive(Clone, Debug)]
+pub struct Body {
+    /// Name of the URDF link that carries the joint (the body's own frame).
+    pub name: String,
+    /// Parent body index (0 = world).
+    pub parent: usize,
+    pub joint: Joint,
+    /// `parent_m_joint`: pose of the joint frame in the parent body frame at q = 0.
+    pub placement: SE3,
+    /// Spatial inertia in the body frame (merged links included).
+    pub inertia: Inertia,
+}
+
+/// A named frame rigidly attached to a body (every URDF link is one).
+#[derive(Clone, Debug)]
+pub struct Frame {
+    pub name: String,
+    /// Body index (0 = world).
+    pub body: usize,
+    /// `body_m_frame`.
+    pub placement: SE3,
+}
+
+/// Per-velocity-coordinate limits and damping from the URDF (infinite where the URDF omits them).
+#[derive(Clone, Debug, Default)]
+pub struct Limits {
+    /// Position limits [rad or m], per configuration coordinate.
+    pub q_lower: Vec<f64>,
+    pub q_upper: Vec<f64>,
+    /// |v| limit [rad/s or m/s], per velocity coordinate.
+    pub velocity: Vec<f64>,
+    /// |τ| limit [N·m or N], per velocity coordinate.
+    pub effort: Vec<f64>,
+    /// Viscous damping [N·m·s/rad or N·s/m], per velocity coordinate (URDF `<dynamics damping>`).
+    pub damping: Vec<f64>,
+}
+
+/// A URDF `<mimic>`: `q_joint = multiplier · q_mimicked + offset`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mimic {
+    pub joint: String,
+    pub mimicked: String,
+    pub multiplier: f64,
+    pub offset: f64,
+}
+
+/// The robot model. Built once, never modified by an algorithm.
+#[derive(Clone, Debug)]
+pub struct Model {
+    pub name: String,
+    /// Bodies; index 0 is the world and carries no joint worth reading.
+    pub bodies: Vec<Body>,
+    pub frames: Vec<Frame>,
+    pub nq: usize,
+    pub nv: usize,
+    pub q_names: Vec<String>,
+    pub v_names: Vec<String>,
+    /// Gravity in the world frame [m/s²].
+    pub gravity: Vector3<f64>,
+    pub limits: Limits,
+    pub mimics: Vec<Mimic>,
+    pub base: BaseType,
+}
+
+impl Model {
+    /// Number of bodies including the world.
+    pub fn nbodies(&self) -> usize {
+        self.bodies.len()
+    }
+
+    /// Total mass [kg].
+    pub fn total_mass(&self) -> f64 {
+        self.bodies.iter().skip(1).map(|b| b.inertia.mass).sum()
+    }
+
+    /// Frame index by name (`world` is frame 0).
+    pub fn frame_id(&self, name: &str) -> Result<usize> {
+        self.frames
+            .iter()
+            .position(|f| f.name == name)
+            .ok_or_else(|| Error::UnknownFrame {
+                name: name.to_string(),
+                known: self
+                    .frames
+                    .iter()
+                    .map(|f| f.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })
+    }
+
+    /// Body index of a movable joint by name.
+    pub fn joint_body(&self, name: &str) -> Result<usize> {
+        self.bodies
+            .iter()
+            .skip(1)
+            .position(|b| b.joint.name == name)
+            .map(|i| i + 1)
+            .ok_or_else(|| Error::UnknownJoint {
+                name: name.to_string(),
+                known: self.joint_names().join(", "),
+            })
+    }
+
+    /// Names of the movable joints in coordinate order.
+    pub fn joint_names(&self) -> Vec<&str> {
+        self.bodies
+            .iter()
+            .skip(1)
+            .map(|b| b.joint.name.as_str())
+            .collect()
+    }
+
+    /// Neutral configuration.
+    pub fn neutral(&self) -> Vec<f64> {
+        let mut q = vec![0.0; self.nq];
+        for b in self.bodies.iter().skip(1) {
+            let j = &b.joint;
+            j.kind.neutral(&mut q[j.idx_q..j.idx_q + j.kind.nq()]);
+        }
+        q
+    }
+
+    /// `q_out = q ⊕ v·dt`, joint by joint on each joint's Lie group.
+    pub fn integrate(&self, q: &[f64], v: &[f64], dt: f64, q_out: &mut [f64]) {
+        for b in self.bodies.iter().skip(1) {
+            let j = &b.joint;
+            let (iq, iv, nq, nv) = (j.idx_q, j.idx_v, j.kind.nq(), j.kind.nv());
+            j.kind.integrate(
+                &q[iq..iq + nq],
+                &v[iv..iv + nv],
+                dt,
+                &mut q_out[iq..iq + nq],
+            );
+        }
+    }
+
+    /// `v_out = q1 ⊖ q0`.
+    pub fn difference(&self, q0: &[f64], q1: &[f64], v_out: &mut [f64]) {
+        for b in self.bodies.iter().skip(1) {
+            let j = &b.joint;
+            let (iq, iv, nq, nv) = (j.idx_q, j.idx_v, j.kind.nq(), j.kind.nv());
+            j.kind
+                .difference(&q0[iq..iq + nq], &q1[iq..iq + nq], &mut v_out[iv..iv + nv]);
+        }
+    }
+
+    /// `q̇ = G(q) v`.
+    pub fn qdot(&self, q: &[f64], v: &[f64], qdot: &mut [f64]) {
+        for b in self.bodies.iter().skip(1) {
+            let j = &b.joint;
+            let (iq, iv, nq, nv) = (j.idx_q, j.idx_v, j.kind.nq(), j.kind.nv());
+            j.kind
+                .qdot(&q[iq..iq + nq], &v[iv..iv + nv], &mut qdot[iq..iq + nq]);
+        }
+    }
+
+    /// Renormalise every quaternion in `q`.
+    pub fn normalize(&self, q: &mut [f64]) {
+        for b in self.bodies.iter().skip(1) {
+            let j = &b.joint;
+            j.kind.normalize(&mut q[j.idx_q..j.idx_q + j.kind.nq()]);
+        }
+    }
+
+    /// Check sizes and finiteness of a state, naming what is wrong.
+    pub fn check_state(&self, q: &[f64], v: &[f64]) -> Result<()> {
+        crate::error::check_len("q", q, self.nq)?;
+        crate::error::check_len("v", v, self.nv)?;
+        crate::error::check_finite("q", q)?;
+        crate::error::check_finite("v", v)
+    }
+
+    /// Index of a configuration coordinate by name.
+    pub fn q_index(&self, name: &str) -> Result<usize> {
+        self.q_names.iter().position(|n| n == name).ok_or_else(|| {
+            Error::Invalid(format!(
+                "unknown configuration coordinate '{name}' (known: {})",
+                self.q_names.join(", ")
+            ))
+        })
+    }
+
+    /// Index of a velocity coordinate by name.
+    pub fn v_index(&self, name: &str) -> Result<usize> {
+        self.v_names.iter().position(|n| n == name).ok_or_else(|| {
+            Error::Invalid(format!(
+                "unknown velocity coordinate '{name}' (known: {})",
+                self.v_names.join(", ")
+            ))
+        })
+    }
+}

@@ -1,0 +1,120 @@
+//! The scene file (YAML): which URDF, the base, gravity, locked joints, the initial state and the
+//! constraints. Unknown keys are an error that names the key.
+
+use crate::constraints::ConstraintSpec;
+use crate::error::{Error, Result};
+use crate::model::{BaseType, Model, ModelOptions};
+use nalgebra::Vector3;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Initial state by coordinate name; missing coordinates are neutral (0, identity quaternion).
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InitialState {
+    #[serde(default)]
+    pub q: BTreeMap<String, f64>,
+    #[serde(default)]
+    pub v: BTreeMap<String, f64>,
+}
+
+/// The scene file as written.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// URDF path, relative to the scene file.
+    pub urdf: String,
+    #[serde(default)]
+    pub base: BaseType,
+    /// Gravity, world axes [m/s²]; default (0, 0, −9.81).
+    #[serde(default)]
+    pub gravity: Option<[f64; 3]>,
+    /// Joint name → position [rad or m].
+    #[serde(default)]
+    pub locked_joints: BTreeMap<String, f64>,
+    #[serde(default)]
+    pub initial_state: InitialState,
+    #[serde(default)]
+    pub constraints: Vec<ConstraintSpec>,
+}
+
+/// A loaded scene: the model built as the file asks, its constraint declarations and initial state.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub path: PathBuf,
+    pub file: SceneFile,
+    pub model: Model,
+    /// Initial configuration (nq) and velocity (nv).
+    pub q0: Vec<f64>,
+    pub v0: Vec<f64>,
+}
+
+impl Scene {
+    /// Load a scene file and the URDF it names.
+    pub fn load(path: impl AsRef<Path>) -> Result<Scene> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
+            path: path.display().to_string(),
+            source: e,
+        })?;
+        let file: SceneFile = serde_yaml::from_str(&text).map_err(|e| Error::Scene {
+            file: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+        let urdf = path.parent().unwrap_or(Path::new(".")).join(&file.urdf);
+        let urdf_text = std::fs::read_to_string(&urdf).map_err(|e| Error::Io {
+            path: urdf.display().to_string(),
+            source: e,
+        })?;
+        Self::from_parts(path, file, &urdf_text, &urdf.display().to_string())
+    }
+
+    /// Build from an already parsed scene and URDF text (e.g. from `/robot_description`).
+    pub fn from_parts(
+        path: &Path,
+        file: SceneFile,
+        urdf_text: &str,
+        urdf_name: &str,
+    ) -> Result<Scene> {
+        let scene_err = |message: String| Error::Scene {
+            file: path.display().to_string(),
+            message,
+        };
+        let opts = ModelOptions {
+            base: file.base,
+            gravity: file
+                .gravity
+                .map(Vector3::from)
+                .unwrap_or(Vector3::new(0.0, 0.0, -9.81)),
+            locked_joints: file
+                .locked_joints
+                .iter()
+                .map(|(k, v)| (k.clone(), *v))
+                .collect(),
+        };
+        let model = Model::from_urdf_str(urdf_text, urdf_name, &opts)?;
+        let mut q0 = model.neutral();
+        let mut v0 = vec![0.0; model.nv];
+        for (name, value) in &file.initial_state.q {
+            let i = model
+                .q_index(name)
+                .map_err(|e| scene_err(format!("initial_state.q: {e}")))?;
+            q0[i] = *value;
+        }
+        for (name, value) in &file.initial_state.v {
+            let i = model
+                .v_index(name)
+                .map_err(|e| scene_err(format!("initial_state.v: {e}")))?;
+            v0[i] = *value;
+        }
+        model.normalize(&mut q0);
+        Ok(Scene {
+            path: path.to_path_buf(),
+            file,
+            model,
+            q0,
+            v0,
+        })
+    }
+}

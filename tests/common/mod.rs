@@ -1,0 +1,88 @@
+//! Shared helpers for the integration tests: the independent reference cases in
+//! `../shared/reference/` (Pinocchio 4.1.0 numbers; never regenerated with this project's code).
+#![allow(dead_code)]
+
+use constraint_dynamics::{BaseType, Model, ModelOptions};
+use nalgebra::{DMatrix, DVector};
+use serde_json::Value;
+use std::path::PathBuf;
+
+pub fn reference_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/reference")
+}
+
+pub fn repo_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+pub fn load_case(name: &str) -> Value {
+    let p = reference_dir().join("cases").join(format!("{name}.json"));
+    let text = std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    serde_json::from_str(&text).unwrap()
+}
+
+/// The case's model: its URDF with a free-flyer base when `floating_base` is set.
+pub fn case_model(case: &Value) -> Model {
+    let m = &case["model"];
+    let urdf = reference_dir()
+        .join("urdf")
+        .join(m["urdf"].as_str().unwrap());
+    let floating = !matches!(m["floating_base"], Value::Bool(false));
+    let opts = ModelOptions {
+        base: if floating {
+            BaseType::Floating
+        } else {
+            BaseType::Fixed
+        },
+        ..Default::default()
+    };
+    let model = Model::from_urdf_file(urdf, &opts).unwrap();
+    let names: Vec<String> = m["v_names"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s.as_str().unwrap().to_string())
+        .collect();
+    assert_eq!(
+        model.v_names, names,
+        "coordinate order differs from the reference"
+    );
+    model
+}
+
+pub fn vecf(v: &Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap_or(f64::NAN))
+        .collect()
+}
+
+pub fn dvec(v: &Value) -> DVector<f64> {
+    DVector::from_vec(vecf(v))
+}
+
+pub fn dmat(v: &Value) -> DMatrix<f64> {
+    let rows: Vec<Vec<f64>> = v.as_array().unwrap().iter().map(vecf).collect();
+    let (r, c) = (rows.len(), rows.first().map_or(0, |x| x.len()));
+    DMatrix::from_fn(r, c, |i, j| rows[i][j])
+}
+
+/// max |a − b| / max(1, max |b|): relative to the reference's scale.
+pub fn rel_err(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len(), "length mismatch");
+    let scale = b.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+        / scale
+}
+
+pub fn assert_close(what: &str, a: &[f64], b: &[f64], tol: f64) {
+    let e = rel_err(a, b);
+    assert!(
+        e <= tol,
+        "{what}: relative error {e:.3e} > {tol:.1e}\n ours: {a:?}\n  ref: {b:?}"
+    );
+}
