@@ -8,6 +8,7 @@
 
 pub mod algorithm;
 pub mod constraints;
+pub mod dynamics;
 pub mod error;
 pub mod model;
 pub mod scene;

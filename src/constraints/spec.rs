@@ -77,8 +77,14 @@ pub enum ConstraintSpec {
         axes: Axes,
         #[serde(default = "all_rows")]
         rows: Vec<Row>,
+        /// Target position of A's origin in B [m] (default: coincident).
+        #[serde(default)]
+        relative_xyz: [f64; 3],
+        /// Target orientation of A in B, roll-pitch-yaw [rad] (default: aligned).
+        #[serde(default)]
+        relative_rpy: [f64; 3],
     },
-    /// `|p_a − p_b| = distance` [m]. λ: tension along the line [N] (positive pulls the points together).
+    /// `|p_a − p_b| = distance` [m]. λ: force on A's point along n = (p_a − p_b)/|p_a − p_b| [N] (λ > 0 pushes A away from B).
     Distance {
         name: String,
         frame_a: String,

@@ -1,0 +1,67 @@
+//! Point constraint: point `p_a` of frame A held at point `p_b` of frame B (or the world).
+//!
+//! φ = p_A(q) − p_B(q) (world axes, selected rows) [m]; J = J_pA − J_pB (world-axes point
+//! Jacobians); γ = a_A − a_B, the classical accelerations of the two material points at q̈ = 0.
+//! λ: force exerted on A's point by the constraint [N], world axes (−λ acts on B).
+
+use super::{ConstraintRows, RowSink};
+use crate::algorithm::{
+    Data, point_classical_acceleration, point_jacobian, point_position, point_velocity,
+};
+use crate::model::Model;
+use nalgebra::{DMatrix, Vector3};
+
+#[derive(Clone, Debug)]
+pub struct PointConstraint {
+    pub frame_a: usize,
+    pub point_a: Vector3<f64>,
+    pub frame_b: usize,
+    pub point_b: Vector3<f64>,
+    /// Selected world axes (0 = x, 1 = y, 2 = z).
+    pub axes: Vec<usize>,
+}
+
+/// Relative position, velocity and classical acceleration (q̈ = 0) of A's point w.r.t. B's, and the
+/// 3 × nv relative Jacobian in `jrel`.
+pub(crate) fn relative_point(
+    model: &Model,
+    data: &Data,
+    a: (usize, &Vector3<f64>),
+    b: (usize, &Vector3<f64>),
+    jrel: &mut DMatrix<f64>,
+    jtmp: &mut DMatrix<f64>,
+) -> [Vector3<f64>; 3] {
+    point_jacobian(model, data, a.0, a.1, jrel, 0);
+    point_jacobian(model, data, b.0, b.1, jtmp, 0);
+    for r in 0..3 {
+        for c in 0..jrel.ncols() {
+            jrel[(r, c)] -= jtmp[(r, c)];
+        }
+    }
+    [
+        point_position(model, data, a.0, a.1) - point_position(model, data, b.0, b.1),
+        point_velocity(model, data, a.0, a.1) - point_velocity(model, data, b.0, b.1),
+        point_classical_acceleration(model, data, a.0, a.1)
+            - point_classical_acceleration(model, data, b.0, b.1),
+    ]
+}
+
+impl ConstraintRows for PointConstraint {
+    fn dim(&self) -> usize {
+        self.axes.len()
+    }
+
+    fn fill(&self, model: &Model, data: &Data, out: &mut RowSink) {
+        let [d, _, acc] = relative_point(
+            model,
+            data,
+            (self.frame_a, &self.point_a),
+            (self.frame_b, &self.point_b),
+            out.j3,
+            out.jtmp,
+        );
+        for (k, &ax) in self.axes.iter().enumerate() {
+            out.set_row_from(k, ax, d[ax], acc[ax], true);
+        }
+    }
+}

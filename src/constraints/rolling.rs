@@ -1,0 +1,115 @@
+//! Rolling without slipping: a wheel (frame W, spin axis a_W, radius r, centre at W's origin) on
+//! the plane n·x = h.
+//!
+//! Contact: u = −(n − (n·a)a)/|n − (n·a)a| (a = R_W a_W), p_c = c + r u. The material point of the
+//! wheel at p_c has zero velocity: `J v = v_c + ω × (p_c − c) = 0`, expressed on the basis
+//! (t₁, t₂, n) — two nonholonomic tangential rows and one normal row. The normal row is left out
+//! when the model cannot move the contact along n (a planar base already fixes the height).
+//! φ = (0, 0, n·p_c − h). Because p_c moves over the rim,
+//! γ = a_mat(p_c)|q̈=0 + ω × (ṗ_c − v_mat(p_c)) (not the material point's acceleration alone).
+//! λ: contact force by the ground on the wheel at p_c [N] on (t₁, t₂, n).
+
+use super::{ConstraintRows, RowSink};
+use crate::algorithm::{Data, frame_placement, point_classical_acceleration, point_jacobian};
+use crate::model::Model;
+use nalgebra::{Matrix3, Vector3};
+
+#[derive(Clone, Debug)]
+pub struct RollingConstraint {
+    pub wheel: usize,
+    /// Spin axis in the wheel frame (unit).
+    pub axis: Vector3<f64>,
+    /// Radius [m].
+    pub radius: f64,
+    /// Columns t₁, t₂, n (world).
+    pub basis: Matrix3<f64>,
+    /// Plane height along n [m].
+    pub height: f64,
+    /// Which of the 3 rows (t₁, t₂, n) are kept.
+    pub rows: Vec<usize>,
+}
+
+/// Contact geometry at the current state.
+pub struct Contact {
+    /// World contact point [m].
+    pub point: Vector3<f64>,
+    /// Wheel centre [m].
+    pub centre: Vector3<f64>,
+    /// Spin axis (world).
+    pub axis: Vector3<f64>,
+}
+
+impl RollingConstraint {
+    /// Tangent basis for a unit normal: (x, y, n) when n = ±z, else a Gram–Schmidt completion.
+    pub fn basis_for(n: &Vector3<f64>) -> Matrix3<f64> {
+        let t1 = if n.x.abs() < 0.9 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        };
+        let t1 = (t1 - n * n.dot(&t1)).normalize();
+        let t2 = n.cross(&t1);
+        Matrix3::from_columns(&[t1, t2, *n])
+    }
+
+    pub fn normal(&self) -> Vector3<f64> {
+        self.basis.column(2).into()
+    }
+
+    /// Contact point, centre and world axis (after a kinematics pass).
+    pub fn contact(&self, model: &Model, data: &Data) -> Contact {
+        let o_m_w = frame_placement(model, data, self.wheel);
+        let a = o_m_w.rotation * self.axis;
+        let n = self.normal();
+        let w = n - a * n.dot(&a);
+        let u = -w / w.norm().max(f64::MIN_POSITIVE);
+        Contact {
+            point: o_m_w.translation + u * self.radius,
+            centre: o_m_w.translation,
+            axis: a,
+        }
+    }
+}
+
+impl ConstraintRows for RollingConstraint {
+    fn dim(&self) -> usize {
+        self.rows.len()
+    }
+
+    fn fill(&self, model: &Model, data: &Data, out: &mut RowSink) {
+        let Contact {
+            point: pc,
+            centre: c,
+            axis: a,
+        } = self.contact(model, data);
+        let f = &model.frames[self.wheel];
+        let o_m_w = frame_placement(model, data, self.wheel);
+        let p_local = o_m_w.act_inv_point(&pc);
+        point_jacobian(model, data, self.wheel, &p_local, out.j3, 0);
+        // Body twist in world axes at the centre.
+        let rb = data.o_m_i[f.body].rotation;
+        let omega = rb * data.v[f.body].ang;
+        let v_c = crate::algorithm::point_velocity(model, data, self.wheel, &Vector3::zeros());
+        let v_mat = v_c + omega.cross(&(pc - c));
+        // ṗ_c = v_c + r u̇, u = −w/|w|, w = n − (n·a)a, ȧ = ω × a.
+        let n = self.normal();
+        let adot = omega.cross(&a);
+        let w = n - a * n.dot(&a);
+        let wdot = -(a * n.dot(&adot) + adot * n.dot(&a));
+        let wn = w.norm().max(f64::MIN_POSITIVE);
+        let udot = -(wdot / wn - w * (w.dot(&wdot) / (wn * wn * wn)));
+        let pc_dot = v_c + udot * self.radius;
+        let a_mat = point_classical_acceleration(model, data, self.wheel, &p_local);
+        let gamma_w = a_mat + omega.cross(&(pc_dot - v_mat));
+        let phi_n = n.dot(&pc) - self.height;
+        for (k, &row) in self.rows.iter().enumerate() {
+            let dir: Vector3<f64> = self.basis.column(row).into();
+            let (phi, hol) = if row == 2 {
+                (phi_n, true)
+            } else {
+                (0.0, false)
+            };
+            out.set_row_dir(k, &dir, phi, dir.dot(&gamma_w), hol);
+        }
+    }
+}

@@ -1,0 +1,388 @@
+//! The constraints of a scene, stacked: validation of the declarations, row ranges, evaluation.
+
+use super::{
+    ConstraintRows, ConstraintSpec, CouplingConstraint, DistanceConstraint, NoSideSlipConstraint,
+    PointConstraint, RollingConstraint, RowSink, WeldConstraint,
+};
+use crate::algorithm::{Data, forward_kinematics, forward_kinematics_pos};
+use crate::error::{Error, Result};
+use crate::model::{JointKind, Model};
+use crate::spatial::{SE3, rotation_from_rpy};
+use nalgebra::{DMatrix, DVector, Vector3};
+use std::ops::Range;
+
+/// A constraint of one of the supported kinds (static dispatch).
+#[derive(Clone, Debug)]
+pub enum Constraint {
+    Point(PointConstraint),
+    Weld(WeldConstraint),
+    Distance(DistanceConstraint),
+    Coupling(CouplingConstraint),
+    Rolling(RollingConstraint),
+    NoSideSlip(NoSideSlipConstraint),
+}
+
+impl Constraint {
+    fn rows(&self) -> &dyn ConstraintRows {
+        match self {
+            Constraint::Point(c) => c,
+            Constraint::Weld(c) => c,
+            Constraint::Distance(c) => c,
+            Constraint::Coupling(c) => c,
+            Constraint::Rolling(c) => c,
+            Constraint::NoSideSlip(c) => c,
+        }
+    }
+
+    /// Kind name as in the scene file.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Constraint::Point(_) => "point",
+            Constraint::Weld(_) => "weld",
+            Constraint::Distance(_) => "distance",
+            Constraint::Coupling(_) => "coupling",
+            Constraint::Rolling(_) => "rolling",
+            Constraint::NoSideSlip(_) => "no_side_slip",
+        }
+    }
+}
+
+/// The scene's constraints with their row ranges.
+#[derive(Clone, Debug, Default)]
+pub struct ConstraintSet {
+    pub names: Vec<String>,
+    pub items: Vec<Constraint>,
+    /// Rows of constraint k in the stacked J, φ, γ, λ.
+    pub ranges: Vec<Range<usize>>,
+    /// Total number of rows (nc).
+    pub nrows: usize,
+}
+
+/// Workspace and results of `ConstraintSet::evaluate` (allocated once).
+#[derive(Clone, Debug)]
+pub struct ConstraintData {
+    /// nc × nv Jacobian: J v is the constraint velocity.
+    pub j: DMatrix<f64>,
+    /// Position residual φ(q), nc (0 on nonholonomic rows).
+    pub phi: DVector<f64>,
+    /// γ = J̇ v, nc.
+    pub gamma: DVector<f64>,
+    /// Velocity residual J v, nc.
+    pub jv: DVector<f64>,
+    /// Row is holonomic (has a position-level residual).
+    pub holonomic: Vec<bool>,
+    pub(crate) j3: DMatrix<f64>,
+    pub(crate) jtmp: DMatrix<f64>,
+    pub(crate) j6: DMatrix<f64>,
+    pub(crate) zero_v: Vec<f64>,
+}
+
+impl ConstraintData {
+    pub fn new(model: &Model, set: &ConstraintSet) -> Self {
+        let (nc, nv) = (set.nrows, model.nv);
+        Self {
+            j: DMatrix::zeros(nc, nv),
+            phi: DVector::zeros(nc),
+            gamma: DVector::zeros(nc),
+            jv: DVector::zeros(nc),
+            holonomic: vec![true; nc],
+            j3: DMatrix::zeros(3, nv),
+            jtmp: DMatrix::zeros(3, nv),
+            j6: DMatrix::zeros(6, nv),
+            zero_v: vec![0.0; nv],
+        }
+    }
+}
+
+fn unit(name: &str, what: &str, v: [f64; 3]) -> Result<Vector3<f64>> {
+    let v = Vector3::from(v);
+    let n = v.norm();
+    if !(n.is_finite() && n > 1e-12) {
+        return Err(Error::Constraint {
+            name: name.into(),
+            message: format!("{what} is zero or not finite"),
+        });
+    }
+    Ok(v / n)
+}
+
+fn finite3(name: &str, what: &str, v: [f64; 3]) -> Result<Vector3<f64>> {
+    if v.iter().any(|x| !x.is_finite()) {
+        return Err(Error::Constraint {
+            name: name.into(),
+            message: format!("{what} is not finite"),
+        });
+    }
+    Ok(Vector3::from(v))
+}
+
+impl ConstraintSet {
+    /// Validate the declarations against the model (frames and joints must exist) and add one
+    /// coupling per URDF `<mimic>` between movable joints. `q_ref` (a configuration of the scene)
+    /// decides geometric questions: a wheel axis parallel to the plane normal is refused, and a
+    /// rolling contact's normal row is kept only if the model can move the contact along it.
+    pub fn new(model: &Model, specs: &[ConstraintSpec], q_ref: &[f64]) -> Result<ConstraintSet> {
+        model.check_state(q_ref, &vec![0.0; model.nv])?;
+        let mut data = Data::new(model);
+        forward_kinematics_pos(model, &mut data, q_ref);
+        let mut set = ConstraintSet::default();
+        for spec in specs {
+            let name = spec.name().to_string();
+            if set.names.contains(&name) {
+                return Err(Error::Constraint {
+                    name,
+                    message: "duplicate constraint name".into(),
+                });
+            }
+            let c = build_one(model, &data, spec)?;
+            set.push(name, c);
+        }
+        for m in &model.mimics {
+            let (Ok(bi), Ok(bj)) = (model.joint_body(&m.joint), model.joint_body(&m.mimicked))
+            else {
+                continue; // a locked joint: the reduced model already fixes it
+            };
+            let c = coupling(model, bi, bj, 1.0, -m.multiplier, m.offset);
+            set.push(format!("mimic:{}", m.joint), c);
+        }
+        Ok(set)
+    }
+
+    fn push(&mut self, name: String, c: Constraint) {
+        let d = c.rows().dim();
+        self.ranges.push(self.nrows..self.nrows + d);
+        self.nrows += d;
+        self.names.push(name);
+        self.items.push(c);
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.items.is_empty()
+    }
+
+    /// Index of a constraint by name.
+    pub fn index(&self, name: &str) -> Option<usize> {
+        self.names.iter().position(|n| n == name)
+    }
+
+    /// Row names `constraint/row` in stacked order.
+    pub fn row_names(&self) -> Vec<String> {
+        let mut out = vec![];
+        for (k, c) in self.items.iter().enumerate() {
+            for r in super::forces::row_labels(c) {
+                out.push(format!("{}/{}", self.names[k], r));
+            }
+        }
+        out
+    }
+
+    /// Kinematics at (q, v, q̈ = 0), then J, φ, γ and J v of every row into `cd`.
+    pub fn evaluate(
+        &self,
+        model: &Model,
+        data: &mut Data,
+        cd: &mut ConstraintData,
+        q: &[f64],
+        v: &[f64],
+    ) {
+        let zero = std::mem::take(&mut cd.zero_v);
+        forward_kinematics(model, data, q, v, &zero);
+        cd.zero_v = zero;
+        self.fill_rows(model, data, cd, q);
+        cd.j.mul_to(&DVector::from_column_slice(v), &mut cd.jv);
+    }
+
+    /// J, φ, γ from an existing kinematics pass (no J v).
+    pub(crate) fn fill_rows(&self, model: &Model, data: &Data, cd: &mut ConstraintData, q: &[f64]) {
+        for (k, c) in self.items.iter().enumerate() {
+            let mut sink = RowSink {
+                q,
+                row0: self.ranges[k].start,
+                j: &mut cd.j,
+                phi: &mut cd.phi,
+                gamma: &mut cd.gamma,
+                holonomic: &mut cd.holonomic,
+                j3: &mut cd.j3,
+                jtmp: &mut cd.jtmp,
+                j6: &mut cd.j6,
+            };
+            c.rows().fill(model, data, &mut sink);
+        }
+    }
+}
+
+fn coupling(model: &Model, bi: usize, bj: usize, a: f64, b: f64, c: f64) -> Constraint {
+    let (ji, jj) = (&model.bodies[bi].joint, &model.bodies[bj].joint);
+    Constraint::Coupling(CouplingConstraint {
+        qi: ji.idx_q,
+        vi: ji.idx_v,
+        qj: jj.idx_q,
+        vj: jj.idx_v,
+        a,
+        b,
+        c,
+    })
+}
+
+fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Result<Constraint> {
+    let name = spec.name();
+    let cerr = |message: String| Error::Constraint {
+        name: name.into(),
+        message,
+    };
+    let frame = |f: &str| model.frame_id(f).map_err(|e| cerr(e.to_string()));
+    let rows_of = |rows: &[super::Row], max: usize| -> Result<Vec<usize>> {
+        let idx: Vec<usize> = rows.iter().map(|r| r.index()).collect();
+        if idx.is_empty() {
+            return Err(cerr("no rows selected".into()));
+        }
+        if let Some(&bad) = idx.iter().find(|&&i| i >= max) {
+            return Err(cerr(format!(
+                "row '{}' is not valid for this kind",
+                rows[idx.iter().position(|&i| i == bad).unwrap()].name()
+            )));
+        }
+        let mut s = idx.clone();
+        s.sort();
+        s.dedup();
+        if s.len() != idx.len() {
+            return Err(cerr("a row is selected twice".into()));
+        }
+        Ok(idx)
+    };
+    Ok(match spec {
+        ConstraintSpec::Point {
+            frame_a,
+            point_a,
+            frame_b,
+            point_b,
+            rows,
+            ..
+        } => Constraint::Point(PointConstraint {
+            frame_a: frame(frame_a)?,
+            point_a: finite3(name, "point_a", *point_a)?,
+            frame_b: frame(frame_b)?,
+            point_b: finite3(name, "point_b", *point_b)?,
+            axes: rows_of(rows, 3)?,
+        }),
+        ConstraintSpec::Weld {
+            frame_a,
+            frame_b,
+            axes,
+            rows,
+            relative_xyz,
+            relative_rpy,
+            ..
+        } => Constraint::Weld(WeldConstraint {
+            frame_a: frame(frame_a)?,
+            frame_b: frame(frame_b)?,
+            target: SE3::new(
+                rotation_from_rpy(&finite3(name, "relative_rpy", *relative_rpy)?.into()),
+                finite3(name, "relative_xyz", *relative_xyz)?,
+            ),
+            local: *axes == super::Axes::Local,
+            rows: rows_of(rows, 6)?,
+        }),
+        ConstraintSpec::Distance {
+            frame_a,
+            point_a,
+            frame_b,
+            point_b,
+            distance,
+            ..
+        } => {
+            if !(distance.is_finite() && *distance > 0.0) {
+                return Err(cerr(format!(
+                    "distance {distance} m must be positive and finite"
+                )));
+            }
+            Constraint::Distance(DistanceConstraint {
+                frame_a: frame(frame_a)?,
+                point_a: finite3(name, "point_a", *point_a)?,
+                frame_b: frame(frame_b)?,
+                point_b: finite3(name, "point_b", *point_b)?,
+                distance: *distance,
+            })
+        }
+        ConstraintSpec::Coupling {
+            joint_i,
+            joint_j,
+            a,
+            b,
+            c,
+            ..
+        } => {
+            let bi = model.joint_body(joint_i).map_err(|e| cerr(e.to_string()))?;
+            let bj = model.joint_body(joint_j).map_err(|e| cerr(e.to_string()))?;
+            for (b_, n) in [(bi, joint_i), (bj, joint_j)] {
+                if !matches!(
+                    model.bodies[b_].joint.kind,
+                    JointKind::Revolute { .. } | JointKind::Prismatic { .. }
+                ) {
+                    return Err(cerr(format!("joint '{n}' is not a 1-DOF joint")));
+                }
+            }
+            if ![*a, *b, *c].iter().all(|x| x.is_finite()) || (*a == 0.0 && *b == 0.0) {
+                return Err(cerr(
+                    "coefficients must be finite and a, b not both zero".into(),
+                ));
+            }
+            coupling(model, bi, bj, *a, *b, *c)
+        }
+        ConstraintSpec::Rolling {
+            wheel,
+            axis,
+            radius,
+            plane_normal,
+            plane_height,
+            ..
+        } => {
+            if !(radius.is_finite() && *radius > 0.0) {
+                return Err(cerr(format!(
+                    "wheel radius {radius} m must be positive and finite"
+                )));
+            }
+            let axis = unit(name, "wheel axis", *axis)?;
+            let n = unit(name, "plane normal", *plane_normal)?;
+            let wheel = frame(wheel)?;
+            let mut c = RollingConstraint {
+                wheel,
+                axis,
+                radius: *radius,
+                basis: RollingConstraint::basis_for(&n),
+                height: *plane_height,
+                rows: vec![0, 1, 2],
+            };
+            let a_world = crate::algorithm::frame_placement(model, data, wheel).rotation * axis;
+            if a_world.dot(&n).abs() > 1.0 - 1e-9 {
+                return Err(cerr(
+                    "wheel axis is parallel to the plane normal: the contact point is undefined"
+                        .into(),
+                ));
+            }
+            // Keep the normal row only if the contact can move along n.
+            let pc = c.contact(model, data).point;
+            let o_m_w = crate::algorithm::frame_placement(model, data, wheel);
+            let mut j3 = DMatrix::zeros(3, model.nv);
+            crate::algorithm::point_jacobian(
+                model,
+                data,
+                wheel,
+                &o_m_w.act_inv_point(&pc),
+                &mut j3,
+                0,
+            );
+            let jn = n.transpose() * j3;
+            if jn.amax() < 1e-12 {
+                c.rows = vec![0, 1];
+            }
+            Constraint::Rolling(c)
+        }
+        ConstraintSpec::NoSideSlip { frame: f, axis, .. } => {
+            Constraint::NoSideSlip(NoSideSlipConstraint {
+                frame: frame(f)?,
+                axis: unit(name, "axis", *axis)?,
+            })
+        }
+    })
+}

@@ -1,0 +1,81 @@
+//! Small dense kernels that work in place on preallocated matrices (no allocation).
+
+use nalgebra::{DMatrix, DVector};
+
+/// In-place Cholesky `A = L Lᵀ` of the leading n × n block (lower triangle written, upper left
+/// untouched). Fails with the index of the first pivot ≤ `rel_tol · max diag(A)`.
+pub fn cholesky_in_place(a: &mut DMatrix<f64>, rel_tol: f64) -> Result<(), usize> {
+    let n = a.nrows();
+    let scale = (0..n)
+        .map(|i| a[(i, i)].abs())
+        .fold(0.0, f64::max)
+        .max(f64::MIN_POSITIVE);
+    for j in 0..n {
+        let mut d = a[(j, j)];
+        for k in 0..j {
+            d -= a[(j, k)] * a[(j, k)];
+        }
+        if !(d > rel_tol * scale) {
+            return Err(j);
+        }
+        let d = d.sqrt();
+        a[(j, j)] = d;
+        for i in j + 1..n {
+            let mut s = a[(i, j)];
+            for k in 0..j {
+                s -= a[(i, k)] * a[(j, k)];
+            }
+            a[(i, j)] = s / d;
+        }
+    }
+    Ok(())
+}
+
+/// Solve `L x = b` in place (L lower triangular from `cholesky_in_place`).
+pub fn solve_lower(l: &DMatrix<f64>, b: &mut [f64]) {
+    let n = l.nrows();
+    for i in 0..n {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= l[(i, k)] * b[k];
+        }
+        b[i] = s / l[(i, i)];
+    }
+}
+
+/// Solve `Lᵀ x = b` in place.
+pub fn solve_lower_transpose(l: &DMatrix<f64>, b: &mut [f64]) {
+    let n = l.nrows();
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in i + 1..n {
+            s -= l[(k, i)] * b[k];
+        }
+        b[i] = s / l[(i, i)];
+    }
+}
+
+/// Solve `L Lᵀ x = b` in place.
+pub fn cholesky_solve(l: &DMatrix<f64>, b: &mut [f64]) {
+    solve_lower(l, b);
+    solve_lower_transpose(l, b);
+}
+
+/// `out = A x` without allocation.
+pub fn mat_vec(a: &DMatrix<f64>, x: &[f64], out: &mut [f64]) {
+    for (i, o) in out.iter_mut().enumerate() {
+        *o = (0..a.ncols()).map(|k| a[(i, k)] * x[k]).sum();
+    }
+}
+
+/// `out = Aᵀ x` without allocation.
+pub fn mat_tr_vec(a: &DMatrix<f64>, x: &[f64], out: &mut [f64]) {
+    for (j, o) in out.iter_mut().enumerate() {
+        *o = (0..a.nrows()).map(|k| a[(k, j)] * x[k]).sum();
+    }
+}
+
+/// Infinity norm of a vector.
+pub fn norm_inf(x: &DVector<f64>) -> f64 {
+    x.iter().fold(0.0, |m, v| m.max(v.abs()))
+}

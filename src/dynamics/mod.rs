@@ -1,0 +1,49 @@
+//! Constrained forward dynamics: `M(q) q̈ + h(q, v) = τ + Jᵀλ` with `J q̈ = −γ − K_d J v − K_p φ`.
+//!
+//! Two formulations give the same q̈:
+//! - [`multipliers`]: the KKT system `[M Jᵀ; J 0][q̈; −λ] = [τ − h; −γ − K_d J v − K_p φ]` through
+//!   a Cholesky factor of M and the Schur complement `J M⁻¹ Jᵀ`, returning λ;
+//! - [`embedded`]: Voronets' multiplier-free form, dependent velocities solved from the
+//!   constraints, `(NᵀMN) q̈_i = Nᵀ(τ − h − M q̈_p)` in the independent coordinates only.
+//! `Formulation::Auto` uses the embedded form unless constraint forces are asked for.
+
+mod dense;
+mod embedded;
+mod multipliers;
+
+pub use dense::{cholesky_in_place, cholesky_solve};
+pub use embedded::{EmbeddedWorkspace, Partition, embedded_forward_dynamics};
+pub use multipliers::{KktWorkspace, constrained_forward_dynamics};
+
+use serde::{Deserialize, Serialize};
+
+/// Baumgarte stabilisation gains: `J q̈ = −γ − K_d (J v) − K_p φ`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Baumgarte {
+    /// Position gain K_p [1/s²].
+    pub kp: f64,
+    /// Velocity gain K_d [1/s].
+    pub kd: f64,
+}
+
+impl Baumgarte {
+    /// Critically damped gains for a residual time constant T [s]: K_d = 2/T, K_p = 1/T².
+    pub fn from_time_constant(t: f64) -> Self {
+        Self {
+            kp: 1.0 / (t * t),
+            kd: 2.0 / t,
+        }
+    }
+}
+
+/// Which formulation solves the constrained dynamics.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Formulation {
+    /// Embedded unless constraint forces are asked for.
+    #[default]
+    Auto,
+    Multipliers,
+    Embedded,
+}
