@@ -13,6 +13,9 @@ pub mod error;
 pub mod model;
 pub mod scene;
 pub mod spatial;
+pub mod system;
 
 pub use error::{Error, Result};
 pub use model::{BaseType, Model, ModelOptions};
+pub use scene::Scene;
+pub use system::System;

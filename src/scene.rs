@@ -2,6 +2,7 @@
 //! constraints. Unknown keys are an error that names the key.
 
 use crate::constraints::ConstraintSpec;
+use crate::dynamics::{Baumgarte, Formulation};
 use crate::error::{Error, Result};
 use crate::model::{BaseType, Model, ModelOptions};
 use nalgebra::Vector3;
@@ -37,6 +38,48 @@ pub struct SceneFile {
     pub initial_state: InitialState,
     #[serde(default)]
     pub constraints: Vec<ConstraintSpec>,
+    #[serde(default)]
+    pub dynamics: DynamicsSettings,
+}
+
+/// How the constrained dynamics is solved.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DynamicsSettings {
+    /// auto (embedded unless forces are asked for) | multipliers | embedded.
+    #[serde(default)]
+    pub formulation: Formulation,
+    /// Baumgarte stabilisation as a residual time constant T [s] (K_d = 2/T, K_p = 1/T²).
+    #[serde(default)]
+    pub baumgarte_time_constant: Option<f64>,
+    /// Or explicit gains K_p [1/s²], K_d [1/s].
+    #[serde(default)]
+    pub baumgarte: Option<Baumgarte>,
+}
+
+impl DynamicsSettings {
+    /// Validated gains and formulation.
+    pub fn settings(&self) -> Result<(Baumgarte, Formulation)> {
+        let b = match (self.baumgarte_time_constant, self.baumgarte) {
+            (Some(_), Some(_)) => {
+                return Err(Error::Invalid(
+                    "dynamics: give baumgarte_time_constant or baumgarte gains, not both".into(),
+                ));
+            }
+            (Some(t), None) if !(t.is_finite() && t > 0.0) => {
+                return Err(Error::Invalid(format!(
+                    "dynamics.baumgarte_time_constant = {t} s must be positive"
+                )));
+            }
+            (Some(t), None) => Baumgarte::from_time_constant(t),
+            (None, Some(g)) if !(g.kp >= 0.0 && g.kd >= 0.0 && g.kp.is_finite() && g.kd.is_finite()) => {
+                return Err(Error::Invalid("dynamics.baumgarte gains must be finite and ≥ 0".into()));
+            }
+            (None, Some(g)) => g,
+            (None, None) => Baumgarte::default(),
+        };
+        Ok((b, self.formulation))
+    }
 }
 
 /// A loaded scene: the model built as the file asks, its constraint declarations and initial state.

@@ -19,7 +19,9 @@ pub struct Data {
     pub a_gf: Vec<Motion>,
     /// Body wrenches in body frames (RNEA).
     pub f: Vec<Force>,
-    /// Composite inertias (CRBA), body frames.
+    /// World-axes joint subspace columns ᵒS_i (CRBA).
+    pub o_s: Vec<[Motion; 6]>,
+    /// Composite inertias (CRBA), world axes.
     pub ycrb: Vec<Inertia>,
     /// Joint-space inertia matrix M(q), nv × nv, symmetric.
     pub mass_matrix: DMatrix<f64>,
@@ -49,6 +51,7 @@ impl Data {
             a: vec![Motion::zero(); nb],
             a_gf: vec![Motion::zero(); nb],
             f: vec![Force::zero(); nb],
+            o_s: vec![[Motion::zero(); 6]; nb],
             ycrb: vec![Inertia::zero(); nb],
             mass_matrix: DMatrix::zeros(nv, nv),
             tau: DVector::zeros(nv),

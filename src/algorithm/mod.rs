@@ -13,6 +13,7 @@ mod rnea;
 
 pub use aba::aba;
 pub use crba::crba;
+pub(crate) use crba::crba_after_kinematics;
 pub use data::Data;
 pub use energy::{center_of_mass, kinetic_energy, potential_energy};
 pub use jacobian::{ReferenceFrame, frame_jacobian, point_jacobian};
@@ -21,3 +22,4 @@ pub use kinematics::{
     point_classical_acceleration, point_position, point_velocity,
 };
 pub use rnea::{nonlinear_effects, rnea};
+pub(crate) use rnea::bias_forces_after_kinematics;

@@ -70,3 +70,27 @@ fn rnea_impl<'a>(
     }
     &data.tau
 }
+
+/// Bias forces h into `data.tau` reusing a `forward_kinematics` pass at (q, v, q̈ = 0): the
+/// accelerations with gravity are `a_i + (R_iᵀ(−g), 0)`, so no second forward pass is needed.
+pub(crate) fn bias_forces_after_kinematics(model: &Model, data: &mut Data) {
+    for i in 1..model.nbodies() {
+        let b = &model.bodies[i];
+        let g_local = data.o_m_i[i].rotation.tr_mul(&(-model.gravity));
+        let ai = data.a[i] + Motion::new(g_local, Vector3::zeros());
+        let vi = data.v[i];
+        let iv = b.inertia.mul_motion(&vi);
+        data.f[i] = b.inertia.mul_motion(&ai) + vi.cross_force(&iv);
+    }
+    for i in (1..model.nbodies()).rev() {
+        let b = &model.bodies[i];
+        let j = &b.joint;
+        for k in 0..j.kind.nv() {
+            data.tau[j.idx_v + k] = j.subspace[k].dot(&data.f[i]);
+        }
+        if b.parent > 0 {
+            let fp = data.li_m_i[i].act_force(&data.f[i]);
+            data.f[b.parent] += fp;
+        }
+    }
+}

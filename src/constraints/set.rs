@@ -189,7 +189,9 @@ impl ConstraintSet {
         forward_kinematics(model, data, q, v, &zero);
         cd.zero_v = zero;
         self.fill_rows(model, data, cd, q);
-        cd.j.mul_to(&DVector::from_column_slice(v), &mut cd.jv);
+        for r in 0..self.nrows {
+            cd.jv[r] = (0..v.len()).map(|c| cd.j[(r, c)] * v[c]).sum();
+        }
     }
 
     /// J, φ, γ from an existing kinematics pass (no J v).

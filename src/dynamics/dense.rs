@@ -1,6 +1,6 @@
 //! Small dense kernels that work in place on preallocated matrices (no allocation).
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 
 /// In-place Cholesky `A = L Lᵀ` of the leading n × n block (lower triangle written, upper left
 /// untouched). Fails with the index of the first pivot ≤ `rel_tol · max diag(A)`.
@@ -75,7 +75,21 @@ pub fn mat_tr_vec(a: &DMatrix<f64>, x: &[f64], out: &mut [f64]) {
     }
 }
 
-/// Infinity norm of a vector.
-pub fn norm_inf(x: &DVector<f64>) -> f64 {
-    x.iter().fold(0.0, |m, v| m.max(v.abs()))
+/// Indices of a maximal set of linearly independent columns of `a` (column-pivoted QR).
+pub(crate) fn independent_columns(a: &DMatrix<f64>, tol: f64) -> Vec<usize> {
+    let (m, n) = a.shape();
+    if m == 0 || n == 0 {
+        return vec![];
+    }
+    let qr = a.clone().col_piv_qr();
+    let r = qr.r();
+    let rmax = (0..m.min(n)).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
+    let rank = (0..m.min(n))
+        .take_while(|&i| r[(i, i)].abs() > tol * rmax.max(f64::MIN_POSITIVE))
+        .count();
+    // Column order of A P: apply the pivoting to a row of column indices.
+    let mut idx = DMatrix::<f64>::from_fn(1, n, |_, j| j as f64);
+    qr.p().permute_columns(&mut idx);
+    (0..rank).map(|j| idx[(0, j)] as usize).collect()
 }
+

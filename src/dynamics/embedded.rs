@@ -13,6 +13,7 @@ use crate::algorithm::{Data, crba, nonlinear_effects};
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
 use crate::model::Model;
+use super::dense::independent_columns;
 use nalgebra::{DMatrix, DVector};
 
 /// The coordinate partition chosen from J: independent and dependent velocity indices.
@@ -32,24 +33,6 @@ pub struct EmbeddedWorkspace {
     pub n: DMatrix<f64>,
     /// q̈ (nv).
     pub qdd: DVector<f64>,
-}
-
-/// Indices of a maximal set of linearly independent columns of `a` (column-pivoted QR).
-fn independent_columns(a: &DMatrix<f64>, tol: f64) -> Vec<usize> {
-    let (m, n) = a.shape();
-    if m == 0 || n == 0 {
-        return vec![];
-    }
-    let qr = a.clone().col_piv_qr();
-    let r = qr.r();
-    let rmax = (0..m.min(n)).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
-    let rank = (0..m.min(n))
-        .take_while(|&i| r[(i, i)].abs() > tol * rmax.max(f64::MIN_POSITIVE))
-        .count();
-    // Column order of A P: apply the pivoting to a row of column indices.
-    let mut idx = DMatrix::<f64>::from_fn(1, n, |_, j| j as f64);
-    qr.p().permute_columns(&mut idx);
-    (0..rank).map(|j| idx[(0, j)] as usize).collect()
 }
 
 /// Choose the partition at the current J.

@@ -9,6 +9,7 @@
 
 mod dense;
 mod embedded;
+mod ltl;
 mod multipliers;
 
 pub use dense::{cholesky_in_place, cholesky_solve};

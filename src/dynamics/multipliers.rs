@@ -1,7 +1,8 @@
 //! The multiplier form: KKT through a Cholesky factor of M and the Schur complement.
 //!
-//! With M = L Lᵀ, Y = L⁻¹ Jᵀ (nv × nc) and S = Yᵀ Y = J M⁻¹ Jᵀ (nc × nc):
-//!   q̈_free = M⁻¹ (τ − h),  S λ = b − J q̈_free,  q̈ = q̈_free + L⁻ᵀ Y λ,
+//! With M = W Wᵀ (W = Lᵀ of Featherstone's sparse LTL factor), Y = W⁻¹ Jᵀ (nv × nc) and
+//! S = Yᵀ Y = J M⁻¹ Jᵀ (nc × nc):
+//!   q̈_free = M⁻¹ (τ − h),  S λ = b − J q̈_free,  q̈ = q̈_free + W⁻ᵀ Y λ,
 //! where b = −γ − K_d J v − K_p φ. Redundant or singular constraint sets (S singular) are solved
 //! with the minimum-norm λ from S's eigen-decomposition and the rank deficiency is reported; a right
 //! side outside range(S) means the constraints have no solution, an error. When M itself is only
@@ -12,19 +13,23 @@ use super::Baumgarte;
 use super::dense::{
     cholesky_in_place, cholesky_solve, mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
 };
-use crate::algorithm::{Data, crba, nonlinear_effects};
+use crate::algorithm::{Data, bias_forces_after_kinematics, crba_after_kinematics};
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
 use crate::model::Model;
-use nalgebra::{DMatrix, DVector, SymmetricEigen};
+use super::dense::independent_columns;
+use super::ltl::{ltl_factor, ltl_solve_l, ltl_solve_lt};
+use nalgebra::{DMatrix, DVector};
 
-/// Relative threshold below which a pivot or eigenvalue of S counts as zero.
-const RANK_TOL: f64 = 1e-10;
+/// Relative threshold below which a Cholesky pivot of S counts as zero.
+const RANK_TOL: f64 = 1e-12;
+/// The same threshold on Y = L⁻¹Jᵀ (singular values of Y are square roots of S's eigenvalues).
+const RANK_TOL_Y: f64 = 1e-6;
 
 /// Workspace and results of the multiplier form (allocated once per model and constraint set).
 #[derive(Clone, Debug)]
 pub struct KktWorkspace {
-    /// Cholesky factor L of M (or of M + ρ JᵀJ when `augmented`).
+    /// LTL factor of M (or dense Cholesky factor of M + ρ JᵀJ when `augmented`).
     pub l: DMatrix<f64>,
     y: DMatrix<f64>,
     s: DMatrix<f64>,
@@ -80,9 +85,10 @@ pub fn constrained_forward_dynamics(
     tau: &[f64],
     stab: Baumgarte,
 ) -> Result<()> {
+    // One kinematics pass at (q, v, q̈ = 0) serves the constraints, M and h.
     set.evaluate(model, data, cd, q, v);
-    crba(model, data, q);
-    nonlinear_effects(model, data, q, v);
+    crba_after_kinematics(model, data);
+    bias_forces_after_kinematics(model, data);
     for i in 0..model.nv {
         ws.rhs[i] = tau[i] - data.tau[i];
     }
@@ -90,26 +96,19 @@ pub fn constrained_forward_dynamics(
         ws.b[k] = -cd.gamma[k] - stab.kd * cd.jv[k] - stab.kp * cd.phi[k];
     }
     factor_mass(model, data, cd, ws)?;
-    solve_kkt(set, cd, ws)
+    solve_kkt(model, set, cd, ws)
 }
 
-/// L from M, or from M + ρ JᵀJ when M is semi-definite.
-fn factor_mass(
-    model: &Model,
-    data: &Data,
-    cd: &ConstraintData,
-    ws: &mut KktWorkspace,
-) -> Result<()> {
+/// Factor M (sparse LTL, `M = LᵀL`), or the augmented M + ρ JᵀJ (dense Cholesky, `L Lᵀ`) when
+/// M is only semi-definite.
+fn factor_mass(model: &Model, data: &Data, cd: &ConstraintData, ws: &mut KktWorkspace) -> Result<()> {
     ws.l.copy_from(&data.mass_matrix);
     ws.augmented = false;
-    if cholesky_in_place(&mut ws.l, 1e-14).is_ok() {
+    if ltl_factor(&mut ws.l, &model.v_parent, 1e-14).is_ok() {
         return Ok(());
     }
     let m = &data.mass_matrix;
-    let rho = (0..model.nv)
-        .map(|i| m[(i, i)])
-        .fold(0.0, f64::max)
-        .max(1.0);
+    let rho = (0..model.nv).map(|i| m[(i, i)]).fold(0.0, f64::max).max(1.0);
     ws.l.copy_from(m);
     let j = &cd.j;
     for a in 0..model.nv {
@@ -128,11 +127,21 @@ fn factor_mass(
     })
 }
 
-fn solve_kkt(set: &ConstraintSet, cd: &ConstraintData, ws: &mut KktWorkspace) -> Result<()> {
+/// `x ← W⁻ᵀ x` and `x ← W⁻¹ x` for the factor W with M = W Wᵀ (W = Lᵀ of the LTL factor,
+/// or the dense Cholesky factor when augmented).
+fn half_solve(model: &Model, ws_l: &DMatrix<f64>, augmented: bool, x: &mut [f64]) {
+    if augmented { solve_lower(ws_l, x) } else { ltl_solve_lt(ws_l, &model.v_parent, x) }
+}
+fn half_solve_t(model: &Model, ws_l: &DMatrix<f64>, augmented: bool, x: &mut [f64]) {
+    if augmented { solve_lower_transpose(ws_l, x) } else { ltl_solve_l(ws_l, &model.v_parent, x) }
+}
+
+fn solve_kkt(model: &Model, set: &ConstraintSet, cd: &ConstraintData, ws: &mut KktWorkspace) -> Result<()> {
     let (nv, nc) = (ws.qdd.len(), set.nrows);
-    // q̈_free = M⁻¹ (τ − h)
+    // q̈_free = M⁻¹ (τ − h) = W⁻ᵀ W⁻¹ (τ − h)
     ws.qdd.copy_from(&ws.rhs);
-    cholesky_solve(&ws.l, ws.qdd.as_mut_slice());
+    half_solve(model, &ws.l, ws.augmented, ws.qdd.as_mut_slice());
+    half_solve_t(model, &ws.l, ws.augmented, ws.qdd.as_mut_slice());
     ws.lambda.fill(0.0);
     ws.rank_deficiency = 0;
     if nc == 0 {
@@ -145,7 +154,7 @@ fn solve_kkt(set: &ConstraintSet, cd: &ConstraintData, ws: &mut KktWorkspace) ->
             ws.y[(i, k)] = cd.j[(k, i)];
         }
         let mut col = ws.y.column_mut(k);
-        solve_lower(&ws.l, col.as_mut_slice());
+        half_solve(model, &ws.l, ws.augmented, col.as_mut_slice());
     }
     ws.y.tr_mul_to(&ws.y, &mut ws.s);
     // r = b − J q̈_free
@@ -161,7 +170,7 @@ fn solve_kkt(set: &ConstraintSet, cd: &ConstraintData, ws: &mut KktWorkspace) ->
     }
     // q̈ = q̈_free + L⁻ᵀ (Y λ), generalized force Jᵀλ.
     mat_vec(&ws.y, ws.lambda.as_slice(), ws.tmp.as_mut_slice());
-    solve_lower_transpose(&ws.l, ws.tmp.as_mut_slice());
+    half_solve_t(model, &ws.l, ws.augmented, ws.tmp.as_mut_slice());
     ws.qdd += &ws.tmp;
     mat_tr_vec(
         &cd.j,
@@ -171,40 +180,59 @@ fn solve_kkt(set: &ConstraintSet, cd: &ConstraintData, ws: &mut KktWorkspace) ->
     Ok(())
 }
 
-/// Minimum-norm λ of the singular S λ = r (eigen-decomposition; allocates, off the regular path).
+/// Minimum-norm λ of the singular S λ = r (allocates; off the regular path).
+///
+/// Column-pivoted QR of Y = L⁻¹Jᵀ picks a maximal independent set I of rows (‖r_kk‖ above
+/// `RANK_TOL_Y` relative); S_II λ_I = r_I gives one solution λ₀ (λ_D = 0), whose consistency with
+/// the dropped rows is checked; the minimum-norm solution is λ₀ minus its projection on
+/// null(S) = span{e_d − S_II⁻¹ S_Id}.
 fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
+    let nc = set.nrows;
     ws.y.tr_mul_to(&ws.y, &mut ws.s);
-    let eig = SymmetricEigen::new(ws.s.clone());
-    let smax = eig.eigenvalues.amax().max(f64::MIN_POSITIVE);
-    let mut lambda = DVector::zeros(set.nrows);
-    let mut rank = 0;
-    for (k, &e) in eig.eigenvalues.iter().enumerate() {
-        if e > RANK_TOL * smax {
-            let u = eig.eigenvectors.column(k);
-            lambda += u * (u.dot(&ws.r) / e);
-            rank += 1;
-        }
+    let ind = independent_columns(&ws.y, RANK_TOL_Y);
+    let dep: Vec<usize> = (0..nc).filter(|k| !ind.contains(k)).collect();
+    let s_ii = ws.s.select_rows(ind.iter()).select_columns(ind.iter());
+    let chol = s_ii.cholesky().ok_or_else(|| Error::InconsistentConstraints {
+        message: "the independent constraint rows are numerically singular".into(),
+    })?;
+    let r_i = ws.r.select_rows(ind.iter());
+    let lam_i = chol.solve(&r_i);
+    let mut lambda = DVector::zeros(nc);
+    for (a, &k) in ind.iter().enumerate() {
+        lambda[k] = lam_i[a];
     }
     let resid = &ws.s * &lambda - &ws.r;
     let scale = ws.r.amax().max(1.0);
     if resid.amax() > 1e-7 * scale {
         let worst = resid.iamax();
-        let name = set
-            .ranges
-            .iter()
-            .position(|rg| rg.contains(&worst))
-            .map(|k| set.names[k].clone())
-            .unwrap_or_default();
+        let name = set.ranges.iter().position(|rg| rg.contains(&worst)).map(|k| set.names[k].clone());
         return Err(Error::InconsistentConstraints {
             message: format!(
-                "the constraint accelerations cannot all be met (rank {rank} of {}; largest \
-                 violation {:.3e} on a row of '{name}')",
-                set.nrows,
-                resid.amax()
+                "the constraint accelerations cannot all be met (rank {} of {nc}; largest \
+                 violation {:.3e} on a row of '{}')",
+                ind.len(),
+                resid.amax(),
+                name.unwrap_or_default()
             ),
         });
     }
+    if !dep.is_empty() {
+        let s_id = ws.s.select_rows(ind.iter()).select_columns(dep.iter());
+        let w = chol.solve(&s_id);
+        let mut n = DMatrix::zeros(nc, dep.len());
+        for (b, &d) in dep.iter().enumerate() {
+            n[(d, b)] = 1.0;
+            for (a, &k) in ind.iter().enumerate() {
+                n[(k, b)] = -w[(a, b)];
+            }
+        }
+        let ntn = n.transpose() * &n;
+        let coef = ntn.cholesky().map(|c| c.solve(&(n.transpose() * &lambda)));
+        if let Some(coef) = coef {
+            lambda -= &n * coef;
+        }
+    }
     ws.lambda.copy_from(&lambda);
-    ws.rank_deficiency = set.nrows - rank;
+    ws.rank_deficiency = dep.len();
     Ok(())
 }

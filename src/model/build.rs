@@ -242,6 +242,7 @@ impl<'a> Builder<'a> {
             limits: Limits::default(),
             mimics: vec![],
             base: opts.base,
+            v_parent: vec![],
         };
         Ok(Self {
             robot,
@@ -461,6 +462,12 @@ impl<'a> Builder<'a> {
         lim.velocity.extend(std::iter::repeat_n(vel, nv));
         lim.effort.extend(std::iter::repeat_n(eff, nv));
         lim.damping.extend(std::iter::repeat_n(damp, nv));
+        // Last velocity coordinate of the nearest ancestor body that has one.
+        let mut up = if parent == 0 { usize::MAX } else { m.bodies[parent].joint.idx_v + m.bodies[parent].joint.kind.nv() - 1 };
+        for k in 0..nv {
+            m.v_parent.push(up);
+            up = idx_v + k;
+        }
         let subspace = kind.motion_subspace();
         m.bodies.push(Body {
             name: link.to_string(),

@@ -92,6 +92,9 @@ pub struct Model {
     pub limits: Limits,
     pub mimics: Vec<Mimic>,
     pub base: BaseType,
+    /// Per velocity coordinate, the previous coordinate on the path to the root
+    /// (`usize::MAX` for none): the sparsity pattern of M's LTL factor.
+    pub v_parent: Vec<usize>,
 }
 
 impl Model {

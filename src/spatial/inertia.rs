@@ -58,22 +58,25 @@ impl Inertia {
         }
     }
 
-    /// Sum of two inertias expressed in the same frame (parallel-axis theorem).
+    /// Sum of two inertias expressed in the same frame (parallel-axis theorem:
+    /// `I_c = Σ I_k + m_k (|d_k|² 1 − d_k d_kᵀ)`, `d_k = c_k − c`).
+    #[inline]
     pub fn add(&self, o: &Inertia) -> Inertia {
         let m = self.mass + o.mass;
         if m <= 0.0 {
             return Inertia::zero();
         }
         let c = (self.com * self.mass + o.com * o.mass) / m;
-        let d1 = self.com - c;
-        let d2 = o.com - c;
-        let s1 = skew(&d1);
-        let s2 = skew(&d2);
-        Inertia {
-            mass: m,
-            com: c,
-            inertia_com: self.inertia_com + o.inertia_com - s1 * s1 * self.mass - s2 * s2 * o.mass,
-        }
+        // Σ m_k (|d_k|² 1 − d_k d_kᵀ) with d₁ = (m₂/m) δ, d₂ = −(m₁/m) δ, δ = c₁ − c₂, equals
+        // μ (|δ|² 1 − δ δᵀ) with μ = m₁ m₂ / m.
+        let delta = self.com - o.com;
+        let mu = self.mass * o.mass / m;
+        let mut ic = self.inertia_com + o.inertia_com - delta * delta.transpose() * mu;
+        let d2 = delta.norm_squared() * mu;
+        ic[(0, 0)] += d2;
+        ic[(1, 1)] += d2;
+        ic[(2, 2)] += d2;
+        Inertia { mass: m, com: c, inertia_com: ic }
     }
 
     /// The 6×6 matrix form on `[lin; ang]`.

@@ -1,0 +1,189 @@
+//! `constraint_dynamics_msgs/msg/*` and `/srv/*`: this project's interfaces.
+//!
+//! The ROS definitions (with the meaning and unit of every field) are in
+//! `interfaces/constraint_dynamics_msgs/`; these structs follow them field for
+//! field.
+
+use serde::{Deserialize, Serialize};
+
+use super::geometry_msgs::Wrench;
+use super::std_msgs::Header;
+
+/// `constraint_dynamics_msgs/msg/ConstraintForce`: the force one constraint
+/// exerts, BY the environment ON the robot.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ConstraintForce {
+    /// Constraint name, as in the node's constraint parameters.
+    pub name: String,
+    /// `point`, `weld`, `distance`, `coupling`, `rolling` or `no_side_slip`.
+    pub kind: String,
+    /// Frame at whose origin the wrench acts.
+    pub frame_id: String,
+    /// Frame whose axes express the wrench.
+    pub axes_frame_id: String,
+    /// The constraint force [N, N·m].
+    pub wrench: Wrench,
+    /// Raw multipliers λ, one per row.
+    pub multipliers: Vec<f64>,
+    /// Row names, as long as `multipliers`.
+    pub row_names: Vec<String>,
+    /// Position-level residual per row [m or rad] (empty if non-holonomic).
+    pub position_residual: Vec<f64>,
+    /// Velocity-level residual J·v per row [m/s or rad/s].
+    pub velocity_residual: Vec<f64>,
+    /// Rolling only: normal force magnitude [N], else 0.
+    pub normal_force: f64,
+    /// Rolling only: tangential force magnitude [N], else 0.
+    pub tangential_force: f64,
+    /// Rolling only: `tangential_force > μ · normal_force`.
+    pub slipping: bool,
+}
+
+/// `constraint_dynamics_msgs/msg/ConstraintForces`: all constraint forces at one state.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ConstraintForces {
+    /// Stamp of the state; frame_id the world frame.
+    pub header: Header,
+    /// One per constraint, in the node's constraint order.
+    pub constraints: Vec<ConstraintForce>,
+    /// Names of the velocity coordinates (nv).
+    pub v_names: Vec<String>,
+    /// Jᵀλ per velocity coordinate [N or N·m].
+    pub generalized_force: Vec<f64>,
+    /// Number of dependent constraint rows (0 if J has full row rank).
+    pub rank_deficiency: u32,
+}
+
+super::ros_messages!("constraint_dynamics_msgs": ConstraintForce, ConstraintForces);
+
+/// `constraint_dynamics_msgs/srv/*`.
+pub mod srv {
+    use serde::{Deserialize, Serialize};
+
+    use super::ConstraintForces;
+    use crate::msg::RosService;
+    use crate::msg::geometry_msgs::Twist;
+    use crate::msg::nav_msgs::Path;
+
+    /// Implements [`RosService`] for a marker type and [`ros2_client::Message`]
+    /// for its request and response.
+    macro_rules! ros_service {
+        ($srv:ident, $req:ident, $resp:ident) => {
+            #[doc = concat!("Marker for the `constraint_dynamics_msgs/srv/", stringify!($srv), "` service.")]
+            #[derive(Clone, Copy, Debug)]
+            pub struct $srv;
+            impl RosService for $srv {
+                type Request = $req;
+                type Response = $resp;
+                const PACKAGE: &'static str = "constraint_dynamics_msgs";
+                const NAME: &'static str = stringify!($srv);
+            }
+            impl ros2_client::Message for $req {}
+            impl ros2_client::Message for $resp {}
+        };
+    }
+
+    /// Request of `GetConstraintForces`. Empty name lists mean the node's coordinate order.
+    #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct GetConstraintForcesRequest {
+        pub use_latest_state: bool,
+        pub q_names: Vec<String>,
+        /// Configuration [m, rad, quaternion components].
+        pub q: Vec<f64>,
+        pub v_names: Vec<String>,
+        /// Velocity [m/s, rad/s].
+        pub v: Vec<f64>,
+        /// Actuator generalized forces in v order [N, N·m]; empty = zero.
+        pub tau: Vec<f64>,
+    }
+
+    /// Response of `GetConstraintForces`.
+    #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct GetConstraintForcesResponse {
+        pub success: bool,
+        pub message: String,
+        pub forces: ConstraintForces,
+        /// Generalized acceleration in `forces.v_names` order [m/s², rad/s²].
+        pub qdd: Vec<f64>,
+    }
+
+    ros_service!(
+        GetConstraintForces,
+        GetConstraintForcesRequest,
+        GetConstraintForcesResponse
+    );
+
+    /// Request of `ProjectVelocity`.
+    #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct ProjectVelocityRequest {
+        pub use_latest_state: bool,
+        pub q: Vec<f64>,
+        pub v_names: Vec<String>,
+        pub v_des: Vec<f64>,
+        pub use_twist: bool,
+        /// Desired base twist in the base frame [m/s, rad/s].
+        pub base_twist: Twist,
+        pub joint_names: Vec<String>,
+        pub joint_velocities: Vec<f64>,
+        pub bound_names: Vec<String>,
+        pub lower: Vec<f64>,
+        pub upper: Vec<f64>,
+        /// If > 0, bound |v − v_current| ≤ a_max · accel_limit_dt [s].
+        pub accel_limit_dt: f64,
+    }
+
+    /// Response of `ProjectVelocity`.
+    #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct ProjectVelocityResponse {
+        pub success: bool,
+        pub message: String,
+        /// `optimal`, `infeasible` or `error`.
+        pub status: String,
+        pub v_names: Vec<String>,
+        pub v: Vec<f64>,
+        pub base_twist: Twist,
+        pub joint_names: Vec<String>,
+        pub joint_velocities: Vec<f64>,
+        pub constraint_names: Vec<String>,
+        /// Impulse per constraint row [N·s, N·m·s].
+        pub impulses: Vec<f64>,
+        pub active_bounds: Vec<String>,
+        pub conflicting: Vec<String>,
+    }
+
+    ros_service!(
+        ProjectVelocity,
+        ProjectVelocityRequest,
+        ProjectVelocityResponse
+    );
+
+    /// Request of `Predict`.
+    #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct PredictRequest {
+        pub use_latest_state: bool,
+        pub q: Vec<f64>,
+        pub v: Vec<f64>,
+        /// Base twists, each held for `command_period`; the last held to `horizon`.
+        pub commands: Vec<Twist>,
+        /// [s]
+        pub command_period: f64,
+        /// [s]
+        pub horizon: f64,
+        pub with_forces: bool,
+    }
+
+    /// Response of `Predict`.
+    #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct PredictResponse {
+        pub success: bool,
+        pub message: String,
+        pub path: Path,
+        /// Time of each pose relative to the start [s].
+        pub times: Vec<f64>,
+        pub forces: Vec<ConstraintForces>,
+        /// Estimated position drift [m].
+        pub position_error_estimate: f64,
+    }
+
+    ros_service!(Predict, PredictRequest, PredictResponse);
+}

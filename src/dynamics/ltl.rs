@@ -1,0 +1,68 @@
+//! Featherstone's LTL factorization of the joint-space inertia matrix, `M = Lᵀ L`, exploiting
+//! branch-induced sparsity: `L[k, i] ≠ 0` only when velocity coordinate i is k itself or an
+//! ancestor of k (`parent[k]` is the previous coordinate on the path to the root, `usize::MAX`
+//! at the root). Solves with L and Lᵀ then cost O(depth) per coordinate, and a right side that
+//! lives on one branch (a foot's Jacobian row) stays on that branch.
+
+use nalgebra::DMatrix;
+
+pub const NO_PARENT: usize = usize::MAX;
+
+/// In place: the lower triangle of `m` becomes L with M = Lᵀ L. Fails with the coordinate whose
+/// pivot is ≤ `rel_tol · max diag(M)` (M not positive definite).
+pub fn ltl_factor(m: &mut DMatrix<f64>, parent: &[usize], rel_tol: f64) -> Result<(), usize> {
+    let n = m.nrows();
+    let scale = (0..n).map(|i| m[(i, i)].abs()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    for k in (0..n).rev() {
+        if !(m[(k, k)] > rel_tol * scale) {
+            return Err(k);
+        }
+        let d = m[(k, k)].sqrt();
+        m[(k, k)] = d;
+        let mut i = parent[k];
+        while i != NO_PARENT {
+            m[(k, i)] /= d;
+            i = parent[i];
+        }
+        let mut i = parent[k];
+        while i != NO_PARENT {
+            let lki = m[(k, i)];
+            let mut j = i;
+            while j != NO_PARENT {
+                m[(i, j)] -= lki * m[(k, j)];
+                j = parent[j];
+            }
+            i = parent[i];
+        }
+    }
+    Ok(())
+}
+
+/// Solve `Lᵀ y = x` in place (x → y): leaves first, each result scattered to its ancestors.
+pub fn ltl_solve_lt(l: &DMatrix<f64>, parent: &[usize], x: &mut [f64]) {
+    for k in (0..x.len()).rev() {
+        if x[k] == 0.0 {
+            continue;
+        }
+        let y = x[k] / l[(k, k)];
+        x[k] = y;
+        let mut i = parent[k];
+        while i != NO_PARENT {
+            x[i] -= l[(k, i)] * y;
+            i = parent[i];
+        }
+    }
+}
+
+/// Solve `L z = y` in place: root first, each row gathering from its ancestors.
+pub fn ltl_solve_l(l: &DMatrix<f64>, parent: &[usize], y: &mut [f64]) {
+    for k in 0..y.len() {
+        let mut s = y[k];
+        let mut i = parent[k];
+        while i != NO_PARENT {
+            s -= l[(k, i)] * y[i];
+            i = parent[i];
+        }
+        y[k] = s / l[(k, k)];
+    }
+}
