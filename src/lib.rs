@@ -6,6 +6,9 @@
 //!
 //! Dynamics convention: `M(q) q̈ + h(q, v) = τ + Jᵀλ`, SI units, gravity in world axes.
 
+// Featherstone's recurrences read best as index loops over bodies and coordinates.
+#![allow(clippy::needless_range_loop)]
+
 pub mod algorithm;
 pub mod constraints;
 pub mod dynamics;

@@ -72,8 +72,12 @@ impl DynamicsSettings {
                 )));
             }
             (Some(t), None) => Baumgarte::from_time_constant(t),
-            (None, Some(g)) if !(g.kp >= 0.0 && g.kd >= 0.0 && g.kp.is_finite() && g.kd.is_finite()) => {
-                return Err(Error::Invalid("dynamics.baumgarte gains must be finite and ≥ 0".into()));
+            (None, Some(g))
+                if !(g.kp >= 0.0 && g.kd >= 0.0 && g.kp.is_finite() && g.kd.is_finite()) =>
+            {
+                return Err(Error::Invalid(
+                    "dynamics.baumgarte gains must be finite and ≥ 0".into(),
+                ));
             }
             (None, Some(g)) => g,
             (None, None) => Baumgarte::default(),

@@ -1,7 +1,9 @@
 //! A constrained system ready to evaluate: model, constraint set, stabilisation and every
 //! workspace, built once from a scene. The CLI, the predictor and the ROS nodes go through here.
 
-use crate::algorithm::{Data, center_of_mass, forward_kinematics, kinetic_energy, potential_energy};
+use crate::algorithm::{
+    Data, center_of_mass, forward_kinematics, kinetic_energy, potential_energy,
+};
 use crate::constraints::{ConstraintData, ConstraintForce, ConstraintSet, constraint_forces};
 use crate::dynamics::{
     Baumgarte, EmbeddedWorkspace, Formulation, KktWorkspace, constrained_forward_dynamics,
@@ -29,7 +31,12 @@ pub struct System {
 
 impl System {
     /// Build from a model and its constraint set.
-    pub fn new(model: Model, constraints: ConstraintSet, baumgarte: Baumgarte, formulation: Formulation) -> Self {
+    pub fn new(
+        model: Model,
+        constraints: ConstraintSet,
+        baumgarte: Baumgarte,
+        formulation: Formulation,
+    ) -> Self {
         let data = Data::new(&model);
         let cdata = ConstraintData::new(&model, &constraints);
         let kkt = KktWorkspace::new(&model, &constraints);
@@ -55,7 +62,13 @@ impl System {
 
     /// Constrained forward dynamics at (q, v, τ); `want_forces` forces the multiplier form under
     /// `Formulation::Auto`. Returns q̈ (nv); λ is in `self.kkt.lambda` when multipliers were used.
-    pub fn forward_dynamics(&mut self, q: &[f64], v: &[f64], tau: &[f64], want_forces: bool) -> Result<&DVector<f64>> {
+    pub fn forward_dynamics(
+        &mut self,
+        q: &[f64],
+        v: &[f64],
+        tau: &[f64],
+        want_forces: bool,
+    ) -> Result<&DVector<f64>> {
         self.model.check_state(q, v)?;
         check_len("tau", tau, self.model.nv)?;
         crate::error::check_finite("tau", tau)?;
@@ -66,15 +79,29 @@ impl System {
         };
         if use_multipliers {
             constrained_forward_dynamics(
-                &self.model, &mut self.data, &self.constraints, &mut self.cdata, &mut self.kkt, q, v, tau,
+                &self.model,
+                &mut self.data,
+                &self.constraints,
+                &mut self.cdata,
+                &mut self.kkt,
+                q,
+                v,
+                tau,
                 self.baumgarte,
             )?;
             self.last_formulation = Formulation::Multipliers;
             Ok(&self.kkt.qdd)
         } else {
             embedded_forward_dynamics(
-                &self.model, &mut self.data, &self.constraints, &mut self.cdata, &mut self.embedded, q, v,
-                tau, self.baumgarte,
+                &self.model,
+                &mut self.data,
+                &self.constraints,
+                &mut self.cdata,
+                &mut self.embedded,
+                q,
+                v,
+                tau,
+                self.baumgarte,
             )?;
             self.last_formulation = Formulation::Embedded;
             Ok(&self.embedded.qdd)
@@ -83,7 +110,13 @@ impl System {
 
     /// Constraint forces of the last multiplier-form evaluation.
     pub fn constraint_forces(&self) -> Vec<ConstraintForce> {
-        constraint_forces(&self.model, &self.data, &self.constraints, &self.cdata, &self.kkt.lambda)
+        constraint_forces(
+            &self.model,
+            &self.data,
+            &self.constraints,
+            &self.cdata,
+            &self.kkt.lambda,
+        )
     }
 
     /// (kinetic, potential) energy [J] and the centre of mass [m] at (q, v).
@@ -91,6 +124,10 @@ impl System {
         let zero = vec![0.0; self.model.nv];
         forward_kinematics(&self.model, &mut self.data, q, v, &zero);
         let c = center_of_mass(&self.model, &self.data);
-        (kinetic_energy(&self.model, &self.data), potential_energy(&self.model, &self.data), [c.x, c.y, c.z])
+        (
+            kinetic_energy(&self.model, &self.data),
+            potential_energy(&self.model, &self.data),
+            [c.x, c.y, c.z],
+        )
     }
 }

@@ -12,7 +12,9 @@ const GOOD: &str = r#"<robot name="r">
 </robot>"#;
 
 fn err(urdf: &str) -> String {
-    Model::from_urdf_str(urdf, "test.urdf", &ModelOptions::default()).unwrap_err().to_string()
+    Model::from_urdf_str(urdf, "test.urdf", &ModelOptions::default())
+        .unwrap_err()
+        .to_string()
 }
 
 fn assert_has(msg: &str, parts: &[&str]) {
@@ -38,7 +40,10 @@ fn malformed_xml_names_file_and_line() {
 #[test]
 fn unknown_joint_type_is_named() {
     let e = err(&GOOD.replace("type=\"revolute\"", "type=\"ball\""));
-    assert_has(&e, &["test.urdf", "joint 'j1'", "unknown joint type 'ball'"]);
+    assert_has(
+        &e,
+        &["test.urdf", "joint 'j1'", "unknown joint type 'ball'"],
+    );
 }
 
 #[test]
@@ -69,13 +74,21 @@ fn cycle_and_two_roots_are_named() {
         r#"<link name="c"/><joint name="ja" type="fixed"><parent link="base"/><child link="c"/></joint>
            <joint name="jb" type="fixed"><parent link="arm"/><child link="c"/></joint></robot>"#,
     );
-    assert_has(&err(&twoparents), &["joint 'jb'", "already has parent joint 'ja'"]);
+    assert_has(
+        &err(&twoparents),
+        &["joint 'jb'", "already has parent joint 'ja'"],
+    );
 }
 
 #[test]
 fn locked_joint_that_does_not_exist_is_named() {
-    let opts = ModelOptions { locked_joints: vec![("elbow".into(), 0.3)], ..Default::default() };
-    let e = Model::from_urdf_str(GOOD, "t.urdf", &opts).unwrap_err().to_string();
+    let opts = ModelOptions {
+        locked_joints: vec![("elbow".into(), 0.3)],
+        ..Default::default()
+    };
+    let e = Model::from_urdf_str(GOOD, "t.urdf", &opts)
+        .unwrap_err()
+        .to_string();
     assert_has(&e, &["locked joint 'elbow'", "no joint of that name"]);
 }
 
@@ -88,7 +101,11 @@ fn scene_dir() -> std::path::PathBuf {
 fn write_scene(name: &str, body: &str) -> std::path::PathBuf {
     let urdf = common::repo_dir().join("urdf/diff_drive.urdf");
     let p = scene_dir().join(name);
-    std::fs::write(&p, format!("urdf: {}\nbase: planar\n{body}", urdf.display())).unwrap();
+    std::fs::write(
+        &p,
+        format!("urdf: {}\nbase: planar\n{body}", urdf.display()),
+    )
+    .unwrap();
     p
 }
 
@@ -97,7 +114,10 @@ fn unknown_scene_key_is_named() {
     let p = write_scene("typo.yaml", "gravty: [0, 0, -9.81]\n");
     let e = Scene::load(&p).unwrap_err().to_string();
     assert_has(&e, &["typo.yaml", "unknown field `gravty`"]);
-    let p = write_scene("typo2.yaml", "constraints:\n  - {name: c, kind: rolling, wheel: left_wheel, axis: [0,1,0], radius: 0.05, radus: 1}\n");
+    let p = write_scene(
+        "typo2.yaml",
+        "constraints:\n  - {name: c, kind: rolling, wheel: left_wheel, axis: [0,1,0], radius: 0.05, radus: 1}\n",
+    );
     assert_has(&Scene::load(&p).unwrap_err().to_string(), &["radus"]);
 }
 
@@ -110,12 +130,25 @@ fn system_err(body: &str) -> String {
 #[test]
 fn constraint_errors_name_the_constraint_and_problem() {
     let e = system_err("constraints:\n  - {name: hold, kind: point, frame_a: nosuchlink}\n");
-    assert_has(&e, &["constraint 'hold'", "unknown frame 'nosuchlink'", "base_link"]);
-    let e = system_err("constraints:\n  - {name: w, kind: rolling, wheel: left_wheel, axis: [0,1,0], radius: 0.0}\n");
+    assert_has(
+        &e,
+        &[
+            "constraint 'hold'",
+            "unknown frame 'nosuchlink'",
+            "base_link",
+        ],
+    );
+    let e = system_err(
+        "constraints:\n  - {name: w, kind: rolling, wheel: left_wheel, axis: [0,1,0], radius: 0.0}\n",
+    );
     assert_has(&e, &["constraint 'w'", "radius 0 m must be positive"]);
-    let e = system_err("constraints:\n  - {name: w, kind: rolling, wheel: left_wheel, axis: [0,1,0], radius: 0.05, plane_normal: [0,1,0]}\n");
+    let e = system_err(
+        "constraints:\n  - {name: w, kind: rolling, wheel: left_wheel, axis: [0,1,0], radius: 0.05, plane_normal: [0,1,0]}\n",
+    );
     assert_has(&e, &["constraint 'w'", "parallel to the plane normal"]);
-    let e = system_err("constraints:\n  - {name: g, kind: coupling, joint_i: left_wheel_joint, joint_j: nope, a: 1, b: 1, c: 0}\n");
+    let e = system_err(
+        "constraints:\n  - {name: g, kind: coupling, joint_i: left_wheel_joint, joint_j: nope, a: 1, b: 1, c: 0}\n",
+    );
     assert_has(&e, &["constraint 'g'", "unknown joint 'nope'"]);
 }
 
@@ -130,7 +163,10 @@ fn inconsistent_constraints_are_an_error_not_garbage() {
     let scene = Scene::load(&p).unwrap();
     let mut sys = System::from_scene(&scene).unwrap();
     let (q, v) = (scene.q0.clone(), scene.v0.clone());
-    let e = sys.forward_dynamics(&q, &v, &vec![0.0; q.len()], true).unwrap_err().to_string();
+    let e = sys
+        .forward_dynamics(&q, &v, &vec![0.0; q.len()], true)
+        .unwrap_err()
+        .to_string();
     assert_has(&e, &["inconsistent constraints", "cannot all be met"]);
 }
 
@@ -139,10 +175,16 @@ fn nan_and_wrong_sizes_are_named() {
     let scene = Scene::load(common::repo_dir().join("params/fourbar.yaml")).unwrap();
     let mut sys = System::from_scene(&scene).unwrap();
     let (mut q, v) = (scene.q0.clone(), scene.v0.clone());
-    let e = sys.forward_dynamics(&q, &v[..2], &[0.0; 3], true).unwrap_err().to_string();
+    let e = sys
+        .forward_dynamics(&q, &v[..2], &[0.0; 3], true)
+        .unwrap_err()
+        .to_string();
     assert_has(&e, &["v: expected 3 values, got 2"]);
     q[1] = f64::NAN;
-    let e = sys.forward_dynamics(&q, &v, &[0.0; 3], true).unwrap_err().to_string();
+    let e = sys
+        .forward_dynamics(&q, &v, &[0.0; 3], true)
+        .unwrap_err()
+        .to_string();
     assert_has(&e, &["q: entry 1 is not finite"]);
     let _ = ConstraintSet::new(&sys.model, &[] as &[ConstraintSpec], &scene.q0).unwrap();
 }

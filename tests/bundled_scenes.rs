@@ -14,7 +14,8 @@ fn scenes() -> Vec<std::path::PathBuf> {
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
             p.extension().is_some_and(|x| x == "yaml")
-                && std::fs::read_to_string(p).is_ok_and(|t| t.starts_with("#") || t.contains("urdf:"))
+                && std::fs::read_to_string(p)
+                    .is_ok_and(|t| t.starts_with("#") || t.contains("urdf:"))
                 && std::fs::read_to_string(p).is_ok_and(|t| !t.contains("ros__parameters"))
         })
         .collect();
@@ -32,20 +33,31 @@ fn embedded_and_multiplier_forms_agree_on_every_bundled_scene() {
         let nv = sys.model.nv;
         for k in 0..3 {
             // The scene state, then joint torques that excite every coordinate.
-            let tau: Vec<f64> = (0..nv).map(|i| k as f64 * ((i + 1) as f64 * 0.9).sin()).collect();
+            let tau: Vec<f64> = (0..nv)
+                .map(|i| k as f64 * ((i + 1) as f64 * 0.9).sin())
+                .collect();
             let (q, v) = (scene.q0.clone(), scene.v0.clone());
             sys.formulation = Formulation::Multipliers;
             let a = sys.forward_dynamics(&q, &v, &tau, true).unwrap().clone();
             sys.formulation = Formulation::Embedded;
             let b = sys.forward_dynamics(&q, &v, &tau, false).unwrap().clone();
-            assert_close(&format!("{} embedded vs multipliers", p.display()), b.as_slice(), a.as_slice(), 1e-10);
+            assert_close(
+                &format!("{} embedded vs multipliers", p.display()),
+                b.as_slice(),
+                a.as_slice(),
+                1e-10,
+            );
             assert!(a.iter().all(|x| x.is_finite()));
         }
         // Auto picks the embedded form when nobody asks for forces, multipliers when they do.
         sys.formulation = Formulation::Auto;
         let (q, v) = (scene.q0.clone(), scene.v0.clone());
         sys.forward_dynamics(&q, &v, &vec![0.0; nv], false).unwrap();
-        let expect = if sys.constraints.is_empty() { Formulation::Multipliers } else { Formulation::Embedded };
+        let expect = if sys.constraints.is_empty() {
+            Formulation::Multipliers
+        } else {
+            Formulation::Embedded
+        };
         assert_eq!(sys.last_formulation, expect, "{}", p.display());
     }
 }
@@ -55,12 +67,18 @@ fn mobile_manipulator_standing_still_carries_its_weight_on_its_contacts() {
     let scene = Scene::load(repo_dir().join("params/mobile_manipulator_floating.yaml")).unwrap();
     let mut sys = System::from_scene(&scene).unwrap();
     let nv = sys.model.nv;
-    let qdd = sys.forward_dynamics(&scene.q0, &vec![0.0; nv], &vec![0.0; nv], true).unwrap().clone();
+    let qdd = sys
+        .forward_dynamics(&scene.q0, &vec![0.0; nv], &vec![0.0; nv], true)
+        .unwrap()
+        .clone();
     assert!(qdd.amax() < 1e-9, "standing still must stay still: {qdd}");
     let mg = sys.model.total_mass() * 9.81;
     let forces = sys.constraint_forces();
     let fz: f64 = forces.iter().map(|f| f.force[2]).sum();
-    assert!((fz - mg).abs() < 1e-9 * mg, "Σ normal forces {fz} N ≠ m g = {mg} N");
+    assert!(
+        (fz - mg).abs() < 1e-9 * mg,
+        "Σ normal forces {fz} N ≠ m g = {mg} N"
+    );
     // The redundant lateral rows of the two wheels are reported, not hidden.
     assert_eq!(sys.kkt.rank_deficiency, 1);
     for f in forces.iter().filter(|f| f.kind == "rolling") {
@@ -72,7 +90,18 @@ fn mobile_manipulator_standing_still_carries_its_weight_on_its_contacts() {
 fn solo12_static_equilibrium_carries_its_weight() {
     let case = load_case("solo12_four_feet");
     let model = case_model(&case);
-    let st = case["states"].as_array().unwrap().iter().find(|s| s["label"].as_str().unwrap().to_lowercase().contains("equilibrium")).unwrap();
+    let st = case["states"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| {
+            s["label"]
+                .as_str()
+                .unwrap()
+                .to_lowercase()
+                .contains("equilibrium")
+        })
+        .unwrap();
     let specs = (0..4)
         .map(|k| {
             let c = &st["constraints"][k];
@@ -83,14 +112,21 @@ fn solo12_static_equilibrium_carries_its_weight() {
                 point_a: [0.0; 3],
                 frame_b: "world".into(),
                 point_b: [a[0], a[1], a[2]],
-                rows: vec![constraint_dynamics::constraints::Row::X, constraint_dynamics::constraints::Row::Y, constraint_dynamics::constraints::Row::Z],
+                rows: vec![
+                    constraint_dynamics::constraints::Row::X,
+                    constraint_dynamics::constraints::Row::Y,
+                    constraint_dynamics::constraints::Row::Z,
+                ],
             }
         })
         .collect::<Vec<_>>();
     let q = vecf(&st["q"]);
     let set = ConstraintSet::new(&model, &specs, &q).unwrap();
     let mut sys = System::new(model, set, Baumgarte::default(), Formulation::Multipliers);
-    let qdd = sys.forward_dynamics(&q, &vecf(&st["qd"]), &vecf(&st["tau"]), true).unwrap().clone();
+    let qdd = sys
+        .forward_dynamics(&q, &vecf(&st["qd"]), &vecf(&st["tau"]), true)
+        .unwrap()
+        .clone();
     assert!(qdd.amax() < 1e-8, "static equilibrium: q̈ = {qdd}");
     let mg = sys.model.total_mass() * 9.81;
     let fz: f64 = sys.constraint_forces().iter().map(|f| f.force[2]).sum();
@@ -101,16 +137,34 @@ fn solo12_static_equilibrium_carries_its_weight() {
 fn locked_joints_reduce_the_model_and_cost_nothing() {
     let urdf = reference_dir().join("urdf/ur5_robot.urdf");
     let full = Model::from_urdf_file(&urdf, &ModelOptions::default()).unwrap();
-    let locked = vec![("wrist_2_joint".to_string(), 0.4), ("wrist_3_joint".to_string(), -0.2)];
-    let red = Model::from_urdf_file(&urdf, &ModelOptions { locked_joints: locked, ..Default::default() }).unwrap();
+    let locked = vec![
+        ("wrist_2_joint".to_string(), 0.4),
+        ("wrist_3_joint".to_string(), -0.2),
+    ];
+    let red = Model::from_urdf_file(
+        &urdf,
+        &ModelOptions {
+            locked_joints: locked,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     assert_eq!((red.nq, red.nv, red.nbodies()), (4, 4, full.nbodies() - 2));
-    assert!(red.frame_id("tool0").is_ok(), "merged links stay named frames");
+    assert!(
+        red.frame_id("tool0").is_ok(),
+        "merged links stay named frames"
+    );
     // The reduced M equals the full M's leading block with the locked joints at their values.
     let q_full = [0.1, -0.7, 1.1, 0.3, 0.4, -0.2];
     let (mut df, mut dr) = (Data::new(&full), Data::new(&red));
     let mf = constraint_dynamics::algorithm::crba(&full, &mut df, &q_full).clone();
     let mr = constraint_dynamics::algorithm::crba(&red, &mut dr, &q_full[..4]).clone();
-    assert_close("reduced M", mr.as_slice(), mf.view((0, 0), (4, 4)).clone_owned().as_slice(), 1e-12);
+    assert_close(
+        "reduced M",
+        mr.as_slice(),
+        mf.view((0, 0), (4, 4)).clone_owned().as_slice(),
+        1e-12,
+    );
 }
 
 #[test]
@@ -128,11 +182,23 @@ fn urdf_mimic_becomes_a_coupling_constraint() {
     // Two gears: q_b = −2 q_a + 0.1. A torque τ_a on gear a alone drives both:
     // (I_a + 4 I_b) q̈_a = τ_a (virtual work on the single DOF).
     let mut sys = System::new(model, set, Baumgarte::default(), Formulation::Multipliers);
-    let qdd = sys.forward_dynamics(&[0.0, 0.1], &[0.0, 0.0], &[1.0, 0.0], true).unwrap().clone();
+    let qdd = sys
+        .forward_dynamics(&[0.0, 0.1], &[0.0, 0.0], &[1.0, 0.0], true)
+        .unwrap()
+        .clone();
     let expect = 1.0 / (0.01 + 4.0 * 0.02);
-    assert!((qdd[0] - expect).abs() < 1e-12 && (qdd[1] + 2.0 * expect).abs() < 1e-12, "{qdd}");
+    assert!(
+        (qdd[0] - expect).abs() < 1e-12 && (qdd[1] + 2.0 * expect).abs() < 1e-12,
+        "{qdd}"
+    );
     let mut cd = ConstraintData::new(&sys.model, &sys.constraints);
-    sys.constraints.evaluate(&sys.model, &mut sys.data, &mut cd, &[0.3, -0.5], &[0.0, 0.0]);
+    sys.constraints.evaluate(
+        &sys.model,
+        &mut sys.data,
+        &mut cd,
+        &[0.3, -0.5],
+        &[0.0, 0.0],
+    );
     assert!((cd.phi[0] - (-0.5 + 2.0 * 0.3 - 0.1)).abs() < 1e-15);
 }
 
@@ -141,7 +207,10 @@ fn floating_and_planar_integration_are_consistent_on_the_group() {
     for base in [BaseType::Floating, BaseType::Planar] {
         let model = Model::from_urdf_file(
             reference_dir().join("urdf/disk.urdf"),
-            &ModelOptions { base, ..Default::default() },
+            &ModelOptions {
+                base,
+                ..Default::default()
+            },
         )
         .unwrap();
         let mut q0 = model.neutral();

@@ -64,16 +64,47 @@ fn algorithms_and_constrained_dynamics_do_not_allocate() {
         let mut data = Data::new(&model);
         let mut cd = ConstraintData::new(&model, &set);
         let mut ws = KktWorkspace::new(&model, &set);
-        let b = Baumgarte { kp: 100.0, kd: 20.0 };
+        let b = Baumgarte {
+            kp: 100.0,
+            kd: 20.0,
+        };
         // Warm up once (lazy statics, first-touch), then count.
-        constrained_forward_dynamics(&model, &mut data, &set, &mut cd, &mut ws, &q, &v, &tau, b).unwrap();
-        assert_eq!(count(|| { rnea(&model, &mut data, &q, &v, &tau); }), 0, "{name}: rnea allocates");
-        assert_eq!(count(|| { nonlinear_effects(&model, &mut data, &q, &v); }), 0, "{name}: nle allocates");
-        assert_eq!(count(|| { crba(&model, &mut data, &q); }), 0, "{name}: crba allocates");
-        assert_eq!(count(|| { aba(&model, &mut data, &q, &v, &tau); }), 0, "{name}: aba allocates");
+        constrained_forward_dynamics(&model, &mut data, &set, &mut cd, &mut ws, &q, &v, &tau, b)
+            .unwrap();
         assert_eq!(
             count(|| {
-                constrained_forward_dynamics(&model, &mut data, &set, &mut cd, &mut ws, &q, &v, &tau, b).unwrap();
+                rnea(&model, &mut data, &q, &v, &tau);
+            }),
+            0,
+            "{name}: rnea allocates"
+        );
+        assert_eq!(
+            count(|| {
+                nonlinear_effects(&model, &mut data, &q, &v);
+            }),
+            0,
+            "{name}: nle allocates"
+        );
+        assert_eq!(
+            count(|| {
+                crba(&model, &mut data, &q);
+            }),
+            0,
+            "{name}: crba allocates"
+        );
+        assert_eq!(
+            count(|| {
+                aba(&model, &mut data, &q, &v, &tau);
+            }),
+            0,
+            "{name}: aba allocates"
+        );
+        assert_eq!(
+            count(|| {
+                constrained_forward_dynamics(
+                    &model, &mut data, &set, &mut cd, &mut ws, &q, &v, &tau, b,
+                )
+                .unwrap();
             }),
             0,
             "{name}: constrained dynamics allocates"

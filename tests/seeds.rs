@@ -22,7 +22,9 @@ fn rank(a: &DMatrix<f64>) -> usize {
     }
     let sv = a.clone().svd(false, false).singular_values;
     let smax = sv.iter().cloned().fold(0.0, f64::max);
-    sv.iter().filter(|&&s| s > 1e-10 * smax.max(f64::MIN_POSITIVE)).count()
+    sv.iter()
+        .filter(|&&s| s > 1e-10 * smax.max(f64::MIN_POSITIVE))
+        .count()
 }
 
 fn load(rel: &str) -> Scene {
@@ -124,12 +126,26 @@ fn seed000_rod_body_matches_lagrange_multiplier_equations() {
     assert_close(
         "seed solve vs docs q̈ (θ, x1C, x2C, φ)",
         &[s0[0], s0[2], s0[3], s0[1]],
-        &[3.043664872758356, 6.270989590059195, -1.4962696023667346, -29.70348043719291],
+        &[
+            3.043664872758356,
+            6.270989590059195,
+            -1.4962696023667346,
+            -29.70348043719291,
+        ],
         1e-12,
     );
-    assert_close("seed solve vs docs λ", &[s0[4], s0[5]], &[7.07802081988161, 2.992539204733469], 1e-12);
+    assert_close(
+        "seed solve vs docs λ",
+        &[s0[4], s0[5]],
+        &[7.07802081988161, 2.992539204733469],
+        1e-12,
+    );
 
-    let states = [(0.4, 1.1, 0.7, -0.5), (-1.3, 2.4, 1.9, -2.2), (2.8, -0.6, -0.4, 3.1)];
+    let states = [
+        (0.4, 1.1, 0.7, -0.5),
+        (-1.3, 2.4, 1.9, -2.2),
+        (2.8, -0.6, -0.4, 3.1),
+    ];
     for (k, &(th, ph, thd, phd)) in states.iter().enumerate() {
         let (q, v) = state(th, ph, thd, phd);
         let s = seed_solve(th, ph, thd, phd);
@@ -143,7 +159,12 @@ fn seed000_rod_body_matches_lagrange_multiplier_equations() {
         assert_close(&format!("state {k}: q̈"), qdd.as_slice(), &qdd_seed, 1e-9);
         assert_eq!(sys.kkt.lambda.len(), 2);
         // λ_ours = λ_seed (J = −C, and M q̈ = Q − Cᵀλ_seed = Q + Jᵀλ_ours).
-        assert_close(&format!("state {k}: λ"), sys.kkt.lambda.as_slice(), &lam_seed, 1e-9);
+        assert_close(
+            &format!("state {k}: λ"),
+            sys.kkt.lambda.as_slice(),
+            &lam_seed,
+            1e-9,
+        );
         // Jᵀλ = −Cᵀλ_seed in our order: (−(L sθ λ1 − L cθ λ2), −λ1, −λ2, −(ρ sφ λ1 − ρ cφ λ2)).
         let (l1, l2) = (lam_seed[0], lam_seed[1]);
         let gen_force = [
@@ -152,17 +173,32 @@ fn seed000_rod_body_matches_lagrange_multiplier_equations() {
             -l2,
             -(rho * ph.sin() * l1 - rho * ph.cos() * l2),
         ];
-        assert_close(&format!("state {k}: Jᵀλ"), sys.kkt.generalized_force.as_slice(), &gen_force, 1e-9);
+        assert_close(
+            &format!("state {k}: Jᵀλ"),
+            sys.kkt.generalized_force.as_slice(),
+            &gen_force,
+            1e-9,
+        );
         // The per-constraint report carries the same rows as a world-axis force.
         let f = sys.constraint_forces();
         assert_eq!(f.len(), 1);
         assert_eq!(f[0].rows, ["x", "y"]);
-        assert_close(&format!("state {k}: pin force"), &f[0].force, &[l1, l2, 0.0], 1e-9);
+        assert_close(
+            &format!("state {k}: pin force"),
+            &f[0].force,
+            &[l1, l2, 0.0],
+            1e-9,
+        );
 
         // The multiplier-free form gives the same q̈.
         let qdd_e = sys.forward_dynamics(&q, &v, &tau, false).unwrap().clone();
         assert_eq!(sys.last_formulation, Formulation::Embedded);
-        assert_close(&format!("state {k}: embedded q̈"), qdd_e.as_slice(), &qdd_seed, 1e-9);
+        assert_close(
+            &format!("state {k}: embedded q̈"),
+            qdd_e.as_slice(),
+            &qdd_seed,
+            1e-9,
+        );
     }
 }
 
@@ -202,9 +238,17 @@ fn seed001_vertical_disk_rolls_with_constant_rates() {
     let nv = sys.model.nv;
     assert_eq!(
         sys.model.v_names,
-        ["root_joint:vx_local", "root_joint:vy_local", "root_joint:wz", "spin"]
+        [
+            "root_joint:vx_local",
+            "root_joint:vy_local",
+            "root_joint:wz",
+            "spin"
+        ]
     );
-    assert_eq!(sys.model.q_names, ["root_joint:x", "root_joint:y", "root_joint:yaw", "spin"]);
+    assert_eq!(
+        sys.model.q_names,
+        ["root_joint:x", "root_joint:y", "root_joint:yaw", "spin"]
+    );
     assert!((sys.model.total_mass() - m).abs() < 1e-12);
     let (ivx, ivy, iwz, isp) = (0, 1, 2, 3);
     let iyaw = 2;
@@ -214,7 +258,10 @@ fn seed001_vertical_disk_rolls_with_constant_rates() {
 
     // (q, v) for position (x, y, yaw, spin angle), spin rate and yaw rate, consistent by (33), (34).
     let state = |x: f64, y: f64, yaw: f64, ang: f64, spin_rate: f64, wz: f64| {
-        (vec![x, y, yaw, ang], vec![a * spin_rate, 0.0, wz, spin_rate])
+        (
+            vec![x, y, yaw, ang],
+            vec![a * spin_rate, 0.0, wz, spin_rate],
+        )
     };
     let states = [
         (scene.q0.clone(), scene.v0.clone()),
@@ -226,7 +273,11 @@ fn seed001_vertical_disk_rolls_with_constant_rates() {
         let qdd = sys.forward_dynamics(q, v, &tau, true).unwrap().clone();
         assert_eq!(sys.last_formulation, Formulation::Multipliers);
         // The state satisfies the rolling constraints.
-        assert!(sys.cdata.jv.amax() < 1e-12, "state {k}: J v = {:?}", sys.cdata.jv.as_slice());
+        assert!(
+            sys.cdata.jv.amax() < 1e-12,
+            "state {k}: J v = {:?}",
+            sys.cdata.jv.as_slice()
+        );
         // (41), (42): φ̈ = 0, θ̈ = 0; and the dependent accelerations a φ̈, 0.
         assert!(qdd[isp].abs() <= 1e-10, "state {k}: φ̈ = {}", qdd[isp]);
         assert!(qdd[iwz].abs() <= 1e-10, "state {k}: θ̈ = {}", qdd[iwz]);
@@ -240,16 +291,33 @@ fn seed001_vertical_disk_rolls_with_constant_rates() {
         assert_eq!(rolling[0].name, "disk_contact");
         let fh = [rolling[0].force[0], rolling[0].force[1]];
         let expected = [-m * u * wz * psi.sin(), m * u * wz * psi.cos()];
-        assert_close(&format!("state {k}: horizontal contact force"), &fh, &expected, 1e-9);
+        assert_close(
+            &format!("state {k}: horizontal contact force"),
+            &fh,
+            &expected,
+            1e-9,
+        );
         let along_heading = fh[0] * psi.cos() + fh[1] * psi.sin();
-        assert!(along_heading.abs() <= 1e-9, "state {k}: force along heading {along_heading}");
+        assert!(
+            along_heading.abs() <= 1e-9,
+            "state {k}: force along heading {along_heading}"
+        );
         let lateral = -fh[0] * psi.sin() + fh[1] * psi.cos();
-        assert!((lateral - m * u * wz).abs() <= 1e-9, "state {k}: lateral {lateral} vs {}", m * u * wz);
+        assert!(
+            (lateral - m * u * wz).abs() <= 1e-9,
+            "state {k}: lateral {lateral} vs {}",
+            m * u * wz
+        );
 
         // Multiplier-free form: same q̈, fewer equations.
         let qdd_e = sys.forward_dynamics(q, v, &tau, false).unwrap().clone();
         assert_eq!(sys.last_formulation, Formulation::Embedded);
-        assert_close(&format!("state {k}: embedded q̈"), qdd_e.as_slice(), qdd.as_slice(), 1e-10);
+        assert_close(
+            &format!("state {k}: embedded q̈"),
+            qdd_e.as_slice(),
+            qdd.as_slice(),
+            1e-10,
+        );
         let r = rank(&sys.cdata.j);
         assert_eq!(r, 2, "state {k}: rank J (seed: two constraints (31), (32))");
         assert_eq!(sys.embedded.partition.independent.len(), nv - r);
@@ -298,7 +366,12 @@ fn seed_diff_drive_no_side_slip_is_lateral_velocity() {
     let tau = vec![0.0; nv];
     let th: f64 = 0.7;
     let q = vec![0.4, -0.2, th, 0.3, -1.1];
-    let to_local = |xd: f64, yd: f64| (xd * th.cos() + yd * th.sin(), -xd * th.sin() + yd * th.cos());
+    let to_local = |xd: f64, yd: f64| {
+        (
+            xd * th.cos() + yd * th.sin(),
+            -xd * th.sin() + yd * th.cos(),
+        )
+    };
 
     // World velocity along the heading: satisfies ẏ cos θ − ẋ sin θ = 0.
     let s = 0.8;
@@ -307,10 +380,23 @@ fn seed_diff_drive_no_side_slip_is_lateral_velocity() {
     let (vx, vy) = to_local(xd, yd);
     let v = vec![vx, vy, 0.6, 3.0, -2.0];
     sys.forward_dynamics(&q, &v, &tau, true).unwrap();
-    assert_close("J row", sys.cdata.j.row(0).transpose().as_slice(), &[0.0, 1.0, 0.0, 0.0, 0.0], 1e-12);
-    assert!(sys.cdata.jv[0].abs() < 1e-12, "J v = {} on an admissible velocity", sys.cdata.jv[0]);
+    assert_close(
+        "J row",
+        sys.cdata.j.row(0).transpose().as_slice(),
+        &[0.0, 1.0, 0.0, 0.0, 0.0],
+        1e-12,
+    );
+    assert!(
+        sys.cdata.jv[0].abs() < 1e-12,
+        "J v = {} on an admissible velocity",
+        sys.cdata.jv[0]
+    );
     sys.forward_dynamics(&q, &v, &tau, false).unwrap();
-    assert!(sys.cdata.jv[0].abs() < 1e-12, "J v = {} (embedded path)", sys.cdata.jv[0]);
+    assert!(
+        sys.cdata.jv[0].abs() < 1e-12,
+        "J v = {} (embedded path)",
+        sys.cdata.jv[0]
+    );
 
     // A sideways-slipping velocity: J v = vy_local = ẏ cos θ − ẋ sin θ ≠ 0.
     let (xd, yd) = (0.5, 0.9);
@@ -319,7 +405,11 @@ fn seed_diff_drive_no_side_slip_is_lateral_velocity() {
     assert!(vy.abs() > 0.1);
     let v = vec![vx, vy, -0.3, 1.0, 2.0];
     sys.forward_dynamics(&q, &v, &tau, true).unwrap();
-    assert!((sys.cdata.jv[0] - vy).abs() < 1e-12, "J v = {} vs vy_local {vy}", sys.cdata.jv[0]);
+    assert!(
+        (sys.cdata.jv[0] - vy).abs() < 1e-12,
+        "J v = {} vs vy_local {vy}",
+        sys.cdata.jv[0]
+    );
     assert!((sys.cdata.jv[0] - seed_residual).abs() < 1e-12);
     let f = sys.constraint_forces();
     assert_eq!(f[0].kind, "no_side_slip");

@@ -21,5 +21,5 @@ pub use kinematics::{
     forward_kinematics, forward_kinematics_pos, frame_placement, frame_velocity,
     point_classical_acceleration, point_position, point_velocity,
 };
-pub use rnea::{nonlinear_effects, rnea};
 pub(crate) use rnea::bias_forces_after_kinematics;
+pub use rnea::{nonlinear_effects, rnea};

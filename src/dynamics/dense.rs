@@ -15,7 +15,7 @@ pub fn cholesky_in_place(a: &mut DMatrix<f64>, rel_tol: f64) -> Result<(), usize
         for k in 0..j {
             d -= a[(j, k)] * a[(j, k)];
         }
-        if !(d > rel_tol * scale) {
+        if d.is_nan() || d <= rel_tol * scale {
             return Err(j);
         }
         let d = d.sqrt();
@@ -92,4 +92,3 @@ pub(crate) fn independent_columns(a: &DMatrix<f64>, tol: f64) -> Vec<usize> {
     qr.p().permute_columns(&mut idx);
     (0..rank).map(|j| idx[(0, j)] as usize).collect()
 }
-

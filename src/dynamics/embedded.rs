@@ -9,11 +9,11 @@
 //! it serves when nobody asks for constraint forces, not in the allocation-free loop.
 
 use super::Baumgarte;
+use super::dense::independent_columns;
 use crate::algorithm::{Data, crba, nonlinear_effects};
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
 use crate::model::Model;
-use super::dense::independent_columns;
 use nalgebra::{DMatrix, DVector};
 
 /// The coordinate partition chosen from J: independent and dependent velocity indices.

@@ -12,9 +12,12 @@ pub const NO_PARENT: usize = usize::MAX;
 /// pivot is ≤ `rel_tol · max diag(M)` (M not positive definite).
 pub fn ltl_factor(m: &mut DMatrix<f64>, parent: &[usize], rel_tol: f64) -> Result<(), usize> {
     let n = m.nrows();
-    let scale = (0..n).map(|i| m[(i, i)].abs()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    let scale = (0..n)
+        .map(|i| m[(i, i)].abs())
+        .fold(0.0, f64::max)
+        .max(f64::MIN_POSITIVE);
     for k in (0..n).rev() {
-        if !(m[(k, k)] > rel_tol * scale) {
+        if m[(k, k)].is_nan() || m[(k, k)] <= rel_tol * scale {
             return Err(k);
         }
         let d = m[(k, k)].sqrt();

@@ -5,6 +5,7 @@
 //!   a Cholesky factor of M and the Schur complement `J M⁻¹ Jᵀ`, returning λ;
 //! - [`embedded`]: Voronets' multiplier-free form, dependent velocities solved from the
 //!   constraints, `(NᵀMN) q̈_i = Nᵀ(τ − h − M q̈_p)` in the independent coordinates only.
+//!
 //! `Formulation::Auto` uses the embedded form unless constraint forces are asked for.
 
 mod dense;

@@ -10,15 +10,15 @@
 //! the augmented matrix M + ρ JᵀJ replaces M and ρ Jᵀb joins the right side: same q̈ and λ.
 
 use super::Baumgarte;
+use super::dense::independent_columns;
 use super::dense::{
     cholesky_in_place, cholesky_solve, mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
 };
+use super::ltl::{ltl_factor, ltl_solve_l, ltl_solve_lt};
 use crate::algorithm::{Data, bias_forces_after_kinematics, crba_after_kinematics};
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
 use crate::model::Model;
-use super::dense::independent_columns;
-use super::ltl::{ltl_factor, ltl_solve_l, ltl_solve_lt};
 use nalgebra::{DMatrix, DVector};
 
 /// Relative threshold below which a Cholesky pivot of S counts as zero.
@@ -101,14 +101,22 @@ pub fn constrained_forward_dynamics(
 
 /// Factor M (sparse LTL, `M = LᵀL`), or the augmented M + ρ JᵀJ (dense Cholesky, `L Lᵀ`) when
 /// M is only semi-definite.
-fn factor_mass(model: &Model, data: &Data, cd: &ConstraintData, ws: &mut KktWorkspace) -> Result<()> {
+fn factor_mass(
+    model: &Model,
+    data: &Data,
+    cd: &ConstraintData,
+    ws: &mut KktWorkspace,
+) -> Result<()> {
     ws.l.copy_from(&data.mass_matrix);
     ws.augmented = false;
     if ltl_factor(&mut ws.l, &model.v_parent, 1e-14).is_ok() {
         return Ok(());
     }
     let m = &data.mass_matrix;
-    let rho = (0..model.nv).map(|i| m[(i, i)]).fold(0.0, f64::max).max(1.0);
+    let rho = (0..model.nv)
+        .map(|i| m[(i, i)])
+        .fold(0.0, f64::max)
+        .max(1.0);
     ws.l.copy_from(m);
     let j = &cd.j;
     for a in 0..model.nv {
@@ -130,13 +138,26 @@ fn factor_mass(model: &Model, data: &Data, cd: &ConstraintData, ws: &mut KktWork
 /// `x ← W⁻ᵀ x` and `x ← W⁻¹ x` for the factor W with M = W Wᵀ (W = Lᵀ of the LTL factor,
 /// or the dense Cholesky factor when augmented).
 fn half_solve(model: &Model, ws_l: &DMatrix<f64>, augmented: bool, x: &mut [f64]) {
-    if augmented { solve_lower(ws_l, x) } else { ltl_solve_lt(ws_l, &model.v_parent, x) }
+    if augmented {
+        solve_lower(ws_l, x)
+    } else {
+        ltl_solve_lt(ws_l, &model.v_parent, x)
+    }
 }
 fn half_solve_t(model: &Model, ws_l: &DMatrix<f64>, augmented: bool, x: &mut [f64]) {
-    if augmented { solve_lower_transpose(ws_l, x) } else { ltl_solve_l(ws_l, &model.v_parent, x) }
+    if augmented {
+        solve_lower_transpose(ws_l, x)
+    } else {
+        ltl_solve_l(ws_l, &model.v_parent, x)
+    }
 }
 
-fn solve_kkt(model: &Model, set: &ConstraintSet, cd: &ConstraintData, ws: &mut KktWorkspace) -> Result<()> {
+fn solve_kkt(
+    model: &Model,
+    set: &ConstraintSet,
+    cd: &ConstraintData,
+    ws: &mut KktWorkspace,
+) -> Result<()> {
     let (nv, nc) = (ws.qdd.len(), set.nrows);
     // q̈_free = M⁻¹ (τ − h) = W⁻ᵀ W⁻¹ (τ − h)
     ws.qdd.copy_from(&ws.rhs);
@@ -192,9 +213,11 @@ fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
     let ind = independent_columns(&ws.y, RANK_TOL_Y);
     let dep: Vec<usize> = (0..nc).filter(|k| !ind.contains(k)).collect();
     let s_ii = ws.s.select_rows(ind.iter()).select_columns(ind.iter());
-    let chol = s_ii.cholesky().ok_or_else(|| Error::InconsistentConstraints {
-        message: "the independent constraint rows are numerically singular".into(),
-    })?;
+    let chol = s_ii
+        .cholesky()
+        .ok_or_else(|| Error::InconsistentConstraints {
+            message: "the independent constraint rows are numerically singular".into(),
+        })?;
     let r_i = ws.r.select_rows(ind.iter());
     let lam_i = chol.solve(&r_i);
     let mut lambda = DVector::zeros(nc);
@@ -205,7 +228,11 @@ fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
     let scale = ws.r.amax().max(1.0);
     if resid.amax() > 1e-7 * scale {
         let worst = resid.iamax();
-        let name = set.ranges.iter().position(|rg| rg.contains(&worst)).map(|k| set.names[k].clone());
+        let name = set
+            .ranges
+            .iter()
+            .position(|rg| rg.contains(&worst))
+            .map(|k| set.names[k].clone());
         return Err(Error::InconsistentConstraints {
             message: format!(
                 "the constraint accelerations cannot all be met (rank {} of {nc}; largest \

@@ -463,7 +463,11 @@ impl<'a> Builder<'a> {
         lim.effort.extend(std::iter::repeat_n(eff, nv));
         lim.damping.extend(std::iter::repeat_n(damp, nv));
         // Last velocity coordinate of the nearest ancestor body that has one.
-        let mut up = if parent == 0 { usize::MAX } else { m.bodies[parent].joint.idx_v + m.bodies[parent].joint.kind.nv() - 1 };
+        let mut up = if parent == 0 {
+            usize::MAX
+        } else {
+            m.bodies[parent].joint.idx_v + m.bodies[parent].joint.kind.nv() - 1
+        };
         for k in 0..nv {
             m.v_parent.push(up);
             up = idx_v + k;

@@ -76,7 +76,11 @@ impl Inertia {
         ic[(0, 0)] += d2;
         ic[(1, 1)] += d2;
         ic[(2, 2)] += d2;
-        Inertia { mass: m, com: c, inertia_com: ic }
+        Inertia {
+            mass: m,
+            com: c,
+            inertia_com: ic,
+        }
     }
 
     /// The 6×6 matrix form on `[lin; ang]`.

@@ -35,7 +35,11 @@ pub fn run(a: EvalArgs) -> Result<Value> {
         }
     };
     let (q, v, tau) = super::state::load(&scene, a.state.as_deref())?;
-    let qdd: Vec<f64> = sys.forward_dynamics(&q, &v, &tau, true)?.iter().copied().collect();
+    let qdd: Vec<f64> = sys
+        .forward_dynamics(&q, &v, &tau, true)?
+        .iter()
+        .copied()
+        .collect();
     let m = &sys.model;
     let mut out = json!({
         "scene": a.scene.display().to_string(),
@@ -55,13 +59,19 @@ pub fn run(a: EvalArgs) -> Result<Value> {
             out["constraints"] = serde_json::to_value(sys.constraint_forces()).unwrap_or_default();
         } else {
             let p = &sys.embedded.partition;
-            out["independent_velocities"] =
-                json!(p.independent.iter().map(|&i| m.v_names[i].clone()).collect::<Vec<_>>());
+            out["independent_velocities"] = json!(
+                p.independent
+                    .iter()
+                    .map(|&i| m.v_names[i].clone())
+                    .collect::<Vec<_>>()
+            );
         }
     }
     if a.terms {
         let mm = &sys.data.mass_matrix;
-        let rows: Vec<Vec<f64>> = (0..mm.nrows()).map(|i| mm.row(i).iter().copied().collect()).collect();
+        let rows: Vec<Vec<f64>> = (0..mm.nrows())
+            .map(|i| mm.row(i).iter().copied().collect())
+            .collect();
         // h = C v + g (data.tau holds the bias forces after the dynamics call)
         out["M"] = json!(rows);
         out["h"] = json!(sys.data.tau.as_slice());

@@ -7,7 +7,11 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "constraint_dynamics", version, about = "Constrained rigid-body dynamics from URDF")]
+#[command(
+    name = "constraint_dynamics",
+    version,
+    about = "Constrained rigid-body dynamics from URDF"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -26,7 +30,10 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(json) => {
-            println!("{}", serde_json::to_string_pretty(&json).unwrap_or_default());
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&json).unwrap_or_default()
+            );
             ExitCode::SUCCESS
         }
         Err(e) => {

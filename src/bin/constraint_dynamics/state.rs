@@ -21,9 +21,17 @@ pub fn load(scene: &Scene, path: Option<&Path>) -> Result<(Vec<f64>, Vec<f64>, V
     let Some(path) = path else {
         return Ok((scene.q0.clone(), scene.v0.clone(), vec![0.0; nv]));
     };
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Error::Io { path: path.display().to_string(), source: e })?;
-    let s: StateFile = serde_json::from_str(&text)
-        .map_err(|e| Error::Scene { file: path.display().to_string(), message: e.to_string() })?;
-    Ok((s.q, s.v.unwrap_or_else(|| vec![0.0; nv]), s.tau.unwrap_or_else(|| vec![0.0; nv])))
+    let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
+        path: path.display().to_string(),
+        source: e,
+    })?;
+    let s: StateFile = serde_json::from_str(&text).map_err(|e| Error::Scene {
+        file: path.display().to_string(),
+        message: e.to_string(),
+    })?;
+    Ok((
+        s.q,
+        s.v.unwrap_or_else(|| vec![0.0; nv]),
+        s.tau.unwrap_or_else(|| vec![0.0; nv]),
+    ))
 }
