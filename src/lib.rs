@@ -9,11 +9,14 @@
 // Featherstone's recurrences read best as index loops over bodies and coordinates.
 #![allow(clippy::needless_range_loop)]
 
+pub mod actuators;
 pub mod algorithm;
 pub mod constraints;
 pub mod dynamics;
 pub mod error;
+pub mod forces;
 pub mod model;
+pub mod predict;
 pub mod scene;
 pub mod spatial;
 pub mod system;

@@ -1,10 +1,13 @@
 //! The scene file (YAML): which URDF, the base, gravity, locked joints, the initial state and the
 //! constraints. Unknown keys are an error that names the key.
 
+use crate::actuators::ActuatorsSpec;
 use crate::constraints::ConstraintSpec;
 use crate::dynamics::{Baumgarte, Formulation};
 use crate::error::{Error, Result};
+use crate::forces::ForcesSpec;
 use crate::model::{BaseType, Model, ModelOptions};
+use crate::predict::IntegrationSettings;
 use nalgebra::Vector3;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -40,6 +43,12 @@ pub struct SceneFile {
     pub constraints: Vec<ConstraintSpec>,
     #[serde(default)]
     pub dynamics: DynamicsSettings,
+    #[serde(default)]
+    pub integration: IntegrationSettings,
+    #[serde(default)]
+    pub forces: ForcesSpec,
+    #[serde(default)]
+    pub actuators: ActuatorsSpec,
 }
 
 /// How the constrained dynamics is solved.

@@ -195,7 +195,9 @@ impl JointKind {
 
 fn write_free_flyer(m: &SE3, q: &mut [f64]) {
     let r = nalgebra::Rotation3::from_matrix_unchecked(m.rotation);
-    let quat = UnitQuaternion::from_rotation_matrix(&r);
+    // Renormalise: rounding in R would otherwise compound from step to step.
+    let quat =
+        UnitQuaternion::new_normalize(*UnitQuaternion::from_rotation_matrix(&r).quaternion());
     q[0] = m.translation.x;
     q[1] = m.translation.y;
     q[2] = m.translation.z;

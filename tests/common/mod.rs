@@ -86,3 +86,54 @@ pub fn assert_close(what: &str, a: &[f64], b: &[f64], tol: f64) {
         "{what}: relative error {e:.3e} > {tol:.1e}\n ours: {a:?}\n  ref: {b:?}"
     );
 }
+
+/// The reference case's constraints as scene declarations (point feet/end effector, rolling disk).
+pub fn specs_for(
+    case: &Value,
+    st: &Value,
+) -> Vec<constraint_dynamics::constraints::ConstraintSpec> {
+    let cons = st.get("constraints").unwrap_or(&case["constraints"]);
+    cons.as_array()
+        .unwrap()
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            let link = c["link"].as_str().unwrap().to_string();
+            match c["type"].as_str().unwrap() {
+                "point_fixed_in_world" => {
+                    let a = vecf(&c["world_anchor"]);
+                    let rows = c["rows"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|r| match r.as_str().unwrap() {
+                            "x" => constraint_dynamics::constraints::Row::X,
+                            "y" => constraint_dynamics::constraints::Row::Y,
+                            _ => constraint_dynamics::constraints::Row::Z,
+                        })
+                        .collect();
+                    constraint_dynamics::constraints::ConstraintSpec::Point {
+                        name: format!("c{k}"),
+                        frame_a: link,
+                        point_a: [0.0; 3],
+                        frame_b: "world".into(),
+                        point_b: [a[0], a[1], a[2]],
+                        rows,
+                    }
+                }
+                "rolling_disk_on_plane_z0" => {
+                    let ax = vecf(&c["disk_axis_in_body"]);
+                    constraint_dynamics::constraints::ConstraintSpec::Rolling {
+                        name: format!("c{k}"),
+                        wheel: link,
+                        axis: [ax[0], ax[1], ax[2]],
+                        radius: c["radius"].as_f64().unwrap(),
+                        plane_normal: [0.0, 0.0, 1.0],
+                        plane_height: 0.0,
+                    }
+                }
+                t => panic!("unknown reference constraint type {t}"),
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,260 @@
+//! Actuators that drive a prediction the way a robot is driven: joint velocity controllers (PI,
+//! torque limited by the URDF `effort`), joint position controllers (PD), and a differential
+//! drive whose commanded (v, ω) becomes wheel-speed targets for its two wheel controllers.
+//!
+//! Like a real digital controller, the actuator torques are computed at the control period and
+//! held (zero-order hold) until the next tick; the integrators never step across a tick.
+
+use crate::error::{Error, Result};
+use crate::model::Model;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+
+/// `actuators:` in a scene.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ActuatorsSpec {
+    #[serde(default)]
+    pub velocity: Vec<VelocityControllerSpec>,
+    #[serde(default)]
+    pub position: Vec<PositionControllerSpec>,
+    #[serde(default)]
+    pub diff_drive: Option<DiffDriveSpec>,
+    /// Control period [s]; default 0.001.
+    #[serde(default)]
+    pub control_period: Option<f64>,
+}
+
+/// τ = kp (v* − v) + ki ∫(v* − v) dt, clamped to ±effort (no integration while clamped).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VelocityControllerSpec {
+    pub joint: String,
+    /// kp [N·m·s/rad or N·s/m].
+    pub kp: f64,
+    /// ki [N·m/rad or N/m].
+    #[serde(default)]
+    pub ki: f64,
+}
+
+/// τ = kp (q* − q) − kd v, clamped to ±effort.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PositionControllerSpec {
+    pub joint: String,
+    /// kp [N·m/rad or N/m].
+    pub kp: f64,
+    /// kd [N·m·s/rad or N·s/m].
+    #[serde(default)]
+    pub kd: f64,
+}
+
+/// Differential drive: ω_l = (v − ω b/2)/r, ω_r = (v + ω b/2)/r, each tracked by a PI.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DiffDriveSpec {
+    pub left_joint: String,
+    pub right_joint: String,
+    /// r [m].
+    pub wheel_radius: f64,
+    /// b, distance between the wheel contact points [m].
+    pub wheel_separation: f64,
+    pub kp: f64,
+    #[serde(default)]
+    pub ki: f64,
+}
+
+/// What a prediction is asked to follow from a time on (piecewise constant).
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Command {
+    /// Base (v [m/s], ω [rad/s]) for the differential drive.
+    #[serde(default)]
+    pub base_twist: Option<[f64; 2]>,
+    /// Joint velocity targets [rad/s or m/s].
+    #[serde(default)]
+    pub joint_velocity: BTreeMap<String, f64>,
+    /// Joint position targets [rad or m].
+    #[serde(default)]
+    pub joint_position: BTreeMap<String, f64>,
+}
+
+#[derive(Clone, Debug)]
+struct Pi {
+    iv: usize,
+    kp: f64,
+    ki: f64,
+    effort: f64,
+    integral: f64,
+    name: String,
+}
+
+#[derive(Clone, Debug)]
+struct Pd {
+    iq: usize,
+    iv: usize,
+    kp: f64,
+    kd: f64,
+    effort: f64,
+    name: String,
+}
+
+/// Validated actuators with their controller state.
+#[derive(Clone, Debug, Default)]
+pub struct Actuators {
+    velocity: Vec<Pi>,
+    position: Vec<Pd>,
+    /// Indices into `velocity` of the left and right wheel controllers, r and b.
+    diff_drive: Option<(usize, usize, f64, f64)>,
+    pub control_period: f64,
+}
+
+impl Actuators {
+    pub fn new(model: &Model, spec: &ActuatorsSpec) -> Result<Self> {
+        let period = spec.control_period.unwrap_or(0.001);
+        if !(period.is_finite() && period > 0.0) {
+            return Err(Error::Invalid(format!(
+                "actuators.control_period = {period} s must be positive"
+            )));
+        }
+        let joint = |name: &str| -> Result<(usize, usize, f64)> {
+            let b = model.joint_body(name)?;
+            let j = &model.bodies[b].joint;
+            if j.kind.nv() != 1 {
+                return Err(Error::Invalid(format!(
+                    "actuators: joint '{name}' is not a 1-DOF joint"
+                )));
+            }
+            Ok((j.idx_q, j.idx_v, model.limits.effort[j.idx_v]))
+        };
+        let gains = |what: &str, g: &[f64]| -> Result<()> {
+            if g.iter().any(|x| !x.is_finite() || *x < 0.0) {
+                return Err(Error::Invalid(format!(
+                    "actuators: {what}: gains must be finite and ≥ 0"
+                )));
+            }
+            Ok(())
+        };
+        let mut a = Actuators {
+            control_period: period,
+            ..Default::default()
+        };
+        for s in &spec.velocity {
+            gains(&s.joint, &[s.kp, s.ki])?;
+            let (_, iv, effort) = joint(&s.joint)?;
+            a.velocity.push(Pi {
+                iv,
+                kp: s.kp,
+                ki: s.ki,
+                effort,
+                integral: 0.0,
+                name: s.joint.clone(),
+            });
+        }
+        for s in &spec.position {
+            gains(&s.joint, &[s.kp, s.kd])?;
+            let (iq, iv, effort) = joint(&s.joint)?;
+            a.position.push(Pd {
+                iq,
+                iv,
+                kp: s.kp,
+                kd: s.kd,
+                effort,
+                name: s.joint.clone(),
+            });
+        }
+        if let Some(d) = &spec.diff_drive {
+            gains("diff_drive", &[d.kp, d.ki])?;
+            if !(d.wheel_radius > 0.0 && d.wheel_separation > 0.0) {
+                return Err(Error::Invalid(
+                    "actuators.diff_drive: wheel_radius and wheel_separation must be positive"
+                        .into(),
+                ));
+            }
+            let mut idx = [0; 2];
+            for (k, name) in [&d.left_joint, &d.right_joint].into_iter().enumerate() {
+                let (_, iv, effort) = joint(name)?;
+                a.velocity.push(Pi {
+                    iv,
+                    kp: d.kp,
+                    ki: d.ki,
+                    effort,
+                    integral: 0.0,
+                    name: name.clone(),
+                });
+                idx[k] = a.velocity.len() - 1;
+            }
+            a.diff_drive = Some((idx[0], idx[1], d.wheel_radius, d.wheel_separation));
+        }
+        Ok(a)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.velocity.is_empty() && self.position.is_empty()
+    }
+
+    /// Reset the controllers' integral states.
+    pub fn reset(&mut self) {
+        self.velocity.iter_mut().for_each(|c| c.integral = 0.0);
+    }
+
+    /// Check that a command names only joints that have controllers.
+    pub fn check_command(&self, cmd: &Command) -> Result<()> {
+        for name in cmd.joint_velocity.keys() {
+            if !self.velocity.iter().any(|c| &c.name == name) {
+                return Err(Error::Invalid(format!(
+                    "command: joint '{name}' has no velocity controller"
+                )));
+            }
+        }
+        for name in cmd.joint_position.keys() {
+            if !self.position.iter().any(|c| &c.name == name) {
+                return Err(Error::Invalid(format!(
+                    "command: joint '{name}' has no position controller"
+                )));
+            }
+        }
+        if cmd.base_twist.is_some() && self.diff_drive.is_none() {
+            return Err(Error::Invalid(
+                "command: base_twist given but the scene has no actuators.diff_drive".into(),
+            ));
+        }
+        let all: Vec<f64> = cmd
+            .joint_velocity
+            .values()
+            .chain(cmd.joint_position.values())
+            .copied()
+            .chain(cmd.base_twist.into_iter().flatten())
+            .collect();
+        crate::error::check_finite("command", &all)
+    }
+
+    /// One control tick at (q, v): update the integrators over `dt` and write the held torques.
+    pub fn update(&mut self, cmd: &Command, q: &[f64], v: &[f64], dt: f64, tau: &mut [f64]) {
+        tau.iter_mut().for_each(|x| *x = 0.0);
+        let mut targets: Vec<Option<f64>> = self
+            .velocity
+            .iter()
+            .map(|c| cmd.joint_velocity.get(&c.name).copied())
+            .collect();
+        if let (Some((l, r, radius, b)), Some([lin, ang])) = (self.diff_drive, cmd.base_twist) {
+            targets[l] = Some((lin - ang * b / 2.0) / radius);
+            targets[r] = Some((lin + ang * b / 2.0) / radius);
+        }
+        for (c, target) in self.velocity.iter_mut().zip(targets) {
+            let Some(target) = target else { continue };
+            let e = target - v[c.iv];
+            let raw = c.kp * e + c.ki * (c.integral + e * dt);
+            if raw.abs() <= c.effort {
+                c.integral += e * dt; // anti-windup: integrate only when not saturated
+            }
+            tau[c.iv] += raw.clamp(-c.effort, c.effort);
+        }
+        for c in &self.position {
+            let Some(&target) = cmd.joint_position.get(&c.name) else {
+                continue;
+            };
+            tau[c.iv] += (c.kp * (target - q[c.iq]) - c.kd * v[c.iv]).clamp(-c.effort, c.effort);
+        }
+    }
+}

@@ -1,0 +1,364 @@
+//! Force elements a scene adds to the dynamics (the generalized force Q(t, q, v) that joins τ):
+//! joint spring-dampers (and URDF `<dynamics damping>`), point-to-point spring-dampers between
+//! frames, joint torques (constant or piecewise-linear in time) and frame forces (world axes).
+
+use crate::algorithm::{
+    Data, ReferenceFrame, frame_jacobian, point_jacobian, point_position, point_velocity,
+};
+use crate::error::{Error, Result};
+use crate::model::Model;
+use nalgebra::{DMatrix, Vector3};
+use serde::Deserialize;
+
+/// `forces:` in a scene.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ForcesSpec {
+    /// Apply the URDF `<dynamics damping>` of every joint as viscous damping.
+    #[serde(default)]
+    pub urdf_damping: bool,
+    #[serde(default)]
+    pub joint_springs: Vec<JointSpringSpec>,
+    #[serde(default)]
+    pub springs: Vec<SpringSpec>,
+    #[serde(default)]
+    pub joint_torques: Vec<JointTorqueSpec>,
+    #[serde(default)]
+    pub frame_forces: Vec<FrameForceSpec>,
+}
+
+/// τ = −k (q − rest) − d q̇ on a 1-DOF joint.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointSpringSpec {
+    pub joint: String,
+    /// k [N·m/rad or N/m].
+    #[serde(default)]
+    pub stiffness: f64,
+    /// d [N·m·s/rad or N·s/m].
+    #[serde(default)]
+    pub damping: f64,
+    /// Rest position [rad or m].
+    #[serde(default)]
+    pub rest: f64,
+}
+
+/// Linear spring-damper between two frame points: tension k (L − L₀) + c L̇ [N].
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpringSpec {
+    pub name: String,
+    pub frame_a: String,
+    #[serde(default)]
+    pub point_a: [f64; 3],
+    pub frame_b: String,
+    #[serde(default)]
+    pub point_b: [f64; 3],
+    /// k [N/m].
+    pub stiffness: f64,
+    /// c [N·s/m].
+    #[serde(default)]
+    pub damping: f64,
+    /// L₀ [m].
+    #[serde(default)]
+    pub rest_length: f64,
+}
+
+/// A joint torque [N·m or N]: `value`, or a piecewise-linear `profile` of (t [s], τ) pairs
+/// (held constant outside its time range).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointTorqueSpec {
+    pub joint: String,
+    #[serde(default)]
+    pub value: f64,
+    #[serde(default)]
+    pub profile: Vec<[f64; 2]>,
+}
+
+/// A constant force [N] and torque [N·m] in world axes on a frame point.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameForceSpec {
+    pub frame: String,
+    #[serde(default)]
+    pub point: [f64; 3],
+    #[serde(default)]
+    pub force: [f64; 3],
+    #[serde(default)]
+    pub torque: [f64; 3],
+}
+
+#[derive(Clone, Debug)]
+struct Spring {
+    a: (usize, Vector3<f64>),
+    b: (usize, Vector3<f64>),
+    k: f64,
+    c: f64,
+    rest: f64,
+}
+
+/// The validated force elements of a scene.
+#[derive(Clone, Debug, Default)]
+pub struct ForceElements {
+    /// (q index, v index, k, d, rest) per joint spring-damper (URDF damping folded in).
+    joint_springs: Vec<(usize, usize, f64, f64, f64)>,
+    springs: Vec<Spring>,
+    /// (v index, profile) per joint torque; a constant is a one-point profile.
+    torques: Vec<(usize, Vec<[f64; 2]>)>,
+    frame_forces: Vec<(usize, Vector3<f64>, Vector3<f64>, Vector3<f64>)>,
+    j3: DMatrix<f64>,
+    j6: DMatrix<f64>,
+}
+
+fn finite(what: &str, xs: &[f64]) -> Result<()> {
+    crate::error::check_finite(what, xs)
+}
+
+impl ForceElements {
+    pub fn new(model: &Model, spec: &ForcesSpec) -> Result<Self> {
+        let mut fe = ForceElements {
+            j3: DMatrix::zeros(3, model.nv),
+            j6: DMatrix::zeros(6, model.nv),
+            ..Default::default()
+        };
+        let joint = |name: &str| -> Result<(usize, usize)> {
+            let b = model.joint_body(name)?;
+            let j = &model.bodies[b].joint;
+            if j.kind.nv() != 1 {
+                return Err(Error::Invalid(format!(
+                    "forces: joint '{name}' is not a 1-DOF joint"
+                )));
+            }
+            Ok((j.idx_q, j.idx_v))
+        };
+        for s in &spec.joint_springs {
+            finite(
+                &format!("forces.joint_springs['{}']", s.joint),
+                &[s.stiffness, s.damping, s.rest],
+            )?;
+            if s.stiffness < 0.0 || s.damping < 0.0 {
+                return Err(Error::Invalid(format!(
+                    "forces.joint_springs['{}']: stiffness and damping must be ≥ 0",
+                    s.joint
+                )));
+            }
+            let (iq, iv) = joint(&s.joint)?;
+            fe.joint_springs
+                .push((iq, iv, s.stiffness, s.damping, s.rest));
+        }
+        if spec.urdf_damping {
+            for b in model.bodies.iter().skip(1) {
+                let j = &b.joint;
+                let d = model.limits.damping[j.idx_v];
+                if j.kind.nv() == 1 && d > 0.0 {
+                    fe.joint_springs.push((j.idx_q, j.idx_v, 0.0, d, 0.0));
+                }
+            }
+        }
+        for s in &spec.springs {
+            finite(
+                &format!("forces.springs['{}']", s.name),
+                &[s.stiffness, s.damping, s.rest_length],
+            )?;
+            if s.stiffness < 0.0 || s.damping < 0.0 || s.rest_length < 0.0 {
+                return Err(Error::Invalid(format!(
+                    "forces.springs['{}']: stiffness, damping and rest_length must be ≥ 0",
+                    s.name
+                )));
+            }
+            fe.springs.push(Spring {
+                a: (model.frame_id(&s.frame_a)?, Vector3::from(s.point_a)),
+                b: (model.frame_id(&s.frame_b)?, Vector3::from(s.point_b)),
+                k: s.stiffness,
+                c: s.damping,
+                rest: s.rest_length,
+            });
+        }
+        for t in &spec.joint_torques {
+            let (_, iv) = joint(&t.joint)?;
+            let profile = if t.profile.is_empty() {
+                vec![[0.0, t.value]]
+            } else {
+                t.profile.clone()
+            };
+            for p in &profile {
+                finite(&format!("forces.joint_torques['{}']", t.joint), p)?;
+            }
+            if profile.windows(2).any(|w| w[1][0] <= w[0][0]) {
+                return Err(Error::Invalid(format!(
+                    "forces.joint_torques['{}']: profile times must increase",
+                    t.joint
+                )));
+            }
+            fe.torques.push((iv, profile));
+        }
+        for f in &fe_frame_forces(spec)? {
+            fe.frame_forces.push((
+                model.frame_id(&f.frame)?,
+                Vector3::from(f.point),
+                Vector3::from(f.force),
+                Vector3::from(f.torque),
+            ));
+        }
+        Ok(fe)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.joint_springs.is_empty()
+            && self.springs.is_empty()
+            && self.torques.is_empty()
+            && self.frame_forces.is_empty()
+    }
+
+    /// Largest stiffness-like coefficient, for step-size checks: (k_max [N/m or N·m/rad], d_max).
+    pub fn max_gains(&self) -> (f64, f64) {
+        let k = self
+            .joint_springs
+            .iter()
+            .map(|s| s.2)
+            .chain(self.springs.iter().map(|s| s.k))
+            .fold(0.0, f64::max);
+        let d = self
+            .joint_springs
+            .iter()
+            .map(|s| s.3)
+            .chain(self.springs.iter().map(|s| s.c))
+            .fold(0.0, f64::max);
+        (k, d)
+    }
+
+    /// Add Q(t, q, v) to `tau` (kinematics of `data` must be at (q, v)).
+    pub fn add_generalized_force(
+        &mut self,
+        model: &Model,
+        data: &Data,
+        t: f64,
+        q: &[f64],
+        v: &[f64],
+        tau: &mut [f64],
+    ) {
+        for &(iq, iv, k, d, rest) in &self.joint_springs {
+            tau[iv] -= k * (q[iq] - rest) + d * v[iv];
+        }
+        for s in &self.springs {
+            let pa = point_position(model, data, s.a.0, &s.a.1);
+            let pb = point_position(model, data, s.b.0, &s.b.1);
+            let d = pa - pb;
+            let len = d.norm().max(1e-12);
+            let n = d / len;
+            let rate = n.dot(
+                &(point_velocity(model, data, s.a.0, &s.a.1)
+                    - point_velocity(model, data, s.b.0, &s.b.1)),
+            );
+            let f = -n * (s.k * (len - s.rest) + s.c * rate); // force on A
+            add_point_force(model, data, &mut self.j3, s.a.0, &s.a.1, &f, tau);
+            add_point_force(model, data, &mut self.j3, s.b.0, &s.b.1, &(-f), tau);
+        }
+        for (iv, profile) in &self.torques {
+            tau[*iv] += piecewise_linear(profile, t);
+        }
+        for (frame, p, f, m) in &self.frame_forces {
+            add_point_force(model, data, &mut self.j3, *frame, p, f, tau);
+            frame_jacobian(model, data, *frame, ReferenceFrame::World, &mut self.j6);
+            for c in 0..model.nv {
+                tau[c] += (0..3).map(|k| self.j6[(3 + k, c)] * m[k]).sum::<f64>();
+            }
+        }
+    }
+
+    /// The fastest rate among the elements [1/s]: max over joint elements of √(k (M⁻¹)_ii) and
+    /// d (M⁻¹)_ii, and over point springs of √(k w) and c w with w = n̂ᵀ J M⁻¹ Jᵀ n̂ (kinematics at q).
+    pub fn max_rate(&mut self, model: &Model, data: &Data, minv: &DMatrix<f64>) -> f64 {
+        let mut rate: f64 = 0.0;
+        for &(_, iv, k, d, _) in &self.joint_springs {
+            let w = minv[(iv, iv)];
+            rate = rate.max((k * w).sqrt()).max(d * w);
+        }
+        for s in &self.springs {
+            let pa = point_position(model, data, s.a.0, &s.a.1);
+            let pb = point_position(model, data, s.b.0, &s.b.1);
+            let n = (pa - pb).try_normalize(1e-12).unwrap_or(Vector3::x());
+            point_jacobian(model, data, s.a.0, &s.a.1, &mut self.j3, 0);
+            let ja = n.transpose() * &self.j3;
+            point_jacobian(model, data, s.b.0, &s.b.1, &mut self.j3, 0);
+            let jrel = ja - n.transpose() * &self.j3;
+            let w = (&jrel * minv * jrel.transpose())[(0, 0)];
+            rate = rate.max((s.k * w).sqrt()).max(s.c * w);
+        }
+        rate
+    }
+
+    /// Potential energy stored in the springs [J] (kinematics of `data` at q).
+    pub fn potential_energy(&self, model: &Model, data: &Data, q: &[f64]) -> f64 {
+        let joints: f64 = self
+            .joint_springs
+            .iter()
+            .map(|&(iq, _, k, _, rest)| 0.5 * k * (q[iq] - rest).powi(2))
+            .sum();
+        let points: f64 = self
+            .springs
+            .iter()
+            .map(|s| {
+                let len = (point_position(model, data, s.a.0, &s.a.1)
+                    - point_position(model, data, s.b.0, &s.b.1))
+                .norm();
+                0.5 * s.k * (len - s.rest).powi(2)
+            })
+            .sum();
+        joints + points
+    }
+
+    /// Whether any element dissipates or injects energy (dampers, torques, forces).
+    pub fn is_conservative(&self) -> bool {
+        self.joint_springs.iter().all(|s| s.3 == 0.0)
+            && self.springs.iter().all(|s| s.c == 0.0)
+            && self.torques.is_empty()
+            && self.frame_forces.is_empty()
+    }
+}
+
+fn fe_frame_forces(spec: &ForcesSpec) -> Result<Vec<FrameForceSpec>> {
+    for f in &spec.frame_forces {
+        finite(
+            &format!("forces.frame_forces['{}']", f.frame),
+            &[f.point, f.force, f.torque].concat(),
+        )?;
+    }
+    Ok(spec.frame_forces.clone())
+}
+
+fn add_point_force(
+    model: &Model,
+    data: &Data,
+    j3: &mut DMatrix<f64>,
+    frame: usize,
+    p: &Vector3<f64>,
+    f: &Vector3<f64>,
+    tau: &mut [f64],
+) {
+    point_jacobian(model, data, frame, p, j3, 0);
+    for c in 0..model.nv {
+        tau[c] += j3[(0, c)] * f.x + j3[(1, c)] * f.y + j3[(2, c)] * f.z;
+    }
+}
+
+/// Piecewise-linear interpolation of (t, value) pairs, constant outside.
+pub fn piecewise_linear(profile: &[[f64; 2]], t: f64) -> f64 {
+    match profile {
+        [] => 0.0,
+        [only] => only[1],
+        _ => {
+            if t <= profile[0][0] {
+                return profile[0][1];
+            }
+            for w in profile.windows(2) {
+                if t <= w[1][0] {
+                    let s = (t - w[0][0]) / (w[1][0] - w[0][0]);
+                    return w[0][1] + s * (w[1][1] - w[0][1]);
+                }
+            }
+            profile[profile.len() - 1][1]
+        }
+    }
+}

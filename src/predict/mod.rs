@@ -1,0 +1,119 @@
+//! Prediction: scene + initial state + commands over time + horizon → samples of q, v, λ (when
+//! asked), constraint residuals (position and velocity), energy and an error estimate.
+//!
+//! The integrators ([`Method`]) step on the configuration Lie group; drift is controlled per scene
+//! by Baumgarte terms (in the dynamics) or by projecting q and v back onto the constraints after
+//! every step ([`drift`]). Force elements and actuators come from the scene.
+
+pub mod drift;
+mod integrator;
+mod lie;
+mod run;
+
+pub use integrator::Method;
+pub use run::{Predictor, Sample, Trajectory};
+
+use serde::{Deserialize, Serialize};
+
+/// How drift from the constraints is controlled.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DriftControl {
+    /// Nothing: the residuals grow as the integration error makes them.
+    None,
+    /// Baumgarte terms in the constraint accelerations (gains from `dynamics:` or from
+    /// `baumgarte_steps` × dt).
+    Baumgarte,
+    /// Mass-weighted projection of q (Newton) and v after every step.
+    #[default]
+    Projection,
+}
+
+/// `integration:` in a scene. Defaults: RK4, dt = 1 ms, projection, horizon 1 s, samples every
+/// 10 ms — accurate to ~1e-10 on the bundled scenes at a few µs per step.
+#[derive(Clone, Debug, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct IntegrationSettings {
+    #[serde(default)]
+    pub method: Method,
+    /// Step [s] (fixed-step methods; first step of dopri5).
+    #[serde(default = "default_dt")]
+    pub dt: f64,
+    /// Relative and absolute tolerances of dopri5.
+    #[serde(default = "default_rtol")]
+    pub rtol: f64,
+    #[serde(default = "default_atol")]
+    pub atol: f64,
+    #[serde(default)]
+    pub drift: DriftControl,
+    /// With `drift: baumgarte` and no gains under `dynamics:`, the time constant is this many steps.
+    #[serde(default = "default_baumgarte_steps")]
+    pub baumgarte_steps: f64,
+    /// Default horizon [s].
+    #[serde(default = "default_horizon")]
+    pub horizon: f64,
+    /// Sample period of the output [s].
+    #[serde(default = "default_sample")]
+    pub sample_period: f64,
+}
+
+fn default_dt() -> f64 {
+    1e-3
+}
+fn default_rtol() -> f64 {
+    1e-8
+}
+fn default_atol() -> f64 {
+    1e-10
+}
+fn default_baumgarte_steps() -> f64 {
+    10.0
+}
+fn default_horizon() -> f64 {
+    1.0
+}
+fn default_sample() -> f64 {
+    0.01
+}
+
+impl Default for IntegrationSettings {
+    fn default() -> Self {
+        Self {
+            method: Method::default(),
+            dt: default_dt(),
+            rtol: default_rtol(),
+            atol: default_atol(),
+            drift: DriftControl::default(),
+            baumgarte_steps: default_baumgarte_steps(),
+            horizon: default_horizon(),
+            sample_period: default_sample(),
+        }
+    }
+}
+
+impl IntegrationSettings {
+    /// Refuse settings that cannot work, naming the field.
+    pub fn validate(&self) -> crate::Result<()> {
+        let pos = |name: &str, x: f64| {
+            if x.is_finite() && x > 0.0 {
+                Ok(())
+            } else {
+                Err(crate::Error::Invalid(format!(
+                    "integration.{name} = {x} must be positive and finite"
+                )))
+            }
+        };
+        pos("dt", self.dt)?;
+        pos("rtol", self.rtol)?;
+        pos("atol", self.atol)?;
+        pos("baumgarte_steps", self.baumgarte_steps)?;
+        pos("sample_period", self.sample_period)?;
+        if !(self.horizon.is_finite() && self.horizon >= 0.0) {
+            return Err(crate::Error::Invalid(format!(
+                "integration.horizon = {} must be ≥ 0",
+                self.horizon
+            )));
+        }
+        Ok(())
+    }
+}

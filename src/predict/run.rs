@@ -1,0 +1,390 @@
+//! The prediction loop: control ticks, integration steps, drift control, samples.
+
+use super::integrator::{
+    Accel, DOPRI5, Method, RK4, explicit_step, sdirk2_step, semi_implicit_euler_step,
+};
+use super::{DriftControl, IntegrationSettings, drift};
+use crate::actuators::{Actuators, Command};
+use crate::algorithm::{crba, forward_kinematics, kinetic_energy, potential_energy};
+use crate::constraints::ConstraintForce;
+use crate::dynamics::Baumgarte;
+use crate::error::{Error, Result};
+use crate::forces::ForceElements;
+use crate::model::Model;
+use crate::scene::Scene;
+use crate::system::System;
+use serde::Serialize;
+use std::time::Instant;
+
+/// One output sample.
+#[derive(Clone, Debug, Serialize)]
+pub struct Sample {
+    /// Time [s].
+    pub t: f64,
+    pub q: Vec<f64>,
+    pub v: Vec<f64>,
+    /// Multipliers (when forces were asked for).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lambda: Option<Vec<f64>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub forces: Option<Vec<ConstraintForce>>,
+    /// max |φ| over holonomic rows [m or rad].
+    pub position_residual: f64,
+    /// max |J v| [m/s or rad/s].
+    pub velocity_residual: f64,
+    /// Kinetic, and gravity + spring potential energy [J].
+    pub kinetic_energy: f64,
+    pub potential_energy: f64,
+    /// Accumulated local error estimate of the configuration [m or rad] (dopri5), NaN otherwise.
+    pub error_estimate: f64,
+}
+
+/// A prediction.
+#[derive(Clone, Debug, Serialize)]
+pub struct Trajectory {
+    pub q_names: Vec<String>,
+    pub v_names: Vec<String>,
+    pub method: Method,
+    pub samples: Vec<Sample>,
+    /// Accepted steps and right-hand-side evaluations.
+    pub steps: usize,
+    pub evaluations: usize,
+    /// CPU (wall) time of the integration [s].
+    pub run_time_s: f64,
+}
+
+/// The right-hand side: held actuator torques + force elements → constrained q̈.
+struct Rhs<'a> {
+    sys: &'a mut System,
+    forces: &'a mut ForceElements,
+    tau_act: &'a [f64],
+    tau: Vec<f64>,
+    evaluations: usize,
+}
+
+impl Accel for Rhs<'_> {
+    fn accel(&mut self, t: f64, q: &[f64], v: &[f64], qdd: &mut [f64]) -> Result<()> {
+        self.evaluations += 1;
+        self.tau.copy_from_slice(self.tau_act);
+        if !self.forces.is_empty() {
+            let zero = vec![0.0; v.len()];
+            forward_kinematics(&self.sys.model, &mut self.sys.data, q, v, &zero);
+            self.forces.add_generalized_force(
+                &self.sys.model,
+                &self.sys.data,
+                t,
+                q,
+                v,
+                &mut self.tau,
+            );
+        }
+        let a = self.sys.forward_dynamics(q, v, &self.tau, false)?;
+        qdd.copy_from_slice(a.as_slice());
+        Ok(())
+    }
+}
+
+/// Scene-configured predictor (model, constraints, force elements, actuators, integration).
+#[derive(Clone, Debug)]
+pub struct Predictor {
+    pub sys: System,
+    pub forces: ForceElements,
+    pub actuators: Actuators,
+    pub settings: IntegrationSettings,
+    /// Record λ and the constraint forces in every sample.
+    pub want_forces: bool,
+    model: Model,
+}
+
+impl Predictor {
+    pub fn from_scene(scene: &Scene) -> Result<Self> {
+        let sys = System::from_scene(scene)?;
+        let forces = ForceElements::new(&sys.model, &scene.file.forces)?;
+        let actuators = Actuators::new(&sys.model, &scene.file.actuators)?;
+        Self::new(sys, forces, actuators, scene.file.integration.clone())
+    }
+
+    pub fn new(
+        sys: System,
+        forces: ForceElements,
+        actuators: Actuators,
+        settings: IntegrationSettings,
+    ) -> Result<Self> {
+        settings.validate()?;
+        let model = sys.model.clone();
+        Ok(Self {
+            sys,
+            forces,
+            actuators,
+            settings,
+            want_forces: false,
+            model,
+        })
+    }
+
+    /// Propagate from (q0, v0) over `horizon` [s] following `commands` ((start time [s], command),
+    /// sorted; the last one started is active).
+    pub fn predict(
+        &mut self,
+        q0: &[f64],
+        v0: &[f64],
+        commands: &[(f64, Command)],
+        horizon: f64,
+    ) -> Result<Trajectory> {
+        let start = Instant::now();
+        self.model.check_state(q0, v0)?;
+        if !(horizon.is_finite() && horizon >= 0.0) {
+            return Err(Error::Invalid(format!(
+                "horizon = {horizon} s must be finite and ≥ 0"
+            )));
+        }
+        for (t, c) in commands {
+            crate::error::check_finite("command time", &[*t])?;
+            self.actuators.check_command(c)?;
+        }
+        let s = self.settings.clone();
+        let saved_gains = self.sys.baumgarte;
+        if s.drift == DriftControl::Baumgarte && self.sys.baumgarte == Baumgarte::default() {
+            self.sys.baumgarte = Baumgarte::from_time_constant(s.baumgarte_steps * s.dt);
+        }
+        let result = self.run(q0, v0, commands, horizon, &s);
+        self.sys.baumgarte = saved_gains;
+        let mut traj = result?;
+        traj.run_time_s = start.elapsed().as_secs_f64();
+        Ok(traj)
+    }
+
+    fn run(
+        &mut self,
+        q0: &[f64],
+        v0: &[f64],
+        commands: &[(f64, Command)],
+        horizon: f64,
+        s: &IntegrationSettings,
+    ) -> Result<Trajectory> {
+        let (mut q, mut v) = (q0.to_vec(), v0.to_vec());
+        self.model.normalize(&mut q);
+        self.check_step_size(&q, &v, s)?;
+        self.actuators.reset();
+        let nv = self.model.nv;
+        let mut tau_act = vec![0.0; nv];
+        let period = if self.actuators.is_empty() {
+            s.sample_period
+        } else {
+            self.actuators.control_period.min(s.sample_period)
+        };
+        let mut traj = Trajectory {
+            q_names: self.model.q_names.clone(),
+            v_names: self.model.v_names.clone(),
+            method: s.method,
+            samples: vec![],
+            steps: 0,
+            evaluations: 0,
+            run_time_s: 0.0,
+        };
+        let mut err_acc = if s.method == Method::Dopri5 {
+            0.0
+        } else {
+            f64::NAN
+        };
+        let mut h = s.dt;
+        traj.samples.push(self.sample(0.0, &q, &v, err_acc)?);
+        let (mut t, mut k) = (0.0, 0usize);
+        let mut next_sample = s.sample_period;
+        while t < horizon - 1e-12 {
+            k += 1;
+            let t_end = (k as f64 * period).min(horizon);
+            if !self.actuators.is_empty() {
+                let cmd = commands
+                    .iter()
+                    .rev()
+                    .find(|(ts, _)| *ts <= t + 1e-12)
+                    .map(|(_, c)| c.clone())
+                    .unwrap_or_default();
+                self.actuators.update(&cmd, &q, &v, t_end - t, &mut tau_act);
+            }
+            self.advance(
+                &mut q,
+                &mut v,
+                t,
+                t_end,
+                &mut h,
+                &mut err_acc,
+                &tau_act,
+                &mut traj,
+                s,
+            )?;
+            t = t_end;
+            if t >= next_sample - 1e-9 || t >= horizon - 1e-12 {
+                traj.samples.push(self.sample(t, &q, &v, err_acc)?);
+                while next_sample <= t + 1e-9 {
+                    next_sample += s.sample_period;
+                }
+            }
+        }
+        Ok(traj)
+    }
+
+    /// Integrate from t0 to t1 with the chosen method, controlling drift after every step.
+    #[allow(clippy::too_many_arguments)]
+    fn advance(
+        &mut self,
+        q: &mut [f64],
+        v: &mut [f64],
+        t0: f64,
+        t1: f64,
+        h: &mut f64,
+        err_acc: &mut f64,
+        tau_act: &[f64],
+        traj: &mut Trajectory,
+        s: &IntegrationSettings,
+    ) -> Result<()> {
+        let model = &self.model;
+        let mut rhs = Rhs {
+            sys: &mut self.sys,
+            forces: &mut self.forces,
+            tau_act,
+            tau: vec![0.0; model.nv],
+            evaluations: 0,
+        };
+        let mut t = t0;
+        while t < t1 - 1e-12 {
+            let dt = if s.method == Method::Dopri5 {
+                h.min(t1 - t)
+            } else {
+                (t1 - t) / ((t1 - t) / s.dt - 1e-9).ceil().max(1.0)
+            };
+            match s.method {
+                Method::SemiImplicitEuler => {
+                    semi_implicit_euler_step(&mut rhs, model, t, dt, q, v)?
+                }
+                Method::Rk4 => {
+                    explicit_step(&mut rhs, model, &RK4, t, dt, q, v)?;
+                }
+                Method::Sdirk2 => sdirk2_step(&mut rhs, model, t, dt, q, v)?,
+                Method::Dopri5 => {
+                    let (q_old, v_old) = (q.to_vec(), v.to_vec());
+                    let e =
+                        explicit_step(&mut rhs, model, &DOPRI5, t, dt, q, v)?.unwrap_or_default();
+                    let nv = v.len();
+                    let norm = (e
+                        .iter()
+                        .enumerate()
+                        .map(|(i, ei)| {
+                            let x = if i < nv {
+                                1.0
+                            } else {
+                                v_old[i - nv].abs().max(v[i - nv].abs())
+                            };
+                            (ei / (s.atol + s.rtol * x)).powi(2)
+                        })
+                        .sum::<f64>()
+                        / e.len().max(1) as f64)
+                        .sqrt();
+                    let factor = (0.9 * norm.max(1e-10).powf(-0.2)).clamp(0.2, 5.0);
+                    if norm > 1.0 || !norm.is_finite() {
+                        q.copy_from_slice(&q_old);
+                        v.copy_from_slice(&v_old);
+                        *h = dt * factor.min(0.5);
+                        if *h < 1e-14 * t1.max(1.0) {
+                            return Err(Error::Diverged {
+                                t,
+                                message: format!("dopri5 step size underflow (h = {h:e} s)"),
+                            });
+                        }
+                        continue;
+                    }
+                    *err_acc += e[..nv].iter().fold(0.0f64, |m, x| m.max(x.abs()));
+                    *h = dt * factor;
+                }
+            }
+            t += dt;
+            traj.steps += 1;
+            if s.drift == DriftControl::Projection {
+                drift::project(rhs.sys, q, v, true)?;
+            }
+            if let Some(bad) = q
+                .iter()
+                .chain(v.iter())
+                .find(|x| !x.is_finite() || x.abs() > 1e12)
+            {
+                return Err(Error::Diverged {
+                    t,
+                    message: format!(
+                        "the state left all bounds ({bad:e}); reduce dt or use method sdirk2"
+                    ),
+                });
+            }
+        }
+        traj.evaluations += rhs.evaluations;
+        Ok(())
+    }
+
+    /// Refuse, before running, a fixed explicit step beyond the method's stability limit for the
+    /// stiffest spring or damper: dt·max(ω, d/m) from k (M⁻¹)_ii, d (M⁻¹)_ii per joint element.
+    fn check_step_size(&mut self, q: &[f64], v: &[f64], s: &IntegrationSettings) -> Result<()> {
+        let Some(limit) = s.method.explicit_stability_limit() else {
+            return Ok(());
+        };
+        let zero = vec![0.0; v.len()];
+        forward_kinematics(&self.sys.model, &mut self.sys.data, q, v, &zero);
+        let m = crba(&self.sys.model, &mut self.sys.data, q).clone();
+        let reg = m.diagonal().amax().max(1e-12) * 1e-12;
+        let minv = (m + nalgebra::DMatrix::identity(v.len(), v.len()) * reg)
+            .try_inverse()
+            .unwrap_or_default();
+        let rate = self.forces.max_rate(&self.sys.model, &self.sys.data, &minv);
+        if s.dt * rate > limit {
+            return Err(Error::StepTooLarge {
+                message: format!(
+                    "dt = {} s exceeds the {:?} stability limit {:.3e} s for the stiffest force element \
+                     (rate {rate:.3e} 1/s); use a smaller dt or method sdirk2",
+                    s.dt,
+                    s.method,
+                    limit / rate
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    fn sample(&mut self, t: f64, q: &[f64], v: &[f64], err: f64) -> Result<Sample> {
+        let sys = &mut self.sys;
+        let (mut lambda, mut forces) = (None, None);
+        if self.want_forces && !sys.constraints.is_empty() {
+            let mut tau = vec![0.0; v.len()];
+            if !self.forces.is_empty() {
+                let zero = vec![0.0; v.len()];
+                forward_kinematics(&sys.model, &mut sys.data, q, v, &zero);
+                self.forces
+                    .add_generalized_force(&sys.model, &sys.data, t, q, v, &mut tau);
+            }
+            sys.forward_dynamics(q, v, &tau, true)?;
+            lambda = Some(sys.kkt.lambda.as_slice().to_vec());
+            forces = Some(sys.constraint_forces());
+        }
+        sys.constraints
+            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
+        let cd = &sys.cdata;
+        let position_residual = (0..sys.constraints.nrows)
+            .filter(|&k| cd.holonomic[k])
+            .map(|k| cd.phi[k].abs())
+            .fold(0.0, f64::max);
+        let velocity_residual = cd.jv.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let ke = kinetic_energy(&sys.model, &sys.data);
+        let pe = potential_energy(&sys.model, &sys.data)
+            + self.forces.potential_energy(&sys.model, &sys.data, q);
+        Ok(Sample {
+            t,
+            q: q.to_vec(),
+            v: v.to_vec(),
+            lambda,
+            forces,
+            position_residual,
+            velocity_residual,
+            kinetic_energy: ke,
+            potential_energy: pe,
+            error_estimate: err,
+        })
+    }
+}
