@@ -32,6 +32,15 @@ pub(crate) fn relative_point(
     jtmp: &mut DMatrix<f64>,
 ) -> [Vector3<f64>; 3] {
     point_jacobian(model, data, a.0, a.1, jrel, 0);
+    let (pa, va, aa) = (
+        point_position(model, data, a.0, a.1),
+        point_velocity(model, data, a.0, a.1),
+        point_classical_acceleration(model, data, a.0, a.1),
+    );
+    if model.frames[b.0].body == 0 {
+        // B is fixed in the world: no Jacobian, velocity or acceleration to subtract.
+        return [pa - point_position(model, data, b.0, b.1), va, aa];
+    }
     point_jacobian(model, data, b.0, b.1, jtmp, 0);
     for r in 0..3 {
         for c in 0..jrel.ncols() {
@@ -39,10 +48,9 @@ pub(crate) fn relative_point(
         }
     }
     [
-        point_position(model, data, a.0, a.1) - point_position(model, data, b.0, b.1),
-        point_velocity(model, data, a.0, a.1) - point_velocity(model, data, b.0, b.1),
-        point_classical_acceleration(model, data, a.0, a.1)
-            - point_classical_acceleration(model, data, b.0, b.1),
+        pa - point_position(model, data, b.0, b.1),
+        va - point_velocity(model, data, b.0, b.1),
+        aa - point_classical_acceleration(model, data, b.0, b.1),
     ]
 }
 
