@@ -221,7 +221,7 @@ impl<'a> Builder<'a> {
                 parent: 0,
                 joint: Joint {
                     name: "universe".into(),
-                    kind: JointKind::Revolute { axis: Vector3::z() },
+                    kind: JointKind::revolute(Vector3::z()),
                     idx_q: 0,
                     idx_v: 0,
                     subspace: [Default::default(); 6],
@@ -374,7 +374,7 @@ impl<'a> Builder<'a> {
         use urdf_rs::JointType as T;
         Ok(match j.joint_type {
             T::Fixed => None,
-            T::Revolute | T::Continuous => Some(JointKind::Revolute { axis: unit()? }),
+            T::Revolute | T::Continuous => Some(JointKind::revolute(unit()?)),
             T::Prismatic => Some(JointKind::Prismatic { axis: unit()? }),
             T::Floating => Some(JointKind::FreeFlyer),
             T::Planar => {

@@ -5,14 +5,16 @@
 //! twist is `S q̇` and its bias acceleration `c_J` is zero (free-flyer and planar velocities are
 //! expressed in the child frame, as a ROS odometry twist is in `child_frame_id`).
 
-use crate::spatial::{Motion, SE3, rotation_about_axis};
+use crate::spatial::{Motion, SE3};
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 
 /// Kind of a movable joint.
 #[derive(Clone, Debug, PartialEq)]
 pub enum JointKind {
-    /// Rotation about a unit axis of the joint frame; q [rad], v [rad/s].
-    Revolute { axis: Vector3<f64> },
+    /// Rotation about a unit axis of the joint frame; q [rad], v [rad/s]. `skew` = [a]× and
+    /// `skew2` = [a]×² are kept so the rotation `1 + sin q [a]× + (1 − cos q) [a]×²` costs no
+    /// matrix product; `aligned` marks an axis along ±x, ±y or ±z (sparse rotation).
+    Revolute { axis: Vector3<f64>, skew: Matrix3<f64>, skew2: Matrix3<f64>, aligned: Option<(usize, f64)> },
     /// Translation along a unit axis of the joint frame; q [m], v [m/s].
     Prismatic { axis: Vector3<f64> },
     /// Free-flyer: q = [x, y, z, qx, qy, qz, qw] (child pose in the parent frame, unit quaternion),
@@ -23,6 +25,13 @@ pub enum JointKind {
 }
 
 impl JointKind {
+    /// A revolute joint about the unit `axis`.
+    pub fn revolute(axis: Vector3<f64>) -> Self {
+        let skew = crate::spatial::skew(&axis);
+        let aligned = (0..3).find(|&i| (axis[i].abs() - 1.0).abs() < 1e-15).map(|i| (i, axis[i].signum()));
+        JointKind::Revolute { axis, skew, skew2: skew * skew, aligned }
+    }
+
     /// Number of configuration coordinates.
     pub fn nq(&self) -> usize {
         match self {
@@ -47,7 +56,7 @@ impl JointKind {
         let e = |i: usize| Vector3::ith(i, 1.0);
         let mut s = [Motion::zero(); 6];
         match self {
-            JointKind::Revolute { axis } => s[0] = Motion::new(z, *axis),
+            JointKind::Revolute { axis, .. } => s[0] = Motion::new(z, *axis),
             JointKind::Prismatic { axis } => s[0] = Motion::new(*axis, z),
             JointKind::FreeFlyer => {
                 for i in 0..3 {
@@ -68,8 +77,21 @@ impl JointKind {
     #[inline]
     pub fn transform(&self, q: &[f64]) -> SE3 {
         match self {
-            JointKind::Revolute { axis } => {
-                SE3::new(rotation_about_axis(axis, q[0]), Vector3::zeros())
+            JointKind::Revolute { skew, skew2, aligned, .. } => {
+                let (sn, cs) = q[0].sin_cos();
+                let r = match aligned {
+                    Some((i, sign)) => {
+                        let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+                        let mut r = Matrix3::identity();
+                        r[(j, j)] = cs;
+                        r[(k, k)] = cs;
+                        r[(k, j)] = sign * sn;
+                        r[(j, k)] = -sign * sn;
+                        r
+                    }
+                    None => Matrix3::identity() + skew * sn + skew2 * (1.0 - cs),
+                };
+                SE3::new(r, Vector3::zeros())
             }
             JointKind::Prismatic { axis } => SE3::new(Matrix3::identity(), axis * q[0]),
             JointKind::FreeFlyer => {
