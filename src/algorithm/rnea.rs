@@ -57,17 +57,7 @@ fn rnea_impl<'a>(
         let iv = b.inertia.mul_motion(&vi);
         data.f[i] = b.inertia.mul_motion(&ai) + vi.cross_force(&iv);
     }
-    for i in (1..model.nbodies()).rev() {
-        let b = &model.bodies[i];
-        let j = &b.joint;
-        for k in 0..j.kind.nv() {
-            data.tau[j.idx_v + k] = j.subspace[k].dot(&data.f[i]);
-        }
-        if b.parent > 0 {
-            let fp = data.li_m_i[i].act_force(&data.f[i]);
-            data.f[b.parent] += fp;
-        }
-    }
+    backward_pass(model, data);
     &data.tau
 }
 
@@ -82,6 +72,11 @@ pub(crate) fn bias_forces_after_kinematics(model: &Model, data: &mut Data) {
         let iv = b.inertia.mul_motion(&vi);
         data.f[i] = b.inertia.mul_motion(&ai) + vi.cross_force(&iv);
     }
+    backward_pass(model, data);
+}
+
+/// τ_i = S_iᵀ f_i, accumulating each body's wrench into its parent.
+fn backward_pass(model: &Model, data: &mut Data) {
     for i in (1..model.nbodies()).rev() {
         let b = &model.bodies[i];
         let j = &b.joint;
