@@ -17,6 +17,7 @@ pub mod error;
 pub mod forces;
 pub mod model;
 pub mod predict;
+pub mod projection;
 pub mod scene;
 pub mod spatial;
 pub mod system;

@@ -2,83 +2,278 @@
 //! rows only) and of v onto J(q) v = 0 (Ascher, Chin, Petzold & Reich 1995):
 //!   Δq = −M⁻¹ Jₕᵀ (Jₕ M⁻¹ Jₕᵀ)⁺ φₕ,  q ← q ⊕ Δq   (repeated while |φ| > tol),
 //!   v ← v − M⁻¹ Jᵀ (J M⁻¹ Jᵀ)⁺ J v.
+//! With M = L Lᵀ and Y = L⁻¹ Aᵀ the correction is `L⁻ᵀ Y μ`, `(YᵀY) μ = r`; redundant rows make
+//! YᵀY singular, and a semi-definite Cholesky that drops them gives the same correction as the
+//! pseudo-inverse (Y μ is unique). A massless link fixed only by the constraints (M semi-definite)
+//! uses the metric M + ρ AᵀA instead: the projected point is the same on the constraint's range.
+//! Everything lives in a [`Projector`] sized once: a projection allocates nothing.
 
-use crate::algorithm::crba;
+use super::linalg::{semidefinite_cholesky, semidefinite_solve};
+use crate::algorithm::{bias_forces_after_kinematics, crba_after_kinematics};
+use crate::dynamics::cholesky_in_place;
 use crate::error::{Error, Result};
 use crate::system::System;
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 
 /// Position tolerance of the Newton projection [m or rad].
 pub const POSITION_TOL: f64 = 1e-12;
+/// A position residual still above this after the Newton iterations is an error [m or rad]:
+/// the step moved the state too far from the constraints to come back.
+pub const POSITION_FAIL: f64 = 1e-8;
+/// Relative pivot threshold below which a constraint row counts as redundant.
+const RANK_TOL: f64 = 1e-12;
+const NEWTON_ITERATIONS: usize = 8;
 
-/// `M⁻¹ Aᵀ (A M⁻¹ Aᵀ)⁺ r` for the rows of A (pseudo-inverse through SVD, redundant rows allowed).
-fn weighted_correction(
-    m: &DMatrix<f64>,
-    a: &DMatrix<f64>,
-    r: &DVector<f64>,
-) -> Option<DVector<f64>> {
-    let chol = m.clone().cholesky()?;
-    let minv_at = chol.solve(&a.transpose());
-    let s = a * &minv_at;
-    let tol = 1e-12 * s.amax().max(1e-300);
-    let pinv = s.pseudo_inverse(tol).ok()?;
-    Some(minv_at * (pinv * r))
+/// Workspace of the projection (one per predictor).
+#[derive(Clone, Debug, Default)]
+pub struct Projector {
+    /// Holonomic rows of the constraint set.
+    rows_h: Vec<usize>,
+    /// Metric factor L (nv × nv).
+    l: DMatrix<f64>,
+    /// Y = L⁻¹ Aᵀ (nv × rows) and S = YᵀY (rows × rows), per row set (holonomic, all).
+    y: [DMatrix<f64>; 2],
+    s: [DMatrix<f64>; 2],
+    dropped: [Vec<bool>; 2],
+    mu: [Vec<f64>; 2],
+    dq: Vec<f64>,
+    q_tmp: Vec<f64>,
+    rhs: Vec<f64>,
+    /// Rank deficiency of the last velocity projection.
+    pub rank_deficiency: usize,
 }
 
-/// Project (q, v) onto the constraint manifold in place.
-pub fn project(sys: &mut System, q: &mut [f64], v: &mut [f64], positions: bool) -> Result<()> {
-    if sys.constraints.is_empty() {
-        return Ok(());
+impl Projector {
+    pub fn new(sys: &System) -> Self {
+        let (nv, nc, nq) = (sys.model.nv, sys.constraints.nrows, sys.model.nq);
+        Self {
+            rows_h: Vec::with_capacity(nc),
+            l: DMatrix::zeros(nv, nv),
+            y: [DMatrix::zeros(nv, 0), DMatrix::zeros(nv, nc)],
+            s: [DMatrix::zeros(0, 0), DMatrix::zeros(nc, nc)],
+            dropped: [vec![false; nc], vec![false; nc]],
+            mu: [vec![0.0; nc], vec![0.0; nc]],
+            dq: vec![0.0; nv],
+            q_tmp: vec![0.0; nq],
+            rhs: vec![0.0; nv],
+            rank_deficiency: 0,
+        }
     }
-    let nv = sys.model.nv;
-    if positions {
-        for _ in 0..8 {
+
+    /// Project (q, v) onto the constraint manifold in place (positions first when asked).
+    /// Returns the largest holonomic residual after the position projection.
+    pub fn project(
+        &mut self,
+        sys: &mut System,
+        q: &mut [f64],
+        v: &mut [f64],
+        positions: bool,
+    ) -> Result<f64> {
+        if sys.constraints.is_empty() {
+            return Ok(0.0);
+        }
+        let mut residual = 0.0;
+        if positions {
+            residual = self.project_positions(sys, q, v)?;
+        }
+        sys.constraints
+            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
+        let nc = sys.constraints.nrows;
+        if sys.cdata.jv.iter().all(|x| *x == 0.0) {
+            return Ok(residual);
+        }
+        self.metric(sys, false)?;
+        let rhs: &mut Vec<f64> = &mut self.mu[1];
+        rhs[..nc].copy_from_slice(sys.cdata.jv.as_slice());
+        self.rank_deficiency = nc - self.correction(sys, 1);
+        for (vi, d) in v.iter_mut().zip(&self.dq) {
+            *vi -= d;
+        }
+        Ok(residual)
+    }
+
+    fn project_positions(&mut self, sys: &mut System, q: &mut [f64], v: &[f64]) -> Result<f64> {
+        let mut worst = 0.0;
+        for it in 0..=NEWTON_ITERATIONS {
             sys.constraints
                 .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
-            let rows: Vec<usize> = (0..sys.constraints.nrows)
-                .filter(|&k| sys.cdata.holonomic[k])
-                .collect();
-            let phi = DVector::from_fn(rows.len(), |k, _| sys.cdata.phi[rows[k]]);
-            if rows.is_empty() || phi.amax() <= POSITION_TOL {
+            if it == 0 {
+                self.rows_h.clear();
+                let hol = &sys.cdata.holonomic;
+                self.rows_h
+                    .extend((0..sys.constraints.nrows).filter(|&k| hol[k]));
+                let nh = self.rows_h.len();
+                if self.s[0].nrows() != nh {
+                    self.y[0] = DMatrix::zeros(sys.model.nv, nh);
+                    self.s[0] = DMatrix::zeros(nh, nh);
+                }
+            }
+            worst = self
+                .rows_h
+                .iter()
+                .fold(0.0f64, |m, &k| m.max(sys.cdata.phi[k].abs()));
+            if self.rows_h.is_empty() || worst <= POSITION_TOL || it == NEWTON_ITERATIONS {
                 break;
             }
-            let jh = sys.cdata.j.select_rows(rows.iter());
-            let m = crba(&sys.model, &mut sys.data, q).clone();
-            let dq =
-                weighted_correction(&mass_or_augmented(&m, &jh), &jh, &phi).ok_or_else(|| {
-                    Error::InconsistentConstraints {
-                        message: "position projection: singular mass matrix".into(),
-                    }
-                })?;
-            let step: Vec<f64> = dq.iter().map(|x| -x).collect();
-            let q0 = q.to_vec();
-            sys.model.integrate(&q0, &step, 1.0, q);
-        }
-    }
-    sys.constraints
-        .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
-    let j = sys.cdata.j.clone();
-    let jv = DVector::from_column_slice(sys.cdata.jv.as_slice());
-    if jv.amax() > 0.0 {
-        let m = crba(&sys.model, &mut sys.data, q).clone();
-        let dv = weighted_correction(&mass_or_augmented(&m, &j), &j, &jv).ok_or_else(|| {
-            Error::InconsistentConstraints {
-                message: "velocity projection: singular mass matrix".into(),
+            if !worst.is_finite() {
+                break;
             }
-        })?;
-        for i in 0..nv {
-            v[i] -= dv[i];
+            self.metric(sys, true)?;
+            for (a, &k) in self.rows_h.iter().enumerate() {
+                self.mu[0][a] = sys.cdata.phi[k];
+            }
+            self.correction(sys, 0);
+            self.dq.iter_mut().for_each(|x| *x = -*x);
+            self.q_tmp.copy_from_slice(q);
+            sys.model.integrate(&self.q_tmp, &self.dq, 1.0, q);
         }
+        if worst.is_nan() || worst > POSITION_FAIL {
+            return Err(Error::Diverged {
+                t: f64::NAN,
+                message: format!(
+                    "the position projection left |φ| = {worst:.3e} after {NEWTON_ITERATIONS} \
+                     Newton iterations; the step is too large for the constraints"
+                ),
+            });
+        }
+        Ok(worst)
     }
-    Ok(())
+
+    /// Factor the metric: M (from a CRBA after `evaluate`), or M + ρ AᵀA when M is singular
+    /// (A = holonomic rows when `holonomic`, else all rows). Returns ρ (0 for M itself).
+    fn metric(&mut self, sys: &mut System, holonomic: bool) -> Result<f64> {
+        let m = crba_after_kinematics(&sys.model, &mut sys.data);
+        self.l.copy_from(m);
+        if cholesky_in_place(&mut self.l, 1e-14).is_ok() {
+            return Ok(0.0);
+        }
+        let nv = sys.model.nv;
+        let rho = (0..nv).map(|i| m[(i, i)]).fold(0.0, f64::max).max(1.0);
+        self.l.copy_from(m);
+        let j = &sys.cdata.j;
+        let nc = sys.constraints.nrows;
+        for a in 0..nv {
+            for c in 0..nv {
+                let mut s = 0.0;
+                for k in 0..nc {
+                    if !holonomic || sys.cdata.holonomic[k] {
+                        s += j[(k, a)] * j[(k, c)];
+                    }
+                }
+                self.l[(a, c)] += rho * s;
+            }
+        }
+        cholesky_in_place(&mut self.l, 1e-14).map_err(|i| Error::SingularMass {
+            message: format!(
+                "projection: coordinate '{}' has no inertia and no constraint fixes it",
+                sys.model.v_names[i]
+            ),
+        })?;
+        Ok(rho)
+    }
+
+    /// Constrained accelerations in the least-squares sense, for states where the constraint
+    /// accelerations cannot all be met (at or next to a singular configuration, where drift and
+    /// stage errors make `J q̈ = b` slightly inconsistent): q̈ is the M-weighted projection of the
+    /// free acceleration onto the rows of J that are independent, i.e.
+    ///   q̈ = q̈_free − M⁻¹ Jᵀ S⁺ (J q̈_free − b),  S = J M⁻¹ Jᵀ,  b = −γ − K_d J v − K_p φ.
+    /// Returns nc − rank(S).
+    pub(crate) fn least_squares_accel(
+        &mut self,
+        sys: &mut System,
+        q: &[f64],
+        v: &[f64],
+        tau: &[f64],
+        qdd: &mut [f64],
+    ) -> Result<usize> {
+        let (nv, nc) = (sys.model.nv, sys.constraints.nrows);
+        sys.constraints
+            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
+        let rho = self.metric(sys, false)?;
+        bias_forces_after_kinematics(&sys.model, &mut sys.data);
+        let (cd, stab) = (&sys.cdata, sys.baumgarte);
+        let b = |k: usize| -cd.gamma[k] - stab.kd * cd.jv[k] - stab.kp * cd.phi[k];
+        // q̈_free = M̃⁻¹ (τ − h + ρ Jᵀ b)
+        for i in 0..nv {
+            self.rhs[i] =
+                tau[i] - sys.data.tau[i] + rho * (0..nc).map(|k| cd.j[(k, i)] * b(k)).sum::<f64>();
+        }
+        for i in 0..nv {
+            let mut s = self.rhs[i];
+            for k in 0..i {
+                s -= self.l[(i, k)] * self.rhs[k];
+            }
+            self.rhs[i] = s / self.l[(i, i)];
+        }
+        for i in (0..nv).rev() {
+            let mut s = self.rhs[i];
+            for k in i + 1..nv {
+                s -= self.l[(k, i)] * self.rhs[k];
+            }
+            self.rhs[i] = s / self.l[(i, i)];
+        }
+        for k in 0..nc {
+            self.mu[1][k] = (0..nv).map(|i| cd.j[(k, i)] * self.rhs[i]).sum::<f64>() - b(k);
+        }
+        let rank = self.correction(sys, 1);
+        for i in 0..nv {
+            qdd[i] = self.rhs[i] - self.dq[i];
+        }
+        Ok(nc - rank)
+    }
+
+    /// `dq = L⁻ᵀ Y μ` with `(YᵀY) μ = r` (r in `mu[set]`), rows = holonomic (set 0) or all (set 1).
+    /// Returns the rank of YᵀY.
+    fn correction(&mut self, sys: &System, set: usize) -> usize {
+        let nv = sys.model.nv;
+        let j = &sys.cdata.j;
+        let nr = self.s[set].nrows();
+        let y = &mut self.y[set];
+        for a in 0..nr {
+            let row = if set == 0 { self.rows_h[a] } else { a };
+            for i in 0..nv {
+                y[(i, a)] = j[(row, i)];
+            }
+            // y[:, a] ← L⁻¹ y[:, a]
+            for i in 0..nv {
+                let mut s = y[(i, a)];
+                for k in 0..i {
+                    s -= self.l[(i, k)] * y[(k, a)];
+                }
+                y[(i, a)] = s / self.l[(i, i)];
+            }
+        }
+        let s = &mut self.s[set];
+        for a in 0..nr {
+            for b in 0..=a {
+                let mut acc = 0.0;
+                for i in 0..nv {
+                    acc += y[(i, a)] * y[(i, b)];
+                }
+                s[(a, b)] = acc;
+                s[(b, a)] = acc;
+            }
+        }
+        let rank = semidefinite_cholesky(s, RANK_TOL, &mut self.dropped[set]);
+        semidefinite_solve(s, &self.dropped[set], &mut self.mu[set][..nr]);
+        // dq = L⁻ᵀ (Y μ)
+        for i in 0..nv {
+            self.dq[i] = (0..nr).map(|a| y[(i, a)] * self.mu[set][a]).sum();
+        }
+        for i in (0..nv).rev() {
+            let mut s = self.dq[i];
+            for k in i + 1..nv {
+                s -= self.l[(k, i)] * self.dq[k];
+            }
+            self.dq[i] = s / self.l[(i, i)];
+        }
+        rank
+    }
 }
 
-/// M, or M + JᵀJ·max diag(M) when M is only semi-definite (massless links fixed by constraints);
-/// the projection onto J v = 0 is the same in either metric restricted to the constraint's range.
-fn mass_or_augmented(m: &DMatrix<f64>, j: &DMatrix<f64>) -> DMatrix<f64> {
-    if m.clone().cholesky().is_some() {
-        return m.clone();
-    }
-    let rho = m.diagonal().amax().max(1.0);
-    m + j.transpose() * j * rho
+/// Project (q, v) onto the constraint manifold in place (convenience: a fresh workspace).
+pub fn project(sys: &mut System, q: &mut [f64], v: &mut [f64], positions: bool) -> Result<()> {
+    Projector::new(sys)
+        .project(sys, q, v, positions)
+        .map(|_| ())
 }

@@ -1,10 +1,13 @@
 //! One step of each integrator on the configuration Lie group. The state is (q, v): q on the
 //! group (nq), v in R^nv. For a stage, `Θ` is the tangent increment from q_n (so `q = q_n ⊕ Θ`),
-//! and a stage derivative is `k = (dexp⁻¹_{−Θ}(v), q̈)` ∈ R^{2nv}.
+//! and a stage derivative is `k = (dexp⁻¹_{−Θ}(v), q̈)` ∈ R^{2nv}. Every buffer lives in a
+//! [`StepWorkspace`] sized once per model: a step allocates nothing.
 
 use super::lie::dexp_inv;
+use super::linalg::{lu_in_place, lu_solve};
 use crate::error::{Error, Result};
 use crate::model::Model;
+use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
 /// The integration method a scene or request chooses.
@@ -102,6 +105,75 @@ pub trait Accel {
     fn accel(&mut self, t: f64, q: &[f64], v: &[f64], qdd: &mut [f64]) -> Result<()>;
 }
 
+/// Buffers of one step, sized for a model (nq, nv) and reused by every step.
+#[derive(Clone, Debug, Default)]
+pub struct StepWorkspace {
+    /// Stage derivatives k_i (2nv each), up to 7 stages.
+    ks: Vec<Vec<f64>>,
+    qs: Vec<f64>,
+    vs: Vec<f64>,
+    dx: Vec<f64>,
+    q0: Vec<f64>,
+    v0: Vec<f64>,
+    /// Embedded error vector (Θ, Δv) of the last DOPRI5 step (2nv).
+    pub err: Vec<f64>,
+    /// SDIRK2: ∂k/∂(Θ, v) by finite differences, its LU (I − dt γ ∂k/∂x), pivots, residual.
+    jac: DMatrix<f64>,
+    newton: DMatrix<f64>,
+    piv: Vec<usize>,
+    resid: Vec<f64>,
+    a0: Vec<f64>,
+    ap: Vec<f64>,
+    /// dt of the factor in `newton`; NaN when the Jacobian must be recomputed.
+    newton_dt: f64,
+    jac_fresh: bool,
+}
+
+impl StepWorkspace {
+    pub fn new(nq: usize, nv: usize) -> Self {
+        let n = 2 * nv;
+        Self {
+            ks: vec![vec![0.0; n]; 7],
+            qs: vec![0.0; nq],
+            vs: vec![0.0; nv],
+            dx: vec![0.0; n],
+            q0: vec![0.0; nq],
+            v0: vec![0.0; nv],
+            err: vec![0.0; n],
+            jac: DMatrix::zeros(n, n),
+            newton: DMatrix::zeros(n, n),
+            piv: vec![0; n],
+            resid: vec![0.0; n],
+            a0: vec![0.0; nv],
+            ap: vec![0.0; nv],
+            newton_dt: f64::NAN,
+            jac_fresh: false,
+        }
+    }
+
+    /// Forget the SDIRK2 Jacobian (a new run, or the state jumped).
+    pub fn invalidate(&mut self) {
+        self.newton_dt = f64::NAN;
+    }
+
+    /// Save (q, v) to restore a rejected step.
+    pub fn save(&mut self, q: &[f64], v: &[f64]) {
+        self.q0.copy_from_slice(q);
+        self.v0.copy_from_slice(v);
+    }
+
+    /// The velocity saved at the start of the last step.
+    pub fn saved_v(&self) -> &[f64] {
+        &self.v0
+    }
+
+    /// Restore the state saved by [`StepWorkspace::save`].
+    pub fn restore(&self, q: &mut [f64], v: &mut [f64]) {
+        q.copy_from_slice(&self.q0);
+        v.copy_from_slice(&self.v0);
+    }
+}
+
 /// Stage state from the increment `dx = (Θ, Δv)`: q = q_n ⊕ Θ, v = v_n + Δv.
 fn stage(model: &Model, q: &[f64], v: &[f64], dx: &[f64], qs: &mut [f64], vs: &mut [f64]) {
     let nv = v.len();
@@ -126,7 +198,20 @@ fn derivative<F: Accel>(
     f.accel(t, qs, vs, &mut k[nv..])
 }
 
-/// One explicit RK step; returns the embedded error vector (‖·‖ per component) if the tableau has one.
+/// `dx = dt Σ_j w_j k_j`.
+fn combine(dx: &mut [f64], ks: &[Vec<f64>], w: &[f64], dt: f64) {
+    dx.iter_mut().for_each(|x| *x = 0.0);
+    for (k, &a) in ks.iter().zip(w) {
+        if a != 0.0 {
+            for (d, kk) in dx.iter_mut().zip(k) {
+                *d += dt * a * kk;
+            }
+        }
+    }
+}
+
+/// One explicit RK step in place; with an embedded pair the error vector lands in `ws.err`.
+#[allow(clippy::too_many_arguments)]
 pub fn explicit_step<F: Accel>(
     f: &mut F,
     model: &Model,
@@ -135,42 +220,38 @@ pub fn explicit_step<F: Accel>(
     dt: f64,
     q: &mut [f64],
     v: &mut [f64],
-) -> Result<Option<Vec<f64>>> {
-    let (nq, nv) = (q.len(), v.len());
+    ws: &mut StepWorkspace,
+) -> Result<()> {
     let s = tab.b.len();
-    let mut ks = vec![vec![0.0; 2 * nv]; s];
-    let (mut qs, mut vs, mut dx) = (vec![0.0; nq], vec![0.0; nv], vec![0.0; 2 * nv]);
     for i in 0..s {
-        dx.iter_mut().for_each(|x| *x = 0.0);
-        for (j, &a) in tab.a[i].iter().enumerate() {
-            for (d, k) in dx.iter_mut().zip(&ks[j]) {
-                *d += dt * a * k;
+        let (done, rest) = ws.ks.split_at_mut(i);
+        combine(&mut ws.dx, done, tab.a[i], dt);
+        stage(model, q, v, &ws.dx, &mut ws.qs, &mut ws.vs);
+        derivative(
+            f,
+            model,
+            t + tab.c[i] * dt,
+            &ws.dx[..v.len()],
+            &ws.qs,
+            &ws.vs,
+            &mut rest[0],
+        )?;
+    }
+    if let Some(bh) = tab.b_hat {
+        ws.err.iter_mut().for_each(|x| *x = 0.0);
+        for (k, (&b, &b2)) in ws.ks.iter().zip(tab.b.iter().zip(bh)) {
+            for (e, kk) in ws.err.iter_mut().zip(k) {
+                *e += dt * (b - b2) * kk;
             }
         }
-        stage(model, q, v, &dx, &mut qs, &mut vs);
-        derivative(f, model, t + tab.c[i] * dt, &dx[..nv], &qs, &vs, &mut ks[i])?;
     }
-    dx.iter_mut().for_each(|x| *x = 0.0);
-    for (k, &b) in ks.iter().zip(tab.b) {
-        for (d, kk) in dx.iter_mut().zip(k) {
-            *d += dt * b * kk;
-        }
-    }
-    let err = tab.b_hat.map(|bh| {
-        let mut e = vec![0.0; 2 * nv];
-        for (k, (&b, &b2)) in ks.iter().zip(tab.b.iter().zip(bh)) {
-            for (ee, kk) in e.iter_mut().zip(k) {
-                *ee += dt * (b - b2) * kk;
-            }
-        }
-        e
-    });
-    let (q0, v0) = (q.to_vec(), v.to_vec());
-    stage(model, &q0, &v0, &dx, q, v);
-    Ok(err)
+    combine(&mut ws.dx, &ws.ks[..s], tab.b, dt);
+    ws.save(q, v);
+    stage(model, &ws.q0, &ws.v0, &ws.dx, q, v);
+    Ok(())
 }
 
-/// Semi-implicit Euler step.
+/// Semi-implicit Euler step in place: v⁺ = v + dt q̈(q, v), q⁺ = q ⊕ dt v⁺.
 pub fn semi_implicit_euler_step<F: Accel>(
     f: &mut F,
     model: &Model,
@@ -178,19 +259,54 @@ pub fn semi_implicit_euler_step<F: Accel>(
     dt: f64,
     q: &mut [f64],
     v: &mut [f64],
+    ws: &mut StepWorkspace,
 ) -> Result<()> {
-    let mut a = vec![0.0; v.len()];
-    f.accel(t, q, v, &mut a)?;
+    f.accel(t, q, v, &mut ws.a0)?;
     for i in 0..v.len() {
-        v[i] += dt * a[i];
+        v[i] += dt * ws.a0[i];
     }
-    let q0 = q.to_vec();
-    model.integrate(&q0, v, dt, q);
+    ws.q0.copy_from_slice(q);
+    model.integrate(&ws.q0, v, dt, q);
     Ok(())
 }
 
-/// Alexander's L-stable SDIRK2 (γ = 1 − 1/√2) with a simplified Newton iteration whose Jacobian
-/// `I − dt γ ∂k/∂x` comes from finite differences of q̈ at the step's start.
+/// ∂k/∂(Θ, v) at (q_n, v_n) by forward differences into `ws.jac` (`ws.a0` = q̈(q_n, v_n)).
+fn sdirk2_jacobian<F: Accel>(
+    f: &mut F,
+    model: &Model,
+    t: f64,
+    q: &[f64],
+    v: &[f64],
+    ws: &mut StepWorkspace,
+) -> Result<()> {
+    let nv = v.len();
+    let n = 2 * nv;
+    ws.jac.fill(0.0);
+    for col in 0..n {
+        ws.dx.iter_mut().for_each(|x| *x = 0.0);
+        let scale = if col < nv {
+            1.0
+        } else {
+            v[col - nv].abs().max(1.0)
+        };
+        let eps = 1e-7 * scale;
+        ws.dx[col] = eps;
+        stage(model, q, v, &ws.dx, &mut ws.qs, &mut ws.vs);
+        f.accel(t, &ws.qs, &ws.vs, &mut ws.ap)?;
+        for r in 0..nv {
+            ws.jac[(nv + r, col)] = (ws.ap[r] - ws.a0[r]) / eps;
+        }
+        if col >= nv {
+            ws.jac[(col - nv, col)] = 1.0; // ∂(stage velocity)/∂v
+        }
+    }
+    ws.jac_fresh = true;
+    Ok(())
+}
+
+/// Alexander's L-stable SDIRK2 (γ = 1 − 1/√2) with a simplified Newton iteration on
+/// `(I − dt γ ∂k/∂x) δ = k(x) − k`. The Jacobian (finite differences of q̈) and its LU are kept
+/// from step to step while Newton converges and dt is unchanged, and refreshed otherwise.
 pub fn sdirk2_step<F: Accel>(
     f: &mut F,
     model: &Model,
@@ -198,61 +314,113 @@ pub fn sdirk2_step<F: Accel>(
     dt: f64,
     q: &mut [f64],
     v: &mut [f64],
+    ws: &mut StepWorkspace,
 ) -> Result<()> {
     let g = 1.0 - std::f64::consts::FRAC_1_SQRT_2;
-    let (a, c) = ([[g, 0.0], [1.0 - g, g]], [g, 1.0]);
-    let (nq, nv) = (q.len(), v.len());
-    let n = 2 * nv;
-    // ∂q̈/∂(Θ, v) at (q_n, v_n) by forward differences.
-    let mut a0 = vec![0.0; nv];
-    f.accel(t, q, v, &mut a0)?;
-    let mut jac = nalgebra::DMatrix::<f64>::zeros(n, n);
-    let (mut qs, mut vs, mut dx, mut ap) =
-        (vec![0.0; nq], vec![0.0; nv], vec![0.0; n], vec![0.0; nv]);
-    for col in 0..n {
-        dx.iter_mut().for_each(|x| *x = 0.0);
-        let scale = if col < nv {
-            1.0
-        } else {
-            v[col - nv].abs().max(1.0)
-        };
-        let eps = 1e-7 * scale;
-        dx[col] = eps;
-        stage(model, q, v, &dx, &mut qs, &mut vs);
-        f.accel(t, &qs, &vs, &mut ap)?;
-        for r in 0..nv {
-            jac[(nv + r, col)] = (ap[r] - a0[r]) / eps;
-        }
-        if col >= nv {
-            jac[(col - nv, col)] = 1.0; // ∂(stage velocity)/∂v
+    f.accel(t, q, v, &mut ws.a0)?;
+    if ws.newton_dt != dt {
+        sdirk2_jacobian(f, model, t, q, v, ws)?;
+        factor_newton(ws, dt * g)?;
+        ws.newton_dt = dt;
+    } else {
+        ws.jac_fresh = false;
+    }
+    loop {
+        match sdirk2_stages(f, model, t, dt, q, v, ws) {
+            Ok(iterations) => {
+                if iterations > 6 {
+                    ws.newton_dt = f64::NAN; // slow convergence: a fresh Jacobian next step
+                }
+                break;
+            }
+            Err(e) if ws.jac_fresh => return Err(e),
+            Err(_) => {
+                // A stale Jacobian: refresh it at this state and try once more.
+                sdirk2_jacobian(f, model, t, q, v, ws)?;
+                factor_newton(ws, dt * g)?;
+            }
         }
     }
-    let iter_m = nalgebra::DMatrix::<f64>::identity(n, n) - jac * (dt * g);
-    let lu = iter_m.lu();
-    let mut ks = [vec![0.0; n], vec![0.0; n]];
-    ks[0][..nv].copy_from_slice(v);
-    ks[0][nv..].copy_from_slice(&a0);
+    for i in 0..ws.dx.len() {
+        ws.dx[i] = dt * ((1.0 - g) * ws.ks[0][i] + g * ws.ks[1][i]);
+    }
+    ws.save(q, v);
+    stage(model, &ws.q0, &ws.v0, &ws.dx, q, v);
+    Ok(())
+}
+
+fn factor_newton(ws: &mut StepWorkspace, dtg: f64) -> Result<()> {
+    let n = ws.jac.nrows();
+    for c in 0..n {
+        for r in 0..n {
+            ws.newton[(r, c)] = if r == c { 1.0 } else { 0.0 } - dtg * ws.jac[(r, c)];
+        }
+    }
+    if !lu_in_place(&mut ws.newton, &mut ws.piv) {
+        return Err(Error::StepTooLarge {
+            message: "SDIRK2 Newton matrix is singular".into(),
+        });
+    }
+    Ok(())
+}
+
+/// The two implicit stages k_i = k(q_n ⊕ dt Σ_j a_ij k_j) into ks[0], ks[1]; returns the
+/// largest number of Newton iterations a stage needed.
+fn sdirk2_stages<F: Accel>(
+    f: &mut F,
+    model: &Model,
+    t: f64,
+    dt: f64,
+    q: &[f64],
+    v: &[f64],
+    ws: &mut StepWorkspace,
+) -> Result<usize> {
+    let g = 1.0 - std::f64::consts::FRAC_1_SQRT_2;
+    let (a, c) = ([[g, 0.0], [1.0 - g, g]], [g, 1.0]);
+    let nv = v.len();
+    let n = 2 * nv;
+    ws.ks[0][..nv].copy_from_slice(v);
+    ws.ks[0][nv..n].copy_from_slice(&ws.a0);
+    let mut most = 0;
     for i in 0..2 {
         if i == 1 {
-            ks[1] = ks[0].clone();
+            let (k0, k1) = ws.ks.split_at_mut(1);
+            k1[0].copy_from_slice(&k0[0]);
         }
         let mut converged = false;
-        for _ in 0..20 {
-            for (d, idx) in dx.iter_mut().zip(0..n) {
-                *d = dt * (0..=i).map(|j| a[i][j] * ks[j][idx]).sum::<f64>();
+        for it in 1..=20 {
+            most = most.max(it);
+            for idx in 0..n {
+                ws.dx[idx] = dt * (0..=i).map(|j| a[i][j] * ws.ks[j][idx]).sum::<f64>();
             }
-            stage(model, q, v, &dx, &mut qs, &mut vs);
-            let mut kf = vec![0.0; n];
-            derivative(f, model, t + c[i] * dt, &dx[..nv], &qs, &vs, &mut kf)?;
-            let resid = nalgebra::DVector::from_fn(n, |r, _| kf[r] - ks[i][r]);
-            let delta = lu.solve(&resid).ok_or_else(|| Error::StepTooLarge {
-                message: "SDIRK2 Newton matrix is singular".into(),
-            })?;
-            let scale = ks[i].iter().fold(1.0f64, |m, x| m.max(x.abs()));
+            stage(model, q, v, &ws.dx, &mut ws.qs, &mut ws.vs);
+            if !ws.qs.iter().chain(&ws.vs).all(|x| x.is_finite()) {
+                break; // the iteration diverged: not converged, StepTooLarge below
+            }
+            // k(x) into the error buffer (unused by SDIRK2), then the residual k(x) − k_i.
+            derivative(
+                f,
+                model,
+                t + c[i] * dt,
+                &ws.dx[..nv],
+                &ws.qs,
+                &ws.vs,
+                &mut ws.err,
+            )?;
             for r in 0..n {
-                ks[i][r] += delta[r];
+                ws.resid[r] = ws.err[r] - ws.ks[i][r];
             }
-            if delta.amax() <= 1e-10 * scale {
+            lu_solve(&ws.newton, &ws.piv, &mut ws.resid);
+            let scale = ws.ks[i].iter().fold(1.0f64, |m, x| m.max(x.abs()));
+            let mut step = 0.0f64;
+            for r in 0..n {
+                ws.ks[i][r] += ws.resid[r];
+                step = step.max(ws.resid[r].abs());
+            }
+            if !step.is_finite() {
+                break;
+            }
+            if step <= 1e-10 * scale {
                 converged = true;
                 break;
             }
@@ -265,10 +433,5 @@ pub fn sdirk2_step<F: Accel>(
             });
         }
     }
-    for (d, idx) in dx.iter_mut().zip(0..n) {
-        *d = dt * ((1.0 - g) * ks[0][idx] + g * ks[1][idx]);
-    }
-    let (q0, v0) = (q.to_vec(), v.to_vec());
-    stage(model, &q0, &v0, &dx, q, v);
-    Ok(())
+    Ok(most)
 }

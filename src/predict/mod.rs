@@ -6,10 +6,13 @@
 //! every step ([`drift`]). Force elements and actuators come from the scene.
 
 pub mod drift;
+mod guard;
 mod integrator;
 mod lie;
+mod linalg;
 mod run;
 
+pub use drift::Projector;
 pub use integrator::Method;
 pub use run::{Predictor, Sample, Trajectory};
 
@@ -55,6 +58,11 @@ pub struct IntegrationSettings {
     /// Sample period of the output [s].
     #[serde(default = "default_sample")]
     pub sample_period: f64,
+    /// Semi-implicit Euler and RK4 on a passive, conservative scene: stop with `Diverged` when
+    /// the energy moves by more than this fraction of the energy in motion (`.inf` turns the check
+    /// off).
+    #[serde(default = "default_max_energy_error")]
+    pub max_energy_error: f64,
 }
 
 fn default_dt() -> f64 {
@@ -75,6 +83,9 @@ fn default_horizon() -> f64 {
 fn default_sample() -> f64 {
     0.01
 }
+fn default_max_energy_error() -> f64 {
+    0.2
+}
 
 impl Default for IntegrationSettings {
     fn default() -> Self {
@@ -87,6 +98,7 @@ impl Default for IntegrationSettings {
             baumgarte_steps: default_baumgarte_steps(),
             horizon: default_horizon(),
             sample_period: default_sample(),
+            max_energy_error: default_max_energy_error(),
         }
     }
 }
@@ -108,6 +120,12 @@ impl IntegrationSettings {
         pos("atol", self.atol)?;
         pos("baumgarte_steps", self.baumgarte_steps)?;
         pos("sample_period", self.sample_period)?;
+        if self.max_energy_error.is_nan() || self.max_energy_error <= 0.0 {
+            return Err(crate::Error::Invalid(format!(
+                "integration.max_energy_error = {} must be positive (.inf: no check)",
+                self.max_energy_error
+            )));
+        }
         if !(self.horizon.is_finite() && self.horizon >= 0.0) {
             return Err(crate::Error::Invalid(format!(
                 "integration.horizon = {} must be ≥ 0",

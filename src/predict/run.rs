@@ -1,13 +1,15 @@
 //! The prediction loop: control ticks, integration steps, drift control, samples.
 
+use super::drift::Projector;
+use super::guard::EnergyGuard;
 use super::integrator::{
-    Accel, DOPRI5, Method, RK4, explicit_step, sdirk2_step, semi_implicit_euler_step,
+    Accel, DOPRI5, Method, RK4, StepWorkspace, explicit_step, sdirk2_step, semi_implicit_euler_step,
 };
-use super::{DriftControl, IntegrationSettings, drift};
+use super::{DriftControl, IntegrationSettings};
 use crate::actuators::{Actuators, Command};
 use crate::algorithm::{crba, forward_kinematics, kinetic_energy, potential_energy};
 use crate::constraints::ConstraintForce;
-use crate::dynamics::Baumgarte;
+use crate::dynamics::{Baumgarte, Formulation};
 use crate::error::{Error, Result};
 use crate::forces::ForceElements;
 use crate::model::Model;
@@ -28,6 +30,10 @@ pub struct Sample {
     pub lambda: Option<Vec<f64>>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub forces: Option<Vec<ConstraintForce>>,
+    /// nc − rank(J M⁻¹ Jᵀ) at this state (when forces were asked for): > 0 at a singular
+    /// configuration or with redundant constraints, where λ is the minimum-norm solution.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rank_deficiency: Option<usize>,
     /// max |φ| over holonomic rows [m or rad].
     pub position_residual: f64,
     /// max |J v| [m/s or rad/s].
@@ -49,8 +55,23 @@ pub struct Trajectory {
     /// Accepted steps and right-hand-side evaluations.
     pub steps: usize,
     pub evaluations: usize,
+    /// Evaluations where the constraint accelerations were inconsistent (at or next to a singular
+    /// configuration) and were met in the least-squares sense instead.
+    pub least_squares_evaluations: usize,
     /// CPU (wall) time of the integration [s].
     pub run_time_s: f64,
+}
+
+/// Buffers of a run, sized once per model (the stepping loop allocates nothing).
+#[derive(Clone, Debug, Default)]
+struct Workspace {
+    step: StepWorkspace,
+    proj: Projector,
+    /// Least-squares constrained accelerations at singular configurations.
+    ls: Projector,
+    tau: Vec<f64>,
+    tau_act: Vec<f64>,
+    zero: Vec<f64>,
 }
 
 /// The right-hand side: held actuator torques + force elements → constrained q̈.
@@ -58,8 +79,11 @@ struct Rhs<'a> {
     sys: &'a mut System,
     forces: &'a mut ForceElements,
     tau_act: &'a [f64],
-    tau: Vec<f64>,
+    tau: &'a mut [f64],
+    zero: &'a [f64],
+    ls: &'a mut Projector,
     evaluations: usize,
+    least_squares: usize,
 }
 
 impl Accel for Rhs<'_> {
@@ -67,20 +91,27 @@ impl Accel for Rhs<'_> {
         self.evaluations += 1;
         self.tau.copy_from_slice(self.tau_act);
         if !self.forces.is_empty() {
-            let zero = vec![0.0; v.len()];
-            forward_kinematics(&self.sys.model, &mut self.sys.data, q, v, &zero);
-            self.forces.add_generalized_force(
-                &self.sys.model,
-                &self.sys.data,
-                t,
-                q,
-                v,
-                &mut self.tau,
-            );
+            forward_kinematics(&self.sys.model, &mut self.sys.data, q, v, self.zero);
+            self.forces
+                .add_generalized_force(&self.sys.model, &self.sys.data, t, q, v, self.tau);
         }
-        let a = self.sys.forward_dynamics(q, v, &self.tau, false)?;
-        qdd.copy_from_slice(a.as_slice());
-        Ok(())
+        // `formulation: auto` takes the multiplier form here: the same q̈ as the embedded form
+        // (tests/propagation_formulations.rs), allocation-free and about 3× faster.
+        match self.sys.forward_dynamics(q, v, self.tau, true) {
+            Ok(a) => {
+                qdd.copy_from_slice(a.as_slice());
+                Ok(())
+            }
+            Err(Error::InconsistentConstraints { .. }) => {
+                // At a singular configuration the acceleration rows disagree by the drift:
+                // satisfy the independent ones (counted in `Trajectory::least_squares_evaluations`).
+                self.least_squares += 1;
+                self.ls
+                    .least_squares_accel(self.sys, q, v, self.tau, qdd)
+                    .map(|_| ())
+            }
+            Err(e) => Err(e),
+        }
     }
 }
 
@@ -94,6 +125,7 @@ pub struct Predictor {
     /// Record λ and the constraint forces in every sample.
     pub want_forces: bool,
     model: Model,
+    ws: Workspace,
 }
 
 impl Predictor {
@@ -112,6 +144,15 @@ impl Predictor {
     ) -> Result<Self> {
         settings.validate()?;
         let model = sys.model.clone();
+        let (nq, nv) = (model.nq, model.nv);
+        let ws = Workspace {
+            step: StepWorkspace::new(nq, nv),
+            proj: Projector::new(&sys),
+            ls: Projector::new(&sys),
+            tau: vec![0.0; nv],
+            tau_act: vec![0.0; nv],
+            zero: vec![0.0; nv],
+        };
         Ok(Self {
             sys,
             forces,
@@ -119,6 +160,7 @@ impl Predictor {
             settings,
             want_forces: false,
             model,
+            ws,
         })
     }
 
@@ -166,8 +208,8 @@ impl Predictor {
         self.model.normalize(&mut q);
         self.check_step_size(&q, &v, s)?;
         self.actuators.reset();
-        let nv = self.model.nv;
-        let mut tau_act = vec![0.0; nv];
+        self.ws.step.invalidate();
+        self.ws.tau_act.iter_mut().for_each(|x| *x = 0.0);
         let period = if self.actuators.is_empty() {
             s.sample_period
         } else {
@@ -180,6 +222,7 @@ impl Predictor {
             samples: vec![],
             steps: 0,
             evaluations: 0,
+            least_squares_evaluations: 0,
             run_time_s: 0.0,
         };
         let mut err_acc = if s.method == Method::Dopri5 {
@@ -188,7 +231,12 @@ impl Predictor {
             f64::NAN
         };
         let mut h = s.dt;
-        traj.samples.push(self.sample(0.0, &q, &v, err_acc)?);
+        let first = self.sample(0.0, &q, &v, err_acc)?;
+        let springs = self
+            .forces
+            .potential_energy(&self.sys.model, &self.sys.data, &q);
+        let mut guard = EnergyGuard::new(&first, springs, self.energy_guard_applies(s));
+        traj.samples.push(first);
         let (mut t, mut k) = (0.0, 0usize);
         let mut next_sample = s.sample_period;
         while t < horizon - 1e-12 {
@@ -201,22 +249,26 @@ impl Predictor {
                     .find(|(ts, _)| *ts <= t + 1e-12)
                     .map(|(_, c)| c.clone())
                     .unwrap_or_default();
-                self.actuators.update(&cmd, &q, &v, t_end - t, &mut tau_act);
+                self.actuators
+                    .update(&cmd, &q, &v, t_end - t, &mut self.ws.tau_act);
             }
             self.advance(
                 &mut q,
                 &mut v,
-                t,
-                t_end,
+                (t, t_end),
                 &mut h,
                 &mut err_acc,
-                &tau_act,
                 &mut traj,
                 s,
             )?;
             t = t_end;
             if t >= next_sample - 1e-9 || t >= horizon - 1e-12 {
-                traj.samples.push(self.sample(t, &q, &v, err_acc)?);
+                let sample = self.sample(t, &q, &v, err_acc)?;
+                let springs = self
+                    .forces
+                    .potential_energy(&self.sys.model, &self.sys.data, &q);
+                guard.check(&sample, springs, traj.steps, s)?;
+                traj.samples.push(sample);
                 while next_sample <= t + 1e-9 {
                     next_sample += s.sample_period;
                 }
@@ -225,99 +277,120 @@ impl Predictor {
         Ok(traj)
     }
 
-    /// Integrate from t0 to t1 with the chosen method, controlling drift after every step.
+    /// The energy check runs for passive, conservative scenes stepped by a fixed explicit method.
+    fn energy_guard_applies(&self, s: &IntegrationSettings) -> bool {
+        matches!(s.method, Method::SemiImplicitEuler | Method::Rk4)
+            && self.actuators.is_empty()
+            && self.forces.is_conservative()
+            && s.max_energy_error.is_finite()
+    }
+
+    /// Integrate over `span` = (t0, t1) with the chosen method, controlling drift after every step.
     #[allow(clippy::too_many_arguments)]
     fn advance(
         &mut self,
         q: &mut [f64],
         v: &mut [f64],
-        t0: f64,
-        t1: f64,
+        span: (f64, f64),
         h: &mut f64,
         err_acc: &mut f64,
-        tau_act: &[f64],
         traj: &mut Trajectory,
         s: &IntegrationSettings,
     ) -> Result<()> {
+        let (t0, t1) = span;
         let model = &self.model;
+        let ws = &mut self.ws;
         let mut rhs = Rhs {
             sys: &mut self.sys,
             forces: &mut self.forces,
-            tau_act,
-            tau: vec![0.0; model.nv],
+            tau_act: &ws.tau_act,
+            tau: &mut ws.tau,
+            zero: &ws.zero,
+            ls: &mut ws.ls,
             evaluations: 0,
+            least_squares: 0,
         };
+        let step = &mut ws.step;
         let mut t = t0;
-        while t < t1 - 1e-12 {
-            let dt = if s.method == Method::Dopri5 {
-                h.min(t1 - t)
-            } else {
-                (t1 - t) / ((t1 - t) / s.dt - 1e-9).ceil().max(1.0)
-            };
-            match s.method {
-                Method::SemiImplicitEuler => {
-                    semi_implicit_euler_step(&mut rhs, model, t, dt, q, v)?
-                }
-                Method::Rk4 => {
-                    explicit_step(&mut rhs, model, &RK4, t, dt, q, v)?;
-                }
-                Method::Sdirk2 => sdirk2_step(&mut rhs, model, t, dt, q, v)?,
-                Method::Dopri5 => {
-                    let (q_old, v_old) = (q.to_vec(), v.to_vec());
-                    let e =
-                        explicit_step(&mut rhs, model, &DOPRI5, t, dt, q, v)?.unwrap_or_default();
-                    let nv = v.len();
-                    let norm = (e
-                        .iter()
-                        .enumerate()
-                        .map(|(i, ei)| {
-                            let x = if i < nv {
-                                1.0
-                            } else {
-                                v_old[i - nv].abs().max(v[i - nv].abs())
-                            };
-                            (ei / (s.atol + s.rtol * x)).powi(2)
-                        })
-                        .sum::<f64>()
-                        / e.len().max(1) as f64)
-                        .sqrt();
-                    let factor = (0.9 * norm.max(1e-10).powf(-0.2)).clamp(0.2, 5.0);
-                    if norm > 1.0 || !norm.is_finite() {
-                        q.copy_from_slice(&q_old);
-                        v.copy_from_slice(&v_old);
-                        *h = dt * factor.min(0.5);
-                        if *h < 1e-14 * t1.max(1.0) {
-                            return Err(Error::Diverged {
-                                t,
-                                message: format!("dopri5 step size underflow (h = {h:e} s)"),
-                            });
-                        }
-                        continue;
+        let result = (|| -> Result<()> {
+            while t < t1 - 1e-12 {
+                let dt = if s.method == Method::Dopri5 {
+                    h.min(t1 - t)
+                } else {
+                    (t1 - t) / ((t1 - t) / s.dt - 1e-9).ceil().max(1.0)
+                };
+                match s.method {
+                    Method::SemiImplicitEuler => {
+                        semi_implicit_euler_step(&mut rhs, model, t, dt, q, v, step)?
                     }
-                    *err_acc += e[..nv].iter().fold(0.0f64, |m, x| m.max(x.abs()));
-                    *h = dt * factor;
+                    Method::Rk4 => explicit_step(&mut rhs, model, &RK4, t, dt, q, v, step)?,
+                    Method::Sdirk2 => sdirk2_step(&mut rhs, model, t, dt, q, v, step)?,
+                    Method::Dopri5 => {
+                        explicit_step(&mut rhs, model, &DOPRI5, t, dt, q, v, step)?;
+                        let norm = dopri5_error_norm(step, v, s);
+                        let factor = (0.9 * norm.max(1e-10).powf(-0.2)).clamp(0.2, 5.0);
+                        if norm > 1.0 || !norm.is_finite() {
+                            step.restore(q, v);
+                            *h = dt * factor.min(0.5);
+                            if *h < 1e-14 * t1.max(1.0) {
+                                let singular = if rhs.least_squares > 0 {
+                                    format!(
+                                        " at a singular configuration of the constraints (the \
+                                         constraint accelerations were inconsistent {} times): \
+                                         loosen rtol, or use rk4 with projection",
+                                        rhs.least_squares
+                                    )
+                                } else {
+                                    String::new()
+                                };
+                                return Err(Error::Diverged {
+                                    t,
+                                    message: format!(
+                                        "dopri5 cannot meet rtol = {:e} (step size underflow, \
+                                         h = {h:e} s){singular}",
+                                        s.rtol
+                                    ),
+                                });
+                            }
+                            continue;
+                        }
+                        *err_acc += step.err[..v.len()]
+                            .iter()
+                            .fold(0.0f64, |m, x| m.max(x.abs()));
+                        // A step shortened to land on t1 does not shrink the next one.
+                        *h = if dt < *h {
+                            (dt * factor).max(*h)
+                        } else {
+                            dt * factor
+                        };
+                    }
+                }
+                t += dt;
+                traj.steps += 1;
+                if s.drift == DriftControl::Projection {
+                    ws.proj.project(rhs.sys, q, v, true)?;
+                }
+                if let Some(bad) = q
+                    .iter()
+                    .chain(v.iter())
+                    .find(|x| !x.is_finite() || x.abs() > 1e12)
+                {
+                    return Err(Error::Diverged {
+                        t,
+                        message: format!(
+                            "the state left all bounds ({bad:e}); reduce dt or use method sdirk2"
+                        ),
+                    });
                 }
             }
-            t += dt;
-            traj.steps += 1;
-            if s.drift == DriftControl::Projection {
-                drift::project(rhs.sys, q, v, true)?;
-            }
-            if let Some(bad) = q
-                .iter()
-                .chain(v.iter())
-                .find(|x| !x.is_finite() || x.abs() > 1e12)
-            {
-                return Err(Error::Diverged {
-                    t,
-                    message: format!(
-                        "the state left all bounds ({bad:e}); reduce dt or use method sdirk2"
-                    ),
-                });
-            }
-        }
+            Ok(())
+        })();
         traj.evaluations += rhs.evaluations;
-        Ok(())
+        traj.least_squares_evaluations += rhs.least_squares;
+        result.map_err(|e| match e {
+            Error::Diverged { t: tt, message } if tt.is_nan() => Error::Diverged { t, message },
+            e => e,
+        })
     }
 
     /// Refuse, before running, a fixed explicit step beyond the method's stability limit for the
@@ -350,18 +423,23 @@ impl Predictor {
 
     fn sample(&mut self, t: f64, q: &[f64], v: &[f64], err: f64) -> Result<Sample> {
         let sys = &mut self.sys;
-        let (mut lambda, mut forces) = (None, None);
+        let (mut lambda, mut forces, mut rank_deficiency) = (None, None, None);
         if self.want_forces && !sys.constraints.is_empty() {
-            let mut tau = vec![0.0; v.len()];
+            let tau = &mut self.ws.tau;
+            tau.iter_mut().for_each(|x| *x = 0.0);
             if !self.forces.is_empty() {
-                let zero = vec![0.0; v.len()];
-                forward_kinematics(&sys.model, &mut sys.data, q, v, &zero);
+                forward_kinematics(&sys.model, &mut sys.data, q, v, &self.ws.zero);
                 self.forces
-                    .add_generalized_force(&sys.model, &sys.data, t, q, v, &mut tau);
+                    .add_generalized_force(&sys.model, &sys.data, t, q, v, tau);
             }
-            sys.forward_dynamics(q, v, &tau, true)?;
+            // λ needs the multiplier form whatever the scene integrates with.
+            let formulation = std::mem::replace(&mut sys.formulation, Formulation::Multipliers);
+            let result = sys.forward_dynamics(q, v, tau, true).map(|_| ());
+            sys.formulation = formulation;
+            result?;
             lambda = Some(sys.kkt.lambda.as_slice().to_vec());
             forces = Some(sys.constraint_forces());
+            rank_deficiency = Some(sys.kkt.rank_deficiency);
         }
         sys.constraints
             .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
@@ -380,6 +458,7 @@ impl Predictor {
             v: v.to_vec(),
             lambda,
             forces,
+            rank_deficiency,
             position_residual,
             velocity_residual,
             kinetic_energy: ke,
@@ -387,4 +466,23 @@ impl Predictor {
             error_estimate: err,
         })
     }
+}
+
+/// RMS of the DOPRI5 error scaled by atol + rtol·|x| (1 for configuration rows, |v| for velocity).
+fn dopri5_error_norm(step: &StepWorkspace, v: &[f64], s: &IntegrationSettings) -> f64 {
+    let nv = v.len();
+    let (v_old, e) = (step.saved_v(), &step.err);
+    let sum: f64 = e
+        .iter()
+        .enumerate()
+        .map(|(i, ei)| {
+            let x = if i < nv {
+                1.0
+            } else {
+                v_old[i - nv].abs().max(v[i - nv].abs())
+            };
+            (ei / (s.atol + s.rtol * x)).powi(2)
+        })
+        .sum();
+    (sum / e.len().max(1) as f64).sqrt()
 }

@@ -16,6 +16,8 @@ pub mod builtin_interfaces;
 pub mod constraint_dynamics_msgs;
 pub mod geometry_msgs;
 pub mod nav_msgs;
+pub mod rcl_interfaces;
+pub mod rosgraph_msgs;
 pub mod sensor_msgs;
 pub mod std_msgs;
 pub mod std_srvs;

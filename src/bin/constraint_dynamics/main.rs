@@ -1,6 +1,9 @@
 //! `constraint_dynamics`: inspect a scene from the command line (JSON on stdout).
 
 mod eval;
+mod predict;
+mod project;
+mod report;
 mod state;
 
 use clap::{Parser, Subcommand};
@@ -21,12 +24,21 @@ struct Cli {
 enum Command {
     /// Constrained forward dynamics at one state: q̈, multipliers and constraint forces.
     Eval(eval::EvalArgs),
+    /// Propagate a scene over a horizon: samples of q, v (λ with --forces), residuals, energy.
+    Predict(predict::PredictArgs),
+    /// Work-precision report of every integrator on the benchmark scenes (CSV, PNG, README).
+    Report(report::ReportArgs),
+    /// Velocity projection: the feasible velocity closest to a desired one, with bounds.
+    Project(project::ProjectArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Eval(a) => eval::run(a),
+        Command::Predict(a) => predict::run(a),
+        Command::Report(a) => report::run(a),
+        Command::Project(a) => project::run(a),
     };
     match result {
         Ok(json) => {

@@ -1,0 +1,7 @@
+//! The `predictor` node alone (same as `constraint_dynamics_suite --node predictor`). See docs/nodes.md.
+
+use constraint_dynamics_nodes::params::NodeKind;
+
+fn main() -> std::process::ExitCode {
+    constraint_dynamics_nodes::suite::main(Some(NodeKind::Predictor))
+}

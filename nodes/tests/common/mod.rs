@@ -1,0 +1,330 @@
+//! Shared by the suite tests and the bench: re-executing inside a loopback-only network
+//! namespace, running the suite binary as a child process in it, and a ros2-client test node
+//! (publishers of the robot's state, service clients, subscriptions with time limits).
+#![allow(dead_code)]
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use constraint_dynamics_nodes::msg::RosService;
+use constraint_dynamics_nodes::msg::builtin_interfaces::Time;
+use constraint_dynamics_nodes::msg::geometry_msgs::{Twist, Vector3};
+use constraint_dynamics_nodes::msg::nav_msgs::Odometry;
+use constraint_dynamics_nodes::msg::sensor_msgs::JointState;
+use constraint_dynamics_nodes::msg::std_msgs::StringMsg;
+use constraint_dynamics_nodes::ros_context::{
+    NetworkConfig, RosNode, call_with_retry, in_loopback_only_namespace, qos,
+};
+use ros2_client::{Client, NodeOptions, Publisher, Subscription};
+
+pub const WAIT: Duration = Duration::from_secs(20);
+
+pub fn repo_root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .canonicalize()
+        .expect("repo root")
+}
+
+/// True when the caller should run its body here (we are in a loopback-only namespace).
+/// Otherwise re-runs `test_name` of this test binary inside a fresh namespace and asserts it
+/// passed (or skips, opening nothing, when no namespace can be made) and returns false.
+pub fn in_namespace_or_reexec(test_name: &str) -> bool {
+    if in_loopback_only_namespace() {
+        return true;
+    }
+    if std::env::var("CD_NETNS").as_deref() == Ok("1") {
+        panic!("CD_NETNS=1 but interfaces other than lo are visible: refusing to open DDS");
+    }
+    let can_unshare = Command::new("unshare")
+        .args(["-n", "true"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !can_unshare {
+        eprintln!(
+            "SKIPPED {test_name}: cannot create a network namespace (`unshare -n` needs root); \
+             no DDS participant was opened"
+        );
+        return false;
+    }
+    let exe = std::env::current_exe().expect("test binary path");
+    let status = Command::new(repo_root().join("tools/ros2/netns_run.sh"))
+        .arg(exe)
+        .args([test_name, "--exact", "--nocapture", "--test-threads=1"])
+        .status()
+        .expect("run tools/ros2/netns_run.sh");
+    assert!(status.success(), "{test_name} inside the network namespace failed: {status}");
+    false
+}
+
+/// The suite binary (built by cargo for this test or bench).
+pub fn suite_binary(name: &str) -> PathBuf {
+    let dir = std::env::current_exe()
+        .expect("exe")
+        .parent()
+        .expect("deps dir")
+        .parent()
+        .expect("profile dir")
+        .to_path_buf();
+    dir.join(name)
+}
+
+/// A suite process; interrupted (SIGINT) and reaped on drop. Its stderr goes to a log file
+/// that [`SuiteProcess::log`] returns.
+pub struct SuiteProcess {
+    pub child: Child,
+    pub log_path: PathBuf,
+    pub started: Instant,
+}
+
+impl SuiteProcess {
+    /// Starts `binary` (a path, or a name next to this test's binary) with `args`, working
+    /// directory the repository root.
+    pub fn spawn(binary: &str, args: &[&str], tag: &str) -> SuiteProcess {
+        let exe = if Path::new(binary).is_absolute() {
+            PathBuf::from(binary)
+        } else {
+            suite_binary(binary)
+        };
+        assert!(
+            exe.exists(),
+            "{} not built (cargo builds the package's binaries for its tests)",
+            exe.display()
+        );
+        let log_path = std::env::temp_dir().join(format!(
+            "cd_suite_{tag}_{}.log",
+            std::process::id()
+        ));
+        let log = File::create(&log_path).expect("log file");
+        let started = Instant::now();
+        let child = Command::new(&exe)
+            .args(args)
+            .current_dir(repo_root())
+            .stdout(log.try_clone().expect("log"))
+            .stderr(log)
+            .spawn()
+            .unwrap_or_else(|e| panic!("start {}: {e}", exe.display()));
+        SuiteProcess {
+            child,
+            log_path,
+            started,
+        }
+    }
+
+    /// What the process wrote so far.
+    pub fn log(&self) -> String {
+        std::fs::read_to_string(&self.log_path).unwrap_or_default()
+    }
+
+    /// Still running?
+    pub fn alive(&mut self) -> bool {
+        matches!(self.child.try_wait(), Ok(None))
+    }
+
+    /// SIGINT, then wait (kill after 5 s); returns the exit status success.
+    pub fn stop(&mut self) -> bool {
+        if !self.alive() {
+            return self.child.wait().map(|s| s.success()).unwrap_or(false);
+        }
+        unsafe {
+            libc::kill(self.child.id() as libc::pid_t, libc::SIGINT);
+        }
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while Instant::now() < deadline {
+            if let Ok(Some(s)) = self.child.try_wait() {
+                return s.success();
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        false
+    }
+}
+
+impl Drop for SuiteProcess {
+    fn drop(&mut self) {
+        self.stop();
+        if std::thread::panicking() {
+            eprintln!(
+                "---- suite log ({}) ----\n{}",
+                self.log_path.display(),
+                self.log()
+            );
+        }
+    }
+}
+
+/// Runs `fut` on this thread with a time limit.
+pub fn block_on_timeout<T>(limit: Duration, fut: impl Future<Output = T>) -> Option<T> {
+    smol::block_on(smol::future::or(async { Some(fut.await) }, async {
+        smol::Timer::after(limit).await;
+        None
+    }))
+}
+
+/// The test's own ROS node (loopback only, in the namespace).
+pub struct TestNode {
+    pub node: RosNode,
+    pub ctx: ros2_client::Context,
+}
+
+impl TestNode {
+    pub fn new(name: &str) -> TestNode {
+        let net = NetworkConfig::from_env().expect("network config");
+        let ctx = net.create_context().expect("context");
+        let node = RosNode::new(&ctx, "/", name, NodeOptions::new().read_rosout(true))
+            .expect("test node");
+        TestNode { node, ctx }
+    }
+
+    /// A client of `S` at `name`, once the service is discovered.
+    pub fn client<S: RosService>(&mut self, name: &str) -> Client<S::Request, S::Response> {
+        let c = self.node.client::<S>(name).expect("client");
+        block_on_timeout(WAIT, c.wait_for_service(&self.node.node))
+            .unwrap_or_else(|| panic!("service {name} not discovered within {WAIT:?}"));
+        c
+    }
+
+    /// Subscribes `topic` (reliable).
+    pub fn subscribe<M: constraint_dynamics_nodes::msg::RosMessage + 'static>(
+        &mut self,
+        topic: &str,
+    ) -> Subscription<M> {
+        self.node
+            .subscription::<M>(topic, &qos::reliable(10))
+            .expect("subscription")
+    }
+
+    /// The rosout reader.
+    pub fn rosout(&self) -> &Subscription<ros2_client::Log> {
+        self.node
+            .node
+            .rosout_subscription()
+            .expect("rosout reading enabled")
+    }
+}
+
+/// Calls a service (retrying while discovery settles).
+pub fn call<Req, Resp>(client: &Client<Req, Resp>, req: Req) -> Resp
+where
+    Req: ros2_client::Message + Clone + 'static,
+    Resp: ros2_client::Message + 'static,
+{
+    smol::block_on(call_with_retry(client, req, Duration::from_millis(1500), 10))
+        .map(|(r, _)| r)
+        .unwrap_or_else(|e| panic!("service call: {e}"))
+}
+
+/// The first message on `sub` for which `accept` returns true, within `limit`; the last
+/// rejected reason on failure.
+pub fn take_until<M, F>(sub: &Subscription<M>, limit: Duration, mut accept: F) -> Result<M, String>
+where
+    M: serde::de::DeserializeOwned + 'static,
+    F: FnMut(&M) -> Result<(), String>,
+{
+    let deadline = Instant::now() + limit;
+    let mut last = "no message".to_string();
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(last);
+        }
+        match block_on_timeout(left, sub.async_take()) {
+            None => return Err(format!("timeout; last: {last}")),
+            Some(Err(e)) => last = format!("read error {e:?}"),
+            Some(Ok((m, _))) => match accept(&m) {
+                Ok(()) => return Ok(m),
+                Err(why) => last = why,
+            },
+        }
+    }
+}
+
+/// What the test publishes as the robot's measured state and command.
+#[derive(Clone, Debug, Default)]
+pub struct RobotFeed {
+    pub joint_state: Option<JointState>,
+    pub odom: Option<Odometry>,
+    pub cmd_vel: Option<Twist>,
+}
+
+/// Publishes the feed at 50 Hz (the latest content of the shared slot) until dropped.
+pub struct FeedPublisher {
+    pub feed: Arc<Mutex<RobotFeed>>,
+    _task: smol::Task<()>,
+}
+
+impl FeedPublisher {
+    pub fn start(node: &mut TestNode) -> FeedPublisher {
+        let js: Publisher<JointState> = node
+            .node
+            .publisher("/joint_states", &qos::reliable(10))
+            .expect("pub");
+        let od: Publisher<Odometry> = node.node.publisher("/odom", &qos::reliable(10)).expect("pub");
+        let cmd: Publisher<Twist> = node.node.publisher("/cmd_vel", &qos::reliable(10)).expect("pub");
+        let feed = Arc::new(Mutex::new(RobotFeed::default()));
+        let f = feed.clone();
+        let task = node.node.spawn(async move {
+            loop {
+                let now = Time::now();
+                let snapshot = f.lock().unwrap().clone();
+                if let Some(mut m) = snapshot.joint_state {
+                    m.header.stamp = now;
+                    let _ = js.async_publish(m).await;
+                }
+                if let Some(mut m) = snapshot.odom {
+                    m.header.stamp = now;
+                    let _ = od.async_publish(m).await;
+                }
+                if let Some(m) = snapshot.cmd_vel {
+                    let _ = cmd.async_publish(m).await;
+                }
+                smol::Timer::after(Duration::from_millis(20)).await;
+            }
+        });
+        FeedPublisher { feed, _task: task }
+    }
+
+    pub fn set(&self, feed: RobotFeed) {
+        *self.feed.lock().unwrap() = feed;
+    }
+}
+
+/// A publisher of `/robot_description` (transient local, as robot_state_publisher).
+pub fn description_publisher(node: &mut TestNode) -> Publisher<StringMsg> {
+    node.node
+        .publisher("/robot_description", &qos::transient_local())
+        .expect("robot_description publisher")
+}
+
+pub fn twist(v: f64, w: f64) -> Twist {
+    Twist {
+        linear: Vector3 { x: v, y: 0.0, z: 0.0 },
+        angular: Vector3 { x: 0.0, y: 0.0, z: w },
+    }
+}
+
+/// |a − b| ≤ tol·(1 + |b|) entrywise, naming the first difference.
+pub fn close(what: &str, a: &[f64], b: &[f64], tol: f64) -> Result<(), String> {
+    if a.len() != b.len() {
+        return Err(format!("{what}: length {} vs {}", a.len(), b.len()));
+    }
+    for (i, (x, y)) in a.iter().zip(b).enumerate() {
+        if !((x - y).abs() <= tol * (1.0 + y.abs())) {
+            return Err(format!("{what}[{i}]: {x} vs {y} (diff {:e})", x - y));
+        }
+    }
+    Ok(())
+}
+
+pub fn assert_close(what: &str, a: &[f64], b: &[f64], tol: f64) {
+    if let Err(e) = close(what, a, b, tol) {
+        panic!("{e}");
+    }
+}

@@ -1,0 +1,132 @@
+//! `predict`: propagate a scene from a state over a horizon, following commands; the trajectory as
+//! JSON (samples of q, v, λ with `--forces`, constraint residuals, energies, error estimate).
+
+use constraint_dynamics::actuators::Command;
+use constraint_dynamics::predict::{DriftControl, Method, Predictor};
+use constraint_dynamics::{Error, Result, Scene};
+use serde::Deserialize;
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args)]
+pub struct PredictArgs {
+    /// Scene file (YAML).
+    #[arg(long)]
+    scene: PathBuf,
+    /// State file (JSON {"q": [...], "v": [...]}, printed coordinate order); default: the scene's
+    /// initial state.
+    #[arg(long)]
+    state: Option<PathBuf>,
+    /// Commands file: JSON list of {"t": s, "base_twist": [v, ω], "joint_velocity": {joint: rate},
+    /// "joint_position": {joint: position}}; each holds from its t until the next one.
+    #[arg(long)]
+    commands: Option<PathBuf>,
+    /// Horizon [s] (default: the scene's integration.horizon).
+    #[arg(long)]
+    horizon: Option<f64>,
+    /// semi_implicit_euler | rk4 | dopri5 | sdirk2 (default: the scene's).
+    #[arg(long)]
+    method: Option<String>,
+    /// Step [s] (fixed-step methods; first step of dopri5).
+    #[arg(long)]
+    dt: Option<f64>,
+    /// none | baumgarte | projection (default: the scene's).
+    #[arg(long)]
+    drift: Option<String>,
+    /// Output sample period [s] (default: the scene's).
+    #[arg(long)]
+    sample_period: Option<f64>,
+    /// Record the multipliers λ and the constraint forces in every sample.
+    #[arg(long)]
+    forces: bool,
+}
+
+/// One entry of the commands file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CommandEntry {
+    /// Start time [s].
+    t: f64,
+    #[serde(default)]
+    base_twist: Option<[f64; 2]>,
+    #[serde(default)]
+    joint_velocity: BTreeMap<String, f64>,
+    #[serde(default)]
+    joint_position: BTreeMap<String, f64>,
+}
+
+/// Parse a snake_case enum name as serde would, naming the option on failure.
+fn parse_enum<T: for<'de> Deserialize<'de>>(
+    option: &str,
+    value: &str,
+    expected: &str,
+) -> Result<T> {
+    serde_json::from_value(Value::String(value.to_string()))
+        .map_err(|_| Error::Invalid(format!("--{option} '{value}': expected one of {expected}")))
+}
+
+fn load_commands(path: &Path) -> Result<Vec<(f64, Command)>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
+        path: path.display().to_string(),
+        source: e,
+    })?;
+    let entries: Vec<CommandEntry> = serde_json::from_str(&text).map_err(|e| Error::Scene {
+        file: path.display().to_string(),
+        message: e.to_string(),
+    })?;
+    let mut out: Vec<(f64, Command)> = entries
+        .into_iter()
+        .map(|e| {
+            (
+                e.t,
+                Command {
+                    base_twist: e.base_twist,
+                    joint_velocity: e.joint_velocity,
+                    joint_position: e.joint_position,
+                },
+            )
+        })
+        .collect();
+    out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Ok(out)
+}
+
+pub fn run(a: PredictArgs) -> Result<Value> {
+    let scene = Scene::load(&a.scene)?;
+    let mut p = Predictor::from_scene(&scene)?;
+    if let Some(m) = &a.method {
+        p.settings.method =
+            parse_enum::<Method>("method", m, "semi_implicit_euler, rk4, dopri5, sdirk2")?;
+    }
+    if let Some(d) = &a.drift {
+        p.settings.drift = parse_enum::<DriftControl>("drift", d, "none, baumgarte, projection")?;
+    }
+    if let Some(dt) = a.dt {
+        p.settings.dt = dt;
+    }
+    if let Some(sp) = a.sample_period {
+        p.settings.sample_period = sp;
+    }
+    p.settings.validate()?;
+    p.want_forces = a.forces;
+    let (q, v, tau) = super::state::load(&scene, a.state.as_deref())?;
+    if tau.iter().any(|x| *x != 0.0) {
+        return Err(Error::Invalid(
+            "the state file's tau is not used by predict: give torques as forces.joint_torques \
+             or actuators in the scene"
+                .into(),
+        ));
+    }
+    let commands = match &a.commands {
+        Some(path) => load_commands(path)?,
+        None => vec![],
+    };
+    let horizon = a.horizon.unwrap_or(p.settings.horizon);
+    let traj = p.predict(&q, &v, &commands, horizon)?;
+    let mut out = serde_json::to_value(&traj).map_err(|e| Error::Invalid(e.to_string()))?;
+    out["scene"] = Value::String(a.scene.display().to_string());
+    out["settings"] =
+        serde_json::to_value(&p.settings).map_err(|e| Error::Invalid(e.to_string()))?;
+    Ok(out)
+}

@@ -1,0 +1,70 @@
+//! The energy check of fixed explicit steps on passive, conservative scenes.
+
+use super::IntegrationSettings;
+use super::run::Sample;
+use crate::error::{Error, Result};
+
+/// `max_energy_error`: for a passive, conservative scene stepped by a fixed explicit method, the
+/// energy may not move by more than this fraction of the energy in motion (the largest kinetic
+/// plus spring energy, or gravity energy exchanged, seen so far), checked at every sample from the
+/// 16th step on: past it the step is too large and the answer would be wrong, so the prediction stops with
+/// `Error::Diverged` instead.
+pub(super) struct EnergyGuard {
+    on: bool,
+    e0: f64,
+    pe0: f64,
+    scale: f64,
+}
+
+impl EnergyGuard {
+    /// Over the first steps from rest a first-order method's relative energy error is O(1) by
+    /// nature (semi-implicit Euler's first step loses half the kinetic energy it creates).
+    const MIN_STEPS: usize = 16;
+
+    /// `springs`: the spring part of the sample's potential energy (≥ 0, zero at rest length).
+    pub(super) fn new(first: &Sample, springs: f64, on: bool) -> Self {
+        Self {
+            on,
+            e0: first.kinetic_energy + first.potential_energy,
+            pe0: first.potential_energy - springs,
+            scale: first.kinetic_energy + springs,
+        }
+    }
+
+    fn check(
+        &mut self,
+        x: &Sample,
+        springs: f64,
+        steps: usize,
+        s: &IntegrationSettings,
+    ) -> Result<()> {
+        if !self.on {
+            return Ok(());
+        }
+        self.scale = self
+            .scale
+            .max(x.kinetic_energy + springs)
+            .max((x.potential_energy - springs - self.pe0).abs());
+        if steps < Self::MIN_STEPS {
+            return Ok(());
+        }
+        let de = x.kinetic_energy + x.potential_energy - self.e0;
+        let floor = 1e-9 * (1.0 + self.e0.abs());
+        if de.is_finite() && (de.abs() <= s.max_energy_error * self.scale || de.abs() <= floor) {
+            return Ok(());
+        }
+        Err(Error::Diverged {
+            t: x.t,
+            message: format!(
+                "the energy of this passive scene changed by {de:.3e} J ({:.0} % of the {:.3e} J in \
+                 motion, more than max_energy_error = {}): dt = {} s is too large for {:?}; reduce dt \
+                 or use dopri5",
+                100.0 * de.abs() / self.scale.max(f64::MIN_POSITIVE),
+                self.scale,
+                s.max_energy_error,
+                s.dt,
+                s.method
+            ),
+        })
+    }
+}

@@ -1,0 +1,265 @@
+//! The named result of a projection (what the CLI prints and a node returns), built on demand from
+//! the projector's numeric results (allocates; the numeric path does not).
+
+use super::diagnose::Conflict;
+use super::problem::{BoundSource, ProjectionProblem, Side};
+use super::projector::{Method, Status, VelocityProjector};
+use super::request::{ProjectionRequest, base_dofs};
+use crate::algorithm::{Data, crba_after_kinematics};
+use crate::constraints::{ConstraintData, ConstraintSet, constraint_forces};
+use crate::error::Result;
+use crate::model::Model;
+use serde::Serialize;
+
+/// One constraint's impulse at its frame: Jᵀλ expressed as a linear impulse at a point and an
+/// angular impulse about it (the constraint's force convention, see `constraints::forces`).
+#[derive(Clone, Debug, Serialize)]
+pub struct ConstraintImpulse {
+    pub name: String,
+    pub kind: &'static str,
+    pub frame: String,
+    /// Axes of `impulse` / `angular_impulse` ("world", a frame name, or "joint").
+    pub axes: String,
+    pub rows: Vec<String>,
+    /// λ of the rows [N·s or N·m·s].
+    pub lambda: Vec<f64>,
+    /// Linear impulse on the robot [N·s].
+    pub impulse: [f64; 3],
+    /// Angular impulse on the robot about the point [N·m·s].
+    pub angular_impulse: [f64; 3],
+    /// Point of application, world [m].
+    pub point_world: [f64; 3],
+}
+
+/// A bound that holds with equality at v*.
+#[derive(Clone, Debug, Serialize)]
+pub struct ActiveBound {
+    pub coordinate: String,
+    pub index: usize,
+    pub side: Side,
+    pub source: BoundSource,
+    /// Bound value [m/s or rad/s].
+    pub value: f64,
+    /// ν_i [N·s or N·m·s]: ≥ 0 on a lower bound, ≤ 0 on an upper bound.
+    pub multiplier: f64,
+}
+
+/// A row of A v ≤ b that holds with equality at v*.
+#[derive(Clone, Debug, Serialize)]
+pub struct ActiveInequality {
+    pub index: usize,
+    /// η ≥ 0.
+    pub multiplier: f64,
+}
+
+/// A member of a conflicting set, named.
+#[derive(Clone, Debug, Serialize)]
+pub struct NamedConflict {
+    /// "constraint", "bound" or "inequality".
+    pub kind: &'static str,
+    /// Constraint name, coordinate name or `A[k]`.
+    pub name: String,
+    /// Constraint row label, or the bound's side.
+    pub detail: String,
+    /// e.g. `left_wheel_joint >= 1 (request)`, `left_wheel_contact/t1 = 0`.
+    pub label: String,
+}
+
+/// The result by name.
+#[derive(Clone, Debug, Serialize)]
+pub struct Projection {
+    pub status: Status,
+    pub method: Method,
+    pub message: String,
+    pub v_names: Vec<String>,
+    pub v_des: Vec<f64>,
+    /// v* [m/s, rad/s]; null when infeasible.
+    pub v: Option<Vec<f64>>,
+    /// v* split: base twist in the base frame (planar [vx, vy, wz], floating 6), then joints.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub base_twist: Option<Vec<f64>>,
+    pub joint_names: Vec<String>,
+    pub joint_velocities: Option<Vec<f64>>,
+    pub constraint_rows: Vec<String>,
+    /// λ per constraint row [N·s or N·m·s]; null when infeasible.
+    pub impulses: Option<Vec<f64>>,
+    pub constraints: Vec<ConstraintImpulse>,
+    pub rank_deficiency: usize,
+    pub multipliers_unique: bool,
+    /// False when the multipliers are the QP solver's duals (~1e-8), see [`super::Outcome`].
+    pub multipliers_exact: bool,
+    pub active_bounds: Vec<ActiveBound>,
+    pub active_inequalities: Vec<ActiveInequality>,
+    pub conflicts: Vec<NamedConflict>,
+    pub qp_iterations: u32,
+}
+
+fn relation(side: Side) -> &'static str {
+    match side {
+        Side::Lower => ">=",
+        Side::Upper => "<=",
+    }
+}
+
+impl VelocityProjector {
+    /// Evaluate at (q, v_current), resolve the named request, solve, and name the result.
+    #[allow(clippy::too_many_arguments)]
+    pub fn project_request(
+        &mut self,
+        model: &Model,
+        data: &mut Data,
+        set: &ConstraintSet,
+        cd: &mut ConstraintData,
+        q: &[f64],
+        v_current: &[f64],
+        request: &ProjectionRequest,
+    ) -> Result<Projection> {
+        model.check_state(q, v_current)?;
+        set.evaluate(model, data, cd, q, v_current);
+        crba_after_kinematics(model, data);
+        let problem = request.resolve(model, &cd.j, v_current)?;
+        let twist_done = request.effective_mode() == super::Mode::Twist
+            && self
+                .solve_twist(model, &data.mass_matrix, &cd.j, &problem, &request.given(model)?)?
+                .is_some();
+        if !twist_done {
+            self.solve_evaluated(model, &data.mass_matrix, &cd.j, &problem)?;
+        }
+        Ok(self.report(model, data, set, cd, &problem))
+    }
+
+    /// Name the results of the last solve (kinematics in `data` at the same q).
+    pub fn report(
+        &self,
+        model: &Model,
+        data: &Data,
+        set: &ConstraintSet,
+        cd: &ConstraintData,
+        problem: &ProjectionProblem,
+    ) -> Projection {
+        let o = self.outcome;
+        let ok = o.status == Status::Optimal;
+        let nb = base_dofs(model);
+        let row_names = set.row_names();
+        let v: Vec<f64> = self.v.iter().copied().collect();
+        let constraints = if ok {
+            constraint_forces(model, data, set, cd, &self.lambda)
+                .into_iter()
+                .map(|f| ConstraintImpulse {
+                    name: f.name,
+                    kind: f.kind,
+                    frame: f.frame,
+                    axes: f.axes,
+                    rows: f.rows,
+                    lambda: f.lambda,
+                    impulse: f.force,
+                    angular_impulse: f.torque,
+                    point_world: f.point_world,
+                })
+                .collect()
+        } else {
+            vec![]
+        };
+        let active_bounds = self
+            .active_bounds()
+            .map(|(i, side)| {
+                let (value, source) = self.bound(i, side);
+                ActiveBound {
+                    coordinate: model.v_names[i].clone(),
+                    index: i,
+                    side,
+                    source,
+                    value,
+                    multiplier: self.nu[i],
+                }
+            })
+            .collect();
+        let active_inequalities = self
+            .active_inequalities()
+            .map(|k| ActiveInequality {
+                index: k,
+                multiplier: self.eta[k],
+            })
+            .collect();
+        let conflicts: Vec<NamedConflict> = self
+            .conflicts
+            .iter()
+            .map(|c| self.name_conflict(model, set, &row_names, *c))
+            .collect();
+        let message = if ok {
+            format!("optimal ({:?})", o.method)
+        } else {
+            format!(
+                "infeasible: these cannot hold together: {}",
+                conflicts
+                    .iter()
+                    .map(|c| c.label.as_str())
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            )
+        };
+        Projection {
+            status: o.status,
+            method: o.method,
+            message,
+            v_names: model.v_names.clone(),
+            v_des: problem.v_des.clone(),
+            v: ok.then(|| v.clone()),
+            base_twist: (ok && nb > 0).then(|| v[..nb].to_vec()),
+            joint_names: model.v_names[nb..].to_vec(),
+            joint_velocities: ok.then(|| v[nb..].to_vec()),
+            constraint_rows: row_names,
+            impulses: ok.then(|| self.lambda.iter().copied().collect()),
+            constraints,
+            rank_deficiency: o.rank_deficiency,
+            multipliers_unique: o.multipliers_unique,
+            multipliers_exact: o.multipliers_exact,
+            active_bounds,
+            active_inequalities,
+            conflicts,
+            qp_iterations: o.qp_iterations,
+        }
+    }
+
+    fn name_conflict(
+        &self,
+        model: &Model,
+        set: &ConstraintSet,
+        rows: &[String],
+        c: Conflict,
+    ) -> NamedConflict {
+        match c {
+            Conflict::ConstraintRow(r) => {
+                let k = set
+                    .ranges
+                    .iter()
+                    .position(|rg| rg.contains(&r))
+                    .unwrap_or(0);
+                let name = set.names.get(k).cloned().unwrap_or_default();
+                let row = rows[r].rsplit('/').next().unwrap_or("").to_string();
+                NamedConflict {
+                    kind: "constraint",
+                    label: format!("{} = 0 (constraint {})", rows[r], set.items[k].kind()),
+                    name,
+                    detail: row,
+                }
+            }
+            Conflict::Bound { index, side } => {
+                let (value, source) = self.bound(index, side);
+                let name = model.v_names[index].clone();
+                NamedConflict {
+                    kind: "bound",
+                    label: format!("{name} {} {value} ({})", relation(side), source.label()),
+                    name,
+                    detail: format!("{side:?}").to_lowercase(),
+                }
+            }
+            Conflict::Inequality(k) => NamedConflict {
+                kind: "inequality",
+                name: format!("A[{k}]"),
+                detail: String::new(),
+                label: format!("A[{k}] v <= b[{k}]"),
+            },
+        }
+    }
+}

@@ -1,0 +1,952 @@
+//! Velocity projection: every `velocity_projection` entry of the four reference cases (Pinocchio
+//! M and J, DAQP/ProxQP for the bounded ones) to 1e-9, closed forms on the differential drive,
+//! infeasible requests named, bad input refused, KKT conditions on a mixed problem, and the
+//! equality-only path allocation-free.
+//!
+//! Conventions are the reference's: `M (v* − v_des) = Jᵀλ + ν`, λ = impulse ON the robot.
+
+mod common;
+use common::*;
+use constraint_dynamics::algorithm::Data;
+use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
+use constraint_dynamics::projection::*;
+use constraint_dynamics::{Error, Model, Scene, System};
+use nalgebra::DMatrix;
+use serde_json::{Value, json};
+use std::alloc::{GlobalAlloc, Layout};
+use std::cell::Cell;
+
+// ---------------------------------------------------------------------------------------------
+// A per-thread allocation counter (tests run in parallel threads).
+
+struct Counting;
+thread_local! {
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+    static COUNT: Cell<usize> = const { Cell::new(0) };
+}
+fn note() {
+    let _ = COUNTING.try_with(|on| {
+        if on.get() {
+            let _ = COUNT.try_with(|c| c.set(c.get() + 1));
+        }
+    });
+}
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        note();
+        unsafe { std::alloc::System.alloc(l) }
+    }
+    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+        unsafe { std::alloc::System.dealloc(p, l) }
+    }
+    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
+        note();
+        unsafe { std::alloc::System.realloc(p, l, n) }
+    }
+}
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations<F: FnMut()>(mut f: F) -> usize {
+    COUNT.with(|c| c.set(0));
+    COUNTING.with(|on| on.set(true));
+    f();
+    COUNTING.with(|on| on.set(false));
+    COUNT.with(|c| c.get())
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reference cases.
+
+struct Fixture {
+    model: Model,
+    data: Data,
+    set: ConstraintSet,
+    cd: ConstraintData,
+    proj: VelocityProjector,
+}
+
+fn fixture(model: &Model, set: ConstraintSet) -> Fixture {
+    Fixture {
+        data: Data::new(model),
+        cd: ConstraintData::new(model, &set),
+        proj: VelocityProjector::new(model, &set),
+        model: model.clone(),
+        set,
+    }
+}
+
+impl Fixture {
+    fn project(&mut self, q: &[f64], p: &ProjectionProblem) -> Result<Outcome, Error> {
+        self.proj
+            .project(&self.model, &mut self.data, &self.set, &mut self.cd, q, p)
+    }
+}
+
+/// The reference's bound array: null = none.
+fn bound_array(v: &Value, none: f64) -> Vec<f64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap_or(none))
+        .collect()
+}
+
+fn check_reference(name: &str) -> (usize, usize) {
+    let case = load_case(name);
+    let model = case_model(&case);
+    let (mut n_eq, mut n_bounded) = (0, 0);
+    for (k, st) in case["states"].as_array().unwrap().iter().enumerate() {
+        let q = vecf(&st["q"]);
+        let set = ConstraintSet::new(&model, &specs_for(&case, st), &q).unwrap();
+        let mut fx = fixture(&model, set);
+        let vp = &st["expected"]["velocity_projection"];
+        let tag = format!("{name}[{k}]");
+
+        // Equality only: the reference problem has no bounds (URDF limits off).
+        let mut p = ProjectionProblem::new(&model);
+        p.velocity_limits = false;
+        p.v_des = vecf(&vp["v_des"]);
+        let o = fx.project(&q, &p).unwrap();
+        assert_eq!(o.method, Method::Kkt, "{tag}");
+        assert_eq!(o.rank_deficiency, 0, "{tag}");
+        let eq = &vp["equality_only"];
+        eprintln!(
+            "{tag}: equality-only rel. error v {:.1e}, lambda {:.1e}",
+            rel_err(fx.proj.v.as_slice(), &vecf(&eq["v"])),
+            rel_err(fx.proj.lambda.as_slice(), &vecf(&eq["lambda"]))
+        );
+        assert_close(
+            &format!("{tag} equality-only v"),
+            fx.proj.v.as_slice(),
+            &vecf(&eq["v"]),
+            1e-9,
+        );
+        assert_close(
+            &format!("{tag} equality-only lambda"),
+            fx.proj.lambda.as_slice(),
+            &vecf(&eq["lambda"]),
+            1e-9,
+        );
+        n_eq += 1;
+
+        let Some(b) = vp.get("bounded") else {
+            continue;
+        };
+        p.lower = bound_array(&b["lb"], f64::NEG_INFINITY);
+        p.upper = bound_array(&b["ub"], f64::INFINITY);
+        let o = fx.project(&q, &p).unwrap();
+        assert_eq!(o.status, Status::Optimal, "{tag}");
+        let active_ref: Vec<usize> = b["active_bounds"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_u64().unwrap() as usize)
+            .collect();
+        if active_ref.is_empty() {
+            assert_eq!(o.method, Method::KktBoundsInactive, "{tag}");
+        } else {
+            assert_eq!(o.method, Method::ClarabelPolished, "{tag}");
+        }
+        assert_close(
+            &format!("{tag} bounded v"),
+            fx.proj.v.as_slice(),
+            &vecf(&b["v"]),
+            1e-9,
+        );
+        eprintln!(
+            "{tag}: bounded ({:?}, {} QP iterations) rel. error v {:.1e}{}",
+            o.method,
+            o.qp_iterations,
+            rel_err(fx.proj.v.as_slice(), &vecf(&b["v"])),
+            if b["multipliers_unique"].as_bool().unwrap() {
+                format!(
+                    ", lambda {:.1e}, nu {:.1e}",
+                    rel_err(fx.proj.lambda.as_slice(), &vecf(&b["lambda"])),
+                    rel_err(fx.proj.nu.as_slice(), &vecf(&b["nu_bounds"]))
+                )
+            } else {
+                " (multipliers not unique)".into()
+            }
+        );
+        let mut active: Vec<usize> = fx.proj.active_bounds().map(|(i, _)| i).collect();
+        active.sort();
+        assert_eq!(active, active_ref, "{tag}: active set");
+        for (i, side) in fx.proj.active_bounds() {
+            let want = if fx.proj.v[i] > 0.0 {
+                Side::Upper
+            } else {
+                Side::Lower
+            };
+            assert_eq!(side, want, "{tag}: side of the bound on coordinate {i}");
+        }
+        let unique = b["multipliers_unique"].as_bool().unwrap();
+        assert_eq!(
+            o.multipliers_unique, unique,
+            "{tag}: uniqueness of the multipliers"
+        );
+        if unique {
+            assert_close(
+                &format!("{tag} bounded lambda"),
+                fx.proj.lambda.as_slice(),
+                &vecf(&b["lambda"]),
+                1e-9,
+            );
+            assert_close(
+                &format!("{tag} bounded nu"),
+                fx.proj.nu.as_slice(),
+                &vecf(&b["nu_bounds"]),
+                1e-9,
+            );
+        }
+        n_bounded += 1;
+    }
+    (n_eq, n_bounded)
+}
+
+#[test]
+fn fourbar_projections_match_reference() {
+    assert_eq!(check_reference("fourbar"), (5, 5));
+}
+
+#[test]
+fn ur5_projections_match_reference() {
+    assert_eq!(check_reference("ur5_ee_point"), (4, 4));
+}
+
+#[test]
+fn solo12_projections_match_reference() {
+    assert_eq!(check_reference("solo12_four_feet"), (5, 5));
+}
+
+#[test]
+fn rolling_disk_projections_match_reference() {
+    assert_eq!(check_reference("rolling_disk"), (4, 0));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Differential drive (params/diff_drive.yaml): closed forms.
+
+fn scene_system(name: &str) -> (Scene, System) {
+    let scene = Scene::load(repo_dir().join("params").join(name)).unwrap();
+    let sys = System::from_scene(&scene).unwrap();
+    (scene, sys)
+}
+
+fn project_named(sys: &mut System, q: &[f64], v: &[f64], req: Value) -> Result<Projection, Error> {
+    let req = ProjectionRequest::from_json(&req.to_string())?;
+    let mut proj = VelocityProjector::new(&sys.model, &sys.constraints);
+    project_system(&mut proj, sys, q, v, &req)
+}
+
+/// The diff drive's numbers, from the URDF (docs/robots.md), not from CRBA:
+/// wheel radius r, half track c, total mass m, COM x (behind the axle), wheel spin inertia,
+/// and the yaw inertia about the axle midpoint.
+struct DiffDrive {
+    r: f64,
+    c: f64,
+    m: f64,
+    x_c: f64,
+    i_spin: f64,
+    i_o: f64,
+}
+
+fn diff_drive_numbers(chassis_x: f64, caster_x: f64) -> DiffDrive {
+    let (r, c) = (0.05, 0.17);
+    let (m_ch, m_ca, m_w) = (8.0, 0.2, 0.5);
+    let m = m_ch + m_ca + 2.0 * m_w;
+    let x_c = (m_ch * chassis_x + m_ca * caster_x) / m;
+    let i_o = 0.166666666666667
+        + m_ch * chassis_x * chassis_x
+        + 5e-5
+        + m_ca * caster_x * caster_x
+        + 2.0 * (0.00035 + m_w * c * c);
+    DiffDrive {
+        r,
+        c,
+        m,
+        x_c,
+        i_spin: 0.000625,
+        i_o,
+    }
+}
+
+impl DiffDrive {
+    /// The reduced metric in s = (vx, wz) on the constraint manifold v = N s,
+    /// N = [1 0; 0 0; 0 1; 1/r −c/r; 1/r c/r]: A = NᵀMN = diag(a1, a2) because the COM lies on
+    /// the x axis (M[vx, wz] = −m y_c = 0) and the wheel terms ±c/r² cancel.
+    fn a1(&self) -> f64 {
+        self.m + 2.0 * self.i_spin / (self.r * self.r)
+    }
+    fn a2(&self) -> f64 {
+        self.i_o + 2.0 * self.i_spin * self.c * self.c / (self.r * self.r)
+    }
+}
+
+/// `mode: mass` (the issue's M-metric QP): a pure sideways twist (0, V, 0) with the wheels
+/// completed from the constraints (ω = 0).
+///
+/// On the manifold, v* = N s* with A s* = Nᵀ M v_des. M v_des = V · M[:, vy], and the only
+/// entries of that column N sees are M[vx, vy] = 0 and M[wz, vy] = m x_c (the lateral momentum
+/// of a COM that sits x_c ahead of the axle has a moment about it; the wheels' spin does not
+/// couple to vy). So vx* = 0, vy* = 0 (the constraint), and
+///     wz* = m x_c V / (I_O + 2 I_spin c²/r²),
+/// which is zero only when the COM is over the axle. The bundled robot has its COM 4.7 cm
+/// behind the axle (x_c < 0): the M-metric projection of a sideways request is a turn,
+/// wz* ≈ −1.83 V rad/s. With the chassis and caster moved over the axle (x_c = 0) the same
+/// request projects to zero base velocity exactly.
+#[test]
+fn diff_drive_sideways_twist_projects_to_the_closed_form() {
+    let (scene, mut sys) = scene_system("diff_drive.yaml");
+    let (q, v0) = (scene.q0.clone(), scene.v0.clone());
+    let vy = 0.8;
+    let out = project_named(&mut sys, &q, &v0, json!({"base_twist": [0.0, vy, 0.0], "mode": "mass"})).unwrap();
+    assert_eq!(out.status, Status::Optimal);
+    assert_eq!(
+        out.method,
+        Method::KktBoundsInactive,
+        "the URDF limits do not bind"
+    );
+    let dd = diff_drive_numbers(-0.05, -0.15);
+    let wz = dd.m * dd.x_c * vy / dd.a2();
+    let tw = out.base_twist.clone().unwrap();
+    assert!(tw[0].abs() < 1e-12 && tw[1].abs() < 1e-12, "{tw:?}");
+    assert!(
+        (tw[2] - wz).abs() < 1e-12 * (1.0 + wz.abs()),
+        "wz {} vs closed form {wz}",
+        tw[2]
+    );
+    let w = out.joint_velocities.clone().unwrap();
+    assert!((w[0] - (-dd.c * wz / dd.r)).abs() < 1e-10 && (w[1] - dd.c * wz / dd.r).abs() < 1e-10);
+    // The lateral rows of the two wheels are identical: one redundant row, min-norm split.
+    assert_eq!(out.rank_deficiency, 1);
+    assert!(!out.multipliers_unique);
+
+    // The same robot with its COM over the axle: zero base velocity.
+    let urdf = std::fs::read_to_string(repo_dir().join("urdf/diff_drive.urdf"))
+        .unwrap()
+        .replace("<origin xyz=\"-0.05 0 0.03\"", "<origin xyz=\"0 0 0.03\"")
+        .replace("xyz=\"-0.15 0 -0.025\"", "xyz=\"0 0 -0.025\"");
+    let scene2 = Scene::from_parts(&scene.path, scene.file.clone(), &urdf, "centred.urdf").unwrap();
+    let mut sys2 = System::from_scene(&scene2).unwrap();
+    let out = project_named(&mut sys2, &q, &v0, json!({"base_twist": [0.0, vy, 0.0], "mode": "mass"})).unwrap();
+    for x in out.v.unwrap() {
+        assert!(x.abs() < 1e-12, "COM over the axle: expected zero velocity");
+    }
+    let dd0 = diff_drive_numbers(0.0, 0.0);
+    assert_eq!(dd0.x_c, 0.0);
+}
+
+/// `mode: mass`: asked for (vx, wz) = (1 m/s, 0.5 rad/s) — wheel speeds (vx ∓ c wz)/r = 18.3, 21.7 rad/s —
+/// with both wheels limited to W = 21.7/2 = 10.85 rad/s, which a uniform scaling by ½ would meet
+/// (0.5 m/s, 0.25 rad/s; wheels 9.15, 10.85).
+///
+/// The M-metric QP on the manifold is min (s − s_d)ᵀ A (s − s_d), A = diag(a1, a2), subject to
+/// (vx ∓ c wz)/r ≤ W. With only the right wheel's bound held, s = s_d − μ A⁻¹ n_R (n_R = (1, c)/r)
+/// leaves the left wheel at ≈ 19.3 rad/s > W, so both bounds bind: vx = r W, wz = 0 — the
+/// turn is dropped entirely, because turning is cheap in this metric (a2 ≈ 0.235 kg m² against
+/// a1 = 9.7 kg) and a symmetric pair of wheel limits can only be met at full speed by going
+/// straight. The multipliers follow from A (s − s_d) = −(μ_R n_R + μ_L n_L):
+///     μ_R + μ_L = r a1 (vx_d − r W),  μ_R − μ_L = r a2 wz_d / c,
+/// both positive here (so this is the optimum), and the bound multipliers are ν = −μ ≤ 0.
+/// The uniform scaling is feasible but costs more (asserted).
+///
+/// The URDF's own limit, W = 20 rad/s, binds only the right wheel:
+/// μ = (n_R·s_d − W)/(n_Rᵀ A⁻¹ n_R), s = s_d − μ A⁻¹ n_R (left wheel then ≈ 18.4 rad/s < W).
+#[test]
+fn diff_drive_wheel_limits_give_the_closed_form_twist() {
+    let (scene, mut sys) = scene_system("diff_drive.yaml");
+    let (q, v0) = (scene.q0.clone(), scene.v0.clone());
+    let dd = diff_drive_numbers(-0.05, -0.15);
+    let (r, c, a1, a2) = (dd.r, dd.c, dd.a1(), dd.a2());
+    let (vx_d, wz_d) = (1.0, 0.5);
+    let w_half = (vx_d + c * wz_d) / r / 2.0;
+    let req = |w: f64| {
+        json!({"base_twist": [vx_d, 0.0, wz_d], "mode": "mass",
+               "upper": {"left_wheel_joint": w, "right_wheel_joint": w}})
+    };
+
+    let out = project_named(&mut sys, &q, &v0, req(w_half)).unwrap();
+    assert_eq!(out.status, Status::Optimal);
+    assert_eq!(out.method, Method::ClarabelPolished);
+    let v = out.v.clone().unwrap();
+    let expect = [r * w_half, 0.0, 0.0, w_half, w_half];
+    assert_close("v (both wheel limits)", &v, &expect, 1e-12);
+    // v_des itself is the full feasible request (wheels filled from the constraints).
+    assert_close(
+        "v_des",
+        &out.v_des,
+        &[
+            vx_d,
+            0.0,
+            wz_d,
+            (vx_d - c * wz_d) / r,
+            (vx_d + c * wz_d) / r,
+        ],
+        1e-12,
+    );
+    let mu_sum = r * a1 * (vx_d - r * w_half);
+    let mu_diff = r * a2 * wz_d / c;
+    let (mu_r, mu_l) = ((mu_sum + mu_diff) / 2.0, (mu_sum - mu_diff) / 2.0);
+    assert!(mu_r > 0.0 && mu_l > 0.0);
+    let mut ab = out.active_bounds.clone();
+    ab.sort_by_key(|b| b.index);
+    assert_eq!(ab.len(), 2);
+    assert_eq!(
+        (ab[0].coordinate.as_str(), ab[0].side),
+        ("left_wheel_joint", Side::Upper)
+    );
+    assert_eq!(
+        (ab[1].coordinate.as_str(), ab[1].side),
+        ("right_wheel_joint", Side::Upper)
+    );
+    assert_eq!(ab[0].source, BoundSource::Request);
+    assert!(
+        (ab[0].multiplier + mu_l).abs() < 1e-10,
+        "{} vs {}",
+        ab[0].multiplier,
+        -mu_l
+    );
+    assert!(
+        (ab[1].multiplier + mu_r).abs() < 1e-10,
+        "{} vs {}",
+        ab[1].multiplier,
+        -mu_r
+    );
+    let cost = |vx: f64, wz: f64| a1 * (vx - vx_d).powi(2) + a2 * (wz - wz_d).powi(2);
+    assert!(cost(r * w_half, 0.0) < cost(vx_d / 2.0, wz_d / 2.0));
+
+    // Without the request's bounds the URDF's 20 rad/s binds, on the right wheel only.
+    let w = 20.0;
+    let out = project_named(&mut sys, &q, &v0, json!({"base_twist": [vx_d, 0.0, wz_d], "mode": "mass"})).unwrap();
+    let n_r = [1.0 / r, c / r];
+    let mu = ((vx_d * n_r[0] + wz_d * n_r[1]) - w) / (n_r[0] * n_r[0] / a1 + n_r[1] * n_r[1] / a2);
+    let (vx, wz) = (vx_d - mu * n_r[0] / a1, wz_d - mu * n_r[1] / a2);
+    let v = out.v.clone().unwrap();
+    assert_close(
+        "v (right wheel limit)",
+        &v,
+        &[vx, 0.0, wz, (vx - c * wz) / r, w],
+        1e-12,
+    );
+    assert_eq!(out.active_bounds.len(), 1);
+    assert_eq!(out.active_bounds[0].coordinate, "right_wheel_joint");
+    assert_eq!(out.active_bounds[0].source, BoundSource::UrdfVelocityLimit);
+    assert!((out.active_bounds[0].multiplier + mu).abs() < 1e-10);
+}
+
+/// The default for a twist request (`mode: twist`, planner semantics). The diff drive's feasible
+/// velocities are (vx, 0, wz) with wheel speeds ω_{L,R} = (vx ∓ c wz)/r, so
+/// - a pure sideways request (0, V, 0) is nearest to (0, 0, 0) in the twist components: zero base
+///   velocity and zero wheel speeds;
+/// - (1 m/s, 0.5 rad/s) needs ω_R = (1 + 0.5 c)/r = 21.7 rad/s; with both wheels limited to half
+///   of that the largest uniform scale is s = ½: (0.5 m/s, 0.25 rad/s), wheels (9.15, 10.85) with
+///   the right one at its limit; with the URDF's own 20 rad/s, s = 20 r/(1 + 0.5 c).
+#[test]
+fn diff_drive_twist_requests_drop_sideways_motion_and_scale_to_wheel_limits() {
+    let (scene, mut sys) = scene_system("diff_drive.yaml");
+    let (q, v0) = (scene.q0.clone(), scene.v0.clone());
+    let dd = diff_drive_numbers(-0.05, -0.15);
+    let (r, c) = (dd.r, dd.c);
+    let out = project_named(&mut sys, &q, &v0, json!({"base_twist": [0.0, 0.8, 0.0]})).unwrap();
+    assert_eq!((out.status, out.method), (Status::Optimal, Method::TwistScaled));
+    assert_close("sideways → zero", &out.v.clone().unwrap(), &[0.0; 5], 1e-12);
+
+    let (vx_d, wz_d) = (1.0, 0.5);
+    let w_r = (vx_d + c * wz_d) / r;
+    let w_half = w_r / 2.0;
+    let req = json!({"base_twist": [vx_d, 0.0, wz_d], "upper": {"left_wheel_joint": w_half, "right_wheel_joint": w_half}});
+    let out = project_named(&mut sys, &q, &v0, req).unwrap();
+    assert_eq!((out.status, out.method), (Status::Optimal, Method::TwistScaled));
+    let (vx, wz) = (vx_d / 2.0, wz_d / 2.0);
+    assert_close("scaled twist", &out.v.clone().unwrap(), &[vx, 0.0, wz, (vx - c * wz) / r, (vx + c * wz) / r], 1e-12);
+    assert_eq!(out.active_bounds.len(), 1);
+    assert_eq!((out.active_bounds[0].coordinate.as_str(), out.active_bounds[0].side), ("right_wheel_joint", Side::Upper));
+
+    let out = project_named(&mut sys, &q, &v0, json!({"base_twist": [vx_d, 0.0, wz_d]})).unwrap();
+    let s = 20.0 / w_r;
+    let (vx, wz) = (s * vx_d, s * wz_d);
+    assert_close("URDF wheel limit", &out.v.clone().unwrap(), &[vx, 0.0, wz, (vx - c * wz) / r, 20.0], 1e-12);
+}
+
+/// The left wheel forced forward (ω_L ≥ 1 rad/s) while the base must stand still: rolling of the
+/// left wheel gives vx − c wz = r ω_L ≥ r, which vx ≤ 0 and wz ≥ 0 forbid. The answer names
+/// exactly that minimal set, and no vector.
+#[test]
+fn infeasible_request_names_the_conflict() {
+    let (scene, mut sys) = scene_system("diff_drive.yaml");
+    let (q, v0) = (scene.q0.clone(), scene.v0.clone());
+    let req = json!({"base_twist": [0.3, 0.0, 0.0],
+                     "lower": {"left_wheel_joint": 1.0, "vx": 0.0, "wz": 0.0},
+                     "upper": {"vx": 0.0, "wz": 0.0}});
+    let out = project_named(&mut sys, &q, &v0, req).unwrap();
+    assert_eq!(out.status, Status::Infeasible);
+    assert!(out.v.is_none() && out.impulses.is_none());
+    let mut labels: Vec<String> = out.conflicts.iter().map(|c| c.label.clone()).collect();
+    labels.sort();
+    assert_eq!(
+        labels,
+        [
+            "left_wheel_contact/t1 = 0 (constraint rolling)",
+            "left_wheel_joint >= 1 (request)",
+            "root_joint:vx_local <= 0 (request)",
+            "root_joint:wz >= 0 (request)",
+        ],
+        "{}",
+        out.message
+    );
+    let json = serde_json::to_value(&out).unwrap();
+    assert_eq!(json["status"], "infeasible");
+    assert!(json["v"].is_null());
+
+    // A lower bound above an upper bound is caught before any solve.
+    let req = json!({"base_twist": [0.3, 0.0, 0.0],
+                     "lower": {"right_wheel_joint": 25.0}});
+    let out = project_named(&mut sys, &q, &v0, req).unwrap();
+    assert_eq!(
+        (out.status, out.method),
+        (Status::Infeasible, Method::BoundCheck)
+    );
+    let labels: Vec<&str> = out.conflicts.iter().map(|c| c.label.as_str()).collect();
+    assert_eq!(
+        labels,
+        [
+            "right_wheel_joint >= 25 (request)",
+            "right_wheel_joint <= 20 (URDF velocity limit)"
+        ]
+    );
+}
+
+#[test]
+fn bad_input_is_refused_with_a_clear_error() {
+    let (scene, mut sys) = scene_system("diff_drive.yaml");
+    let (q, v0) = (scene.q0.clone(), scene.v0.clone());
+    let mut proj = VelocityProjector::new(&sys.model, &sys.constraints);
+    let mut p = ProjectionProblem::new(&sys.model);
+    let mut run = |p: &ProjectionProblem, q: &[f64]| {
+        proj.project(
+            &sys.model,
+            &mut sys.data,
+            &sys.constraints,
+            &mut sys.cdata,
+            q,
+            p,
+        )
+        .map(|_| ())
+    };
+    p.v_des[1] = f64::NAN;
+    let e = run(&p, &q).unwrap_err();
+    assert!(
+        matches!(e, Error::NonFinite { ref what, index: 1, .. } if what == "v_des"),
+        "{e}"
+    );
+    p.v_des = vec![0.0; 4];
+    let e = run(&p, &q).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Dimension {
+                expected: 5,
+                got: 4,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    p.v_des = vec![0.0; 5];
+    p.upper[3] = f64::NAN;
+    assert!(matches!(run(&p, &q).unwrap_err(), Error::NonFinite { .. }));
+    p.upper[3] = f64::INFINITY;
+    p.a = DMatrix::zeros(1, 5);
+    assert!(
+        matches!(run(&p, &q).unwrap_err(), Error::Dimension { .. }),
+        "b missing"
+    );
+    p.a = DMatrix::zeros(0, 5);
+    let mut qn = q.clone();
+    qn[0] = f64::NAN;
+    assert!(matches!(run(&p, &qn).unwrap_err(), Error::NonFinite { .. }));
+    assert!(matches!(
+        run(&p, &q[..2]).unwrap_err(),
+        Error::Dimension { .. }
+    ));
+    assert!(run(&p, &q).is_ok());
+
+    // Named requests.
+    let mut err = |req: Value| {
+        project_named(&mut sys, &q, &v0, req)
+            .unwrap_err()
+            .to_string()
+    };
+    assert!(err(json!({"joints": {"no_such_joint": 1.0}})).contains("no_such_joint"));
+    assert!(err(json!({"base_twist": [1.0, 0.0]})).contains("base_twist"));
+    assert!(err(json!({"v_des": [0.0, 0.0, 0.0]})).contains("v_des"));
+    assert!(
+        err(json!({"v_des": [0.0, 0.0, 0.0, 0.0, 0.0], "base_twist": [1.0, 0.0, 0.0]}))
+            .contains("not both")
+    );
+    assert!(err(json!({"base_twist": [1.0, 0.0, 0.0], "colour": 1})).contains("colour"));
+    assert!(err(json!({})).contains("no desired velocity"));
+    assert!(
+        err(json!({"base_twist": [1.0, 0.0, 0.0],
+                   "accel_limit": {"dt": 0.0, "a_max": {"vx": 1.0}}}))
+        .contains("dt")
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Mixed problem: KKT conditions, structure reuse.
+
+/// Check v* against its KKT conditions with the returned multipliers.
+fn assert_kkt(sys: &System, proj: &VelocityProjector, p: &ProjectionProblem, tol: f64) {
+    let m = &sys.data.mass_matrix;
+    let j = &sys.cdata.j;
+    let v = &proj.v;
+    let dv = nalgebra::DVector::from_iterator(v.len(), (0..v.len()).map(|i| v[i] - p.v_des[i]));
+    let mut stat = m * dv - j.transpose() * &proj.lambda - &proj.nu;
+    if p.a.nrows() > 0 {
+        stat += p.a.transpose() * nalgebra::DVector::from_vec(proj.eta.clone());
+    }
+    let scale = (m * nalgebra::DVector::from_vec(p.v_des.clone()))
+        .amax()
+        .max(1.0);
+    assert!(stat.amax() < tol * scale, "stationarity {:e}", stat.amax());
+    assert!((j * v).amax() < 1e-10, "J v = {:e}", (j * v).amax());
+    for (i, side) in proj.active_bounds() {
+        let (b, _) = proj.bound(i, side);
+        assert!((v[i] - b).abs() < 1e-9 * (1.0 + b.abs()));
+        if proj.bound(i, Side::Lower).0 == proj.bound(i, Side::Upper).0 {
+            continue; // an equality: ν of either sign
+        }
+        let ok = match side {
+            Side::Lower => proj.nu[i] >= -tol,
+            Side::Upper => proj.nu[i] <= tol,
+        };
+        assert!(ok, "sign of nu[{i}] = {}", proj.nu[i]);
+    }
+    for i in 0..v.len() {
+        let (lo, _) = proj.bound(i, Side::Lower);
+        let (hi, _) = proj.bound(i, Side::Upper);
+        assert!(v[i] >= lo - 1e-9 * (1.0 + lo.abs()) && v[i] <= hi + 1e-9 * (1.0 + hi.abs()));
+    }
+    for k in 0..p.a.nrows() {
+        let av: f64 = (0..v.len()).map(|c| p.a[(k, c)] * v[c]).sum();
+        assert!(av <= p.b[k] + 1e-9 * (1.0 + p.b[k].abs()));
+        assert!(proj.eta[k] >= -tol);
+        if av < p.b[k] - 1e-7 {
+            assert!(proj.eta[k].abs() < tol, "complementarity of A row {k}");
+        }
+    }
+}
+
+/// The mobile manipulator with URDF limits (wheels 20 rad/s, arm 2 rad/s), an acceleration limit
+/// from the current velocity, and a user inequality on the base; a sequence of requests through
+/// one projector (the QP is built once and updated) equals fresh projectors.
+#[test]
+fn mobile_manipulator_mixed_bounds_satisfy_kkt_and_reuse_the_qp() {
+    let (scene, mut sys) = scene_system("mobile_manipulator.yaml");
+    let (q, v0) = (scene.q0.clone(), scene.v0.clone());
+    let nv = sys.model.nv;
+    let mut proj = VelocityProjector::new(&sys.model, &sys.constraints);
+    let mut last = vec![];
+    for k in 0..4 {
+        let s = k as f64;
+        let mut p = ProjectionProblem::new(&sys.model);
+        p.v_des = (0..nv)
+            .map(|i| 3.0 * ((i as f64 + 1.0) * (0.7 + s)).sin())
+            .collect();
+        p.v_des[3] = 30.0 - 5.0 * s; // over the wheel limit
+        let mut a_max = vec![f64::INFINITY; nv];
+        a_max[5..].fill(10.0);
+        p.accel_limit = Some(AccelLimit {
+            dt: 0.1,
+            a_max,
+            v_current: v0.clone(),
+        });
+        p.a = DMatrix::from_row_slice(1, nv, &{
+            let mut r = vec![0.0; nv];
+            r[0] = 1.0;
+            r[2] = 0.3;
+            r
+        });
+        p.b = vec![0.4];
+        let o = proj
+            .project(
+                &sys.model,
+                &mut sys.data,
+                &sys.constraints,
+                &mut sys.cdata,
+                &q,
+                &p,
+            )
+            .unwrap();
+        assert_eq!(o.status, Status::Optimal);
+        assert_eq!(o.method, Method::ClarabelPolished, "request {k}");
+        assert_kkt(&sys, &proj, &p, 1e-9);
+        let mut fresh = VelocityProjector::new(&sys.model, &sys.constraints);
+        fresh
+            .project(
+                &sys.model,
+                &mut sys.data,
+                &sys.constraints,
+                &mut sys.cdata,
+                &q,
+                &p,
+            )
+            .unwrap();
+        assert_close(
+            "reused vs fresh",
+            proj.v.as_slice(),
+            fresh.v.as_slice(),
+            1e-12,
+        );
+        last = proj.v.iter().copied().collect();
+    }
+    assert!(!last.is_empty());
+    assert_eq!(
+        proj.qp_builds(),
+        1,
+        "one structure, one Clarabel problem, updated in place"
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Allocation.
+
+#[test]
+fn equality_only_projection_does_not_allocate() {
+    let mut cases: Vec<(String, Fixture, Vec<f64>, ProjectionProblem)> = vec![];
+    for name in ["ur5_ee_point", "solo12_four_feet", "rolling_disk"] {
+        let case = load_case(name);
+        let model = case_model(&case);
+        let st = &case["states"][1];
+        let q = vecf(&st["q"]);
+        let set = ConstraintSet::new(&model, &specs_for(&case, st), &q).unwrap();
+        let mut p = ProjectionProblem::new(&model);
+        p.velocity_limits = false;
+        p.v_des = vecf(&st["expected"]["velocity_projection"]["v_des"]);
+        cases.push((name.into(), fixture(&model, set), q, p));
+    }
+    // The diff drive: redundant rows (min-norm path), URDF limits present but not binding.
+    let (scene, sys) = scene_system("diff_drive.yaml");
+    let mut p = ProjectionProblem::new(&sys.model);
+    p.v_des = vec![0.3, 0.2, 0.5, 1.0, 2.0];
+    cases.push((
+        "diff_drive".into(),
+        fixture(&sys.model, sys.constraints.clone()),
+        scene.q0.clone(),
+        p,
+    ));
+    let probe = allocations(|| {
+        std::hint::black_box(vec![1u8; 10]);
+    });
+    assert_eq!(probe, 1, "the counter counts");
+    for (name, fx, q, p) in &mut cases {
+        let first = fx.project(q, p).unwrap();
+        let n = allocations(|| {
+            fx.project(q, p).unwrap();
+        });
+        assert_eq!(n, 0, "{name}: the projection allocates ({first:?})");
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Randomised: every answer carries a KKT certificate.
+
+/// xorshift64*: a deterministic stream in [0, 1).
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// Random desired velocities and random bound subsets (some lo = hi) on three robots: every
+/// optimal answer satisfies the KKT conditions (feasibility, stationarity with the returned
+/// λ, ν, η, signs, complementarity), which certify optimality of a convex QP.
+#[test]
+fn random_bounded_projections_satisfy_kkt() {
+    let mut systems: Vec<(String, System, Vec<f64>)> = vec![];
+    for name in ["ur5_ee_point", "solo12_four_feet"] {
+        let case = load_case(name);
+        let model = case_model(&case);
+        let st = &case["states"][2];
+        let q = vecf(&st["q"]);
+        let set = ConstraintSet::new(&model, &specs_for(&case, st), &q).unwrap();
+        let sys = System::new(model, set, Default::default(), Default::default());
+        systems.push((name.into(), sys, q));
+    }
+    let (scene, sys) = scene_system("mobile_manipulator.yaml");
+    systems.push(("mobile_manipulator".into(), sys, scene.q0.clone()));
+    let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+    let mut methods = std::collections::BTreeMap::<String, usize>::new();
+    for (name, sys, q) in &mut systems {
+        let nv = sys.model.nv;
+        let mut proj = VelocityProjector::new(&sys.model, &sys.constraints);
+        for trial in 0..150 {
+            let mut p = ProjectionProblem::new(&sys.model);
+            p.v_des = (0..nv).map(|_| 6.0 * (rng.next() - 0.5)).collect();
+            for i in 0..nv {
+                let u = rng.next();
+                if u < 0.3 {
+                    p.upper[i] = 0.2 + 2.0 * rng.next();
+                } else if u < 0.6 {
+                    p.lower[i] = -0.2 - 2.0 * rng.next();
+                } else if u < 0.8 {
+                    p.upper[i] = 0.1 + rng.next();
+                    p.lower[i] = -0.1 - rng.next();
+                } else if u < 0.82 {
+                    p.lower[i] = 0.0;
+                    p.upper[i] = 0.0;
+                }
+            }
+            let o = proj
+                .project(
+                    &sys.model,
+                    &mut sys.data,
+                    &sys.constraints,
+                    &mut sys.cdata,
+                    q,
+                    &p,
+                )
+                .unwrap();
+            *methods
+                .entry(format!("{name}: {:?}", o.method))
+                .or_default() += 1;
+            if o.status == Status::Infeasible {
+                continue;
+            }
+            assert_ne!(
+                o.method,
+                Method::Clarabel,
+                "{name}[{trial}]: polish not accepted {o:?}"
+            );
+            *methods
+                .entry(format!("{name}: exact multipliers {}", o.multipliers_exact))
+                .or_default() += 1;
+            let tol = if o.multipliers_exact { 1e-9 } else { 1e-6 };
+            assert_kkt(sys, &proj, &p, tol);
+        }
+    }
+    eprintln!("{methods:#?}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// CLI.
+
+#[test]
+fn cli_project_prints_the_result_as_json() {
+    let bin = env!("CARGO_BIN_EXE_constraint_dynamics");
+    let scene = repo_dir().join("params/diff_drive.yaml");
+    let run = |req: &str| {
+        let out = std::process::Command::new(bin)
+            .args(["project", "--scene"])
+            .arg(&scene)
+            .args(["--v-des", req])
+            .output()
+            .unwrap();
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stdout).to_string(),
+            String::from_utf8_lossy(&out.stderr).to_string(),
+        )
+    };
+    let (ok, stdout, stderr) =
+        run(r#"{"base_twist": [1.0, 0.0, 0.5], "upper": {"right_wheel_joint": 10.0}}"#);
+    assert!(ok, "{stderr}");
+    let v: Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(v["status"], "optimal");
+    assert_eq!(v["active_bounds"][0]["coordinate"], "right_wheel_joint");
+    assert_eq!(v["base_twist"].as_array().unwrap().len(), 3);
+    assert_eq!(v["constraints"][0]["name"], "left_wheel_contact");
+    // A request file.
+    let file = std::env::temp_dir().join(format!("cd_project_{}.json", std::process::id()));
+    std::fs::write(&file, r#"{"v_des": [0.2, 0.0, 0.0, 4.0, 4.0]}"#).unwrap();
+    let (ok, stdout, stderr) = run(file.to_str().unwrap());
+    std::fs::remove_file(&file).ok();
+    assert!(ok, "{stderr}");
+    let v: Value = serde_json::from_str(&stdout).unwrap();
+    assert_close(
+        "feasible request unchanged",
+        &vecf(&v["v"]),
+        &[0.2, 0.0, 0.0, 4.0, 4.0],
+        1e-12,
+    );
+    // Bad input: a clear error, non-zero exit.
+    let (ok, _, stderr) = run(r#"{"joints": {"wheel": 1.0}}"#);
+    assert!(
+        !ok && stderr.contains("unknown velocity coordinate 'wheel'"),
+        "{stderr}"
+    );
+}
+
+/// Badly scaled requests: the problem is positively homogeneous, v*(α v_des, α bounds) = α v*, so
+/// the reference bounded problems scaled by α = 1e-8 … 1e8 must give α times the reference v*
+/// (Clarabel sees the scaled data; the polish restores full precision).
+#[test]
+fn scaled_requests_give_scaled_answers() {
+    for name in ["ur5_ee_point", "solo12_four_feet"] {
+        let case = load_case(name);
+        let model = case_model(&case);
+        let st = &case["states"][3];
+        let q = vecf(&st["q"]);
+        let set = ConstraintSet::new(&model, &specs_for(&case, st), &q).unwrap();
+        let mut fx = fixture(&model, set);
+        let b = &st["expected"]["velocity_projection"]["bounded"];
+        let v_ref = vecf(&b["v"]);
+        for alpha in [1e-8, 1e-5, 1e-2, 1e2, 1e5, 1e8] {
+            let mut p = ProjectionProblem::new(&model);
+            p.velocity_limits = false;
+            p.v_des = vecf(&st["expected"]["velocity_projection"]["v_des"])
+                .iter()
+                .map(|x| alpha * x)
+                .collect();
+            p.lower = bound_array(&b["lb"], f64::NEG_INFINITY)
+                .iter()
+                .map(|x| alpha * x)
+                .collect();
+            p.upper = bound_array(&b["ub"], f64::INFINITY)
+                .iter()
+                .map(|x| alpha * x)
+                .collect();
+            let o = fx.project(&q, &p).unwrap();
+            assert_eq!(o.method, Method::ClarabelPolished, "{name} α = {alpha}");
+            let v: Vec<f64> = fx.proj.v.iter().map(|x| x / alpha).collect();
+            assert_close(&format!("{name} α = {alpha}"), &v, &v_ref, 1e-9);
+        }
+    }
+}
+
+/// `mode: mass`: an acceleration limit from rest: |vx − 0| ≤ a_max dt = 0.1 m/s against a request of 1 m/s
+/// straight ahead. On the manifold the metric A = diag(a1, a2) decouples vx from wz, so
+/// vx* = 0.1, wz* = 0, wheels 2 rad/s, and A (s − s_d) = Nᵀν gives ν_vx = a1 (0.1 − 1) on the
+/// acceleration limit's upper side.
+#[test]
+fn acceleration_limit_from_rest_gives_the_closed_form() {
+    let (scene, mut sys) = scene_system("diff_drive.yaml");
+    let (q, v0) = (scene.q0.clone(), scene.v0.clone());
+    let dd = diff_drive_numbers(-0.05, -0.15);
+    let req = json!({"base_twist": [1.0, 0.0, 0.0], "mode": "mass",
+                     "accel_limit": {"dt": 0.1, "a_max": {"vx": 1.0}}});
+    let out = project_named(&mut sys, &q, &v0, req).unwrap();
+    assert_close(
+        "v",
+        out.v.as_ref().unwrap(),
+        &[0.1, 0.0, 0.0, 2.0, 2.0],
+        1e-12,
+    );
+    assert_eq!(out.active_bounds.len(), 1);
+    let ab = &out.active_bounds[0];
+    assert_eq!(
+        (ab.coordinate.as_str(), ab.side, ab.source),
+        (
+            "root_joint:vx_local",
+            Side::Upper,
+            BoundSource::AccelerationLimit
+        )
+    );
+    assert!((ab.multiplier - dd.a1() * (0.1 - 1.0)).abs() < 1e-10);
+}

@@ -1,0 +1,102 @@
+//! The `predict` and `report --quick` subcommands end to end (the binary, JSON on stdout, files).
+
+use serde_json::Value;
+use std::path::PathBuf;
+use std::process::Command;
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_constraint_dynamics"));
+    c.current_dir(env!("CARGO_MANIFEST_DIR"));
+    c
+}
+
+#[test]
+fn predict_prints_the_trajectory_with_forces() {
+    let dir = std::env::temp_dir().join(format!("cd_predict_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let commands = dir.join("commands.json");
+    std::fs::write(&commands, r#"[{"t": 0.0}, {"t": 0.05}]"#).unwrap();
+    let out = bin()
+        .args([
+            "predict",
+            "--scene",
+            "params/fourbar.yaml",
+            "--horizon",
+            "0.1",
+        ])
+        .args(["--method", "dopri5", "--forces", "--sample-period", "0.05"])
+        .arg("--commands")
+        .arg(&commands)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let samples = v["samples"].as_array().unwrap();
+    assert_eq!(samples.len(), 3);
+    assert_eq!(v["method"], "dopri5");
+    assert_eq!(samples[2]["lambda"].as_array().unwrap().len(), 2);
+    assert_eq!(samples[2]["rank_deficiency"], 0);
+    assert!(samples[2]["position_residual"].as_f64().unwrap() < 1e-10);
+
+    let bad = bin()
+        .args([
+            "predict",
+            "--scene",
+            "params/fourbar.yaml",
+            "--method",
+            "euler",
+        ])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    let msg = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        msg.contains("--method 'euler'") && msg.contains("rk4"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn quick_report_writes_csv_png_and_summary() {
+    let out_dir: PathBuf = std::env::temp_dir().join(format!("cd_report_{}", std::process::id()));
+    let out = bin()
+        .args(["report", "--quick", "--out"])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["a01"]["max_position_error_m"].as_f64().unwrap() <= 1e-3);
+    for f in [
+        "README.md",
+        "a01_pendulum.csv",
+        "a01_pendulum_error.png",
+        "rod_body_drift.png",
+    ] {
+        let p = out_dir.join(f);
+        assert!(
+            std::fs::metadata(&p)
+                .map(|m| m.len() > 100)
+                .unwrap_or(false),
+            "{}",
+            p.display()
+        );
+    }
+    let csv = std::fs::read_to_string(out_dir.join("spring_chain_stiff.csv")).unwrap();
+    assert!(csv.contains("# reference: closed form"));
+    assert!(
+        csv.contains("step too large"),
+        "the stiff chain shows the refused steps"
+    );
+    let readme = std::fs::read_to_string(out_dir.join("README.md")).unwrap();
+    assert!(readme.contains("| a01_pendulum |") && readme.contains("high-precision bar"));
+    let _ = std::fs::remove_dir_all(&out_dir);
+}
