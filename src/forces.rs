@@ -89,6 +89,15 @@ pub struct FrameForceSpec {
     pub torque: [f64; 3],
 }
 
+/// Frame index, point in the frame [m], force [N] and torque [N·m] in world axes.
+#[derive(Clone, Debug)]
+struct FrameForce {
+    frame: usize,
+    point: Vector3<f64>,
+    force: Vector3<f64>,
+    torque: Vector3<f64>,
+}
+
 #[derive(Clone, Debug)]
 struct Spring {
     a: (usize, Vector3<f64>),
@@ -106,7 +115,7 @@ pub struct ForceElements {
     springs: Vec<Spring>,
     /// (v index, profile) per joint torque; a constant is a one-point profile.
     torques: Vec<(usize, Vec<[f64; 2]>)>,
-    frame_forces: Vec<(usize, Vector3<f64>, Vector3<f64>, Vector3<f64>)>,
+    frame_forces: Vec<FrameForce>,
     j3: DMatrix<f64>,
     j6: DMatrix<f64>,
 }
@@ -194,12 +203,12 @@ impl ForceElements {
             fe.torques.push((iv, profile));
         }
         for f in &fe_frame_forces(spec)? {
-            fe.frame_forces.push((
-                model.frame_id(&f.frame)?,
-                Vector3::from(f.point),
-                Vector3::from(f.force),
-                Vector3::from(f.torque),
-            ));
+            fe.frame_forces.push(FrameForce {
+                frame: model.frame_id(&f.frame)?,
+                point: Vector3::from(f.point),
+                force: Vector3::from(f.force),
+                torque: Vector3::from(f.torque),
+            });
         }
         Ok(fe)
     }
@@ -258,11 +267,21 @@ impl ForceElements {
         for (iv, profile) in &self.torques {
             tau[*iv] += piecewise_linear(profile, t);
         }
-        for (frame, p, f, m) in &self.frame_forces {
-            add_point_force(model, data, &mut self.j3, *frame, p, f, tau);
-            frame_jacobian(model, data, *frame, ReferenceFrame::World, &mut self.j6);
+        for ff in &self.frame_forces {
+            add_point_force(
+                model,
+                data,
+                &mut self.j3,
+                ff.frame,
+                &ff.point,
+                &ff.force,
+                tau,
+            );
+            frame_jacobian(model, data, ff.frame, ReferenceFrame::World, &mut self.j6);
             for c in 0..model.nv {
-                tau[c] += (0..3).map(|k| self.j6[(3 + k, c)] * m[k]).sum::<f64>();
+                tau[c] += (0..3)
+                    .map(|k| self.j6[(3 + k, c)] * ff.torque[k])
+                    .sum::<f64>();
             }
         }
     }

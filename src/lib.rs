@@ -15,6 +15,7 @@ pub mod constraints;
 pub mod dynamics;
 pub mod error;
 pub mod forces;
+pub mod linalg;
 pub mod model;
 pub mod predict;
 pub mod projection;

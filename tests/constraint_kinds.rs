@@ -140,7 +140,7 @@ fn weld_in_local_axes_gives_the_same_motion_and_rotated_wrench() {
     let mut world = System::new(model.clone(), ConstraintSet::new(&model, &[spec(Axes::World)], &q).unwrap(), Baumgarte::default(), Formulation::Multipliers);
     let mut local = System::new(model.clone(), ConstraintSet::new(&model, &[spec(Axes::Local)], &q).unwrap(), Baumgarte::default(), Formulation::Multipliers);
     // A velocity in the null space of the weld Jacobian (the leg moves rigidly with the base).
-    world.forward_dynamics(&q, &vec![0.0; 18], &vec![0.0; 18], true).unwrap();
+    world.forward_dynamics(&q, &[0.0; 18], &[0.0; 18], true).unwrap();
     let jw = world.cdata.j.clone();
     let svd = jw.clone().svd(true, true);
     let vt = svd.v_t.unwrap();

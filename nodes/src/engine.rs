@@ -739,7 +739,7 @@ impl Engine {
             let was = self.last_slip.get(k).copied().unwrap_or(false);
             if c.slipping && (!was || !throttled) {
                 self.log.warn(&format!(
-                    "slip: rolling contact '{}' needs a tangential force of {:.3} N > μ·N = {:.3} × {:.3} N",
+                    "slip: rolling contact '{}' needs a tangential force of {:.3} N > μ·N = {} × {:.3} N",
                     c.name, c.tangential_force, mu, c.normal_force
                 ));
                 self.last_slip_log = Some(now);

@@ -294,7 +294,8 @@ fn suite_matches_the_core_library() {
     // The test's node first (so the first messages are not missed), then the suite.
     let mut t = TestNode::new("cd_test");
     let feed = FeedPublisher::start(&mut t);
-    let cmd = (0.25, -0.3);
+    // The command the base already follows: small first-tick torques, no slip at μ = 0.8.
+    let cmd = (0.3, 0.4);
     feed.set(feed_for(&scene, &state, Some(cmd)));
     let odom_sub = t.subscribe::<Odometry>("/cd_predictor/predicted_odom");
     let path_sub = t.subscribe::<Path>("/cd_predictor/predicted_path");
@@ -471,7 +472,7 @@ fn suite_matches_the_core_library() {
     assert_eq!(r.path.header.frame_id, "odom");
     println!("{TEST}: predict ({} samples) = core; {}", r.times.len(), r.message);
 
-    // ---- topics of the predictor (command (0.25, -0.3) on /cmd_vel) ---------------------------
+    // ---- topics of the predictor (command (0.3, 0.4) on /cmd_vel) -----------------------------
     let expected_cmd = core.command([cmd.0, cmd.1], &ql);
     let traj = core
         .predictor
@@ -528,10 +529,11 @@ fn suite_matches_the_core_library() {
         .min(1.0);
     act.update(&expected_cmd, &ql, &vl, dt, &mut tau);
     let (_, f, gf) = core.forces(&ql, &vl, &tau);
-    take_until(&forces_sub, WAIT, |m: &ConstraintForces| {
+    let m = take_until(&forces_sub, WAIT, |m: &ConstraintForces| {
         check_forces(&mut core, &ql, m, &f, &gf, TOL)
     })
     .unwrap_or_else(|e| panic!("constraint_forces never matched the core: {e}"));
+    assert!(m.constraints.iter().all(|c| !c.slipping), "slip at μ = 0.8: {m:?}");
     println!("{TEST}: constraint_forces topic = core (first-tick actuator torques)");
 
     // ---- parameters ---------------------------------------------------------------------------
@@ -613,7 +615,11 @@ fn suite_matches_the_core_library() {
     })
     .unwrap_or_else(|e| panic!("no slip flag after μ = 1e-4: {e}"));
     let log = take_until(t.rosout(), WAIT, |l: &ros2_client::Log| {
-        if l.name == "cd_predictor" && l.level == ros2_client::Log::WARN && l.msg.contains("slip") {
+        if l.name == "cd_predictor"
+            && l.level == ros2_client::Log::WARN
+            && l.msg.contains("slip")
+            && l.msg.contains("0.0001")
+        {
             Ok(())
         } else {
             Err(format!("{}: {}", l.name, l.msg))

@@ -9,10 +9,10 @@
 //! it serves when nobody asks for constraint forces, not in the allocation-free loop.
 
 use super::Baumgarte;
-use super::dense::independent_columns;
 use crate::algorithm::{Data, crba, nonlinear_effects};
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
+use crate::linalg::independent_columns;
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 

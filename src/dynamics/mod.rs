@@ -8,12 +8,9 @@
 //!
 //! `Formulation::Auto` uses the embedded form unless constraint forces are asked for.
 
-mod dense;
 mod embedded;
-mod ltl;
 mod multipliers;
 
-pub use dense::{cholesky_in_place, cholesky_solve};
 pub use embedded::{EmbeddedWorkspace, Partition, embedded_forward_dynamics};
 pub use multipliers::{KktWorkspace, constrained_forward_dynamics};
 

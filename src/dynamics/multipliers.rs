@@ -10,14 +10,13 @@
 //! the augmented matrix M + ρ JᵀJ replaces M and ρ Jᵀb joins the right side: same q̈ and λ.
 
 use super::Baumgarte;
-use super::dense::independent_columns;
-use super::dense::{
-    cholesky_in_place, cholesky_solve, mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
-};
-use super::ltl::{ltl_factor, ltl_solve_l, ltl_solve_lt};
 use crate::algorithm::{Data, bias_forces_after_kinematics, crba_after_kinematics};
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
+use crate::linalg::{
+    cholesky_in_place, cholesky_solve, independent_columns, ltl_factor, ltl_solve_l, ltl_solve_lt,
+    mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
+};
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 
@@ -127,7 +126,7 @@ fn factor_mass(
     mat_tr_vec(j, ws.b.as_slice(), ws.tmp.as_mut_slice());
     ws.rhs.axpy(rho, &ws.tmp, 1.0);
     ws.augmented = true;
-    cholesky_in_place(&mut ws.l, 1e-14).map_err(|i| Error::SingularMass {
+    cholesky_in_place(&mut ws.l, model.nv, 1e-14).map_err(|i| Error::SingularMass {
         message: format!(
             "coordinate '{}' has no inertia and no constraint fixes its motion",
             model.v_names[i]
@@ -139,14 +138,14 @@ fn factor_mass(
 /// or the dense Cholesky factor when augmented).
 fn half_solve(model: &Model, ws_l: &DMatrix<f64>, augmented: bool, x: &mut [f64]) {
     if augmented {
-        solve_lower(ws_l, x)
+        solve_lower(ws_l, x.len(), x)
     } else {
         ltl_solve_lt(ws_l, &model.v_parent, x)
     }
 }
 fn half_solve_t(model: &Model, ws_l: &DMatrix<f64>, augmented: bool, x: &mut [f64]) {
     if augmented {
-        solve_lower_transpose(ws_l, x)
+        solve_lower_transpose(ws_l, x.len(), x)
     } else {
         ltl_solve_l(ws_l, &model.v_parent, x)
     }
@@ -184,8 +183,8 @@ fn solve_kkt(
         ws.r[k] = ws.b[k] - ws.r[k];
     }
     ws.lambda.copy_from(&ws.r);
-    if cholesky_in_place(&mut ws.s, RANK_TOL).is_ok() {
-        cholesky_solve(&ws.s, ws.lambda.as_mut_slice());
+    if cholesky_in_place(&mut ws.s, nc, RANK_TOL).is_ok() {
+        cholesky_solve(&ws.s, nc, ws.lambda.as_mut_slice());
     } else {
         min_norm_solve(set, ws)?;
     }

@@ -14,7 +14,12 @@ pub enum JointKind {
     /// Rotation about a unit axis of the joint frame; q [rad], v [rad/s]. `skew` = [a]× and
     /// `skew2` = [a]×² are kept so the rotation `1 + sin q [a]× + (1 − cos q) [a]×²` costs no
     /// matrix product; `aligned` marks an axis along ±x, ±y or ±z (sparse rotation).
-    Revolute { axis: Vector3<f64>, skew: Matrix3<f64>, skew2: Matrix3<f64>, aligned: Option<(usize, f64)> },
+    Revolute {
+        axis: Vector3<f64>,
+        skew: Matrix3<f64>,
+        skew2: Matrix3<f64>,
+        aligned: Option<(usize, f64)>,
+    },
     /// Translation along a unit axis of the joint frame; q [m], v [m/s].
     Prismatic { axis: Vector3<f64> },
     /// Free-flyer: q = [x, y, z, qx, qy, qz, qw] (child pose in the parent frame, unit quaternion),
@@ -28,8 +33,15 @@ impl JointKind {
     /// A revolute joint about the unit `axis`.
     pub fn revolute(axis: Vector3<f64>) -> Self {
         let skew = crate::spatial::skew(&axis);
-        let aligned = (0..3).find(|&i| (axis[i].abs() - 1.0).abs() < 1e-15).map(|i| (i, axis[i].signum()));
-        JointKind::Revolute { axis, skew, skew2: skew * skew, aligned }
+        let aligned = (0..3)
+            .find(|&i| (axis[i].abs() - 1.0).abs() < 1e-15)
+            .map(|i| (i, axis[i].signum()));
+        JointKind::Revolute {
+            axis,
+            skew,
+            skew2: skew * skew,
+            aligned,
+        }
     }
 
     /// Number of configuration coordinates.
@@ -77,7 +89,12 @@ impl JointKind {
     #[inline]
     pub fn transform(&self, q: &[f64]) -> SE3 {
         match self {
-            JointKind::Revolute { skew, skew2, aligned, .. } => {
+            JointKind::Revolute {
+                skew,
+                skew2,
+                aligned,
+                ..
+            } => {
                 let (sn, cs) = q[0].sin_cos();
                 let r = match aligned {
                     Some((i, sign)) => {

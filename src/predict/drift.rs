@@ -8,10 +8,10 @@
 //! uses the metric M + ρ AᵀA instead: the projected point is the same on the constraint's range.
 //! Everything lives in a [`Projector`] sized once: a projection allocates nothing.
 
-use super::linalg::{semidefinite_cholesky, semidefinite_solve};
 use crate::algorithm::{bias_forces_after_kinematics, crba_after_kinematics};
-use crate::dynamics::cholesky_in_place;
 use crate::error::{Error, Result};
+use crate::linalg::cholesky_in_place;
+use crate::linalg::{semidefinite_cholesky, semidefinite_solve};
 use crate::system::System;
 use nalgebra::DMatrix;
 
@@ -144,7 +144,7 @@ impl Projector {
     fn metric(&mut self, sys: &mut System, holonomic: bool) -> Result<f64> {
         let m = crba_after_kinematics(&sys.model, &mut sys.data);
         self.l.copy_from(m);
-        if cholesky_in_place(&mut self.l, 1e-14).is_ok() {
+        if cholesky_in_place(&mut self.l, sys.model.nv, 1e-14).is_ok() {
             return Ok(0.0);
         }
         let nv = sys.model.nv;
@@ -163,7 +163,7 @@ impl Projector {
                 self.l[(a, c)] += rho * s;
             }
         }
-        cholesky_in_place(&mut self.l, 1e-14).map_err(|i| Error::SingularMass {
+        cholesky_in_place(&mut self.l, nv, 1e-14).map_err(|i| Error::SingularMass {
             message: format!(
                 "projection: coordinate '{}' has no inertia and no constraint fixes it",
                 sys.model.v_names[i]

@@ -31,7 +31,7 @@ impl EnergyGuard {
         }
     }
 
-    fn check(
+    pub(super) fn check(
         &mut self,
         x: &Sample,
         springs: f64,

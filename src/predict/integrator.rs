@@ -4,8 +4,8 @@
 //! [`StepWorkspace`] sized once per model: a step allocates nothing.
 
 use super::lie::dexp_inv;
-use super::linalg::{lu_in_place, lu_solve};
 use crate::error::{Error, Result};
+use crate::linalg::{lu_in_place, lu_solve};
 use crate::model::Model;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};

@@ -9,7 +9,6 @@ pub mod drift;
 mod guard;
 mod integrator;
 mod lie;
-mod linalg;
 mod run;
 
 pub use drift::Projector;

@@ -16,11 +16,11 @@
 //! Everything is sized at construction (rows up to `capacity`); `solve` does not allocate unless
 //! more rows than the capacity are passed (the polish of a bounded problem may grow it once).
 
-use super::kernels::{
-    cholesky, ltl_factor, ltl_solve_l, ltl_solve_lt, rank_revealing_cholesky, solve_lower,
-    solve_lower_transpose,
-};
 use crate::error::{Error, Result};
+use crate::linalg::{
+    cholesky_in_place as cholesky, ltl_factor, ltl_solve_l, ltl_solve_lt, rank_revealing_cholesky,
+    solve_lower, solve_lower_transpose,
+};
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 
@@ -62,7 +62,6 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 #[derive(Clone, Debug)]
 struct MassFactor {
     l: DMatrix<f64>,
-    inv_diag: Vec<f64>,
     augmented: bool,
     rho: f64,
 }
@@ -73,7 +72,7 @@ impl MassFactor {
         if self.augmented {
             solve_lower(&self.l, x.len(), x)
         } else {
-            ltl_solve_lt(&self.l, &self.inv_diag, parent, x)
+            ltl_solve_lt(&self.l, parent, x)
         }
     }
     /// `x ← W⁻ᵀ x`.
@@ -81,7 +80,7 @@ impl MassFactor {
         if self.augmented {
             solve_lower_transpose(&self.l, x.len(), x)
         } else {
-            ltl_solve_l(&self.l, &self.inv_diag, parent, x)
+            ltl_solve_l(&self.l, parent, x)
         }
     }
 }
@@ -124,7 +123,6 @@ impl EqualityWorkspace {
             cap,
             factor: MassFactor {
                 l: DMatrix::zeros(nv, nv),
-                inv_diag: vec![0.0; nv],
                 augmented: false,
                 rho: 0.0,
             },
@@ -169,9 +167,6 @@ impl EqualityWorkspace {
         f.augmented = false;
         f.rho = 0.0;
         if ltl_factor(&mut f.l, &model.v_parent, 1e-14).is_ok() {
-            for (i, x) in f.inv_diag.iter_mut().enumerate() {
-                *x = 1.0 / f.l[(i, i)];
-            }
             return Ok(());
         }
         let rho = (0..model.nv)

@@ -33,7 +33,6 @@
 //! and [`project_system`] for a [`System`]. See `docs/projection.md`.
 
 mod diagnose;
-mod kernels;
 mod kkt;
 mod polish;
 mod problem;
@@ -48,7 +47,8 @@ pub use problem::{AccelLimit, BoundSource, ProjectionProblem, Side};
 pub use projector::{Method, Outcome, Status, VelocityProjector};
 pub use report::{ActiveBound, ActiveInequality, ConstraintImpulse, NamedConflict, Projection};
 pub use request::{
-    AccelLimitRequest, Fill, Mode, PerCoordinate, ProjectionRequest, RowSpec, base_dofs, coordinate_index,
+    AccelLimitRequest, Fill, Mode, PerCoordinate, ProjectionRequest, RowSpec, base_dofs,
+    coordinate_index,
 };
 
 use crate::error::Result;

@@ -251,7 +251,9 @@ impl VelocityProjector {
         let Some(v_eq) = super::twist::nearest_in_task(m, j, given, &p.v_des) else {
             return Ok(None);
         };
-        let Some(s) = super::twist::largest_feasible_scale(v_eq.as_slice(), &self.bounds, &p.a, &p.b) else {
+        let Some(s) =
+            super::twist::largest_feasible_scale(v_eq.as_slice(), &self.bounds, &p.a, &p.b)
+        else {
             return Ok(None);
         };
         self.v.copy_from(&(v_eq * s));
@@ -263,7 +265,15 @@ impl VelocityProjector {
         self.eta = vec![0.0; p.b.len()];
         inequality_rows(&self.bounds, p.a.nrows(), &mut self.ineq);
         let v = self.v.as_slice();
-        mark_active(&self.ineq, &self.working, &self.bounds, p, v, self.vscale, &mut self.active);
+        mark_active(
+            &self.ineq,
+            &self.working,
+            &self.bounds,
+            p,
+            v,
+            self.vscale,
+            &mut self.active,
+        );
         self.outcome = Outcome {
             status: Status::Optimal,
             method: Method::TwistScaled,

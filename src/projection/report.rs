@@ -120,7 +120,13 @@ impl VelocityProjector {
         let problem = request.resolve(model, &cd.j, v_current)?;
         let twist_done = request.effective_mode() == super::Mode::Twist
             && self
-                .solve_twist(model, &data.mass_matrix, &cd.j, &problem, &request.given(model)?)?
+                .solve_twist(
+                    model,
+                    &data.mass_matrix,
+                    &cd.j,
+                    &problem,
+                    &request.given(model)?,
+                )?
                 .is_some();
         if !twist_done {
             self.solve_evaluated(model, &data.mass_matrix, &cd.j, &problem)?;

@@ -18,7 +18,12 @@ use super::problem::Bounds;
 use nalgebra::{DMatrix, DVector};
 
 /// `v_eq` of step 1, or None when M restricted to null(J) is singular.
-pub fn nearest_in_task(m: &DMatrix<f64>, j: &DMatrix<f64>, given: &[bool], u: &[f64]) -> Option<DVector<f64>> {
+pub fn nearest_in_task(
+    m: &DMatrix<f64>,
+    j: &DMatrix<f64>,
+    given: &[bool],
+    u: &[f64],
+) -> Option<DVector<f64>> {
     let nv = m.nrows();
     let n = if j.nrows() == 0 {
         DMatrix::identity(nv, nv)
@@ -26,11 +31,14 @@ pub fn nearest_in_task(m: &DMatrix<f64>, j: &DMatrix<f64>, given: &[bool], u: &[
         // Full SVD of the square, zero-padded [Jᵀ 0] (nv × nv): the left singular vectors with
         // zero singular value span null(J).
         let mut jt = DMatrix::zeros(nv, nv.max(j.nrows()));
-        jt.view_mut((0, 0), (nv, j.nrows())).copy_from(&j.transpose());
+        jt.view_mut((0, 0), (nv, j.nrows()))
+            .copy_from(&j.transpose());
         let svd = jt.svd(true, false);
         let u_full = svd.u?;
         let smax = svd.singular_values.amax().max(f64::MIN_POSITIVE);
-        let cols: Vec<usize> = (0..nv).filter(|&c| svd.singular_values[c] <= 1e-10 * smax).collect();
+        let cols: Vec<usize> = (0..nv)
+            .filter(|&c| svd.singular_values[c] <= 1e-10 * smax)
+            .collect();
         u_full.select_columns(cols.iter())
     };
     if n.ncols() == 0 {
@@ -46,14 +54,23 @@ pub fn nearest_in_task(m: &DMatrix<f64>, j: &DMatrix<f64>, given: &[bool], u: &[
     let al = x.transpose();
     let svd = al.svd(true, true);
     let smax = svd.singular_values.amax();
-    let y = if smax > 0.0 { svd.solve(&ut, 1e-12 * smax).ok()? } else { DVector::zeros(n.ncols()) };
+    let y = if smax > 0.0 {
+        svd.solve(&ut, 1e-12 * smax).ok()?
+    } else {
+        DVector::zeros(n.ncols())
+    };
     let z = l.transpose().solve_upper_triangular(&y)?;
     Some(n * z)
 }
 
 /// The largest s ∈ [0, 1] with `lo ≤ s v ≤ hi` and `A s v ≤ b`, or None when s = 0 already
 /// violates a bound.
-pub fn largest_feasible_scale(v: &[f64], bounds: &Bounds, a: &DMatrix<f64>, b: &[f64]) -> Option<f64> {
+pub fn largest_feasible_scale(
+    v: &[f64],
+    bounds: &Bounds,
+    a: &DMatrix<f64>,
+    b: &[f64],
+) -> Option<f64> {
     let mut s: f64 = 1.0;
     for (i, &x) in v.iter().enumerate() {
         let (lo, hi) = (bounds.lo[i], bounds.hi[i]);

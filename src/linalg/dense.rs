@@ -1,11 +1,11 @@
-//! Small dense kernels that work in place on preallocated matrices (no allocation).
+//! Dense in-place kernels on preallocated matrices (no allocation). Factors and solves act on
+//! the leading n × n block, so one workspace serves problems of varying size.
 
 use nalgebra::DMatrix;
 
-/// In-place Cholesky `A = L Lᵀ` of the leading n × n block (lower triangle written, upper left
-/// untouched). Fails with the index of the first pivot ≤ `rel_tol · max diag(A)`.
-pub fn cholesky_in_place(a: &mut DMatrix<f64>, rel_tol: f64) -> Result<(), usize> {
-    let n = a.nrows();
+/// Dense in-place Cholesky `A = L Lᵀ` of the leading n × n block (lower triangle). Fails with the
+/// first pivot ≤ `rel_tol · max diag`.
+pub fn cholesky_in_place(a: &mut DMatrix<f64>, n: usize, rel_tol: f64) -> Result<(), usize> {
     let scale = (0..n)
         .map(|i| a[(i, i)].abs())
         .fold(0.0, f64::max)
@@ -31,9 +31,8 @@ pub fn cholesky_in_place(a: &mut DMatrix<f64>, rel_tol: f64) -> Result<(), usize
     Ok(())
 }
 
-/// Solve `L x = b` in place (L lower triangular from `cholesky_in_place`).
-pub fn solve_lower(l: &DMatrix<f64>, b: &mut [f64]) {
-    let n = l.nrows();
+/// Solve `L x = b` in place with the leading n × n lower triangle of `l`.
+pub fn solve_lower(l: &DMatrix<f64>, n: usize, b: &mut [f64]) {
     for i in 0..n {
         let mut s = b[i];
         for k in 0..i {
@@ -43,9 +42,8 @@ pub fn solve_lower(l: &DMatrix<f64>, b: &mut [f64]) {
     }
 }
 
-/// Solve `Lᵀ x = b` in place.
-pub fn solve_lower_transpose(l: &DMatrix<f64>, b: &mut [f64]) {
-    let n = l.nrows();
+/// Solve `Lᵀ x = b` in place with the leading n × n lower triangle of `l`.
+pub fn solve_lower_transpose(l: &DMatrix<f64>, n: usize, b: &mut [f64]) {
     for i in (0..n).rev() {
         let mut s = b[i];
         for k in i + 1..n {
@@ -55,10 +53,10 @@ pub fn solve_lower_transpose(l: &DMatrix<f64>, b: &mut [f64]) {
     }
 }
 
-/// Solve `L Lᵀ x = b` in place.
-pub fn cholesky_solve(l: &DMatrix<f64>, b: &mut [f64]) {
-    solve_lower(l, b);
-    solve_lower_transpose(l, b);
+/// Solve `L Lᵀ x = b` in place (leading n × n factor).
+pub fn cholesky_solve(l: &DMatrix<f64>, n: usize, b: &mut [f64]) {
+    solve_lower(l, n, b);
+    solve_lower_transpose(l, n, b);
 }
 
 /// `out = A x` without allocation.
@@ -76,7 +74,7 @@ pub fn mat_tr_vec(a: &DMatrix<f64>, x: &[f64], out: &mut [f64]) {
 }
 
 /// Indices of a maximal set of linearly independent columns of `a` (column-pivoted QR).
-pub(crate) fn independent_columns(a: &DMatrix<f64>, tol: f64) -> Vec<usize> {
+pub fn independent_columns(a: &DMatrix<f64>, tol: f64) -> Vec<usize> {
     let (m, n) = a.shape();
     if m == 0 || n == 0 {
         return vec![];

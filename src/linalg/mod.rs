@@ -1,0 +1,15 @@
+//! Numerical kernels shared by the dynamics, the projection and the integrators: in place, on
+//! preallocated storage, no allocation.
+
+mod dense;
+mod ltl;
+mod lu;
+mod rank;
+
+pub use dense::{
+    cholesky_in_place, cholesky_solve, independent_columns, mat_tr_vec, mat_vec, solve_lower,
+    solve_lower_transpose,
+};
+pub use ltl::{NO_PARENT, ltl_factor, ltl_solve_l, ltl_solve_lt};
+pub use lu::{lu_in_place, lu_solve};
+pub use rank::{rank_revealing_cholesky, semidefinite_cholesky, semidefinite_solve};
