@@ -202,45 +202,45 @@ fn solve_kkt(
 
 /// Minimum-norm λ of the singular S λ = r (allocates; off the regular path).
 ///
-/// Column-pivoted QR of Y = L⁻¹Jᵀ picks a maximal independent set I of rows (‖r_kk‖ above
-/// `RANK_TOL_Y` relative); S_II λ_I = r_I gives one solution λ₀ (λ_D = 0), whose consistency with
-/// the dropped rows is checked; the minimum-norm solution is λ₀ minus its projection on
-/// null(S) = span{e_d − S_II⁻¹ S_Id}.
+/// Column-pivoted QR of Y = W⁻¹Jᵀ picks a maximal independent set I of rows (‖r_kk‖ above
+/// `RANK_TOL_Y` relative). r is projected onto range(S) = span S[:, I] (the part outside it is
+/// the rows' inconsistency: an error above 1e-7 relative, rounding below); S_II λ_I = r̂_I gives
+/// one solution λ₀ (λ_D = 0), and the minimum-norm one is λ₀ minus its projection on
+/// null(S) = span{e_d − S_II⁻¹ S_Id}: together λ = S⁺ r, smooth in the state.
 fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
     let nc = set.nrows;
     ws.y.tr_mul_to(&ws.y, &mut ws.s);
     let ind = independent_columns(&ws.y, RANK_TOL_Y);
     let dep: Vec<usize> = (0..nc).filter(|k| !ind.contains(k)).collect();
-    let s_ii = ws.s.select_rows(ind.iter()).select_columns(ind.iter());
-    let chol = s_ii
-        .cholesky()
-        .ok_or_else(|| Error::InconsistentConstraints {
-            message: "the independent constraint rows are numerically singular".into(),
-        })?;
-    let r_i = ws.r.select_rows(ind.iter());
-    let lam_i = chol.solve(&r_i);
-    let mut lambda = DVector::zeros(nc);
-    for (a, &k) in ind.iter().enumerate() {
-        lambda[k] = lam_i[a];
-    }
-    let resid = &ws.s * &lambda - &ws.r;
+    // Project r onto range(S) = span S[:, I] (unique, whichever independent set was picked, so
+    // λ varies smoothly with the state); what is left over is the inconsistency of the rows.
+    let s_cols = ws.s.select_columns(ind.iter());
+    let gram = (s_cols.transpose() * &s_cols).cholesky().ok_or_else(|| Error::InconsistentConstraints {
+        message: "the independent constraint rows are numerically singular".into(),
+    })?;
+    let r_hat = &s_cols * gram.solve(&(s_cols.transpose() * &ws.r));
+    let inconsistency = (&ws.r - &r_hat).amax();
     let scale = ws.r.amax().max(1.0);
-    if resid.amax() > 1e-7 * scale {
-        let worst = resid.iamax();
-        let name = set
-            .ranges
-            .iter()
-            .position(|rg| rg.contains(&worst))
-            .map(|k| set.names[k].clone());
+    if inconsistency > 1e-7 * scale {
+        let worst = (&ws.r - &r_hat).iamax();
+        let name = set.ranges.iter().position(|rg| rg.contains(&worst)).map(|k| set.names[k].clone());
         return Err(Error::InconsistentConstraints {
             message: format!(
                 "the constraint accelerations cannot all be met (rank {} of {nc}; largest \
-                 violation {:.3e} on a row of '{}')",
+                 violation {inconsistency:.3e} on a row of '{}')",
                 ind.len(),
-                resid.amax(),
                 name.unwrap_or_default()
             ),
         });
+    }
+    let s_ii = ws.s.select_rows(ind.iter()).select_columns(ind.iter());
+    let chol = s_ii.cholesky().ok_or_else(|| Error::InconsistentConstraints {
+        message: "the independent constraint rows are numerically singular".into(),
+    })?;
+    let lam_i = chol.solve(&r_hat.select_rows(ind.iter()));
+    let mut lambda = DVector::zeros(nc);
+    for (a, &k) in ind.iter().enumerate() {
+        lambda[k] = lam_i[a];
     }
     if !dep.is_empty() {
         let s_id = ws.s.select_rows(ind.iter()).select_columns(dep.iter());
