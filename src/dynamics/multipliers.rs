@@ -48,6 +48,12 @@ pub struct KktWorkspace {
     pub rank_deficiency: usize,
     /// M was only semi-definite and the augmented form was used.
     pub augmented: bool,
+    /// Accept constraint rows that cannot all be met and return the least-squares λ = S⁺ r
+    /// instead of an error (the predictor sets it: integration stages and drift near a singular
+    /// configuration make redundant rows disagree slightly). Default false.
+    pub allow_inconsistent: bool,
+    /// Part of r outside range(S) at the last rank-deficient solve (0 when consistent).
+    pub inconsistency: f64,
 }
 
 impl KktWorkspace {
@@ -66,6 +72,8 @@ impl KktWorkspace {
             generalized_force: DVector::zeros(nv),
             rank_deficiency: 0,
             augmented: false,
+            allow_inconsistent: false,
+            inconsistency: 0.0,
         }
     }
 }
@@ -164,6 +172,7 @@ fn solve_kkt(
     half_solve_t(model, &ws.l, ws.augmented, ws.qdd.as_mut_slice());
     ws.lambda.fill(0.0);
     ws.rank_deficiency = 0;
+    ws.inconsistency = 0.0;
     if nc == 0 {
         ws.generalized_force.fill(0.0);
         return Ok(());
@@ -220,8 +229,9 @@ fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
     })?;
     let r_hat = &s_cols * gram.solve(&(s_cols.transpose() * &ws.r));
     let inconsistency = (&ws.r - &r_hat).amax();
+    ws.inconsistency = inconsistency;
     let scale = ws.r.amax().max(1.0);
-    if inconsistency > 1e-7 * scale {
+    if inconsistency > 1e-7 * scale && !ws.allow_inconsistent {
         let worst = (&ws.r - &r_hat).iamax();
         let name = set.ranges.iter().position(|rg| rg.contains(&worst)).map(|k| set.names[k].clone());
         return Err(Error::InconsistentConstraints {

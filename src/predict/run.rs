@@ -97,11 +97,16 @@ impl Accel for Rhs<'_> {
         }
         // `formulation: auto` takes the multiplier form here: the same q̈ as the embedded form
         // (tests/propagation_formulations.rs), allocation-free and about 3× faster.
-        match self.sys.forward_dynamics(q, v, self.tau, true) {
-            Ok(a) => {
-                qdd.copy_from_slice(a.as_slice());
-                Ok(())
-            }
+        // Least squares (λ = S⁺ r) where stages or drift make redundant rows disagree: the same
+        // formula on both sides of any threshold, so q̈ stays smooth for the implicit method.
+        self.sys.kkt.allow_inconsistent = true;
+        let result = self.sys.forward_dynamics(q, v, self.tau, true).map(|a| qdd.copy_from_slice(a.as_slice()));
+        self.sys.kkt.allow_inconsistent = false;
+        if result.is_ok() && self.sys.kkt.inconsistency > 1e-7 * self.sys.kkt.b.amax().max(1.0) {
+            self.least_squares += 1;
+        }
+        match result {
+            Ok(()) => Ok(()),
             Err(Error::InconsistentConstraints { .. }) => {
                 // At a singular configuration the acceleration rows disagree by the drift:
                 // satisfy the independent ones (counted in `Trajectory::least_squares_evaluations`).
