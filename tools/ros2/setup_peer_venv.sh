@@ -6,7 +6,7 @@
 #
 #   tools/ros2/setup_peer_venv.sh [VENV_DIR]
 #
-# VENV_DIR defaults to $CD_ROS2_VENV, else /work/main/.venv-ros2 (gitignored).
+# VENV_DIR defaults to $CD_ROS2_VENV, else REPO/.venv-ros2 (gitignored).
 # A stamp file (VENV_DIR/.cd_peer_stamp) records the pins and a hash of the
 # interface package; when it matches, nothing is done (fast path).
 # Opens no DDS participant. Needs python3 (3.11 tested), g++ and PyPI access.
@@ -14,7 +14,7 @@ set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 REPO=$(cd "$HERE/../.." && pwd)
-VENV=${1:-${CD_ROS2_VENV:-/work/main/.venv-ros2}}
+VENV=${1:-${CD_ROS2_VENV:-$REPO/.venv-ros2}}
 PYTHON=${PYTHON:-python3}
 IFACE="$REPO/interfaces/constraint_dynamics_msgs"
 
