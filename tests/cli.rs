@@ -6,10 +6,18 @@ use common::*;
 use std::process::Command;
 
 fn eval(args: &[&str]) -> (bool, serde_json::Value, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_constraint_dynamics")).arg("eval").args(args).output().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_constraint_dynamics"))
+        .arg("eval")
+        .args(args)
+        .output()
+        .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout).to_string();
     let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    (out.status.success(), serde_json::from_str(&stdout).unwrap_or_default(), stderr)
+    (
+        out.status.success(),
+        serde_json::from_str(&stdout).unwrap_or_default(),
+        stderr,
+    )
 }
 
 #[test]
@@ -31,17 +39,53 @@ fn eval_prints_reference_accelerations_and_multipliers() {
         ),
     )
     .unwrap();
-    for (k, st) in case["states"].as_array().unwrap().iter().enumerate().filter(|(_, s)| s.get("baumgarte").is_none()) {
+    for (k, st) in case["states"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.get("baumgarte").is_none())
+    {
         let state = dir.join(format!("state{k}.json"));
-        std::fs::write(&state, serde_json::json!({"q": st["q"], "v": st["qd"], "tau": st["tau"]}).to_string()).unwrap();
-        let (ok, out, err) = eval(&["--scene", scene.to_str().unwrap(), "--state", state.to_str().unwrap(), "--terms"]);
+        std::fs::write(
+            &state,
+            serde_json::json!({"q": st["q"], "v": st["qd"], "tau": st["tau"]}).to_string(),
+        )
+        .unwrap();
+        let (ok, out, err) = eval(&[
+            "--scene",
+            scene.to_str().unwrap(),
+            "--state",
+            state.to_str().unwrap(),
+            "--terms",
+        ]);
         assert!(ok, "eval failed: {err}");
         assert_eq!(out["q_names"], case["model"]["q_names"]);
-        assert_close(&format!("cli fourbar[{k}] qdd"), &vecf(&out["qdd"]), &vecf(&st["expected"]["qdd"]), 1e-9);
-        assert_close(&format!("cli fourbar[{k}] lambda"), &vecf(&out["lambda"]), &vecf(&st["expected"]["lambda"]), 1e-9);
-        assert_close(&format!("cli fourbar[{k}] h"), &vecf(&out["h"]), &vecf(&st["debug_terms"]["h"]), 1e-12);
+        assert_close(
+            &format!("cli fourbar[{k}] qdd"),
+            &vecf(&out["qdd"]),
+            &vecf(&st["expected"]["qdd"]),
+            1e-9,
+        );
+        assert_close(
+            &format!("cli fourbar[{k}] lambda"),
+            &vecf(&out["lambda"]),
+            &vecf(&st["expected"]["lambda"]),
+            1e-9,
+        );
+        assert_close(
+            &format!("cli fourbar[{k}] h"),
+            &vecf(&out["h"]),
+            &vecf(&st["debug_terms"]["h"]),
+            1e-12,
+        );
         let m: Vec<f64> = out["M"].as_array().unwrap().iter().flat_map(vecf).collect();
-        let m_ref: Vec<f64> = st["debug_terms"]["M"].as_array().unwrap().iter().flat_map(vecf).collect();
+        let m_ref: Vec<f64> = st["debug_terms"]["M"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(vecf)
+            .collect();
         assert_close(&format!("cli fourbar[{k}] M"), &m, &m_ref, 1e-12);
         assert_eq!(out["constraints"][0]["name"], "tip_at_D");
         assert_eq!(out["constraints"][0]["rows"], serde_json::json!(["x", "z"]));
@@ -51,12 +95,20 @@ fn eval_prints_reference_accelerations_and_multipliers() {
 #[test]
 fn eval_reports_bad_input_with_a_message_and_exit_code() {
     let (ok, _, err) = eval(&["--scene", "/nonexistent/scene.yaml"]);
-    assert!(!ok && err.contains("/nonexistent/scene.yaml") && err.contains("cannot read"), "{err}");
+    assert!(
+        !ok && err.contains("/nonexistent/scene.yaml") && err.contains("cannot read"),
+        "{err}"
+    );
     let dir = std::env::temp_dir().join(format!("cd_cli_bad_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let state = dir.join("short.json");
     std::fs::write(&state, r#"{"q": [0.1, 0.2]}"#).unwrap();
     let scene = repo_dir().join("params/fourbar.yaml");
-    let (ok, _, err) = eval(&["--scene", scene.to_str().unwrap(), "--state", state.to_str().unwrap()]);
+    let (ok, _, err) = eval(&[
+        "--scene",
+        scene.to_str().unwrap(),
+        "--state",
+        state.to_str().unwrap(),
+    ]);
     assert!(!ok && err.contains("q: expected 3 values, got 2"), "{err}");
 }

@@ -11,7 +11,14 @@ use nalgebra::{DMatrix, DVector, UnitQuaternion, Vector3};
 
 /// The reference thin disk (m = 1 kg, COM at the body origin) on a free-flyer base.
 fn disk() -> Model {
-    Model::from_urdf_file(reference_dir().join("urdf/disk.urdf"), &ModelOptions { base: BaseType::Floating, ..Default::default() }).unwrap()
+    Model::from_urdf_file(
+        reference_dir().join("urdf/disk.urdf"),
+        &ModelOptions {
+            base: BaseType::Floating,
+            ..Default::default()
+        },
+    )
+    .unwrap()
 }
 
 fn q_at(p: [f64; 3], rot: &UnitQuaternion<f64>) -> Vec<f64> {
@@ -38,9 +45,16 @@ fn welded_body_carries_its_weight_and_baumgarte_pulls_it_back() {
     let q = q_at(xyz, &target);
     let set = ConstraintSet::new(&model, &[weld(rpy, xyz)], &q).unwrap();
     let mut sys = System::new(model, set, Baumgarte::default(), Formulation::Multipliers);
-    let qdd = sys.forward_dynamics(&q, &[0.0; 6], &[0.0; 6], true).unwrap().clone();
+    let qdd = sys
+        .forward_dynamics(&q, &[0.0; 6], &[0.0; 6], true)
+        .unwrap()
+        .clone();
     assert!(qdd.amax() < 1e-12, "{qdd}");
-    assert!(sys.cdata.phi.amax() < 1e-12, "target pose is on the constraint: φ = {}", sys.cdata.phi);
+    assert!(
+        sys.cdata.phi.amax() < 1e-12,
+        "target pose is on the constraint: φ = {}",
+        sys.cdata.phi
+    );
     // Weight m g = 9.81 N upward, no torque about the COM (the frame origin).
     let f = &sys.constraint_forces()[0];
     assert_close("weld force", &f.force, &[0.0, 0.0, 9.81], 1e-12);
@@ -52,12 +66,25 @@ fn welded_body_carries_its_weight_and_baumgarte_pulls_it_back() {
     sys.baumgarte = Baumgarte { kp, kd: 0.0 };
     let rot = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), eps) * target;
     let q1 = q_at([xyz[0] + delta.x, xyz[1] + delta.y, xyz[2] + delta.z], &rot);
-    let qdd = sys.forward_dynamics(&q1, &[0.0; 6], &[0.0; 6], true).unwrap().clone();
+    let qdd = sys
+        .forward_dynamics(&q1, &[0.0; 6], &[0.0; 6], true)
+        .unwrap()
+        .clone();
     let r = rot.to_rotation_matrix();
     let a_world = r * Vector3::new(qdd[0], qdd[1], qdd[2]); // ω = 0: world accel = R a_lin
     let alpha_world = r * Vector3::new(qdd[3], qdd[4], qdd[5]);
-    assert_close("pull-back linear", a_world.as_slice(), (-kp * delta).as_slice(), 1e-9);
-    assert_close("pull-back angular", alpha_world.as_slice(), &[0.0, 0.0, -kp * eps], 1e-9);
+    assert_close(
+        "pull-back linear",
+        a_world.as_slice(),
+        (-kp * delta).as_slice(),
+        1e-9,
+    );
+    assert_close(
+        "pull-back angular",
+        alpha_world.as_slice(),
+        &[0.0, 0.0, -kp * eps],
+        1e-9,
+    );
 }
 
 #[test]
@@ -80,11 +107,29 @@ fn distance_pendulum_tension_is_m_g_plus_m_u2_over_l() {
     let mut sys = System::new(model, set, Baumgarte::default(), Formulation::Multipliers);
     for u in [0.0, 0.7, 3.0] {
         let v = [u, 0.0, 0.0, 0.0, 0.0, 0.0];
-        let qdd = sys.forward_dynamics(&q, &v, &[0.0; 6], true).unwrap().clone();
-        assert_close(&format!("u = {u}: q̈"), qdd.as_slice(), &[0.0, 0.0, u * u, 0.0, 0.0, 0.0], 1e-12);
-        assert_close(&format!("u = {u}: λ"), sys.kkt.lambda.as_slice(), &[-(9.81 + u * u)], 1e-12);
+        let qdd = sys
+            .forward_dynamics(&q, &v, &[0.0; 6], true)
+            .unwrap()
+            .clone();
+        assert_close(
+            &format!("u = {u}: q̈"),
+            qdd.as_slice(),
+            &[0.0, 0.0, u * u, 0.0, 0.0, 0.0],
+            1e-12,
+        );
+        assert_close(
+            &format!("u = {u}: λ"),
+            sys.kkt.lambda.as_slice(),
+            &[-(9.81 + u * u)],
+            1e-12,
+        );
         let f = &sys.constraint_forces()[0];
-        assert_close("force on the body", &f.force, &[0.0, 0.0, 9.81 + u * u], 1e-12);
+        assert_close(
+            "force on the body",
+            &f.force,
+            &[0.0, 0.0, 9.81 + u * u],
+            1e-12,
+        );
     }
 }
 
@@ -103,15 +148,32 @@ fn frame_jacobians_agree_with_forward_kinematics_in_every_reference_frame() {
         let local = frame_velocity(&model, &data, f).to_vector();
         let o_m_f = frame_placement(&model, &data, f);
         frame_jacobian(&model, &data, f, ReferenceFrame::Local, &mut j);
-        assert_close(&format!("{name} local"), (&j * &vv).as_slice(), local.as_slice(), 1e-12);
+        assert_close(
+            &format!("{name} local"),
+            (&j * &vv).as_slice(),
+            local.as_slice(),
+            1e-12,
+        );
         frame_jacobian(&model, &data, f, ReferenceFrame::LocalWorldAligned, &mut j);
         let r = o_m_f.rotation;
         let (l, a) = (r * local.fixed_rows::<3>(0), r * local.fixed_rows::<3>(3));
         let lwa = [l.as_slice(), a.as_slice()].concat();
-        assert_close(&format!("{name} local world aligned"), (&j * &vv).as_slice(), &lwa, 1e-12);
+        assert_close(
+            &format!("{name} local world aligned"),
+            (&j * &vv).as_slice(),
+            &lwa,
+            1e-12,
+        );
         frame_jacobian(&model, &data, f, ReferenceFrame::World, &mut j);
-        let world = o_m_f.act_motion(&constraint_dynamics::spatial::Motion::from_vector(&local)).to_vector();
-        assert_close(&format!("{name} world"), (&j * &vv).as_slice(), world.as_slice(), 1e-12);
+        let world = o_m_f
+            .act_motion(&constraint_dynamics::spatial::Motion::from_vector(&local))
+            .to_vector();
+        assert_close(
+            &format!("{name} world"),
+            (&j * &vv).as_slice(),
+            world.as_slice(),
+            1e-12,
+        );
     }
 }
 
@@ -125,8 +187,13 @@ fn weld_in_local_axes_gives_the_same_motion_and_rotated_wrench() {
     let q = vecf(&st["q"]);
     let mut data = Data::new(&model);
     forward_kinematics_pos(&model, &mut data, &q);
-    let (foot, base) = (model.frame_id("FL_FOOT").unwrap(), model.frame_id("base_link").unwrap());
-    let rel = frame_placement(&model, &data, base).inverse().compose(&frame_placement(&model, &data, foot));
+    let (foot, base) = (
+        model.frame_id("FL_FOOT").unwrap(),
+        model.frame_id("base_link").unwrap(),
+    );
+    let rel = frame_placement(&model, &data, base)
+        .inverse()
+        .compose(&frame_placement(&model, &data, foot));
     let rpy = nalgebra::Rotation3::from_matrix(&rel.rotation).euler_angles();
     let spec = |axes| ConstraintSpec::Weld {
         name: "w".into(),
@@ -137,10 +204,22 @@ fn weld_in_local_axes_gives_the_same_motion_and_rotated_wrench() {
         relative_xyz: rel.translation.into(),
         relative_rpy: [rpy.0, rpy.1, rpy.2],
     };
-    let mut world = System::new(model.clone(), ConstraintSet::new(&model, &[spec(Axes::World)], &q).unwrap(), Baumgarte::default(), Formulation::Multipliers);
-    let mut local = System::new(model.clone(), ConstraintSet::new(&model, &[spec(Axes::Local)], &q).unwrap(), Baumgarte::default(), Formulation::Multipliers);
+    let mut world = System::new(
+        model.clone(),
+        ConstraintSet::new(&model, &[spec(Axes::World)], &q).unwrap(),
+        Baumgarte::default(),
+        Formulation::Multipliers,
+    );
+    let mut local = System::new(
+        model.clone(),
+        ConstraintSet::new(&model, &[spec(Axes::Local)], &q).unwrap(),
+        Baumgarte::default(),
+        Formulation::Multipliers,
+    );
     // A velocity in the null space of the weld Jacobian (the leg moves rigidly with the base).
-    world.forward_dynamics(&q, &[0.0; 18], &[0.0; 18], true).unwrap();
+    world
+        .forward_dynamics(&q, &[0.0; 18], &[0.0; 18], true)
+        .unwrap();
     let jw = world.cdata.j.clone();
     let svd = jw.clone().svd(true, true);
     let vt = svd.v_t.unwrap();
@@ -151,12 +230,28 @@ fn weld_in_local_axes_gives_the_same_motion_and_rotated_wrench() {
         v -= &row * row.dot(&raw);
     }
     assert!((&jw * &v).amax() < 1e-12);
-    let tau: Vec<f64> = (0..18).map(|i| if i < 6 { 0.0 } else { (i as f64).cos() }).collect();
-    let a = world.forward_dynamics(&q, v.as_slice(), &tau, true).unwrap().clone();
+    let tau: Vec<f64> = (0..18)
+        .map(|i| if i < 6 { 0.0 } else { (i as f64).cos() })
+        .collect();
+    let a = world
+        .forward_dynamics(&q, v.as_slice(), &tau, true)
+        .unwrap()
+        .clone();
     let lw = world.kkt.lambda.clone();
-    let b = local.forward_dynamics(&q, v.as_slice(), &tau, true).unwrap().clone();
+    let b = local
+        .forward_dynamics(&q, v.as_slice(), &tau, true)
+        .unwrap()
+        .clone();
     assert_close("q̈ world vs local rows", b.as_slice(), a.as_slice(), 1e-9);
     let r = frame_placement(&model, &local.data, base).rotation;
-    let (f, m) = (r.transpose() * lw.fixed_rows::<3>(0), r.transpose() * lw.fixed_rows::<3>(3));
-    assert_close("λ local = Rᵀ λ world", local.kkt.lambda.as_slice(), &[f.as_slice(), m.as_slice()].concat(), 1e-9);
+    let (f, m) = (
+        r.transpose() * lw.fixed_rows::<3>(0),
+        r.transpose() * lw.fixed_rows::<3>(3),
+    );
+    assert_close(
+        "λ local = Rᵀ λ world",
+        local.kkt.lambda.as_slice(),
+        &[f.as_slice(), m.as_slice()].concat(),
+        1e-9,
+    );
 }

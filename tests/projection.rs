@@ -300,7 +300,13 @@ fn diff_drive_sideways_twist_projects_to_the_closed_form() {
     let (scene, mut sys) = scene_system("diff_drive.yaml");
     let (q, v0) = (scene.q0.clone(), scene.v0.clone());
     let vy = 0.8;
-    let out = project_named(&mut sys, &q, &v0, json!({"base_twist": [0.0, vy, 0.0], "mode": "mass"})).unwrap();
+    let out = project_named(
+        &mut sys,
+        &q,
+        &v0,
+        json!({"base_twist": [0.0, vy, 0.0], "mode": "mass"}),
+    )
+    .unwrap();
     assert_eq!(out.status, Status::Optimal);
     assert_eq!(
         out.method,
@@ -329,7 +335,13 @@ fn diff_drive_sideways_twist_projects_to_the_closed_form() {
         .replace("xyz=\"-0.15 0 -0.025\"", "xyz=\"0 0 -0.025\"");
     let scene2 = Scene::from_parts(&scene.path, scene.file.clone(), &urdf, "centred.urdf").unwrap();
     let mut sys2 = System::from_scene(&scene2).unwrap();
-    let out = project_named(&mut sys2, &q, &v0, json!({"base_twist": [0.0, vy, 0.0], "mode": "mass"})).unwrap();
+    let out = project_named(
+        &mut sys2,
+        &q,
+        &v0,
+        json!({"base_twist": [0.0, vy, 0.0], "mode": "mass"}),
+    )
+    .unwrap();
     for x in out.v.unwrap() {
         assert!(x.abs() < 1e-12, "COM over the axle: expected zero velocity");
     }
@@ -418,7 +430,13 @@ fn diff_drive_wheel_limits_give_the_closed_form_twist() {
 
     // Without the request's bounds the URDF's 20 rad/s binds, on the right wheel only.
     let w = 20.0;
-    let out = project_named(&mut sys, &q, &v0, json!({"base_twist": [vx_d, 0.0, wz_d], "mode": "mass"})).unwrap();
+    let out = project_named(
+        &mut sys,
+        &q,
+        &v0,
+        json!({"base_twist": [vx_d, 0.0, wz_d], "mode": "mass"}),
+    )
+    .unwrap();
     let n_r = [1.0 / r, c / r];
     let mu = ((vx_d * n_r[0] + wz_d * n_r[1]) - w) / (n_r[0] * n_r[0] / a1 + n_r[1] * n_r[1] / a2);
     let (vx, wz) = (vx_d - mu * n_r[0] / a1, wz_d - mu * n_r[1] / a2);
@@ -449,7 +467,10 @@ fn diff_drive_twist_requests_drop_sideways_motion_and_scale_to_wheel_limits() {
     let dd = diff_drive_numbers(-0.05, -0.15);
     let (r, c) = (dd.r, dd.c);
     let out = project_named(&mut sys, &q, &v0, json!({"base_twist": [0.0, 0.8, 0.0]})).unwrap();
-    assert_eq!((out.status, out.method), (Status::Optimal, Method::TwistScaled));
+    assert_eq!(
+        (out.status, out.method),
+        (Status::Optimal, Method::TwistScaled)
+    );
     assert_close("sideways → zero", &out.v.clone().unwrap(), &[0.0; 5], 1e-12);
 
     let (vx_d, wz_d) = (1.0, 0.5);
@@ -457,16 +478,35 @@ fn diff_drive_twist_requests_drop_sideways_motion_and_scale_to_wheel_limits() {
     let w_half = w_r / 2.0;
     let req = json!({"base_twist": [vx_d, 0.0, wz_d], "upper": {"left_wheel_joint": w_half, "right_wheel_joint": w_half}});
     let out = project_named(&mut sys, &q, &v0, req).unwrap();
-    assert_eq!((out.status, out.method), (Status::Optimal, Method::TwistScaled));
+    assert_eq!(
+        (out.status, out.method),
+        (Status::Optimal, Method::TwistScaled)
+    );
     let (vx, wz) = (vx_d / 2.0, wz_d / 2.0);
-    assert_close("scaled twist", &out.v.clone().unwrap(), &[vx, 0.0, wz, (vx - c * wz) / r, (vx + c * wz) / r], 1e-12);
+    assert_close(
+        "scaled twist",
+        &out.v.clone().unwrap(),
+        &[vx, 0.0, wz, (vx - c * wz) / r, (vx + c * wz) / r],
+        1e-12,
+    );
     assert_eq!(out.active_bounds.len(), 1);
-    assert_eq!((out.active_bounds[0].coordinate.as_str(), out.active_bounds[0].side), ("right_wheel_joint", Side::Upper));
+    assert_eq!(
+        (
+            out.active_bounds[0].coordinate.as_str(),
+            out.active_bounds[0].side
+        ),
+        ("right_wheel_joint", Side::Upper)
+    );
 
     let out = project_named(&mut sys, &q, &v0, json!({"base_twist": [vx_d, 0.0, wz_d]})).unwrap();
     let s = 20.0 / w_r;
     let (vx, wz) = (s * vx_d, s * wz_d);
-    assert_close("URDF wheel limit", &out.v.clone().unwrap(), &[vx, 0.0, wz, (vx - c * wz) / r, 20.0], 1e-12);
+    assert_close(
+        "URDF wheel limit",
+        &out.v.clone().unwrap(),
+        &[vx, 0.0, wz, (vx - c * wz) / r, 20.0],
+        1e-12,
+    );
 }
 
 /// The left wheel forced forward (ω_L ≥ 1 rad/s) while the base must stand still: rolling of the

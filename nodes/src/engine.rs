@@ -53,6 +53,14 @@ pub struct PeriodicOutput {
     pub compute_s: f64,
 }
 
+/// Constraint forces at one state: q̈ (nv), the core's forces, Jᵀλ (nv), rank deficiency.
+struct ForcesAt {
+    qdd: Vec<f64>,
+    forces: Vec<CoreForce>,
+    generalized_force: Vec<f64>,
+    rank_deficiency: usize,
+}
+
 /// A scene-bound engine. See the module documentation.
 pub struct Engine {
     params: NodeParams,
@@ -150,7 +158,8 @@ impl Engine {
 
     /// A fresh engine with the same scene and parameters (after a caught panic).
     pub fn rebuilt(&self) -> Result<Engine, String> {
-        let mut next = Engine::from_scene(self.scene.clone(), self.params.clone(), self.log.clone())?;
+        let mut next =
+            Engine::from_scene(self.scene.clone(), self.params.clone(), self.log.clone())?;
         next.state.carry_over(&self.state);
         Ok(next)
     }
@@ -265,20 +274,20 @@ impl Engine {
 
     /// Constraint forces at (q, v) under actuator torques `tau_act` plus the scene's force
     /// elements: (q̈, core forces, Jᵀλ, rank deficiency).
-    fn forces_at(
-        &mut self,
-        q: &[f64],
-        v: &[f64],
-        tau_act: &[f64],
-    ) -> Result<(Vec<f64>, Vec<CoreForce>, Vec<f64>, usize), String> {
+    fn forces_at(&mut self, q: &[f64], v: &[f64], tau_act: &[f64]) -> Result<ForcesAt, String> {
         let nv = self.scene.model.nv;
         let mut tau = tau_act.to_vec();
         if !self.predictor.forces.is_empty() {
             let zero = vec![0.0; nv];
             forward_kinematics(&self.sys.model, &mut self.sys.data, q, v, &zero);
-            self.predictor
-                .forces
-                .add_generalized_force(&self.sys.model, &self.sys.data, 0.0, q, v, &mut tau);
+            self.predictor.forces.add_generalized_force(
+                &self.sys.model,
+                &self.sys.data,
+                0.0,
+                q,
+                v,
+                &mut tau,
+            );
         }
         let qdd: Vec<f64> = self
             .sys
@@ -287,9 +296,12 @@ impl Engine {
             .iter()
             .copied()
             .collect();
-        let forces = self.sys.constraint_forces();
-        let gf: Vec<f64> = self.sys.kkt.generalized_force.iter().copied().collect();
-        Ok((qdd, forces, gf, self.sys.kkt.rank_deficiency))
+        Ok(ForcesAt {
+            qdd,
+            forces: self.sys.constraint_forces(),
+            generalized_force: self.sys.kkt.generalized_force.iter().copied().collect(),
+            rank_deficiency: self.sys.kkt.rank_deficiency,
+        })
     }
 
     fn forces_msg(
@@ -371,7 +383,12 @@ impl Engine {
             req.tau.clone()
         };
         debug_assert_eq!((q.len(), v.len()), (nq, nv));
-        let (qdd, forces, gf, rank) = self.forces_at(&q, &v, &tau)?;
+        let ForcesAt {
+            qdd,
+            forces,
+            generalized_force: gf,
+            rank_deficiency: rank,
+        } = self.forces_at(&q, &v, &tau)?;
         let stamp = if req.use_latest_state {
             self.state.stamp.unwrap_or(now)
         } else {
@@ -400,7 +417,10 @@ impl Engine {
     // Velocity projection.
 
     /// The core projection request for a ROS request (names checked by the core).
-    fn projection_request(&self, req: &ProjectVelocityRequest) -> Result<ProjectionRequest, String> {
+    fn projection_request(
+        &self,
+        req: &ProjectVelocityRequest,
+    ) -> Result<ProjectionRequest, String> {
         let model = &self.scene.model;
         let mut pr = ProjectionRequest::default();
         if req.use_twist {
@@ -604,7 +624,10 @@ impl Engine {
     }
 
     /// The filter: a command twist in, the projected twist out (zero twist when infeasible).
-    pub fn filter_command(&mut self, cmd: &Twist) -> Result<(Twist, ProjectVelocityResponse), String> {
+    pub fn filter_command(
+        &mut self,
+        cmd: &Twist,
+    ) -> Result<(Twist, ProjectVelocityResponse), String> {
         let NodeParams::Projection(p) = &self.params else {
             return Err("the filter belongs to the projection node".into());
         };
@@ -641,13 +664,17 @@ impl Engine {
 
     /// One periodic prediction from the latest state under `command` (v, ω) — `None` = no
     /// fresh command (the fallback applies).
-    pub fn periodic(&mut self, now: Time, command: Option<[f64; 2]>) -> Result<PeriodicOutput, String> {
+    pub fn periodic(
+        &mut self,
+        now: Time,
+        command: Option<[f64; 2]>,
+    ) -> Result<PeriodicOutput, String> {
         let t0 = Instant::now();
         let (q, v) = self.latest_state()?;
         let base = command.or_else(|| self.fallback_twist(&v));
         let cmd = self.command(base, &q);
         let horizon = self.periodic_horizon();
-        if !(horizon > 0.0) {
+        if !horizon.is_finite() || horizon <= 0.0 {
             return Err(format!(
                 "the prediction horizon is {horizon} s: set `horizon` or the scene's integration.horizon"
             ));
@@ -673,8 +700,8 @@ impl Engine {
         };
         // Forces at the start state, under the torques the controllers apply in the first tick.
         let tau = self.first_tick_torque(&cmd, &q, &v, horizon);
-        let (_, forces, gf, rank) = self.forces_at(&q, &v, &tau)?;
-        let forces = self.forces_msg(&q, &forces, &gf, rank, now);
+        let f = self.forces_at(&q, &v, &tau)?;
+        let forces = self.forces_msg(&q, &f.forces, &f.generalized_force, f.rank_deficiency, now);
         self.log_slip(&forces);
         Ok(PeriodicOutput {
             odom,
@@ -744,7 +771,8 @@ impl Engine {
                 ));
                 self.last_slip_log = Some(now);
             } else if !c.slipping && was {
-                self.log.info(&format!("slip: rolling contact '{}' grips again", c.name));
+                self.log
+                    .info(&format!("slip: rolling contact '{}' grips again", c.name));
             }
             if let Some(s) = self.last_slip.get_mut(k) {
                 *s = c.slipping;
@@ -770,7 +798,10 @@ impl Engine {
             _ => (f64::INFINITY, usize::MAX),
         };
         if !(req.horizon.is_finite() && req.horizon > 0.0) {
-            return Err(format!("horizon = {} s must be positive and finite", req.horizon));
+            return Err(format!(
+                "horizon = {} s must be positive and finite",
+                req.horizon
+            ));
         }
         if req.horizon > max_horizon {
             return Err(format!(
@@ -784,9 +815,7 @@ impl Engine {
                 req.commands.len()
             ));
         }
-        if req.commands.len() > 1
-            && !(req.command_period.is_finite() && req.command_period > 0.0)
-        {
+        if req.commands.len() > 1 && !(req.command_period.is_finite() && req.command_period > 0.0) {
             return Err(format!(
                 "command_period = {} s must be positive with more than one command",
                 req.command_period

@@ -76,8 +76,13 @@ pub fn unregister(name: &str) {
 
 impl log::Log for Logger {
     fn enabled(&self, m: &Metadata) -> bool {
-        // RustDDS warns about every datagram above a size threshold (paths, forces): noise.
-        if m.target().starts_with("rustdds::network::udp_sender") && m.level() > Level::Error {
+        // RustDDS warns about every datagram above a size threshold (paths, forces), and
+        // ros2-client about every request from a client that sends no related sample identity
+        // (ros2-client's own clients): noise, not faults.
+        if (m.target().starts_with("rustdds::network::udp_sender")
+            || m.target().starts_with("ros2_client::service::wrappers"))
+            && m.level() > Level::Error
+        {
             return false;
         }
         let limit = if m.target().starts_with(NODE_TARGET_PREFIX)

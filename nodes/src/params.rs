@@ -576,7 +576,10 @@ impl NodeParams {
             );
         }
         if c.model.use_robot_description {
-            nonempty("model.robot_description_topic", &c.model.robot_description_topic)?;
+            nonempty(
+                "model.robot_description_topic",
+                &c.model.robot_description_topic,
+            )?;
         }
         nonempty("frames.odom_frame", &c.frames.odom_frame)?;
         nonneg("slip.friction_coefficient", c.slip.friction_coefficient)?;
@@ -595,7 +598,10 @@ impl NodeParams {
                 command(&p.command)?;
                 nonempty("command.topic", &p.command.topic)?;
                 positive("covariance.position_floor", p.covariance.position_floor)?;
-                positive("covariance.orientation_floor", p.covariance.orientation_floor)?;
+                positive(
+                    "covariance.orientation_floor",
+                    p.covariance.orientation_floor,
+                )?;
                 positive("covariance.twist_floor", p.covariance.twist_floor)?;
             }
             NodeParams::Forces(_) => {}
@@ -739,7 +745,8 @@ cd_forces:
     rate: 20.0
 "#;
         let p = parse_params_yaml(yaml, "/cd_predictor").unwrap();
-        let NodeParams::Predictor(pp) = NodeParams::from_parameters(NodeKind::Predictor, &p).unwrap()
+        let NodeParams::Predictor(pp) =
+            NodeParams::from_parameters(NodeKind::Predictor, &p).unwrap()
         else {
             unreachable!()
         };
@@ -759,9 +766,15 @@ cd_forces:
     fn bad_values_are_named() {
         let cases = [
             ("rate: 0.0", "rate"),
-            ("covariance: { position_floor: 0.0 }", "covariance.position_floor"),
+            (
+                "covariance: { position_floor: 0.0 }",
+                "covariance.position_floor",
+            ),
             ("command: { fallback: brake }", "command.fallback"),
-            ("slip: { friction_coefficient: -1.0 }", "slip.friction_coefficient"),
+            (
+                "slip: { friction_coefficient: -1.0 }",
+                "slip.friction_coefficient",
+            ),
             ("network: { interfaces: eth0 }", "network.interfaces"),
         ];
         for (body, name) in cases {

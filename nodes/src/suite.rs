@@ -279,7 +279,7 @@ fn start_node(
                 c.values.insert(pname.to_string(), value.clone());
             }
             if let Some(tx) = event_tx_get.lock().ok().and_then(|t| t.clone()) {
-                let _ = tx.try_send(Event::Params(next));
+                let _ = tx.try_send(Event::Params(Box::new(next)));
             }
             Ok(())
         }));
@@ -317,7 +317,7 @@ fn start_node(
             .map_err(err)?;
         let tx = worker.sender();
         tasks.push(ros.spawn(subscribe(sub, log.clone(), move |m| {
-            forward(&tx, Event::Odometry(m))
+            forward(&tx, Event::Odometry(Box::new(m)))
         })));
     }
     if c.model.use_robot_description {
@@ -355,9 +355,11 @@ fn start_node(
                 let sub = ros
                     .subscription::<TwistStamped>(&cmd_topic, &qos::sensor_data())
                     .map_err(err)?;
-                tasks.push(ros.spawn(subscribe(sub, log.clone(), move |m: TwistStamped| {
-                    forward(&tx, Event::Command(m.twist))
-                })));
+                tasks.push(
+                    ros.spawn(subscribe(sub, log.clone(), move |m: TwistStamped| {
+                        forward(&tx, Event::Command(m.twist))
+                    })),
+                );
             } else {
                 let sub = ros
                     .subscription::<Twist>(&cmd_topic, &qos::sensor_data())
@@ -451,9 +453,11 @@ fn start_node(
                     let sub = ros
                         .subscription::<TwistStamped>(&input, &qos::sensor_data())
                         .map_err(err)?;
-                    tasks.push(ros.spawn(subscribe(sub, log.clone(), move |m: TwistStamped| {
-                        forward(&tx, Event::FilterCommand(m.twist, Some(m.header)))
-                    })));
+                    tasks.push(
+                        ros.spawn(subscribe(sub, log.clone(), move |m: TwistStamped| {
+                            forward(&tx, Event::FilterCommand(m.twist, Some(m.header)))
+                        })),
+                    );
                     let publisher = ros
                         .publisher::<TwistStamped>(&output, &qos::reliable(10))
                         .map_err(err)?;
@@ -563,7 +567,9 @@ async fn subscribe<M: serde::de::DeserializeOwned + 'static>(
             Err(e) => {
                 errors += 1;
                 if errors == 1 || errors.is_power_of_two() {
-                    log.warn(&format!("dropped an undecodable message ({errors} so far): {e:?}"));
+                    log.warn(&format!(
+                        "dropped an undecodable message ({errors} so far): {e:?}"
+                    ));
                 }
                 smol::Timer::after(Duration::from_millis(1)).await;
             }
@@ -641,7 +647,10 @@ pub fn main(only: Option<NodeKind>) -> std::process::ExitCode {
             "--node" => match user.next().and_then(|k| NodeKind::from_key(k)) {
                 Some(k) => only = Some(k),
                 None => {
-                    eprintln!("error: --node needs one of predictor, forces, projection, prediction\n\n{}", usage());
+                    eprintln!(
+                        "error: --node needs one of predictor, forces, projection, prediction\n\n{}",
+                        usage()
+                    );
                     return ExitCode::from(2);
                 }
             },
@@ -708,6 +717,9 @@ mod tests {
         assert!(network_guard(&all, true, false).is_ok());
         assert!(network_guard(&all, false, true).is_ok());
         let e = network_guard(&all, false, false).unwrap_err();
-        assert!(e.contains("netns_run.sh") && e.contains("allow_external"), "{e}");
+        assert!(
+            e.contains("netns_run.sh") && e.contains("allow_external"),
+            "{e}"
+        );
     }
 }

@@ -8,7 +8,7 @@
 //! is rebuilt from its scene, and the worker keeps serving.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
-use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, TrySendError, sync_channel};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, sync_channel};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -33,7 +33,7 @@ pub enum Event {
     /// `/joint_states`.
     JointState(JointState),
     /// `/odom`.
-    Odometry(Odometry),
+    Odometry(Box<Odometry>),
     /// A velocity command (predictor: the command to predict under).
     Command(Twist),
     /// A command to filter (projection node), with the header of a stamped input.
@@ -43,8 +43,11 @@ pub enum Event {
     /// `/clock` (with `use_sim_time`).
     Clock(Time),
     /// New parameter values (run-time change).
-    Params(NodeParams),
-    GetConstraintForces(GetConstraintForcesRequest, Reply<GetConstraintForcesResponse>),
+    Params(Box<NodeParams>),
+    GetConstraintForces(
+        GetConstraintForcesRequest,
+        Reply<GetConstraintForcesResponse>,
+    ),
     ProjectVelocity(ProjectVelocityRequest, Reply<ProjectVelocityResponse>),
     Predict(PredictRequest, Reply<PredictResponse>),
     /// Stop the thread.
@@ -93,14 +96,6 @@ impl WorkerHandle {
         Ok(WorkerHandle {
             tx,
             thread: Some(thread),
-        })
-    }
-
-    /// Queues an event without blocking; gives it back when the queue is full or the worker
-    /// has stopped.
-    pub fn send(&self, event: Event) -> Result<(), Event> {
-        self.tx.try_send(event).map_err(|e| match e {
-            TrySendError::Full(ev) | TrySendError::Disconnected(ev) => ev,
         })
     }
 
@@ -275,7 +270,7 @@ impl Worker {
             Event::Clock(t) => self.sim_time = Some(t),
             Event::Params(p) => {
                 self.log.info("parameters changed");
-                self.engine.set_params(p);
+                self.engine.set_params(*p);
             }
             Event::GetConstraintForces(req, reply) => {
                 let now = self.now();

@@ -41,7 +41,11 @@ fn feed(x0: f64, y0: f64, th0: f64, v: f64, w: f64) -> RobotFeed {
     od.header.frame_id = "odom".into();
     od.child_frame_id = "base_footprint".into();
     od.pose.pose = Pose {
-        position: Point { x: x0, y: y0, z: 0.0 },
+        position: Point {
+            x: x0,
+            y: y0,
+            z: 0.0,
+        },
         orientation: Quaternion {
             x: 0.0,
             y: 0.0,

@@ -29,12 +29,16 @@ use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::{
 };
 use constraint_dynamics_nodes::msg::geometry_msgs::{Point, Pose, Quaternion};
 use constraint_dynamics_nodes::msg::nav_msgs::{Odometry, Path};
-use constraint_dynamics_nodes::msg::rcl_interfaces::{GetParameters, ListParameters, SetParameters};
+use constraint_dynamics_nodes::msg::rcl_interfaces::{
+    GetParameters, ListParameters, SetParameters,
+};
 use constraint_dynamics_nodes::msg::sensor_msgs::JointState;
 use constraint_dynamics_nodes::msg::std_msgs::StringMsg;
 use ros2_client::ParameterValue;
 use ros2_client::parameters::raw;
-use ros2_client::rcl_interfaces::{GetParametersRequest, ListParametersRequest, SetParametersRequest};
+use ros2_client::rcl_interfaces::{
+    GetParametersRequest, ListParametersRequest, SetParametersRequest,
+};
 
 const TEST: &str = "suite_matches_the_core_library";
 const TOL: f64 = 1e-9;
@@ -142,13 +146,23 @@ impl Core {
     }
 
     /// q̈, forces, Jᵀλ at (q, v) under actuator torques plus the scene's force elements.
-    fn forces(&mut self, q: &[f64], v: &[f64], tau_act: &[f64]) -> (Vec<f64>, Vec<CoreForce>, Vec<f64>) {
+    fn forces(
+        &mut self,
+        q: &[f64],
+        v: &[f64],
+        tau_act: &[f64],
+    ) -> (Vec<f64>, Vec<CoreForce>, Vec<f64>) {
         let nv = self.sys.model.nv;
         let mut tau = tau_act.to_vec();
         forward_kinematics(&self.sys.model, &mut self.sys.data, q, v, &vec![0.0; nv]);
-        self.predictor
-            .forces
-            .add_generalized_force(&self.sys.model, &self.sys.data, 0.0, q, v, &mut tau);
+        self.predictor.forces.add_generalized_force(
+            &self.sys.model,
+            &self.sys.data,
+            0.0,
+            q,
+            v,
+            &mut tau,
+        );
         let qdd: Vec<f64> = self
             .sys
             .forward_dynamics(q, v, &tau, true)
@@ -168,8 +182,10 @@ impl Core {
             ..Default::default()
         };
         for p in &self.scene.file.actuators.position {
-            c.joint_position
-                .insert(p.joint.clone(), q[self.scene.model.q_index(&p.joint).unwrap()]);
+            c.joint_position.insert(
+                p.joint.clone(),
+                q[self.scene.model.q_index(&p.joint).unwrap()],
+            );
         }
         c
     }
@@ -221,7 +237,12 @@ fn check_forces(
         if c.axes_frame_id != "odom" {
             return Err(format!("axes_frame_id {}", c.axes_frame_id));
         }
-        close(&format!("{} lambda", f.name), &c.multipliers, &f.lambda, tol)?;
+        close(
+            &format!("{} lambda", f.name),
+            &c.multipliers,
+            &f.lambda,
+            tol,
+        )?;
         let w = &c.wrench;
         close(
             &format!("{} force", f.name),
@@ -261,7 +282,12 @@ fn check_forces(
             tol,
         )?;
         // Planar base: no normal row, the node uses m g / 2 per wheel.
-        close(&format!("{} normal", f.name), &[c.normal_force], &[m_g], tol)?;
+        close(
+            &format!("{} normal", f.name),
+            &[c.normal_force],
+            &[m_g],
+            tol,
+        )?;
         let slipping = f.tangential_force.unwrap() > 0.8 * m_g;
         if c.slipping != slipping {
             return Err(format!("{} slipping flag {}", f.name, c.slipping));
@@ -401,13 +427,27 @@ fn suite_matches_the_core_library() {
     let mut projector = VelocityProjector::new(&core.sys.model, &core.sys.constraints);
     let expected = project_system(&mut projector, &mut core.sys, &ql, &vl, &pr).unwrap();
     assert_eq!(expected.status, Status::Optimal);
-    assert!(r.success && r.status == "optimal", "{} {}", r.status, r.message);
+    assert!(
+        r.success && r.status == "optimal",
+        "{} {}",
+        r.status,
+        r.message
+    );
     let ev = expected.v.clone().unwrap();
     assert_close("projected v", &r.v, &ev, TOL);
-    assert_close("impulses", &r.impulses, &expected.impulses.clone().unwrap(), 1e-7);
+    assert_close(
+        "impulses",
+        &r.impulses,
+        &expected.impulses.clone().unwrap(),
+        1e-7,
+    );
     assert_close(
         "base twist",
-        &[r.base_twist.linear.x, r.base_twist.linear.y, r.base_twist.angular.z],
+        &[
+            r.base_twist.linear.x,
+            r.base_twist.linear.y,
+            r.base_twist.angular.z,
+        ],
         &ev[..3],
         TOL,
     );
@@ -424,7 +464,10 @@ fn suite_matches_the_core_library() {
         })
         .collect();
     assert_eq!(r.active_bounds, expected_bounds);
-    println!("{TEST}: project_velocity = core ({}; active {:?})", r.message, r.active_bounds);
+    println!(
+        "{TEST}: project_velocity = core ({}; active {:?})",
+        r.message, r.active_bounds
+    );
 
     // ---- ~/predict ----------------------------------------------------------------------------
     let predict = t.client::<Predict>("/cd_prediction/predict");
@@ -448,14 +491,22 @@ fn suite_matches_the_core_library() {
         .map(|(k, &(v, w))| (0.5 * k as f64, core.command([v, w], &state.q)))
         .collect();
     core.predictor.want_forces = true;
-    let traj = core.predictor.predict(&state.q, &state.v, &cmds, 1.0).unwrap();
+    let traj = core
+        .predictor
+        .predict(&state.q, &state.v, &cmds, 1.0)
+        .unwrap();
     core.predictor.want_forces = false;
     let times: Vec<f64> = traj.samples.iter().map(|s| s.t).collect();
     assert_close("predict times", &r.times, &times, TOL);
     assert_eq!(r.path.poses.len(), traj.samples.len());
     assert_eq!(r.forces.len(), traj.samples.len());
     for (k, (p, s)) in r.path.poses.iter().zip(&traj.samples).enumerate() {
-        assert_close(&format!("predict pose {k}"), &pose_of(&p.pose), &s.q[..3], TOL);
+        assert_close(
+            &format!("predict pose {k}"),
+            &pose_of(&p.pose),
+            &s.q[..3],
+            TOL,
+        );
         let lam: Vec<f64> = r.forces[k]
             .constraints
             .iter()
@@ -476,7 +527,11 @@ fn suite_matches_the_core_library() {
         1e-6,
     );
     assert_eq!(r.path.header.frame_id, "odom");
-    println!("{TEST}: predict ({} samples) = core; {}", r.times.len(), r.message);
+    println!(
+        "{TEST}: predict ({} samples) = core; {}",
+        r.times.len(),
+        r.message
+    );
 
     // ---- topics of the predictor (command (0.3, 0.4) on /cmd_vel) -----------------------------
     let expected_cmd = core.command([cmd.0, cmd.1], &ql);
@@ -506,7 +561,12 @@ fn suite_matches_the_core_library() {
         assert!(odom.pose.covariance[i * 7] > 0.0, "covariance[{i}] is zero");
         assert!(odom.twist.covariance[i * 7] > 0.0);
     }
-    assert_close("pose covariance x", &[odom.pose.covariance[0]], &[sp * sp], 1e-9);
+    assert_close(
+        "pose covariance x",
+        &[odom.pose.covariance[0]],
+        &[sp * sp],
+        1e-9,
+    );
     println!(
         "{TEST}: predicted_odom = core at the horizon: ({:.6}, {:.6}, {:.6}), σ = {sp:.3e} m \
          (error estimate {:.3e})",
@@ -523,7 +583,10 @@ fn suite_matches_the_core_library() {
         Ok(())
     })
     .unwrap_or_else(|e| panic!("predicted_path never matched the core: {e}"));
-    println!("{TEST}: predicted_path = core ({} poses)", traj.samples.len());
+    println!(
+        "{TEST}: predicted_path = core ({} poses)",
+        traj.samples.len()
+    );
 
     // Forces at the start state under the torques of the first control tick.
     let mut act = core.predictor.actuators.clone();
@@ -539,7 +602,10 @@ fn suite_matches_the_core_library() {
         check_forces(&mut core, &ql, m, &f, &gf, TOL)
     })
     .unwrap_or_else(|e| panic!("constraint_forces never matched the core: {e}"));
-    assert!(m.constraints.iter().all(|c| !c.slipping), "slip at μ = 0.8: {m:?}");
+    assert!(
+        m.constraints.iter().all(|c| !c.slipping),
+        "slip at μ = 0.8: {m:?}"
+    );
     println!("{TEST}: constraint_forces topic = core (first-tick actuator torques)");
 
     // ---- parameters ---------------------------------------------------------------------------
@@ -553,7 +619,13 @@ fn suite_matches_the_core_library() {
     )
     .result
     .names;
-    for n in ["rate", "horizon", "model.scene_file", "slip.friction_coefficient", "use_sim_time"] {
+    for n in [
+        "rate",
+        "horizon",
+        "model.scene_file",
+        "slip.friction_coefficient",
+        "use_sim_time",
+    ] {
         assert!(names.iter().any(|x| x == n), "{n} not listed: {names:?}");
     }
     let get = t.client::<GetParameters>("/cd_predictor/get_parameters");
@@ -581,7 +653,11 @@ fn suite_matches_the_core_library() {
     )
     .results;
     assert!(!results[0].successful);
-    assert!(results[0].reason.contains("cannot change"), "{}", results[0].reason);
+    assert!(
+        results[0].reason.contains("cannot change"),
+        "{}",
+        results[0].reason
+    );
     let results = call(
         &set,
         SetParametersRequest {
@@ -594,9 +670,9 @@ fn suite_matches_the_core_library() {
     .results;
     assert!(!results[0].successful && results[0].reason.contains("friction_coefficient"));
     println!(
-        "{TEST}: parameters: {} listed; set rate refused ({}); μ = -1 refused ({})",
+        "{TEST}: parameters: {} listed; set rate refused (cannot change while the node runs); \
+         μ = -1 refused ({})",
         names.len(),
-        "cannot change while the node runs",
         results[0].reason
     );
 
@@ -632,16 +708,22 @@ fn suite_matches_the_core_library() {
         }
     })
     .unwrap_or_else(|e| panic!("no slip warning on /rosout: {e}"));
-    println!("{TEST}: slip flagged and logged to /rosout: \"{}\"", log.msg);
+    println!(
+        "{TEST}: slip flagged and logged to /rosout: \"{}\"",
+        log.msg
+    );
 
     // ---- /robot_description: a heavier chassis re-plans with the new model ---------------------
     let urdf = std::fs::read_to_string(repo_root().join("urdf/mobile_manipulator.urdf")).unwrap();
     let heavy = urdf.replacen("<mass value=\"8.0\"/>", "<mass value=\"16.0\"/>", 1);
     assert_ne!(heavy, urdf, "chassis mass not found in the URDF");
     let description = description_publisher(&mut t);
-    description.publish(StringMsg { data: heavy.clone() }).unwrap();
-    let heavy_scene =
-        Scene::from_parts(&scene.path, scene.file.clone(), &heavy, "heavy").unwrap();
+    description
+        .publish(StringMsg {
+            data: heavy.clone(),
+        })
+        .unwrap();
+    let heavy_scene = Scene::from_parts(&scene.path, scene.file.clone(), &heavy, "heavy").unwrap();
     let mut heavy_core = Core::new(&heavy_scene);
     let (qh, vh) = heavy_core.projected(&state.q, &state.v);
     let (qdd_heavy, _, _) = heavy_core.forces(&qh, &vh, &state.effort);
@@ -662,7 +744,11 @@ fn suite_matches_the_core_library() {
     println!("{TEST}: /robot_description: model rebuilt, forces = core on the new URDF");
 
     assert!(suite.alive(), "the suite exited");
-    assert!(suite.stop(), "the suite did not exit cleanly on SIGINT:\n{}", suite.log());
+    assert!(
+        suite.stop(),
+        "the suite did not exit cleanly on SIGINT:\n{}",
+        suite.log()
+    );
     let log = suite.log();
     assert!(!log.contains("panicked"), "{log}");
 }

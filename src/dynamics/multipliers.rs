@@ -224,8 +224,10 @@ fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
     // Project r onto range(S) = span S[:, I] (unique, whichever independent set was picked, so
     // λ varies smoothly with the state); what is left over is the inconsistency of the rows.
     let s_cols = ws.s.select_columns(ind.iter());
-    let gram = (s_cols.transpose() * &s_cols).cholesky().ok_or_else(|| Error::InconsistentConstraints {
-        message: "the independent constraint rows are numerically singular".into(),
+    let gram = (s_cols.transpose() * &s_cols).cholesky().ok_or_else(|| {
+        Error::InconsistentConstraints {
+            message: "the independent constraint rows are numerically singular".into(),
+        }
     })?;
     let r_hat = &s_cols * gram.solve(&(s_cols.transpose() * &ws.r));
     let inconsistency = (&ws.r - &r_hat).amax();
@@ -233,7 +235,11 @@ fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
     let scale = ws.r.amax().max(1.0);
     if inconsistency > 1e-7 * scale && !ws.allow_inconsistent {
         let worst = (&ws.r - &r_hat).iamax();
-        let name = set.ranges.iter().position(|rg| rg.contains(&worst)).map(|k| set.names[k].clone());
+        let name = set
+            .ranges
+            .iter()
+            .position(|rg| rg.contains(&worst))
+            .map(|k| set.names[k].clone());
         return Err(Error::InconsistentConstraints {
             message: format!(
                 "the constraint accelerations cannot all be met (rank {} of {nc}; largest \
@@ -244,9 +250,11 @@ fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
         });
     }
     let s_ii = ws.s.select_rows(ind.iter()).select_columns(ind.iter());
-    let chol = s_ii.cholesky().ok_or_else(|| Error::InconsistentConstraints {
-        message: "the independent constraint rows are numerically singular".into(),
-    })?;
+    let chol = s_ii
+        .cholesky()
+        .ok_or_else(|| Error::InconsistentConstraints {
+            message: "the independent constraint rows are numerically singular".into(),
+        })?;
     let lam_i = chol.solve(&r_hat.select_rows(ind.iter()));
     let mut lambda = DVector::zeros(nc);
     for (a, &k) in ind.iter().enumerate() {

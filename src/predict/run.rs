@@ -100,7 +100,10 @@ impl Accel for Rhs<'_> {
         // Least squares (λ = S⁺ r) where stages or drift make redundant rows disagree: the same
         // formula on both sides of any threshold, so q̈ stays smooth for the implicit method.
         self.sys.kkt.allow_inconsistent = true;
-        let result = self.sys.forward_dynamics(q, v, self.tau, true).map(|a| qdd.copy_from_slice(a.as_slice()));
+        let result = self
+            .sys
+            .forward_dynamics(q, v, self.tau, true)
+            .map(|a| qdd.copy_from_slice(a.as_slice()));
         self.sys.kkt.allow_inconsistent = false;
         if result.is_ok() && self.sys.kkt.inconsistency > 1e-7 * self.sys.kkt.b.amax().max(1.0) {
             self.least_squares += 1;

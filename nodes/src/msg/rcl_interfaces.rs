@@ -25,7 +25,11 @@ macro_rules! parameter_service {
 }
 
 parameter_service!(GetParameters, GetParametersRequest, GetParametersResponse);
-parameter_service!(ListParameters, ListParametersRequest, ListParametersResponse);
+parameter_service!(
+    ListParameters,
+    ListParametersRequest,
+    ListParametersResponse
+);
 parameter_service!(SetParameters, SetParametersRequest, SetParametersResponse);
 parameter_service!(
     DescribeParameters,

@@ -58,7 +58,10 @@ pub fn in_namespace_or_reexec(test_name: &str) -> bool {
         .args([test_name, "--exact", "--nocapture", "--test-threads=1"])
         .status()
         .expect("run tools/ros2/netns_run.sh");
-    assert!(status.success(), "{test_name} inside the network namespace failed: {status}");
+    assert!(
+        status.success(),
+        "{test_name} inside the network namespace failed: {status}"
+    );
     false
 }
 
@@ -96,10 +99,8 @@ impl SuiteProcess {
             "{} not built (cargo builds the package's binaries for its tests)",
             exe.display()
         );
-        let log_path = std::env::temp_dir().join(format!(
-            "cd_suite_{tag}_{}.log",
-            std::process::id()
-        ));
+        let log_path =
+            std::env::temp_dir().join(format!("cd_suite_{tag}_{}.log", std::process::id()));
         let log = File::create(&log_path).expect("log file");
         let started = Instant::now();
         let child = Command::new(&exe)
@@ -178,8 +179,8 @@ impl TestNode {
     pub fn new(name: &str) -> TestNode {
         let net = NetworkConfig::from_env().expect("network config");
         let ctx = net.create_context().expect("context");
-        let node = RosNode::new(&ctx, "/", name, NodeOptions::new().read_rosout(true))
-            .expect("test node");
+        let node =
+            RosNode::new(&ctx, "/", name, NodeOptions::new().read_rosout(true)).expect("test node");
         TestNode { node, ctx }
     }
 
@@ -216,9 +217,14 @@ where
     Req: ros2_client::Message + Clone + 'static,
     Resp: ros2_client::Message + 'static,
 {
-    smol::block_on(call_with_retry(client, req, Duration::from_millis(1500), 10))
-        .map(|(r, _)| r)
-        .unwrap_or_else(|e| panic!("service call: {e}"))
+    smol::block_on(call_with_retry(
+        client,
+        req,
+        Duration::from_millis(1500),
+        10,
+    ))
+    .map(|(r, _)| r)
+    .unwrap_or_else(|e| panic!("service call: {e}"))
 }
 
 /// The first message on `sub` for which `accept` returns true, within `limit`; the last
@@ -266,8 +272,14 @@ impl FeedPublisher {
             .node
             .publisher("/joint_states", &qos::reliable(10))
             .expect("pub");
-        let od: Publisher<Odometry> = node.node.publisher("/odom", &qos::reliable(10)).expect("pub");
-        let cmd: Publisher<Twist> = node.node.publisher("/cmd_vel", &qos::reliable(10)).expect("pub");
+        let od: Publisher<Odometry> = node
+            .node
+            .publisher("/odom", &qos::reliable(10))
+            .expect("pub");
+        let cmd: Publisher<Twist> = node
+            .node
+            .publisher("/cmd_vel", &qos::reliable(10))
+            .expect("pub");
         let feed = Arc::new(Mutex::new(RobotFeed::default()));
         let f = feed.clone();
         let task = node.node.spawn(async move {
@@ -305,8 +317,16 @@ pub fn description_publisher(node: &mut TestNode) -> Publisher<StringMsg> {
 
 pub fn twist(v: f64, w: f64) -> Twist {
     Twist {
-        linear: Vector3 { x: v, y: 0.0, z: 0.0 },
-        angular: Vector3 { x: 0.0, y: 0.0, z: w },
+        linear: Vector3 {
+            x: v,
+            y: 0.0,
+            z: 0.0,
+        },
+        angular: Vector3 {
+            x: 0.0,
+            y: 0.0,
+            z: w,
+        },
     }
 }
 
@@ -316,7 +336,8 @@ pub fn close(what: &str, a: &[f64], b: &[f64], tol: f64) -> Result<(), String> {
         return Err(format!("{what}: length {} vs {}", a.len(), b.len()));
     }
     for (i, (x, y)) in a.iter().zip(b).enumerate() {
-        if !((x - y).abs() <= tol * (1.0 + y.abs())) {
+        let ok = (x - y).abs() <= tol * (1.0 + y.abs());
+        if !ok {
             return Err(format!("{what}[{i}]: {x} vs {y} (diff {:e})", x - y));
         }
     }

@@ -1,0 +1,410 @@
+//! `constraint_dynamics_query`: query a running suite without a ROS installation (the ros2 CLI
+//! equivalent for this project's services, topics and parameters). Prints JSON.
+//!
+//! ```text
+//! constraint_dynamics_query [--ns /NS] [--timeout S] COMMAND
+//!   forces [--q a,b,..] [--v a,b,..] [--tau a,b,..]       ~/get_constraint_forces (latest state
+//!                                                         unless --q is given)
+//!   project --twist vx,vy,wz [--joint NAME=V]... [--lower NAME=V]... [--upper NAME=V]...
+//!           [--accel-dt S]                                ~/project_velocity at the latest state
+//!   predict [--twist v,w]... [--period S] [--horizon S] [--forces]
+//!                                                         ~/predict from the latest state
+//!   echo odom|path|forces [--count N]                     the predictor's topics
+//!   param list NODE | param get NODE NAME | param set NODE NAME VALUE
+//! ```
+//!
+//! Node names are those of the suite (cd_predictor, cd_forces, cd_projection, cd_prediction)
+//! under `--ns`. Like the suite it opens DDS only in a loopback-only namespace, on
+//! `CD_ROS_INTERFACES=127.0.0.1`, or with `CD_ALLOW_EXTERNAL_NETWORK=1`; run it in the same
+//! `tools/ros2/netns_run.sh` call as the suite.
+
+use std::process::ExitCode;
+use std::time::Duration;
+
+use constraint_dynamics_nodes::msg::RosService;
+use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::ConstraintForces;
+use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::{
+    GetConstraintForces, GetConstraintForcesRequest, Predict, PredictRequest, ProjectVelocity,
+    ProjectVelocityRequest,
+};
+use constraint_dynamics_nodes::msg::geometry_msgs::{Twist, Vector3};
+use constraint_dynamics_nodes::msg::nav_msgs::{Odometry, Path};
+use constraint_dynamics_nodes::msg::rcl_interfaces::{
+    GetParameters, ListParameters, SetParameters,
+};
+use constraint_dynamics_nodes::ros_args::yaml_to_param;
+use constraint_dynamics_nodes::ros_context::{
+    NetworkConfig, RosNode, call_with_retry, in_loopback_only_namespace, qos,
+};
+use constraint_dynamics_nodes::suite::{ALLOW_EXTERNAL_ENV, network_guard};
+use ros2_client::rcl_interfaces::{
+    GetParametersRequest, ListParametersRequest, SetParametersRequest,
+};
+use ros2_client::{NodeOptions, ParameterValue};
+use serde::Serialize;
+
+const USAGE: &str = "usage: constraint_dynamics_query [--ns /NS] [--timeout S] COMMAND
+  forces [--q a,b,..] [--v a,b,..] [--tau a,b,..]
+  project --twist vx,vy,wz [--joint NAME=V]... [--lower NAME=V]... [--upper NAME=V]... [--accel-dt S]
+  predict [--twist v,w]... [--period S] [--horizon S] [--forces]
+  echo odom|path|forces [--count N]
+  param list NODE | param get NODE NAME | param set NODE NAME VALUE";
+
+struct Opts {
+    ns: String,
+    timeout: Duration,
+    rest: Vec<String>,
+}
+
+fn numbers(s: &str) -> Result<Vec<f64>, String> {
+    s.split(',')
+        .filter(|x| !x.trim().is_empty())
+        .map(|x| {
+            x.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("{x:?} is not a number"))
+        })
+        .collect()
+}
+
+fn named(s: &str) -> Result<(String, f64), String> {
+    let (n, v) = s
+        .split_once('=')
+        .ok_or_else(|| format!("{s:?}: expected NAME=VALUE"))?;
+    let v = v
+        .trim()
+        .parse::<f64>()
+        .map_err(|_| format!("{s:?}: {v:?} is not a number"))?;
+    Ok((n.trim().to_string(), v))
+}
+
+fn print<T: Serialize>(v: &T) {
+    println!(
+        "{}",
+        serde_json::to_string_pretty(v).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
+    );
+}
+
+struct Query {
+    node: RosNode,
+    ns: String,
+    timeout: Duration,
+}
+
+impl Query {
+    fn name(&self, node: &str, leaf: &str) -> String {
+        let node = node.trim_start_matches('/');
+        format!("{}/{node}/{leaf}", self.ns.trim_end_matches('/'))
+    }
+
+    fn call<S: RosService>(&mut self, name: &str, req: S::Request) -> Result<S::Response, String> {
+        let client = self.node.client::<S>(name).map_err(|e| e.to_string())?;
+        let found = smol::block_on(smol::future::or(
+            async {
+                client.wait_for_service(&self.node.node).await;
+                true
+            },
+            async {
+                smol::Timer::after(self.timeout).await;
+                false
+            },
+        ));
+        if !found {
+            return Err(format!(
+                "service {name} not found within {:?}",
+                self.timeout
+            ));
+        }
+        smol::block_on(call_with_retry(
+            &client,
+            req,
+            Duration::from_millis(500),
+            (self.timeout.as_secs_f64() / 0.5).ceil().max(1.0) as u32,
+        ))
+        .map(|(r, _)| r)
+        .map_err(|e| e.to_string())
+    }
+
+    fn echo<M>(&mut self, topic: &str, count: usize) -> Result<(), String>
+    where
+        M: constraint_dynamics_nodes::msg::RosMessage + Serialize + 'static,
+    {
+        let sub = self
+            .node
+            .subscription::<M>(topic, &qos::reliable(10))
+            .map_err(|e| e.to_string())?;
+        for _ in 0..count {
+            let m = smol::block_on(smol::future::or(
+                async { Some(sub.async_take().await) },
+                async {
+                    smol::Timer::after(self.timeout).await;
+                    None
+                },
+            ))
+            .ok_or_else(|| format!("no message on {topic} within {:?}", self.timeout))?
+            .map_err(|e| format!("{e:?}"))?;
+            print(&m.0);
+        }
+        Ok(())
+    }
+}
+
+fn twist3(v: &[f64]) -> Result<Twist, String> {
+    let (x, y, w) = match v {
+        [x, w] => (*x, 0.0, *w),
+        [x, y, w] => (*x, *y, *w),
+        _ => return Err("--twist takes v,w or vx,vy,wz".into()),
+    };
+    Ok(Twist {
+        linear: Vector3 { x, y, z: 0.0 },
+        angular: Vector3 {
+            x: 0.0,
+            y: 0.0,
+            z: w,
+        },
+    })
+}
+
+fn run(opts: Opts) -> Result<(), String> {
+    let net = NetworkConfig::from_env().map_err(|e| e.to_string())?;
+    let allowed = std::env::var(ALLOW_EXTERNAL_ENV).is_ok_and(|v| v.trim() == "1");
+    network_guard(&net, allowed, in_loopback_only_namespace())?;
+    let ctx = net.create_context().map_err(|e| e.to_string())?;
+    let node = RosNode::new(
+        &ctx,
+        "/",
+        &format!("cd_query_{}", std::process::id()),
+        NodeOptions::new().start_parameter_services(false),
+    )
+    .map_err(|e| e.to_string())?;
+    let mut q = Query {
+        node,
+        ns: opts.ns,
+        timeout: opts.timeout,
+    };
+    let mut args = opts.rest.into_iter();
+    let cmd = args.next().ok_or(USAGE)?;
+    let mut rest: Vec<String> = args.collect();
+    let mut take = |flag: &str| -> Vec<String> {
+        let mut out = Vec::new();
+        let mut i = 0;
+        while i < rest.len() {
+            if rest[i] == flag && i + 1 < rest.len() {
+                out.push(rest.remove(i + 1));
+                rest.remove(i);
+            } else {
+                i += 1;
+            }
+        }
+        out
+    };
+    match cmd.as_str() {
+        "forces" => {
+            let mut req = GetConstraintForcesRequest {
+                use_latest_state: true,
+                ..Default::default()
+            };
+            if let Some(s) = take("--q").pop() {
+                req.use_latest_state = false;
+                req.q = numbers(&s)?;
+            }
+            if let Some(s) = take("--v").pop() {
+                req.v = numbers(&s)?;
+            }
+            if let Some(s) = take("--tau").pop() {
+                req.tau = numbers(&s)?;
+            }
+            let name = q.name("cd_forces", "get_constraint_forces");
+            print(&q.call::<GetConstraintForces>(&name, req)?);
+        }
+        "project" => {
+            let mut req = ProjectVelocityRequest {
+                use_latest_state: true,
+                use_twist: true,
+                ..Default::default()
+            };
+            let tw = take("--twist").pop().ok_or("project needs --twist")?;
+            req.base_twist = twist3(&numbers(&tw)?)?;
+            for j in take("--joint") {
+                let (n, v) = named(&j)?;
+                req.joint_names.push(n);
+                req.joint_velocities.push(v);
+            }
+            let lower = take("--lower");
+            let upper = take("--upper");
+            for (s, is_lower) in lower
+                .iter()
+                .map(|s| (s, true))
+                .chain(upper.iter().map(|s| (s, false)))
+            {
+                let (n, v) = named(s)?;
+                let k = match req.bound_names.iter().position(|b| *b == n) {
+                    Some(k) => k,
+                    None => {
+                        req.bound_names.push(n);
+                        req.lower.push(f64::NEG_INFINITY);
+                        req.upper.push(f64::INFINITY);
+                        req.bound_names.len() - 1
+                    }
+                };
+                if is_lower {
+                    req.lower[k] = v;
+                } else {
+                    req.upper[k] = v;
+                }
+            }
+            if let Some(s) = take("--accel-dt").pop() {
+                req.accel_limit_dt = s.parse().map_err(|_| "--accel-dt: not a number")?;
+            }
+            let name = q.name("cd_projection", "project_velocity");
+            print(&q.call::<ProjectVelocity>(&name, req)?);
+        }
+        "predict" => {
+            let mut req = PredictRequest {
+                use_latest_state: true,
+                horizon: 1.0,
+                command_period: 1.0,
+                ..Default::default()
+            };
+            for t in take("--twist") {
+                req.commands.push(twist3(&numbers(&t)?)?);
+            }
+            if let Some(s) = take("--period").pop() {
+                req.command_period = s.parse().map_err(|_| "--period: not a number")?;
+            }
+            if let Some(s) = take("--horizon").pop() {
+                req.horizon = s.parse().map_err(|_| "--horizon: not a number")?;
+            }
+            if let Some(k) = rest.iter().position(|a| a == "--forces") {
+                rest.remove(k);
+                req.with_forces = true;
+            }
+            let name = q.name("cd_prediction", "predict");
+            print(&q.call::<Predict>(&name, req)?);
+        }
+        "echo" => {
+            let count = take("--count")
+                .pop()
+                .map(|s| s.parse::<usize>().map_err(|_| "--count: not a number"))
+                .transpose()?
+                .unwrap_or(1);
+            let what = rest
+                .first()
+                .cloned()
+                .ok_or("echo needs odom, path or forces")?;
+            rest.clear();
+            match what.as_str() {
+                "odom" => {
+                    let t = q.name("cd_predictor", "predicted_odom");
+                    q.echo::<Odometry>(&t, count)?
+                }
+                "path" => {
+                    let t = q.name("cd_predictor", "predicted_path");
+                    q.echo::<Path>(&t, count)?
+                }
+                "forces" => {
+                    let t = q.name("cd_predictor", "constraint_forces");
+                    q.echo::<ConstraintForces>(&t, count)?
+                }
+                other => return Err(format!("echo {other}: expected odom, path or forces")),
+            }
+        }
+        "param" => {
+            let sub = rest.first().cloned().ok_or(USAGE)?;
+            let node = rest.get(1).cloned().ok_or("param needs a NODE")?;
+            match (sub.as_str(), rest.len()) {
+                ("list", 2) => {
+                    let r = q.call::<ListParameters>(
+                        &q.name(&node, "list_parameters"),
+                        ListParametersRequest {
+                            prefixes: vec![],
+                            depth: 0,
+                        },
+                    )?;
+                    print(&r.result.names);
+                }
+                ("get", 3) => {
+                    let r = q.call::<GetParameters>(
+                        &q.name(&node, "get_parameters"),
+                        GetParametersRequest {
+                            names: vec![rest[2].clone()],
+                        },
+                    )?;
+                    let v: Vec<String> = r
+                        .values
+                        .into_iter()
+                        .map(|v| format!("{:?}", ParameterValue::from(v)))
+                        .collect();
+                    print(&v);
+                }
+                ("set", 4) => {
+                    let yaml: serde_yaml::Value = serde_yaml::from_str(&rest[3])
+                        .unwrap_or_else(|_| serde_yaml::Value::String(rest[3].clone()));
+                    let value = yaml_to_param(&rest[2], &yaml).map_err(|e| e.to_string())?;
+                    let r = q.call::<SetParameters>(
+                        &q.name(&node, "set_parameters"),
+                        SetParametersRequest {
+                            parameter: vec![ros2_client::parameters::raw::Parameter {
+                                name: rest[2].clone(),
+                                value: value.into(),
+                            }],
+                        },
+                    )?;
+                    let out: Vec<(bool, String)> = r
+                        .results
+                        .into_iter()
+                        .map(|x| (x.successful, x.reason))
+                        .collect();
+                    print(&out);
+                }
+                _ => return Err(USAGE.into()),
+            }
+            rest.clear();
+        }
+        "-h" | "--help" => {
+            println!("{USAGE}");
+            return Ok(());
+        }
+        other => return Err(format!("unknown command {other:?}\n{USAGE}")),
+    }
+    if !rest.is_empty() {
+        eprintln!("warning: ignored arguments {rest:?}");
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let mut opts = Opts {
+        ns: "/".into(),
+        timeout: Duration::from_secs(5),
+        rest: Vec::new(),
+    };
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--ns" => opts.ns = args.next().unwrap_or_else(|| "/".into()),
+            "--timeout" => {
+                opts.timeout = args
+                    .next()
+                    .and_then(|s| s.parse::<f64>().ok())
+                    .map(Duration::from_secs_f64)
+                    .unwrap_or(opts.timeout)
+            }
+            _ => {
+                opts.rest.push(a);
+                opts.rest.extend(args.by_ref());
+            }
+        }
+    }
+    if opts.rest.is_empty() {
+        eprintln!("{USAGE}");
+        return ExitCode::from(2);
+    }
+    match run(opts) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
