@@ -239,6 +239,20 @@ impl Predictor {
             f64::NAN
         };
         let mut h = s.dt;
+        // The first control tick comes before the first sample, so that every sample's forces
+        // include the actuator torque held over the interval that ends (or, at t = 0, starts) there.
+        let command_at = |t: f64| {
+            commands
+                .iter()
+                .rev()
+                .find(|(ts, _)| *ts <= t + 1e-12)
+                .map(|(_, c)| c.clone())
+                .unwrap_or_default()
+        };
+        if !self.actuators.is_empty() && horizon > 0.0 {
+            self.actuators
+                .update(&command_at(0.0), &q, &v, period.min(horizon), &mut self.ws.tau_act);
+        }
         let first = self.sample(0.0, &q, &v, err_acc)?;
         let springs = self
             .forces
@@ -250,15 +264,9 @@ impl Predictor {
         while t < horizon - 1e-12 {
             k += 1;
             let t_end = (k as f64 * period).min(horizon);
-            if !self.actuators.is_empty() {
-                let cmd = commands
-                    .iter()
-                    .rev()
-                    .find(|(ts, _)| *ts <= t + 1e-12)
-                    .map(|(_, c)| c.clone())
-                    .unwrap_or_default();
+            if !self.actuators.is_empty() && k > 1 {
                 self.actuators
-                    .update(&cmd, &q, &v, t_end - t, &mut self.ws.tau_act);
+                    .update(&command_at(t), &q, &v, t_end - t, &mut self.ws.tau_act);
             }
             self.advance(
                 &mut q,
@@ -433,8 +441,9 @@ impl Predictor {
         let sys = &mut self.sys;
         let (mut lambda, mut forces, mut rank_deficiency) = (None, None, None);
         if self.want_forces && !sys.constraints.is_empty() {
+            // Held actuator torques (zero-order hold) plus the force elements at (t, q, v).
             let tau = &mut self.ws.tau;
-            tau.iter_mut().for_each(|x| *x = 0.0);
+            tau.copy_from_slice(&self.ws.tau_act);
             if !self.forces.is_empty() {
                 forward_kinematics(&sys.model, &mut sys.data, q, v, &self.ws.zero);
                 self.forces
