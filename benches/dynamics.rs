@@ -2,13 +2,15 @@
 //! (UR5: 6 DOF, end-effector point held, 3 rows; Solo12 on a free-flyer: 18 DOF, 4 feet, 12 rows).
 //! `tools/bench_vs_pinocchio.py` runs these beside Pinocchio and prints the ratios.
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+use constraint_dynamics::Model;
 use constraint_dynamics::algorithm::*;
-use constraint_dynamics::constraints::{ConstraintData, ConstraintSet, ConstraintSpec, Row};
+use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
 use constraint_dynamics::dynamics::{Baumgarte, KktWorkspace, constrained_forward_dynamics};
-use constraint_dynamics::{BaseType, Model, ModelOptions};
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
-use std::path::PathBuf;
 
 struct Case {
     name: &'static str,
@@ -19,54 +21,18 @@ struct Case {
     set: ConstraintSet,
 }
 
-fn reference() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/reference")
-}
-
-fn load(name: &'static str, urdf: &str, base: BaseType, case: &str) -> Case {
-    let model = Model::from_urdf_file(
-        reference().join("urdf").join(urdf),
-        &ModelOptions {
-            base,
-            ..Default::default()
-        },
-    )
-    .expect("model");
-    let text = std::fs::read_to_string(reference().join("cases").join(case)).expect("case file");
-    let json: serde_json::Value = serde_json::from_str(&text).expect("json");
+/// A reference case's model, state 2 and its constraints (shared with the tests).
+fn load(name: &'static str, case: &str) -> Case {
+    let json = common::load_case(case);
+    let model = common::case_model(&json);
     let st = &json["states"][2];
-    let f = |v: &serde_json::Value| -> Vec<f64> {
-        v.as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_f64().unwrap())
-            .collect()
-    };
-    let cons = st.get("constraints").unwrap_or(&json["constraints"]);
-    let specs: Vec<ConstraintSpec> = cons
-        .as_array()
-        .unwrap()
-        .iter()
-        .enumerate()
-        .map(|(k, c)| {
-            let a = f(&c["world_anchor"]);
-            ConstraintSpec::Point {
-                name: format!("c{k}"),
-                frame_a: c["link"].as_str().unwrap().into(),
-                point_a: [0.0; 3],
-                frame_b: "world".into(),
-                point_b: [a[0], a[1], a[2]],
-                rows: vec![Row::X, Row::Y, Row::Z],
-            }
-        })
-        .collect();
-    let q = f(&st["q"]);
-    let set = ConstraintSet::new(&model, &specs, &q).expect("constraints");
+    let q = common::vecf(&st["q"]);
+    let set = ConstraintSet::new(&model, &common::specs_for(&json, st), &q).expect("constraints");
     Case {
         name,
         q,
-        v: f(&st["qd"]),
-        tau: f(&st["tau"]),
+        v: common::vecf(&st["qd"]),
+        tau: common::vecf(&st["tau"]),
         model,
         set,
     }
@@ -74,18 +40,8 @@ fn load(name: &'static str, urdf: &str, base: BaseType, case: &str) -> Case {
 
 fn bench(c: &mut Criterion) {
     let cases = [
-        load(
-            "ur5",
-            "ur5_robot.urdf",
-            BaseType::Fixed,
-            "ur5_ee_point.json",
-        ),
-        load(
-            "solo12",
-            "solo12.urdf",
-            BaseType::Floating,
-            "solo12_four_feet.json",
-        ),
+        load("ur5", "ur5_ee_point"),
+        load("solo12", "solo12_four_feet"),
     ];
     for k in &cases {
         let (m, q, v, tau) = (&k.model, &k.q, &k.v, &k.tau);

@@ -8,8 +8,11 @@
 //! solution meets: no QP), `bounded` (bounds that bind: Clarabel + polish). UR5 and Solo12 use
 //! the reference case's state 2 with its `bounded` lb/ub (3 and 5 active bounds).
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use constraint_dynamics::algorithm::Data;
-use constraint_dynamics::constraints::{ConstraintData, ConstraintSet, ConstraintSpec, Row};
+use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
 use constraint_dynamics::dynamics::{Baumgarte, KktWorkspace, constrained_forward_dynamics};
 use constraint_dynamics::projection::{Method, ProjectionProblem, VelocityProjector};
 use constraint_dynamics::{BaseType, Model, ModelOptions, Scene};
@@ -52,24 +55,7 @@ fn reference(name: &'static str, urdf: &str, base: BaseType, case: &str) -> Case
     let text = std::fs::read_to_string(dir.join("cases").join(case)).expect("case file");
     let json: Value = serde_json::from_str(&text).expect("json");
     let st = &json["states"][2];
-    let cons = st.get("constraints").unwrap_or(&json["constraints"]);
-    let specs: Vec<ConstraintSpec> = cons
-        .as_array()
-        .unwrap()
-        .iter()
-        .enumerate()
-        .map(|(k, c)| {
-            let a = f(&c["world_anchor"]);
-            ConstraintSpec::Point {
-                name: format!("c{k}"),
-                frame_a: c["link"].as_str().unwrap().into(),
-                point_a: [0.0; 3],
-                frame_b: "world".into(),
-                point_b: [a[0], a[1], a[2]],
-                rows: vec![Row::X, Row::Y, Row::Z],
-            }
-        })
-        .collect();
+    let specs = common::specs_for(&json, st);
     let q = f(&st["q"]);
     let set = ConstraintSet::new(&model, &specs, &q).expect("constraints");
     let vp = &st["expected"]["velocity_projection"];

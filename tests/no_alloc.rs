@@ -4,7 +4,7 @@
 mod common;
 use common::*;
 use constraint_dynamics::algorithm::*;
-use constraint_dynamics::constraints::{ConstraintData, ConstraintSet, ConstraintSpec, Row};
+use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
 use constraint_dynamics::dynamics::{Baumgarte, KktWorkspace, constrained_forward_dynamics};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -42,24 +42,7 @@ fn algorithms_and_constrained_dynamics_do_not_allocate() {
         let model = case_model(&case);
         let st = &case["states"][1];
         let (q, v, tau) = (vecf(&st["q"]), vecf(&st["qd"]), vecf(&st["tau"]));
-        let cons = st.get("constraints").unwrap_or(&case["constraints"]);
-        let specs: Vec<ConstraintSpec> = cons
-            .as_array()
-            .unwrap()
-            .iter()
-            .enumerate()
-            .map(|(k, c)| {
-                let a = vecf(&c["world_anchor"]);
-                ConstraintSpec::Point {
-                    name: format!("c{k}"),
-                    frame_a: c["link"].as_str().unwrap().into(),
-                    point_a: [0.0; 3],
-                    frame_b: "world".into(),
-                    point_b: [a[0], a[1], a[2]],
-                    rows: vec![Row::X, Row::Y, Row::Z],
-                }
-            })
-            .collect();
+        let specs = specs_for(&case, st);
         let set = ConstraintSet::new(&model, &specs, &q).unwrap();
         let mut data = Data::new(&model);
         let mut cd = ConstraintData::new(&model, &set);
