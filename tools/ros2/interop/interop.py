@@ -41,6 +41,7 @@ R, C = 0.05, 0.17  # wheel radius, half track [m] (urdf/diff_drive.urdf)
 WHEEL_DAMPING = 0.01  # [N m s/rad], <dynamics damping> of both wheels in urdf/diff_drive.urdf
 NODES = ["cd_predictor", "cd_forces", "cd_projection", "cd_prediction"]
 RESULTS = []
+MEASURED = {}
 
 
 def check(name, ok, detail=""):
@@ -164,6 +165,21 @@ def check_odom_arc(name, msg, start, t, tol=3e-3):
     cov = list(msg.pose.covariance)
     check(name, err <= tol and msg.header.frame_id == "odom" and any(c != 0.0 for c in cov[:1] + cov[7:8]),
           f"pose error {err:.2e} (tolerance {tol}), frame {msg.header.frame_id!r}, cov[0] {cov[0]}")
+
+
+def measure_round_trip(user, req, n=200):
+    """rclpy's round trip to get_constraint_forces [ms]: p50, p99 over n calls."""
+    client = user.create_client(GetConstraintForces, "/cd_forces/get_constraint_forces")
+    client.wait_for_service(timeout_sec=10)
+    times = []
+    for _ in range(n):
+        t = time.perf_counter()
+        fut = client.call_async(req)
+        while not fut.done():
+            time.sleep(0.0001)
+        times.append((time.perf_counter() - t) * 1e3)
+    times.sort()
+    return times[len(times) // 2], times[int(0.99 * (len(times) - 1))]
 
 
 def phase_twist(user):
@@ -311,6 +327,8 @@ def phase_twist(user):
     resp = user.call(GetConstraintForces, "/cd_forces/get_constraint_forces",
                      GetConstraintForces.Request(use_latest_state=False, q=q, v=v, tau=tau))
     check("services keep serving after bad requests", resp is not None and resp.success, None if resp is None else resp.message)
+    p50, p99 = measure_round_trip(user, GetConstraintForces.Request(use_latest_state=False, q=q, v=v, tau=tau))
+    MEASURED["rclpy get_constraint_forces round trip p50/p99 [ms]"] = (round(p50, 3), round(p99, 3))
 
     # --- a second, independent DDS decodes the predicted odometry
     out = subprocess.run([sys.executable, str(ROOT / "tools/ros2/cyclone_check.py"), "--topic",
@@ -376,15 +394,21 @@ def phase_stamped(user):
 
 
 def run_phase(suite, params, stamped, body):
-    proc = subprocess.Popen([suite, "--ros-args", "--params-file", str(params)], cwd=ROOT,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     rclpy.init()
     user = User(stamped)
+    started = time.monotonic()
+    proc = subprocess.Popen([suite, "--ros-args", "--params-file", str(params)], cwd=ROOT,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     ex = MultiThreadedExecutor()
     ex.add_node(user)
     spinner = threading.Thread(target=ex.spin, daemon=True)
     spinner.start()
     try:
+        first = user.wait_new(user.odom, 0.0, timeout=20)
+        if first is not None and not stamped:
+            with user.lock:
+                arrival = user.odom[0][0]
+            MEASURED["start-up to the first predicted odometry seen by rclpy [s]"] = round(arrival - started, 3)
         body(user)
     finally:
         ex.shutdown()
@@ -406,6 +430,8 @@ def main():
     args = ap.parse_args()
     run_phase(args.suite, HERE / "twist.yaml", False, phase_twist)
     run_phase(args.suite, HERE / "stamped.yaml", True, phase_stamped)
+    for k, val in MEASURED.items():
+        print(f"measured: {k}: {val}")
     passed = sum(ok for _, ok in RESULTS)
     failed = len(RESULTS) - passed
     print(f"interop: {passed} passed, {failed} failed")
