@@ -250,8 +250,13 @@ impl Predictor {
                 .unwrap_or_default()
         };
         if !self.actuators.is_empty() && horizon > 0.0 {
-            self.actuators
-                .update(&command_at(0.0), &q, &v, period.min(horizon), &mut self.ws.tau_act);
+            self.actuators.update(
+                &command_at(0.0),
+                &q,
+                &v,
+                period.min(horizon),
+                &mut self.ws.tau_act,
+            );
         }
         let first = self.sample(0.0, &q, &v, err_acc)?;
         let springs = self
