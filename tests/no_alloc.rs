@@ -6,34 +6,10 @@ use common::*;
 use constraint_dynamics::algorithm::*;
 use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
 use constraint_dynamics::dynamics::{Baumgarte, KktWorkspace, constrained_forward_dynamics};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
-struct Counting;
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.realloc(p, l, n) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn count<F: FnMut()>(mut f: F) -> usize {
-    let before = ALLOCS.load(Ordering::SeqCst);
-    f();
-    ALLOCS.load(Ordering::SeqCst) - before
-}
+#[path = "common/counting_alloc.rs"]
+mod counting_alloc;
+use counting_alloc::allocations;
 
 #[test]
 fn algorithms_and_constrained_dynamics_do_not_allocate() {
@@ -55,35 +31,35 @@ fn algorithms_and_constrained_dynamics_do_not_allocate() {
         constrained_forward_dynamics(&model, &mut data, &set, &mut cd, &mut ws, &q, &v, &tau, b)
             .unwrap();
         assert_eq!(
-            count(|| {
+            allocations(|| {
                 rnea(&model, &mut data, &q, &v, &tau);
             }),
             0,
             "{name}: rnea allocates"
         );
         assert_eq!(
-            count(|| {
+            allocations(|| {
                 nonlinear_effects(&model, &mut data, &q, &v);
             }),
             0,
             "{name}: nle allocates"
         );
         assert_eq!(
-            count(|| {
+            allocations(|| {
                 crba(&model, &mut data, &q);
             }),
             0,
             "{name}: crba allocates"
         );
         assert_eq!(
-            count(|| {
+            allocations(|| {
                 aba(&model, &mut data, &q, &v, &tau);
             }),
             0,
             "{name}: aba allocates"
         );
         assert_eq!(
-            count(|| {
+            allocations(|| {
                 constrained_forward_dynamics(
                     &model, &mut data, &set, &mut cd, &mut ws, &q, &v, &tau, b,
                 )

@@ -4,38 +4,18 @@
 
 use constraint_dynamics::Scene;
 use constraint_dynamics::predict::{DriftControl, Method, Predictor};
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
-struct Counting;
-static ALLOCS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(l) }
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) }
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, n: usize) -> *mut u8 {
-        ALLOCS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.realloc(p, l, n) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
+#[path = "common/counting_alloc.rs"]
+mod counting_alloc;
+use counting_alloc::allocations;
 
 /// Allocations of one prediction over `horizon` with two samples (t = 0 and the end).
-fn allocations(p: &mut Predictor, sc: &Scene, horizon: f64) -> usize {
+fn prediction_allocations(p: &mut Predictor, sc: &Scene, horizon: f64) -> usize {
     p.settings.sample_period = horizon;
-    let before = ALLOCS.load(Ordering::SeqCst);
-    let t = p.predict(&sc.q0, &sc.v0, &[], horizon).unwrap();
-    let n = ALLOCS.load(Ordering::SeqCst) - before;
-    assert_eq!(t.samples.len(), 2);
-    drop(t);
+    let mut t = None;
+    let n = allocations(|| t = Some(p.predict(&sc.q0, &sc.v0, &[], horizon).unwrap()));
+    assert_eq!(t.unwrap().samples.len(), 2);
     n
 }
 
@@ -59,10 +39,10 @@ fn stepping_allocates_nothing_per_step() {
             p.settings.dt = dt;
             p.settings.drift = DriftControl::Projection;
             let h = 100.0 * dt;
-            allocations(&mut p, &sc, h); // warm-up
+            prediction_allocations(&mut p, &sc, h); // warm-up
             let (short, long) = (
-                allocations(&mut p, &sc, h),
-                allocations(&mut p, &sc, 4.0 * h),
+                prediction_allocations(&mut p, &sc, h),
+                prediction_allocations(&mut p, &sc, 4.0 * h),
             );
             println!(
                 "{rel} {method:?}: {short} allocations over {h} s, {long} over {} s",

@@ -685,19 +685,7 @@ impl Engine {
             .predict(&q, &v, &[(0.0, cmd.clone())], horizon)
             .map_err(|e| format!("prediction: {e}"))?;
         let odom = self.odometry_at_horizon(&traj, now)?;
-        let frame = self.params.common().frames.odom_frame.clone();
-        let path = Path {
-            header: Header {
-                stamp: now,
-                frame_id: frame.clone(),
-            },
-            poses: path_poses(
-                &self.scene.model,
-                traj.samples.iter().map(|s| (s.t, s.q.as_slice())),
-                now,
-                &frame,
-            ),
-        };
+        let path = self.path(&traj, now);
         // Forces at the start state, under the torques the controllers apply in the first tick.
         let tau = self.first_tick_torque(&cmd, &q, &v, horizon);
         let f = self.forces_at(&q, &v, &tau)?;
@@ -723,6 +711,23 @@ impl Engine {
         let dt = act.control_period.min(s.sample_period).min(horizon);
         act.update(cmd, q, v, dt, &mut tau);
         tau
+    }
+
+    /// The predicted base poses as a `nav_msgs/Path` in the odom frame, stamped from `now`.
+    fn path(&self, traj: &Trajectory, now: Time) -> Path {
+        let frame = self.params.common().frames.odom_frame.clone();
+        Path {
+            header: Header {
+                stamp: now,
+                frame_id: frame.clone(),
+            },
+            poses: path_poses(
+                &self.scene.model,
+                traj.samples.iter().map(|s| (s.t, s.q.as_slice())),
+                now,
+                &frame,
+            ),
+        }
     }
 
     fn odometry_at_horizon(&self, traj: &Trajectory, start: Time) -> Result<Odometry, String> {
@@ -844,19 +849,7 @@ impl Engine {
             .predict(&q, &v, &commands, req.horizon)
             .map_err(|e| format!("prediction: {e}"))?;
         self.predictor.want_forces = false;
-        let frame = self.params.common().frames.odom_frame.clone();
-        let path = Path {
-            header: Header {
-                stamp: now,
-                frame_id: frame.clone(),
-            },
-            poses: path_poses(
-                &self.scene.model,
-                traj.samples.iter().map(|s| (s.t, s.q.as_slice())),
-                now,
-                &frame,
-            ),
-        };
+        let path = self.path(&traj, now);
         let mut forces = Vec::new();
         if req.with_forces {
             for s in &traj.samples {
