@@ -11,6 +11,7 @@
 
 pub mod actuators;
 pub mod algorithm;
+pub mod applied;
 pub mod constraints;
 pub mod dynamics;
 pub mod error;

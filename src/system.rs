@@ -14,6 +14,27 @@ use crate::model::Model;
 use crate::scene::Scene;
 use nalgebra::DVector;
 
+/// How one dynamics evaluation is done (passed in, never toggled on the system around a call).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DynamicsOptions {
+    /// Multipliers (λ and the constraint forces) or the embedded, multiplier-free form;
+    /// `Auto` means multipliers here.
+    pub formulation: Formulation,
+    /// Multiplier form: accept acceleration rows that cannot all be met (redundant rows that
+    /// disagree by drift, at or next to a singular configuration) with the least-squares
+    /// λ = S⁺ r, instead of an error. The predictor's stages ask for it.
+    pub allow_inconsistent: bool,
+}
+
+impl Default for DynamicsOptions {
+    fn default() -> Self {
+        DynamicsOptions {
+            formulation: Formulation::Multipliers,
+            allow_inconsistent: false,
+        }
+    }
+}
+
 /// Model + constraints + workspaces.
 #[derive(Clone, Debug)]
 pub struct System {
@@ -69,15 +90,43 @@ impl System {
         tau: &[f64],
         want_forces: bool,
     ) -> Result<&DVector<f64>> {
+        let formulation = match self.formulation {
+            Formulation::Auto if want_forces || self.constraints.is_empty() => {
+                Formulation::Multipliers
+            }
+            Formulation::Auto => Formulation::Embedded,
+            f => f,
+        };
+        self.forward_dynamics_with(
+            q,
+            v,
+            tau,
+            DynamicsOptions {
+                formulation,
+                ..Default::default()
+            },
+        )
+    }
+
+    /// Constrained forward dynamics at (q, v, τ) with the options of this one call (the
+    /// system's own `formulation` is not consulted). Returns q̈ (nv); λ is in `self.kkt.lambda`
+    /// when multipliers were used.
+    pub fn forward_dynamics_with(
+        &mut self,
+        q: &[f64],
+        v: &[f64],
+        tau: &[f64],
+        opts: DynamicsOptions,
+    ) -> Result<&DVector<f64>> {
         self.model.check_state(q, v)?;
         check_len("tau", tau, self.model.nv)?;
         crate::error::check_finite("tau", tau)?;
-        let use_multipliers = match self.formulation {
-            Formulation::Multipliers => true,
+        let use_multipliers = match opts.formulation {
+            Formulation::Multipliers | Formulation::Auto => true,
             Formulation::Embedded => false,
-            Formulation::Auto => want_forces || self.constraints.is_empty(),
         };
         if use_multipliers {
+            self.kkt.allow_inconsistent = opts.allow_inconsistent;
             constrained_forward_dynamics(
                 &self.model,
                 &mut self.data,

@@ -81,7 +81,7 @@ fn mobile_manipulator_standing_still_carries_its_weight_on_its_contacts() {
     );
     // The redundant lateral rows of the two wheels are reported, not hidden.
     assert_eq!(sys.kkt.rank_deficiency, 1);
-    for f in forces.iter().filter(|f| f.kind == "rolling") {
+    for f in forces.iter().filter(|f| f.kind.name() == "rolling") {
         assert!(f.normal_force.unwrap() > 0.0 && f.tangential_force.unwrap() < 1e-9);
     }
 }

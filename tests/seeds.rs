@@ -286,7 +286,7 @@ fn seed001_vertical_disk_rolls_with_constant_rates() {
         // Contact force = m × centripetal acceleration of the centre.
         let (u, wz, psi) = (v[ivx], v[iwz], q[iyaw]);
         let f = sys.constraint_forces();
-        let rolling: Vec<_> = f.iter().filter(|c| c.kind == "rolling").collect();
+        let rolling: Vec<_> = f.iter().filter(|c| c.kind.name() == "rolling").collect();
         assert_eq!(rolling.len(), 1);
         assert_eq!(rolling[0].name, "disk_contact");
         let fh = [rolling[0].force[0], rolling[0].force[1]];
@@ -412,6 +412,6 @@ fn seed_diff_drive_no_side_slip_is_lateral_velocity() {
     );
     assert!((sys.cdata.jv[0] - seed_residual).abs() < 1e-12);
     let f = sys.constraint_forces();
-    assert_eq!(f[0].kind, "no_side_slip");
+    assert_eq!(f[0].kind.name(), "no_side_slip");
     assert!((f[0].velocity_residual[0] - vy).abs() < 1e-12);
 }

@@ -20,16 +20,19 @@ use std::process::{Command, ExitCode};
 use std::time::{Duration, Instant};
 
 use common::*;
-use constraint_dynamics_nodes::engine::Engine;
-use constraint_dynamics_nodes::logging::NodeLog;
+use constraint_dynamics_nodes::forces::ForcesNode;
 use constraint_dynamics_nodes::msg::builtin_interfaces::Time;
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::{
     GetConstraintForces, GetConstraintForcesRequest, Predict, PredictRequest, ProjectVelocity,
     ProjectVelocityRequest,
 };
 use constraint_dynamics_nodes::msg::nav_msgs::Odometry;
-use constraint_dynamics_nodes::params::{NodeKind, NodeParams};
-use constraint_dynamics_nodes::ros_context::in_loopback_only_namespace;
+use constraint_dynamics_nodes::node::worker::NodeLogic;
+use constraint_dynamics_nodes::params::{CommonParams, NodeParams};
+use constraint_dynamics_nodes::projection::ProjectionNode;
+use constraint_dynamics_nodes::robot::Robot;
+use constraint_dynamics_nodes::ros::context::in_loopback_only_namespace;
+use constraint_dynamics_nodes::ros::logging::NodeLog;
 
 struct Stats {
     p50: f64,
@@ -145,21 +148,36 @@ fn main() -> ExitCode {
     let pr = time_calls(&predict, &predict_req, 20, |r| r.success);
     drop(suite);
 
-    // The same work without ROS (the engine a node's worker owns).
-    let mut params = NodeParams::defaults(NodeKind::Projection);
-    *params.scene_file_mut() = repo_root()
+    // The same work without ROS (the logic a node's worker owns).
+    let mut common = CommonParams::default();
+    common.model.scene_file = repo_root()
         .join("params/suite_mobile_manipulator.yaml")
         .display()
         .to_string();
-    let mut engine = Engine::load(params, NodeLog::new("bench")).expect("engine");
+    let robot = Robot::load(&common).expect("robot");
+    let log = NodeLog::new("bench");
+    let forces_params = NodeParams {
+        common: common.clone(),
+        node: Default::default(),
+    };
+    let mut forces_node =
+        ForcesNode::new(robot.clone(), forces_params, log.clone()).expect("forces");
+    let projection_params = NodeParams {
+        common,
+        node: Default::default(),
+    };
+    let mut projection_node =
+        ProjectionNode::new(robot, projection_params, log).expect("projection");
     let lf = time_local(n, || {
         assert!(
-            engine
+            forces_node
                 .get_constraint_forces(&forces_req, Time::now())
                 .success
         )
     });
-    let lp = time_local(n, || assert!(engine.project_velocity(&project_req).success));
+    let lp = time_local(n, || {
+        assert!(projection_node.project_velocity(&project_req).success)
+    });
 
     let row = |name: &str, s: &Stats| {
         format!(

@@ -1,34 +1,40 @@
 //! Conversions between the core library's values and ROS messages (pure functions).
 //!
-//! Conventions (REP-103/105): poses in the odom frame, twists in the base frame, SI units;
-//! planar base `q = (x, y, yaw)`, `v = (vx, vy, wz)` (base frame); floating base
-//! `q = (x, y, z, qx, qy, qz, qw)`, `v = (v_lin, ω)` (base frame), as the core orders them.
+//! Conventions (REP-103/105): poses in the odom frame, twists in the base frame, SI units; the
+//! base coordinates are the core's (`constraint_dynamics::model::base`).
 
-use constraint_dynamics::algorithm::{forward_kinematics_pos, frame_placement};
-use constraint_dynamics::constraints::ConstraintForce as CoreForce;
-use constraint_dynamics::{BaseType, Model, System};
+use constraint_dynamics::Model;
+use constraint_dynamics::constraints::{ConstraintForce as CoreForce, SlipTest};
+use constraint_dynamics::model::{BasePose, BaseTwist};
+use constraint_dynamics::predict::Trajectory;
+use constraint_dynamics::spatial::Force;
 
+use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::constraint_dynamics_msgs::{ConstraintForce, ConstraintForces};
 use crate::msg::geometry_msgs::{Point, Pose, PoseStamped, Quaternion, Twist, Vector3, Wrench};
+use crate::msg::nav_msgs::Path;
 use crate::msg::std_msgs::Header;
 
 /// Yaw [rad] of a quaternion (rotation about z of the heading), after normalising it.
 /// Errors on a non-finite or zero quaternion.
-pub fn yaw_of(q: &Quaternion) -> Result<f64, String> {
+pub fn yaw_of(q: &Quaternion) -> Result<f64, NodeError> {
     let [x, y, z, w] = unit_quaternion(q)?;
     Ok((2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z)))
 }
 
 /// The quaternion normalised, as (x, y, z, w). Errors on non-finite or zero length.
-pub fn unit_quaternion(q: &Quaternion) -> Result<[f64; 4], String> {
+pub fn unit_quaternion(q: &Quaternion) -> Result<[f64; 4], NodeError> {
     let a = [q.x, q.y, q.z, q.w];
     if a.iter().any(|x| !x.is_finite()) {
-        return Err(format!("orientation {a:?} is not finite"));
+        return Err(NodeError::message(
+            "orientation",
+            format!("{a:?} is not finite"),
+        ));
     }
     let n = a.iter().map(|x| x * x).sum::<f64>().sqrt();
     if n < 1e-9 {
-        return Err("orientation is a zero quaternion".into());
+        return Err(NodeError::message("orientation", "is a zero quaternion"));
     }
     Ok(a.map(|x| x / n))
 }
@@ -43,155 +49,6 @@ pub fn quaternion_from_yaw(yaw: f64) -> Quaternion {
     }
 }
 
-/// The base pose in the world (odom) frame from a configuration.
-pub fn base_pose(model: &Model, q: &[f64]) -> Pose {
-    match model.base {
-        BaseType::Planar => Pose {
-            position: Point {
-                x: q[0],
-                y: q[1],
-                z: 0.0,
-            },
-            orientation: quaternion_from_yaw(q[2]),
-        },
-        BaseType::Floating => Pose {
-            position: Point {
-                x: q[0],
-                y: q[1],
-                z: q[2],
-            },
-            orientation: Quaternion {
-                x: q[3],
-                y: q[4],
-                z: q[5],
-                w: q[6],
-            },
-        },
-        BaseType::Fixed => Pose::default(),
-    }
-}
-
-/// The base twist in the base frame from a velocity.
-pub fn base_twist(model: &Model, v: &[f64]) -> Twist {
-    match model.base {
-        BaseType::Planar => Twist {
-            linear: Vector3 {
-                x: v[0],
-                y: v[1],
-                z: 0.0,
-            },
-            angular: Vector3 {
-                x: 0.0,
-                y: 0.0,
-                z: v[2],
-            },
-        },
-        BaseType::Floating => Twist {
-            linear: Vector3 {
-                x: v[0],
-                y: v[1],
-                z: v[2],
-            },
-            angular: Vector3 {
-                x: v[3],
-                y: v[4],
-                z: v[5],
-            },
-        },
-        BaseType::Fixed => Twist::default(),
-    }
-}
-
-/// A time `dt` seconds after `t`.
-pub fn time_plus(t: Time, dt: f64) -> Time {
-    Time::from_nanos(t.to_nanos().saturating_add((dt * 1e9).round() as i64))
-}
-
-/// Poses of a trajectory for `nav_msgs/Path`: the base pose at each `(t, q)`, stamped
-/// `start + t`, in `frame_id`.
-pub fn path_poses<'a>(
-    model: &Model,
-    samples: impl Iterator<Item = (f64, &'a [f64])>,
-    start: Time,
-    frame_id: &str,
-) -> Vec<PoseStamped> {
-    samples
-        .map(|(t, q)| PoseStamped {
-            header: Header {
-                stamp: time_plus(start, t),
-                frame_id: frame_id.to_string(),
-            },
-            pose: base_pose(model, q),
-        })
-        .collect()
-}
-
-/// How slip is judged (see [`crate::params::SlipParams`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SlipRule {
-    /// μ [-].
-    pub mu: f64,
-    /// Normal force used when the model has none (planar base) [N].
-    pub fallback_normal: f64,
-}
-
-impl SlipRule {
-    /// From the parameters and the model: `planar_normal_force`, or m·|g| / n_rolling.
-    pub fn new(params: &crate::params::SlipParams, model: &Model, n_rolling: usize) -> Self {
-        let fallback_normal = if params.planar_normal_force > 0.0 {
-            params.planar_normal_force
-        } else {
-            model.total_mass() * model.gravity.norm() / n_rolling.max(1) as f64
-        };
-        SlipRule {
-            mu: params.friction_coefficient,
-            fallback_normal,
-        }
-    }
-
-    /// (normal force used, tangential force, slipping) of a rolling contact.
-    pub fn judge(&self, f: &CoreForce) -> Option<(f64, f64, bool)> {
-        if f.kind != "rolling" {
-            return None;
-        }
-        let tangential = f.tangential_force.unwrap_or(0.0);
-        let normal = match f.normal_force {
-            Some(n) if n.is_finite() => n,
-            _ => self.fallback_normal,
-        };
-        Some((normal, tangential, tangential > self.mu * normal))
-    }
-}
-
-/// The wrench of a core constraint force moved from its point of application to the origin of
-/// its frame: τ_o = τ_p + (p − o) × f. `origin` is the frame origin in world coordinates.
-pub fn wrench_at(f: &CoreForce, origin: Option<[f64; 3]>) -> Wrench {
-    let mut torque = f.torque;
-    if let Some(o) = origin {
-        let r = [
-            f.point_world[0] - o[0],
-            f.point_world[1] - o[1],
-            f.point_world[2] - o[2],
-        ];
-        let c = cross(r, f.force);
-        for k in 0..3 {
-            torque[k] += c[k];
-        }
-    }
-    Wrench {
-        force: v3(f.force),
-        torque: v3(torque),
-    }
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
 fn v3(a: [f64; 3]) -> Vector3 {
     Vector3 {
         x: a[0],
@@ -200,40 +57,88 @@ fn v3(a: [f64; 3]) -> Vector3 {
     }
 }
 
-/// World positions of the frame origins named by `forces` at configuration `q` (None for names
-/// that are not frames, e.g. couplings). Runs a position kinematics pass on `sys.data`.
-pub fn frame_origins(sys: &mut System, q: &[f64], forces: &[CoreForce]) -> Vec<Option<[f64; 3]>> {
-    forward_kinematics_pos(&sys.model, &mut sys.data, q);
-    forces
-        .iter()
-        .map(|f| {
-            sys.model.frame_id(&f.frame).ok().map(|id| {
-                let t = frame_placement(&sys.model, &sys.data, id).translation;
-                [t.x, t.y, t.z]
+/// A core base pose as a `geometry_msgs/Pose`.
+pub fn pose_msg(p: &BasePose) -> Pose {
+    let [x, y, z, w] = p.orientation_xyzw;
+    Pose {
+        position: Point {
+            x: p.position[0],
+            y: p.position[1],
+            z: p.position[2],
+        },
+        orientation: Quaternion { x, y, z, w },
+    }
+}
+
+/// A core base twist as a `geometry_msgs/Twist`.
+pub fn twist_msg(t: &BaseTwist) -> Twist {
+    Twist {
+        linear: v3(t.linear),
+        angular: v3(t.angular),
+    }
+}
+
+/// A `geometry_msgs/Twist` as a core base twist.
+pub fn base_twist_of(t: &Twist) -> BaseTwist {
+    BaseTwist {
+        linear: [t.linear.x, t.linear.y, t.linear.z],
+        angular: [t.angular.x, t.angular.y, t.angular.z],
+    }
+}
+
+/// A spatial force as a `geometry_msgs/Wrench`.
+pub fn wrench_msg(f: &Force) -> Wrench {
+    Wrench {
+        force: v3([f.lin.x, f.lin.y, f.lin.z]),
+        torque: v3([f.ang.x, f.ang.y, f.ang.z]),
+    }
+}
+
+/// A time `dt` seconds after `t`.
+pub fn time_plus(t: Time, dt: f64) -> Time {
+    Time::from_nanos(t.to_nanos().saturating_add((dt * 1e9).round() as i64))
+}
+
+/// The predicted base poses as a `nav_msgs/Path` in `frame_id`, each stamped `start + t`.
+pub fn path_msg(model: &Model, traj: &Trajectory, start: Time, frame_id: &str) -> Path {
+    Path {
+        header: Header {
+            stamp: start,
+            frame_id: frame_id.to_string(),
+        },
+        poses: traj
+            .samples
+            .iter()
+            .map(|s| PoseStamped {
+                header: Header {
+                    stamp: time_plus(start, s.t),
+                    frame_id: frame_id.to_string(),
+                },
+                pose: pose_msg(&model.base_pose(&s.q)),
             })
-        })
-        .collect()
+            .collect(),
+    }
 }
 
 /// Everything a `ConstraintForces` message needs besides the forces.
 pub struct ForcesContext<'a> {
+    /// Header stamp.
     pub stamp: Time,
     /// The fixed frame that replaces the core's "world".
     pub world_frame: &'a str,
+    /// Names of the velocity coordinates (the order of `generalized_force`).
     pub v_names: &'a [String],
     /// Jᵀλ (nv) [N or N·m].
     pub generalized_force: &'a [f64],
+    /// nc − rank(J M⁻¹ Jᵀ).
     pub rank_deficiency: usize,
-    pub slip: SlipRule,
+    /// How slip is judged.
+    pub slip: SlipTest,
 }
 
-/// A `ConstraintForces` message from core forces and their frame origins
-/// (see [`frame_origins`]).
-pub fn constraint_forces_msg(
-    forces: &[CoreForce],
-    origins: &[Option<[f64; 3]>],
-    ctx: &ForcesContext,
-) -> ConstraintForces {
+/// A `ConstraintForces` message from core forces: each wrench about its frame's origin, slip
+/// judged per rolling contact.
+pub fn constraint_forces_msg(forces: &[CoreForce], ctx: &ForcesContext) -> ConstraintForces {
     let world = |s: &str| {
         if s == "world" {
             ctx.world_frame.to_string()
@@ -243,25 +148,21 @@ pub fn constraint_forces_msg(
     };
     let constraints = forces
         .iter()
-        .enumerate()
-        .map(|(k, f)| {
-            let (normal_force, tangential_force, slipping) = match ctx.slip.judge(f) {
-                Some((n, t, s)) => (n, t, s),
-                None => (0.0, 0.0, false),
-            };
+        .map(|f| {
+            let verdict = ctx.slip.judge(f);
             ConstraintForce {
                 name: f.name.clone(),
-                kind: f.kind.to_string(),
+                kind: f.kind.name().to_string(),
                 frame_id: world(&f.frame),
                 axes_frame_id: world(&f.axes),
-                wrench: wrench_at(f, origins.get(k).copied().flatten()),
+                wrench: wrench_msg(&f.wrench_at_frame_origin()),
                 multipliers: f.lambda.clone(),
                 row_names: f.rows.clone(),
                 position_residual: f.position_residual.clone(),
                 velocity_residual: f.velocity_residual.clone(),
-                normal_force,
-                tangential_force,
-                slipping,
+                normal_force: verdict.map_or(0.0, |v| v.normal_force),
+                tangential_force: verdict.map_or(0.0, |v| v.tangential_force),
+                slipping: verdict.is_some_and(|v| v.slipping),
             }
         })
         .collect();
@@ -309,50 +210,12 @@ mod tests {
             z: 0.0,
             w: 0.0,
         };
-        assert!(yaw_of(&zero).unwrap_err().contains("zero"));
+        assert!(yaw_of(&zero).unwrap_err().to_string().contains("zero"));
         let nan = Quaternion {
             x: f64::NAN,
             ..Quaternion::default()
         };
-        assert!(yaw_of(&nan).unwrap_err().contains("finite"));
-    }
-
-    #[test]
-    fn wrench_moves_to_the_frame_origin() {
-        let f = CoreForce {
-            name: "c".into(),
-            kind: "rolling",
-            frame: "wheel".into(),
-            axes: "world".into(),
-            rows: vec![],
-            lambda: vec![],
-            force: [2.0, 0.0, 10.0],
-            torque: [0.0, 0.0, 0.0],
-            point_world: [0.0, 0.0, 0.0],
-            position_residual: vec![],
-            velocity_residual: vec![],
-            normal_force: Some(10.0),
-            tangential_force: Some(2.0),
-        };
-        // Contact 0.05 m below the wheel centre: τ = (0, 0, −0.05) × (2, 0, 10) = (0, −0.1, 0).
-        let w = wrench_at(&f, Some([0.0, 0.0, 0.05]));
-        assert_eq!(
-            (w.torque.x, w.torque.y, w.torque.z),
-            (0.0, -0.1, 0.0),
-            "{w:?}"
-        );
-        let rule = SlipRule {
-            mu: 0.1,
-            fallback_normal: 1.0,
-        };
-        assert_eq!(rule.judge(&f), Some((10.0, 2.0, true)));
-        let rule = SlipRule { mu: 0.5, ..rule };
-        assert_eq!(rule.judge(&f), Some((10.0, 2.0, false)));
-        let planar = CoreForce {
-            normal_force: Some(f64::NAN),
-            ..f
-        };
-        assert_eq!(rule.judge(&planar), Some((1.0, 2.0, true)));
+        assert!(yaw_of(&nan).unwrap_err().to_string().contains("finite"));
     }
 
     #[test]

@@ -1,29 +1,36 @@
 //! ROS 2 nodes (ros2-client, pure Rust) over the `constraint_dynamics` core.
 //!
-//! The core knows nothing of ROS; this crate holds the glue, layered so that only
-//! [`suite`] owns ROS handles:
-//! - [`msg`]: the ROS message and service types as serde structs,
-//! - [`ros_args`]: `--ros-args` and ROS parameter-file parsing; [`params`]: the nodes' typed
-//!   parameters,
-//! - [`ros_context`]: a ros2-client `Context` honouring `ROS_DOMAIN_ID` and a configurable set
-//!   of network interfaces, and nodes whose spinner runs on a background thread,
-//! - [`state`], [`convert`], [`engine`]: the domain side (latest state, message ↔ core
-//!   conversions, what each request and prediction computes) — plain data in and out,
-//! - [`worker`]: one thread per node that owns its engine and handles domain events off the
-//!   executor,
-//! - [`suite`]: starts the nodes, translates messages and requests into events, publishes,
-//! - [`logging`]: stderr and `/rosout`.
+//! The core knows nothing of ROS; this crate holds the glue, in three layers:
+//! - the ROS plumbing, knowing nothing of the physics: [`ros`] (command line and parameter
+//!   files, DDS context and nodes, the network rule, logging, executor loops) and [`msg`] (the
+//!   message and service types as serde structs);
+//! - the domain side, plain data in and out: [`params`] (typed parameters shared by every
+//!   kind), [`robot`] (the scene a node serves and its latest state), [`convert`] (core values
+//!   ↔ messages), and one module per node kind — [`predictor`], [`forces`], [`projection`],
+//!   [`prediction`] — each with its logic (`mod.rs`), its own parameters and its ROS wiring
+//!   (`ros.rs`);
+//! - [`node`]: what every kind is made of — its logic on a worker thread, its ROS wiring;
+//! - [`suite`]: starts the enabled nodes on one participant, and the binaries' `main`.
 //!
 //! Every process that opens a DDS participant in tests must run inside a loopback-only
 //! network namespace (`tools/ros2/netns_run.sh`). See `docs/nodes.md`.
 
+#![warn(missing_docs)]
+
 pub mod convert;
-pub mod engine;
-pub mod logging;
+pub mod error;
+pub mod forces;
+// The message structs mirror the .msg/.srv files field by field; their documentation is in
+// `interfaces/constraint_dynamics_msgs/` and the ROS 2 interface packages.
+#[allow(missing_docs)]
 pub mod msg;
+pub mod node;
 pub mod params;
-pub mod ros_args;
-pub mod ros_context;
-pub mod state;
+pub mod prediction;
+pub mod predictor;
+pub mod projection;
+pub mod robot;
+pub mod ros;
 pub mod suite;
-pub mod worker;
+
+pub use error::NodeError;

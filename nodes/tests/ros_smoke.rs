@@ -37,7 +37,7 @@ use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::{
 use constraint_dynamics_nodes::msg::geometry_msgs::{Point, Pose, Quaternion, Twist, Vector3};
 use constraint_dynamics_nodes::msg::nav_msgs::Odometry;
 use constraint_dynamics_nodes::msg::std_srvs::{Trigger, TriggerRequest, TriggerResponse};
-use constraint_dynamics_nodes::ros_context::{
+use constraint_dynamics_nodes::ros::context::{
     NetworkConfig, RosNode, call_with_retry, in_loopback_only_namespace, qos,
 };
 use ros2_client::NodeOptions;

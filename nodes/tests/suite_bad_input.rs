@@ -365,7 +365,7 @@ fn single_node_with_name_namespace_and_remap() {
         .node
         .publisher::<JointState>(
             "/robot1/measured_joints",
-            &constraint_dynamics_nodes::ros_context::qos::reliable(10),
+            &constraint_dynamics_nodes::ros::context::qos::reliable(10),
         )
         .unwrap();
     let mut suite = SuiteProcess::spawn(

@@ -15,7 +15,7 @@ use constraint_dynamics::System;
 use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::projection::{ProjectionRequest, VelocityProjector, project_system};
 use constraint_dynamics_nodes::msg::geometry_msgs::Twist;
-use constraint_dynamics_nodes::ros_context::qos;
+use constraint_dynamics_nodes::ros::context::qos;
 
 const TEST: &str = "filter_publishes_the_projected_command";
 

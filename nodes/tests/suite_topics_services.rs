@@ -14,7 +14,8 @@ use std::time::Duration;
 
 use common::*;
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::algorithm::{forward_kinematics, forward_kinematics_pos, frame_placement};
+use constraint_dynamics::algorithm::{forward_kinematics_pos, frame_placement};
+use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::constraints::ConstraintForce as CoreForce;
 use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::predict::{Predictor, drift};
@@ -152,27 +153,14 @@ impl Core {
         v: &[f64],
         tau_act: &[f64],
     ) -> (Vec<f64>, Vec<CoreForce>, Vec<f64>) {
-        let nv = self.sys.model.nv;
-        let mut tau = tau_act.to_vec();
-        forward_kinematics(&self.sys.model, &mut self.sys.data, q, v, &vec![0.0; nv]);
-        self.predictor.forces.add_generalized_force(
-            &self.sys.model,
-            &self.sys.data,
-            0.0,
-            q,
-            v,
-            &mut tau,
-        );
-        let qdd: Vec<f64> = self
-            .sys
-            .forward_dynamics(q, v, &tau, true)
-            .unwrap()
-            .iter()
-            .copied()
-            .collect();
-        let f = self.sys.constraint_forces();
-        let gf = self.sys.kkt.generalized_force.iter().copied().collect();
-        (qdd, f, gf)
+        let at = constraint_forces_at(
+            &mut self.sys,
+            &mut self.predictor.forces,
+            (0.0, q, v),
+            tau_act,
+        )
+        .unwrap();
+        (at.qdd, at.forces, at.generalized_force)
     }
 
     /// The command the nodes build: base twist, arm held at q.
@@ -231,7 +219,11 @@ fn check_forces(
     }
     let m_g = core.sys.model.total_mass() * 9.81 / 2.0;
     for (c, f) in msg.constraints.iter().zip(expected) {
-        if c.name != f.name || c.kind != f.kind || c.frame_id != f.frame || c.row_names != f.rows {
+        if c.name != f.name
+            || c.kind != f.kind.name()
+            || c.frame_id != f.frame
+            || c.row_names != f.rows
+        {
             return Err(format!("names of {} ({:?} vs {:?})", f.name, c, f));
         }
         if c.axes_frame_id != "odom" {

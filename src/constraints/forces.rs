@@ -1,19 +1,26 @@
 //! Constraint forces in physical terms: each constraint's multipliers as a force or wrench at a
 //! named frame in named axes (the force exerted by the constraint ON the robot).
 
-use super::{Constraint, ConstraintData, ConstraintSet};
+use super::{Constraint, ConstraintData, ConstraintKind, ConstraintSet};
 use crate::algorithm::{Data, frame_placement, point_position};
 use crate::model::Model;
-use nalgebra::{DVector, Vector3};
+use crate::spatial::{Force, SE3};
+use nalgebra::{DVector, Matrix3, Vector3};
 use serde::Serialize;
 
 /// One constraint's force, as reported by `eval`, the nodes and the predictor.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ConstraintForce {
+    /// The constraint's name in the scene.
     pub name: String,
-    pub kind: &'static str,
-    /// Frame the force acts on (its point of application is `point_world`).
+    /// The constraint's kind.
+    pub kind: ConstraintKind,
+    /// Frame the force acts on (its point of application is `point_world`); for a coupling,
+    /// the two coordinates' names joined by `+`.
     pub frame: String,
+    /// Origin of `frame`, world [m]; `None` for a coupling (no frame).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frame_origin_world: Option<[f64; 3]>,
     /// Axes `force` and `torque` are expressed in ("world" or a frame name).
     pub axes: String,
     /// Row names (e.g. x, z; t1, t2, n).
@@ -36,6 +43,24 @@ pub struct ConstraintForce {
     pub normal_force: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tangential_force: Option<f64>,
+}
+
+impl ConstraintForce {
+    /// The wrench on the robot about the origin of `frame` (world axes, or `axes`):
+    /// τ_o = τ_p + (p − o) × f. About the point of application where there is no frame.
+    pub fn wrench_at_frame_origin(&self) -> Force {
+        let at_point = Force {
+            lin: Vector3::from(self.force),
+            ang: Vector3::from(self.torque),
+        };
+        match self.frame_origin_world {
+            Some(o) => {
+                let offset = Vector3::from(self.point_world) - Vector3::from(o);
+                SE3::new(Matrix3::identity(), offset).act_force(&at_point)
+            }
+            None => at_point,
+        }
+    }
 }
 
 pub(crate) fn row_labels(c: &Constraint) -> Vec<String> {
@@ -74,6 +99,14 @@ pub fn constraint_forces(
         let mut force = Vector3::zeros();
         let mut torque = Vector3::zeros();
         let (mut normal, mut tangential) = (None, None);
+        let frame_id = match c {
+            Constraint::Point(p) => Some(p.frame_a),
+            Constraint::Weld(w) => Some(w.frame_a),
+            Constraint::Distance(d) => Some(d.frame_a),
+            Constraint::Coupling(_) => None,
+            Constraint::Rolling(rc) => Some(rc.wheel),
+            Constraint::NoSideSlip(ns) => Some(ns.frame),
+        };
         let (frame, axes, point) = match c {
             Constraint::Point(p) => {
                 for (i, &ax) in p.axes.iter().enumerate() {
@@ -142,6 +175,7 @@ pub fn constraint_forces(
         out.push(ConstraintForce {
             name: set.names[k].clone(),
             kind: c.kind(),
+            frame_origin_world: frame_id.map(|f| arr(frame_placement(model, data, f).translation)),
             frame,
             axes,
             rows: row_labels(c),

@@ -8,20 +8,24 @@
 mod coupling;
 mod distance;
 mod forces;
+mod kind;
 mod no_side_slip;
 mod point;
 mod rolling;
 mod set;
+mod slip;
 mod spec;
 mod weld;
 
 pub use coupling::CouplingConstraint;
 pub use distance::DistanceConstraint;
 pub use forces::{ConstraintForce, constraint_forces};
+pub use kind::ConstraintKind;
 pub use no_side_slip::NoSideSlipConstraint;
 pub use point::PointConstraint;
 pub use rolling::RollingConstraint;
 pub use set::{Constraint, ConstraintData, ConstraintSet};
+pub use slip::{SlipTest, SlipVerdict};
 pub use spec::{Axes, ConstraintSpec, Row};
 pub use weld::WeldConstraint;
 

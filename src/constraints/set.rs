@@ -1,8 +1,8 @@
 //! The constraints of a scene, stacked: validation of the declarations, row ranges, evaluation.
 
 use super::{
-    ConstraintRows, ConstraintSpec, CouplingConstraint, DistanceConstraint, NoSideSlipConstraint,
-    PointConstraint, RollingConstraint, RowSink, WeldConstraint,
+    ConstraintKind, ConstraintRows, ConstraintSpec, CouplingConstraint, DistanceConstraint,
+    NoSideSlipConstraint, PointConstraint, RollingConstraint, RowSink, WeldConstraint,
 };
 use crate::algorithm::{Data, forward_kinematics, forward_kinematics_pos};
 use crate::error::{Error, Result};
@@ -34,15 +34,15 @@ impl Constraint {
         }
     }
 
-    /// Kind name as in the scene file.
-    pub fn kind(&self) -> &'static str {
+    /// The constraint's kind (its name is the scene file's `kind:`).
+    pub fn kind(&self) -> ConstraintKind {
         match self {
-            Constraint::Point(_) => "point",
-            Constraint::Weld(_) => "weld",
-            Constraint::Distance(_) => "distance",
-            Constraint::Coupling(_) => "coupling",
-            Constraint::Rolling(_) => "rolling",
-            Constraint::NoSideSlip(_) => "no_side_slip",
+            Constraint::Point(_) => ConstraintKind::Point,
+            Constraint::Weld(_) => ConstraintKind::Weld,
+            Constraint::Distance(_) => ConstraintKind::Distance,
+            Constraint::Coupling(_) => ConstraintKind::Coupling,
+            Constraint::Rolling(_) => ConstraintKind::Rolling,
+            Constraint::NoSideSlip(_) => ConstraintKind::NoSideSlip,
         }
     }
 }

@@ -5,9 +5,11 @@
 //! the order their joints appear in the file, so a parent always precedes its children and the
 //! coordinates follow the same order (base coordinates first).
 
+mod base;
 mod build;
 mod joint;
 
+pub use base::{BasePose, BaseTwist, TWIST_TOLERANCE};
 pub use build::{BaseType, ModelOptions};
 pub use joint::JointKind;
 

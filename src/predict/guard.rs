@@ -1,7 +1,7 @@
 //! The energy check of fixed explicit steps on passive, conservative scenes.
 
 use super::IntegrationSettings;
-use super::run::Sample;
+use super::trajectory::Sample;
 use crate::error::{Error, Result};
 
 /// `max_energy_error`: for a passive, conservative scene stepped by a fixed explicit method, the

@@ -10,10 +10,12 @@ mod guard;
 mod integrator;
 mod lie;
 mod run;
+mod trajectory;
 
 pub use drift::Projector;
 pub use integrator::Method;
-pub use run::{Predictor, Sample, Trajectory};
+pub use run::Predictor;
+pub use trajectory::{PredictOptions, Sample, Trajectory};
 
 use serde::{Deserialize, Serialize};
 

@@ -5,62 +5,18 @@ use super::guard::EnergyGuard;
 use super::integrator::{
     Accel, DOPRI5, Method, RK4, StepWorkspace, explicit_step, sdirk2_step, semi_implicit_euler_step,
 };
+use super::trajectory::{PredictOptions, Sample, Trajectory};
 use super::{DriftControl, IntegrationSettings};
 use crate::actuators::{Actuators, Command};
 use crate::algorithm::{crba, forward_kinematics, kinetic_energy, potential_energy};
-use crate::constraints::ConstraintForce;
+use crate::applied::{applied_generalized_force, constraint_forces_at};
 use crate::dynamics::{Baumgarte, Formulation};
 use crate::error::{Error, Result};
 use crate::forces::ForceElements;
 use crate::model::Model;
 use crate::scene::Scene;
-use crate::system::System;
-use serde::Serialize;
+use crate::system::{DynamicsOptions, System};
 use std::time::Instant;
-
-/// One output sample.
-#[derive(Clone, Debug, Serialize)]
-pub struct Sample {
-    /// Time [s].
-    pub t: f64,
-    pub q: Vec<f64>,
-    pub v: Vec<f64>,
-    /// Multipliers (when forces were asked for).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub lambda: Option<Vec<f64>>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub forces: Option<Vec<ConstraintForce>>,
-    /// nc − rank(J M⁻¹ Jᵀ) at this state (when forces were asked for): > 0 at a singular
-    /// configuration or with redundant constraints, where λ is the minimum-norm solution.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub rank_deficiency: Option<usize>,
-    /// max |φ| over holonomic rows [m or rad].
-    pub position_residual: f64,
-    /// max |J v| [m/s or rad/s].
-    pub velocity_residual: f64,
-    /// Kinetic, and gravity + spring potential energy [J].
-    pub kinetic_energy: f64,
-    pub potential_energy: f64,
-    /// Accumulated local error estimate of the configuration [m or rad] (dopri5), NaN otherwise.
-    pub error_estimate: f64,
-}
-
-/// A prediction.
-#[derive(Clone, Debug, Serialize)]
-pub struct Trajectory {
-    pub q_names: Vec<String>,
-    pub v_names: Vec<String>,
-    pub method: Method,
-    pub samples: Vec<Sample>,
-    /// Accepted steps and right-hand-side evaluations.
-    pub steps: usize,
-    pub evaluations: usize,
-    /// Evaluations where the constraint accelerations were inconsistent (at or next to a singular
-    /// configuration) and were met in the least-squares sense instead.
-    pub least_squares_evaluations: usize,
-    /// CPU (wall) time of the integration [s].
-    pub run_time_s: f64,
-}
 
 /// Buffers of a run, sized once per model (the stepping loop allocates nothing).
 #[derive(Clone, Debug, Default)]
@@ -89,22 +45,29 @@ struct Rhs<'a> {
 impl Accel for Rhs<'_> {
     fn accel(&mut self, t: f64, q: &[f64], v: &[f64], qdd: &mut [f64]) -> Result<()> {
         self.evaluations += 1;
-        self.tau.copy_from_slice(self.tau_act);
-        if !self.forces.is_empty() {
-            forward_kinematics(&self.sys.model, &mut self.sys.data, q, v, self.zero);
-            self.forces
-                .add_generalized_force(&self.sys.model, &self.sys.data, t, q, v, self.tau);
-        }
+        applied_generalized_force(
+            self.sys,
+            self.forces,
+            (t, q, v),
+            self.tau_act,
+            self.zero,
+            self.tau,
+        );
         // `formulation: auto` takes the multiplier form here: the same q̈ as the embedded form
         // (tests/propagation_formulations.rs), allocation-free and about 3× faster.
         // Least squares (λ = S⁺ r) where stages or drift make redundant rows disagree: the same
         // formula on both sides of any threshold, so q̈ stays smooth for the implicit method.
-        self.sys.kkt.allow_inconsistent = true;
+        let opts = DynamicsOptions {
+            formulation: match self.sys.formulation {
+                Formulation::Embedded => Formulation::Embedded,
+                _ => Formulation::Multipliers,
+            },
+            allow_inconsistent: true,
+        };
         let result = self
             .sys
-            .forward_dynamics(q, v, self.tau, true)
+            .forward_dynamics_with(q, v, self.tau, opts)
             .map(|a| qdd.copy_from_slice(a.as_slice()));
-        self.sys.kkt.allow_inconsistent = false;
         if result.is_ok() && self.sys.kkt.inconsistency > 1e-7 * self.sys.kkt.b.amax().max(1.0) {
             self.least_squares += 1;
         }
@@ -130,7 +93,8 @@ pub struct Predictor {
     pub forces: ForceElements,
     pub actuators: Actuators,
     pub settings: IntegrationSettings,
-    /// Record λ and the constraint forces in every sample.
+    /// Record λ and the constraint forces in every sample of [`Predictor::predict`] (a setting
+    /// of the predictor; [`Predictor::predict_with`] takes it per call instead).
     pub want_forces: bool,
     model: Model,
     ws: Workspace,
@@ -173,13 +137,28 @@ impl Predictor {
     }
 
     /// Propagate from (q0, v0) over `horizon` [s] following `commands` ((start time [s], command),
-    /// sorted; the last one started is active).
+    /// sorted; the last one started is active), with forces in the samples if `want_forces`.
     pub fn predict(
         &mut self,
         q0: &[f64],
         v0: &[f64],
         commands: &[(f64, Command)],
         horizon: f64,
+    ) -> Result<Trajectory> {
+        let opts = PredictOptions {
+            forces: self.want_forces,
+        };
+        self.predict_with(q0, v0, commands, horizon, opts)
+    }
+
+    /// [`Predictor::predict`] with the options of this one call.
+    pub fn predict_with(
+        &mut self,
+        q0: &[f64],
+        v0: &[f64],
+        commands: &[(f64, Command)],
+        horizon: f64,
+        opts: PredictOptions,
     ) -> Result<Trajectory> {
         let start = Instant::now();
         self.model.check_state(q0, v0)?;
@@ -197,7 +176,7 @@ impl Predictor {
         if s.drift == DriftControl::Baumgarte && self.sys.baumgarte == Baumgarte::default() {
             self.sys.baumgarte = Baumgarte::from_time_constant(s.baumgarte_steps * s.dt);
         }
-        let result = self.run(q0, v0, commands, horizon, &s);
+        let result = self.run(q0, v0, commands, horizon, &s, opts);
         self.sys.baumgarte = saved_gains;
         let mut traj = result?;
         traj.run_time_s = start.elapsed().as_secs_f64();
@@ -211,6 +190,7 @@ impl Predictor {
         commands: &[(f64, Command)],
         horizon: f64,
         s: &IntegrationSettings,
+        opts: PredictOptions,
     ) -> Result<Trajectory> {
         let (mut q, mut v) = (q0.to_vec(), v0.to_vec());
         self.model.normalize(&mut q);
@@ -258,7 +238,7 @@ impl Predictor {
                 &mut self.ws.tau_act,
             );
         }
-        let first = self.sample(0.0, &q, &v, err_acc)?;
+        let first = self.sample(0.0, &q, &v, err_acc, opts.forces)?;
         let springs = self
             .forces
             .potential_energy(&self.sys.model, &self.sys.data, &q);
@@ -284,7 +264,7 @@ impl Predictor {
             )?;
             t = t_end;
             if t >= next_sample - 1e-9 || t >= horizon - 1e-12 {
-                let sample = self.sample(t, &q, &v, err_acc)?;
+                let sample = self.sample(t, &q, &v, err_acc, opts.forces)?;
                 let springs = self
                     .forces
                     .potential_energy(&self.sys.model, &self.sys.data, &q);
@@ -442,27 +422,17 @@ impl Predictor {
         Ok(())
     }
 
-    fn sample(&mut self, t: f64, q: &[f64], v: &[f64], err: f64) -> Result<Sample> {
+    fn sample(&mut self, t: f64, q: &[f64], v: &[f64], err: f64, forces: bool) -> Result<Sample> {
         let sys = &mut self.sys;
-        let (mut lambda, mut forces, mut rank_deficiency) = (None, None, None);
-        if self.want_forces && !sys.constraints.is_empty() {
-            // Held actuator torques (zero-order hold) plus the force elements at (t, q, v).
-            let tau = &mut self.ws.tau;
-            tau.copy_from_slice(&self.ws.tau_act);
-            if !self.forces.is_empty() {
-                forward_kinematics(&sys.model, &mut sys.data, q, v, &self.ws.zero);
-                self.forces
-                    .add_generalized_force(&sys.model, &sys.data, t, q, v, tau);
-            }
-            // λ needs the multiplier form whatever the scene integrates with.
-            let formulation = std::mem::replace(&mut sys.formulation, Formulation::Multipliers);
-            let result = sys.forward_dynamics(q, v, tau, true).map(|_| ());
-            sys.formulation = formulation;
-            result?;
-            lambda = Some(sys.kkt.lambda.as_slice().to_vec());
-            forces = Some(sys.constraint_forces());
-            rank_deficiency = Some(sys.kkt.rank_deficiency);
-        }
+        let at = match forces {
+            true if !sys.constraints.is_empty() => Some(constraint_forces_at(
+                sys,
+                &mut self.forces,
+                (t, q, v),
+                &self.ws.tau_act,
+            )?),
+            _ => None,
+        };
         sys.constraints
             .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
         let cd = &sys.cdata;
@@ -474,12 +444,23 @@ impl Predictor {
         let ke = kinetic_energy(&sys.model, &sys.data);
         let pe = potential_energy(&sys.model, &sys.data)
             + self.forces.potential_energy(&sys.model, &sys.data, q);
+        let (lambda, forces, generalized_force, rank_deficiency) = match at {
+            Some(f) => (
+                Some(f.lambda),
+                Some(f.forces),
+                Some(f.generalized_force),
+                Some(f.rank_deficiency),
+            ),
+            None => (None, None, None, None),
+        };
         Ok(Sample {
             t,
             q: q.to_vec(),
             v: v.to_vec(),
+            actuator_torque: self.ws.tau_act.clone(),
             lambda,
             forces,
+            generalized_force,
             rank_deficiency,
             position_residual,
             velocity_residual,

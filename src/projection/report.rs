@@ -16,7 +16,7 @@ use serde::Serialize;
 #[derive(Clone, Debug, Serialize)]
 pub struct ConstraintImpulse {
     pub name: String,
-    pub kind: &'static str,
+    pub kind: crate::constraints::ConstraintKind,
     pub frame: String,
     /// Axes of `impulse` / `angular_impulse` ("world", a frame name, or "joint").
     pub axes: String,

@@ -133,11 +133,7 @@ impl Default for ProjectionRequest {
 
 /// Number of base velocity coordinates (0 fixed, 3 planar, 6 floating); they come first.
 pub fn base_dofs(model: &Model) -> usize {
-    match model.base {
-        BaseType::Fixed => 0,
-        BaseType::Planar => 3,
-        BaseType::Floating => 6,
-    }
+    model.base.nv()
 }
 
 /// Index of a velocity coordinate by name or base alias.

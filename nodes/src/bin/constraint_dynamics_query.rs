@@ -32,11 +32,11 @@ use constraint_dynamics_nodes::msg::nav_msgs::{Odometry, Path};
 use constraint_dynamics_nodes::msg::rcl_interfaces::{
     GetParameters, ListParameters, SetParameters,
 };
-use constraint_dynamics_nodes::ros_args::yaml_to_param;
-use constraint_dynamics_nodes::ros_context::{
+use constraint_dynamics_nodes::ros::args::yaml_to_param;
+use constraint_dynamics_nodes::ros::context::{
     NetworkConfig, RosNode, call_with_retry, in_loopback_only_namespace, qos,
 };
-use constraint_dynamics_nodes::suite::{ALLOW_EXTERNAL_ENV, network_guard};
+use constraint_dynamics_nodes::ros::network_guard::{ALLOW_EXTERNAL_ENV, network_guard};
 use ros2_client::rcl_interfaces::{
     GetParametersRequest, ListParametersRequest, SetParametersRequest,
 };
@@ -56,18 +56,41 @@ struct Opts {
     rest: Vec<String>,
 }
 
-fn numbers(s: &str) -> Result<Vec<f64>, String> {
+/// Why a query failed: a usage error (the message says what to type), or ROS.
+#[derive(Debug, thiserror::Error)]
+enum QueryError {
+    /// Bad command line, or a failed call with its reason.
+    #[error("{0}")]
+    Usage(String),
+    /// The network rule refused the participant.
+    #[error(transparent)]
+    Network(#[from] constraint_dynamics_nodes::ros::network_guard::NetworkRefused),
+}
+
+impl From<String> for QueryError {
+    fn from(s: String) -> Self {
+        QueryError::Usage(s)
+    }
+}
+
+impl From<&str> for QueryError {
+    fn from(s: &str) -> Self {
+        QueryError::Usage(s.to_string())
+    }
+}
+
+fn numbers(s: &str) -> Result<Vec<f64>, QueryError> {
     s.split(',')
         .filter(|x| !x.trim().is_empty())
         .map(|x| {
             x.trim()
                 .parse::<f64>()
-                .map_err(|_| format!("{x:?} is not a number"))
+                .map_err(|_| QueryError::Usage(format!("{x:?} is not a number")))
         })
         .collect()
 }
 
-fn named(s: &str) -> Result<(String, f64), String> {
+fn named(s: &str) -> Result<(String, f64), QueryError> {
     let (n, v) = s
         .split_once('=')
         .ok_or_else(|| format!("{s:?}: expected NAME=VALUE"))?;
@@ -97,7 +120,11 @@ impl Query {
         format!("{}/{node}/{leaf}", self.ns.trim_end_matches('/'))
     }
 
-    fn call<S: RosService>(&mut self, name: &str, req: S::Request) -> Result<S::Response, String> {
+    fn call<S: RosService>(
+        &mut self,
+        name: &str,
+        req: S::Request,
+    ) -> Result<S::Response, QueryError> {
         let client = self.node.client::<S>(name).map_err(|e| e.to_string())?;
         let found = smol::block_on(smol::future::or(
             async {
@@ -110,10 +137,7 @@ impl Query {
             },
         ));
         if !found {
-            return Err(format!(
-                "service {name} not found within {:?}",
-                self.timeout
-            ));
+            return Err(format!("service {name} not found within {:?}", self.timeout).into());
         }
         smol::block_on(call_with_retry(
             &client,
@@ -122,10 +146,10 @@ impl Query {
             (self.timeout.as_secs_f64() / 0.5).ceil().max(1.0) as u32,
         ))
         .map(|(r, _)| r)
-        .map_err(|e| e.to_string())
+        .map_err(|e| QueryError::Usage(e.to_string()))
     }
 
-    fn echo<M>(&mut self, topic: &str, count: usize) -> Result<(), String>
+    fn echo<M>(&mut self, topic: &str, count: usize) -> Result<(), QueryError>
     where
         M: constraint_dynamics_nodes::msg::RosMessage + Serialize + 'static,
     {
@@ -149,7 +173,7 @@ impl Query {
     }
 }
 
-fn twist3(v: &[f64]) -> Result<Twist, String> {
+fn twist3(v: &[f64]) -> Result<Twist, QueryError> {
     let (x, y, w) = match v {
         [x, w] => (*x, 0.0, *w),
         [x, y, w] => (*x, *y, *w),
@@ -165,7 +189,7 @@ fn twist3(v: &[f64]) -> Result<Twist, String> {
     })
 }
 
-fn run(opts: Opts) -> Result<(), String> {
+fn run(opts: Opts) -> Result<(), QueryError> {
     let net = NetworkConfig::from_env().map_err(|e| e.to_string())?;
     let allowed = std::env::var(ALLOW_EXTERNAL_ENV).is_ok_and(|v| v.trim() == "1");
     network_guard(&net, allowed, in_loopback_only_namespace())?;
@@ -306,7 +330,7 @@ fn run(opts: Opts) -> Result<(), String> {
                     let t = q.name("cd_predictor", "constraint_forces");
                     q.echo::<ConstraintForces>(&t, count)?
                 }
-                other => return Err(format!("echo {other}: expected odom, path or forces")),
+                other => return Err(format!("echo {other}: expected odom, path or forces").into()),
             }
         }
         "param" => {
@@ -365,7 +389,7 @@ fn run(opts: Opts) -> Result<(), String> {
             println!("{USAGE}");
             return Ok(());
         }
-        other => return Err(format!("unknown command {other:?}\n{USAGE}")),
+        other => return Err(format!("unknown command {other:?}\n{USAGE}").into()),
     }
     if !rest.is_empty() {
         eprintln!("warning: ignored arguments {rest:?}");

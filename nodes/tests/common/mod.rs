@@ -15,7 +15,7 @@ use constraint_dynamics_nodes::msg::geometry_msgs::{Twist, Vector3};
 use constraint_dynamics_nodes::msg::nav_msgs::Odometry;
 use constraint_dynamics_nodes::msg::sensor_msgs::JointState;
 use constraint_dynamics_nodes::msg::std_msgs::StringMsg;
-use constraint_dynamics_nodes::ros_context::{
+use constraint_dynamics_nodes::ros::context::{
     NetworkConfig, RosNode, call_with_retry, in_loopback_only_namespace, qos,
 };
 use ros2_client::{Client, NodeOptions, Publisher, Subscription};

@@ -6,9 +6,11 @@
 
 use std::collections::HashMap;
 
+use constraint_dynamics::model::{BasePose, BaseTwist};
 use constraint_dynamics::{BaseType, Model};
 
 use crate::convert::unit_quaternion;
+use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::nav_msgs::Odometry;
 use crate::msg::sensor_msgs::JointState;
@@ -16,7 +18,9 @@ use crate::msg::sensor_msgs::JointState;
 /// Latest q (nq), v (nv) and measured joint efforts (nv, 0 where unknown).
 #[derive(Clone, Debug)]
 pub struct StateEstimate {
+    /// Configuration (nq).
     pub q: Vec<f64>,
+    /// Velocity (nv).
     pub v: Vec<f64>,
     /// Joint efforts from `JointState.effort`, in v order [N·m or N]; 0 where never given.
     pub effort: Vec<f64>,
@@ -64,7 +68,7 @@ impl StateEstimate {
 
     /// Applies a `JointState`. Refused (nothing applied) when an array is neither empty nor as
     /// long as `name`, or a value of a known joint is not finite.
-    pub fn apply_joint_state(&mut self, js: &JointState) -> Result<JointStateReport, String> {
+    pub fn apply_joint_state(&mut self, js: &JointState) -> Result<JointStateReport, NodeError> {
         let n = js.name.len();
         for (what, len) in [
             ("position", js.position.len()),
@@ -72,8 +76,9 @@ impl StateEstimate {
             ("effort", js.effort.len()),
         ] {
             if len != 0 && len != n {
-                return Err(format!(
-                    "JointState: {what} has {len} entries for {n} names (must be 0 or {n})"
+                return Err(NodeError::message(
+                    format!("JointState: {what}"),
+                    format!("{len} entries for {n} names (must be 0 or {n})"),
                 ));
             }
         }
@@ -84,11 +89,14 @@ impl StateEstimate {
                 report.unknown.push(name.clone());
                 continue;
             };
-            let get = |a: &[f64], what: &str| -> Result<Option<f64>, String> {
+            let get = |a: &[f64], what: &str| -> Result<Option<f64>, NodeError> {
                 match a.get(k) {
                     None => Ok(None),
                     Some(x) if x.is_finite() => Ok(Some(*x)),
-                    Some(x) => Err(format!("JointState: {what} of '{name}' is {x}")),
+                    Some(x) => Err(NodeError::message(
+                        format!("JointState: {what} of '{name}'"),
+                        format!("is {x}"),
+                    )),
                 }
             };
             updates.push((
@@ -119,49 +127,31 @@ impl StateEstimate {
     /// the base). A planar base takes x, y, yaw and vx, vy, wz; a floating base all six; a
     /// fixed base ignores it. Refused when a used value is not finite or the orientation is
     /// a zero quaternion.
-    pub fn apply_odometry(&mut self, od: &Odometry) -> Result<(), String> {
+    pub fn apply_odometry(&mut self, model: &Model, od: &Odometry) -> Result<(), NodeError> {
         let p = &od.pose.pose;
         let t = &od.twist.twist;
-        let finite = |what: &str, xs: &[f64]| -> Result<(), String> {
+        let finite = |what: &str, xs: &[f64]| -> Result<(), NodeError> {
             match xs.iter().find(|x| !x.is_finite()) {
-                Some(x) => Err(format!("Odometry: {what} has a non-finite value ({x})")),
+                Some(x) => Err(NodeError::message(
+                    format!("Odometry: {what}"),
+                    format!("has a non-finite value ({x})"),
+                )),
                 None => Ok(()),
             }
         };
-        finite("pose.position", &[p.position.x, p.position.y, p.position.z])?;
-        finite(
-            "twist",
-            &[
-                t.linear.x,
-                t.linear.y,
-                t.linear.z,
-                t.angular.x,
-                t.angular.y,
-                t.angular.z,
-            ],
-        )?;
-        let quat = unit_quaternion(&p.orientation).map_err(|e| format!("Odometry: {e}"))?;
-        match self.base {
-            BaseType::Fixed => {}
-            BaseType::Planar => {
-                let [x, y, z, w] = quat;
-                let yaw = (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z));
-                self.q[..3].copy_from_slice(&[p.position.x, p.position.y, yaw]);
-                self.v[..3].copy_from_slice(&[t.linear.x, t.linear.y, t.angular.z]);
-            }
-            BaseType::Floating => {
-                self.q[..3].copy_from_slice(&[p.position.x, p.position.y, p.position.z]);
-                self.q[3..7].copy_from_slice(&quat);
-                self.v[..6].copy_from_slice(&[
-                    t.linear.x,
-                    t.linear.y,
-                    t.linear.z,
-                    t.angular.x,
-                    t.angular.y,
-                    t.angular.z,
-                ]);
-            }
-        }
+        let position = [p.position.x, p.position.y, p.position.z];
+        let twist = BaseTwist {
+            linear: [t.linear.x, t.linear.y, t.linear.z],
+            angular: [t.angular.x, t.angular.y, t.angular.z],
+        };
+        finite("pose.position", &position)?;
+        finite("twist", &[twist.linear, twist.angular].concat())?;
+        let pose = BasePose {
+            position,
+            orientation_xyzw: unit_quaternion(&p.orientation)
+                .map_err(|e| NodeError::message("Odometry: pose.orientation", e.to_string()))?,
+        };
+        model.set_base(&pose, &twist, &mut self.q, &mut self.v);
         self.stamp = Some(od.header.stamp);
         Ok(())
     }
@@ -170,11 +160,7 @@ impl StateEstimate {
     /// joint both models have, by name.
     pub fn carry_over(&mut self, old: &StateEstimate) {
         if old.base == self.base {
-            let nb = match self.base {
-                BaseType::Fixed => (0, 0),
-                BaseType::Planar => (3, 3),
-                BaseType::Floating => (7, 6),
-            };
+            let nb = (self.base.nq(), self.base.nv());
             self.q[..nb.0].copy_from_slice(&old.q[..nb.0]);
             self.v[..nb.1].copy_from_slice(&old.v[..nb.1]);
         }

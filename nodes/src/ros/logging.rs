@@ -148,18 +148,23 @@ impl NodeLog {
         }
     }
 
+    /// Logs `msg` at `level`.
     pub fn log(&self, level: Level, msg: &str) {
         log::log!(target: &self.target, level, "{msg}");
     }
+    /// Logs an error.
     pub fn error(&self, msg: &str) {
         self.log(Level::Error, msg)
     }
+    /// Logs a warning.
     pub fn warn(&self, msg: &str) {
         self.log(Level::Warn, msg)
     }
+    /// Logs information.
     pub fn info(&self, msg: &str) {
         self.log(Level::Info, msg)
     }
+    /// Logs a debugging detail.
     pub fn debug(&self, msg: &str) {
         self.log(Level::Debug, msg)
     }

@@ -334,9 +334,9 @@ impl Drop for RosNode {
 /// (ros2-client itself turns a relative name of a node in the root namespace
 /// into the DDS topic `rt//odom`, which no ROS peer matches; always handing it
 /// absolute names avoids that.) Apply remappings before calling this, with
-/// [`RosArgs::resolve_topic`](crate::ros_args::RosArgs::resolve_topic).
+/// [`RosArgs::resolve_topic`](crate::ros::args::RosArgs::resolve_topic).
 pub fn topic_name(namespace: &str, node_name: &str, name: &str) -> Result<Name, RosContextError> {
-    let full = crate::ros_args::expand_name(namespace, node_name, name);
+    let full = crate::ros::args::expand_name(namespace, node_name, name);
     Name::parse(&full).map_err(|e| RosContextError::BadName(full.clone(), format!("{e:?}")))
 }
 

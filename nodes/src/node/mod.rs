@@ -1,0 +1,6 @@
+//! What every node kind is made of: its logic behind [`worker::NodeLogic`], run on its own
+//! thread by a [`worker::WorkerHandle`], and its ROS side behind [`wiring::RosWiring`], started
+//! by [`wiring::start_node`]. The kinds (`crate::predictor`, …) implement both traits.
+
+pub mod wiring;
+pub mod worker;

@@ -1,0 +1,179 @@
+//! Parameter groups shared by several node kinds (`model.*`, `state.*`, `command.*`, …), each a
+//! typed struct: units in the doc comments, unknown keys refused, defaults documented.
+
+use serde::{Deserialize, Serialize};
+
+use super::{ParamsError, positive};
+
+/// `model.*`: where the robot comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ModelParams {
+    /// Scene file (YAML, `docs/robots.md`): URDF, base type, constraints, actuators, integration
+    /// settings. A relative path is looked up in the working directory, then next to each
+    /// `--params-file`. Required.
+    pub scene_file: String,
+    /// Replace the scene's URDF by the one published on `robot_description_topic` whenever it
+    /// changes (the scene file still gives base, constraints, actuators).
+    pub use_robot_description: bool,
+    /// `std_msgs/String` topic with the URDF (reliable, transient local, as
+    /// robot_state_publisher publishes it).
+    pub robot_description_topic: String,
+}
+
+impl Default for ModelParams {
+    fn default() -> Self {
+        ModelParams {
+            scene_file: String::new(),
+            use_robot_description: true,
+            robot_description_topic: "/robot_description".into(),
+        }
+    }
+}
+
+/// `state.*`: where the latest state comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StateParams {
+    /// `sensor_msgs/JointState` topic: joint positions [rad, m], velocities [rad/s, m/s],
+    /// efforts [N·m, N] by joint name ("" = do not subscribe).
+    pub joint_states_topic: String,
+    /// `nav_msgs/Odometry` topic: base pose in the odom frame and twist in the base frame
+    /// ("" = do not subscribe).
+    pub odom_topic: String,
+    /// Before use, project the latest state onto the constraints (mass-weighted, as the
+    /// predictor's drift control does), so that noisy wheel and base velocities agree.
+    pub project_to_constraints: bool,
+    /// With `use_latest_state` and no torques in a `get_constraint_forces` request, take the
+    /// joint torques from the last `JointState.effort` [N·m, N].
+    pub use_measured_effort: bool,
+}
+
+impl Default for StateParams {
+    fn default() -> Self {
+        StateParams {
+            joint_states_topic: "/joint_states".into(),
+            odom_topic: "/odom".into(),
+            project_to_constraints: true,
+            use_measured_effort: true,
+        }
+    }
+}
+
+/// `frames.*`: frame names of the published messages (REP-105).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FramesParams {
+    /// The fixed frame: `header.frame_id` of predicted odometry and paths, and the frame the
+    /// core's "world" axes are reported in (constraint forces).
+    pub odom_frame: String,
+    /// `child_frame_id` of the predicted odometry (its twist is in this frame); "" = the
+    /// URDF's root link. `/odom` is read as the pose of this frame too.
+    pub base_frame: String,
+}
+
+impl Default for FramesParams {
+    fn default() -> Self {
+        FramesParams {
+            odom_frame: "odom".into(),
+            base_frame: String::new(),
+        }
+    }
+}
+
+/// `slip.*`: when a rolling contact counts as slipping.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SlipParams {
+    /// Friction coefficient μ [-]: slipping when tangential force > μ · normal force.
+    pub friction_coefficient: f64,
+    /// Normal force per rolling contact when the model has no normal row (planar base) [N];
+    /// 0 = m·|g| / number of rolling contacts (an upper bound when a caster carries load).
+    pub planar_normal_force: f64,
+}
+
+impl Default for SlipParams {
+    fn default() -> Self {
+        SlipParams {
+            friction_coefficient: 0.8,
+            planar_normal_force: 0.0,
+        }
+    }
+}
+
+/// `network.*`: where the DDS participant may talk. One participant per process, so every
+/// node of a suite must agree.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct NetworkParams {
+    /// Network interfaces: comma-separated IP addresses, or `localhost`; "" = all interfaces,
+    /// as ROS does (unless `CD_ROS_INTERFACES` / `ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`).
+    pub interfaces: String,
+    /// Allow DDS on interfaces other than loopback. Without it (or
+    /// `CD_ALLOW_EXTERNAL_NETWORK=1`) the suite refuses to start on all interfaces unless it
+    /// runs inside a loopback-only network namespace (`tools/ros2/netns_run.sh`).
+    pub allow_external: bool,
+}
+
+/// `command.*`: how base commands become a prediction's input.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CommandParams {
+    /// Velocity command topic (predictor only): `geometry_msgs/Twist`, or `TwistStamped`
+    /// with `stamped`. The diff drive follows linear.x [m/s] and angular.z [rad/s].
+    pub topic: String,
+    /// The command topic carries `geometry_msgs/TwistStamped` (Nav2's default) [bool].
+    pub stamped: bool,
+    /// A command older than this is replaced by `fallback` [s].
+    pub timeout: f64,
+    /// Without a fresh command: `stop` (zero twist, as diff_drive_controller does on timeout),
+    /// `hold` (keep the current base twist) or `coast` (wheel controllers off).
+    pub fallback: String,
+    /// Command every joint that has a position controller in the scene to hold its position at
+    /// the start of the prediction.
+    pub hold_joints: bool,
+}
+
+impl Default for CommandParams {
+    fn default() -> Self {
+        CommandParams {
+            topic: "/cmd_vel".into(),
+            stamped: false,
+            timeout: 0.5,
+            fallback: "stop".into(),
+            hold_joints: true,
+        }
+    }
+}
+
+/// What happens without a fresh command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fallback {
+    /// Zero base twist.
+    Stop,
+    /// The current base twist.
+    Hold,
+    /// No base command (wheel controllers off).
+    Coast,
+}
+
+impl CommandParams {
+    /// `fallback` as an enum.
+    pub fn fallback(&self) -> Result<Fallback, ParamsError> {
+        match self.fallback.as_str() {
+            "stop" => Ok(Fallback::Stop),
+            "hold" => Ok(Fallback::Hold),
+            "coast" => Ok(Fallback::Coast),
+            other => Err(ParamsError::invalid(
+                "command.fallback",
+                format!("{other:?}: expected stop, hold or coast"),
+            )),
+        }
+    }
+
+    /// Checks `timeout` and `fallback`.
+    pub fn validate(&self) -> Result<(), ParamsError> {
+        positive("command.timeout", self.timeout)?;
+        self.fallback().map(|_| ())
+    }
+}

@@ -1,0 +1,137 @@
+//! Parameter parsing: shared sections, nesting, unknown keys and named bad values.
+
+use super::*;
+use crate::forces::ForcesParams;
+use crate::predictor::PredictorParams;
+use crate::projection::ProjectionParams;
+use crate::ros::args::parse_params_yaml;
+
+#[test]
+fn defaults_validate_once_a_scene_is_given() {
+    let mut p = NodeParams::<ProjectionParams>::default();
+    let e = p.validate().unwrap_err().to_string();
+    assert!(e.contains("model.scene_file"), "{e}");
+    p.common.model.scene_file = "x.yaml".into();
+    p.validate().unwrap();
+    let mut p = NodeParams::<PredictorParams>::default();
+    p.common.model.scene_file = "x.yaml".into();
+    p.validate().unwrap();
+    for kind in NodeKind::ALL {
+        assert_eq!(NodeKind::from_key(kind.key()), Some(kind));
+    }
+}
+
+#[test]
+fn nested_keys_shared_section_and_unknown_keys() {
+    let yaml = r#"
+/**:
+  ros__parameters:
+    model: { scene_file: s.yaml }
+    slip: { friction_coefficient: 0.5 }
+cd_predictor:
+  ros__parameters:
+    rate: 20.0
+    command: { stamped: true, fallback: hold }
+cd_forces:
+  ros__parameters:
+    rate: 20.0
+"#;
+    let p = parse_params_yaml(yaml, "/cd_predictor").unwrap();
+    let pp = NodeParams::<PredictorParams>::from_parameters(&p).unwrap();
+    assert_eq!(pp.node.rate, 20.0);
+    assert_eq!(pp.common.slip.friction_coefficient, 0.5);
+    assert!(pp.node.command.stamped);
+    assert_eq!(pp.node.command.fallback().unwrap(), Fallback::Hold);
+    assert_eq!(pp.common.model.scene_file, "s.yaml");
+    assert_eq!(pp.common.state.joint_states_topic, "/joint_states");
+    // `rate` is not a parameter of the forces node.
+    let p = parse_params_yaml(yaml, "/cd_forces").unwrap();
+    let e = NodeParams::<ForcesParams>::from_parameters(&p)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("unknown field `rate`"), "{e}");
+}
+
+#[test]
+fn bad_values_are_named() {
+    let cases = [
+        ("rate: 0.0", "rate"),
+        (
+            "covariance: { position_floor: 0.0 }",
+            "covariance.position_floor",
+        ),
+        ("command: { fallback: brake }", "command.fallback"),
+        (
+            "slip: { friction_coefficient: -1.0 }",
+            "slip.friction_coefficient",
+        ),
+        ("network: { interfaces: eth0 }", "network.interfaces"),
+    ];
+    for (body, name) in cases {
+        let yaml = format!(
+            "cd_predictor:\n  ros__parameters:\n    model: {{ scene_file: s.yaml }}\n    {body}\n"
+        );
+        let p = parse_params_yaml(&yaml, "/cd_predictor").unwrap();
+        let e = NodeParams::<PredictorParams>::from_parameters(&p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(name), "{body}: {e}");
+    }
+}
+
+#[test]
+fn ros_parameters_round_trip() {
+    let mut p = NodeParams::<ProjectionParams>::default();
+    p.common.model.scene_file = "s.yaml".into();
+    let ros = p.to_ros();
+    let get = |n: &str| ros.iter().find(|(k, _)| k == n).map(|(_, v)| v.clone());
+    assert_eq!(
+        get("model.scene_file"),
+        Some(ParameterValue::String("s.yaml".into()))
+    );
+    assert_eq!(
+        get("acceleration_limits.values"),
+        Some(ParameterValue::DoubleArray(vec![1.0, 2.0]))
+    );
+    assert_eq!(get("filter.enabled"), Some(ParameterValue::Boolean(false)));
+    let mut params = Parameters::default();
+    params.values.extend(ros);
+    let back = NodeParams::<ProjectionParams>::from_parameters(&params).unwrap();
+    assert_eq!(back, p);
+}
+
+#[test]
+fn run_time_changes_only_of_dynamic_parameters() {
+    let mut p = NodeParams::<PredictorParams>::default();
+    p.common.model.scene_file = "s.yaml".into();
+    let mut current = Parameters::default();
+    current.values.extend(p.to_ros());
+    let next =
+        NodeParams::<PredictorParams>::updated(&current, "horizon", &ParameterValue::Double(2.0))
+            .unwrap();
+    assert_eq!(next.node.horizon, 2.0);
+    let e = NodeParams::<PredictorParams>::updated(&current, "rate", &ParameterValue::Double(5.0))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("'rate' cannot change while the node runs"),
+        "{e}"
+    );
+    let e = NodeParams::<PredictorParams>::updated(
+        &current,
+        "use_sim_time",
+        &ParameterValue::Boolean(true),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("use_sim_time"), "{e}");
+    // Dynamic, but out of range: refused with the name.
+    let e = NodeParams::<PredictorParams>::updated(
+        &current,
+        "covariance.twist_floor",
+        &ParameterValue::Double(-1.0),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("covariance.twist_floor"), "{e}");
+}

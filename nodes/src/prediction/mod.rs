@@ -1,0 +1,182 @@
+//! `cd_prediction`: a prediction on request (`~/predict`): from the latest state (or one the
+//! request gives), under a sequence of base commands, over a horizon, with the constraint forces
+//! at every sample if asked.
+
+pub mod params;
+pub mod ros;
+
+use constraint_dynamics::predict::{PredictOptions, Predictor};
+
+use crate::convert::{path_msg, time_plus};
+use crate::error::NodeError;
+use crate::msg::builtin_interfaces::Time;
+use crate::msg::constraint_dynamics_msgs::srv::{PredictRequest, PredictResponse};
+use crate::node::worker::{NodeLogic, Reply};
+use crate::params::NodeParams;
+use crate::robot::Robot;
+use crate::ros::logging::NodeLog;
+pub use params::PredictionParams;
+
+/// What the prediction node reacts to.
+pub enum PredictionInput {
+    /// `~/predict`.
+    Predict(PredictRequest, Reply<PredictResponse>),
+}
+
+/// The prediction node's logic: a robot and its predictor.
+pub struct PredictionNode {
+    robot: Robot,
+    predictor: Predictor,
+    params: NodeParams<PredictionParams>,
+}
+
+impl NodeLogic for PredictionNode {
+    type Params = PredictionParams;
+    type Input = PredictionInput;
+    type Output = ();
+
+    fn new(
+        robot: Robot,
+        params: NodeParams<PredictionParams>,
+        _log: NodeLog,
+    ) -> Result<Self, NodeError> {
+        let predictor =
+            Predictor::from_scene(robot.scene()).map_err(NodeError::core("predictor"))?;
+        Ok(PredictionNode {
+            robot,
+            predictor,
+            params,
+        })
+    }
+    fn robot(&self) -> &Robot {
+        &self.robot
+    }
+    fn robot_mut(&mut self) -> &mut Robot {
+        &mut self.robot
+    }
+    fn params(&self) -> &NodeParams<PredictionParams> {
+        &self.params
+    }
+    fn set_params(&mut self, params: NodeParams<PredictionParams>) {
+        self.params = params;
+    }
+    fn handle(&mut self, input: PredictionInput, now: Time, _out: &mut dyn FnMut(())) {
+        let PredictionInput::Predict(req, reply) = input;
+        let _ = reply.try_send(self.predict(&req, now));
+    }
+}
+
+impl PredictionNode {
+    /// `~/predict`: a refused request is `success = false` with the reason.
+    pub fn predict(&mut self, req: &PredictRequest, now: Time) -> PredictResponse {
+        self.try_predict(req, now)
+            .unwrap_or_else(|e| PredictResponse {
+                success: false,
+                message: e.to_string(),
+                ..Default::default()
+            })
+    }
+
+    /// Checks the request's size against the node's limits before any work.
+    fn check_limits(&self, req: &PredictRequest) -> Result<(), NodeError> {
+        let p = &self.params.node;
+        if !(req.horizon.is_finite() && req.horizon > 0.0) {
+            return Err(NodeError::request(
+                "horizon",
+                format!("{} s must be positive and finite", req.horizon),
+            ));
+        }
+        if req.horizon > p.max_horizon {
+            return Err(NodeError::request(
+                "horizon",
+                format!(
+                    "{} s is longer than max_horizon = {} s",
+                    req.horizon, p.max_horizon
+                ),
+            ));
+        }
+        if req.commands.len() > p.max_commands as usize {
+            return Err(NodeError::request(
+                "commands",
+                format!(
+                    "{}: at most max_commands = {}",
+                    req.commands.len(),
+                    p.max_commands
+                ),
+            ));
+        }
+        if req.commands.len() > 1 && !(req.command_period.is_finite() && req.command_period > 0.0) {
+            return Err(NodeError::request(
+                "command_period",
+                format!(
+                    "{} s must be positive with more than one command",
+                    req.command_period
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn try_predict(
+        &mut self,
+        req: &PredictRequest,
+        now: Time,
+    ) -> Result<PredictResponse, NodeError> {
+        self.check_limits(req)?;
+        let common = &self.params.common;
+        let (q, v) =
+            self.robot
+                .request_state(common, req.use_latest_state, (&[], &req.q), (&[], &req.v))?;
+        let cmd = &self.params.node.command;
+        let mut commands = Vec::with_capacity(req.commands.len().max(1));
+        for (k, t) in req.commands.iter().enumerate() {
+            let base = self.robot.twist_command(t, &format!("commands[{k}]"))?;
+            let at = k as f64 * req.command_period;
+            commands.push((at, self.robot.command(Some(base), &q, cmd.hold_joints)));
+        }
+        if commands.is_empty() {
+            let base = self.robot.fallback_twist(cmd.fallback()?, &v);
+            commands.push((0.0, self.robot.command(base, &q, cmd.hold_joints)));
+        }
+        let opts = PredictOptions {
+            forces: req.with_forces,
+        };
+        let traj = self
+            .predictor
+            .predict_with(&q, &v, &commands, req.horizon, opts)
+            .map_err(NodeError::core("prediction"))?;
+        let frame = &common.frames.odom_frame;
+        let path = path_msg(self.robot.model(), &traj, now, frame);
+        let forces = traj
+            .samples
+            .iter()
+            .filter_map(|s| {
+                let f = s.forces.as_ref()?;
+                let gf = s.generalized_force.as_deref().unwrap_or_default();
+                let rank = s.rank_deficiency.unwrap_or(0);
+                Some(
+                    self.robot
+                        .forces_msg(common, f, gf, rank, time_plus(now, s.t)),
+                )
+            })
+            .collect();
+        let last = traj
+            .samples
+            .last()
+            .ok_or_else(|| NodeError::request("horizon", "the prediction has no samples"))?;
+        Ok(PredictResponse {
+            success: true,
+            message: format!(
+                "{} samples, {} steps in {:.3} ms ({:?})",
+                traj.samples.len(),
+                traj.steps,
+                traj.run_time_s * 1e3,
+                traj.method
+            ),
+            path,
+            times: traj.samples.iter().map(|s| s.t).collect(),
+            forces,
+            position_error_estimate: last.position_error_estimate(),
+        })
+    }
+}

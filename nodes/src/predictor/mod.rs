@@ -1,0 +1,239 @@
+//! `cd_predictor`: at its rate, predicts from the latest state under the latest command and
+//! publishes the base at the horizon (`~/predicted_odom`), the path (`~/predicted_path`) and the
+//! constraint forces at the current state (`~/constraint_forces`), with slip transitions
+//! logged. Everything the predictor decides to publish is decided in [`PredictorNode::periodic`].
+
+pub mod params;
+pub mod ros;
+
+use std::time::{Duration, Instant};
+
+use constraint_dynamics::applied::constraint_forces_at;
+use constraint_dynamics::predict::{PredictOptions, Predictor, Trajectory};
+
+use crate::convert::{diagonal_covariance, path_msg, pose_msg, time_plus, twist_msg};
+use crate::error::NodeError;
+use crate::msg::builtin_interfaces::Time;
+use crate::msg::constraint_dynamics_msgs::ConstraintForces;
+use crate::msg::geometry_msgs::Twist;
+use crate::msg::nav_msgs::{Odometry, Path};
+use crate::msg::std_msgs::Header;
+use crate::node::worker::NodeLogic;
+use crate::params::NodeParams;
+use crate::robot::Robot;
+use crate::ros::logging::NodeLog;
+pub use params::{CovarianceParams, PredictorParams};
+
+/// What one periodic prediction publishes.
+#[derive(Clone, Debug)]
+pub struct PeriodicOutput {
+    /// The base at the horizon (stamp = start + horizon).
+    pub odom: Odometry,
+    /// The base along the prediction.
+    pub path: Path,
+    /// Constraint forces at the start state under the commanded actuator torques.
+    pub forces: ConstraintForces,
+    /// Time spent computing [s].
+    pub compute_s: f64,
+}
+
+/// What the predictor reacts to.
+pub enum PredictorInput {
+    /// A velocity command (the command to predict under).
+    Command(Twist),
+}
+
+/// The predictor's logic: a robot, its predictor, the latest command and the slip log.
+pub struct PredictorNode {
+    robot: Robot,
+    predictor: Predictor,
+    params: NodeParams<PredictorParams>,
+    log: NodeLog,
+    /// Latest (v, ω) command and when it arrived.
+    last_command: Option<([f64; 2], Instant)>,
+    warned_command: bool,
+    /// Slip flags of the last prediction (to log transitions), and the last slip warning.
+    last_slip: Vec<bool>,
+    last_slip_log: Option<Instant>,
+}
+
+impl NodeLogic for PredictorNode {
+    type Params = PredictorParams;
+    type Input = PredictorInput;
+    type Output = Box<PeriodicOutput>;
+
+    fn new(
+        robot: Robot,
+        params: NodeParams<PredictorParams>,
+        log: NodeLog,
+    ) -> Result<Self, NodeError> {
+        let predictor =
+            Predictor::from_scene(robot.scene()).map_err(NodeError::core("predictor"))?;
+        let nc = robot.scene().file.constraints.len();
+        Ok(PredictorNode {
+            robot,
+            predictor,
+            params,
+            log,
+            last_command: None,
+            warned_command: false,
+            last_slip: vec![false; nc],
+            last_slip_log: None,
+        })
+    }
+    fn robot(&self) -> &Robot {
+        &self.robot
+    }
+    fn robot_mut(&mut self) -> &mut Robot {
+        &mut self.robot
+    }
+    fn params(&self) -> &NodeParams<PredictorParams> {
+        &self.params
+    }
+    fn set_params(&mut self, params: NodeParams<PredictorParams>) {
+        self.params = params;
+    }
+    fn handle(&mut self, input: PredictorInput, _now: Time, _out: &mut dyn FnMut(Self::Output)) {
+        let PredictorInput::Command(t) = input;
+        let finite = t.linear.x.is_finite() && t.angular.z.is_finite();
+        if let Err(e) = self.robot.twist_command(&t, "cmd_vel") {
+            let first = !std::mem::replace(&mut self.warned_command, true);
+            self.log.log(
+                crate::node::worker::level(first),
+                &format!("{e}; using linear.x and angular.z if finite"),
+            );
+        }
+        self.last_command = finite.then(|| ([t.linear.x, t.angular.z], Instant::now()));
+    }
+    fn tick_period(&self) -> Option<Duration> {
+        Some(Duration::from_secs_f64(1.0 / self.params.node.rate))
+    }
+    fn tick(&mut self, now: Time, out: &mut dyn FnMut(Self::Output)) {
+        let timeout = self.params.node.command.timeout;
+        let command = self
+            .last_command
+            .filter(|(_, at)| at.elapsed().as_secs_f64() <= timeout)
+            .map(|(c, _)| c);
+        match self.periodic(now, command) {
+            Ok(o) => {
+                self.log
+                    .debug(&format!("prediction took {:.3} ms", o.compute_s * 1e3));
+                out(Box::new(o));
+            }
+            Err(e) => self.log.error(&format!("periodic prediction failed: {e}")),
+        }
+    }
+}
+
+impl PredictorNode {
+    /// Horizon of the periodic prediction [s]: the parameter, or the scene's.
+    fn horizon(&self) -> f64 {
+        match self.params.node.horizon {
+            h if h > 0.0 => h,
+            _ => self.robot.scene().file.integration.horizon,
+        }
+    }
+
+    /// One periodic prediction from the latest state under `command` (v, ω) — `None` = no
+    /// fresh command (the fallback applies).
+    pub fn periodic(
+        &mut self,
+        now: Time,
+        command: Option<[f64; 2]>,
+    ) -> Result<PeriodicOutput, NodeError> {
+        let t0 = Instant::now();
+        let common = &self.params.common;
+        let (q, v) = self
+            .robot
+            .latest_state(common.state.project_to_constraints)?;
+        let cmd_params = &self.params.node.command;
+        let base = command.or_else(|| self.robot.fallback_twist(cmd_params.fallback().ok()?, &v));
+        let cmd = self.robot.command(base, &q, cmd_params.hold_joints);
+        let horizon = self.horizon();
+        if !horizon.is_finite() || horizon <= 0.0 {
+            return Err(NodeError::request(
+                "horizon",
+                format!("{horizon} s: set `horizon` or the scene's integration.horizon"),
+            ));
+        }
+        let traj = self
+            .predictor
+            .predict_with(&q, &v, &[(0.0, cmd)], horizon, PredictOptions::default())
+            .map_err(NodeError::core("prediction"))?;
+        let odom = self.odometry_at_horizon(&traj, now)?;
+        let path = path_msg(self.robot.model(), &traj, now, &common.frames.odom_frame);
+        // Forces at the start state, under the torques the controllers apply in the first tick.
+        let tau = &traj.samples[0].actuator_torque;
+        let at = constraint_forces_at(
+            &mut self.predictor.sys,
+            &mut self.predictor.forces,
+            (0.0, &q, &v),
+            tau,
+        )
+        .map_err(NodeError::core("constraint forces"))?;
+        let forces = self.robot.forces_msg(
+            common,
+            &at.forces,
+            &at.generalized_force,
+            at.rank_deficiency,
+            now,
+        );
+        self.log_slip(&forces);
+        Ok(PeriodicOutput {
+            odom,
+            path,
+            forces,
+            compute_s: t0.elapsed().as_secs_f64(),
+        })
+    }
+
+    fn odometry_at_horizon(&self, traj: &Trajectory, start: Time) -> Result<Odometry, NodeError> {
+        let model = self.robot.model();
+        let last = traj
+            .samples
+            .last()
+            .ok_or_else(|| NodeError::request("horizon", "the prediction has no samples"))?;
+        let err = last.position_error_estimate();
+        let c = &self.params.node.covariance;
+        let sp = err.hypot(c.position_floor);
+        let so = err.hypot(c.orientation_floor);
+        let st = c.twist_floor;
+        let mut odom = Odometry {
+            header: Header {
+                stamp: time_plus(start, last.t),
+                frame_id: self.params.common.frames.odom_frame.clone(),
+            },
+            child_frame_id: self.robot.base_frame().to_string(),
+            ..Default::default()
+        };
+        odom.pose.pose = pose_msg(&model.base_pose(&last.q));
+        odom.pose.covariance = diagonal_covariance([sp, sp, sp, so, so, so]);
+        odom.twist.twist = twist_msg(&model.base_twist(&last.v));
+        odom.twist.covariance = diagonal_covariance([st; 6]);
+        Ok(odom)
+    }
+
+    fn log_slip(&mut self, forces: &ConstraintForces) {
+        let now = Instant::now();
+        let throttled = self
+            .last_slip_log
+            .is_some_and(|t| now.duration_since(t).as_secs_f64() < 1.0);
+        let mu = self.params.common.slip.friction_coefficient;
+        for (k, c) in forces.constraints.iter().enumerate() {
+            let was = self.last_slip.get(k).copied().unwrap_or(false);
+            if c.slipping && (!was || !throttled) {
+                self.log.warn(&format!(
+                    "slip: rolling contact '{}' needs a tangential force of {:.3} N > μ·N = {} × {:.3} N",
+                    c.name, c.tangential_force, mu, c.normal_force
+                ));
+                self.last_slip_log = Some(now);
+            } else if !c.slipping && was {
+                self.log
+                    .info(&format!("slip: rolling contact '{}' grips again", c.name));
+            }
+            if let Some(s) = self.last_slip.get_mut(k) {
+                *s = c.slipping;
+            }
+        }
+    }
+}

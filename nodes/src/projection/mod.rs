@@ -1,0 +1,167 @@
+//! `cd_projection`: the nearest velocity the constraints allow (`~/project_velocity`), and the
+//! same projection as a command filter between a planner and the base controller.
+//!
+//! The core's [`project_system`] solves the QP (Clarabel, built once and updated); this module
+//! translates the request ([`request`]) and applies the node's limits.
+
+pub mod params;
+pub mod request;
+pub mod ros;
+
+use constraint_dynamics::projection::{VelocityProjector, project_system};
+
+use crate::error::NodeError;
+use crate::msg::builtin_interfaces::Time;
+use crate::msg::constraint_dynamics_msgs::srv::{ProjectVelocityRequest, ProjectVelocityResponse};
+use crate::msg::geometry_msgs::Twist;
+use crate::msg::std_msgs::Header;
+use crate::node::worker::{NodeLogic, Reply};
+use crate::params::NodeParams;
+use crate::robot::{Robot, request as state_request};
+use crate::ros::logging::NodeLog;
+pub use params::ProjectionParams;
+
+/// What the projection node reacts to.
+pub enum ProjectionInput {
+    /// `~/project_velocity`.
+    Project(ProjectVelocityRequest, Reply<ProjectVelocityResponse>),
+    /// A command to filter, with the header of a stamped input.
+    Filter(Twist, Option<Header>),
+}
+
+/// A filtered command (with the input's header when stamped), to publish.
+pub struct Filtered(pub Twist, pub Option<Header>);
+
+/// The projection node's logic: a robot and its projector.
+pub struct ProjectionNode {
+    robot: Robot,
+    projector: VelocityProjector,
+    params: NodeParams<ProjectionParams>,
+    log: NodeLog,
+}
+
+impl NodeLogic for ProjectionNode {
+    type Params = ProjectionParams;
+    type Input = ProjectionInput;
+    type Output = Filtered;
+
+    fn new(
+        mut robot: Robot,
+        params: NodeParams<ProjectionParams>,
+        log: NodeLog,
+    ) -> Result<Self, NodeError> {
+        let sys = robot.system();
+        let projector = VelocityProjector::new(&sys.model, &sys.constraints);
+        Ok(ProjectionNode {
+            robot,
+            projector,
+            params,
+            log,
+        })
+    }
+    fn robot(&self) -> &Robot {
+        &self.robot
+    }
+    fn robot_mut(&mut self) -> &mut Robot {
+        &mut self.robot
+    }
+    fn params(&self) -> &NodeParams<ProjectionParams> {
+        &self.params
+    }
+    fn set_params(&mut self, params: NodeParams<ProjectionParams>) {
+        self.params = params;
+    }
+    fn handle(&mut self, input: ProjectionInput, _now: Time, out: &mut dyn FnMut(Filtered)) {
+        match input {
+            ProjectionInput::Project(req, reply) => {
+                let _ = reply.try_send(self.project_velocity(&req));
+            }
+            ProjectionInput::Filter(t, header) => {
+                let filtered = match self.filter_command(&t) {
+                    Ok((out, resp)) => {
+                        if !resp.success {
+                            self.log.warn(&format!(
+                                "filter: command ({}, {}, {}) is infeasible, sending zero: {}",
+                                t.linear.x, t.linear.y, t.angular.z, resp.message
+                            ));
+                        }
+                        out
+                    }
+                    Err(e) => {
+                        self.log
+                            .warn(&format!("filter: command refused, sending zero: {e}"));
+                        Twist::default()
+                    }
+                };
+                out(Filtered(filtered, header));
+            }
+        }
+    }
+}
+
+impl ProjectionNode {
+    /// `~/project_velocity`: a refused request is `success = false`, status `error`.
+    pub fn project_velocity(&mut self, req: &ProjectVelocityRequest) -> ProjectVelocityResponse {
+        self.try_project_velocity(req)
+            .unwrap_or_else(|e| ProjectVelocityResponse {
+                success: false,
+                status: "error".into(),
+                message: e.to_string(),
+                ..Default::default()
+            })
+    }
+
+    fn try_project_velocity(
+        &mut self,
+        req: &ProjectVelocityRequest,
+    ) -> Result<ProjectVelocityResponse, NodeError> {
+        let limits = &self.params.node.acceleration_limits;
+        let pr = request::projection_request(self.robot.model(), limits, req)?;
+        let (q, v) = if req.use_latest_state {
+            self.robot
+                .latest_state(self.params.common.state.project_to_constraints)?
+        } else {
+            let model = self.robot.model();
+            let latest = &self.robot.state().q;
+            let mut q = state_request::assemble("q", &[], &req.q, latest, &model.q_names, false)?;
+            model.normalize(&mut q);
+            (q, self.robot.state().v.clone())
+        };
+        let out = project_system(&mut self.projector, self.robot.system(), &q, &v, &pr)
+            .map_err(NodeError::core("projection"))?;
+        Ok(request::response(&out))
+    }
+
+    /// The filter: a command twist in, the projected twist out (zero twist when infeasible).
+    pub fn filter_command(
+        &mut self,
+        cmd: &Twist,
+    ) -> Result<(Twist, ProjectVelocityResponse), NodeError> {
+        let f = &self.params.node.filter;
+        let req = ProjectVelocityRequest {
+            use_latest_state: true,
+            use_twist: true,
+            base_twist: *cmd,
+            accel_limit_dt: f.accel_limit_dt,
+            ..Default::default()
+        };
+        let mut pr = request::projection_request(
+            self.robot.model(),
+            &self.params.node.acceleration_limits,
+            &req,
+        )?;
+        pr.velocity_limits = f.velocity_limits;
+        let (q, v) = self
+            .robot
+            .latest_state(self.params.common.state.project_to_constraints)?;
+        let out = project_system(&mut self.projector, self.robot.system(), &q, &v, &pr)
+            .map_err(NodeError::core("projection"))?;
+        let resp = request::response(&out);
+        let twist = if resp.success {
+            resp.base_twist
+        } else {
+            Twist::default()
+        };
+        Ok((twist, resp))
+    }
+}

@@ -1,0 +1,101 @@
+//! `cd_projection`'s own parameters.
+
+use serde::{Deserialize, Serialize};
+
+use crate::params::{KindParams, ParamsError, nonempty, nonneg, positive};
+
+/// `acceleration_limits.*`: a_max per velocity coordinate for `accel_limit_dt` requests.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AccelerationLimitsParams {
+    /// Coordinate names (`v_names`, or the base aliases vx, vy, wz).
+    pub names: Vec<String>,
+    /// a_max per name [m/s² or rad/s²] (> 0).
+    pub values: Vec<f64>,
+}
+
+impl Default for AccelerationLimitsParams {
+    fn default() -> Self {
+        AccelerationLimitsParams {
+            names: vec!["vx".into(), "wz".into()],
+            values: vec![1.0, 2.0],
+        }
+    }
+}
+
+/// `filter.*`: the velocity projection as a command filter between a planner and the base
+/// controller.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FilterParams {
+    /// Subscribe `input_topic`, publish the projected command on `output_topic`.
+    pub enabled: bool,
+    /// Commands in (`geometry_msgs/Twist`, or `TwistStamped` with `stamped`).
+    pub input_topic: String,
+    /// Feasible commands out (same type as in).
+    pub output_topic: String,
+    /// Both topics carry `geometry_msgs/TwistStamped`.
+    pub stamped: bool,
+    /// Apply the URDF joint velocity limits (e.g. wheel speeds).
+    pub velocity_limits: bool,
+    /// If > 0, also bound |v − v_current| ≤ a_max · accel_limit_dt (see `acceleration_limits`) [s].
+    pub accel_limit_dt: f64,
+}
+
+impl Default for FilterParams {
+    fn default() -> Self {
+        FilterParams {
+            enabled: false,
+            input_topic: "/cmd_vel_in".into(),
+            output_topic: "/cmd_vel_out".into(),
+            stamped: false,
+            velocity_limits: true,
+            accel_limit_dt: 0.0,
+        }
+    }
+}
+
+/// The velocity projection service and command filter (`cd_projection`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ProjectionParams {
+    /// Offer `~/project_velocity`.
+    pub service: bool,
+    /// a_max per coordinate for `accel_limit_dt` requests and the filter.
+    pub acceleration_limits: AccelerationLimitsParams,
+    /// The command filter.
+    pub filter: FilterParams,
+}
+
+impl Default for ProjectionParams {
+    fn default() -> Self {
+        ProjectionParams {
+            service: true,
+            acceleration_limits: AccelerationLimitsParams::default(),
+            filter: FilterParams::default(),
+        }
+    }
+}
+
+impl KindParams for ProjectionParams {
+    const DYNAMIC: &'static [&'static str] = &["acceleration_limits.", "filter.accel_limit_dt"];
+
+    fn validate(&self) -> Result<(), ParamsError> {
+        let a = &self.acceleration_limits;
+        if a.names.len() != a.values.len() {
+            return Err(ParamsError::invalid(
+                "acceleration_limits",
+                format!(": {} names but {} values", a.names.len(), a.values.len()),
+            ));
+        }
+        for (n, v) in a.names.iter().zip(&a.values) {
+            positive(&format!("acceleration_limits ({n})"), *v)?;
+        }
+        nonneg("filter.accel_limit_dt", self.filter.accel_limit_dt)?;
+        if self.filter.enabled {
+            nonempty("filter.input_topic", &self.filter.input_topic)?;
+            nonempty("filter.output_topic", &self.filter.output_topic)?;
+        }
+        Ok(())
+    }
+}

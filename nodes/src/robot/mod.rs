@@ -1,0 +1,242 @@
+//! The robot a node serves: its scene (model, constraints, actuators) with a multiplier-form
+//! [`System`], and the latest state assembled from `/joint_states` and `/odom`. Every node kind
+//! has one; what a kind builds on top (predictor, projector, force elements) is its own.
+//!
+//! No ROS handles here: inputs and results are the plain message structs of [`crate::msg`].
+
+pub mod request;
+pub mod state;
+
+use constraint_dynamics::actuators::Command;
+use constraint_dynamics::constraints::{ConstraintForce, SlipTest};
+use constraint_dynamics::dynamics::Formulation;
+use constraint_dynamics::predict::drift;
+use constraint_dynamics::{Model, Scene, System};
+
+use crate::convert::{ForcesContext, base_twist_of, constraint_forces_msg};
+use crate::error::NodeError;
+use crate::msg::builtin_interfaces::Time;
+use crate::msg::constraint_dynamics_msgs::ConstraintForces;
+use crate::msg::geometry_msgs::Twist;
+use crate::params::{CommonParams, Fallback};
+use state::StateEstimate;
+
+/// A scene-bound robot and its latest state. See the module documentation.
+#[derive(Clone)]
+pub struct Robot {
+    scene: Scene,
+    /// Multiplier form, so λ is always there (forces, projection, state projection).
+    sys: System,
+    state: StateEstimate,
+    /// Joints with position controllers in the scene, and their q index.
+    held_joints: Vec<(String, usize)>,
+    base_frame: String,
+}
+
+impl Robot {
+    /// Loads the scene file named in the parameters (already resolved to a path).
+    pub fn load(common: &CommonParams) -> Result<Self, NodeError> {
+        let path = &common.model.scene_file;
+        let scene = Scene::load(path).map_err(|source| NodeError::Scene {
+            path: path.clone(),
+            source,
+        })?;
+        Self::from_scene(scene, common)
+    }
+
+    /// Builds the system and the state estimate (at the scene's initial state) of a scene.
+    pub fn from_scene(scene: Scene, common: &CommonParams) -> Result<Self, NodeError> {
+        let mut sys = System::from_scene(&scene).map_err(NodeError::core("constraints"))?;
+        sys.formulation = Formulation::Multipliers;
+        let state = StateEstimate::new(&scene.model, &scene.q0, &scene.v0);
+        let held_joints = scene
+            .file
+            .actuators
+            .position
+            .iter()
+            .filter_map(|c| state.joint(&c.joint).map(|(iq, _)| (c.joint.clone(), iq)))
+            .collect();
+        let base_frame = match common.frames.base_frame.as_str() {
+            "" => scene
+                .model
+                .bodies
+                .get(1)
+                .map(|b| b.name.clone())
+                .unwrap_or_else(|| "base_link".into()),
+            f => f.to_string(),
+        };
+        Ok(Robot {
+            scene,
+            sys,
+            state,
+            held_joints,
+            base_frame,
+        })
+    }
+
+    /// The same scene settings with the URDF of a `/robot_description` message; the state is
+    /// carried over by name.
+    pub fn with_urdf(&self, urdf: &str, common: &CommonParams) -> Result<Robot, NodeError> {
+        if urdf.trim().is_empty() {
+            return Err(NodeError::EmptyUrdf);
+        }
+        let scene = Scene::from_parts(
+            &self.scene.path,
+            self.scene.file.clone(),
+            urdf,
+            "robot_description",
+        )
+        .map_err(NodeError::core("robot_description"))?;
+        let mut next = Robot::from_scene(scene, common)?;
+        next.state.carry_over(&self.state);
+        Ok(next)
+    }
+
+    /// A fresh robot from the same scene, keeping the state (after a caught panic).
+    pub fn rebuilt(&self, common: &CommonParams) -> Result<Robot, NodeError> {
+        let mut next = Robot::from_scene(self.scene.clone(), common)?;
+        next.state.carry_over(&self.state);
+        Ok(next)
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The model.
+    pub fn model(&self) -> &Model {
+        &self.scene.model
+    }
+
+    /// The multiplier-form system.
+    pub fn system(&mut self) -> &mut System {
+        &mut self.sys
+    }
+
+    /// The latest state.
+    pub fn state(&self) -> &StateEstimate {
+        &self.state
+    }
+
+    /// The latest state, to apply messages to.
+    pub fn state_mut(&mut self) -> &mut StateEstimate {
+        &mut self.state
+    }
+
+    /// The child frame of the predicted odometry.
+    pub fn base_frame(&self) -> &str {
+        &self.base_frame
+    }
+
+    /// The latest state (normalised), projected onto the constraints when `project` (as the
+    /// predictor's drift control does, mass-weighted).
+    pub fn latest_state(&mut self, project: bool) -> Result<(Vec<f64>, Vec<f64>), NodeError> {
+        let (mut q, mut v) = (self.state.q.clone(), self.state.v.clone());
+        self.scene.model.normalize(&mut q);
+        if project {
+            drift::project(&mut self.sys, &mut q, &mut v, true).map_err(NodeError::core(
+                "latest state: projection onto the constraints",
+            ))?;
+        }
+        Ok((q, v))
+    }
+
+    /// True if the scene has a differential drive that follows base twists.
+    pub fn has_diff_drive(&self) -> bool {
+        self.scene.file.actuators.diff_drive.is_some()
+    }
+
+    /// The core command for a base (v, ω), holding the position-controlled joints at `q0` when
+    /// `hold_joints`.
+    pub fn command(&self, base: Option<[f64; 2]>, q0: &[f64], hold_joints: bool) -> Command {
+        let mut cmd = Command {
+            base_twist: if self.has_diff_drive() { base } else { None },
+            ..Default::default()
+        };
+        if hold_joints {
+            for (name, iq) in &self.held_joints {
+                cmd.joint_position.insert(name.clone(), q0[*iq]);
+            }
+        }
+        cmd
+    }
+
+    /// The base (v, ω) used without a fresh command; `None` = coast.
+    pub fn fallback_twist(&self, fallback: Fallback, v0: &[f64]) -> Option<[f64; 2]> {
+        match fallback {
+            Fallback::Hold => {
+                let t = self.scene.model.base_twist(v0);
+                Some([t.linear[0], t.angular[2]])
+            }
+            Fallback::Coast => None,
+            Fallback::Stop => Some([0.0, 0.0]),
+        }
+    }
+
+    /// (v, ω) of a twist command, refusing what a differential drive cannot do.
+    pub fn twist_command(&self, t: &Twist, what: &str) -> Result<[f64; 2], NodeError> {
+        let vw = base_twist_of(t)
+            .unicycle()
+            .map_err(|e| NodeError::request(what, e.to_string()))?;
+        if !self.has_diff_drive() {
+            return Err(NodeError::request(
+                what,
+                format!(
+                    "the scene {} has no actuators.diff_drive, so it cannot follow base twists",
+                    self.scene.path.display()
+                ),
+            ));
+        }
+        Ok(vw)
+    }
+
+    /// The slip test of the parameters for this robot.
+    pub fn slip_test(&self, common: &CommonParams) -> SlipTest {
+        SlipTest::new(
+            &self.scene.model,
+            &self.sys.constraints,
+            common.slip.friction_coefficient,
+            common.slip.planar_normal_force,
+        )
+    }
+
+    /// A `ConstraintForces` message in the odom frame.
+    pub fn forces_msg(
+        &self,
+        common: &CommonParams,
+        forces: &[ConstraintForce],
+        generalized_force: &[f64],
+        rank_deficiency: usize,
+        stamp: Time,
+    ) -> ConstraintForces {
+        let ctx = ForcesContext {
+            stamp,
+            world_frame: &common.frames.odom_frame,
+            v_names: &self.scene.model.v_names,
+            generalized_force,
+            rank_deficiency,
+            slip: self.slip_test(common),
+        };
+        constraint_forces_msg(forces, &ctx)
+    }
+
+    /// The start state of a request: the latest (projected per the parameters), or the
+    /// request's own q (positional, all nq) and v (positional, all nv or none = zero).
+    pub fn request_state(
+        &mut self,
+        common: &CommonParams,
+        use_latest: bool,
+        (q_names, q): (&[String], &[f64]),
+        (v_names, v): (&[String], &[f64]),
+    ) -> Result<(Vec<f64>, Vec<f64>), NodeError> {
+        if use_latest {
+            return self.latest_state(common.state.project_to_constraints);
+        }
+        let model = &self.scene.model;
+        let mut q = request::assemble("q", q_names, q, &self.state.q, &model.q_names, false)?;
+        let v = request::assemble("v", v_names, v, &self.state.v, &model.v_names, true)?;
+        model.normalize(&mut q);
+        Ok((q, v))
+    }
+}

@@ -1,0 +1,10 @@
+//! ROS 2 plumbing, knowing nothing of the physics: the command line and parameter files
+//! ([`args`]), the DDS context and nodes ([`context`]), the network rule
+//! ([`network_guard`]), logging to stderr and `/rosout` ([`logging`]), and the executor loops
+//! that feed subscriptions and services to a worker ([`io`]).
+
+pub mod args;
+pub mod context;
+pub mod io;
+pub mod logging;
+pub mod network_guard;

@@ -1,0 +1,78 @@
+//! What acts on the robot at one state, and the constraint forces that answer it.
+//!
+//! The generalized force that joins the dynamics is τ = τ_act + Q(t, q, v): the actuators'
+//! torques (held over a control period) plus the scene's force elements (springs, dampers,
+//! scheduled torques, frame forces). The constraint forces at (t, q, v) are the multipliers λ of
+//! `M q̈ + h = τ + Jᵀλ, J q̈ = −γ − K_d J v − K_p φ` under that τ. One function computes them for
+//! the predictor's samples, the forces service, the CLI and the tests.
+
+use crate::algorithm::forward_kinematics;
+use crate::constraints::ConstraintForce;
+use crate::dynamics::Formulation;
+use crate::error::Result;
+use crate::forces::ForceElements;
+use crate::system::{DynamicsOptions, System};
+
+/// Writes τ = τ_act + Q(t, q, v) into `tau` (nv). `zero` is nv zeros (the kinematics pass for
+/// the force elements needs no acceleration). Allocates nothing.
+pub fn applied_generalized_force(
+    sys: &mut System,
+    elements: &mut ForceElements,
+    (t, q, v): (f64, &[f64], &[f64]),
+    tau_act: &[f64],
+    zero: &[f64],
+    tau: &mut [f64],
+) {
+    tau.copy_from_slice(tau_act);
+    if !elements.is_empty() {
+        forward_kinematics(&sys.model, &mut sys.data, q, v, zero);
+        elements.add_generalized_force(&sys.model, &sys.data, t, q, v, tau);
+    }
+}
+
+/// The constraint forces at one state (multiplier form, whatever the system integrates with).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ForcesAtState {
+    /// q̈ (nv) [m/s², rad/s²].
+    pub qdd: Vec<f64>,
+    /// λ (nc), in the rows' units: the force ON the robot.
+    pub lambda: Vec<f64>,
+    /// Each constraint's force or wrench at its frame, named.
+    pub forces: Vec<ConstraintForce>,
+    /// Jᵀλ per velocity coordinate (nv) [N or N·m].
+    pub generalized_force: Vec<f64>,
+    /// nc − rank(J M⁻¹ Jᵀ): > 0 at a singular configuration or with redundant rows, where λ is
+    /// the minimum-norm solution.
+    pub rank_deficiency: usize,
+}
+
+/// Constraint forces at (t, q, v) under actuator torques `tau_act` (nv) plus the force
+/// elements. Uses the multiplier form; `allow_inconsistent` as in [`DynamicsOptions`].
+pub fn constraint_forces_at(
+    sys: &mut System,
+    elements: &mut ForceElements,
+    (t, q, v): (f64, &[f64], &[f64]),
+    tau_act: &[f64],
+) -> Result<ForcesAtState> {
+    let nv = sys.model.nv;
+    crate::error::check_len("tau", tau_act, nv)?;
+    sys.model.check_state(q, v)?;
+    let zero = vec![0.0; nv];
+    let mut tau = vec![0.0; nv];
+    applied_generalized_force(sys, elements, (t, q, v), tau_act, &zero, &mut tau);
+    let opts = DynamicsOptions {
+        formulation: Formulation::Multipliers,
+        ..Default::default()
+    };
+    let qdd = sys
+        .forward_dynamics_with(q, v, &tau, opts)?
+        .as_slice()
+        .to_vec();
+    Ok(ForcesAtState {
+        qdd,
+        lambda: sys.kkt.lambda.as_slice().to_vec(),
+        forces: sys.constraint_forces(),
+        generalized_force: sys.kkt.generalized_force.as_slice().to_vec(),
+        rank_deficiency: sys.kkt.rank_deficiency,
+    })
+}

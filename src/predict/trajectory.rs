@@ -1,0 +1,80 @@
+//! What a prediction returns: samples of the state along the horizon, with what acted on the
+//! robot and, on request, the constraint forces.
+
+use super::integrator::Method;
+use crate::constraints::ConstraintForce;
+use serde::Serialize;
+
+/// One output sample.
+#[derive(Clone, Debug, Serialize)]
+pub struct Sample {
+    /// Time [s].
+    pub t: f64,
+    /// Configuration (nq).
+    pub q: Vec<f64>,
+    /// Velocity (nv).
+    pub v: Vec<f64>,
+    /// The actuators' torques held from this sample on (zero-order hold; at the last sample,
+    /// those of the interval that ends there) (nv) [N·m or N]; zeros without actuators.
+    pub actuator_torque: Vec<f64>,
+    /// Multipliers (when forces were asked for).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lambda: Option<Vec<f64>>,
+    /// Each constraint's force at its frame (when forces were asked for).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub forces: Option<Vec<ConstraintForce>>,
+    /// Jᵀλ per velocity coordinate (nv) [N or N·m] (when forces were asked for).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub generalized_force: Option<Vec<f64>>,
+    /// nc − rank(J M⁻¹ Jᵀ) at this state (when forces were asked for): > 0 at a singular
+    /// configuration or with redundant constraints, where λ is the minimum-norm solution.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rank_deficiency: Option<usize>,
+    /// max |φ| over holonomic rows [m or rad].
+    pub position_residual: f64,
+    /// max |J v| [m/s or rad/s].
+    pub velocity_residual: f64,
+    /// Kinetic, and gravity + spring potential energy [J].
+    pub kinetic_energy: f64,
+    pub potential_energy: f64,
+    /// Accumulated local error estimate of the configuration [m or rad] (dopri5), NaN otherwise.
+    pub error_estimate: f64,
+}
+
+impl Sample {
+    /// The configuration's error estimate at this sample [m or rad]: the integrator's
+    /// accumulated local error (0 for methods without one) plus the holonomic residual.
+    pub fn position_error_estimate(&self) -> f64 {
+        let integration = if self.error_estimate.is_finite() {
+            self.error_estimate
+        } else {
+            0.0
+        };
+        integration + self.position_residual
+    }
+}
+
+/// What a prediction records besides the state, chosen per call.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PredictOptions {
+    /// λ, the constraint forces and Jᵀλ in every sample (multiplier form at each sample, under
+    /// the held actuator torques and the force elements).
+    pub forces: bool,
+}
+
+/// A prediction.
+#[derive(Clone, Debug, Serialize)]
+pub struct Trajectory {
+    pub q_names: Vec<String>,
+    pub v_names: Vec<String>,
+    pub method: Method,
+    pub samples: Vec<Sample>,
+    /// Accepted steps and right-hand-side evaluations.
+    pub steps: usize,
+    pub evaluations: usize,
+    /// Evaluations where the constraint accelerations were inconsistent (at or next to a singular
+    /// configuration) and were met in the least-squares sense instead.
+    pub least_squares_evaluations: usize,
+    /// CPU (wall) time of the integration [s].
+    pub run_time_s: f64,
+}
