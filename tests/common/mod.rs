@@ -8,11 +8,16 @@ use serde_json::Value;
 use std::path::PathBuf;
 
 pub fn reference_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/reference")
+    repo_dir().join("../shared/reference")
 }
 
+/// The repository root (the workspace's, whichever of its crates runs the test).
 pub fn repo_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    let here = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    here.ancestors()
+        .find(|d| d.join("Cargo.lock").exists())
+        .unwrap_or(&here)
+        .to_path_buf()
 }
 
 pub fn load_case(name: &str) -> Value {

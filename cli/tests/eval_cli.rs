@@ -1,6 +1,7 @@
 //! The command-line tool, checked from outside: `constraint_dynamics eval` on a scene written for
 //! the reference four-bar, at the reference states, prints q̈ and λ equal to Pinocchio's.
 
+#[path = "../../tests/common/mod.rs"]
 mod common;
 use common::*;
 use std::process::Command;

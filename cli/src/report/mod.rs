@@ -50,8 +50,9 @@ impl Row {
     }
 }
 
+/// The repository root (the CLI crate is `cli/` in it): bundled scenes and `docs/report/`.
 fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
 fn io_err(path: &Path, e: std::io::Error) -> Error {

@@ -1,6 +1,8 @@
 //! `eval`: q̈ (and with constraints λ and the forces) at one state.
 
+use constraint_dynamics::applied::{applied_generalized_force, constraint_forces_at};
 use constraint_dynamics::dynamics::Formulation;
+use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::{Result, Scene, System};
 use serde_json::{Value, json};
 use std::path::PathBuf;
@@ -35,11 +37,30 @@ pub fn run(a: EvalArgs) -> Result<Value> {
         }
     };
     let (q, v, tau) = super::state::load(&scene, a.state.as_deref())?;
-    let qdd: Vec<f64> = sys
-        .forward_dynamics(&q, &v, &tau, true)?
-        .iter()
-        .copied()
-        .collect();
+    // τ of the state file plus the scene's force elements (springs, dampers, scheduled torques).
+    let mut elements = ForceElements::new(&sys.model, &scene.file.forces)?;
+    let use_multipliers = sys.formulation != Formulation::Embedded;
+    let (qdd, at) = if use_multipliers {
+        let at = constraint_forces_at(&mut sys, &mut elements, (0.0, &q, &v), &tau)?;
+        (at.qdd.clone(), Some(at))
+    } else {
+        let nv = sys.model.nv;
+        let mut applied = vec![0.0; nv];
+        applied_generalized_force(
+            &mut sys,
+            &mut elements,
+            (0.0, &q, &v),
+            &tau,
+            &vec![0.0; nv],
+            &mut applied,
+        );
+        (
+            sys.forward_dynamics(&q, &v, &applied, false)?
+                .as_slice()
+                .to_vec(),
+            None,
+        )
+    };
     let m = &sys.model;
     let mut out = json!({
         "scene": a.scene.display().to_string(),
@@ -52,11 +73,11 @@ pub fn run(a: EvalArgs) -> Result<Value> {
         out["constraint_rows"] = json!(sys.constraints.row_names());
         out["phi"] = json!(sys.cdata.phi.as_slice());
         out["velocity_residual"] = json!(sys.cdata.jv.as_slice());
-        if sys.last_formulation == Formulation::Multipliers {
-            out["lambda"] = json!(sys.kkt.lambda.as_slice());
-            out["generalized_constraint_force"] = json!(sys.kkt.generalized_force.as_slice());
-            out["rank_deficiency"] = json!(sys.kkt.rank_deficiency);
-            out["constraints"] = serde_json::to_value(sys.constraint_forces()).unwrap_or_default();
+        if let Some(at) = &at {
+            out["lambda"] = json!(at.lambda);
+            out["generalized_constraint_force"] = json!(at.generalized_force);
+            out["rank_deficiency"] = json!(at.rank_deficiency);
+            out["constraints"] = serde_json::to_value(&at.forces).unwrap_or_default();
         } else {
             let p = &sys.embedded.partition;
             out["independent_velocities"] = json!(

@@ -6,7 +6,8 @@ use std::process::Command;
 
 fn bin() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_constraint_dynamics"));
-    c.current_dir(env!("CARGO_MANIFEST_DIR"));
+    // Scene paths in the tests are relative to the repository root.
+    c.current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
     c
 }
 
