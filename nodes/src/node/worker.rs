@@ -3,7 +3,8 @@
 //!
 //! The glue translates every message and request into an [`Event`] and sends it with
 //! `try_send` (never blocking the executor); requests carry a reply channel the glue awaits.
-//! A node kind with a tick (the predictor) is ticked at its period on the ROS clock and hands
+//! A node kind with a tick (the predictor) is ticked at its period on the ROS clock (wall time,
+//! or `/clock` under `use_sim_time`) and hands
 //! its results to the glue as outputs. A panic inside the logic is caught: the request gets an
 //! error, the logic is rebuilt from its scene, and the worker keeps serving.
 
@@ -142,18 +143,23 @@ struct Worker<N: NodeLogic> {
 
 impl<N: NodeLogic> Worker<N> {
     fn run(&mut self, rx: Receiver<Event<N>>) {
-        let mut next_tick = Instant::now();
+        // The tick runs on the ROS clock: wall time, or /clock under `use_sim_time` (then the
+        // ticks follow the simulation's time, faster or slower than real time, and stop with it).
+        let sim = self.logic.params().common.use_sim_time;
+        let mut next_wall = Instant::now();
+        let mut next_sim: Option<Time> = None;
         loop {
             let timeout = match self.logic.tick_period() {
-                Some(_) => next_tick.saturating_duration_since(Instant::now()),
-                None => Duration::from_secs(3600),
+                Some(_) if !sim => next_wall.saturating_duration_since(Instant::now()),
+                _ => Duration::from_secs(3600),
             };
             match rx.recv_timeout(timeout) {
                 Ok(Event::Shutdown) | Err(RecvTimeoutError::Disconnected) => break,
                 Ok(Event::RobotDescription(urdf)) => {
                     if self.guarded("robot_description", |w| w.robot_description(&urdf)) {
                         // A new model re-plans at once.
-                        next_tick = Instant::now();
+                        next_wall = Instant::now();
+                        next_sim = None;
                     }
                 }
                 Ok(ev) => {
@@ -164,23 +170,37 @@ impl<N: NodeLogic> Worker<N> {
                 }
                 Err(RecvTimeoutError::Timeout) => {}
             }
-            if let Some(period) = self.logic.tick_period() {
-                let now = Instant::now();
-                if now >= next_tick {
-                    self.guarded("prediction", |w| {
-                        let t = w.now();
-                        let outputs = &w.outputs;
-                        w.logic.tick(t, &mut |o| {
-                            let _ = outputs.try_send(o);
-                        });
-                        false
-                    });
-                    next_tick += period;
-                    if next_tick < Instant::now() {
-                        // Behind (a tick took longer than the period): do not catch up.
-                        next_tick = Instant::now() + period;
+            let Some(period) = self.logic.tick_period() else {
+                continue;
+            };
+            let due = if sim {
+                match self.sim_time {
+                    Some(now) if next_sim.is_none_or(|n| now.to_nanos() >= n.to_nanos()) => {
+                        // Behind (a jump of /clock): the next tick is one period from now.
+                        next_sim = Some(crate::convert::time_plus(now, period.as_secs_f64()));
+                        true
                     }
+                    _ => false,
                 }
+            } else if Instant::now() >= next_wall {
+                next_wall += period;
+                if next_wall < Instant::now() {
+                    // Behind (a tick took longer than the period): do not catch up.
+                    next_wall = Instant::now() + period;
+                }
+                true
+            } else {
+                false
+            };
+            if due {
+                self.guarded("prediction", |w| {
+                    let t = w.now();
+                    let outputs = &w.outputs;
+                    w.logic.tick(t, &mut |o| {
+                        let _ = outputs.try_send(o);
+                    });
+                    false
+                });
             }
         }
     }

@@ -26,7 +26,7 @@ impl Default for ModelParams {
         ModelParams {
             scene_file: String::new(),
             use_robot_description: true,
-            robot_description_topic: "/robot_description".into(),
+            robot_description_topic: "robot_description".into(),
         }
     }
 }
@@ -52,8 +52,8 @@ pub struct StateParams {
 impl Default for StateParams {
     fn default() -> Self {
         StateParams {
-            joint_states_topic: "/joint_states".into(),
-            odom_topic: "/odom".into(),
+            joint_states_topic: "joint_states".into(),
+            odom_topic: "odom".into(),
             project_to_constraints: true,
             use_measured_effort: true,
         }
@@ -137,7 +137,7 @@ pub struct CommandParams {
 impl Default for CommandParams {
     fn default() -> Self {
         CommandParams {
-            topic: "/cmd_vel".into(),
+            topic: "cmd_vel".into(),
             stamped: false,
             timeout: 0.5,
             fallback: "stop".into(),

@@ -43,7 +43,7 @@ cd_forces:
     assert!(pp.node.command.stamped);
     assert_eq!(pp.node.command.fallback().unwrap(), Fallback::Hold);
     assert_eq!(pp.common.model.scene_file, "s.yaml");
-    assert_eq!(pp.common.state.joint_states_topic, "/joint_states");
+    assert_eq!(pp.common.state.joint_states_topic, "joint_states");
     // `rate` is not a parameter of the forces node.
     let p = parse_params_yaml(yaml, "/cd_forces").unwrap();
     let e = NodeParams::<ForcesParams>::from_parameters(&p)
@@ -134,4 +134,49 @@ fn run_time_changes_only_of_dynamic_parameters() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("covariance.twist_floor"), "{e}");
+}
+
+#[test]
+fn namespaced_example_follows_rcl_key_rules() {
+    // params/namespaced.yaml: `/robot1/cd_predictor` and `/**` apply in /robot1; the bare
+    // `cd_predictor:` key means /cd_predictor and must not.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../params/namespaced.yaml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let ns = parse_params_yaml(&text, "/robot1/cd_predictor").unwrap();
+    let p = NodeParams::<PredictorParams>::from_parameters(&ns).unwrap();
+    assert_eq!(p.node.rate, 10.0);
+    assert!(p.node.command.stamped);
+    assert_eq!(p.common.state.odom_topic, "odom");
+    assert_eq!(p.common.frames.odom_frame, "robot1/odom");
+    let root = parse_params_yaml(&text, "/cd_predictor").unwrap();
+    let p = NodeParams::<PredictorParams>::from_parameters(&root).unwrap();
+    assert_eq!(p.node.rate, 1.0);
+    // Every kind accepts the shared section in the namespace.
+    let forces = parse_params_yaml(&text, "/robot1/cd_forces").unwrap();
+    NodeParams::<ForcesParams>::from_parameters(&forces).unwrap();
+}
+
+#[test]
+fn relative_default_topics_resolve_in_the_namespace() {
+    use crate::ros::args::RosArgs;
+    let p = NodeParams::<PredictorParams>::default();
+    let args = RosArgs::parse(["x", "--ros-args", "-r", "__ns:=/robot1"]).unwrap();
+    let ns = args.namespace_or("/");
+    let topic = |t: &str| args.resolve_topic(ns, "cd_predictor", t);
+    assert_eq!(topic(&p.common.state.odom_topic), "/robot1/odom");
+    assert_eq!(
+        topic(&p.common.state.joint_states_topic),
+        "/robot1/joint_states"
+    );
+    assert_eq!(topic(&p.node.command.topic), "/robot1/cmd_vel");
+    assert_eq!(
+        topic(&p.common.model.robot_description_topic),
+        "/robot1/robot_description"
+    );
+    assert_eq!(
+        topic("~/predicted_odom"),
+        "/robot1/cd_predictor/predicted_odom"
+    );
+    // An absolute name is used as given.
+    assert_eq!(topic("/odom"), "/odom");
 }

@@ -49,8 +49,8 @@ pub struct PredictorNode {
     predictor: Predictor,
     params: NodeParams<PredictorParams>,
     log: NodeLog,
-    /// Latest (v, ω) command and when it arrived.
-    last_command: Option<([f64; 2], Instant)>,
+    /// Latest (v, ω) command and when it arrived (ROS time: /clock under `use_sim_time`).
+    last_command: Option<([f64; 2], Time)>,
     warned_command: bool,
     /// Slip flags of the last prediction (to log transitions), and the last slip warning.
     last_slip: Vec<bool>,
@@ -93,7 +93,7 @@ impl NodeLogic for PredictorNode {
     fn set_params(&mut self, params: NodeParams<PredictorParams>) {
         self.params = params;
     }
-    fn handle(&mut self, input: PredictorInput, _now: Time, _out: &mut dyn FnMut(Self::Output)) {
+    fn handle(&mut self, input: PredictorInput, now: Time, _out: &mut dyn FnMut(Self::Output)) {
         let PredictorInput::Command(t) = input;
         let finite = t.linear.x.is_finite() && t.angular.z.is_finite();
         if let Err(e) = self.robot.twist_command(&t, "cmd_vel") {
@@ -103,16 +103,18 @@ impl NodeLogic for PredictorNode {
                 &format!("{e}; using linear.x and angular.z if finite"),
             );
         }
-        self.last_command = finite.then(|| ([t.linear.x, t.angular.z], Instant::now()));
+        self.last_command = finite.then_some(([t.linear.x, t.angular.z], now));
     }
     fn tick_period(&self) -> Option<Duration> {
         Some(Duration::from_secs_f64(1.0 / self.params.node.rate))
     }
     fn tick(&mut self, now: Time, out: &mut dyn FnMut(Self::Output)) {
         let timeout = self.params.node.command.timeout;
+        // The command's age on the ROS clock, so a simulation's time decides when it is stale.
+        let age = |at: &Time| (now.to_nanos() - at.to_nanos()) as f64 * 1e-9;
         let command = self
             .last_command
-            .filter(|(_, at)| at.elapsed().as_secs_f64() <= timeout)
+            .filter(|(_, at)| (0.0..=timeout).contains(&age(at)))
             .map(|(c, _)| c);
         match self.periodic(now, command) {
             Ok(o) => {
@@ -237,3 +239,6 @@ impl PredictorNode {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

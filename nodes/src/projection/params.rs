@@ -46,8 +46,8 @@ impl Default for FilterParams {
     fn default() -> Self {
         FilterParams {
             enabled: false,
-            input_topic: "/cmd_vel_in".into(),
-            output_topic: "/cmd_vel_out".into(),
+            input_topic: "cmd_vel_in".into(),
+            output_topic: "cmd_vel_out".into(),
             stamped: false,
             velocity_limits: true,
             accel_limit_dt: 0.0,
