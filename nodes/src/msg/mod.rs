@@ -14,6 +14,7 @@ use ros2_client::{Message, MessageTypeName, ServiceTypeName};
 
 pub mod builtin_interfaces;
 pub mod constraint_dynamics_msgs;
+pub mod diagnostic_msgs;
 pub mod geometry_msgs;
 pub mod nav_msgs;
 pub mod rcl_interfaces;

@@ -2,5 +2,6 @@
 //! thread by a [`worker::WorkerHandle`], and its ROS side behind [`wiring::RosWiring`], started
 //! by [`wiring::start_node`]. The kinds (`crate::predictor`, …) implement both traits.
 
+pub mod health;
 pub mod wiring;
 pub mod worker;

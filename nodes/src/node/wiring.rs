@@ -9,9 +9,12 @@ use std::sync::{Arc, Mutex};
 use ros2_client::{Context, NodeOptions};
 
 use crate::error::NodeError;
+use crate::msg::builtin_interfaces::Time;
+use crate::msg::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
 use crate::msg::nav_msgs::Odometry;
 use crate::msg::rosgraph_msgs::Clock;
 use crate::msg::sensor_msgs::JointState;
+use crate::msg::std_msgs::Header;
 use crate::msg::std_msgs::StringMsg;
 use crate::node::worker::{Event, NodeLogic, WorkerHandle};
 use crate::params::NodeParams;
@@ -149,7 +152,9 @@ pub fn start_node<N: RosWiring>(
     logging::register(name, ros.node.logging_handle());
 
     let (out_tx, out_rx) = smol::channel::bounded::<N::Output>(16);
-    let worker = WorkerHandle::spawn(logic, name, out_tx)?;
+    let (diag_tx, diag_rx) = smol::channel::bounded::<(Time, DiagnosticStatus)>(4);
+    let fqn = format!("{}/{name}", namespace.trim_end_matches('/'));
+    let worker = WorkerHandle::spawn(logic, name, &fqn, out_tx, diag_tx)?;
     if let Ok(mut slot) = event_tx.lock() {
         *slot = Some(worker.sender());
     }
@@ -166,6 +171,7 @@ pub fn start_node<N: RosWiring>(
         tasks: Vec::new(),
     };
     wire_state_inputs(&mut w)?;
+    wire_diagnostics(&mut w, diag_rx)?;
     N::wire(&mut w)?;
     let tasks = std::mem::take(&mut w.tasks);
     log.info(&format!("{} ready: {summary}", name));
@@ -175,6 +181,33 @@ pub fn start_node<N: RosWiring>(
         tasks,
         ros: Some(ros),
     }))
+}
+
+/// The node's status on `/diagnostics` (global, as diagnostic_updater publishes it; the status
+/// name is the node's fully qualified name).
+fn wire_diagnostics<N: NodeLogic>(
+    w: &mut Wiring<N>,
+    statuses: smol::channel::Receiver<(Time, DiagnosticStatus)>,
+) -> Result<(), NodeError> {
+    let publisher = w
+        .ros
+        .publisher::<DiagnosticArray>("/diagnostics", &qos::reliable(10))?;
+    let log = w.log.clone();
+    w.tasks.push(w.ros.spawn(async move {
+        while let Ok((stamp, status)) = statuses.recv().await {
+            let msg = DiagnosticArray {
+                header: Header {
+                    stamp,
+                    frame_id: String::new(),
+                },
+                status: vec![status],
+            };
+            if let Err(e) = publisher.async_publish(msg).await {
+                log.warn(&format!("publish diagnostics: {e:?}"));
+            }
+        }
+    }));
+    Ok(())
 }
 
 /// The inputs every node has: joint states, odometry, the URDF, and `/clock`.

@@ -15,8 +15,10 @@ use std::time::{Duration, Instant};
 
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
+use crate::msg::diagnostic_msgs::{DiagnosticStatus, KeyValue};
 use crate::msg::nav_msgs::Odometry;
 use crate::msg::sensor_msgs::JointState;
+use crate::node::health::{Health, Input, StatusContext};
 use crate::params::{KindParams, NodeParams};
 use crate::robot::Robot;
 use crate::ros::logging::NodeLog;
@@ -49,8 +51,71 @@ pub trait NodeLogic: Sized + Send + 'static {
     fn tick_period(&self) -> Option<Duration> {
         None
     }
-    /// One periodic step at ROS time `now`.
-    fn tick(&mut self, _now: Time, _out: &mut dyn FnMut(Self::Output)) {}
+    /// One periodic step at ROS time `now`; an error means the node cannot do its work.
+    fn tick(&mut self, _now: Time, _out: &mut dyn FnMut(Self::Output)) -> Result<(), NodeError> {
+        Ok(())
+    }
+    /// Kind-specific values for the node's `/diagnostics` status.
+    fn diagnostics(&self) -> Vec<KeyValue> {
+        Vec::new()
+    }
+}
+
+/// A period on the ROS clock: wall time, or `/clock` under `use_sim_time` (then it follows the
+/// simulation's time, faster or slower than real time, and stops with it).
+struct RosTimer {
+    period: Duration,
+    next_wall: Instant,
+    next_sim: Option<Time>,
+}
+
+impl RosTimer {
+    fn new(period: Duration) -> Self {
+        RosTimer {
+            period,
+            next_wall: Instant::now(),
+            next_sim: None,
+        }
+    }
+
+    /// Fire at the next check.
+    fn reset(&mut self) {
+        self.next_wall = Instant::now();
+        self.next_sim = None;
+    }
+
+    /// How long the worker may sleep before this timer needs a check.
+    fn wait(&self, sim: bool) -> Duration {
+        if sim {
+            Duration::from_secs(3600) // /clock messages wake the worker
+        } else {
+            self.next_wall.saturating_duration_since(Instant::now())
+        }
+    }
+
+    /// True (once) when the period has passed; behind, it does not catch up.
+    fn due(&mut self, sim: Option<Option<Time>>) -> bool {
+        match sim {
+            Some(Some(now)) => {
+                if self.next_sim.is_none_or(|n| now.to_nanos() >= n.to_nanos()) {
+                    self.next_sim = Some(crate::convert::time_plus(now, self.period.as_secs_f64()));
+                    return true;
+                }
+                false
+            }
+            Some(None) => false,
+            None => {
+                if Instant::now() < self.next_wall {
+                    return false;
+                }
+                self.next_wall += self.period;
+                if self.next_wall < Instant::now() {
+                    self.next_wall = Instant::now() + self.period;
+                }
+                true
+            }
+        }
+    }
 }
 
 /// Everything a worker reacts to.
@@ -86,13 +151,28 @@ impl<N: NodeLogic> WorkerHandle<N> {
     pub fn spawn(
         logic: N,
         name: &str,
+        fqn: &str,
         outputs: smol::channel::Sender<N::Output>,
+        diagnostics: smol::channel::Sender<(Time, DiagnosticStatus)>,
     ) -> Result<WorkerHandle<N>, NodeError> {
         let (tx, rx) = sync_channel(QUEUE);
+        let common = &logic.params().common;
+        let mut subscribed = Vec::new();
+        if !common.state.joint_states_topic.is_empty() {
+            subscribed.push(Input::JointStates);
+        }
+        if !common.state.odom_topic.is_empty() {
+            subscribed.push(Input::Odometry);
+        }
         let mut worker = Worker {
             logic,
             log: NodeLog::new(name),
+            fqn: fqn.to_string(),
             outputs,
+            diagnostics,
+            subscribed,
+            health: Health::default(),
+            last_level: None,
             sim_time: None,
             warned: Default::default(),
         };
@@ -136,30 +216,38 @@ struct Warned {
 struct Worker<N: NodeLogic> {
     logic: N,
     log: NodeLog,
+    /// Fully qualified node name (the diagnostics status' name).
+    fqn: String,
     outputs: smol::channel::Sender<N::Output>,
+    diagnostics: smol::channel::Sender<(Time, DiagnosticStatus)>,
+    subscribed: Vec<Input>,
+    health: Health,
+    /// Level of the last published status (a change publishes at once).
+    last_level: Option<u8>,
     sim_time: Option<Time>,
     warned: Warned,
 }
 
 impl<N: NodeLogic> Worker<N> {
     fn run(&mut self, rx: Receiver<Event<N>>) {
-        // The tick runs on the ROS clock: wall time, or /clock under `use_sim_time` (then the
-        // ticks follow the simulation's time, faster or slower than real time, and stop with it).
+        // Ticks and diagnostics run on the ROS clock (see `RosTimer`).
         let sim = self.logic.params().common.use_sim_time;
-        let mut next_wall = Instant::now();
-        let mut next_sim: Option<Time> = None;
+        let diag_period = Duration::from_secs_f64(self.logic.params().common.diagnostics.period);
+        let mut diag = RosTimer::new(diag_period);
+        let mut tick = self.logic.tick_period().map(RosTimer::new);
         loop {
-            let timeout = match self.logic.tick_period() {
-                Some(_) if !sim => next_wall.saturating_duration_since(Instant::now()),
-                _ => Duration::from_secs(3600),
-            };
+            let timeout = tick
+                .as_ref()
+                .map_or(Duration::from_secs(3600), |t| t.wait(sim))
+                .min(diag.wait(sim));
             match rx.recv_timeout(timeout) {
                 Ok(Event::Shutdown) | Err(RecvTimeoutError::Disconnected) => break,
                 Ok(Event::RobotDescription(urdf)) => {
                     if self.guarded("robot_description", |w| w.robot_description(&urdf)) {
                         // A new model re-plans at once.
-                        next_wall = Instant::now();
-                        next_sim = None;
+                        if let Some(t) = tick.as_mut() {
+                            t.reset();
+                        }
                     }
                 }
                 Ok(ev) => {
@@ -170,38 +258,50 @@ impl<N: NodeLogic> Worker<N> {
                 }
                 Err(RecvTimeoutError::Timeout) => {}
             }
-            let Some(period) = self.logic.tick_period() else {
-                continue;
-            };
-            let due = if sim {
-                match self.sim_time {
-                    Some(now) if next_sim.is_none_or(|n| now.to_nanos() >= n.to_nanos()) => {
-                        // Behind (a jump of /clock): the next tick is one period from now.
-                        next_sim = Some(crate::convert::time_plus(now, period.as_secs_f64()));
-                        true
-                    }
-                    _ => false,
-                }
-            } else if Instant::now() >= next_wall {
-                next_wall += period;
-                if next_wall < Instant::now() {
-                    // Behind (a tick took longer than the period): do not catch up.
-                    next_wall = Instant::now() + period;
-                }
-                true
-            } else {
-                false
-            };
-            if due {
+            let clock = sim.then_some(self.sim_time);
+            if tick.as_mut().is_some_and(|t| t.due(clock)) {
                 self.guarded("prediction", |w| {
-                    let t = w.now();
-                    let outputs = &w.outputs;
-                    w.logic.tick(t, &mut |o| {
-                        let _ = outputs.try_send(o);
-                    });
+                    w.tick();
                     false
                 });
             }
+            let scheduled = diag.due(clock);
+            self.publish_status(scheduled);
+        }
+    }
+
+    /// One periodic step, timed and recorded.
+    fn tick(&mut self) {
+        let now = self.now();
+        let started = Instant::now();
+        let outputs = &self.outputs;
+        let result = self.logic.tick(now, &mut |o| {
+            let _ = outputs.try_send(o);
+        });
+        let error = result.err().map(|e| {
+            self.log.error(&format!("periodic prediction failed: {e}"));
+            e.to_string()
+        });
+        self.health
+            .tick(now, started.elapsed().as_secs_f64(), error);
+    }
+
+    /// Sends the node's status when `scheduled` or when its level changed.
+    fn publish_status(&mut self, scheduled: bool) {
+        let now = self.now();
+        let params = self.logic.params();
+        let ctx = StatusContext {
+            name: &self.fqn,
+            model: &self.logic.robot().model().name,
+            requested_rate: self.logic.tick_period().map(|p| 1.0 / p.as_secs_f64()),
+            subscribed: &self.subscribed,
+            params: &params.common.diagnostics,
+            extra: self.logic.diagnostics(),
+        };
+        let status = self.health.status(now, ctx);
+        if scheduled || self.last_level != Some(status.level) {
+            self.last_level = Some(status.level);
+            let _ = self.diagnostics.try_send((now, status));
         }
     }
 
@@ -236,8 +336,10 @@ impl<N: NodeLogic> Worker<N> {
     fn handle(&mut self, ev: Event<N>) {
         match ev {
             Event::JointState(js) => {
+                let now = self.now();
                 match self.logic.robot_mut().state_mut().apply_joint_state(&js) {
                     Ok(report) => {
+                        self.health.input(Input::JointStates, now);
                         if !report.unknown.is_empty() && !self.warned.unknown_joints {
                             self.warned.unknown_joints = true;
                             self.log.info(&format!(
@@ -254,12 +356,16 @@ impl<N: NodeLogic> Worker<N> {
                 }
             }
             Event::Odometry(od) => {
+                let now = self.now();
                 let robot = self.logic.robot_mut();
                 let model = robot.model().clone();
-                if let Err(e) = robot.state_mut().apply_odometry(&model, &od) {
-                    let first = !std::mem::replace(&mut self.warned.odometry, true);
-                    self.log
-                        .log(level(first), &format!("dropped an odometry message: {e}"));
+                match robot.state_mut().apply_odometry(&model, &od) {
+                    Ok(()) => self.health.input(Input::Odometry, now),
+                    Err(e) => {
+                        let first = !std::mem::replace(&mut self.warned.odometry, true);
+                        self.log
+                            .log(level(first), &format!("dropped an odometry message: {e}"));
+                    }
                 }
             }
             Event::RobotDescription(urdf) => {
@@ -272,10 +378,12 @@ impl<N: NodeLogic> Worker<N> {
             }
             Event::Node(input) => {
                 let now = self.now();
+                let started = Instant::now();
                 let outputs = &self.outputs;
                 self.logic.handle(input, now, &mut |o| {
                     let _ = outputs.try_send(o);
                 });
+                self.health.request(started.elapsed().as_secs_f64());
             }
             Event::Shutdown => {}
         }
@@ -300,9 +408,9 @@ impl<N: NodeLogic> Worker<N> {
                 true
             }
             Err(e) => {
-                self.log.error(&format!(
-                    "robot_description refused, keeping the current model: {e}"
-                ));
+                let message = format!("robot_description refused, keeping the current model: {e}");
+                self.log.error(&message);
+                self.health.error(message);
                 false
             }
         }

@@ -177,3 +177,40 @@ impl CommandParams {
         self.fallback().map(|_| ())
     }
 }
+
+/// `diagnostics.*`: the node's status on `/diagnostics`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DiagnosticsParams {
+    /// Publication period on the ROS clock [s] (also published at once when the level changes).
+    pub period: f64,
+    /// An input (`odom`, `joint_states`) older than this on the ROS clock is stale: WARN [s].
+    pub input_timeout: f64,
+    /// Achieved tick rate below this fraction of `rate` is a missed rate: WARN [-].
+    pub min_rate_fraction: f64,
+}
+
+impl Default for DiagnosticsParams {
+    fn default() -> Self {
+        DiagnosticsParams {
+            period: 1.0,
+            input_timeout: 1.0,
+            min_rate_fraction: 0.9,
+        }
+    }
+}
+
+impl DiagnosticsParams {
+    /// Checks every value, naming the one that is wrong.
+    pub fn validate(&self) -> Result<(), ParamsError> {
+        positive("diagnostics.period", self.period)?;
+        positive("diagnostics.input_timeout", self.input_timeout)?;
+        if !(0.0..=1.0).contains(&self.min_rate_fraction) {
+            return Err(ParamsError::invalid(
+                "diagnostics.min_rate_fraction",
+                format!("= {} must be in [0, 1]", self.min_rate_fraction),
+            ));
+        }
+        Ok(())
+    }
+}

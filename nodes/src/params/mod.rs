@@ -23,7 +23,8 @@ use serde::{Deserialize, Serialize};
 use crate::ros::args::{Parameters, RosArgsError, yaml_to_param};
 
 pub use groups::{
-    CommandParams, Fallback, FramesParams, ModelParams, NetworkParams, SlipParams, StateParams,
+    CommandParams, DiagnosticsParams, Fallback, FramesParams, ModelParams, NetworkParams,
+    SlipParams, StateParams,
 };
 pub use kind::NodeKind;
 
@@ -93,6 +94,8 @@ pub struct CommonParams {
     pub slip: SlipParams,
     /// Where the DDS participant may talk.
     pub network: NetworkParams,
+    /// The node's status on `/diagnostics`.
+    pub diagnostics: DiagnosticsParams,
 }
 
 impl Default for CommonParams {
@@ -105,12 +108,13 @@ impl Default for CommonParams {
             frames: FramesParams::default(),
             slip: SlipParams::default(),
             network: NetworkParams::default(),
+            diagnostics: DiagnosticsParams::default(),
         }
     }
 }
 
 /// The top-level keys of [`CommonParams`] (the rest belong to the kind's struct).
-const COMMON_KEYS: [&str; 7] = [
+const COMMON_KEYS: [&str; 8] = [
     "enabled",
     "use_sim_time",
     "model",
@@ -118,6 +122,7 @@ const COMMON_KEYS: [&str; 7] = [
     "frames",
     "slip",
     "network",
+    "diagnostics",
 ];
 
 /// Parameters no kind may change at run time: `use_sim_time` is read once.
@@ -144,7 +149,7 @@ impl CommonParams {
         crate::ros::context::NetworkConfig::default()
             .with_interfaces_param(&self.network.interfaces)
             .map_err(|e| ParamsError::invalid("network.interfaces", e.to_string()))?;
-        Ok(())
+        self.diagnostics.validate()
     }
 }
 

@@ -15,9 +15,11 @@ use crate::convert::{diagonal_covariance, path_msg, pose_msg, time_plus, twist_m
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::constraint_dynamics_msgs::ConstraintForces;
+use crate::msg::diagnostic_msgs::KeyValue;
 use crate::msg::geometry_msgs::Twist;
 use crate::msg::nav_msgs::{Odometry, Path};
 use crate::msg::std_msgs::Header;
+use crate::node::health::kv;
 use crate::node::worker::NodeLogic;
 use crate::params::NodeParams;
 use crate::robot::Robot;
@@ -55,6 +57,10 @@ pub struct PredictorNode {
     /// Slip flags of the last prediction (to log transitions), and the last slip warning.
     last_slip: Vec<bool>,
     last_slip_log: Option<Instant>,
+    /// Rolling contacts slipping at the last prediction's start (for `/diagnostics`).
+    slipping: Vec<String>,
+    /// max |φ| at the last prediction's horizon [m or rad] (for `/diagnostics`).
+    position_residual: f64,
 }
 
 impl NodeLogic for PredictorNode {
@@ -79,6 +85,8 @@ impl NodeLogic for PredictorNode {
             warned_command: false,
             last_slip: vec![false; nc],
             last_slip_log: None,
+            slipping: Vec::new(),
+            position_residual: 0.0,
         })
     }
     fn robot(&self) -> &Robot {
@@ -108,7 +116,7 @@ impl NodeLogic for PredictorNode {
     fn tick_period(&self) -> Option<Duration> {
         Some(Duration::from_secs_f64(1.0 / self.params.node.rate))
     }
-    fn tick(&mut self, now: Time, out: &mut dyn FnMut(Self::Output)) {
+    fn tick(&mut self, now: Time, out: &mut dyn FnMut(Self::Output)) -> Result<(), NodeError> {
         let timeout = self.params.node.command.timeout;
         // The command's age on the ROS clock, so a simulation's time decides when it is stale.
         let age = |at: &Time| (now.to_nanos() - at.to_nanos()) as f64 * 1e-9;
@@ -116,14 +124,20 @@ impl NodeLogic for PredictorNode {
             .last_command
             .filter(|(_, at)| (0.0..=timeout).contains(&age(at)))
             .map(|(c, _)| c);
-        match self.periodic(now, command) {
-            Ok(o) => {
-                self.log
-                    .debug(&format!("prediction took {:.3} ms", o.compute_s * 1e3));
-                out(Box::new(o));
-            }
-            Err(e) => self.log.error(&format!("periodic prediction failed: {e}")),
-        }
+        let o = self.periodic(now, command)?;
+        self.log
+            .debug(&format!("prediction took {:.3} ms", o.compute_s * 1e3));
+        out(Box::new(o));
+        Ok(())
+    }
+    fn diagnostics(&self) -> Vec<KeyValue> {
+        vec![
+            kv("slipping contacts", &self.slipping.join(", ")),
+            kv(
+                "max position residual [m or rad]",
+                &format!("{:.3e}", self.position_residual),
+            ),
+        ]
     }
 }
 
@@ -181,6 +195,13 @@ impl PredictorNode {
             now,
         );
         self.log_slip(&forces);
+        self.slipping = forces
+            .constraints
+            .iter()
+            .filter(|c| c.slipping)
+            .map(|c| c.name.clone())
+            .collect();
+        self.position_residual = traj.samples.last().map_or(0.0, |s| s.position_residual);
         Ok(PeriodicOutput {
             odom,
             path,

@@ -23,7 +23,7 @@ fn node(fallback: &str) -> PredictorNode {
 
 fn tick(n: &mut PredictorNode, now: Time) -> PeriodicOutput {
     let mut out = None;
-    n.tick(now, &mut |o| out = Some(o));
+    n.tick(now, &mut |o| out = Some(o)).unwrap();
     *out.expect("a tick publishes")
 }
 

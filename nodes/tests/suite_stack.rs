@@ -1,0 +1,200 @@
+//! The suite inside a robot stack, with a Rust "simulator" as the rest of the stack: the suite in
+//! `/robot1` with `use_sim_time` and `params/namespaced.yaml`; the simulator publishes `/clock`
+//! (sim time starting at 1000 s, far from wall time), `/robot1/odom`, `/robot1/joint_states`
+//! and `/robot1/cmd_vel` (TwistStamped, as Nav2 and ros2_control send it). Checked:
+//! - the predictor follows the command (predicted forward speed near the commanded 0.3 m/s)
+//!   and stamps its odometry on the sim clock: stamp = sim time + horizon (1 s), in the
+//!   namespaced frame `robot1/odom`;
+//! - `/diagnostics` carries a status per node named by its fully qualified name, the predictor's
+//!   OK while odometry flows, then WARN naming `odom` once odometry stops (input_timeout 1 s
+//!   of sim time), while `/clock` goes on.
+
+mod common;
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
+use std::time::Duration;
+
+use common::*;
+use constraint_dynamics_nodes::msg::builtin_interfaces::Time;
+use constraint_dynamics_nodes::msg::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
+use constraint_dynamics_nodes::msg::geometry_msgs::TwistStamped;
+use constraint_dynamics_nodes::msg::nav_msgs::Odometry;
+use constraint_dynamics_nodes::msg::rosgraph_msgs::Clock;
+use constraint_dynamics_nodes::msg::sensor_msgs::JointState;
+use constraint_dynamics_nodes::ros::context::qos;
+use ros2_client::Publisher;
+
+const TEST: &str = "suite_in_a_namespace_on_sim_time_reports_diagnostics";
+/// Sim time at the start [ns].
+const T0: i64 = 1_000_000_000_000;
+
+#[test]
+fn suite_in_a_namespace_on_sim_time_reports_diagnostics() {
+    if !in_namespace_or_reexec(TEST) {
+        return;
+    }
+    let mut t = TestNode::new("fake_simulator");
+    let clock_pub: Publisher<Clock> = t.node.publisher("/clock", &qos::reliable(10)).unwrap();
+    let odom_pub: Publisher<Odometry> = t
+        .node
+        .publisher("/robot1/odom", &qos::reliable(10))
+        .unwrap();
+    let js_pub: Publisher<JointState> = t
+        .node
+        .publisher("/robot1/joint_states", &qos::reliable(10))
+        .unwrap();
+    let cmd_pub: Publisher<TwistStamped> = t
+        .node
+        .publisher("/robot1/cmd_vel", &qos::reliable(10))
+        .unwrap();
+    let odom_sub = t.subscribe::<Odometry>("/robot1/cd_predictor/predicted_odom");
+    let diag_sub = t.subscribe::<DiagnosticArray>("/diagnostics");
+
+    // The simulator: sim time runs at real speed from T0; 100 Hz clock, 50 Hz state.
+    let sim_now = Arc::new(AtomicI64::new(T0));
+    let odom_on = Arc::new(AtomicBool::new(true));
+    let (now, on) = (sim_now.clone(), odom_on.clone());
+    let _sim = t.node.spawn(async move {
+        for k in 0i64.. {
+            let stamp = Time::from_nanos(T0 + k * 10_000_000);
+            now.store(stamp.to_nanos(), Ordering::SeqCst);
+            let _ = clock_pub.async_publish(Clock { clock: stamp }).await;
+            if k % 2 == 0 {
+                if on.load(Ordering::SeqCst) {
+                    let mut od = Odometry::default();
+                    od.header.stamp = stamp;
+                    od.header.frame_id = "robot1/odom".into();
+                    od.child_frame_id = "robot1/base_footprint".into();
+                    od.pose.pose.orientation.w = 1.0;
+                    od.twist.twist = twist(0.3, 0.0);
+                    let _ = odom_pub.async_publish(od).await;
+                }
+                let mut js = JointState {
+                    name: vec!["left_wheel_joint".into(), "right_wheel_joint".into()],
+                    position: vec![0.0, 0.0],
+                    ..Default::default()
+                };
+                js.header.stamp = stamp;
+                let _ = js_pub.async_publish(js).await;
+                let mut cmd = TwistStamped {
+                    twist: twist(0.3, 0.0),
+                    ..Default::default()
+                };
+                cmd.header.stamp = stamp;
+                let _ = cmd_pub.async_publish(cmd).await;
+            }
+            smol::Timer::after(Duration::from_millis(10)).await;
+        }
+    });
+
+    let mut suite = SuiteProcess::spawn(
+        env!("CARGO_BIN_EXE_constraint_dynamics_suite"),
+        &[
+            "--ros-args",
+            "-r",
+            "__ns:=/robot1",
+            "--params-file",
+            "params/namespaced.yaml",
+            "-p",
+            "use_sim_time:=true",
+        ],
+        "stack",
+    );
+
+    // Predicted odometry on the sim clock, following the command.
+    let odom = take_until(&odom_sub, WAIT, |m: &Odometry| {
+        let sim = sim_now.load(Ordering::SeqCst);
+        let stamp = m.header.stamp.to_nanos();
+        // stamp = (sim time of the tick) + horizon; the tick is at most a few 10 ms old.
+        let lag = (sim + 1_000_000_000 - stamp) as f64 * 1e-9;
+        if !(-0.05..=0.5).contains(&lag) {
+            return Err(format!("stamp {stamp} vs sim {sim}: lag {lag} s"));
+        }
+        if m.header.frame_id != "robot1/odom" {
+            return Err(format!("frame {}", m.header.frame_id));
+        }
+        let v = m.twist.twist.linear.x;
+        if (v - 0.3).abs() > 0.02 {
+            return Err(format!("predicted forward speed {v}"));
+        }
+        Ok(())
+    })
+    .unwrap_or_else(|e| {
+        panic!(
+            "predicted_odom never followed the command on sim time: {e}\n{}",
+            suite.log()
+        )
+    });
+    println!(
+        "{TEST}: predicted_odom on sim time: stamp {} s, v = {:.4} m/s",
+        odom.header.stamp.to_secs(),
+        odom.twist.twist.linear.x
+    );
+
+    // A status per node, the predictor OK.
+    let names = [
+        "cd_predictor",
+        "cd_forces",
+        "cd_projection",
+        "cd_prediction",
+    ]
+    .map(|n| format!("/robot1/{n}"));
+    let mut seen = std::collections::BTreeMap::new();
+    take_until(&diag_sub, WAIT, |m: &DiagnosticArray| {
+        for s in &m.status {
+            seen.insert(s.name.clone(), s.clone());
+        }
+        let predictor_ok = seen
+            .get(&names[0])
+            .is_some_and(|s| s.level == DiagnosticStatus::OK);
+        if names.iter().all(|n| seen.contains_key(n)) && predictor_ok {
+            Ok(())
+        } else {
+            Err(format!(
+                "statuses so far: {:?}",
+                seen.values()
+                    .map(|s| (&s.name, s.level, &s.message))
+                    .collect::<Vec<_>>()
+            ))
+        }
+    })
+    .unwrap_or_else(|e| panic!("no OK status for every node: {e}"));
+    let p = &seen[&names[0]];
+    assert_eq!(p.hardware_id, "mobile_manipulator");
+    for key in [
+        "achieved rate [Hz]",
+        "compute p50 [ms]",
+        "odom age [s]",
+        "slipping contacts",
+    ] {
+        assert!(
+            p.values.iter().any(|v| v.key == key),
+            "{key} missing: {:?}",
+            p.values
+        );
+    }
+    println!("{TEST}: /diagnostics: {} OK: {:?}", p.name, p.values);
+
+    // Odometry stops; the clock goes on: WARN naming odom.
+    odom_on.store(false, Ordering::SeqCst);
+    let warn = take_until(&diag_sub, WAIT, |m: &DiagnosticArray| {
+        match m.status.iter().find(|s| s.name == names[0]) {
+            Some(s) if s.level == DiagnosticStatus::WARN && s.message.contains("odom stale") => {
+                Ok(())
+            }
+            Some(s) => Err(format!("{} {}", s.level, s.message)),
+            None => Err("other node".into()),
+        }
+    })
+    .unwrap_or_else(|e| panic!("no WARN after odometry stopped: {e}"));
+    println!(
+        "{TEST}: odometry stopped → WARN \"{}\"",
+        warn.status[0].message
+    );
+    assert!(
+        suite.stop(),
+        "the suite did not stop cleanly:\n{}",
+        suite.log()
+    );
+}
