@@ -14,10 +14,13 @@ use std::collections::BTreeMap;
 #[derive(Clone, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ActuatorsSpec {
+    /// `velocity:` PI joint velocity controllers (default none).
     #[serde(default)]
     pub velocity: Vec<VelocityControllerSpec>,
+    /// `position:` PD joint position controllers (default none).
     #[serde(default)]
     pub position: Vec<PositionControllerSpec>,
+    /// `diff_drive:` differential drive over two wheel joints (default none).
     #[serde(default)]
     pub diff_drive: Option<DiffDriveSpec>,
     /// Control period [s]; default 0.001.
@@ -29,6 +32,7 @@ pub struct ActuatorsSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct VelocityControllerSpec {
+    /// `joint:` URDF name of the 1-DOF joint driven; required.
     pub joint: String,
     /// kp [N·m·s/rad or N·s/m].
     pub kp: f64,
@@ -41,6 +45,7 @@ pub struct VelocityControllerSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PositionControllerSpec {
+    /// `joint:` URDF name of the 1-DOF joint driven; required.
     pub joint: String,
     /// kp [N·m/rad or N/m].
     pub kp: f64,
@@ -53,13 +58,17 @@ pub struct PositionControllerSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DiffDriveSpec {
+    /// `left_joint:` URDF name of the left wheel joint; required.
     pub left_joint: String,
+    /// `right_joint:` URDF name of the right wheel joint; required.
     pub right_joint: String,
     /// r [m].
     pub wheel_radius: f64,
     /// b, distance between the wheel contact points [m].
     pub wheel_separation: f64,
+    /// `kp:` wheel-speed PI proportional gain [N·m·s/rad]; required.
     pub kp: f64,
+    /// `ki:` wheel-speed PI integral gain [N·m/rad] (default 0).
     #[serde(default)]
     pub ki: f64,
 }
@@ -106,10 +115,12 @@ pub struct Actuators {
     position: Vec<Pd>,
     /// Indices into `velocity` of the left and right wheel controllers, r and b.
     diff_drive: Option<(usize, usize, f64, f64)>,
+    /// Control period [s]: torques are recomputed every period and held in between.
     pub control_period: f64,
 }
 
 impl Actuators {
+    /// Validate `actuators:` against the model (1-DOF joints, gains finite and ≥ 0).
     pub fn new(model: &Model, spec: &ActuatorsSpec) -> Result<Self> {
         let period = spec.control_period.unwrap_or(0.001);
         if !(period.is_finite() && period > 0.0) {
@@ -189,6 +200,7 @@ impl Actuators {
         Ok(a)
     }
 
+    /// True when the scene has no controller.
     pub fn is_empty(&self) -> bool {
         self.velocity.is_empty() && self.position.is_empty()
     }

@@ -6,66 +6,131 @@ use thiserror::Error;
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 #[derive(Debug, Error)]
+/// Everything that can go wrong in the library; each variant names the offending file or item.
 pub enum Error {
+    /// A URDF or scene file could not be read from disk.
     #[error("{path}: cannot read: {source}")]
     Io {
+        /// Path of the file that could not be read.
         path: String,
+        /// The underlying I/O error.
         source: std::io::Error,
     },
 
+    /// The URDF text is not well-formed XML.
     #[error("{file}: malformed XML at line {line}, column {column}: {message}")]
     Xml {
+        /// Name of the URDF source (path or caller-given name).
         file: String,
+        /// Line of the error, 1-based.
         line: u32,
+        /// Column of the error, 1-based.
         column: u32,
+        /// The XML parser's message.
         message: String,
     },
 
+    /// The URDF is valid XML but not a usable robot (bad root, unknown joint type, cycle, …).
     #[error("{file}: {element}: {message}")]
     Urdf {
+        /// Name of the URDF source (path or caller-given name).
         file: String,
+        /// The offending element, e.g. `joint 'knee'` or `link 'base'`.
         element: String,
+        /// What is wrong with it.
         message: String,
     },
 
+    /// The scene YAML cannot be parsed or names something inconsistent with the model.
     #[error("{file}: {message}")]
-    Scene { file: String, message: String },
+    Scene {
+        /// Path of the scene file.
+        file: String,
+        /// What is wrong with it.
+        message: String,
+    },
 
+    /// A frame (link or fixed-joint frame) looked up by name does not exist in the model.
     #[error("unknown frame '{name}' (known frames: {known})")]
-    UnknownFrame { name: String, known: String },
+    UnknownFrame {
+        /// The name that was asked for.
+        name: String,
+        /// Comma-separated list of the model's frame names.
+        known: String,
+    },
 
+    /// A joint looked up by name does not exist in the model.
     #[error("unknown joint '{name}' (known joints: {known})")]
-    UnknownJoint { name: String, known: String },
+    UnknownJoint {
+        /// The name that was asked for.
+        name: String,
+        /// Comma-separated list of the model's joint names.
+        known: String,
+    },
 
+    /// A vector has the wrong number of entries (e.g. `q` not of length `nq`).
     #[error("{what}: expected {expected} values, got {got}")]
     Dimension {
+        /// Which input is wrong.
         what: String,
+        /// Number of entries required.
         expected: usize,
+        /// Number of entries given.
         got: usize,
     },
 
+    /// An input vector holds a NaN or an infinity.
     #[error("{what}: entry {index} is not finite ({value})")]
     NonFinite {
+        /// Which input is wrong.
         what: String,
+        /// Index of the first non-finite entry.
         index: usize,
+        /// The offending value.
         value: f64,
     },
 
+    /// A constraint declaration is invalid (duplicate name, unknown frame, zero axis, …).
     #[error("constraint '{name}': {message}")]
-    Constraint { name: String, message: String },
+    Constraint {
+        /// Name of the constraint.
+        name: String,
+        /// What is wrong with it.
+        message: String,
+    },
 
+    /// The constraint rows are singular or their accelerations cannot all be met.
     #[error("inconsistent constraints: {message}")]
-    InconsistentConstraints { message: String },
+    InconsistentConstraints {
+        /// Which rows or matrix failed, with the size of the violation.
+        message: String,
+    },
 
+    /// The mass matrix (or reduced mass matrix `NᵀMN`) failed its Cholesky factorization.
     #[error("mass matrix is not positive definite: {message}")]
-    SingularMass { message: String },
+    SingularMass {
+        /// Which matrix failed and at which pivot.
+        message: String,
+    },
 
+    /// Integration blew up: state out of bounds, step-size underflow, energy drift or failed
+    /// position projection.
     #[error("integration diverged at t = {t} s: {message}")]
-    Diverged { t: f64, message: String },
+    Diverged {
+        /// Simulation time [s] at which divergence was detected.
+        t: f64,
+        /// What diverged and how to fix it.
+        message: String,
+    },
 
+    /// The time step is beyond the method's stability limit or SDIRK2's Newton iteration failed.
     #[error("step too large: {message}")]
-    StepTooLarge { message: String },
+    StepTooLarge {
+        /// The limit that was exceeded and how to fix it.
+        message: String,
+    },
 
+    /// Any other invalid argument or option; the string says what.
     #[error("{0}")]
     Invalid(String),
 }

@@ -17,12 +17,16 @@ pub struct ForcesSpec {
     /// Apply the URDF `<dynamics damping>` of every joint as viscous damping.
     #[serde(default)]
     pub urdf_damping: bool,
+    /// `joint_springs:` spring-dampers on 1-DOF joints (default none).
     #[serde(default)]
     pub joint_springs: Vec<JointSpringSpec>,
+    /// `springs:` point-to-point spring-dampers between frames (default none).
     #[serde(default)]
     pub springs: Vec<SpringSpec>,
+    /// `joint_torques:` constant or time-profiled joint torques (default none).
     #[serde(default)]
     pub joint_torques: Vec<JointTorqueSpec>,
+    /// `frame_forces:` constant world-axes forces and torques on frames (default none).
     #[serde(default)]
     pub frame_forces: Vec<FrameForceSpec>,
 }
@@ -31,6 +35,7 @@ pub struct ForcesSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct JointSpringSpec {
+    /// `joint:` URDF name of a 1-DOF (revolute or prismatic) joint; required.
     pub joint: String,
     /// k [N·m/rad or N/m].
     #[serde(default)]
@@ -47,11 +52,16 @@ pub struct JointSpringSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SpringSpec {
+    /// `name:` spring name, used in error messages; required.
     pub name: String,
+    /// `frame_a:` frame carrying end A; required.
     pub frame_a: String,
+    /// `point_a:` end A in `frame_a` [m] (default: the frame origin).
     #[serde(default)]
     pub point_a: [f64; 3],
+    /// `frame_b:` frame carrying end B (may be `world`); required.
     pub frame_b: String,
+    /// `point_b:` end B in `frame_b` [m] (default: the frame origin).
     #[serde(default)]
     pub point_b: [f64; 3],
     /// k [N/m].
@@ -69,9 +79,12 @@ pub struct SpringSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct JointTorqueSpec {
+    /// `joint:` URDF name of a 1-DOF (revolute or prismatic) joint; required.
     pub joint: String,
+    /// `value:` constant torque [N·m or N] (default 0); ignored when `profile` is given.
     #[serde(default)]
     pub value: f64,
+    /// `profile:` `[t [s], τ]` pairs with increasing t, linearly interpolated (default none).
     #[serde(default)]
     pub profile: Vec<[f64; 2]>,
 }
@@ -80,11 +93,15 @@ pub struct JointTorqueSpec {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FrameForceSpec {
+    /// `frame:` frame the force acts on; required.
     pub frame: String,
+    /// `point:` point of application in `frame` [m] (default: the frame origin).
     #[serde(default)]
     pub point: [f64; 3],
+    /// `force:` force [N], world axes (default 0).
     #[serde(default)]
     pub force: [f64; 3],
+    /// `torque:` torque [N·m], world axes (default 0).
     #[serde(default)]
     pub torque: [f64; 3],
 }
@@ -125,6 +142,7 @@ fn finite(what: &str, xs: &[f64]) -> Result<()> {
 }
 
 impl ForceElements {
+    /// Validate `forces:` against the model (joints 1-DOF, frames known, values finite, ≥ 0).
     pub fn new(model: &Model, spec: &ForcesSpec) -> Result<Self> {
         let mut fe = ForceElements {
             j3: DMatrix::zeros(3, model.nv),
@@ -213,6 +231,7 @@ impl ForceElements {
         Ok(fe)
     }
 
+    /// True when the scene adds no force element.
     pub fn is_empty(&self) -> bool {
         self.joint_springs.is_empty()
             && self.springs.is_empty()

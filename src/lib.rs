@@ -8,6 +8,7 @@
 
 // Featherstone's recurrences read best as index loops over bodies and coordinates.
 #![allow(clippy::needless_range_loop)]
+#![warn(missing_docs)]
 
 pub mod actuators;
 pub mod algorithm;

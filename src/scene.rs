@@ -17,8 +17,10 @@ use std::path::{Path, PathBuf};
 #[derive(Clone, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InitialState {
+    /// `q:` configuration coordinate name (`q_names`) → value [rad or m] (default: neutral).
     #[serde(default)]
     pub q: BTreeMap<String, f64>,
+    /// `v:` velocity coordinate name (`v_names`) → value [rad/s or m/s] (default: 0).
     #[serde(default)]
     pub v: BTreeMap<String, f64>,
 }
@@ -29,6 +31,7 @@ pub struct InitialState {
 pub struct SceneFile {
     /// URDF path, relative to the scene file.
     pub urdf: String,
+    /// `base:` `fixed`, `planar` or `floating` attachment of the root link (default `fixed`).
     #[serde(default)]
     pub base: BaseType,
     /// Gravity, world axes [m/s²]; default (0, 0, −9.81).
@@ -37,16 +40,22 @@ pub struct SceneFile {
     /// Joint name → position [rad or m].
     #[serde(default)]
     pub locked_joints: BTreeMap<String, f64>,
+    /// `initial_state:` initial q and v by name (default: neutral q, zero v).
     #[serde(default)]
     pub initial_state: InitialState,
+    /// `constraints:` list of constraints, each with a `kind:` (default none).
     #[serde(default)]
     pub constraints: Vec<ConstraintSpec>,
+    /// `dynamics:` formulation and Baumgarte stabilisation (default: auto, no stabilisation).
     #[serde(default)]
     pub dynamics: DynamicsSettings,
+    /// `integration:` integrator settings for prediction (defaults per field).
     #[serde(default)]
     pub integration: IntegrationSettings,
+    /// `forces:` springs, dampers, joint torques and frame forces (default none).
     #[serde(default)]
     pub forces: ForcesSpec,
+    /// `actuators:` actuator models (default none).
     #[serde(default)]
     pub actuators: ActuatorsSpec,
 }
@@ -98,11 +107,15 @@ impl DynamicsSettings {
 /// A loaded scene: the model built as the file asks, its constraint declarations and initial state.
 #[derive(Clone, Debug)]
 pub struct Scene {
+    /// Path of the scene file (errors name it; the URDF path is relative to it).
     pub path: PathBuf,
+    /// The parsed scene file.
     pub file: SceneFile,
+    /// The model built from the URDF with the scene's base, gravity and locked joints.
     pub model: Model,
     /// Initial configuration (nq) and velocity (nv).
     pub q0: Vec<f64>,
+    /// Initial velocity (nv) [m/s, rad/s].
     pub v0: Vec<f64>,
 }
 

@@ -38,13 +38,21 @@ impl Default for DynamicsOptions {
 /// Model + constraints + workspaces.
 #[derive(Clone, Debug)]
 pub struct System {
+    /// The robot model.
     pub model: Model,
+    /// The validated constraints.
     pub constraints: ConstraintSet,
+    /// Baumgarte stabilisation gains.
     pub baumgarte: Baumgarte,
+    /// Formulation asked for by the scene.
     pub formulation: Formulation,
+    /// Kinematics and dynamics workspace.
     pub data: Data,
+    /// Constraint rows (J, φ, γ, J v) at the last evaluation.
     pub cdata: ConstraintData,
+    /// Multiplier-form workspace; λ of the last multiplier solve.
     pub kkt: KktWorkspace,
+    /// Embedded-form workspace.
     pub embedded: EmbeddedWorkspace,
     /// Which formulation produced the last result.
     pub last_formulation: Formulation,

@@ -41,6 +41,7 @@ pub struct Data {
 }
 
 impl Data {
+    /// Size every buffer for the model (zero state).
     pub fn new(model: &Model) -> Self {
         let nb = model.nbodies();
         let nv = model.nv;

@@ -8,15 +8,22 @@ use super::{ConstraintRows, RowSink};
 use crate::algorithm::Data;
 use crate::model::Model;
 
+/// `a·q_i + b·q_j = c` between two 1-DOF joints.
 #[derive(Clone, Debug)]
 pub struct CouplingConstraint {
     /// (configuration index, velocity index) of joint i and joint j.
     pub qi: usize,
+    /// Velocity index of joint i.
     pub vi: usize,
+    /// Configuration index of joint j.
     pub qj: usize,
+    /// Velocity index of joint j.
     pub vj: usize,
+    /// Coefficient of q_i.
     pub a: f64,
+    /// Coefficient of q_j.
     pub b: f64,
+    /// Right-hand side [rad or m].
     pub c: f64,
 }
 

@@ -9,11 +9,16 @@ use crate::algorithm::Data;
 use crate::model::Model;
 use nalgebra::Vector3;
 
+/// Distance `|p_A − p_B| = L` between a point of frame A and a point of frame B.
 #[derive(Clone, Debug)]
 pub struct DistanceConstraint {
+    /// Frame index of A.
     pub frame_a: usize,
+    /// Point of A in A's frame [m].
     pub point_a: Vector3<f64>,
+    /// Frame index of B (0 = world).
     pub frame_b: usize,
+    /// Point of B in B's frame [m].
     pub point_b: Vector3<f64>,
     /// L [m], > 0.
     pub distance: f64,

@@ -41,6 +41,7 @@ pub struct ConstraintForce {
     /// row exists) and tangential force magnitude [N].
     #[serde(skip_serializing_if = "Option::is_none")]
     pub normal_force: Option<f64>,
+    /// Rolling contacts: magnitude of the tangential (t₁, t₂) force [N].
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tangential_force: Option<f64>,
 }

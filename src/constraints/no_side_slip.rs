@@ -9,8 +9,10 @@ use crate::algorithm::{Data, ReferenceFrame, frame_jacobian};
 use crate::model::Model;
 use nalgebra::Vector3;
 
+/// Knife edge: velocity of a frame's origin along the frame's own `axis` is zero.
 #[derive(Clone, Debug)]
 pub struct NoSideSlipConstraint {
+    /// Frame index.
     pub frame: usize,
     /// Unit axis in the frame.
     pub axis: Vector3<f64>,

@@ -11,11 +11,16 @@ use crate::algorithm::{
 use crate::model::Model;
 use nalgebra::{DMatrix, Vector3};
 
+/// Point `point_a` of frame A held at point `point_b` of frame B, on selected world axes.
 #[derive(Clone, Debug)]
 pub struct PointConstraint {
+    /// Frame index of A.
     pub frame_a: usize,
+    /// Point of A in A's frame [m].
     pub point_a: Vector3<f64>,
+    /// Frame index of B (0 = world).
     pub frame_b: usize,
+    /// Point of B in B's frame [m].
     pub point_b: Vector3<f64>,
     /// Selected world axes (0 = x, 1 = y, 2 = z).
     pub axes: Vec<usize>,

@@ -14,8 +14,10 @@ use crate::algorithm::{Data, frame_placement, point_classical_acceleration, poin
 use crate::model::Model;
 use nalgebra::{Matrix3, Vector3};
 
+/// A wheel rolling without slipping on the plane n·x = h.
 #[derive(Clone, Debug)]
 pub struct RollingConstraint {
+    /// Frame index of the wheel (origin at the wheel centre).
     pub wheel: usize,
     /// Spin axis in the wheel frame (unit).
     pub axis: Vector3<f64>,
@@ -52,6 +54,7 @@ impl RollingConstraint {
         Matrix3::from_columns(&[t1, t2, *n])
     }
 
+    /// Unit plane normal n, world axes.
     pub fn normal(&self) -> Vector3<f64> {
         self.basis.column(2).into()
     }

@@ -14,11 +14,17 @@ use std::ops::Range;
 /// A constraint of one of the supported kinds (static dispatch).
 #[derive(Clone, Debug)]
 pub enum Constraint {
+    /// Point of one frame held at a point of another (or the world).
     Point(PointConstraint),
+    /// Relative pose of two frames fixed.
     Weld(WeldConstraint),
+    /// Distance between two frame points fixed.
     Distance(DistanceConstraint),
+    /// Linear relation `a·q_i + b·q_j = c` between two 1-DOF joints.
     Coupling(CouplingConstraint),
+    /// Wheel rolling without slipping on a plane.
     Rolling(RollingConstraint),
+    /// Knife edge: no velocity of a frame origin along an axis.
     NoSideSlip(NoSideSlipConstraint),
 }
 
@@ -50,7 +56,9 @@ impl Constraint {
 /// The scene's constraints with their row ranges.
 #[derive(Clone, Debug, Default)]
 pub struct ConstraintSet {
+    /// Constraint names (scene `name:`, or `mimic:<joint>`), in stacking order.
     pub names: Vec<String>,
+    /// The constraints, in the same order as `names`.
     pub items: Vec<Constraint>,
     /// Rows of constraint k in the stacked J, φ, γ, λ.
     pub ranges: Vec<Range<usize>>,
@@ -78,6 +86,7 @@ pub struct ConstraintData {
 }
 
 impl ConstraintData {
+    /// Size the workspace for the model (nv) and constraint set (nc).
     pub fn new(model: &Model, set: &ConstraintSet) -> Self {
         let (nc, nv) = (set.nrows, model.nv);
         Self {
@@ -156,6 +165,7 @@ impl ConstraintSet {
         self.items.push(c);
     }
 
+    /// True when there are no constraints.
     pub fn is_empty(&self) -> bool {
         self.items.is_empty()
     }

@@ -7,11 +7,17 @@ use serde::Deserialize;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Row {
+    /// Translation along x (`x` in YAML).
     X,
+    /// Translation along y (`y` in YAML).
     Y,
+    /// Translation along z (`z` in YAML).
     Z,
+    /// Rotation about x (`rx` in YAML).
     Rx,
+    /// Rotation about y (`ry` in YAML).
     Ry,
+    /// Rotation about z (`rz` in YAML).
     Rz,
 }
 
@@ -20,6 +26,7 @@ impl Row {
     pub fn index(self) -> usize {
         self as usize
     }
+    /// The YAML spelling: `x`, `y`, `z`, `rx`, `ry` or `rz`.
     pub fn name(self) -> &'static str {
         ["x", "y", "z", "rx", "ry", "rz"][self as usize]
     }
@@ -29,6 +36,7 @@ impl Row {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Axes {
+    /// World axes (`world`, the default).
     #[default]
     World,
     /// The axes of `frame_b`.
@@ -55,26 +63,37 @@ pub enum ConstraintSpec {
     /// Point `point_a` of `frame_a` held at point `point_b` of `frame_b` (or the world), selected
     /// world-axis rows. λ: force on frame_a's point [N], world axes.
     Point {
+        /// `name:` unique constraint name (used in row names `name/row` and errors).
         name: String,
+        /// `frame_a:` frame (link or fixed-joint frame) carrying point A.
         frame_a: String,
+        /// `point_a:` point A in `frame_a` [m] (default: the frame origin).
         #[serde(default)]
         point_a: [f64; 3],
+        /// `frame_b:` frame carrying point B (default: `world`).
         #[serde(default = "world")]
         frame_b: String,
+        /// `point_b:` point B in `frame_b` [m] (default: the frame origin).
         #[serde(default)]
         point_b: [f64; 3],
+        /// `rows:` world axes held, subset of `[x, y, z]` (default: all three).
         #[serde(default = "xyz")]
         rows: Vec<Row>,
     },
     /// Relative pose of `frame_a` and `frame_b` fixed (selected rows). λ: wrench on frame_a at its
     /// origin [N, N·m] in `axes`.
     Weld {
+        /// `name:` unique constraint name (used in row names `name/row` and errors).
         name: String,
+        /// `frame_a:` the welded frame A.
         frame_a: String,
+        /// `frame_b:` the frame A is welded to (default: `world`).
         #[serde(default = "world")]
         frame_b: String,
+        /// `axes:` `world` or `local` (B's axes) for the rows and λ (default: `world`).
         #[serde(default)]
         axes: Axes,
+        /// `rows:` rows held, subset of `[x, y, z, rx, ry, rz]` (default: all six).
         #[serde(default = "all_rows")]
         rows: Vec<Row>,
         /// Target position of A's origin in B [m] (default: coincident).
@@ -86,46 +105,68 @@ pub enum ConstraintSpec {
     },
     /// `|p_a − p_b| = distance` [m]. λ: force on A's point along n = (p_a − p_b)/|p_a − p_b| [N] (λ > 0 pushes A away from B).
     Distance {
+        /// `name:` unique constraint name (used in row names `name/row` and errors).
         name: String,
+        /// `frame_a:` frame carrying point A.
         frame_a: String,
+        /// `point_a:` point A in `frame_a` [m] (default: the frame origin).
         #[serde(default)]
         point_a: [f64; 3],
+        /// `frame_b:` frame carrying point B (default: `world`).
         #[serde(default = "world")]
         frame_b: String,
+        /// `point_b:` point B in `frame_b` [m] (default: the frame origin).
         #[serde(default)]
         point_b: [f64; 3],
+        /// `distance:` required distance |p_a − p_b| [m], positive; no default.
         distance: f64,
     },
     /// `a·q_i + b·q_j = c` on two 1-DOF joints. λ: generalized force [N·m or N] per unit of the row.
     Coupling {
+        /// `name:` unique constraint name (used in row names `name/row` and errors).
         name: String,
+        /// `joint_i:` first 1-DOF (revolute or prismatic) joint, by URDF name.
         joint_i: String,
+        /// `joint_j:` second 1-DOF (revolute or prismatic) joint, by URDF name.
         joint_j: String,
+        /// `a:` coefficient of q_i (a and b not both zero); no default.
         a: f64,
+        /// `b:` coefficient of q_j; no default.
         b: f64,
+        /// `c:` right-hand side [rad or m, as the joints' units combine]; no default.
         c: f64,
     },
     /// Wheel rolling without slipping on a plane: the wheel's material point at the contact has zero
     /// velocity. λ: contact force by the ground on the wheel [N], world axes.
     Rolling {
+        /// `name:` unique constraint name (used in row names `name/row` and errors).
         name: String,
+        /// `wheel:` wheel frame; its origin is the wheel centre.
         wheel: String,
+        /// `axis:` spin axis in the wheel frame (normalized; must not be parallel to the normal).
         axis: [f64; 3],
+        /// `radius:` wheel radius [m], positive; no default.
         radius: f64,
+        /// `plane_normal:` ground-plane normal, world axes (normalized; default `[0, 0, 1]`).
         #[serde(default = "up")]
         plane_normal: [f64; 3],
+        /// `plane_height:` h in the plane n·x = h [m] (default 0).
         #[serde(default)]
         plane_height: f64,
     },
     /// Velocity of `frame`'s origin along its own `axis` is zero (knife edge). λ: lateral force [N].
     NoSideSlip {
+        /// `name:` unique constraint name (used in row names `name/row` and errors).
         name: String,
+        /// `frame:` frame whose origin must not slide along `axis`.
         frame: String,
+        /// `axis:` the blocked direction in `frame`'s axes (normalized); no default.
         axis: [f64; 3],
     },
 }
 
 impl ConstraintSpec {
+    /// The constraint's `name:`.
     pub fn name(&self) -> &str {
         match self {
             ConstraintSpec::Point { name, .. }

@@ -12,9 +12,12 @@ use crate::model::Model;
 use crate::spatial::SE3;
 use nalgebra::{Matrix3, Vector3};
 
+/// Pose of frame A relative to frame B held at `target`, on selected rows.
 #[derive(Clone, Debug)]
 pub struct WeldConstraint {
+    /// Frame index of A.
     pub frame_a: usize,
+    /// Frame index of B (0 = world).
     pub frame_b: usize,
     /// Target pose of A in B.
     pub target: SE3,

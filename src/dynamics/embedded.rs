@@ -19,7 +19,9 @@ use nalgebra::{DMatrix, DVector};
 /// The coordinate partition chosen from J: independent and dependent velocity indices.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Partition {
+    /// Independent velocity indices (v_i).
     pub independent: Vec<usize>,
+    /// Dependent velocity indices (v_d = B v_i).
     pub dependent: Vec<usize>,
     /// Rows of J kept (independent rows).
     pub rows: Vec<usize>,
@@ -28,6 +30,7 @@ pub struct Partition {
 /// Workspace of the embedded form.
 #[derive(Clone, Debug, Default)]
 pub struct EmbeddedWorkspace {
+    /// The partition used at the last solve.
     pub partition: Partition,
     /// N (nv × (nv − r)).
     pub n: DMatrix<f64>,

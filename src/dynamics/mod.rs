@@ -43,6 +43,8 @@ pub enum Formulation {
     /// Embedded unless constraint forces are asked for.
     #[default]
     Auto,
+    /// KKT system through M's Cholesky factor and J M⁻¹ Jᵀ; returns λ.
     Multipliers,
+    /// Voronets' multiplier-free form in the independent coordinates; no λ.
     Embedded,
 }

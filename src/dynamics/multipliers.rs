@@ -57,6 +57,7 @@ pub struct KktWorkspace {
 }
 
 impl KktWorkspace {
+    /// Size the workspace for the model (nv) and constraint set (nc).
     pub fn new(model: &Model, set: &ConstraintSet) -> Self {
         let (nv, nc) = (model.nv, set.nrows);
         Self {

@@ -6,6 +6,7 @@
 
 use nalgebra::DMatrix;
 
+/// `parent[k]` of a coordinate at the root (no ancestor).
 pub const NO_PARENT: usize = usize::MAX;
 
 /// In place: the lower triangle of `m` becomes L with M = Lᵀ L. Fails with the coordinate whose

@@ -24,6 +24,7 @@ pub enum BaseType {
 /// What a scene decides about the model.
 #[derive(Clone, Debug)]
 pub struct ModelOptions {
+    /// How the root link is attached to the world (default fixed).
     pub base: BaseType,
     /// Gravity in world axes [m/s²].
     pub gravity: Vector3<f64>,

@@ -15,13 +15,20 @@ pub enum JointKind {
     /// `skew2` = [a]×² are kept so the rotation `1 + sin q [a]× + (1 − cos q) [a]×²` costs no
     /// matrix product; `aligned` marks an axis along ±x, ±y or ±z (sparse rotation).
     Revolute {
+        /// Unit rotation axis a, joint frame.
         axis: Vector3<f64>,
+        /// [a]×, the cross-product matrix of `axis`.
         skew: Matrix3<f64>,
+        /// [a]×², the square of `skew`.
         skew2: Matrix3<f64>,
+        /// `Some((i, ±1))` when `axis` is ±e_i (x, y or z), else `None`.
         aligned: Option<(usize, f64)>,
     },
     /// Translation along a unit axis of the joint frame; q [m], v [m/s].
-    Prismatic { axis: Vector3<f64> },
+    Prismatic {
+        /// Unit translation axis, joint frame.
+        axis: Vector3<f64>,
+    },
     /// Free-flyer: q = [x, y, z, qx, qy, qz, qw] (child pose in the parent frame, unit quaternion),
     /// v = [v_lin; ω] of the child, both in the child frame.
     FreeFlyer,

@@ -22,6 +22,7 @@ use nalgebra::Vector3;
 pub struct Joint {
     /// URDF joint name (`root_joint` for a planar or floating base).
     pub name: String,
+    /// Joint type, with its axis where it has one.
     pub kind: JointKind,
     /// First configuration coordinate.
     pub idx_q: usize,
@@ -38,6 +39,7 @@ pub struct Body {
     pub name: String,
     /// Parent body index (0 = world).
     pub parent: usize,
+    /// The joint connecting the body to its parent.
     pub joint: Joint,
     /// `parent_m_joint`: pose of the joint frame in the parent body frame at q = 0.
     pub placement: SE3,
@@ -48,6 +50,7 @@ pub struct Body {
 /// A named frame rigidly attached to a body (every URDF link is one).
 #[derive(Clone, Debug)]
 pub struct Frame {
+    /// Frame name (URDF link name; `world` for frame 0).
     pub name: String,
     /// Body index (0 = world).
     pub body: usize,
@@ -60,6 +63,7 @@ pub struct Frame {
 pub struct Limits {
     /// Position limits [rad or m], per configuration coordinate.
     pub q_lower: Vec<f64>,
+    /// Upper position limits [rad or m], per configuration coordinate.
     pub q_upper: Vec<f64>,
     /// |v| limit [rad/s or m/s], per velocity coordinate.
     pub velocity: Vec<f64>,
@@ -72,27 +76,40 @@ pub struct Limits {
 /// A URDF `<mimic>`: `q_joint = multiplier · q_mimicked + offset`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mimic {
+    /// URDF name of the joint carrying the `<mimic>` tag (the follower).
     pub joint: String,
+    /// URDF name of the joint it follows (`<mimic joint=...>`).
     pub mimicked: String,
+    /// `multiplier` (URDF default 1).
     pub multiplier: f64,
+    /// `offset` [rad or m] (URDF default 0).
     pub offset: f64,
 }
 
 /// The robot model. Built once, never modified by an algorithm.
 #[derive(Clone, Debug)]
 pub struct Model {
+    /// URDF robot name.
     pub name: String,
     /// Bodies; index 0 is the world and carries no joint worth reading.
     pub bodies: Vec<Body>,
+    /// Named frames; index 0 is `world`.
     pub frames: Vec<Frame>,
+    /// Number of configuration coordinates (length of q).
     pub nq: usize,
+    /// Number of velocity coordinates (length of v, q̈, τ).
     pub nv: usize,
+    /// Configuration coordinate names: joint name, or `root_joint:x` etc. for the base.
     pub q_names: Vec<String>,
+    /// Velocity coordinate names: joint name, or `root_joint:vx_local` etc. for the base.
     pub v_names: Vec<String>,
     /// Gravity in the world frame [m/s²].
     pub gravity: Vector3<f64>,
+    /// URDF limits and damping per coordinate.
     pub limits: Limits,
+    /// URDF `<mimic>` tags (each becomes a coupling constraint).
     pub mimics: Vec<Mimic>,
+    /// How the root link is attached to the world.
     pub base: BaseType,
     /// Per velocity coordinate, the previous coordinate on the path to the root
     /// (`usize::MAX` for none): the sparsity pattern of M's LTL factor.

@@ -44,6 +44,7 @@ pub struct Projector {
 }
 
 impl Projector {
+    /// Size the workspace for the system's model and constraint set.
     pub fn new(sys: &System) -> Self {
         let (nv, nc, nq) = (sys.model.nv, sys.constraints.nrows, sys.model.nq);
         Self {

@@ -38,6 +38,7 @@ pub enum DriftControl {
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct IntegrationSettings {
+    /// `method:` semi_implicit_euler | rk4 | dopri5 | sdirk2 (default `rk4`).
     #[serde(default)]
     pub method: Method,
     /// Step [s] (fixed-step methods; first step of dopri5).
@@ -46,8 +47,10 @@ pub struct IntegrationSettings {
     /// Relative and absolute tolerances of dopri5.
     #[serde(default = "default_rtol")]
     pub rtol: f64,
+    /// `atol:` absolute tolerance of dopri5 [m, rad, m/s or rad/s per entry] (default 1e-10).
     #[serde(default = "default_atol")]
     pub atol: f64,
+    /// `drift:` none | baumgarte | projection (default `projection`).
     #[serde(default)]
     pub drift: DriftControl,
     /// With `drift: baumgarte` and no gains under `dynamics:`, the time constant is this many steps.

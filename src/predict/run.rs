@@ -89,9 +89,13 @@ impl Accel for Rhs<'_> {
 /// Scene-configured predictor (model, constraints, force elements, actuators, integration).
 #[derive(Clone, Debug)]
 pub struct Predictor {
+    /// Model, constraints and dynamics workspaces.
     pub sys: System,
+    /// The scene's force elements.
     pub forces: ForceElements,
+    /// The scene's actuators with their controller state.
     pub actuators: Actuators,
+    /// Integration settings (`integration:` of the scene).
     pub settings: IntegrationSettings,
     /// Record λ and the constraint forces in every sample of [`Predictor::predict`] (a setting
     /// of the predictor; [`Predictor::predict_with`] takes it per call instead).
@@ -101,6 +105,7 @@ pub struct Predictor {
 }
 
 impl Predictor {
+    /// Build from a loaded scene: system, `forces:`, `actuators:` and `integration:`.
     pub fn from_scene(scene: &Scene) -> Result<Self> {
         let sys = System::from_scene(scene)?;
         let forces = ForceElements::new(&sys.model, &scene.file.forces)?;
@@ -108,6 +113,7 @@ impl Predictor {
         Self::new(sys, forces, actuators, scene.file.integration.clone())
     }
 
+    /// Build from its parts, validating the integration settings.
     pub fn new(
         sys: System,
         forces: ForceElements,

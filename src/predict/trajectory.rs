@@ -36,6 +36,7 @@ pub struct Sample {
     pub velocity_residual: f64,
     /// Kinetic, and gravity + spring potential energy [J].
     pub kinetic_energy: f64,
+    /// Gravity + spring potential energy [J].
     pub potential_energy: f64,
     /// Accumulated local error estimate of the configuration [m or rad] (dopri5), NaN otherwise.
     pub error_estimate: f64,
@@ -65,12 +66,17 @@ pub struct PredictOptions {
 /// A prediction.
 #[derive(Clone, Debug, Serialize)]
 pub struct Trajectory {
+    /// Names of the configuration coordinates (order of `Sample::q`).
     pub q_names: Vec<String>,
+    /// Names of the velocity coordinates (order of `Sample::v`).
     pub v_names: Vec<String>,
+    /// Integration method used.
     pub method: Method,
+    /// Output samples, one every sample period over the horizon.
     pub samples: Vec<Sample>,
     /// Accepted steps and right-hand-side evaluations.
     pub steps: usize,
+    /// Right-hand-side (forward dynamics) evaluations.
     pub evaluations: usize,
     /// Evaluations where the constraint accelerations were inconsistent (at or next to a singular
     /// configuration) and were met in the least-squares sense instead.

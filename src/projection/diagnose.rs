@@ -19,7 +19,12 @@ pub enum Conflict {
     /// Row r of the stacked constraint Jacobian.
     ConstraintRow(usize),
     /// The bound on velocity coordinate `index`.
-    Bound { index: usize, side: Side },
+    Bound {
+        /// Index of the velocity coordinate (0..nv).
+        index: usize,
+        /// Which of its bounds.
+        side: Side,
+    },
     /// Row k of the user inequalities A v ≤ b.
     Inequality(usize),
 }

@@ -28,12 +28,15 @@ pub struct ProjectionProblem {
     pub v_des: Vec<f64>,
     /// Bounds the request adds (nv); ±∞ = none. NaN is refused.
     pub lower: Vec<f64>,
+    /// Upper bounds the request adds (nv) [m/s, rad/s]; +∞ = none. NaN is refused.
     pub upper: Vec<f64>,
     /// Apply the URDF `<limit velocity>` of revolute and prismatic joints (default true).
     pub velocity_limits: bool,
+    /// Optional acceleration limit, turned into bounds `v_current ± a_max · dt`.
     pub accel_limit: Option<AccelLimit>,
     /// User inequalities A v ≤ b (m × nv, m).
     pub a: DMatrix<f64>,
+    /// Right-hand side b of A v ≤ b (m).
     pub b: Vec<f64>,
 }
 
@@ -116,6 +119,7 @@ pub enum BoundSource {
 }
 
 impl BoundSource {
+    /// Human-readable source, used in conflict labels.
     pub fn label(self) -> &'static str {
         match self {
             BoundSource::UrdfVelocityLimit => "URDF velocity limit",
@@ -129,7 +133,9 @@ impl BoundSource {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Side {
+    /// Lower bound, v_i ≥ lo_i.
     Lower,
+    /// Upper bound, v_i ≤ hi_i.
     Upper,
 }
 

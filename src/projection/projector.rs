@@ -29,7 +29,9 @@ use serde::Serialize;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Status {
+    /// v* found: the optimum of the projection problem.
     Optimal,
+    /// No velocity satisfies every constraint, bound and inequality.
     Infeasible,
 }
 
@@ -56,7 +58,9 @@ pub enum Method {
 /// Summary of the last `project` call (Copy: returned without allocating).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Outcome {
+    /// Optimal or infeasible.
     pub status: Status,
+    /// How the result was obtained.
     pub method: Method,
     /// Constraint rows dependent on the others (nc − rank J M⁻¹ Jᵀ).
     pub rank_deficiency: usize,
@@ -98,6 +102,7 @@ pub struct VelocityProjector {
     pub(super) active: Vec<usize>,
     /// A minimal conflicting set when infeasible (named by [`super::Projection`]).
     pub conflicts: Vec<Conflict>,
+    /// Summary of the last solve.
     pub outcome: Outcome,
 }
 

@@ -15,11 +15,15 @@ use serde::Serialize;
 /// angular impulse about it (the constraint's force convention, see `constraints::forces`).
 #[derive(Clone, Debug, Serialize)]
 pub struct ConstraintImpulse {
+    /// The constraint's name in the scene.
     pub name: String,
+    /// The constraint's kind.
     pub kind: crate::constraints::ConstraintKind,
+    /// Frame the impulse acts on; for a coupling, the two coordinates' names joined by `+`.
     pub frame: String,
     /// Axes of `impulse` / `angular_impulse` ("world", a frame name, or "joint").
     pub axes: String,
+    /// Row names (e.g. x, z; t1, t2, n).
     pub rows: Vec<String>,
     /// λ of the rows [N·s or N·m·s].
     pub lambda: Vec<f64>,
@@ -34,9 +38,13 @@ pub struct ConstraintImpulse {
 /// A bound that holds with equality at v*.
 #[derive(Clone, Debug, Serialize)]
 pub struct ActiveBound {
+    /// Name of the velocity coordinate (as in `v_names`).
     pub coordinate: String,
+    /// Index of the velocity coordinate (0..nv).
     pub index: usize,
+    /// Lower or upper bound.
     pub side: Side,
+    /// Where the (tightest) bound comes from.
     pub source: BoundSource,
     /// Bound value [m/s or rad/s].
     pub value: f64,
@@ -47,6 +55,7 @@ pub struct ActiveBound {
 /// A row of A v ≤ b that holds with equality at v*.
 #[derive(Clone, Debug, Serialize)]
 pub struct ActiveInequality {
+    /// Row k of A v ≤ b.
     pub index: usize,
     /// η ≥ 0.
     pub multiplier: f64,
@@ -68,29 +77,44 @@ pub struct NamedConflict {
 /// The result by name.
 #[derive(Clone, Debug, Serialize)]
 pub struct Projection {
+    /// Optimal or infeasible.
     pub status: Status,
+    /// How the result was obtained.
     pub method: Method,
+    /// `optimal (method)`, or `infeasible: ...` listing the conflicting set.
     pub message: String,
+    /// Names of the nv velocity coordinates, in order.
     pub v_names: Vec<String>,
+    /// Resolved desired velocity (nv) [m/s, rad/s].
     pub v_des: Vec<f64>,
     /// v* [m/s, rad/s]; null when infeasible.
     pub v: Option<Vec<f64>>,
     /// v* split: base twist in the base frame (planar [vx, vy, wz], floating 6), then joints.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub base_twist: Option<Vec<f64>>,
+    /// Names of the joint velocity coordinates (after the base's).
     pub joint_names: Vec<String>,
+    /// v* of the joints [rad/s or m/s]; null when infeasible.
     pub joint_velocities: Option<Vec<f64>>,
+    /// Constraint row names `constraint/row`, in stacked order.
     pub constraint_rows: Vec<String>,
     /// λ per constraint row [N·s or N·m·s]; null when infeasible.
     pub impulses: Option<Vec<f64>>,
+    /// Impulse of each constraint at its frame; empty when infeasible.
     pub constraints: Vec<ConstraintImpulse>,
+    /// Constraint rows dependent on the others (nc − rank J M⁻¹ Jᵀ).
     pub rank_deficiency: usize,
+    /// λ and ν are unique ([Jᵀ, active rows] has full column rank).
     pub multipliers_unique: bool,
     /// False when the multipliers are the QP solver's duals (~1e-8), see [`super::Outcome`].
     pub multipliers_exact: bool,
+    /// Bounds holding with equality at v*.
     pub active_bounds: Vec<ActiveBound>,
+    /// Rows of A v ≤ b holding with equality at v*.
     pub active_inequalities: Vec<ActiveInequality>,
+    /// A minimal conflicting set, named; empty unless infeasible.
     pub conflicts: Vec<NamedConflict>,
+    /// Clarabel interior-point iterations (0 when not called).
     pub qp_iterations: u32,
 }
 

@@ -47,7 +47,9 @@ pub enum Mode {
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(untagged)]
 pub enum PerCoordinate {
+    /// `{name: value}` by coordinate name or base alias; coordinates not named get none.
     Named(BTreeMap<String, Option<f64>>),
+    /// All nv values in coordinate order (`null` = none).
     Dense(Vec<Option<f64>>),
 }
 
@@ -55,7 +57,9 @@ pub enum PerCoordinate {
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(untagged)]
 pub enum RowSpec {
+    /// All nv coefficients in coordinate order.
     Dense(Vec<f64>),
+    /// `{name: coefficient}` by coordinate name or base alias; others 0.
     Named(BTreeMap<String, f64>),
 }
 
@@ -95,16 +99,19 @@ pub struct ProjectionRequest {
     /// Extra lower / upper bounds [m/s, rad/s].
     #[serde(default)]
     pub lower: Option<PerCoordinate>,
+    /// Extra upper bounds [m/s, rad/s] (see `lower`).
     #[serde(default)]
     pub upper: Option<PerCoordinate>,
     /// Apply the URDF velocity limits (default true).
     #[serde(default = "yes")]
     pub velocity_limits: bool,
+    /// Optional acceleration limit `|v_i − v_current,i| ≤ a_max,i · dt` (default none).
     #[serde(default)]
     pub accel_limit: Option<AccelLimitRequest>,
     /// Rows of A v ≤ b.
     #[serde(default, rename = "A")]
     pub a: Vec<RowSpec>,
+    /// Right-hand sides b of A v ≤ b, one per row of `A` (default empty).
     #[serde(default)]
     pub b: Vec<f64>,
 }

@@ -21,6 +21,7 @@ impl Default for Inertia {
 }
 
 impl Inertia {
+    /// Zero inertia (massless body).
     pub fn zero() -> Self {
         Self {
             mass: 0.0,
@@ -29,6 +30,7 @@ impl Inertia {
         }
     }
 
+    /// From mass [kg], COM in F [m] and rotational inertia about the COM [kg·m²].
     pub fn new(mass: f64, com: Vector3<f64>, inertia_com: Matrix3<f64>) -> Self {
         Self {
             mass,

@@ -7,33 +7,41 @@ use std::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
 /// (or the corresponding accelerations).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Motion {
+    /// Linear part v [m/s] (or [m/s²]) of the frame origin.
     pub lin: Vector3<f64>,
+    /// Angular part ω [rad/s] (or [rad/s²]).
     pub ang: Vector3<f64>,
 }
 
 /// A spatial force `[f; τ]`: force [N] and torque about the frame origin [N·m].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Force {
+    /// Force f [N].
     pub lin: Vector3<f64>,
+    /// Torque τ about the frame origin [N·m].
     pub ang: Vector3<f64>,
 }
 
 impl Motion {
+    /// The zero motion.
     pub const fn zero() -> Self {
         Self {
             lin: Vector3::new(0.0, 0.0, 0.0),
             ang: Vector3::new(0.0, 0.0, 0.0),
         }
     }
+    /// A motion from its linear and angular parts.
     pub fn new(lin: Vector3<f64>, ang: Vector3<f64>) -> Self {
         Self { lin, ang }
     }
+    /// From a 6-vector `[lin; ang]`.
     pub fn from_vector(v: &Vector6<f64>) -> Self {
         Self {
             lin: v.fixed_rows::<3>(0).into(),
             ang: v.fixed_rows::<3>(3).into(),
         }
     }
+    /// As a 6-vector `[lin; ang]`.
     pub fn to_vector(&self) -> Vector6<f64> {
         Vector6::new(
             self.lin.x, self.lin.y, self.lin.z, self.ang.x, self.ang.y, self.ang.z,
@@ -63,21 +71,25 @@ impl Motion {
 }
 
 impl Force {
+    /// The zero force.
     pub const fn zero() -> Self {
         Self {
             lin: Vector3::new(0.0, 0.0, 0.0),
             ang: Vector3::new(0.0, 0.0, 0.0),
         }
     }
+    /// A force from its linear (force) and angular (torque) parts.
     pub fn new(lin: Vector3<f64>, ang: Vector3<f64>) -> Self {
         Self { lin, ang }
     }
+    /// From a 6-vector `[f; τ]`.
     pub fn from_vector(v: &Vector6<f64>) -> Self {
         Self {
             lin: v.fixed_rows::<3>(0).into(),
             ang: v.fixed_rows::<3>(3).into(),
         }
     }
+    /// As a 6-vector `[f; τ]`.
     pub fn to_vector(&self) -> Vector6<f64> {
         Vector6::new(
             self.lin.x, self.lin.y, self.lin.z, self.ang.x, self.ang.y, self.ang.z,

@@ -25,6 +25,7 @@ impl Default for SE3 {
 }
 
 impl SE3 {
+    /// `a_m_b` from the rotation of b in a and the origin of b in a [m].
     pub fn new(rotation: Matrix3<f64>, translation: Vector3<f64>) -> Self {
         Self {
             rotation,
@@ -32,6 +33,7 @@ impl SE3 {
         }
     }
 
+    /// The identity transform.
     pub fn identity() -> Self {
         Self {
             rotation: Matrix3::identity(),

@@ -3,29 +3,19 @@
 use super::{ForcesInput, ForcesNode};
 use crate::error::NodeError;
 use crate::msg::constraint_dynamics_msgs::srv::{GetConstraintForces, GetConstraintForcesResponse};
-use crate::node::wiring::{RosWiring, Wiring};
-use crate::node::worker::Event;
-use crate::ros::io::serve;
+use crate::node::wiring::{RosWiring, Wiring, serve_service};
 
 impl RosWiring for ForcesNode {
     fn wire(w: &mut Wiring<Self>) -> Result<(), NodeError> {
-        let server = w
-            .ros
-            .server::<GetConstraintForces>(&(w.topic)("~/get_constraint_forces"))?;
-        let tx = w.tx.clone();
-        w.tasks.push(w.ros.spawn(serve::<GetConstraintForces, _>(
-            server,
-            w.log.clone(),
-            move |req, reply| {
-                tx.try_send(Event::Node(ForcesInput::Get(req, reply)))
-                    .is_ok()
-            },
+        serve_service::<_, GetConstraintForces>(
+            w,
+            "~/get_constraint_forces",
+            ForcesInput::Get,
             |message| GetConstraintForcesResponse {
                 success: false,
                 message,
                 ..Default::default()
             },
-        )));
-        Ok(())
+        )
     }
 }

@@ -9,6 +9,7 @@ use std::sync::{Arc, Mutex};
 use ros2_client::{Context, NodeOptions};
 
 use crate::error::NodeError;
+use crate::msg::RosService;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
 use crate::msg::nav_msgs::Odometry;
@@ -21,7 +22,7 @@ use crate::params::NodeParams;
 use crate::robot::Robot;
 use crate::ros::args::{Parameters, RosArgs};
 use crate::ros::context::{RosNode, qos};
-use crate::ros::io::subscribe;
+use crate::ros::io::{Reply, serve, subscribe};
 use crate::ros::logging::{self, NodeLog};
 
 /// What a kind's wiring works with.
@@ -181,6 +182,31 @@ pub fn start_node<N: RosWiring>(
         tasks,
         ros: Some(ros),
     }))
+}
+
+/// Serves `S` at `name`: each request becomes the kind's input `input(request, reply)`; `error`
+/// makes the response when the worker cannot answer (busy, internal error).
+pub fn serve_service<N, S>(
+    w: &mut Wiring<N>,
+    name: &str,
+    input: fn(S::Request, Reply<S::Response>) -> N::Input,
+    error: fn(String) -> S::Response,
+) -> Result<(), NodeError>
+where
+    N: NodeLogic,
+    S: RosService + 'static,
+    S::Request: Send + Sync,
+    S::Response: Send + Sync,
+{
+    let server = w.ros.server::<S>(&(w.topic)(name))?;
+    let tx = w.tx.clone();
+    w.tasks.push(w.ros.spawn(serve::<S, _>(
+        server,
+        w.log.clone(),
+        move |req, reply| tx.try_send(Event::Node(input(req, reply))).is_ok(),
+        error,
+    )));
+    Ok(())
 }
 
 /// The node's status on `/diagnostics` (global, as diagnostic_updater publishes it; the status

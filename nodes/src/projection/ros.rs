@@ -4,34 +4,28 @@ use super::{Filtered, ProjectionInput, ProjectionNode};
 use crate::error::NodeError;
 use crate::msg::constraint_dynamics_msgs::srv::{ProjectVelocity, ProjectVelocityResponse};
 use crate::msg::geometry_msgs::{Twist, TwistStamped};
-use crate::node::wiring::{RosWiring, Wiring, forward};
+use crate::node::wiring::{RosWiring, Wiring, forward, serve_service};
 use crate::node::worker::Event;
 use crate::ros::context::qos;
-use crate::ros::io::{serve, subscribe};
+use crate::ros::io::subscribe;
 
 impl RosWiring for ProjectionNode {
     fn wire(w: &mut Wiring<Self>) -> Result<(), NodeError> {
         let p = &w.params.node;
         if p.service {
-            let server = w
-                .ros
-                .server::<ProjectVelocity>(&(w.topic)("~/project_velocity"))?;
-            let tx = w.tx.clone();
-            w.tasks.push(w.ros.spawn(serve::<ProjectVelocity, _>(
-                server,
-                w.log.clone(),
-                move |req, reply| {
-                    tx.try_send(Event::Node(ProjectionInput::Project(req, reply)))
-                        .is_ok()
-                },
+            serve_service::<_, ProjectVelocity>(
+                w,
+                "~/project_velocity",
+                ProjectionInput::Project,
                 |message| ProjectVelocityResponse {
                     success: false,
                     status: "error".into(),
                     message,
                     ..Default::default()
                 },
-            )));
+            )?;
         }
+        let p = &w.params.node;
         if !p.filter.enabled {
             return Ok(());
         }
