@@ -97,11 +97,21 @@ fn mobile_manipulator_standing_still_carries_its_weight_on_its_contacts() {
         .unwrap()
         .clone();
     // Closed form: at rest on level ground nothing moves (q̈ = 0) and the contacts carry m g.
-    assert_close("standing still: q̈", qdd.as_slice(), &vec![0.0; nv], TOL_MM_QDD);
+    assert_close(
+        "standing still: q̈",
+        qdd.as_slice(),
+        &vec![0.0; nv],
+        TOL_MM_QDD,
+    );
     let mg = sys.model.total_mass() * 9.81;
     let forces = sys.constraint_forces();
     let fz: f64 = forces.iter().map(|f| f.force[2]).sum();
-    assert_close("standing still: Σ normal forces / m g", &[fz / mg], &[1.0], TOL_MM_FZ);
+    assert_close(
+        "standing still: Σ normal forces / m g",
+        &[fz / mg],
+        &[1.0],
+        TOL_MM_FZ,
+    );
     // The redundant lateral rows of the two wheels are reported, not hidden.
     assert_eq!(sys.kkt.rank_deficiency, 1);
     for f in forces.iter().filter(|f| f.kind == "rolling") {
@@ -161,7 +171,12 @@ fn solo12_static_equilibrium_carries_its_weight() {
     assert_close("solo12 static: q̈", qdd.as_slice(), &[0.0; 18], TOL_SOLO_QDD);
     let mg = sys.model.total_mass() * 9.81;
     let fz: f64 = sys.constraint_forces().iter().map(|f| f.force[2]).sum();
-    assert_close("solo12 static: Σ f_z / m g", &[fz / mg], &[1.0], TOL_SOLO_FZ);
+    assert_close(
+        "solo12 static: Σ f_z / m g",
+        &[fz / mg],
+        &[1.0],
+        TOL_SOLO_FZ,
+    );
 }
 
 #[test]

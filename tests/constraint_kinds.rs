@@ -226,7 +226,12 @@ fn weld_in_local_axes_gives_the_same_motion_and_rotated_wrench() {
         let row = vt.row(k).transpose();
         v -= &row * row.dot(&raw);
     }
-    assert_close("J v in the null space", (&jw * &v).as_slice(), &[0.0; 6], 2e-14); // achieved 3.3e-16
+    assert_close(
+        "J v in the null space",
+        (&jw * &v).as_slice(),
+        &[0.0; 6],
+        2e-14,
+    ); // achieved 3.3e-16
     let tau: Vec<f64> = (0..18)
         .map(|i| if i < 6 { 0.0 } else { (i as f64).cos() })
         .collect();

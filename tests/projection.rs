@@ -304,7 +304,12 @@ fn diff_drive_sideways_twist_projects_to_the_closed_form() {
     let dd = diff_drive_numbers(-0.05, -0.15);
     let wz = dd.m * dd.x_c * vy / dd.a2();
     let tw = out.base_twist.clone().unwrap();
-    assert_close("sideways twist (mass metric)", &tw, &[0.0, 0.0, wz], TOL_SIDEWAYS);
+    assert_close(
+        "sideways twist (mass metric)",
+        &tw,
+        &[0.0, 0.0, wz],
+        TOL_SIDEWAYS,
+    );
     let w = out.joint_velocities.clone().unwrap();
     assert_close(
         "sideways wheels (mass metric)",
@@ -803,7 +808,7 @@ fn mobile_manipulator_mixed_bounds_satisfy_kkt_and_reuse_the_qp() {
             )
             .unwrap();
         // achieved 0 (same data, same solver path); floor 1e-15
-    assert_close(
+        assert_close(
             "reused vs fresh",
             proj.v.as_slice(),
             fresh.v.as_slice(),
@@ -819,7 +824,11 @@ fn mobile_manipulator_mixed_bounds_satisfy_kkt_and_reuse_the_qp() {
             (b, x.active_inequalities().collect::<Vec<_>>())
         };
         assert_eq!(sorted(&proj), sorted(&fresh), "request {k}: active sets");
-        eprintln!("request {k}: active {:?}, v {:?}", sorted(&proj), proj.v.as_slice());
+        eprintln!(
+            "request {k}: active {:?}, v {:?}",
+            sorted(&proj),
+            proj.v.as_slice()
+        );
         answers.push(proj.v.iter().copied().collect());
     }
     eprintln!("mixed problem: worst KKT residuals {worst:?}");
@@ -830,7 +839,12 @@ fn mobile_manipulator_mixed_bounds_satisfy_kkt_and_reuse_the_qp() {
         let d = rel_err(&w[1], &w[0]);
         eprintln!("answers {k} → {}: relative change {d:.2e}", k + 1);
         // Smallest change achieved: 3.2e-2 (request 1 → 2).
-        assert!(d > 3e-3, "answers {k} and {} are the same: {:?}", k + 1, w[1]);
+        assert!(
+            d > 3e-3,
+            "answers {k} and {} are the same: {:?}",
+            k + 1,
+            w[1]
+        );
     }
     assert_eq!(
         proj.qp_builds(),

@@ -93,11 +93,7 @@ fn rnea_inverts_aba_and_mass_matrix_is_spd() {
             );
             let m = crba(&model, &mut data, &q).clone();
             // CRBA writes each entry to both triangles: exactly symmetric (achieved 0).
-            assert_eq!(
-                (&m - m.transpose()).amax(),
-                0.0,
-                "{name}: M not symmetric"
-            );
+            assert_eq!((&m - m.transpose()).amax(), 0.0, "{name}: M not symmetric");
             assert!(
                 m.clone().cholesky().is_some(),
                 "{name}: M not positive definite"

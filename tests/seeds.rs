@@ -273,7 +273,12 @@ fn seed001_vertical_disk_rolls_with_constant_rates() {
     let (ivx, ivy, iwz, isp) = (0, 1, 2, 3);
     let iyaw = 2;
     // Sign convention fixed by the scene: vx_local = a·spin_rate, vy_local = 0.
-    assert_close("scene v0: vx = a·spin", &[scene.v0[ivx]], &[a * scene.v0[isp]], T_V0);
+    assert_close(
+        "scene v0: vx = a·spin",
+        &[scene.v0[ivx]],
+        &[a * scene.v0[isp]],
+        T_V0,
+    );
     assert_eq!(scene.v0[ivy], 0.0);
 
     // (q, v) for position (x, y, yaw, spin angle), spin rate and yaw rate, consistent by (33), (34).
@@ -300,7 +305,12 @@ fn seed001_vertical_disk_rolls_with_constant_rates() {
             T_DISK_JV,
         );
         // (41), (42): φ̈ = 0, θ̈ = 0; and the dependent accelerations a φ̈, 0: q̈ = 0.
-        assert_close(&format!("state {k}: q̈ = 0"), qdd.as_slice(), &[0.0; 4], T_DISK_QDD);
+        assert_close(
+            &format!("state {k}: q̈ = 0"),
+            qdd.as_slice(),
+            &[0.0; 4],
+            T_DISK_QDD,
+        );
 
         // Contact force = m × centripetal acceleration of the centre.
         let (u, wz, psi) = (v[ivx], v[iwz], q[iyaw]);
@@ -404,7 +414,12 @@ fn seed_diff_drive_no_side_slip_is_lateral_velocity() {
     );
     assert_close("J v, admissible", &[sys.cdata.jv[0]], &[0.0], T_NSS);
     sys.forward_dynamics(&q, &v, &tau, false).unwrap();
-    assert_close("J v, admissible (embedded path)", &[sys.cdata.jv[0]], &[0.0], T_NSS);
+    assert_close(
+        "J v, admissible (embedded path)",
+        &[sys.cdata.jv[0]],
+        &[0.0],
+        T_NSS,
+    );
 
     // A sideways-slipping velocity: J v = vy_local = ẏ cos θ − ẋ sin θ ≠ 0.
     let (xd, yd) = (0.5, 0.9);
@@ -414,8 +429,18 @@ fn seed_diff_drive_no_side_slip_is_lateral_velocity() {
     let v = vec![vx, vy, -0.3, 1.0, 2.0];
     sys.forward_dynamics(&q, &v, &tau, true).unwrap();
     assert_close("J v = vy_local", &[sys.cdata.jv[0]], &[vy], T_NSS);
-    assert_close("J v = seed residual", &[sys.cdata.jv[0]], &[seed_residual], T_NSS);
+    assert_close(
+        "J v = seed residual",
+        &[sys.cdata.jv[0]],
+        &[seed_residual],
+        T_NSS,
+    );
     let f = sys.constraint_forces();
     assert_eq!(f[0].kind, "no_side_slip");
-    assert_close("reported velocity residual", &[f[0].velocity_residual[0]], &[vy], T_NSS);
+    assert_close(
+        "reported velocity residual",
+        &[f[0].velocity_residual[0]],
+        &[vy],
+        T_NSS,
+    );
 }

@@ -115,7 +115,9 @@ pub fn specs_for(
                             Some("z") => constraint_dynamics::constraints::Row::Z,
                             // A row the reference names but this helper does not map would
                             // silently become another row: refuse it.
-                            other => panic!("constraint {k}: unknown reference row {other:?} in {r}"),
+                            other => {
+                                panic!("constraint {k}: unknown reference row {other:?} in {r}")
+                            }
                         })
                         .collect();
                     constraint_dynamics::constraints::ConstraintSpec::Point {
