@@ -93,15 +93,24 @@ fn check_step(p: &mut Predictor, q: &[f64], v: &[f64], st: &serde_json::Value, t
         &format!("{tag} qd_next"),
         &last.v,
         &vecf(&e["qd_next"]),
-        1e-9,
+        1e-13, // achieved ≤ 1.7e-15 (Solo12) over all 17 states
     );
     assert_close(
         &format!("{tag} q_next"),
         &last.q,
         &vecf(&e["q_next"]),
-        1e-12,
+        1e-14, // achieved ≤ 1.1e-16 (Pinocchio's integrate on SE(3) for the free-flyer cases)
     );
 }
+
+// Against the reference run (absolute, printed by `assert_close`): the initial energy is
+// exact (achieved 0; floor 1e-15); the max energy drift agrees to 9.2e-14 J (tol 5e-12); the
+// max |J q̇| to 9.7e-7 m/s, 0.09 % of the reference's 1.04e-3 m/s while the energy agrees to
+// 1e-13 — a difference in where within the step the residual is sampled is the likely cause,
+// not verified here (tol 1e-5, 10×).
+const T_E0: f64 = 1e-15;
+const T_DRIFT: f64 = 5e-12;
+const T_JQD: f64 = 1e-5;
 
 #[test]
 fn rolling_disk_energy_drift_matches_the_reference_run() {
@@ -120,7 +129,12 @@ fn rolling_disk_energy_drift_matches_the_reference_run() {
         .unwrap();
     let e0 = chk["initial_energy_J"].as_f64().unwrap();
     let s0 = &traj.samples[0];
-    assert!((s0.kinetic_energy + s0.potential_energy - e0).abs() < 1e-12 * e0);
+    assert_close(
+        "initial energy",
+        &[s0.kinetic_energy + s0.potential_energy],
+        &[e0],
+        T_E0,
+    );
     let drift = traj
         .samples
         .iter()
@@ -135,12 +149,8 @@ fn rolling_disk_energy_drift_matches_the_reference_run() {
         chk["max_abs_energy_drift_J"].as_f64().unwrap(),
         chk["max_abs_Jqd_m_per_s"].as_f64().unwrap(),
     );
-    assert!(
-        (drift - drift_ref).abs() < 1e-6 * drift_ref.max(1.0),
-        "energy drift {drift} vs {drift_ref}"
-    );
-    assert!(
-        (jqd - jqd_ref).abs() < 1e-6,
-        "max |J qd| {jqd} vs {jqd_ref}"
-    );
+    // The same 20 000 steps as the reference run, so the two agree to round-off accumulated over
+    // the run, not to the method's error.
+    assert_close("max |ΔE| [J]", &[drift], &[drift_ref], T_DRIFT);
+    assert_close("max |J q̇| [m/s]", &[jqd], &[jqd_ref], T_JQD);
 }

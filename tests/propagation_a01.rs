@@ -1,5 +1,8 @@
 //! IFToMM A01 high-precision bar: the simple pendulum (1 kg point mass, massless 1 m link, released
-//! horizontal) over 2000 s, mass position within 1e-3 m of the closed form at every sample.
+//! horizontal) over 2000 s against the closed form (Jacobi's sn, `propagation_closed_forms.rs`) at
+//! every sample. The benchmark's bar is 1e-3 m; dopri5 at rtol 1e-11 reaches 3.94e-5 m, so the
+//! test asserts 1e-4 m (2.5× the achieved error): a regression that loses most of the
+//! accuracy fails here long before it would fail the benchmark's bar.
 
 #[path = "propagation_closed_forms.rs"]
 mod closed_forms;
@@ -48,6 +51,10 @@ fn a01_pendulum_meets_the_high_precision_bar_over_2000_s() {
         last.kinetic_energy + last.potential_energy
     );
     assert_eq!(traj.samples.len(), 2001);
-    assert!((last.t - 2000.0).abs() < 1e-9);
-    assert!(err <= 1e-3, "A01 position error {err:e} m > 1e-3 m");
+    assert!((last.t - 2000.0).abs() < 1e-9, "last sample at {}", last.t);
+    // Achieved 3.938e-5 m.
+    assert!(
+        err <= 1e-4,
+        "A01 position error {err:e} m > 1e-4 m (achieved 3.9e-5 m)"
+    );
 }

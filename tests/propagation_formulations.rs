@@ -1,14 +1,15 @@
 //! The multiplier-free (embedded, Voronets) and the multiplier propagations of every bundled scene
 //! stay together over the horizon: RK4, dt = 1 ms, projection, 1 s (2 s for the report scenes;
 //! shorter where the scene passes a singular position or balances on an unstable equilibrium).
-//! Stated tolerance: the final q (Lie-group difference) and v agree to 1e-8 [m, rad, m/s, rad/s].
+//! Tolerance per scene, from the achieved max |Δq| (Lie-group difference) and |Δv| over the
+//! samples [m, rad, m/s, rad/s] (printed; `-- --nocapture`), about 50× it: the two forms solve the
+//! same equations with different linear algebra, so they differ by round-off grown along the
+//! trajectory. Scenes where both take the same arithmetic agree exactly (floor 1e-15).
 
 use constraint_dynamics::Scene;
 use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::predict::{DriftControl, Method, Predictor, Trajectory};
 use std::path::PathBuf;
-
-const TOL: f64 = 1e-8;
 
 fn propagate(
     sc: &Scene,
@@ -28,23 +29,24 @@ fn propagate(
 
 #[test]
 fn embedded_and_multiplier_propagations_agree_on_every_bundled_scene() {
+    // (scene, horizon [s], tolerance on max |Δq|, |Δv|; the achieved figure in the comment)
     let scenes = [
-        ("params/pendulum_a01.yaml", 1.0),
-        ("params/rod_body.yaml", 1.0),
-        ("params/vertical_disk.yaml", 1.0),
-        ("params/fourbar.yaml", 1.0),
-        ("params/slider_crank.yaml", 1.0),
-        ("params/double_fourbar.yaml", 1.0),
-        ("params/diff_drive.yaml", 1.0),
-        ("params/mobile_manipulator.yaml", 1.0),
-        // An unstable equilibrium (the arm upright): round-off grows by e^{λt}, ~1e-8 at 1 s.
-        ("params/mobile_manipulator_floating.yaml", 0.5),
-        ("params/spring_chain.yaml", 1.0),
-        ("params/report/rolling_disk.yaml", 2.0),
-        ("params/report/diff_drive_coasting.yaml", 2.0),
-        ("params/report/spring_chain_stiff.yaml", 0.05),
+        ("params/pendulum_a01.yaml", 1.0, 1e-15),       // 0
+        ("params/rod_body.yaml", 1.0, 5e-12),           // 7.6e-14
+        ("params/vertical_disk.yaml", 1.0, 5e-13),      // 5.3e-15
+        ("params/fourbar.yaml", 1.0, 2e-12),            // 2.4e-14
+        ("params/slider_crank.yaml", 1.0, 2e-12),       // 3.4e-14
+        ("params/double_fourbar.yaml", 1.0, 1e-15),     // 0
+        ("params/diff_drive.yaml", 1.0, 1e-15),         // 0
+        ("params/mobile_manipulator.yaml", 1.0, 2e-11), // 5.0e-13
+        // An unstable equilibrium (the arm upright): round-off grows by e^{λt}.
+        ("params/mobile_manipulator_floating.yaml", 0.5, 5e-11), // 7.0e-13
+        ("params/spring_chain.yaml", 1.0, 1e-15),                // 0
+        ("params/report/rolling_disk.yaml", 2.0, 5e-12),         // 5.6e-14
+        ("params/report/diff_drive_coasting.yaml", 2.0, 2e-12),  // 4.1e-14
+        ("params/report/spring_chain_stiff.yaml", 0.05, 2e-11),  // 2.8e-13
     ];
-    for (rel, horizon) in scenes {
+    for (rel, horizon, tol) in scenes {
         // The stiff chain's fastest mode is ~4.5e3 rad/s: RK4 needs dt ≤ 6e-4 s (1e-5 s here).
         let dt = if rel.contains("stiff") { 1e-5 } else { 1e-3 };
         let sc = Scene::load(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel)).unwrap();
@@ -59,6 +61,9 @@ fn embedded_and_multiplier_propagations_agree_on_every_bundled_scene() {
         }
         assert_eq!(emb.samples.len(), mul.samples.len());
         println!("{rel}: embedded vs multipliers over {horizon} s: max |Δq|, |Δv| = {worst:.3e}");
-        assert!(worst <= TOL, "{rel}: formulations differ by {worst:e}");
+        assert!(
+            worst <= tol,
+            "{rel}: formulations differ by {worst:e} > {tol:e}"
+        );
     }
 }

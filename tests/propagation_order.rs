@@ -42,7 +42,7 @@ fn assert_order(what: &str, errors: &[f64], expected: f64, tol: f64) {
     let o = orders(errors);
     let es: Vec<String> = errors.iter().map(|e| format!("{e:.3e}")).collect();
     println!(
-        "{what}: errors [{}], observed orders {o:.2?} (expected {expected})",
+        "{what}: errors [{}], observed orders {o:.4?} (expected {expected}, tol {tol})",
         es.join(", ")
     );
     for x in &o {
@@ -75,10 +75,11 @@ fn energy_error(t: &Trajectory) -> f64 {
 fn a01_position_error_shrinks_at_each_methods_order() {
     let sc = scene("params/pendulum_a01.yaml");
     let none = DriftControl::None;
+    // (method, dt, order, tolerance on the observed order; achieved deviation in the comment)
     let cases = [
-        (Method::Rk4, 0.02, 4.0, 0.3),
-        (Method::SemiImplicitEuler, 2e-3, 1.0, 0.15),
-        (Method::Sdirk2, 4e-3, 2.0, 0.2),
+        (Method::Rk4, 0.02, 4.0, 0.3),                // 0.090 (3.91, 3.96)
+        (Method::SemiImplicitEuler, 2e-3, 1.0, 0.01), // < 1e-4 (1.0000, 1.0000)
+        (Method::Sdirk2, 4e-3, 2.0, 0.02),            // 0.0012 (1.9988, 1.9994)
     ];
     for (method, dt, order, tol) in cases {
         let e: Vec<f64> = [dt, dt / 2.0, dt / 4.0]
@@ -117,7 +118,8 @@ fn semi_implicit_euler_energy_error_is_bounded_and_first_order() {
         );
         e.push(first.max(second));
     }
-    assert_order("A01 semi-implicit Euler energy (bounded)", &e, 1.0, 0.15);
+    // Achieved 1.0029, 1.0014.
+    assert_order("A01 semi-implicit Euler energy (bounded)", &e, 1.0, 0.03);
 }
 
 #[test]
@@ -132,7 +134,7 @@ fn fourbar_energy_error_shrinks_at_rk4_order_with_and_without_projection() {
             &format!("fourbar RK4 energy, drift {drift:?}"),
             &e,
             4.0,
-            0.4,
+            0.3, // achieved 4.03, 4.01 (no drift control), 4.08, 3.95 (projection)
         );
     }
     let e: Vec<f64> = [0.01, 0.005, 0.0025]
@@ -148,7 +150,7 @@ fn fourbar_energy_error_shrinks_at_rk4_order_with_and_without_projection() {
             ))
         })
         .collect();
-    assert_order("fourbar SDIRK2 energy, projection", &e, 2.0, 0.3);
+    assert_order("fourbar SDIRK2 energy, projection", &e, 2.0, 0.05); // achieved 1.991, 1.995
 }
 
 #[test]
@@ -171,7 +173,8 @@ fn dopri5_error_decreases_with_rtol() {
             e < prev / 10.0,
             "rtol {rtol:e}: error {e:e} not 10× below {prev:e}"
         );
-        assert!(e < 1e4 * rtol, "rtol {rtol:e}: error {e:e}");
+        // Achieved e/rtol = 21, 77, 94, 99 for rtol 1e-5 … 1e-11.
+        assert!(e < 1e3 * rtol, "rtol {rtol:e}: error {e:e}");
         prev = e;
     }
 }
@@ -233,7 +236,9 @@ fn free_rigid_body_conserves_energy_and_momentum_at_rk4_order_on_se3() {
             .difference(&q_ref, &t.samples.last().unwrap().q, &mut d);
         e_state.push(d.iter().fold(0.0f64, |m, x| m.max(x.abs())));
     }
+    // Achieved orders: energy 4.33, 4.13 (pre-asymptotic at dt = 0.01); momentum 3.993,
+    // 3.996; pose 4.010, 4.009.
     assert_order("free body RK4 energy", &e_energy, 4.0, 0.4);
-    assert_order("free body RK4 angular momentum", &e_momentum, 4.0, 0.4);
-    assert_order("free body RK4 pose (SE(3) log) at 4 s", &e_state, 4.0, 0.4);
+    assert_order("free body RK4 angular momentum", &e_momentum, 4.0, 0.05);
+    assert_order("free body RK4 pose (SE(3) log) at 4 s", &e_state, 4.0, 0.05);
 }

@@ -1,4 +1,6 @@
-//! M, h, J and γ = J̇v of the UR5 and Solo12 reference cases (Pinocchio 4.1.0) to 1e-12.
+//! M, h, J and γ = J̇v of the UR5 and Solo12 reference cases (Pinocchio 4.1.0,
+//! `../shared/reference/cases/*.json` `debug_terms`). Achieved ≤ 8.5e-16 relative on all four
+//! (printed by `assert_close`); tolerance 5e-14 (≥ 59×).
 //! Our conventions equal the reference's (free-flyer twist in the base frame, [lin; ang]), so no
 //! conversion is needed at this edge.
 
@@ -6,6 +8,9 @@ mod common;
 use common::*;
 use constraint_dynamics::algorithm::*;
 use nalgebra::{DMatrix, Vector3};
+
+/// M, h, J, γ against the reference: achieved ≤ 8.5e-16 (M of UR5), 59× margin.
+const TERMS_TOL: f64 = 5e-14;
 
 fn check_case(name: &str) {
     let case = load_case(name);
@@ -21,14 +26,14 @@ fn check_case(name: &str) {
             &format!("{name}[{k}] M"),
             data.mass_matrix.as_slice(),
             m_ref.as_slice(),
-            1e-12,
+            TERMS_TOL,
         );
         nonlinear_effects(&model, &mut data, &q, &v);
         assert_close(
             &format!("{name}[{k}] h"),
             data.tau.as_slice(),
             &vecf(&dt["h"]),
-            1e-12,
+            TERMS_TOL,
         );
 
         // Point constraints: each constraint's link origin; J rows in world axes, γ classical accel.
@@ -49,9 +54,9 @@ fn check_case(name: &str) {
             &format!("{name}[{k}] J"),
             j.transpose().as_slice(),
             j_ref.transpose().as_slice(),
-            1e-12,
+            TERMS_TOL,
         );
-        assert_close(&format!("{name}[{k}] gamma"), &gamma, &g_ref, 1e-12);
+        assert_close(&format!("{name}[{k}] gamma"), &gamma, &g_ref, TERMS_TOL);
     }
 }
 
@@ -79,17 +84,16 @@ fn rnea_inverts_aba_and_mass_matrix_is_spd() {
                 .collect();
             let qdd = aba(&model, &mut data, &q, &v, &tau).clone();
             let back = rnea(&model, &mut data, &q, &v, qdd.as_slice()).clone();
+            // τ is the independent side (chosen here); achieved ≤ 4.5e-15 (Solo12), tol 2e-13.
             assert_close(
                 &format!("{name} rnea(aba(tau))"),
                 back.as_slice(),
                 &tau,
-                1e-12,
+                2e-13,
             );
             let m = crba(&model, &mut data, &q).clone();
-            assert!(
-                (&m - m.transpose()).amax() <= 1e-14 * m.amax(),
-                "{name}: M not symmetric"
-            );
+            // CRBA writes each entry to both triangles: exactly symmetric (achieved 0).
+            assert_eq!((&m - m.transpose()).amax(), 0.0, "{name}: M not symmetric");
             assert!(
                 m.clone().cholesky().is_some(),
                 "{name}: M not positive definite"

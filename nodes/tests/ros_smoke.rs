@@ -16,12 +16,13 @@
 //!
 //! Network rule: DDS participants are opened only inside a loopback-only
 //! network namespace. Started anywhere else, the test re-executes its own
-//! binary under `tools/ros2/netns_run.sh` and reports that run's result; if no
-//! namespace can be made (not root), it skips with a message and opens nothing.
+//! binary under `tools/ros2/netns_run.sh` and reports that run's result.
 //!
-//! (b) and (c) need the peer venv (`tools/ros2/setup_peer_venv.sh`; path from
-//! `CD_ROS2_VENV`, default `<repo>/.venv-ros2`). Without it they are skipped
-//! with a message, unless `CD_REQUIRE_PEER=1` (CI), which makes that a failure.
+//! Needs root (for the namespace) and, for (b) and (c), the peer venv
+//! (`tools/ros2/setup_peer_venv.sh`; path from `CD_ROS2_VENV`, default
+//! `<repo>/.venv-ros2`): the test is `#[ignore]`d in a plain `cargo test` and run
+//! by `tools/test.sh` (`--include-ignored`). A missing prerequisite fails it,
+//! before any DDS participant is opened; nothing is skipped.
 
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
@@ -52,7 +53,9 @@ fn repo_root() -> PathBuf {
 }
 
 #[test]
+#[ignore = "needs root and the peer venv: run by tools/test.sh"]
 fn ros_smoke() {
+    peer_python();
     if in_loopback_only_namespace() {
         run_smoke();
         return;
@@ -69,17 +72,22 @@ fn ros_smoke() {
         .stderr(Stdio::null())
         .status()
         .is_ok_and(|s| s.success());
-    if !can_unshare {
-        eprintln!(
-            "SKIPPED {TEST_NAME}: cannot create a network namespace (`unshare -n` needs root); \
-             no DDS participant was opened. Run it as root or inside tools/ros2/netns_run.sh."
-        );
-        return;
-    }
+    assert!(
+        can_unshare,
+        "{TEST_NAME}: cannot create a network namespace (`unshare -n` needs root); no DDS \
+         participant was opened. Run it as root, e.g. through tools/test.sh."
+    );
     let exe = std::env::current_exe().expect("test binary path");
     let status = Command::new(repo_root().join("tools/ros2/netns_run.sh"))
         .arg(exe)
-        .args([TEST_NAME, "--exact", "--nocapture", "--test-threads=1"])
+        // The test is #[ignore]d: the inner run must include it.
+        .args([
+            TEST_NAME,
+            "--exact",
+            "--include-ignored",
+            "--nocapture",
+            "--test-threads=1",
+        ])
         .status()
         .expect("run tools/ros2/netns_run.sh");
     assert!(
@@ -338,21 +346,8 @@ fn run_smoke() {
     drop(peer);
 
     // ---- (b) rclpy and (c) Cyclone DDS ----------------------------------------------
-    let venv = std::env::var_os("CD_ROS2_VENV")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| repo_root().join(".venv-ros2"));
-    let python = venv.join("bin/python");
-    if !python.exists() {
-        let msg = format!(
-            "SKIPPED {TEST_NAME} (b), (c): no peer venv at {} (make it with tools/ros2/setup_peer_venv.sh)",
-            venv.display()
-        );
-        assert!(
-            std::env::var("CD_REQUIRE_PEER").as_deref() != Ok("1"),
-            "{msg} and CD_REQUIRE_PEER=1"
-        );
-        eprintln!("{msg}");
-    } else {
+    let python = peer_python();
+    {
         let out = run_python(&python, "tools/ros2/peer_check.py", &[]);
         assert_eq!(out["ok"], true, "(b) peer_check.py: {out}");
         let odom: Odometry =
@@ -403,6 +398,22 @@ fn run_smoke() {
 
     log.stop.store(true, Ordering::Relaxed);
     drop(node);
+}
+
+/// The peer venv's python (`CD_ROS2_VENV`, default `<repo>/.venv-ros2`); panics naming the
+/// fix when it is missing.
+fn peer_python() -> PathBuf {
+    let venv = std::env::var_os("CD_ROS2_VENV")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| repo_root().join(".venv-ros2"));
+    let python = venv.join("bin/python");
+    assert!(
+        python.exists(),
+        "{TEST_NAME}: no peer venv at {} (make it with tools/ros2/setup_peer_venv.sh, or run \
+         tools/test.sh, which does)",
+        venv.display()
+    );
+    python
 }
 
 /// Runs a peer script with the venv's python, with a time limit; returns the

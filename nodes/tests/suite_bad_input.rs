@@ -35,6 +35,7 @@ fn expect_error(what: &str, success: bool, message: &str, needles: &[&str]) {
 }
 
 #[test]
+#[ignore = "needs root (a loopback-only network namespace): run by tools/test.sh"]
 fn malformed_requests_get_reasons_and_the_suite_keeps_serving() {
     if !in_namespace_or_reexec(TEST) {
         return;
@@ -356,6 +357,7 @@ fn malformed_requests_get_reasons_and_the_suite_keeps_serving() {
 }
 
 #[test]
+#[ignore = "needs root (a loopback-only network namespace): run by tools/test.sh"]
 fn single_node_with_name_namespace_and_remap() {
     if !in_namespace_or_reexec(TEST_SINGLE) {
         return;

@@ -5,13 +5,12 @@
 //! requests (stamps aside), so every hand-written message layout is checked against a real
 //! peer.
 //!
-//! Needs the peer venv (`tools/ros2/setup_peer_venv.sh`; `CD_ROS2_VENV`, default
-//! `<repo>/.venv-ros2`); without it the test is skipped with a message, unless
-//! `CD_REQUIRE_PEER=1`, which makes that a failure.
+//! Needs root (a loopback-only network namespace) and the peer venv
+//! (`tools/ros2/setup_peer_venv.sh`; `CD_ROS2_VENV`, default `<repo>/.venv-ros2`): `#[ignore]`d
+//! in a plain `cargo test`, run by `tools/test.sh`; a missing prerequisite fails the test.
 
 mod common;
 
-use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
@@ -37,25 +36,11 @@ fn without_stamps(v: &mut Value) {
 }
 
 #[test]
+#[ignore = "needs root and the peer venv: run by tools/test.sh"]
 fn rclpy_peer_reads_topics_calls_services_and_parameters() {
-    let venv = std::env::var_os("CD_ROS2_VENV")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| repo_root().join(".venv-ros2"));
-    let python = venv.join("bin/python");
-    if !python.exists() {
-        let msg = format!(
-            "SKIPPED {TEST}: no peer venv at {} (make it with tools/ros2/setup_peer_venv.sh)",
-            venv.display()
-        );
-        assert!(
-            std::env::var("CD_REQUIRE_PEER").as_deref() != Ok("1"),
-            "{msg} and CD_REQUIRE_PEER=1"
-        );
-        eprintln!("{msg}");
-        return;
-    }
+    let python = peer_python(TEST);
     if !in_namespace_or_reexec(TEST) {
-        return;
+        return; // the run inside the namespace passed
     }
     let mut t = TestNode::new("cd_peer_test");
     let mut suite = SuiteProcess::spawn(

@@ -301,6 +301,7 @@ fn raw_value(v: ParameterValue) -> raw::ParameterValue {
 }
 
 #[test]
+#[ignore = "needs root (a loopback-only network namespace): run by tools/test.sh"]
 fn suite_matches_the_core_library() {
     if !in_namespace_or_reexec(TEST) {
         return;

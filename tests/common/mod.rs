@@ -84,8 +84,11 @@ pub fn rel_err(a: &[f64], b: &[f64]) -> f64 {
         / scale
 }
 
+/// Asserts `rel_err(a, b) <= tol` and prints the achieved figure (`--nocapture` shows it), so
+/// every tolerance can be checked against what the code reaches (docs/testing.md).
 pub fn assert_close(what: &str, a: &[f64], b: &[f64], tol: f64) {
     let e = rel_err(a, b);
+    eprintln!("achieved {what}: {e:.2e} (tol {tol:.0e})");
     assert!(
         e <= tol,
         "{what}: relative error {e:.3e} > {tol:.1e}\n ours: {a:?}\n  ref: {b:?}"
@@ -111,10 +114,15 @@ pub fn specs_for(
                         .as_array()
                         .unwrap()
                         .iter()
-                        .map(|r| match r.as_str().unwrap() {
-                            "x" => constraint_dynamics::constraints::Row::X,
-                            "y" => constraint_dynamics::constraints::Row::Y,
-                            _ => constraint_dynamics::constraints::Row::Z,
+                        .map(|r| match r.as_str() {
+                            Some("x") => constraint_dynamics::constraints::Row::X,
+                            Some("y") => constraint_dynamics::constraints::Row::Y,
+                            Some("z") => constraint_dynamics::constraints::Row::Z,
+                            // A row the reference names but this helper does not map would
+                            // silently become another row: refuse it.
+                            other => {
+                                panic!("constraint {k}: unknown reference row {other:?} in {r}")
+                            }
                         })
                         .collect();
                     constraint_dynamics::constraints::ConstraintSpec::Point {

@@ -29,9 +29,14 @@ pub fn repo_root() -> PathBuf {
         .expect("repo root")
 }
 
+/// The DDS tests are `#[ignore]`d in a plain `cargo test` (they need root for a loopback-only
+/// network namespace, some the peer venv too); `tools/test.sh` runs them with
+/// `--include-ignored`.
+///
 /// True when the caller should run its body here (we are in a loopback-only namespace).
-/// Otherwise re-runs `test_name` of this test binary inside a fresh namespace and asserts it
-/// passed (or skips, opening nothing, when no namespace can be made) and returns false.
+/// Otherwise re-runs `test_name` of this test binary inside a fresh namespace, asserts it
+/// passed and returns false. A missing prerequisite is a failure, never a skip: these tests are
+/// `#[ignore]`d, so whoever runs them asked for them.
 pub fn in_namespace_or_reexec(test_name: &str) -> bool {
     if in_loopback_only_namespace() {
         return true;
@@ -45,17 +50,22 @@ pub fn in_namespace_or_reexec(test_name: &str) -> bool {
         .stderr(Stdio::null())
         .status()
         .is_ok_and(|s| s.success());
-    if !can_unshare {
-        eprintln!(
-            "SKIPPED {test_name}: cannot create a network namespace (`unshare -n` needs root); \
-             no DDS participant was opened"
-        );
-        return false;
-    }
+    assert!(
+        can_unshare,
+        "{test_name}: cannot create a network namespace (`unshare -n` needs root); no DDS \
+         participant was opened. Run it as root, e.g. through tools/test.sh."
+    );
     let exe = std::env::current_exe().expect("test binary path");
     let status = Command::new(repo_root().join("tools/ros2/netns_run.sh"))
         .arg(exe)
-        .args([test_name, "--exact", "--nocapture", "--test-threads=1"])
+        // The test is #[ignore]d: the inner run must include it.
+        .args([
+            test_name,
+            "--exact",
+            "--include-ignored",
+            "--nocapture",
+            "--test-threads=1",
+        ])
         .status()
         .expect("run tools/ros2/netns_run.sh");
     assert!(
@@ -63,6 +73,22 @@ pub fn in_namespace_or_reexec(test_name: &str) -> bool {
         "{test_name} inside the network namespace failed: {status}"
     );
     false
+}
+
+/// The rclpy peer's python (`CD_ROS2_VENV`, default `<repo>/.venv-ros2`, made by
+/// `tools/ros2/setup_peer_venv.sh`); panics naming the fix when it is missing.
+pub fn peer_python(test_name: &str) -> PathBuf {
+    let venv = std::env::var_os("CD_ROS2_VENV")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| repo_root().join(".venv-ros2"));
+    let python = venv.join("bin/python");
+    assert!(
+        python.exists(),
+        "{test_name}: no peer venv at {} (make it with tools/ros2/setup_peer_venv.sh, or run \
+         tools/test.sh, which does)",
+        venv.display()
+    );
+    python
 }
 
 /// The suite binary (built by cargo for this test or bench).
