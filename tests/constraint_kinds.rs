@@ -267,7 +267,8 @@ fn weld_in_local_axes_gives_the_same_motion_and_rotated_wrench() {
 ///   side, so a consistent set is accepted at any scale, with the multiplier form's q̈.
 /// - A copy anchored 1 mm away, with K_p = 100/s²: the duplicated rows ask for different
 ///   accelerations (K_p·1 mm = 0.1 m/s² apart, against a right-hand side of size ~10 m/s²), which
-///   no q̈ meets: `Error::InconsistentConstraints`, never a q̈ that silently drops one copy.
+///   no q̈ meets: `Error::InconsistentConstraints` from both forms, never a q̈ that silently
+///   drops one copy.
 #[test]
 fn redundant_rows_are_accepted_when_consistent_and_refused_when_not() {
     use constraint_dynamics::Scene;
@@ -338,8 +339,20 @@ fn redundant_rows_are_accepted_when_consistent_and_refused_when_not() {
     bad.baumgarte = Baumgarte { kp: 100.0, kd: 0.0 };
     match bad.forward_dynamics(&single.q0, &single.v0, &tau, false) {
         Err(Error::InconsistentConstraints { message }) => {
-            eprintln!("inconsistent copies: {message}")
+            eprintln!("inconsistent copies (embedded): {message}")
         }
-        other => panic!("inconsistent copies: expected InconsistentConstraints, got {other:?}"),
+        other => panic!(
+            "inconsistent copies (embedded): expected InconsistentConstraints, got {other:?}"
+        ),
+    }
+    // The multiplier form refuses them too (its least-squares λ would hide the conflict).
+    bad.formulation = Formulation::Multipliers;
+    match bad.forward_dynamics(&single.q0, &single.v0, &tau, true) {
+        Err(Error::InconsistentConstraints { message }) => {
+            eprintln!("inconsistent copies (multipliers): {message}")
+        }
+        other => panic!(
+            "inconsistent copies (multipliers): expected InconsistentConstraints, got {other:?}"
+        ),
     }
 }
