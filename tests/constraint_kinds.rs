@@ -257,3 +257,102 @@ fn weld_in_local_axes_gives_the_same_motion_and_rotated_wrench() {
         5e-12, // achieved 9.9e-14 (λ_local = Rᵀ λ_world)
     );
 }
+
+/// Redundant constraint rows in the embedded form, whose dropped rows are checked for consistency.
+/// - The fourbar's loop closure declared twice (4 rows, rank 2): the same q̈ as one
+///   declaration, also at 1000× the scene's speed.
+/// - The differential drive, whose two wheels' lateral rows are the same row computed through
+///   different frames (rank deficiency 1): at 1, 1e3 and 1e5 × a turning velocity, γ grows as
+///   v² and the round-off in the dropped row with it; the check is relative to the right-hand
+///   side, so a consistent set is accepted at any scale, with the multiplier form's q̈.
+/// - A copy anchored 1 mm away, with K_p = 100/s²: the duplicated rows ask for different
+///   accelerations (K_p·1 mm = 0.1 m/s² apart, against a right-hand side of size ~10 m/s²), which
+///   no q̈ meets: `Error::InconsistentConstraints` from both forms, never a q̈ that silently
+///   drops one copy.
+#[test]
+fn redundant_rows_are_accepted_when_consistent_and_refused_when_not() {
+    use constraint_dynamics::Scene;
+    use constraint_dynamics::error::Error;
+    let single = Scene::load(repo_dir().join("params/fourbar.yaml")).unwrap();
+    let with_copy = |shift: f64| {
+        let mut sc = single.clone();
+        let mut dup = sc.file.constraints[0].clone();
+        if let ConstraintSpec::Point { name, point_b, .. } = &mut dup {
+            *name = "loop_closure_again".into();
+            point_b[0] += shift;
+        }
+        sc.file.constraints.push(dup);
+        sc
+    };
+    let tau = [0.0; 3];
+    for speed in [1.0, 1e3] {
+        let v: Vec<f64> = single.v0.iter().map(|x| speed * x).collect();
+        let mut one = System::from_scene(&single).unwrap();
+        one.formulation = Formulation::Embedded;
+        let a = one
+            .forward_dynamics(&single.q0, &v, &tau, false)
+            .unwrap()
+            .clone();
+        let mut two = System::from_scene(&with_copy(0.0)).unwrap();
+        two.formulation = Formulation::Embedded;
+        let b = two
+            .forward_dynamics(&single.q0, &v, &tau, false)
+            .unwrap_or_else(|e| panic!("speed ×{speed}: consistent copies refused: {e}"))
+            .clone();
+        // Achieved 0 (the dropped rows do not enter q̈); floor 1e-15.
+        assert_close(
+            &format!("speed ×{speed}: one vs two declarations"),
+            b.as_slice(),
+            a.as_slice(),
+            1e-15,
+        );
+    }
+    let dd = Scene::load(repo_dir().join("params/diff_drive.yaml")).unwrap();
+    let mut sys = System::from_scene(&dd).unwrap();
+    let (r, c) = (0.05, 0.17);
+    for speed in [1.0, 1e3, 1e5] {
+        let (vx, wz) = (speed * 0.8, speed * 0.6);
+        let v = [vx, 0.0, wz, (vx - c * wz) / r, (vx + c * wz) / r];
+        let tau = [0.0, 0.0, 0.0, 0.3, -0.2];
+        sys.formulation = Formulation::Multipliers;
+        let a = sys
+            .forward_dynamics(&dd.q0, &v, &tau, true)
+            .unwrap()
+            .clone();
+        assert_eq!(sys.kkt.rank_deficiency, 1);
+        sys.formulation = Formulation::Embedded;
+        let b = sys
+            .forward_dynamics(&dd.q0, &v, &tau, false)
+            .unwrap_or_else(|e| panic!("diff drive ×{speed}: consistent rows refused: {e}"))
+            .clone();
+        // Achieved ≤ 4.1e-15 relative to max(1, |q̈|) (×1); tol 2e-13.
+        assert_close(
+            &format!("diff drive ×{speed}: embedded vs multipliers"),
+            b.as_slice(),
+            a.as_slice(),
+            2e-13,
+        );
+    }
+
+    let mut bad = System::from_scene(&with_copy(1e-3)).unwrap();
+    bad.formulation = Formulation::Embedded;
+    bad.baumgarte = Baumgarte { kp: 100.0, kd: 0.0 };
+    match bad.forward_dynamics(&single.q0, &single.v0, &tau, false) {
+        Err(Error::InconsistentConstraints { message }) => {
+            eprintln!("inconsistent copies (embedded): {message}")
+        }
+        other => panic!(
+            "inconsistent copies (embedded): expected InconsistentConstraints, got {other:?}"
+        ),
+    }
+    // The multiplier form refuses them too (its least-squares λ would hide the conflict).
+    bad.formulation = Formulation::Multipliers;
+    match bad.forward_dynamics(&single.q0, &single.v0, &tau, true) {
+        Err(Error::InconsistentConstraints { message }) => {
+            eprintln!("inconsistent copies (multipliers): {message}")
+        }
+        other => panic!(
+            "inconsistent copies (multipliers): expected InconsistentConstraints, got {other:?}"
+        ),
+    }
+}
