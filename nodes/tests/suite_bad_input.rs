@@ -381,7 +381,8 @@ fn single_node_with_name_namespace_and_remap() {
             "-r",
             "__ns:=/robot1",
             "-r",
-            "/joint_states:=/robot1/measured_joints",
+            // Relative FROM, as rcl expands it: the default joint_states in /robot1.
+            "joint_states:=measured_joints",
             "-p",
             "state.odom_topic:=''",
         ],

@@ -38,7 +38,6 @@ from std_msgs.msg import String
 ROOT = pathlib.Path(__file__).resolve().parents[3]
 HERE = pathlib.Path(__file__).resolve().parent
 R, C = 0.05, 0.17  # wheel radius, half track [m] (urdf/diff_drive.urdf)
-WHEEL_DAMPING = 0.01  # [N m s/rad], <dynamics damping> of both wheels in urdf/diff_drive.urdf
 NODES = ["cd_predictor", "cd_forces", "cd_projection", "cd_prediction"]
 RESULTS = []
 MEASURED = {}
@@ -242,15 +241,16 @@ def phase_twist(user):
     check("predictor: predicted path runs from the start pose to the predicted odometry", ok,
           None if path is None else (len(path.poses), path.header.frame_id))
 
-    # --- constraint forces on the topic: the core's numbers (eval) at the start state, whose
-    # generalized forces are the URDF wheel damping −d ω (the PI torque is zero at zero error).
+    # --- constraint forces on the topic: the core's numbers (eval) at the start state; the
+    # actuator torque is zero (the PI torque is zero at zero error) and eval adds the scene's
+    # force elements (the URDF wheel damping −d ω) as the node does.
     q, v = [0.3, -0.2, 0.4, 0.0, 0.0], [0.5, 0.0, 0.4, (0.5 - C * 0.4) / R, (0.5 + C * 0.4) / R]
-    damped = [0.0, 0.0, 0.0, -WHEEL_DAMPING * v[3], -WHEEL_DAMPING * v[4]]
+    no_torque = [0.0] * 5
     forces = user.wait_new(user.forces, t0 + 0.3, settle=2)
     ok = forces is not None and sorted(c.name for c in forces.constraints) == ["left_wheel_contact", "right_wheel_contact"]
     detail = None if forces is None else [c.name for c in forces.constraints]
     if ok:
-        ref = eval_cli(q, v, damped)
+        ref = eval_cli(q, v, no_torque)
         d = max(abs(a - b) for c, r in zip(forces.constraints, ref["constraints"]) for a, b in zip(c.multipliers, r["lambda"]))
         ok = d < 1e-6 and all(c.kind == "rolling" and c.frame_id.endswith("wheel") for c in forces.constraints)
         detail = f"max |λ_topic − λ_eval| = {d:.2e} N"
@@ -259,8 +259,8 @@ def phase_twist(user):
     # --- services with good requests, checked against the command-line tool's numbers
     q, v = [0.0, 0.0, 0.0, 0.0, 0.0], [0.5, 0.0, 0.4, (0.5 - C * 0.4) / R, (0.5 + C * 0.4) / R]
     tau = [0.0, 0.0, 0.0, 0.3, -0.2]
-    # The node adds the scene's force elements (URDF wheel damping) to τ; eval takes τ as given.
-    ref = eval_cli(q, v, [t - (WHEEL_DAMPING * w if i >= 3 else 0.0) for i, (t, w) in enumerate(zip(tau, v))])
+    # The node and eval both add the scene's force elements (URDF wheel damping) to τ.
+    ref = eval_cli(q, v, tau)
     req = GetConstraintForces.Request(use_latest_state=False, q=q, v=v, tau=tau)
     resp = user.call(GetConstraintForces, "/cd_forces/get_constraint_forces", req)
     ok = resp is not None and resp.success
@@ -365,7 +365,7 @@ def phase_twist(user):
         (tmp / "heavy.urdf").write_text(heavy)
         scene = (ROOT / "params" / "suite_diff_drive.yaml").read_text().replace("../urdf/diff_drive.urdf", str(tmp / "heavy.urdf"))
         (tmp / "heavy.yaml").write_text(scene)
-        ref = eval_cli([0.3, -0.2, 0.4, 0.0, 0.0], v, damped, scene=str(tmp / "heavy.yaml"))
+        ref = eval_cli([0.3, -0.2, 0.4, 0.0, 0.0], v, no_torque, scene=str(tmp / "heavy.yaml"))
         user.set_feed(*start)
         t2 = time.monotonic()
         user.desc_pub.publish(String(data=heavy))
