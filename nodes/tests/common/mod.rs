@@ -211,11 +211,22 @@ impl TestNode {
     }
 
     /// A client of `S` at `name`, once the service is discovered.
+    /// On a loaded machine a client's wait can miss the server's discovery for good; a fresh
+    /// client (new readers and writers) is discovered again, so it retries every 5 s.
     pub fn client<S: RosService>(&mut self, name: &str) -> Client<S::Request, S::Response> {
-        let c = self.node.client::<S>(name).expect("client");
-        block_on_timeout(WAIT, c.wait_for_service(&self.node.node))
-            .unwrap_or_else(|| panic!("service {name} not discovered within {WAIT:?}"));
-        c
+        let deadline = Instant::now() + WAIT;
+        loop {
+            let c = self.node.client::<S>(name).expect("client");
+            let per_try =
+                Duration::from_secs(5).min(deadline.saturating_duration_since(Instant::now()));
+            if block_on_timeout(per_try, c.wait_for_service(&self.node.node)).is_some() {
+                return c;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "service {name} not discovered within {WAIT:?}"
+            );
+        }
     }
 
     /// Subscribes `topic` (reliable).
