@@ -258,6 +258,27 @@ impl<N: NodeLogic> Worker<N> {
                 }
                 Err(RecvTimeoutError::Timeout) => {}
             }
+            // Apply every queued state message before a tick, so that a prediction never
+            // starts from a state older than the queue (a slow tick would otherwise leave it
+            // one message behind per period).
+            while let Ok(ev) = rx.try_recv() {
+                match ev {
+                    Event::Shutdown => return,
+                    Event::RobotDescription(urdf) => {
+                        if self.guarded("robot_description", |w| w.robot_description(&urdf))
+                            && let Some(t) = tick.as_mut()
+                        {
+                            t.reset();
+                        }
+                    }
+                    ev => {
+                        self.guarded("event", |w| {
+                            w.handle(ev);
+                            false
+                        });
+                    }
+                }
+            }
             let clock = sim.then_some(self.sim_time);
             if tick.as_mut().is_some_and(|t| t.due(clock)) {
                 self.guarded("prediction", |w| {
