@@ -13,6 +13,7 @@
 //! - the energy of random passive scenes is conserved at the method's order (RK4: halving dt
 //!   divides the energy error by 2⁴);
 //! - Baumgarte gains from a time constant are the critically damped closed form;
+//! - a material point's acceleration is J_p q̈ + its bias (the constraints' γ);
 //! - gravity's potential energy is −m g·c (centre of mass c), and the A01 pendulum's centre of
 //!   mass is its point mass.
 //!
@@ -25,7 +26,8 @@ mod common;
 use common::*;
 
 use constraint_dynamics::algorithm::{
-    Data, aba, center_of_mass, crba, forward_kinematics_pos, potential_energy, rnea,
+    Data, aba, center_of_mass, crba, forward_kinematics, forward_kinematics_pos,
+    point_classical_acceleration, point_jacobian, potential_energy, rnea,
 };
 use constraint_dynamics::constraints::ConstraintSet;
 use constraint_dynamics::dynamics::{Baumgarte, Formulation};
@@ -220,6 +222,42 @@ proptest! {
         M_COLS.note(e);
         // Worst case: 8.9e-16; tol 5e-14.
         prop_assert!(e <= 5e-14, "{}: CRBA vs RNEA columns {:e}", name, e);
+    }
+}
+
+static POINT_ACC: Worst =
+    Worst::new("|a_p(q, v, q̈) − a_p(q, v, 0) − J_p q̈| / max(1, |J_p q̈|) (point acceleration)");
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// The classical acceleration of a material point is affine in q̈ with the point Jacobian as
+    /// slope: a_p(q, v, q̈) = J_p(q) q̈ + a_p(q, v, 0) (the second term is the constraints' γ).
+    /// Random robot, frame, point in [−0.5, 0.5)³ m, v ∈ [−3, 3), q̈ ∈ [−10, 10).
+    #[test]
+    fn point_acceleration_is_jacobian_times_qdd_plus_bias(
+        (r, uq, uv, ua) in robot_inputs(),
+        f in 0usize..1000,
+        p in prop::array::uniform3(-0.5f64..0.5),
+    ) {
+        let (name, model) = &robots()[r];
+        let mut data = Data::new(model);
+        let q = config_from(model, &uq);
+        let v = scaled(&uv, model.nv, 3.0);
+        let a = scaled(&ua, model.nv, 10.0);
+        let frame = f % model.frames.len();
+        let p = nalgebra::Vector3::from(p);
+        forward_kinematics(model, &mut data, &q, &v, &a);
+        let with_a = point_classical_acceleration(model, &data, frame, &p);
+        forward_kinematics(model, &mut data, &q, &v, &vec![0.0; model.nv]);
+        let bias = point_classical_acceleration(model, &data, frame, &p);
+        let mut j = DMatrix::zeros(3, model.nv);
+        point_jacobian(model, &data, frame, &p, &mut j, 0);
+        let ja = &j * DVector::from_vec(a);
+        let e = rel_err((with_a - bias).as_slice(), ja.as_slice());
+        POINT_ACC.note(e);
+        // Worst case: 9.1e-16; tol 5e-14.
+        prop_assert!(e <= 5e-14, "{}, frame {}: {:e}", name, model.frames[frame].name, e);
     }
 }
 
@@ -658,8 +696,8 @@ proptest! {
 #[test]
 fn zz_report_worst_figures() {
     for w in [
-        &RNEA_ABA, &M_COLS, &M_COND, &COM_PE, &PEND_COM, &FORMS, &KKT_STAT, &KKT_JV, &KKT_BOUND,
-        &KKT_SIGN, &KKT_COMPL, &LIE_DIFF, &LIE_INT, &ORDER,
+        &RNEA_ABA, &M_COLS, &M_COND, &POINT_ACC, &COM_PE, &PEND_COM, &FORMS, &KKT_STAT, &KKT_JV,
+        &KKT_BOUND, &KKT_SIGN, &KKT_COMPL, &LIE_DIFF, &LIE_INT, &ORDER,
     ] {
         w.report();
     }
