@@ -12,7 +12,10 @@
 //! - the Lie-group `integrate` and `difference` are inverse to each other;
 //! - the energy of random passive scenes is conserved at the method's order (RK4: halving dt
 //!   divides the energy error by 2⁴);
-//! - Baumgarte gains from a time constant are the critically damped closed form.
+//! - Baumgarte gains from a time constant are the critically damped closed form;
+//! - a material point's acceleration is J_p q̈ + its bias (the constraints' γ);
+//! - gravity's potential energy is −m g·c (centre of mass c), and the A01 pendulum's centre of
+//!   mass is its point mass.
 //!
 //! Bounded: 64 cases per property (`PROPTEST_CASES` overrides), a fixed seed so that CI runs
 //! the same cases (`PROPTEST_RNG_SEED` overrides), no persistence file. Tolerances are set from
@@ -22,7 +25,10 @@
 mod common;
 use common::*;
 
-use constraint_dynamics::algorithm::{Data, aba, crba, rnea};
+use constraint_dynamics::algorithm::{
+    Data, aba, center_of_mass, crba, forward_kinematics, forward_kinematics_pos,
+    point_classical_acceleration, point_jacobian, potential_energy, rnea,
+};
 use constraint_dynamics::constraints::ConstraintSet;
 use constraint_dynamics::dynamics::{Baumgarte, Formulation};
 use constraint_dynamics::model::JointKind;
@@ -217,6 +223,93 @@ proptest! {
         // Worst case: 8.9e-16; tol 5e-14.
         prop_assert!(e <= 5e-14, "{}: CRBA vs RNEA columns {:e}", name, e);
     }
+}
+
+static POINT_ACC: Worst =
+    Worst::new("|a_p(q, v, q̈) − a_p(q, v, 0) − J_p q̈| / max(1, |J_p q̈|) (point acceleration)");
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// The classical acceleration of a material point is affine in q̈ with the point Jacobian as
+    /// slope: a_p(q, v, q̈) = J_p(q) q̈ + a_p(q, v, 0) (the second term is the constraints' γ).
+    /// Random robot, frame, point in [−0.5, 0.5)³ m, v ∈ [−3, 3), q̈ ∈ [−10, 10).
+    #[test]
+    fn point_acceleration_is_jacobian_times_qdd_plus_bias(
+        (r, uq, uv, ua) in robot_inputs(),
+        f in 0usize..1000,
+        p in prop::array::uniform3(-0.5f64..0.5),
+    ) {
+        let (name, model) = &robots()[r];
+        let mut data = Data::new(model);
+        let q = config_from(model, &uq);
+        let v = scaled(&uv, model.nv, 3.0);
+        let a = scaled(&ua, model.nv, 10.0);
+        let frame = f % model.frames.len();
+        let p = nalgebra::Vector3::from(p);
+        forward_kinematics(model, &mut data, &q, &v, &a);
+        let with_a = point_classical_acceleration(model, &data, frame, &p);
+        forward_kinematics(model, &mut data, &q, &v, &vec![0.0; model.nv]);
+        let bias = point_classical_acceleration(model, &data, frame, &p);
+        let mut j = DMatrix::zeros(3, model.nv);
+        point_jacobian(model, &data, frame, &p, &mut j, 0);
+        let ja = &j * DVector::from_vec(a);
+        let e = rel_err((with_a - bias).as_slice(), ja.as_slice());
+        POINT_ACC.note(e);
+        // Worst case: 9.1e-16; tol 5e-14.
+        prop_assert!(e <= 5e-14, "{}, frame {}: {:e}", name, model.frames[frame].name, e);
+    }
+}
+
+static PEND_COM: Worst = Worst::new("A01 centre of mass vs (cos q, 0, −sin q)");
+static COM_PE: Worst =
+    Worst::new("|PE + m g·c| / max(1, |PE|) (centre of mass vs potential energy)");
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// Gravity's potential energy is −m g·c with c the centre of mass: `potential_energy` sums
+    /// −m_i g·c_i body by body, `center_of_mass` averages the c_i, so each checks the other.
+    #[test]
+    fn potential_energy_is_minus_m_g_dot_centre_of_mass((r, uq, _uv, _ut) in robot_inputs()) {
+        let (name, model) = &robots()[r];
+        let mut data = Data::new(model);
+        let q = config_from(model, &uq);
+        forward_kinematics_pos(model, &mut data, &q);
+        let pe = potential_energy(model, &data);
+        let c = center_of_mass(model, &data);
+        let e = (pe + model.total_mass() * model.gravity.dot(&c)).abs() / pe.abs().max(1.0);
+        COM_PE.note(e);
+        // Worst case: 4.2e-16; tol 2e-14.
+        prop_assert!(e <= 2e-14, "{}: PE {} vs −m g·c {:e}", name, pe, e);
+    }
+
+    /// IFToMM A01: the point mass (1 kg, 1 m from the hinge, the link massless) is the centre
+    /// of mass: c = (cos q, 0, −sin q) for the angle q from the horizontal.
+    #[test]
+    fn pendulum_centre_of_mass_is_the_point_mass(q in -10.0f64..10.0) {
+        let scene = Scene::load(repo_dir().join("params/pendulum_a01.yaml")).unwrap();
+        let mut data = Data::new(&scene.model);
+        forward_kinematics_pos(&scene.model, &mut data, &[q]);
+        let c = center_of_mass(&scene.model, &data);
+        let e = rel_err(c.as_slice(), &[q.cos(), 0.0, -q.sin()]);
+        PEND_COM.note(e);
+        // Achieved 0 (cos, sin of the same angle); floor 1e-15.
+        prop_assert!(e <= 1e-15, "q = {}: c = {:?}", q, c);
+    }
+}
+
+/// A robot without mass has its centre of mass at the origin (not NaN).
+#[test]
+fn massless_robot_has_its_centre_of_mass_at_the_origin() {
+    let urdf = r#"<robot name="ghost"><link name="base"/><link name="arm"/>
+      <joint name="j" type="revolute"><parent link="base"/><child link="arm"/>
+        <origin xyz="0.3 0 0"/><axis xyz="0 0 1"/><limit lower="-1" upper="1"/></joint></robot>"#;
+    let model = Model::from_urdf_str(urdf, "ghost.urdf", &ModelOptions::default()).unwrap();
+    let mut data = Data::new(&model);
+    forward_kinematics_pos(&model, &mut data, &[0.4]);
+    let c = center_of_mass(&model, &data);
+    assert_eq!([c.x, c.y, c.z], [0.0; 3]);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -603,8 +696,8 @@ proptest! {
 #[test]
 fn zz_report_worst_figures() {
     for w in [
-        &RNEA_ABA, &M_COLS, &M_COND, &FORMS, &KKT_STAT, &KKT_JV, &KKT_BOUND, &KKT_SIGN, &KKT_COMPL,
-        &LIE_DIFF, &LIE_INT, &ORDER,
+        &RNEA_ABA, &M_COLS, &M_COND, &POINT_ACC, &COM_PE, &PEND_COM, &FORMS, &KKT_STAT, &KKT_JV,
+        &KKT_BOUND, &KKT_SIGN, &KKT_COMPL, &LIE_DIFF, &LIE_INT, &ORDER,
     ] {
         w.report();
     }
