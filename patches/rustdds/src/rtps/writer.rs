@@ -604,6 +604,7 @@ impl Writer {
     budget
       .saturating_sub(hb_reserve)
       .saturating_sub(DATA_SUBMESSAGE_OVERHEAD)
+      .saturating_sub(DATA_INLINE_QOS_RESERVE)
   }
 
   fn num_frags_and_frag_size(&self, payload_size: usize) -> (u32, u16) {
@@ -2239,9 +2240,18 @@ impl HasQoSPolicy for Writer {
 }
 
 // Serialized overhead of one DATA submessage excluding its serialized payload
-// and inline QoS. Conservative fixed fields only; underestimating inline QoS
-// causes earlier fragmentation (safe), never datagram overflow.
+// and inline QoS (see DATA_INLINE_QOS_RESERVE).
 const DATA_SUBMESSAGE_OVERHEAD: usize = 48;
+
+// Room kept for the inline QoS that `MessageBuilder::data_msg` /
+// `data_frag_msg` add to a DATA / DATAFRAG submessage: a related sample
+// identity (every DDS-RPC / ROS 2 service reply) is two 28-byte parameters +
+// the 4-byte sentinel = 60 bytes; a dispose is at most 32. Without it, a sample
+// near the fragmentation threshold went out as one DATA, or one DATAFRAG with
+// all its fragments, that overflowed the datagram budget by those 60 bytes: at
+// a 64 KiB loopback MTU larger than a UDP datagram, so every send and repair
+// failed with EMSGSIZE and the reliable reader never got the sample.
+const DATA_INLINE_QOS_RESERVE: usize = 64;
 
 // An invalidating INFO_TS is a bare submessage header.
 const SUBMESSAGE_INFO_TS_INVALIDATE_SIZE: usize = 4;
@@ -2250,9 +2260,7 @@ const SUBMESSAGE_INFO_TS_INVALIDATE_SIZE: usize = 4;
 // submessage header (4) + extraFlags (2) + octetsToInlineQos (2) + readerId (4)
 // + writerId (4) + writerSN (8) + fragmentStartingNum (4) +
 // fragmentsInSubmessage (2) + fragmentSize (2) + sampleSize (4) = 36 bytes.
-// Inline QoS (e.g. related sample identity) would add more; ignoring it only
-// risks a slight overestimate, which degrades to benign IP fragmentation rather
-// than data loss.
+// Inline QoS (related sample identity) comes on top: DATA_INLINE_QOS_RESERVE.
 const DATAFRAG_SUBMESSAGE_OVERHEAD: usize = 36;
 
 // A fifth of a finite, positive Deadline, clamped to
@@ -2286,7 +2294,8 @@ fn frags_per_datafrag(
   // Bytes available in this datagram for the DATAFRAG payload.
   let payload_cap = budget
     .saturating_sub(header_len)
-    .saturating_sub(DATAFRAG_SUBMESSAGE_OVERHEAD);
+    .saturating_sub(DATAFRAG_SUBMESSAGE_OVERHEAD)
+    .saturating_sub(DATA_INLINE_QOS_RESERVE);
   // Bytes from the first fragment of this run to the end of the sample.
   let start_byte = (start as usize - 1) * fragment_size;
   let bytes_to_end = data_size.saturating_sub(start_byte);

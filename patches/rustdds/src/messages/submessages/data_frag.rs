@@ -301,8 +301,14 @@ impl<C: Context> Writable<C> for DataFrag {
     writer.write_value(&self.fragments_in_submessage)?;
     writer.write_value(&self.fragment_size)?;
     writer.write_value(&self.data_size)?;
-    if self.inline_qos.is_some() && !self.inline_qos.as_ref().unwrap().parameters.is_empty() {
-      writer.write_value(&self.inline_qos)?;
+    // Write the ParameterList itself, not the Option: speedy encodes
+    // `Option<T>` with a leading presence byte, which shifted the inline QoS
+    // by one octet (and broke every DATAFRAG carrying inline QoS, e.g. a
+    // fragmented service reply with related sample identity).
+    if let Some(inline_qos) = self.inline_qos.as_ref() {
+      if !inline_qos.parameters.is_empty() {
+        writer.write_value(inline_qos)?;
+      }
     }
     writer.write_bytes(&self.serialized_payload)?;
     Ok(())
@@ -332,6 +338,36 @@ mod tests {
     df.write_to_stream_with_ctx(Endianness::LittleEndian, &mut buf)
       .expect("serialize DataFrag body");
     Bytes::from(buf)
+  }
+
+  // A DATAFRAG carrying inline QoS (a service reply's related sample identity)
+  // serializes to exactly `len_serialized()` bytes and reads back unchanged.
+  #[test]
+  fn inline_qos_round_trip() {
+    use crate::{
+      messages::submessages::elements::{parameter::Parameter, parameter_list::ParameterList},
+      structure::parameter_id::ParameterId,
+    };
+    let mut inline_qos = ParameterList::new();
+    inline_qos.push(Parameter {
+      parameter_id: ParameterId::PID_RELATED_SAMPLE_IDENTITY,
+      value: (0u8..24).collect(),
+    });
+    let df = DataFrag {
+      writer_sn: SequenceNumber::new(7),
+      fragment_starting_num: FragmentNumber::new(2),
+      fragments_in_submessage: 1,
+      fragment_size: 256,
+      data_size: 600,
+      inline_qos: Some(inline_qos),
+      serialized_payload: Bytes::from(vec![0xabu8; 256]),
+      ..Default::default()
+    };
+    let bytes = serialize_body(&df);
+    assert_eq!(bytes.len(), df.len_serialized());
+    let flags = DATAFRAG_Flags::Endianness | DATAFRAG_Flags::InlineQos;
+    let back = DataFrag::deserialize(&bytes, flags).expect("deserialize");
+    assert_eq!(back, df);
   }
 
   #[test]
