@@ -2,16 +2,21 @@
 //! equivalent for this project's services, topics and parameters). Prints JSON.
 //!
 //! ```text
-//! constraint_dynamics_query [--ns /NS] [--timeout S] COMMAND
+//! constraint_dynamics_query [--ns /NS] [--timeout S] [--try S] COMMAND
 //!   forces [--q a,b,..] [--v a,b,..] [--tau a,b,..]       ~/get_constraint_forces (latest state
 //!                                                         unless --q is given)
 //!   project --twist vx,vy,wz [--joint NAME=V]... [--lower NAME=V]... [--upper NAME=V]...
 //!           [--accel-dt S]                                ~/project_velocity at the latest state
-//!   predict [--twist v,w]... [--period S] [--horizon S] [--forces]
+//!   predict [--twist v,w]... [--period S] [--horizon S] [--forces] [--repeat N]
 //!                                                         ~/predict from the latest state
+//!                                                         (--repeat: N calls by one client,
+//!                                                         one summary line per reply)
 //!   echo odom|path|forces [--count N]                     the predictor's topics
 //!   param list NODE | param get NODE NAME | param set NODE NAME VALUE
 //! ```
+//!
+//! A call sends its request again when no response came within `--try` seconds (default 0.5;
+//! raise it for requests that take longer to compute), until `--timeout`.
 //!
 //! Node names are those of the suite (cd_predictor, cd_forces, cd_projection, cd_prediction)
 //! under `--ns`. Like the suite it opens DDS only in a loopback-only namespace, on
@@ -24,8 +29,8 @@ use std::time::Duration;
 use constraint_dynamics_nodes::msg::RosService;
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::ConstraintForces;
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::{
-    GetConstraintForces, GetConstraintForcesRequest, Predict, PredictRequest, ProjectVelocity,
-    ProjectVelocityRequest,
+    GetConstraintForces, GetConstraintForcesRequest, Predict, PredictRequest, PredictResponse,
+    ProjectVelocity, ProjectVelocityRequest,
 };
 use constraint_dynamics_nodes::msg::geometry_msgs::{Twist, Vector3};
 use constraint_dynamics_nodes::msg::nav_msgs::{Odometry, Path};
@@ -37,22 +42,25 @@ use constraint_dynamics_nodes::ros::context::{
     NetworkConfig, RosNode, call_with_retry, in_loopback_only_namespace, qos,
 };
 use constraint_dynamics_nodes::ros::network_guard::{ALLOW_EXTERNAL_ENV, network_guard};
+use ros2_client::dds::rustdds::no_key::SerializerAdapter;
+use ros2_client::dds::rustdds::serialization::CDRSerializerAdapter;
 use ros2_client::rcl_interfaces::{
     GetParametersRequest, ListParametersRequest, SetParametersRequest,
 };
 use ros2_client::{NodeOptions, ParameterValue};
 use serde::Serialize;
 
-const USAGE: &str = "usage: constraint_dynamics_query [--ns /NS] [--timeout S] COMMAND
+const USAGE: &str = "usage: constraint_dynamics_query [--ns /NS] [--timeout S] [--try S] COMMAND
   forces [--q a,b,..] [--v a,b,..] [--tau a,b,..]
   project --twist vx,vy,wz [--joint NAME=V]... [--lower NAME=V]... [--upper NAME=V]... [--accel-dt S]
-  predict [--twist v,w]... [--period S] [--horizon S] [--forces]
+  predict [--twist v,w]... [--period S] [--horizon S] [--forces] [--repeat N]
   echo odom|path|forces [--count N]
   param list NODE | param get NODE NAME | param set NODE NAME VALUE";
 
 struct Opts {
     ns: String,
     timeout: Duration,
+    per_try: Duration,
     rest: Vec<String>,
 }
 
@@ -112,6 +120,7 @@ struct Query {
     node: RosNode,
     ns: String,
     timeout: Duration,
+    per_try: Duration,
 }
 
 impl Query {
@@ -125,6 +134,21 @@ impl Query {
         name: &str,
         req: S::Request,
     ) -> Result<S::Response, QueryError> {
+        let mut out = None;
+        self.call_n::<S>(name, req, 1, |_, r| out = Some(r))?;
+        out.ok_or_else(|| "no response".into())
+    }
+
+    /// Calls `name` `n` times with one client, handing each response to `each`. The first
+    /// call is retried while discovery settles; the later ones are sent once and may take up
+    /// to `--timeout` each.
+    fn call_n<S: RosService>(
+        &mut self,
+        name: &str,
+        req: S::Request,
+        n: u32,
+        mut each: impl FnMut(u32, S::Response),
+    ) -> Result<(), QueryError> {
         let client = self.node.client::<S>(name).map_err(|e| e.to_string())?;
         let found = smol::block_on(smol::future::or(
             async {
@@ -139,14 +163,31 @@ impl Query {
         if !found {
             return Err(format!("service {name} not found within {:?}", self.timeout).into());
         }
-        smol::block_on(call_with_retry(
-            &client,
-            req,
-            Duration::from_millis(500),
-            (self.timeout.as_secs_f64() / 0.5).ceil().max(1.0) as u32,
-        ))
-        .map(|(r, _)| r)
-        .map_err(|e| QueryError::Usage(e.to_string()))
+        let tries = (self.timeout.as_secs_f64() / self.per_try.as_secs_f64())
+            .ceil()
+            .max(1.0) as u32;
+        let (first, _) = smol::block_on(call_with_retry(&client, req.clone(), self.per_try, tries))
+            .map_err(|e| QueryError::Usage(e.to_string()))?;
+        each(0, first);
+        for i in 1..n {
+            let r = smol::block_on(smol::future::or(
+                async { Some(client.async_call_service(req.clone()).await) },
+                async {
+                    smol::Timer::after(self.timeout).await;
+                    None
+                },
+            ))
+            .ok_or_else(|| {
+                format!(
+                    "call {} of {n}: no response within {:?}",
+                    i + 1,
+                    self.timeout
+                )
+            })?
+            .map_err(|e| format!("call {} of {n}: {e:?}", i + 1))?;
+            each(i, r);
+        }
+        Ok(())
     }
 
     fn echo<M>(&mut self, topic: &str, count: usize) -> Result<(), QueryError>
@@ -205,6 +246,7 @@ fn run(opts: Opts) -> Result<(), QueryError> {
         node,
         ns: opts.ns,
         timeout: opts.timeout,
+        per_try: opts.per_try,
     };
     let mut args = opts.rest.into_iter();
     let cmd = args.next().ok_or(USAGE)?;
@@ -299,12 +341,37 @@ fn run(opts: Opts) -> Result<(), QueryError> {
             if let Some(s) = take("--horizon").pop() {
                 req.horizon = s.parse().map_err(|_| "--horizon: not a number")?;
             }
+            let repeat = take("--repeat")
+                .pop()
+                .map(|s| s.parse::<u32>().map_err(|_| "--repeat: not a number"))
+                .transpose()?;
             if let Some(k) = rest.iter().position(|a| a == "--forces") {
                 rest.remove(k);
                 req.with_forces = true;
             }
             let name = q.name("cd_prediction", "predict");
-            print(&q.call::<Predict>(&name, req)?);
+            match repeat {
+                None => print(&q.call::<Predict>(&name, req)?),
+                Some(n) => {
+                    let started = std::time::Instant::now();
+                    q.call_n::<Predict>(&name, req, n.max(1), |i, r| {
+                        // Size of the reply's serialized payload: encapsulation + CDR body.
+                        let bytes = CDRSerializerAdapter::<PredictResponse>::to_bytes(&r)
+                            .map_or(0, |b| b.len() + 4);
+                        println!(
+                            "{}",
+                            serde_json::json!({
+                                "reply": i + 1,
+                                "success": r.success,
+                                "samples": r.path.poses.len(),
+                                "forces": r.forces.len(),
+                                "payload_bytes": bytes,
+                                "seconds": started.elapsed().as_secs_f64(),
+                            })
+                        );
+                    })?;
+                }
+            }
         }
         "echo" => {
             let count = take("--count")
@@ -401,6 +468,7 @@ fn main() -> ExitCode {
     let mut opts = Opts {
         ns: "/".into(),
         timeout: Duration::from_secs(5),
+        per_try: Duration::from_millis(500),
         rest: Vec::new(),
     };
     let mut args = std::env::args().skip(1);
@@ -413,6 +481,14 @@ fn main() -> ExitCode {
                     .and_then(|s| s.parse::<f64>().ok())
                     .map(Duration::from_secs_f64)
                     .unwrap_or(opts.timeout)
+            }
+            "--try" => {
+                opts.per_try = args
+                    .next()
+                    .and_then(|s| s.parse::<f64>().ok())
+                    .filter(|s| *s > 0.0)
+                    .map(Duration::from_secs_f64)
+                    .unwrap_or(opts.per_try)
             }
             _ => {
                 opts.rest.push(a);

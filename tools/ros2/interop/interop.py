@@ -300,8 +300,8 @@ def phase_twist(user):
     check("service predict: the returned path ends on the closed-form arc (3 mm)", ok,
           None if resp is None else resp.message)
 
-    # Forces along the prediction, over a short horizon (a reply that fits one RTPS fragment
-    # set that Fast DDS reassembles; see docs/nodes.md, known limits).
+    # Forces along the prediction, over a short horizon (keeps the run short; replies of
+    # hundreds of kB are checked by nodes/tests/large_replies.rs).
     req = Predict.Request(use_latest_state=False, q=q, v=v, commands=[cmd], command_period=0.2,
                           horizon=0.2, with_forces=True)
     resp = user.call(Predict, "/cd_prediction/predict", req)
