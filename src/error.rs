@@ -130,6 +130,16 @@ pub enum Error {
         message: String,
     },
 
+    /// An operation that has no implementation for this input yet (e.g. the derivatives of a
+    /// constraint kind without analytic derivatives).
+    #[error("{what} is not supported: {why}")]
+    Unsupported {
+        /// What was asked for.
+        what: String,
+        /// Why it cannot be done, and what can.
+        why: String,
+    },
+
     /// Any other invalid argument or option; the string says what.
     #[error("{0}")]
     Invalid(String),

@@ -14,6 +14,7 @@ pub mod actuators;
 pub mod algorithm;
 pub mod applied;
 pub mod constraints;
+pub mod derivatives;
 pub mod dynamics;
 pub mod error;
 pub mod forces;

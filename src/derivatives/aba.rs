@@ -1,0 +1,56 @@
+//! Derivatives of unconstrained forward dynamics q̈ = M⁻¹(τ − h): differentiating
+//! M q̈ + h = τ gives ∂q̈/∂x = −M⁻¹ ∂τ/∂x of inverse dynamics taken at a = q̈, and ∂q̈/∂τ = M⁻¹.
+
+use super::{DerivativeData, rnea::rnea_derivatives_with_point_forces};
+use crate::algorithm::{Data, aba, crba};
+use crate::error::{Error, Result};
+use crate::linalg::{cholesky_in_place, cholesky_solve};
+use crate::model::Model;
+
+/// q̈ = ABA(q, v, τ) into `dd.qdd` and its derivatives into `dd.dqdd_dq`, `dd.dqdd_dv`,
+/// `dd.dqdd_dtau` = `dd.minv` = M⁻¹; `dd.dtau_dq`, `dd.dtau_dv` hold RNEA's at a = q̈.
+pub fn aba_derivatives(
+    model: &Model,
+    data: &mut Data,
+    dd: &mut DerivativeData,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+) -> Result<()> {
+    aba(model, data, q, v, tau);
+    dd.qdd.copy_from(&data.qdd);
+    crba(model, data, q);
+    inverse_mass_matrix(model, data, dd)?;
+    dd.clear_point_forces();
+    // Moved out and back (no copy, no allocation) so RNEA can read q̈ while writing `dd`.
+    let qdd = std::mem::take(&mut dd.qdd);
+    rnea_derivatives_with_point_forces(model, data, dd, q, v, qdd.as_slice());
+    dd.qdd = qdd;
+    dd.dqdd_dq.gemm(-1.0, &dd.minv, &dd.dtau_dq, 0.0);
+    dd.dqdd_dv.gemm(-1.0, &dd.minv, &dd.dtau_dv, 0.0);
+    dd.dqdd_dtau.copy_from(&dd.minv);
+    Ok(())
+}
+
+/// M⁻¹ into `dd.minv` from the mass matrix in `data` (after `crba` at the same q), by a
+/// Cholesky factor; fails when M is not positive definite.
+pub fn inverse_mass_matrix(model: &Model, data: &Data, dd: &mut DerivativeData) -> Result<()> {
+    let nv = model.nv;
+    dd.chol
+        .view_mut((0, 0), (nv, nv))
+        .copy_from(&data.mass_matrix);
+    cholesky_in_place(&mut dd.chol, nv, 1e-14).map_err(|i| Error::SingularMass {
+        message: format!(
+            "M is not positive definite at coordinate '{}' (its inverse is needed for the \
+             derivatives)",
+            model.v_names[i]
+        ),
+    })?;
+    for c in 0..nv {
+        dd.col.fill(0.0);
+        dd.col[c] = 1.0;
+        cholesky_solve(&dd.chol, nv, &mut dd.col.as_mut_slice()[..nv]);
+        dd.minv.column_mut(c).copy_from(&dd.col.rows(0, nv));
+    }
+    Ok(())
+}

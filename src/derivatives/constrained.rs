@@ -1,0 +1,241 @@
+//! Derivatives of the constrained forward dynamics (multiplier form); the method is in the
+//! module doc of [`crate::derivatives`].
+//!
+//! Constraint kinds with derivatives: point (both sides may move) and coupling/mimic (constant
+//! rows). The others return [`Error::Unsupported`] naming the constraint.
+
+use super::{DerivativeData, inverse_mass_matrix, rnea::rnea_derivatives_with_point_forces};
+use crate::algorithm::{Data, crba, point_position};
+use crate::constraints::{Constraint, ConstraintData, ConstraintSet, PointConstraint};
+use crate::dynamics::{Baumgarte, KktWorkspace, constrained_forward_dynamics};
+use crate::error::{Error, Result};
+use crate::linalg::{semidefinite_cholesky, semidefinite_solve};
+use crate::model::Model;
+use crate::spatial::Motion;
+use nalgebra::Vector3;
+
+/// Rank test of J M⁻¹ Jᵀ, as the multiplier solve's.
+const RANK_TOL: f64 = 1e-12;
+
+/// Solves the constrained dynamics at (q, v, τ) (q̈ in `ws.qdd` and `dd.qdd`, λ in
+/// `ws.lambda`) and writes ∂q̈/∂(q, v, τ) into `dd.dqdd_dq`, `dd.dqdd_dv`, `dd.dqdd_dtau` and
+/// ∂λ/∂(q, v, τ) into `dd.dlambda_dq`, `dd.dlambda_dv`, `dd.dlambda_dtau`. `dd` must be sized
+/// for `set.nrows` rows.
+#[allow(clippy::too_many_arguments)]
+pub fn constrained_dynamics_derivatives(
+    model: &Model,
+    data: &mut Data,
+    set: &ConstraintSet,
+    cd: &mut ConstraintData,
+    ws: &mut KktWorkspace,
+    dd: &mut DerivativeData,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    stab: Baumgarte,
+) -> Result<()> {
+    let nc = set.nrows;
+    if dd.dlambda_dq.nrows() != nc {
+        return Err(Error::Dimension {
+            what: "DerivativeData constraint rows".into(),
+            expected: nc,
+            got: dd.dlambda_dq.nrows(),
+        });
+    }
+    for (k, c) in set.items.iter().enumerate() {
+        if !matches!(c, Constraint::Point(_) | Constraint::Coupling(_)) {
+            return Err(Error::Unsupported {
+                what: format!("derivatives of constraint '{}'", set.names[k]),
+                why: format!(
+                    "kind {} has no analytic derivatives yet (point and coupling/mimic have)",
+                    c.kind()
+                ),
+            });
+        }
+    }
+    constrained_forward_dynamics(model, data, set, cd, ws, q, v, tau, stab)?;
+    dd.qdd.copy_from(&ws.qdd);
+
+    // λ as point forces on the bodies (the kinematics of the solve are still in `data`).
+    dd.clear_point_forces();
+    for (k, c) in set.items.iter().enumerate() {
+        if let Constraint::Point(pc) = c {
+            let f = point_force(pc, &ws.lambda.as_slice()[set.ranges[k].clone()]);
+            let (ba, bb) = (model.frames[pc.frame_a].body, model.frames[pc.frame_b].body);
+            if ba > 0 {
+                let pa = point_position(model, data, pc.frame_a, &pc.point_a);
+                dd.add_point_force(ba, &pa, &f);
+            }
+            if bb > 0 {
+                let pb = point_position(model, data, pc.frame_b, &pc.point_b);
+                dd.add_point_force(bb, &pb, &-f);
+            }
+        }
+    }
+    let qdd = std::mem::take(&mut dd.qdd);
+    rnea_derivatives_with_point_forces(model, data, dd, q, v, qdd.as_slice());
+    dd.qdd = qdd;
+    crba(model, data, q);
+    inverse_mass_matrix(model, data, dd)?;
+    constraint_row_derivatives(model, data, set, cd, dd, stab);
+    solve_kkt_derivatives(cd, dd);
+    Ok(())
+}
+
+/// The world force of a point constraint's rows: Σ λ_r e_axis(r).
+fn point_force(pc: &PointConstraint, lambda: &[f64]) -> Vector3<f64> {
+    let mut f = Vector3::zeros();
+    for (r, &ax) in pc.axes.iter().enumerate() {
+        f[ax] += lambda[r];
+    }
+    f
+}
+
+/// ∂/∂q and ∂/∂v of the acceleration-level rows `J q̈ + γ + K_d J v + K_p φ` at fixed q̈ into
+/// `dd.rows_dq`, `dd.rows_dv` (uses the world kinematics of the last RNEA pass at q̈).
+fn constraint_row_derivatives(
+    model: &Model,
+    data: &Data,
+    set: &ConstraintSet,
+    cd: &ConstraintData,
+    dd: &mut DerivativeData,
+    stab: Baumgarte,
+) {
+    dd.rows_dq.fill(0.0);
+    dd.rows_dv.fill(0.0);
+    for (k, c) in set.items.iter().enumerate() {
+        let rows = set.ranges[k].clone();
+        match c {
+            Constraint::Point(pc) => {
+                for (side, frame, point) in [
+                    (1.0, pc.frame_a, &pc.point_a),
+                    (-1.0, pc.frame_b, &pc.point_b),
+                ] {
+                    let body = model.frames[frame].body;
+                    if body == 0 {
+                        continue;
+                    }
+                    let p = point_position(model, data, frame, point);
+                    for j in 0..model.nv {
+                        let body_j = dd.dof_body[j];
+                        if body < body_j || body >= dd.subtree_end[body_j] {
+                            continue;
+                        }
+                        let (dq, dv) = point_variations(model, dd, body, &p, j, stab);
+                        for (r, &ax) in pc.axes.iter().enumerate() {
+                            dd.rows_dq[(rows.start + r, j)] += side * dq[ax];
+                            dd.rows_dv[(rows.start + r, j)] += side * dv[ax];
+                        }
+                    }
+                }
+            }
+            // Constant rows: γ = 0 and J v, φ linear, so only K_p φ and K_d J v vary.
+            Constraint::Coupling(_) => {
+                for r in rows {
+                    for j in 0..model.nv {
+                        dd.rows_dq[(r, j)] = stab.kp * cd.j[(r, j)];
+                        dd.rows_dv[(r, j)] = stab.kd * cd.j[(r, j)];
+                    }
+                }
+            }
+            _ => unreachable!("checked by constrained_dynamics_derivatives"),
+        }
+    }
+}
+
+/// Variation along q-column j and along v_j of `p̈ + K_d ṗ + K_p p` for the material point at
+/// world position `p` of `body` (in j's subtree): p̈ = a₀ + α × p + ω × ṗ, ṗ = v₀ + ω × p with
+/// the body's world twist (v₀, ω) and true spatial acceleration (a₀, α).
+fn point_variations(
+    model: &Model,
+    dd: &DerivativeData,
+    body: usize,
+    p: &Vector3<f64>,
+    j: usize,
+    stab: Baumgarte,
+) -> (Vector3<f64>, Vector3<f64>) {
+    let body_j = dd.dof_body[j];
+    let parent = model.bodies[body_j].parent;
+    let s = dd.o_s[j];
+    let (vk, ak) = (dd.o_v[body], dd.o_a[body]);
+    let (vp, ap) = (dd.o_v[parent], dd.o_a[parent]);
+    let w = vk.ang;
+    let pd = vk.lin + w.cross(p);
+    let alpha = ak.ang;
+    let rel_v = vk - vp;
+
+    // Along δ_j: the subtree moves by S.
+    let dv = s.cross_motion(&rel_v);
+    let da = s.cross_motion(&(ak - ap)) - s.cross_motion(&vp).cross_motion(&rel_v);
+    let dp = s.lin + s.ang.cross(p);
+    let dpd = dv.lin + dv.ang.cross(p) + w.cross(&dp);
+    let dpdd = da.lin + da.ang.cross(p) + alpha.cross(&dp) + dv.ang.cross(&pd) + w.cross(&dpd);
+    let by_q = dpdd + dpd * stab.kd + dp * stab.kp;
+
+    // Along v_j.
+    let da: Motion = dd.o_v[body_j].cross_motion(&s) + s.cross_motion(&rel_v);
+    let dpd = s.lin + s.ang.cross(p);
+    let dpdd = da.lin + da.ang.cross(p) + s.ang.cross(&pd) + w.cross(&dpd);
+    let by_v = dpdd + dpd * stab.kd;
+    (by_q, by_v)
+}
+
+/// Solves the differentiated KKT system for the three inputs through M⁻¹ and
+/// K = J M⁻¹ Jᵀ: K ∂λ = R₂ − J M⁻¹ R₁, ∂q̈ = M⁻¹ (R₁ + Jᵀ ∂λ).
+fn solve_kkt_derivatives(cd: &ConstraintData, dd: &mut DerivativeData) {
+    let j = &cd.j;
+    // M⁻¹Jᵀ by columns (M⁻¹ is symmetric), without forming Jᵀ.
+    for c in 0..j.nrows() {
+        for i in 0..j.ncols() {
+            dd.minv_jt[(i, c)] = (0..j.ncols()).map(|k| dd.minv[(i, k)] * j[(c, k)]).sum();
+        }
+    }
+    dd.schur.gemm(1.0, j, &dd.minv_jt, 0.0);
+    let rank = semidefinite_cholesky(&mut dd.schur, RANK_TOL, &mut dd.dropped);
+    dd.lambda_unique = rank == j.nrows();
+
+    // q: R₁ = −∂(RNEA − Jᵀλ)/∂q, R₂ = −rows_dq.
+    dd.rhs_v.gemm(-1.0, &dd.minv, &dd.dtau_dq, 0.0);
+    dd.rhs_c.gemm(-1.0, j, &dd.rhs_v, 0.0);
+    dd.rhs_c -= &dd.rows_dq;
+    solve_columns(dd, Input::Q);
+    // v
+    dd.rhs_v.gemm(-1.0, &dd.minv, &dd.dtau_dv, 0.0);
+    dd.rhs_c.gemm(-1.0, j, &dd.rhs_v, 0.0);
+    dd.rhs_c -= &dd.rows_dv;
+    solve_columns(dd, Input::V);
+    // τ: R₁ = 1, R₂ = 0.
+    dd.rhs_v.copy_from(&dd.minv);
+    dd.rhs_c.gemm(-1.0, j, &dd.rhs_v, 0.0);
+    solve_columns(dd, Input::Tau);
+}
+
+#[derive(Clone, Copy)]
+enum Input {
+    Q,
+    V,
+    Tau,
+}
+
+/// ∂λ = K⁺(rhs_c), ∂q̈ = rhs_v + M⁻¹Jᵀ ∂λ into the matrices of `input`.
+fn solve_columns(dd: &mut DerivativeData, input: Input) {
+    let DerivativeData {
+        schur,
+        dropped,
+        rhs_c,
+        rhs_v,
+        minv_jt,
+        ..
+    } = dd;
+    for c in 0..rhs_c.ncols() {
+        semidefinite_solve(schur, dropped, rhs_c.column_mut(c).as_mut_slice());
+    }
+    rhs_v.gemm(1.0, minv_jt, rhs_c, 1.0);
+    let (dqdd, dlambda) = match input {
+        Input::Q => (&mut dd.dqdd_dq, &mut dd.dlambda_dq),
+        Input::V => (&mut dd.dqdd_dv, &mut dd.dlambda_dv),
+        Input::Tau => (&mut dd.dqdd_dtau, &mut dd.dlambda_dtau),
+    };
+    dqdd.copy_from(&dd.rhs_v);
+    dlambda.copy_from(&dd.rhs_c);
+}
