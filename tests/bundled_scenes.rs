@@ -26,24 +26,9 @@ const TOL_GEARS_PHI: f64 = 1e-15;
 /// |quaternion| − 1 after integrate: exactly 0 (renormalised); floor 1e-15.
 const TOL_UNIT: f64 = 1e-15;
 
-fn scenes() -> Vec<std::path::PathBuf> {
-    let mut v: Vec<_> = std::fs::read_dir(repo_dir().join("params"))
-        .unwrap()
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.extension().is_some_and(|x| x == "yaml")
-                && std::fs::read_to_string(p)
-                    .is_ok_and(|t| t.starts_with("#") || t.contains("urdf:"))
-                && std::fs::read_to_string(p).is_ok_and(|t| !t.contains("ros__parameters"))
-        })
-        .collect();
-    v.sort();
-    v
-}
-
 #[test]
 fn embedded_and_multiplier_forms_agree_on_every_bundled_scene() {
-    let list = scenes();
+    let list = bundled_scenes();
     assert!(list.len() >= 6, "bundled scenes missing: {list:?}");
     for p in list {
         let scene = Scene::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));

@@ -39,13 +39,19 @@ pub fn inverse_mass_matrix(model: &Model, data: &Data, dd: &mut DerivativeData) 
     dd.chol
         .view_mut((0, 0), (nv, nv))
         .copy_from(&data.mass_matrix);
-    cholesky_in_place(&mut dd.chol, nv, 1e-14).map_err(|i| Error::SingularMass {
+    invert_factor(nv, dd).map_err(|i| Error::SingularMass {
         message: format!(
             "M is not positive definite at coordinate '{}' (its inverse is needed for the \
              derivatives)",
             model.v_names[i]
         ),
-    })?;
+    })
+}
+
+/// Factors the symmetric positive-definite leading nv × nv block of `dd.chol` and writes its
+/// inverse into `dd.minv`; Err(pivot) when it is not positive definite.
+pub(crate) fn invert_factor(nv: usize, dd: &mut DerivativeData) -> std::result::Result<(), usize> {
+    cholesky_in_place(&mut dd.chol, nv, 1e-14)?;
     for c in 0..nv {
         dd.col.fill(0.0);
         dd.col[c] = 1.0;

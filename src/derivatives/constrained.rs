@@ -1,17 +1,19 @@
 //! Derivatives of the constrained forward dynamics (multiplier form); the method is in the
 //! module doc of [`crate::derivatives`].
 //!
-//! Constraint kinds with derivatives: point (both sides may move) and coupling/mimic (constant
-//! rows). The others return [`Error::Unsupported`] naming the constraint.
+//! Constraint kinds with derivatives: point (both sides may move), coupling/mimic (constant
+//! rows) and rolling. The others return [`Error::Unsupported`] naming the constraint.
 
-use super::{DerivativeData, inverse_mass_matrix, rnea::rnea_derivatives_with_point_forces};
+use super::DerivativeData;
+use super::aba::invert_factor;
+use super::rnea::{body_variation_q, body_variation_v, rnea_derivatives_with_point_forces};
+use super::rolling::RollingState;
 use crate::algorithm::{Data, crba, point_position};
 use crate::constraints::{Constraint, ConstraintData, ConstraintSet, PointConstraint};
 use crate::dynamics::{Baumgarte, KktWorkspace, constrained_forward_dynamics};
 use crate::error::{Error, Result};
 use crate::linalg::{semidefinite_cholesky, semidefinite_solve};
 use crate::model::Model;
-use crate::spatial::Motion;
 use nalgebra::Vector3;
 
 /// Rank test of J M⁻¹ Jᵀ, as the multiplier solve's.
@@ -43,11 +45,14 @@ pub fn constrained_dynamics_derivatives(
         });
     }
     for (k, c) in set.items.iter().enumerate() {
-        if !matches!(c, Constraint::Point(_) | Constraint::Coupling(_)) {
+        if !matches!(
+            c,
+            Constraint::Point(_) | Constraint::Coupling(_) | Constraint::Rolling(_)
+        ) {
             return Err(Error::Unsupported {
                 what: format!("derivatives of constraint '{}'", set.names[k]),
                 why: format!(
-                    "kind {} has no analytic derivatives yet (point and coupling/mimic have)",
+                    "kind {} has no analytic derivatives yet (point, coupling/mimic and rolling have)",
                     c.kind()
                 ),
             });
@@ -71,15 +76,53 @@ pub fn constrained_dynamics_derivatives(
                 dd.add_point_force(bb, &pb, &-f);
             }
         }
+        if let Constraint::Rolling(rc) = c {
+            let f = rolling_force(rc, &ws.lambda.as_slice()[set.ranges[k].clone()]);
+            let st = RollingState::new(model, data, dd, rc);
+            dd.add_point_force(st.body, &st.pc, &f);
+        }
     }
     let qdd = std::mem::take(&mut dd.qdd);
     rnea_derivatives_with_point_forces(model, data, dd, q, v, qdd.as_slice());
     dd.qdd = qdd;
+    rolling_contact_motion(model, data, set, ws.lambda.as_slice(), dd);
     crba(model, data, q);
-    inverse_mass_matrix(model, data, dd)?;
+    invert_mass_or_augmented(model, data, cd, dd)?;
     constraint_row_derivatives(model, data, set, cd, dd, stab);
     solve_kkt_derivatives(cd, dd);
     Ok(())
+}
+
+/// M⁻¹ into `dd.minv`, or — when only the constraints give some coordinate inertia, as in
+/// the multiplier solve — the inverse of M + ρ JᵀJ (ρ = max(1, max diag M)), which the KKT
+/// system admits as well: `(M + ρJᵀJ) q̈ − Jᵀλ = R₁ + ρ Jᵀ R₂` with `J q̈ = R₂`.
+fn invert_mass_or_augmented(
+    model: &Model,
+    data: &Data,
+    cd: &ConstraintData,
+    dd: &mut DerivativeData,
+) -> Result<()> {
+    let nv = model.nv;
+    let m = &data.mass_matrix;
+    dd.rho = 0.0;
+    dd.chol.view_mut((0, 0), (nv, nv)).copy_from(m);
+    if invert_factor(nv, dd).is_ok() {
+        return Ok(());
+    }
+    dd.rho = (0..nv).map(|i| m[(i, i)]).fold(1.0, f64::max);
+    dd.chol.view_mut((0, 0), (nv, nv)).copy_from(m);
+    let j = &cd.j;
+    for a in 0..nv {
+        for b in 0..nv {
+            dd.chol[(a, b)] += dd.rho * (0..j.nrows()).map(|k| j[(k, a)] * j[(k, b)]).sum::<f64>();
+        }
+    }
+    invert_factor(nv, dd).map_err(|i| Error::SingularMass {
+        message: format!(
+            "coordinate '{}' has no inertia and no constraint fixes its motion",
+            model.v_names[i]
+        ),
+    })
 }
 
 /// The world force of a point constraint's rows: Σ λ_r e_axis(r).
@@ -89,6 +132,51 @@ fn point_force(pc: &PointConstraint, lambda: &[f64]) -> Vector3<f64> {
         f[ax] += lambda[r];
     }
     f
+}
+
+/// The world force of a rolling contact's rows: Σ λ_r t_row(r).
+fn rolling_force(rc: &crate::constraints::RollingConstraint, lambda: &[f64]) -> Vector3<f64> {
+    let mut f = Vector3::zeros();
+    for (r, &row) in rc.rows.iter().enumerate() {
+        f += rc.basis.column(row) * lambda[r];
+    }
+    f
+}
+
+/// A rolling contact force acts at p_c, which slides over the rim instead of moving with the
+/// wheel: RNEA's point-force term moved it as a material point, so add the generalized force
+/// of f at the difference δ = dp_c − (S_lin + S_ang × p_c) = r (du − S_ang × u) to every
+/// coordinate above the wheel, for the columns that move the wheel.
+fn rolling_contact_motion(
+    model: &Model,
+    data: &Data,
+    set: &ConstraintSet,
+    lambda: &[f64],
+    dd: &mut DerivativeData,
+) {
+    for (k, c) in set.items.iter().enumerate() {
+        let Constraint::Rolling(rc) = c else { continue };
+        let f = rolling_force(rc, &lambda[set.ranges[k].clone()]);
+        let st = RollingState::new(model, data, dd, rc);
+        for j in 0..model.nv {
+            let body_j = dd.dof_body[j];
+            if st.body < body_j || st.body >= dd.subtree_end[body_j] {
+                continue;
+            }
+            let s = dd.o_s[j];
+            let delta = st.contact_variation(&s) - s.lin - s.ang.cross(&st.pc);
+            let moment = delta.cross(&f);
+            let mut b = st.body;
+            while b > 0 {
+                let jb = &model.bodies[b].joint;
+                for c in 0..jb.kind.nv() {
+                    let i = jb.idx_v + c;
+                    dd.dtau_dq[(i, j)] -= dd.o_s[i].ang.dot(&moment);
+                }
+                b = model.bodies[b].parent;
+            }
+        }
+    }
 }
 
 /// ∂/∂q and ∂/∂v of the acceleration-level rows `J q̈ + γ + K_d J v + K_p φ` at fixed q̈ into
@@ -138,6 +226,29 @@ fn constraint_row_derivatives(
                     }
                 }
             }
+            Constraint::Rolling(rc) => {
+                let st = RollingState::new(model, data, dd, rc);
+                for j in 0..model.nv {
+                    let s = dd.o_s[j];
+                    if let Some((dv, da)) = body_variation_q(model, dd, st.body, j) {
+                        let var = st.by_q(dd, &s, &dv, &da, stab.kd);
+                        for (r, &row) in rc.rows.iter().enumerate() {
+                            let dir = rc.basis.column(row);
+                            let mut x = dir.dot(&var.g_plus_kd_v);
+                            if row == 2 {
+                                x += stab.kp * var.phi_n;
+                            }
+                            dd.rows_dq[(rows.start + r, j)] = x;
+                        }
+                    }
+                    if let Some((_, da)) = body_variation_v(model, dd, st.body, j) {
+                        let var = st.by_v(dd, &s, &da, stab.kd);
+                        for (r, &row) in rc.rows.iter().enumerate() {
+                            dd.rows_dv[(rows.start + r, j)] = rc.basis.column(row).dot(&var);
+                        }
+                    }
+                }
+            }
             _ => unreachable!("checked by constrained_dynamics_derivatives"),
         }
     }
@@ -154,26 +265,21 @@ fn point_variations(
     j: usize,
     stab: Baumgarte,
 ) -> (Vector3<f64>, Vector3<f64>) {
-    let body_j = dd.dof_body[j];
-    let parent = model.bodies[body_j].parent;
     let s = dd.o_s[j];
     let (vk, ak) = (dd.o_v[body], dd.o_a[body]);
-    let (vp, ap) = (dd.o_v[parent], dd.o_a[parent]);
     let w = vk.ang;
     let pd = vk.lin + w.cross(p);
     let alpha = ak.ang;
-    let rel_v = vk - vp;
 
     // Along δ_j: the subtree moves by S.
-    let dv = s.cross_motion(&rel_v);
-    let da = s.cross_motion(&(ak - ap)) - s.cross_motion(&vp).cross_motion(&rel_v);
+    let (dv, da) = body_variation_q(model, dd, body, j).expect("body in j's subtree");
     let dp = s.lin + s.ang.cross(p);
     let dpd = dv.lin + dv.ang.cross(p) + w.cross(&dp);
     let dpdd = da.lin + da.ang.cross(p) + alpha.cross(&dp) + dv.ang.cross(&pd) + w.cross(&dpd);
     let by_q = dpdd + dpd * stab.kd + dp * stab.kp;
 
     // Along v_j.
-    let da: Motion = dd.o_v[body_j].cross_motion(&s) + s.cross_motion(&rel_v);
+    let (_, da) = body_variation_v(model, dd, body, j).expect("body in j's subtree");
     let dpd = s.lin + s.ang.cross(p);
     let dpdd = da.lin + da.ang.cross(p) + s.ang.cross(&pd) + w.cross(&dpd);
     let by_v = dpdd + dpd * stab.kd;
@@ -181,7 +287,8 @@ fn point_variations(
 }
 
 /// Solves the differentiated KKT system for the three inputs through M⁻¹ and
-/// K = J M⁻¹ Jᵀ: K ∂λ = R₂ − J M⁻¹ R₁, ∂q̈ = M⁻¹ (R₁ + Jᵀ ∂λ).
+/// K = J M⁻¹ Jᵀ: K ∂λ = R₂ − J M⁻¹ R₁, ∂q̈ = M⁻¹ (R₁ + Jᵀ ∂λ) (M⁻¹ of the augmented M and
+/// R₁ + ρ Jᵀ R₂ when ρ > 0).
 fn solve_kkt_derivatives(cd: &ConstraintData, dd: &mut DerivativeData) {
     let j = &cd.j;
     // M⁻¹Jᵀ by columns (M⁻¹ is symmetric), without forming Jᵀ.
@@ -195,12 +302,18 @@ fn solve_kkt_derivatives(cd: &ConstraintData, dd: &mut DerivativeData) {
     dd.lambda_unique = rank == j.nrows();
 
     // q: R₁ = −∂(RNEA − Jᵀλ)/∂q, R₂ = −rows_dq.
-    dd.rhs_v.gemm(-1.0, &dd.minv, &dd.dtau_dq, 0.0);
+    dd.r1.copy_from(&dd.dtau_dq);
+    dd.r1.neg_mut();
+    dd.r1.gemm_tr(-dd.rho, j, &dd.rows_dq, 1.0);
+    dd.rhs_v.gemm(1.0, &dd.minv, &dd.r1, 0.0);
     dd.rhs_c.gemm(-1.0, j, &dd.rhs_v, 0.0);
     dd.rhs_c -= &dd.rows_dq;
     solve_columns(dd, Input::Q);
     // v
-    dd.rhs_v.gemm(-1.0, &dd.minv, &dd.dtau_dv, 0.0);
+    dd.r1.copy_from(&dd.dtau_dv);
+    dd.r1.neg_mut();
+    dd.r1.gemm_tr(-dd.rho, j, &dd.rows_dv, 1.0);
+    dd.rhs_v.gemm(1.0, &dd.minv, &dd.r1, 0.0);
     dd.rhs_c.gemm(-1.0, j, &dd.rhs_v, 0.0);
     dd.rhs_c -= &dd.rows_dv;
     solve_columns(dd, Input::V);
@@ -237,5 +350,10 @@ fn solve_columns(dd: &mut DerivativeData, input: Input) {
         Input::Tau => (&mut dd.dqdd_dtau, &mut dd.dlambda_dtau),
     };
     dqdd.copy_from(&dd.rhs_v);
-    dlambda.copy_from(&dd.rhs_c);
+    if dd.lambda_unique {
+        dlambda.copy_from(&dd.rhs_c);
+    } else {
+        // λ is not unique (dependent rows): it has no derivative; zero, as documented.
+        dlambda.fill(0.0);
+    }
 }

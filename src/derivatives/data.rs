@@ -31,8 +31,9 @@ pub struct DerivativeData {
     pub dlambda_dv: DMatrix<f64>,
     /// ∂λ/∂τ (nc × nv).
     pub dlambda_dtau: DMatrix<f64>,
-    /// True when J had full row rank, so λ and its derivatives are unique; otherwise the λ
-    /// derivatives are one particular solution and only the q̈ derivatives are meaningful.
+    /// True when J had full row rank, so λ and its derivatives are unique; otherwise λ (a
+    /// minimum-norm choice) has no derivative, the λ derivatives are zero, and only the q̈
+    /// derivatives (which are unique) are meaningful.
     pub lambda_unique: bool,
     /// q̈ at which the derivatives were taken (nv).
     pub qdd: DVector<f64>,
@@ -67,6 +68,9 @@ pub struct DerivativeData {
     pub(crate) dropped: Vec<bool>,
     pub(crate) rhs_v: DMatrix<f64>,
     pub(crate) rhs_c: DMatrix<f64>,
+    pub(crate) r1: DMatrix<f64>,
+    /// ρ of the augmented M + ρ JᵀJ used when M alone is singular (0: M itself).
+    pub(crate) rho: f64,
 }
 
 impl DerivativeData {
@@ -117,6 +121,8 @@ impl DerivativeData {
             dropped: vec![false; nc],
             rhs_v: z(nv, nv),
             rhs_c: z(nc, nv),
+            r1: z(nv, nv),
+            rho: 0.0,
         }
     }
 

@@ -12,13 +12,15 @@
 //! `[M Jᵀ; J 0][q̈; −λ] = [τ − h; −(γ + K_d J v + K_p φ)]` with anchors and gains fixed:
 //! `[M Jᵀ; J 0][∂q̈; −∂λ] = −[∂(RNEA(q, v, q̈) − Jᵀλ); ∂(J q̈ + γ + K_d J v + K_p φ)]` at fixed
 //! (q̈, λ), solved through M⁻¹ and the Schur complement J M⁻¹ Jᵀ. Where J is rank deficient
-//! the q̈ derivatives are still unique; the λ derivatives are then one particular solution and
-//! `DerivativeData::lambda_unique` is false.
+//! (two wheels on one axle) the q̈ derivatives are still unique — dependent rows are dropped
+//! as in the multiplier solve — but λ is not, so it has no derivative: the λ derivatives are
+//! zero and `DerivativeData::lambda_unique` is false.
 
 mod aba;
 mod constrained;
 mod data;
 mod rnea;
+mod rolling;
 
 pub use aba::{aba_derivatives, inverse_mass_matrix};
 pub use constrained::constrained_dynamics_derivatives;

@@ -87,16 +87,11 @@ fn world_pass(model: &Model, data: &Data, dd: &mut DerivativeData) {
 /// Column j of ∂τ/∂q.
 fn column_dq(model: &Model, dd: &mut DerivativeData, j: usize) {
     let body_j = dd.dof_body[j];
-    let p = model.bodies[body_j].parent;
     let end = dd.subtree_end[body_j];
     let s = dd.o_s[j];
-    let (vp, ap) = (dd.o_v[p], dd.o_a[p]);
-    let s_vp = s.cross_motion(&vp);
     for k in body_j..end {
         let (vk, ak, inertia) = (dd.o_v[k], dd.o_a[k], dd.o_inertia[k]);
-        let rel_v = vk - vp;
-        let dv = s.cross_motion(&rel_v);
-        let da = s.cross_motion(&(ak - ap)) - s_vp.cross_motion(&rel_v);
+        let (dv, da) = body_variation_q(model, dd, k, j).expect("k in j's subtree");
         let ia = inertia.mul_motion(&ak);
         let iv = inertia.mul_motion(&vk);
         let di_a = s.cross_force(&ia) - inertia.mul_motion(&s.cross_motion(&ak));
@@ -117,14 +112,11 @@ fn column_dq(model: &Model, dd: &mut DerivativeData, j: usize) {
 /// Column j of ∂τ/∂v.
 fn column_dv(model: &Model, dd: &mut DerivativeData, j: usize) {
     let body_j = dd.dof_body[j];
-    let p = model.bodies[body_j].parent;
     let end = dd.subtree_end[body_j];
     let s = dd.o_s[j];
-    let vp = dd.o_v[p];
-    let vj_s = dd.o_v[body_j].cross_motion(&s);
     for k in body_j..end {
         let (vk, inertia) = (dd.o_v[k], dd.o_inertia[k]);
-        let da = vj_s + s.cross_motion(&(vk - vp));
+        let (_, da) = body_variation_v(model, dd, k, j).expect("k in j's subtree");
         let iv = inertia.mul_motion(&vk);
         dd.df[k] =
             inertia.mul_motion(&da) + s.cross_force(&iv) + vk.cross_force(&inertia.mul_motion(&s));
@@ -173,4 +165,42 @@ fn accumulate_and_project(
         }
         b = model.bodies[b].parent;
     }
+}
+
+/// Variation (∂ᵒv_k, ∂ᵒa_k) of body k's world twist and acceleration along q-column j, or None
+/// when k is not in j's subtree (it does not move).
+pub(crate) fn body_variation_q(
+    model: &Model,
+    dd: &DerivativeData,
+    k: usize,
+    j: usize,
+) -> Option<(Motion, Motion)> {
+    let body_j = dd.dof_body[j];
+    if k < body_j || k >= dd.subtree_end[body_j] {
+        return None;
+    }
+    let p = model.bodies[body_j].parent;
+    let s = dd.o_s[j];
+    let (vp, ap) = (dd.o_v[p], dd.o_a[p]);
+    let rel_v = dd.o_v[k] - vp;
+    let dv = s.cross_motion(&rel_v);
+    let da = s.cross_motion(&(dd.o_a[k] - ap)) - s.cross_motion(&vp).cross_motion(&rel_v);
+    Some((dv, da))
+}
+
+/// Variation (∂ᵒv_k, ∂ᵒa_k) along velocity coordinate j, or None outside j's subtree.
+pub(crate) fn body_variation_v(
+    model: &Model,
+    dd: &DerivativeData,
+    k: usize,
+    j: usize,
+) -> Option<(Motion, Motion)> {
+    let body_j = dd.dof_body[j];
+    if k < body_j || k >= dd.subtree_end[body_j] {
+        return None;
+    }
+    let p = model.bodies[body_j].parent;
+    let s = dd.o_s[j];
+    let da = dd.o_v[body_j].cross_motion(&s) + s.cross_motion(&(dd.o_v[k] - dd.o_v[p]));
+    Some((s, da))
 }

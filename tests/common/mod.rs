@@ -150,3 +150,19 @@ pub fn specs_for(
         })
         .collect()
 }
+
+/// The bundled scene files (`params/*.yaml` with a robot, not ROS parameter files), sorted.
+pub fn bundled_scenes() -> Vec<std::path::PathBuf> {
+    let mut v: Vec<_> = std::fs::read_dir(repo_dir().join("params"))
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.extension().is_some_and(|x| x == "yaml")
+                && std::fs::read_to_string(p)
+                    .is_ok_and(|t| t.starts_with("#") || t.contains("urdf:"))
+                && std::fs::read_to_string(p).is_ok_and(|t| !t.contains("ros__parameters"))
+        })
+        .collect();
+    v.sort();
+    v
+}

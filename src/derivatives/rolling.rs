@@ -1,0 +1,139 @@
+//! Variations of a rolling contact's rows (constraints/rolling.rs) along a q-column and along a
+//! velocity coordinate, and of its contact point.
+//!
+//! World axes; wheel body twist (v₀, ω) and spatial acceleration (a₀, α); centre c, spin axis
+//! a, plane normal n, w = n − (n·a) a, ŵ = w/|w|, u = −ŵ, contact p_c = c + r u. The rows are
+//! t·(g + K_d v_mat) (+ K_p n·p_c on the normal row) with g = J q̈ + γ = a₀ + α × p_c + ω × ṗ_c,
+//! v_mat = v₀ + ω × p_c and ṗ_c = v₀ + ω × c + r u̇, u̇ = −(ẇ − ŵ(ŵ·ẇ))/|w|,
+//! ẇ = −(ȧ (n·a) + a (n·ȧ)), ȧ = ω × a. A perturbation moves the body (its twist and
+//! acceleration as in rnea.rs) and with it c and a; the contact point slides over the rim.
+
+use super::DerivativeData;
+use crate::algorithm::{Data, frame_placement};
+use crate::constraints::RollingConstraint;
+use crate::model::Model;
+use crate::spatial::Motion;
+use nalgebra::Vector3;
+
+/// The contact geometry and its rates at the current state.
+pub(crate) struct RollingState {
+    /// Wheel body.
+    pub body: usize,
+    c: Vector3<f64>,
+    a: Vector3<f64>,
+    n: Vector3<f64>,
+    w_hat: Vector3<f64>,
+    w_norm: f64,
+    /// Contact point p_c (world) [m].
+    pub pc: Vector3<f64>,
+    a_dot: Vector3<f64>,
+    w_dot: Vector3<f64>,
+    pc_dot: Vector3<f64>,
+    radius: f64,
+}
+
+/// Variations of one column: the 3-vector `g + K_d v_mat` and n·p_c.
+pub(crate) struct RowVariation {
+    pub g_plus_kd_v: Vector3<f64>,
+    pub phi_n: f64,
+}
+
+impl RollingState {
+    pub fn new(model: &Model, data: &Data, dd: &DerivativeData, rc: &RollingConstraint) -> Self {
+        let body = model.frames[rc.wheel].body;
+        let m = frame_placement(model, data, rc.wheel);
+        let (c, a, n) = (m.translation, m.rotation * rc.axis, rc.normal());
+        let w = n - a * n.dot(&a);
+        let w_norm = w.norm().max(f64::MIN_POSITIVE);
+        let w_hat = w / w_norm;
+        let u = -w_hat;
+        let pc = c + u * rc.radius;
+        let vk = dd.o_v[body];
+        let a_dot = vk.ang.cross(&a);
+        let w_dot = -(a_dot * n.dot(&a) + a * n.dot(&a_dot));
+        let u_dot = -(w_dot - w_hat * w_hat.dot(&w_dot)) / w_norm;
+        let pc_dot = vk.lin + vk.ang.cross(&c) + u_dot * rc.radius;
+        Self {
+            body,
+            c,
+            a,
+            n,
+            w_hat,
+            w_norm,
+            pc,
+            a_dot,
+            w_dot,
+            pc_dot,
+            radius: rc.radius,
+        }
+    }
+
+    /// d(u̇) for variations dw of w and dẇ of ẇ.
+    fn u_dot_variation(&self, dw: &Vector3<f64>, dw_dot: &Vector3<f64>) -> Vector3<f64> {
+        let (wh, wn, wd) = (&self.w_hat, self.w_norm, &self.w_dot);
+        let dwh = (dw - wh * wh.dot(dw)) / wn;
+        let p_wd = wd - wh * wh.dot(wd);
+        let d_p_wd = dw_dot - dwh * wh.dot(wd) - wh * (dwh.dot(wd) + wh.dot(dw_dot));
+        -(d_p_wd / wn - p_wd * (wh.dot(dw) / (wn * wn)))
+    }
+
+    /// dw for a variation d_a of the axis.
+    fn w_variation(&self, d_a: &Vector3<f64>) -> Vector3<f64> {
+        -(d_a * self.n.dot(&self.a) + self.a * self.n.dot(d_a))
+    }
+
+    /// dẇ for variations d_a of a and dȧ of ȧ.
+    fn w_dot_variation(&self, d_a: &Vector3<f64>, d_a_dot: &Vector3<f64>) -> Vector3<f64> {
+        let (n, a, ad) = (&self.n, &self.a, &self.a_dot);
+        -(d_a_dot * n.dot(a) + ad * n.dot(d_a) + d_a * n.dot(ad) + a * n.dot(d_a_dot))
+    }
+
+    /// Variation of the contact point for the body motion S (q-column): dc + r du.
+    pub fn contact_variation(&self, s: &Motion) -> Vector3<f64> {
+        let dw = self.w_variation(&s.ang.cross(&self.a));
+        let du = -(dw - self.w_hat * self.w_hat.dot(&dw)) / self.w_norm;
+        s.lin + s.ang.cross(&self.c) + du * self.radius
+    }
+
+    /// Along q-column S with body variations (dv, da) and K_d.
+    pub fn by_q(
+        &self,
+        dd: &DerivativeData,
+        s: &Motion,
+        dv: &Motion,
+        da: &Motion,
+        kd: f64,
+    ) -> RowVariation {
+        let w = dd.o_v[self.body].ang;
+        let alpha = dd.o_a[self.body].ang;
+        let d_a = s.ang.cross(&self.a);
+        let dc = s.lin + s.ang.cross(&self.c);
+        let dw = self.w_variation(&d_a);
+        let dpc = self.contact_variation(s);
+        let d_a_dot = dv.ang.cross(&self.a) + w.cross(&d_a);
+        let d_u_dot = self.u_dot_variation(&dw, &self.w_dot_variation(&d_a, &d_a_dot));
+        let dpc_dot = dv.lin + dv.ang.cross(&self.c) + w.cross(&dc) + d_u_dot * self.radius;
+        let dg = da.lin
+            + da.ang.cross(&self.pc)
+            + alpha.cross(&dpc)
+            + dv.ang.cross(&self.pc_dot)
+            + w.cross(&dpc_dot);
+        let dvmat = dv.lin + dv.ang.cross(&self.pc) + w.cross(&dpc);
+        RowVariation {
+            g_plus_kd_v: dg + dvmat * kd,
+            phi_n: self.n.dot(&dpc),
+        }
+    }
+
+    /// Along velocity coordinate S with acceleration variation da and K_d.
+    pub fn by_v(&self, dd: &DerivativeData, s: &Motion, da: &Motion, kd: f64) -> Vector3<f64> {
+        let w = dd.o_v[self.body].ang;
+        let d_a_dot = s.ang.cross(&self.a);
+        let dw_dot = self.w_dot_variation(&Vector3::zeros(), &d_a_dot);
+        let d_u_dot = self.u_dot_variation(&Vector3::zeros(), &dw_dot);
+        let dpc_dot = s.lin + s.ang.cross(&self.c) + d_u_dot * self.radius;
+        let dg = da.lin + da.ang.cross(&self.pc) + s.ang.cross(&self.pc_dot) + w.cross(&dpc_dot);
+        let dvmat = s.lin + s.ang.cross(&self.pc);
+        dg + dvmat * kd
+    }
+}
