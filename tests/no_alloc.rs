@@ -71,3 +71,48 @@ fn algorithms_and_constrained_dynamics_do_not_allocate() {
         assert_eq!(ws.rank_deficiency, 0);
     }
 }
+
+#[test]
+fn derivatives_do_not_allocate() {
+    use constraint_dynamics::derivatives::*;
+    for name in ["fourbar", "ur5_ee_point", "solo12_four_feet"] {
+        let case = load_case(name);
+        let model = case_model(&case);
+        let st = &case["states"][1];
+        let (q, v, tau) = (vecf(&st["q"]), vecf(&st["qd"]), vecf(&st["tau"]));
+        let set = ConstraintSet::new(&model, &specs_for(&case, st), &q).unwrap();
+        let mut data = Data::new(&model);
+        let mut cd = ConstraintData::new(&model, &set);
+        let mut ws = KktWorkspace::new(&model, &set);
+        let mut dd = DerivativeData::new(&model, set.nrows);
+        let mut free = DerivativeData::new(&model, 0);
+        let b = Baumgarte {
+            kp: 100.0,
+            kd: 20.0,
+        };
+        let mut all = || {
+            rnea_derivatives(&model, &mut data, &mut free, &q, &v, &tau);
+            aba_derivatives(&model, &mut data, &mut free, &q, &v, &tau).unwrap();
+            constrained_dynamics_derivatives(
+                &model, &mut data, &set, &mut cd, &mut ws, &mut dd, &q, &v, &tau, b,
+            )
+            .unwrap();
+        };
+        all(); // warm up
+        let r = allocations(|| rnea_derivatives(&model, &mut data, &mut free, &q, &v, &tau));
+        let a = allocations(|| {
+            aba_derivatives(&model, &mut data, &mut free, &q, &v, &tau).unwrap();
+        });
+        let c = allocations(|| {
+            constrained_dynamics_derivatives(
+                &model, &mut data, &set, &mut cd, &mut ws, &mut dd, &q, &v, &tau, b,
+            )
+            .unwrap();
+        });
+        assert_eq!(
+            (r, a, c),
+            (0, 0, 0),
+            "{name}: derivatives allocate (rnea, aba, constrained)"
+        );
+    }
+}

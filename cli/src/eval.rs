@@ -1,9 +1,13 @@
 //! `eval`: q̈ (and with constraints λ and the forces) at one state.
 
 use constraint_dynamics::applied::{applied_generalized_force, constraint_forces_at};
+use constraint_dynamics::derivatives::{
+    DerivativeData, aba_derivatives, constrained_dynamics_derivatives, rnea_derivatives,
+};
 use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::{Result, Scene, System};
+use nalgebra::DMatrix;
 use serde_json::{Value, json};
 use std::path::PathBuf;
 
@@ -18,6 +22,12 @@ pub struct EvalArgs {
     /// Also print M (nv × nv, row-major rows) and h = C v + g.
     #[arg(long)]
     terms: bool,
+    /// Also print the analytic derivatives of q̈ and λ w.r.t. q (tangent space, q ⊕ δ), v and τ
+    /// (`derivatives`; with --terms also RNEA's ∂τ/∂q, ∂τ/∂v at the state's q̈). τ is the total
+    /// applied generalized force: the state's τ plus the scene's force elements at this state,
+    /// whose own dependence on q and v is not differentiated.
+    #[arg(long)]
+    derivatives: bool,
     /// auto | multipliers | embedded (default: multipliers, so the forces are printed).
     #[arg(long, default_value = "multipliers")]
     formulation: String,
@@ -97,9 +107,78 @@ pub fn run(a: EvalArgs) -> Result<Value> {
         out["M"] = json!(rows);
         out["h"] = json!(sys.data.tau.as_slice());
     }
+    if a.derivatives {
+        out["derivatives"] = derivatives(&mut sys, &mut elements, &q, &v, &tau, &qdd, a.terms)?;
+    }
     let (ke, pe, com) = sys.energy(&q, &v);
     out["kinetic_energy"] = json!(ke);
     out["potential_energy"] = json!(pe);
     out["center_of_mass"] = json!(com);
+    Ok(out)
+}
+
+/// Rows of a matrix as nested arrays (row-major, the printed coordinate order).
+fn rows(m: &DMatrix<f64>) -> Value {
+    json!(
+        (0..m.nrows())
+            .map(|i| m.row(i).iter().copied().collect::<Vec<f64>>())
+            .collect::<Vec<_>>()
+    )
+}
+
+/// The `derivatives` object of `eval --derivatives`.
+fn derivatives(
+    sys: &mut System,
+    elements: &mut ForceElements,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    qdd: &[f64],
+    terms: bool,
+) -> Result<Value> {
+    let nv = sys.model.nv;
+    let mut applied = vec![0.0; nv];
+    applied_generalized_force(
+        sys,
+        elements,
+        (0.0, q, v),
+        tau,
+        &vec![0.0; nv],
+        &mut applied,
+    );
+    let mut dd = DerivativeData::new(&sys.model, sys.constraints.nrows);
+    let mut out = json!({
+        "convention": "X[i][j] = d out_i / d in_j; d/dq along delta in q (+) delta (tangent, nv columns)",
+    });
+    if sys.constraints.is_empty() {
+        aba_derivatives(&sys.model, &mut sys.data, &mut dd, q, v, &applied)?;
+    } else {
+        constrained_dynamics_derivatives(
+            &sys.model,
+            &mut sys.data,
+            &sys.constraints,
+            &mut sys.cdata,
+            &mut sys.kkt,
+            &mut dd,
+            q,
+            v,
+            &applied,
+            sys.baumgarte,
+        )?;
+        out["lambda_unique"] = json!(dd.lambda_unique);
+        if dd.lambda_unique {
+            out["dlambda_dq"] = rows(&dd.dlambda_dq);
+            out["dlambda_dv"] = rows(&dd.dlambda_dv);
+            out["dlambda_dtau"] = rows(&dd.dlambda_dtau);
+        }
+    }
+    out["dqdd_dq"] = rows(&dd.dqdd_dq);
+    out["dqdd_dv"] = rows(&dd.dqdd_dv);
+    out["dqdd_dtau"] = rows(&dd.dqdd_dtau);
+    if terms {
+        rnea_derivatives(&sys.model, &mut sys.data, &mut dd, q, v, qdd);
+        out["dtau_dq"] = rows(&dd.dtau_dq);
+        out["dtau_dv"] = rows(&dd.dtau_dv);
+    }
     Ok(out)
 }

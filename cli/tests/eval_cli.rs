@@ -24,6 +24,10 @@ fn eval(args: &[&str]) -> (bool, serde_json::Value, String) {
 #[test]
 fn eval_prints_reference_accelerations_and_multipliers() {
     let case = load_case("fourbar");
+    let derivatives_ref: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(reference_dir().join("derivatives/fourbar.json")).unwrap(),
+    )
+    .unwrap();
     let dir = std::env::temp_dir().join(format!("cd_cli_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let c = &case["constraints"][0];
@@ -59,8 +63,37 @@ fn eval_prints_reference_accelerations_and_multipliers() {
             "--state",
             state.to_str().unwrap(),
             "--terms",
+            "--derivatives",
         ]);
         assert!(ok, "eval failed: {err}");
+        // The derivatives against Pinocchio's (../shared/reference/derivatives/fourbar.json, same
+        // state order); the library reaches ≤ 3e-15 on the four-bar (tests/derivatives.rs).
+        let dref = &derivatives_ref["states"][k]["expected"];
+        let d = &out["derivatives"];
+        for (ours, theirs) in [
+            ("dqdd_dq", &dref["constrained"]["dqdd_dq"]),
+            ("dqdd_dv", &dref["constrained"]["dqdd_dv"]),
+            ("dqdd_dtau", &dref["constrained"]["dqdd_dtau"]),
+            ("dlambda_dq", &dref["constrained"]["dlambda_dq"]),
+            ("dlambda_dv", &dref["constrained"]["dlambda_dv"]),
+            ("dlambda_dtau", &dref["constrained"]["dlambda_dtau"]),
+            ("dtau_dq", &dref["unconstrained"]["dtau_dq"]),
+            ("dtau_dv", &dref["unconstrained"]["dtau_dv"]),
+        ] {
+            let flat = |v: &serde_json::Value| -> Vec<f64> {
+                v.as_array()
+                    .unwrap_or_else(|| panic!("{ours}: not printed"))
+                    .iter()
+                    .flat_map(vecf)
+                    .collect()
+            };
+            assert_close(
+                &format!("cli fourbar[{k}] {ours}"),
+                &flat(&d[ours]),
+                &flat(theirs),
+                2e-12,
+            );
+        }
         assert_eq!(out["q_names"], case["model"]["q_names"]);
         assert_close(
             &format!("cli fourbar[{k}] qdd"),

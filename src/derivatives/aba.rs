@@ -4,7 +4,7 @@
 use super::{DerivativeData, rnea::rnea_derivatives_with_point_forces};
 use crate::algorithm::{Data, aba, crba};
 use crate::error::{Error, Result};
-use crate::linalg::{cholesky_in_place, cholesky_solve};
+use crate::linalg::{cholesky_in_place, cholesky_solve, gemm_into};
 use crate::model::Model;
 
 /// q̈ = ABA(q, v, τ) into `dd.qdd` and its derivatives into `dd.dqdd_dq`, `dd.dqdd_dv`,
@@ -26,8 +26,8 @@ pub fn aba_derivatives(
     let qdd = std::mem::take(&mut dd.qdd);
     rnea_derivatives_with_point_forces(model, data, dd, q, v, qdd.as_slice());
     dd.qdd = qdd;
-    dd.dqdd_dq.gemm(-1.0, &dd.minv, &dd.dtau_dq, 0.0);
-    dd.dqdd_dv.gemm(-1.0, &dd.minv, &dd.dtau_dv, 0.0);
+    gemm_into(&mut dd.dqdd_dq, -1.0, &dd.minv, &dd.dtau_dq, 0.0);
+    gemm_into(&mut dd.dqdd_dv, -1.0, &dd.minv, &dd.dtau_dv, 0.0);
     dd.dqdd_dtau.copy_from(&dd.minv);
     Ok(())
 }

@@ -12,12 +12,16 @@ use crate::algorithm::{Data, crba, point_position};
 use crate::constraints::{Constraint, ConstraintData, ConstraintSet, PointConstraint};
 use crate::dynamics::{Baumgarte, KktWorkspace, constrained_forward_dynamics};
 use crate::error::{Error, Result};
-use crate::linalg::{semidefinite_cholesky, semidefinite_solve};
+use crate::linalg::{gemm_into, gemm_tr_into, semidefinite_cholesky, semidefinite_solve};
 use crate::model::Model;
 use nalgebra::Vector3;
 
-/// Rank test of J M⁻¹ Jᵀ, as the multiplier solve's.
-const RANK_TOL: f64 = 1e-12;
+/// Rank test of J M⁻¹ Jᵀ: a row whose Cholesky pivot is below this fraction of the largest
+/// diagonal is dependent. Looser than the multiplier solve's first attempt (1e-12): an exactly
+/// dependent row's pivot is rounding times the condition number, and 1e-12 missed the
+/// dependent wheel row of a floating mobile manipulator state (tests/derivatives_fd.rs); 1e-9
+/// still keeps rows at a singular-value ratio above ~3e-5.
+const RANK_TOL: f64 = 1e-9;
 
 /// Solves the constrained dynamics at (q, v, τ) (q̈ in `ws.qdd` and `dd.qdd`, λ in
 /// `ws.lambda`) and writes ∂q̈/∂(q, v, τ) into `dd.dqdd_dq`, `dd.dqdd_dv`, `dd.dqdd_dtau` and
@@ -297,29 +301,29 @@ fn solve_kkt_derivatives(cd: &ConstraintData, dd: &mut DerivativeData) {
             dd.minv_jt[(i, c)] = (0..j.ncols()).map(|k| dd.minv[(i, k)] * j[(c, k)]).sum();
         }
     }
-    dd.schur.gemm(1.0, j, &dd.minv_jt, 0.0);
+    gemm_into(&mut dd.schur, 1.0, j, &dd.minv_jt, 0.0);
     let rank = semidefinite_cholesky(&mut dd.schur, RANK_TOL, &mut dd.dropped);
     dd.lambda_unique = rank == j.nrows();
 
     // q: R₁ = −∂(RNEA − Jᵀλ)/∂q, R₂ = −rows_dq.
     dd.r1.copy_from(&dd.dtau_dq);
     dd.r1.neg_mut();
-    dd.r1.gemm_tr(-dd.rho, j, &dd.rows_dq, 1.0);
-    dd.rhs_v.gemm(1.0, &dd.minv, &dd.r1, 0.0);
-    dd.rhs_c.gemm(-1.0, j, &dd.rhs_v, 0.0);
+    gemm_tr_into(&mut dd.r1, -dd.rho, j, &dd.rows_dq, 1.0);
+    gemm_into(&mut dd.rhs_v, 1.0, &dd.minv, &dd.r1, 0.0);
+    gemm_into(&mut dd.rhs_c, -1.0, j, &dd.rhs_v, 0.0);
     dd.rhs_c -= &dd.rows_dq;
     solve_columns(dd, Input::Q);
     // v
     dd.r1.copy_from(&dd.dtau_dv);
     dd.r1.neg_mut();
-    dd.r1.gemm_tr(-dd.rho, j, &dd.rows_dv, 1.0);
-    dd.rhs_v.gemm(1.0, &dd.minv, &dd.r1, 0.0);
-    dd.rhs_c.gemm(-1.0, j, &dd.rhs_v, 0.0);
+    gemm_tr_into(&mut dd.r1, -dd.rho, j, &dd.rows_dv, 1.0);
+    gemm_into(&mut dd.rhs_v, 1.0, &dd.minv, &dd.r1, 0.0);
+    gemm_into(&mut dd.rhs_c, -1.0, j, &dd.rhs_v, 0.0);
     dd.rhs_c -= &dd.rows_dv;
     solve_columns(dd, Input::V);
     // τ: R₁ = 1, R₂ = 0.
     dd.rhs_v.copy_from(&dd.minv);
-    dd.rhs_c.gemm(-1.0, j, &dd.rhs_v, 0.0);
+    gemm_into(&mut dd.rhs_c, -1.0, j, &dd.rhs_v, 0.0);
     solve_columns(dd, Input::Tau);
 }
 
@@ -343,7 +347,7 @@ fn solve_columns(dd: &mut DerivativeData, input: Input) {
     for c in 0..rhs_c.ncols() {
         semidefinite_solve(schur, dropped, rhs_c.column_mut(c).as_mut_slice());
     }
-    rhs_v.gemm(1.0, minv_jt, rhs_c, 1.0);
+    gemm_into(rhs_v, 1.0, minv_jt, rhs_c, 1.0);
     let (dqdd, dlambda) = match input {
         Input::Q => (&mut dd.dqdd_dq, &mut dd.dlambda_dq),
         Input::V => (&mut dd.dqdd_dv, &mut dd.dlambda_dv),

@@ -90,3 +90,40 @@ pub fn independent_columns(a: &DMatrix<f64>, tol: f64) -> Vec<usize> {
     qr.p().permute_columns(&mut idx);
     (0..rank).map(|j| idx[(0, j)] as usize).collect()
 }
+
+/// `c ← α a b + β c`, naive and allocation-free (nalgebra's `gemm` hands large dynamic
+/// products to matrixmultiply, which allocates packing buffers).
+pub fn gemm_into(c: &mut DMatrix<f64>, alpha: f64, a: &DMatrix<f64>, b: &DMatrix<f64>, beta: f64) {
+    debug_assert_eq!(a.ncols(), b.nrows());
+    debug_assert_eq!((c.nrows(), c.ncols()), (a.nrows(), b.ncols()));
+    for j in 0..b.ncols() {
+        for i in 0..a.nrows() {
+            let mut s = 0.0;
+            for k in 0..a.ncols() {
+                s += a[(i, k)] * b[(k, j)];
+            }
+            c[(i, j)] = alpha * s + if beta == 0.0 { 0.0 } else { beta * c[(i, j)] };
+        }
+    }
+}
+
+/// `c ← α aᵀ b + β c`, naive and allocation-free.
+pub fn gemm_tr_into(
+    c: &mut DMatrix<f64>,
+    alpha: f64,
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    beta: f64,
+) {
+    debug_assert_eq!(a.nrows(), b.nrows());
+    debug_assert_eq!((c.nrows(), c.ncols()), (a.ncols(), b.ncols()));
+    for j in 0..b.ncols() {
+        for i in 0..a.ncols() {
+            let mut s = 0.0;
+            for k in 0..a.nrows() {
+                s += a[(k, i)] * b[(k, j)];
+            }
+            c[(i, j)] = alpha * s + if beta == 0.0 { 0.0 } else { beta * c[(i, j)] };
+        }
+    }
+}
