@@ -304,6 +304,7 @@ fn solve_kkt_derivatives(cd: &ConstraintData, dd: &mut DerivativeData) {
     gemm_into(&mut dd.schur, 1.0, j, &dd.minv_jt, 0.0);
     let rank = semidefinite_cholesky(&mut dd.schur, RANK_TOL, &mut dd.dropped);
     dd.lambda_unique = rank == j.nrows();
+    null_space_of_schur(j, dd);
 
     // q: R₁ = −∂(RNEA − Jᵀλ)/∂q, R₂ = −rows_dq.
     dd.r1.copy_from(&dd.dtau_dq);
@@ -334,7 +335,44 @@ enum Input {
     Tau,
 }
 
-/// ∂λ = K⁺(rhs_c), ∂q̈ = rhs_v + M⁻¹Jᵀ ∂λ into the matrices of `input`.
+/// With dependent rows, an orthonormal basis of null(K), K = J M⁻¹ Jᵀ, into `dd.null_basis`:
+/// for each dropped row d, c_d = (−K_II⁻¹ K_Id, 1), then Gram–Schmidt.
+fn null_space_of_schur(j: &nalgebra::DMatrix<f64>, dd: &mut DerivativeData) {
+    let nc = j.nrows();
+    dd.n_null = 0;
+    for d in 0..nc {
+        if !dd.dropped[d] {
+            continue;
+        }
+        let k = dd.n_null;
+        for r in 0..nc {
+            // −K[r, d] = −Σ_i J[r, i] (M⁻¹Jᵀ)[i, d]
+            dd.null_basis[(r, k)] = -(0..j.ncols())
+                .map(|i| j[(r, i)] * dd.minv_jt[(i, d)])
+                .sum::<f64>();
+        }
+        semidefinite_solve(
+            &dd.schur,
+            &dd.dropped,
+            dd.null_basis.column_mut(k).as_mut_slice(),
+        );
+        dd.null_basis[(d, k)] = 1.0;
+        for p in 0..k {
+            let dot = dd.null_basis.column(p).dot(&dd.null_basis.column(k));
+            for r in 0..nc {
+                dd.null_basis[(r, k)] -= dot * dd.null_basis[(r, p)];
+            }
+        }
+        let n = dd.null_basis.column(k).norm();
+        dd.null_basis.column_mut(k).unscale_mut(n);
+        dd.n_null += 1;
+    }
+}
+
+/// ∂λ = K⁺(rhs_c), ∂q̈ = rhs_v + M⁻¹Jᵀ ∂λ into the matrices of `input`. With dependent rows
+/// the right-hand side is first projected onto range(K), so q̈'s derivative is that of the
+/// multiplier solve's least-squares reconciliation of the rows (λ = K⁺ r), not of a choice of
+/// rows to drop: the two differ where the rows disagree, as inside a Runge–Kutta step.
 fn solve_columns(dd: &mut DerivativeData, input: Input) {
     let DerivativeData {
         schur,
@@ -342,9 +380,17 @@ fn solve_columns(dd: &mut DerivativeData, input: Input) {
         rhs_c,
         rhs_v,
         minv_jt,
+        null_basis,
+        n_null,
         ..
     } = dd;
     for c in 0..rhs_c.ncols() {
+        for k in 0..*n_null {
+            let dot = null_basis.column(k).dot(&rhs_c.column(c));
+            for r in 0..rhs_c.nrows() {
+                rhs_c[(r, c)] -= dot * null_basis[(r, k)];
+            }
+        }
         semidefinite_solve(schur, dropped, rhs_c.column_mut(c).as_mut_slice());
     }
     gemm_into(rhs_v, 1.0, minv_jt, rhs_c, 1.0);

@@ -9,11 +9,13 @@ pub mod drift;
 mod guard;
 mod integrator;
 mod lie;
+mod linearize;
 mod run;
 mod trajectory;
 
 pub use drift::Projector;
 pub use integrator::Method;
+pub use linearize::{Linearization, linearize_step};
 pub use run::Predictor;
 pub use trajectory::{PredictOptions, Sample, Trajectory};
 
