@@ -241,21 +241,18 @@ fn dense_kkt(
     out
 }
 
-#[test]
-fn constrained_derivatives_match_finite_differences_on_every_bundled_scene() {
-    let mut rng = Rng(0x2545_f491_4f6c_dd1d);
+/// Checks the constrained derivatives of `scene` at two random states near its initial one;
+/// returns the worst error and the kinds it exercised.
+fn check_constrained_scene(name: &str, scene: &Scene, rng: &mut Rng) -> (f64, Vec<&'static str>) {
     let mut worst = 0.0f64;
-    let mut kinds = std::collections::BTreeSet::new(); // kind names
-    for p in bundled_scenes() {
-        let scene = Scene::load(&p).unwrap();
-        let mut s = System::from_scene(&scene).unwrap();
+    {
+        let mut s = System::from_scene(scene).unwrap();
         if s.constraints.nrows == 0 {
-            continue;
+            return (0.0, vec![]);
         }
-        let name = p.file_name().unwrap().to_string_lossy().to_string();
         let model = s.model.clone();
         let (nv, nc) = (model.nv, s.constraints.nrows);
-        let mut s2 = System::from_scene(&scene).unwrap();
+        let mut s2 = System::from_scene(scene).unwrap();
         let mut dd = DerivativeData::new(&model, nc);
         for k in 0..2 {
             // Near the scene's (consistent) initial state; v with J v = 0 so that dependent
@@ -335,10 +332,70 @@ fn constrained_derivatives_match_finite_differences_on_every_bundled_scene() {
                 }
             }
         }
-        kinds.extend(s.constraints.items.iter().map(|c| c.kind().name()));
+        (
+            worst,
+            s.constraints
+                .items
+                .iter()
+                .map(|c| c.kind().name())
+                .collect(),
+        )
+    }
+}
+
+#[test]
+fn constrained_derivatives_match_finite_differences_on_every_bundled_scene() {
+    let mut rng = Rng(0x2545_f491_4f6c_dd1d);
+    let mut worst = 0.0f64;
+    let mut kinds = std::collections::BTreeSet::new(); // kind names
+    for p in bundled_scenes() {
+        let scene = Scene::load(&p).unwrap();
+        let name = p.file_name().unwrap().to_string_lossy().to_string();
+        let (w, k) = check_constrained_scene(&name, &scene, &mut rng);
+        worst = worst.max(w);
+        kinds.extend(k);
     }
     eprintln!("worst constrained: {worst:.2e}; kinds covered: {kinds:?}");
     for k in [ConstraintKind::Point, ConstraintKind::Rolling] {
         assert!(kinds.contains(&k.name()), "no bundled scene exercised {k}");
+    }
+}
+
+/// Scenes for the kinds no bundled scene uses: a distance constraint closing the four-bar
+/// (the tip at 0.3 m from a world point) and a knife edge instead of the wheels of the diff
+/// drive (no side slip of base_link along its y axis).
+#[test]
+fn distance_and_knife_edge_derivatives_match_finite_differences() {
+    let dir = std::env::temp_dir().join(format!("cd_dfd_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let urdf = |f: &str| repo_dir().join("urdf").join(f).display().to_string();
+    let scenes = [
+        (
+            "fourbar_distance",
+            format!(
+                "urdf: {}\nbase: fixed\ninitial_state:\n  q: {{crank_joint: 0.5, coupler_joint: 0.04, rocker_joint: -2.4}}\n  v: {{crank_joint: 1.0}}\nconstraints:\n  - {{name: rod, kind: distance, frame_a: tip, frame_b: world, point_b: [0.6, 0.0, 0.3], distance: 0.3}}\n",
+                urdf("fourbar.urdf")
+            ),
+        ),
+        (
+            "diff_drive_knife_edge",
+            format!(
+                "urdf: {}\nbase: planar\ninitial_state:\n  q: {{root_joint:yaw: 0.3}}\n  v: {{root_joint:vx_local: 0.5, root_joint:wz: 0.2}}\nconstraints:\n  - {{name: skate, kind: no_side_slip, frame: base_link, axis: [0.0, 1.0, 0.0]}}\n",
+                urdf("diff_drive.urdf")
+            ),
+        ),
+    ];
+    let mut rng = Rng(0x1234_5678_9abc_def1);
+    let mut kinds = Vec::new();
+    for (name, text) in scenes {
+        let path = dir.join(format!("{name}.yaml"));
+        std::fs::write(&path, text).unwrap();
+        let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let (w, k) = check_constrained_scene(name, &scene, &mut rng);
+        eprintln!("{name}: worst {w:.2e}");
+        kinds.extend(k);
+    }
+    for k in [ConstraintKind::Distance, ConstraintKind::NoSideSlip] {
+        assert!(kinds.contains(&k.name()), "{k} not exercised");
     }
 }

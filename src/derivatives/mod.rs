@@ -20,8 +20,10 @@
 mod aba;
 mod constrained;
 mod data;
+mod kkt;
 mod rnea;
 mod rolling;
+mod rows;
 
 pub use aba::{aba_derivatives, inverse_mass_matrix};
 pub use constrained::constrained_dynamics_derivatives;
