@@ -362,13 +362,22 @@ fn constrained_derivatives_match_finite_differences_on_every_bundled_scene() {
 }
 
 /// Scenes for the kinds no bundled scene uses: a distance constraint closing the four-bar
-/// (the tip at 0.3 m from a world point) and a knife edge instead of the wheels of the diff
-/// drive (no side slip of base_link along its y axis).
+/// (the tip at 0.3 m from a world point), a knife edge instead of the wheels of the diff
+/// drive (no side slip of base_link along its y axis), and welds on the UR5 (tool0 to the
+/// world in world axes; tool0 to the moving upper arm in its local axes and in world axes).
 #[test]
-fn distance_and_knife_edge_derivatives_match_finite_differences() {
+fn distance_knife_edge_and_weld_derivatives_match_finite_differences() {
     let dir = std::env::temp_dir().join(format!("cd_dfd_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let urdf = |f: &str| repo_dir().join("urdf").join(f).display().to_string();
+    let ur5 = || {
+        reference_dir()
+            .join("urdf/ur5_robot.urdf")
+            .display()
+            .to_string()
+    };
+    // The UR5 reference case's first state (../shared/reference/cases/ur5_ee_point.json).
+    const UR5_Q: &str = "{shoulder_pan_joint: 1.27, shoulder_lift_joint: -4.08, elbow_joint: -1.74, wrist_1_joint: 4.27, wrist_2_joint: 1.75, wrist_3_joint: -3.32}";
     let scenes = [
         (
             "fourbar_distance",
@@ -384,6 +393,27 @@ fn distance_and_knife_edge_derivatives_match_finite_differences() {
                 urdf("diff_drive.urdf")
             ),
         ),
+        (
+            "ur5_weld_world",
+            format!(
+                "urdf: {}\nbase: fixed\ninitial_state:\n  q: {UR5_Q}\nconstraints:\n  - {{name: w, kind: weld, frame_a: tool0, rows: [x, y, z, rx, rz], relative_xyz: [0.3, 0.2, 0.4], relative_rpy: [0.1, 0.2, 0.3]}}\n",
+                ur5()
+            ),
+        ),
+        (
+            "ur5_weld_local_moving",
+            format!(
+                "urdf: {}\nbase: fixed\ninitial_state:\n  q: {UR5_Q}\nconstraints:\n  - {{name: w, kind: weld, frame_a: tool0, frame_b: upper_arm_link, axes: local, rows: [x, ry, rz], relative_xyz: [0.1, 0.0, 0.5]}}\n",
+                ur5()
+            ),
+        ),
+        (
+            "ur5_weld_world_moving",
+            format!(
+                "urdf: {}\nbase: fixed\ninitial_state:\n  q: {UR5_Q}\nconstraints:\n  - {{name: w, kind: weld, frame_a: tool0, frame_b: upper_arm_link, rows: [y, rx]}}\n",
+                ur5()
+            ),
+        ),
     ];
     let mut rng = Rng(0x1234_5678_9abc_def1);
     let mut kinds = Vec::new();
@@ -395,7 +425,11 @@ fn distance_and_knife_edge_derivatives_match_finite_differences() {
         eprintln!("{name}: worst {w:.2e}");
         kinds.extend(k);
     }
-    for k in [ConstraintKind::Distance, ConstraintKind::NoSideSlip] {
+    for k in [
+        ConstraintKind::Distance,
+        ConstraintKind::NoSideSlip,
+        ConstraintKind::Weld,
+    ] {
         assert!(kinds.contains(&k.name()), "{k} not exercised");
     }
 }

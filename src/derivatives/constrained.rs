@@ -1,8 +1,8 @@
 //! Derivatives of the constrained forward dynamics (multiplier form); the method is in the
 //! module doc of [`crate::derivatives`], each kind's part in rows.rs, the solve in kkt.rs.
 //!
-//! Constraint kinds with derivatives: point, distance, coupling/mimic, rolling and
-//! no-side-slip. Weld returns [`Error::Unsupported`] naming the constraint.
+//! Every constraint kind has derivatives: point, weld (world and local axes), distance,
+//! coupling/mimic, rolling and no-side-slip.
 
 use super::rnea::rnea_derivatives_with_point_forces;
 use super::{DerivativeData, kkt, rows};
@@ -41,10 +41,7 @@ pub fn constrained_dynamics_derivatives(
         if !rows::supported(c) {
             return Err(Error::Unsupported {
                 what: format!("derivatives of constraint '{}'", set.names[k]),
-                why: format!(
-                    "kind {} has no analytic derivatives yet (point, distance, coupling/mimic, rolling and no-side-slip have)",
-                    c.kind()
-                ),
+                why: format!("kind {} has no analytic derivatives yet", c.kind()),
             });
         }
     }

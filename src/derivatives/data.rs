@@ -139,6 +139,11 @@ impl DerivativeData {
         self.ext_pdotf.fill(0.0);
     }
 
+    /// Apply the world-axes pure moment `m` [N·m] to `body` (fixed in world axes).
+    pub(crate) fn add_moment(&mut self, body: usize, m: &Vector3<f64>) {
+        self.ext_m[body] += m;
+    }
+
     /// Apply the world-axes force `f` [N] at the world point `p` [m] of `body`; inverse dynamics
     /// then returns τ − (the generalized force of f), and its derivatives include f's lever arm
     /// moving with the body (f itself stays fixed in world axes).

@@ -24,6 +24,7 @@ mod kkt;
 mod rnea;
 mod rolling;
 mod rows;
+mod weld;
 
 pub use aba::{aba_derivatives, inverse_mass_matrix};
 pub use constrained::constrained_dynamics_derivatives;

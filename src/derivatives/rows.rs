@@ -12,6 +12,7 @@
 use super::DerivativeData;
 use super::rnea::{body_variation_q, body_variation_v};
 use super::rolling::RollingState;
+use super::weld::WeldState;
 use crate::algorithm::{Data, frame_placement, point_position};
 use crate::constraints::{Constraint, ConstraintData, ConstraintSet, RollingConstraint};
 use crate::dynamics::Baumgarte;
@@ -28,6 +29,7 @@ pub(crate) fn supported(c: &Constraint) -> bool {
             | Constraint::Rolling(_)
             | Constraint::Distance(_)
             | Constraint::NoSideSlip(_)
+            | Constraint::Weld(_)
     )
 }
 
@@ -198,14 +200,15 @@ pub(crate) fn register_constraint_forces(
                 let st = RollingState::new(model, data, dd, rc);
                 dd.add_point_force(st.body, &st.pc, &rolling_force(rc, lam));
             }
-            Constraint::Coupling(_) | Constraint::Weld(_) => {}
+            Constraint::Weld(w) => WeldState::new(model, data, dd, w).register(dd, w, lam),
+            Constraint::Coupling(_) => {}
         }
     }
 }
 
 /// −(S_i · W) for the coordinates above `body`, W = (δf, p × δf + δm): a variation of an applied
 /// force's direction (or point) that RNEA's material-point term did not include.
-fn subtract_force_variation(
+pub(crate) fn subtract_force_variation(
     model: &Model,
     dd: &mut DerivativeData,
     body: usize,
@@ -295,6 +298,9 @@ pub(crate) fn force_corrections(
                     let f = dd.o_s[j].ang.cross(&e) * lam[0];
                     subtract_force_variation(model, dd, body, j, Force::new(f, p.cross(&f)));
                 }
+            }
+            Constraint::Weld(w) => {
+                WeldState::new(model, data, dd, w).corrections(model, dd, w, lam);
             }
             _ => {}
         }
@@ -431,7 +437,17 @@ pub(crate) fn row_derivatives(
                     }
                 }
             }
-            Constraint::Weld(_) => unreachable!("checked by constrained_dynamics_derivatives"),
+            Constraint::Weld(w) => {
+                let st = WeldState::new(model, data, dd, w);
+                for j in 0..model.nv {
+                    let xq = st.variation(model, dd, j, true, kp, kd);
+                    let xv = st.variation(model, dd, j, false, 0.0, kd);
+                    for (r, &row) in w.rows.iter().enumerate() {
+                        dd.rows_dq[(r0 + r, j)] = xq[row / 3][row % 3];
+                        dd.rows_dv[(r0 + r, j)] = xv[row / 3][row % 3];
+                    }
+                }
+            }
         }
     }
 }
