@@ -1,5 +1,6 @@
 //! `constraint_dynamics`: inspect a scene from the command line (JSON on stdout).
 
+mod covariance;
 mod eval;
 mod linearize;
 mod predict;
