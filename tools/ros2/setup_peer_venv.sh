@@ -26,6 +26,9 @@ PEER_PINS=(
     ros-geometry-msgs==5.5.1
     ros-sensor-msgs==5.5.1
     ros-std-srvs==5.5.1
+    ros-visualization-msgs==5.5.1
+    ros-diagnostic-msgs==5.5.1
+    ros-lifecycle-msgs==2.3.0
     cyclonedds==11.0.1
 )
 BUILD_PINS=(
@@ -100,7 +103,7 @@ PATH="$VENV/bin:$PATH" "$VENV/bin/cmake" --build "$BUILD" -j2 > "$BUILD/build.lo
 "$VENV/bin/cmake" --install "$BUILD" > /dev/null
 
 # Check that the venv's python can import it (no DDS participant is opened).
-"$VENV/bin/python" -c 'from constraint_dynamics_msgs.msg import ConstraintForces; from constraint_dynamics_msgs.srv import GetConstraintForces, ProjectVelocity, Predict; import rclpy, cyclonedds'
+"$VENV/bin/python" -c 'from constraint_dynamics_msgs.msg import ConstraintForces; from constraint_dynamics_msgs.srv import GetConstraintForces, ProjectVelocity, Predict; import rclpy, cyclonedds; from visualization_msgs.msg import MarkerArray; from lifecycle_msgs.srv import ChangeState; from diagnostic_msgs.msg import DiagnosticArray'
 
 printf '%s\n' "$WANT" > "$STAMP"
 t1=$(date +%s.%N)
