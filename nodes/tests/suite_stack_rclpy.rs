@@ -10,7 +10,8 @@
 //!   stamps = sim time + horizon;
 //! - `visualization_msgs/MarkerArray` decoded by rclpy: force arrows at the URDF's contact
 //!   points, = 0.01 m/N × the `ConstraintForces` of the same stamp, red iff slipping; the
-//!   footprint along the path from the odometry pose;
+//!   footprint along the path from the odometry pose; the wheel's `WrenchStamped` in its own
+//!   frame;
 //! - `/diagnostics` (decoded by rclpy): every node OK, the predictor WARN when odometry stops.
 //!
 //! Needs root and the peer venv: `#[ignore]`d in a plain `cargo test`, run by
@@ -45,6 +46,8 @@ fn rclpy_stack_drives_the_lifecycle_reads_markers_and_commands() {
             "use_sim_time:=true",
             "-p",
             "autostart:=false",
+            "-p",
+            "cd_predictor:markers.wrenches:=true",
         ],
         "stack_rclpy",
     );

@@ -36,7 +36,7 @@ from rclpy.node import Node
 from builtin_interfaces.msg import Time
 from constraint_dynamics_msgs.msg import ConstraintForces
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from geometry_msgs.msg import Twist, TwistStamped
+from geometry_msgs.msg import Twist, TwistStamped, WrenchStamped
 from lifecycle_msgs.msg import Transition, TransitionEvent
 from lifecycle_msgs.srv import ChangeState, GetAvailableStates, GetAvailableTransitions, GetState
 from nav_msgs.msg import Odometry
@@ -81,12 +81,15 @@ class Stack(Node):
         self.stamped = True
         self.create_timer(0.01, self.tick)
         self.odom, self.markers, self.forces, self.diags = [], [], [], []
+        self.wrenches = []
         self.events = {n: [] for n in NODES}
         p = NS + "/cd_predictor/"
         self.create_subscription(Odometry, p + "predicted_odom", self.odom.append, 10)
         self.create_subscription(MarkerArray, p + "markers", self.markers.append, 10)
         self.create_subscription(ConstraintForces, p + "constraint_forces", self.forces.append, 10)
         self.create_subscription(DiagnosticArray, "/diagnostics", self.diags.append, 50)
+        self.create_subscription(WrenchStamped, p + "wrench/left_wheel_contact",
+                                 self.wrenches.append, 10)
         for n in NODES:
             self.create_subscription(TransitionEvent, f"{NS}/{n}/transition_event",
                                      self.events[n].append, 10)
@@ -246,6 +249,20 @@ def phase_markers(peer):
         FIGURES["footprint first corner vs odometry pose + vertex [m]"] = e
         check("footprint starts at the base pose", e <= 1e-14, e)  # achieved 8.3e-17 m
     FIGURES["markers in the array"] = len(array.markers)
+    # markers.wrenches: the wheel's wrench in its own frame about its origin. At the start
+    # state the wheel angle is 0 (joint_states) and the yaw 0 (odometry): the wheel's axes are
+    # the odom axes, so it equals the ConstraintForce's wrench (odom axes, about the same origin).
+    w = next((w for w in peer.wrenches if stamp_ns(w.header.stamp) == stamp_ns(cf.header.stamp)),
+             None)
+    if check("a WrenchStamped of the same stamp", w is not None, len(peer.wrenches)):
+        c = cf.constraints[0]
+        check("wrench frame = the wheel link", w.header.frame_id == "left_wheel",
+              w.header.frame_id)
+        a, b = w.wrench, c.wrench
+        e = max(abs(getattr(getattr(a, k), i) - getattr(getattr(b, k), i))
+                for k in ("force", "torque") for i in "xyz")
+        FIGURES["WrenchStamped vs ConstraintForce wrench (wheel at angle 0) [N, N m]"] = e
+        check("wrench = the constraint force's", e <= 1e-12, e)
 
 
 def phase_twist(peer):
