@@ -336,8 +336,9 @@ impl<N: RosWiring> Managed<N> {
         let Some(c) = self.configured.as_mut() else {
             return Err(LifecycleError::NotConfigured.into());
         };
-        // Outputs of a tick before a deactivation are stale now.
+        // Outputs and statuses from before a deactivation are stale now.
         while c.outputs.try_recv().is_ok() {}
+        while c.statuses.try_recv().is_ok() {}
         let statuses = c.statuses.clone();
         let mut tasks = Vec::new();
         let mut followed = None;
