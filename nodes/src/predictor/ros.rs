@@ -3,6 +3,9 @@
 
 use std::collections::HashMap;
 
+use ros2_client::Gid;
+use ros2_client::dds::rustdds::{DomainParticipant, GUID, RTPSEntity};
+
 use super::markers::topic_token;
 use super::{PredictorInput, PredictorNode};
 use crate::error::NodeError;
@@ -14,7 +17,76 @@ use crate::node::wiring::{Followed, RosWiring, Wiring, forward};
 use crate::node::worker::Event;
 use crate::params::CommandMsg;
 use crate::ros::context::qos;
-use crate::ros::io::subscribe;
+use crate::ros::logging::NodeLog;
+
+/// Takes commands from the writers that announce type `want` only, handing each to `f`.
+///
+/// Why: RustDDS matches a reader with every writer on its topic whatever its type (Fast DDS and
+/// Cyclone compare type names), so a `Twist` reader would decode the bytes of a RustDDS
+/// `TwistStamped` publisher as a wrong but finite `Twist`. Each writer's announced type is
+/// looked up once in discovery; messages of other types are dropped with one warning per writer.
+/// Writers of this process (the suite's command filter) are not in discovery: they are trusted
+/// to publish the type their node is configured with.
+async fn typed_commands<M: serde::de::DeserializeOwned + 'static>(
+    sub: ros2_client::Subscription<M>,
+    participant: DomainParticipant,
+    want: CommandMsg,
+    log: NodeLog,
+    mut f: impl FnMut(M),
+) {
+    let mut verdicts: HashMap<Gid, bool> = HashMap::new();
+    let own_prefix = participant.guid().prefix;
+    let mut errors = 0u64;
+    loop {
+        let (m, info) = match sub.async_take().await {
+            Ok(x) => x,
+            Err(e) => {
+                errors += 1;
+                if errors == 1 || errors.is_power_of_two() {
+                    log.warn(&format!(
+                        "dropped an undecodable command ({errors} so far): {e:?}"
+                    ));
+                }
+                smol::Timer::after(std::time::Duration::from_millis(1)).await;
+                continue;
+            }
+        };
+        let gid = info.publisher_gid();
+        let ok = match verdicts.get(&gid) {
+            Some(&ok) => ok,
+            None => {
+                let announced = participant
+                    .discovered_writers()
+                    .into_iter()
+                    .map(|d| d.publication_topic_data)
+                    .find(|t| Gid::from(t.key) == gid)
+                    .map(|t| t.type_name);
+                let Some(announced) = announced else {
+                    // Discovery lists other participants' writers only. One of this process
+                    // (a command filter of the suite) publishes the type it is configured
+                    // with: trusted. Another not discovered yet: drop, ask on the next.
+                    if GUID::from(gid).prefix == own_prefix {
+                        verdicts.insert(gid, true);
+                        f(m);
+                    }
+                    continue;
+                };
+                let ok = announced == want.dds_type();
+                if !ok {
+                    log.warn(&format!(
+                        "command input: ignoring a publisher of {announced} while following {}",
+                        want.ros_type()
+                    ));
+                }
+                verdicts.insert(gid, ok);
+                ok
+            }
+        };
+        if ok {
+            f(m);
+        }
+    }
+}
 
 impl RosWiring for PredictorNode {
     fn wire(w: &mut Wiring<Self>) -> Result<(), NodeError> {
@@ -123,20 +195,23 @@ impl RosWiring for PredictorNode {
         *slot = None;
         let tx = w.tx.clone();
         let log = w.log.clone();
+        let participant = w.context.domain_participant();
         let task = match want {
             CommandMsg::TwistStamped => {
                 let sub = w
                     .ros
                     .subscription::<TwistStamped>(&topic, &qos::sensor_data())?;
-                w.ros.spawn(subscribe(sub, log, move |m: TwistStamped| {
-                    forward(&tx, Event::Node(PredictorInput::Command(m.twist)))
-                }))
+                w.ros
+                    .spawn(typed_commands(sub, participant, want, log, move |m| {
+                        forward(&tx, Event::Node(PredictorInput::Command(m.twist)))
+                    }))
             }
             CommandMsg::Twist => {
                 let sub = w.ros.subscription::<Twist>(&topic, &qos::sensor_data())?;
-                w.ros.spawn(subscribe(sub, log, move |m: Twist| {
-                    forward(&tx, Event::Node(PredictorInput::Command(m)))
-                }))
+                w.ros
+                    .spawn(typed_commands(sub, participant, want, log, move |m| {
+                        forward(&tx, Event::Node(PredictorInput::Command(m)))
+                    }))
             }
         };
         let why = match (forced, published.is_empty()) {
