@@ -249,11 +249,17 @@ impl<N: NodeLogic> Worker<N> {
             tick: self.logic.tick_period().map(RosTimer::new),
         };
         loop {
-            let timeout = timers
-                .tick
-                .as_ref()
-                .map_or(Duration::from_secs(3600), |t| t.wait(sim))
-                .min(timers.diag.wait(sim));
+            // Inactive: only events wake the worker (its timers are not advanced, so waiting
+            // for them would spin).
+            let idle = Duration::from_secs(3600);
+            let timeout = match self.active {
+                true => timers
+                    .tick
+                    .as_ref()
+                    .map_or(idle, |t| t.wait(sim))
+                    .min(timers.diag.wait(sim)),
+                false => idle,
+            };
             match rx.recv_timeout(timeout) {
                 Ok(ev) => {
                     if self.apply(ev, &mut timers) {
