@@ -6,7 +6,7 @@
 //! welded to a real body: only the merged body moves. Such links give a warning; a moving body
 //! whose merged inertia is not physical is an error naming it, its links and its moments.
 
-use super::Model;
+use super::{Model, SingularJoint};
 use crate::spatial::Inertia;
 use nalgebra::{DMatrix, Matrix3, Matrix6, SymmetricEigen};
 
@@ -138,4 +138,71 @@ pub(super) fn describe(i: &Inertia) -> String {
         "mass {:.4e} kg, principal moments {:.3e}, {:.3e}, {:.3e} kg·m²",
         i.mass, ev[0], ev[1], ev[2]
     )
+}
+
+/// Find whether M is singular or nearly so (at the neutral configuration and at a
+/// generic one, so that a coincidental alignment alone does not decide), naming the joint:
+/// a joint that moves no mass, or whose effective inertia with the joints below it free is
+/// below `MIN_PIVOT_RATIO` of its locked inertia.
+pub(super) fn singular_joint(m: &Model, file: &str) -> Option<SingularJoint> {
+    if m.nv == 0 {
+        return None;
+    }
+    let masses = subtree_mass(m);
+    let mut generic = m.neutral();
+    for b in m.bodies.iter().skip(1) {
+        let j = &b.joint;
+        if j.kind.nq() == 1 {
+            // Irrational-looking angles, different per joint, inside most limits.
+            generic[j.idx_q] = 0.3 + 0.137 * ((j.idx_q * 7919) % 11) as f64 / 11.0;
+        }
+    }
+    let mut worst: Option<(usize, f64, f64)> = None;
+    for q in [m.neutral(), generic] {
+        let ratios = pivot_ratios(m, &q);
+        let Some(&(i, r, c)) = ratios.first() else {
+            continue;
+        };
+        if r >= MIN_PIVOT_RATIO {
+            return None;
+        }
+        if worst.is_none_or(|w| r > w.1) {
+            worst = Some((i, r, c));
+        }
+    }
+    let (i, ratio, c) = worst?;
+    let body = &m.bodies[i];
+    let moved: Vec<&str> = m
+        .frames
+        .iter()
+        .filter(|f| {
+            let mut b = f.body;
+            while b != 0 && b != i {
+                b = m.bodies[b].parent;
+            }
+            b == i && f.body != 0
+        })
+        .map(|f| f.name.as_str())
+        .collect();
+    let message = if masses[i] <= 0.0 || c <= 0.0 {
+        format!(
+            "moves no mass: its links {} are all massless, so M is singular (give them \
+             mass and inertia, or declare the joint fixed or locked)",
+            moved.join(", ")
+        )
+    } else {
+        format!(
+            "the joint-space inertia matrix is singular to working precision here: with the \
+             joints below it free this joint moves an effective inertia of {ratio:.1e} of \
+             its locked inertia {c:.3e} (limit {MIN_PIVOT_RATIO:e}), so q̈ would be rounding \
+             noise; links moved: {} (point masses or massless links on several joints; \
+             give them rotational inertia, or lock joints)",
+            moved.join(", ")
+        )
+    };
+    Some(SingularJoint {
+        file: file.to_string(),
+        joint: body.joint.name.clone(),
+        message,
+    })
 }
