@@ -17,6 +17,7 @@ pub mod constraints;
 pub mod dynamics;
 pub mod error;
 pub mod forces;
+pub mod limits;
 pub mod linalg;
 pub mod model;
 pub mod predict;

@@ -84,20 +84,17 @@ impl DynamicsSettings {
                     "dynamics: give baumgarte_time_constant or baumgarte gains, not both".into(),
                 ));
             }
-            (Some(t), None) if !(t.is_finite() && t > 0.0) => {
-                return Err(Error::Invalid(format!(
-                    "dynamics.baumgarte_time_constant = {t} s must be positive"
-                )));
+            (Some(t), None) => {
+                let (lo, hi) = crate::limits::BAUMGARTE_TIME_CONSTANT;
+                crate::limits::check_range("dynamics.baumgarte_time_constant", t, lo, hi, "s")?;
+                Baumgarte::from_time_constant(t)
             }
-            (Some(t), None) => Baumgarte::from_time_constant(t),
-            (None, Some(g))
-                if !(g.kp >= 0.0 && g.kd >= 0.0 && g.kp.is_finite() && g.kd.is_finite()) =>
-            {
-                return Err(Error::Invalid(
-                    "dynamics.baumgarte gains must be finite and ≥ 0".into(),
-                ));
+            (None, Some(g)) => {
+                let (kp, kd) = crate::limits::MAX_BAUMGARTE_GAINS;
+                crate::limits::check_range("dynamics.baumgarte.kp", g.kp, 0.0, kp, "1/s²")?;
+                crate::limits::check_range("dynamics.baumgarte.kd", g.kd, 0.0, kd, "1/s")?;
+                g
             }
-            (None, Some(g)) => g,
             (None, None) => Baumgarte::default(),
         };
         Ok((b, self.formulation))

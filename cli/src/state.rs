@@ -29,9 +29,17 @@ pub fn load(scene: &Scene, path: Option<&Path>) -> Result<(Vec<f64>, Vec<f64>, V
         file: path.display().to_string(),
         message: e.to_string(),
     })?;
-    Ok((
+    let (q, v, tau) = (
         s.q,
         s.v.unwrap_or_else(|| vec![0.0; nv]),
         s.tau.unwrap_or_else(|| vec![0.0; nv]),
-    ))
+    );
+    // Sizes, finiteness and the documented magnitudes (limits::MAX_STATE), naming the file.
+    constraint_dynamics::limits::check_input_state(&scene.model, &q, &v, &tau).map_err(|e| {
+        Error::Scene {
+            file: path.display().to_string(),
+            message: e.to_string(),
+        }
+    })?;
+    Ok((q, v, tau))
 }

@@ -91,6 +91,16 @@ impl<'a> Builder<'a> {
             element,
             message,
         };
+        let g = opts.gravity.norm();
+        if !g.is_finite() || g > crate::limits::MAX_GRAVITY {
+            return Err(Error::Invalid(format!(
+                "gravity = [{}, {}, {}] m/s²: |g| must be finite and at most {:e} m/s²",
+                opts.gravity.x,
+                opts.gravity.y,
+                opts.gravity.z,
+                crate::limits::MAX_GRAVITY
+            )));
+        }
         let mut link_names: HashMap<&str, usize> = HashMap::new();
         let mut link_defects = Vec::with_capacity(robot.links.len());
         for (i, l) in robot.links.iter().enumerate() {

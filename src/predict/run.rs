@@ -28,6 +28,8 @@ struct Workspace {
     tau: Vec<f64>,
     tau_act: Vec<f64>,
     zero: Vec<f64>,
+    /// Work units of one dynamics evaluation (`limits::evaluation_cost`).
+    cost: f64,
 }
 
 /// The right-hand side: held actuator torques + force elements → constrained q̈.
@@ -130,6 +132,7 @@ impl Predictor {
             tau: vec![0.0; nv],
             tau_act: vec![0.0; nv],
             zero: vec![0.0; nv],
+            cost: crate::limits::evaluation_cost(&model),
         };
         Ok(Self {
             sys,
@@ -167,12 +170,13 @@ impl Predictor {
         opts: PredictOptions,
     ) -> Result<Trajectory> {
         let start = Instant::now();
-        self.model.check_state(q0, v0)?;
+        crate::limits::check_input_state(&self.model, q0, v0, &self.ws.zero)?;
         if !(horizon.is_finite() && horizon >= 0.0) {
             return Err(Error::Invalid(format!(
                 "horizon = {horizon} s must be finite and ≥ 0"
             )));
         }
+        self.check_work(horizon)?;
         for (t, c) in commands {
             crate::error::check_finite("command time", &[*t])?;
             self.actuators.check_command(c)?;
@@ -284,6 +288,36 @@ impl Predictor {
         Ok(traj)
     }
 
+    /// Bounded work, before running: steps, control ticks and samples (`check_counts`), and
+    /// the work of the fixed-step methods: steps × evaluations per step × the model's cost.
+    fn check_work(&self, horizon: f64) -> Result<()> {
+        let s = &self.settings;
+        let control = (!self.actuators.is_empty()).then_some(self.actuators.control_period);
+        s.check_counts(horizon, control)?;
+        let per_step = match s.method {
+            Method::SemiImplicitEuler => 1.0,
+            Method::Rk4 => 4.0,
+            // Adaptive or iterative: counted while running (`advance`).
+            Method::Dopri5 | Method::Sdirk2 => return Ok(()),
+        };
+        let steps = (horizon / s.dt).ceil();
+        let work = steps * per_step * crate::limits::evaluation_cost(&self.model);
+        if work > s.max_work {
+            return Err(Error::WorkLimit {
+                what: format!(
+                    "work units ({steps:e} steps × {per_step} evaluations × {:.3e} per evaluation \
+                     of this {}-body model)",
+                    crate::limits::evaluation_cost(&self.model),
+                    self.model.nbodies() - 1
+                ),
+                estimate: work,
+                limit: s.max_work,
+                hint: "shorten the horizon, raise dt, or raise integration.max_work".into(),
+            });
+        }
+        Ok(())
+    }
+
     /// The energy check runs for passive, conservative scenes stepped by a fixed explicit method.
     fn energy_guard_applies(&self, s: &IntegrationSettings) -> bool {
         matches!(s.method, Method::SemiImplicitEuler | Method::Rk4)
@@ -305,6 +339,7 @@ impl Predictor {
         s: &IntegrationSettings,
     ) -> Result<()> {
         let (t0, t1) = span;
+        let cost = self.ws.cost;
         let model = &self.model;
         let ws = &mut self.ws;
         let mut rhs = Rhs {
@@ -374,6 +409,26 @@ impl Predictor {
                 }
                 t += dt;
                 traj.steps += 1;
+                // Adaptive and implicit methods take as many steps and evaluations as the
+                // problem asks: bounded while running.
+                let work = (traj.evaluations + rhs.evaluations) as f64 * cost;
+                if traj.steps as f64 > s.max_steps || work > s.max_work {
+                    return Err(Error::WorkLimit {
+                        what: format!(
+                            "steps ({}) or work units ({work:.3e}) at t = {t} s",
+                            traj.steps
+                        ),
+                        estimate: (traj.steps as f64).max(work),
+                        limit: if traj.steps as f64 > s.max_steps {
+                            s.max_steps
+                        } else {
+                            s.max_work
+                        },
+                        hint: "loosen rtol, shorten the horizon, or raise integration.max_steps \
+                               / max_work"
+                            .into(),
+                    });
+                }
                 if s.drift == DriftControl::Projection {
                     ws.proj.project(rhs.sys, q, v, true)?;
                 }
@@ -459,6 +514,21 @@ impl Predictor {
             ),
             None => (None, None, None, None),
         };
+        let energies = [ke, pe, position_residual, velocity_residual];
+        if let Some((what, x)) = [
+            ("q", q),
+            ("v", v),
+            ("energies and residuals", &energies[..]),
+        ]
+        .into_iter()
+        .find(|(_, x)| x.iter().any(|y| !y.is_finite()))
+        {
+            crate::error::check_output(
+                &format!("sample at t = {t} s: {what}"),
+                x,
+                "the state overflows the arithmetic; see the input ranges in README.md",
+            )?;
+        }
         Ok(Sample {
             t,
             q: q.to_vec(),
