@@ -23,6 +23,7 @@ pub mod model;
 pub mod predict;
 pub mod projection;
 pub mod scene;
+mod scene_errors;
 pub mod spatial;
 pub mod system;
 

@@ -126,7 +126,12 @@ impl Scene {
         })?;
         let file: SceneFile = serde_yaml::from_str(&text).map_err(|e| Error::Scene {
             file: path.display().to_string(),
-            message: e.to_string(),
+            message: match e.to_string() {
+                m if m.starts_with("constraints") => {
+                    crate::scene_errors::locate_constraint_error(&text).unwrap_or(m)
+                }
+                m => m,
+            },
         })?;
         let urdf = path.parent().unwrap_or(Path::new(".")).join(&file.urdf);
         let urdf_text = std::fs::read_to_string(&urdf).map_err(|e| Error::Io {

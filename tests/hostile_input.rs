@@ -144,3 +144,39 @@ fn a_1000_link_chain_is_refused_by_the_work_budget() {
     assert_has(&e, &["work units", "1000-body", "integration.max_work"]);
     assert!(t.elapsed().as_secs_f64() < 0.5);
 }
+
+/// serde reads tagged constraint kinds through a buffer: its message pointed at the list's
+/// first line with no index or field. Now: entry, name, field and line.
+#[test]
+fn constraint_errors_name_the_entry_field_and_line() {
+    let dd = urdf("diff_drive.urdf");
+    let head = format!(
+        "urdf: {dd}\nbase: planar\nconstraints:\n  - {{name: a, kind: rolling, wheel: left_wheel, axis: [0,1,0], radius: 0.05}}\n  - name: w\n    kind: rolling\n    wheel: left_wheel\n    axis: [0, 1, 0]\n"
+    );
+    let e = system_err("c1.yaml", &format!("{head}    radius: abc\n"));
+    assert_has(
+        &e,
+        &["constraints[1] 'w'", "field `radius`", "line 9", "\"abc\""],
+    );
+    let e = system_err(
+        "c2.yaml",
+        &format!("{head}    radius: 0.05\n    radus: 2\n"),
+    );
+    assert_has(
+        &e,
+        &[
+            "constraints[1] 'w'",
+            "field `radus`",
+            "line 10",
+            "unknown field",
+        ],
+    );
+    let e = system_err(
+        "c3.yaml",
+        &format!(
+            "{}    radius: 0.05\n",
+            head.replace("radius: 0.05}", "radius: x}")
+        ),
+    );
+    assert_has(&e, &["constraints[0] 'a'", "field `radius`", "line 4"]);
+}
