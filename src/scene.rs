@@ -6,7 +6,7 @@ use crate::constraints::ConstraintSpec;
 use crate::dynamics::{Baumgarte, Formulation};
 use crate::error::{Error, Result};
 use crate::forces::ForcesSpec;
-use crate::model::{BaseType, Model, ModelOptions};
+use crate::model::{BaseType, InertiaPolicy, Model, ModelOptions};
 use crate::predict::IntegrationSettings;
 use nalgebra::Vector3;
 use serde::Deserialize;
@@ -58,6 +58,19 @@ pub struct SceneFile {
     /// `actuators:` actuator models (default none).
     #[serde(default)]
     pub actuators: ActuatorsSpec,
+    /// `model:` how the URDF is read (default: inertias checked, not repaired).
+    #[serde(default)]
+    pub model: ModelSettings,
+}
+
+/// `model:` in a scene.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelSettings {
+    /// `inertia:` `check` (refuse a moving body whose merged inertia is not physical) or
+    /// `repair` (use the nearest physical tensor, reported in the model's warnings).
+    #[serde(default)]
+    pub inertia: InertiaPolicy,
 }
 
 /// How the constrained dynamics is solved.
@@ -163,6 +176,7 @@ impl Scene {
                 .iter()
                 .map(|(k, v)| (k.clone(), *v))
                 .collect(),
+            inertia: file.model.inertia,
         };
         let model = Model::from_urdf_str(urdf_text, urdf_name, &opts)?;
         let mut q0 = model.neutral();

@@ -169,3 +169,27 @@ fn a_5000_link_chain_loads() {
     assert_eq!(m.nv, 6 + n / 2);
     assert_eq!(m.frames.len(), n + 2);
 }
+
+/// `model.inertia: repair`: a moving body with moments (a, b, c) = (0.1, 0.1, 0.5) kg·m²
+/// (excess δ = c − a − b = 0.3) becomes (0.2, 0.2, 0.4): the orthogonal projection onto the
+/// face c = a + b, closed form (a + δ/3, b + δ/3, c − δ/3).
+#[test]
+fn inertia_repair_is_opt_in_and_gives_the_nearest_physical_tensor() {
+    let bad = ARM.replace("izz=\"0.1\"", "izz=\"0.5\"");
+    let e = load(&bad).unwrap_err();
+    assert_has(&e, &["link 'arm'", "triangle inequality", "model.inertia: repair"]);
+    let opts = ModelOptions {
+        inertia: constraint_dynamics::model::InertiaPolicy::Repair,
+        ..Default::default()
+    };
+    let m = Model::from_urdf_str(&bad, "t.urdf", &opts).unwrap();
+    let i = m.bodies[1].inertia.inertia_com;
+    let want = [0.2, 0.2, 0.4];
+    for k in 0..3 {
+        assert!((i[(k, k)] - want[k]).abs() < 1e-15, "{i}");
+    }
+    assert_has(&m.warnings.join(" "), &["repaired", "link 'arm'"]);
+    // The scene key.
+    let sys = scene_with(&bad, "model: {inertia: repair}\n").unwrap();
+    assert_eq!(sys.model.warnings.len(), 1);
+}

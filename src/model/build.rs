@@ -31,6 +31,21 @@ pub struct ModelOptions {
     pub gravity: Vector3<f64>,
     /// Joints held at a position [rad or m]: merged like fixed joints, so they cost nothing.
     pub locked_joints: Vec<(String, f64)>,
+    /// What to do with a moving body whose merged inertia is not physical (default: refuse).
+    pub inertia: InertiaPolicy,
+}
+
+/// `model.inertia:` in a scene.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InertiaPolicy {
+    /// Refuse the model, naming the body, its links and its principal moments.
+    #[default]
+    Check,
+    /// Replace the body's rotational inertia by the nearest physical one (same principal axes;
+    /// negative moments to 0, then the largest moved down and the others up by a third of the
+    /// triangle-inequality excess each) and report it in `Model::warnings`.
+    Repair,
 }
 
 impl Default for ModelOptions {
@@ -39,6 +54,7 @@ impl Default for ModelOptions {
             base: BaseType::Fixed,
             gravity: Vector3::new(0.0, 0.0, -9.81),
             locked_joints: vec![],
+            inertia: InertiaPolicy::Check,
         }
     }
 }
@@ -352,6 +368,20 @@ impl<'a> Builder<'a> {
                 )
                 .is_some()
             {
+                if self.opts.inertia == InertiaPolicy::Repair {
+                    let before = check::describe(&self.model.bodies[body].inertia);
+                    let b = &mut self.model.bodies[body].inertia;
+                    b.inertia_com = check::nearest_physical(&b.inertia_com);
+                    self.model.warnings.push(format!(
+                        "{}: link '{l}' ({defect}): the moving body of joint '{}' was repaired \
+                         (model.inertia: repair): {before} → {}",
+                        self.file,
+                        self.model.bodies[body].joint.name,
+                        check::describe(&self.model.bodies[body].inertia),
+                        l = l.name,
+                    ));
+                    continue;
+                }
                 let element = if links.len() == 1 {
                     format!("link '{}'", l.name)
                 } else {
@@ -366,7 +396,8 @@ impl<'a> Builder<'a> {
                     file: self.file.to_string(),
                     element,
                     message: format!(
-                        "{defect}; the merged body ({}) is not physical either",
+                        "{defect}; the merged body ({}) is not physical either (fix the URDF, or \
+                         set model.inertia: repair in the scene for the nearest physical tensor)",
                         check::describe(&self.model.bodies[body].inertia)
                     ),
                 });

@@ -44,6 +44,26 @@ pub(super) fn inertia_defect(mass: f64, inertia_com: &Matrix3<f64>) -> Option<St
     None
 }
 
+/// The nearest physical rotational inertia with the same principal axes: negative moments
+/// raised to 0, then a triangle excess δ = c − a − b > 0 removed by moving (a, b, c) by
+/// (δ/3, δ/3, −δ/3), the orthogonal projection onto the face c = a + b.
+pub(super) fn nearest_physical(inertia_com: &Matrix3<f64>) -> Matrix3<f64> {
+    let e = SymmetricEigen::new(*inertia_com);
+    let mut m: Vec<f64> = e.eigenvalues.iter().map(|x| x.max(0.0)).collect();
+    let (hi, _) = m.iter().enumerate().fold(
+        (0, f64::MIN),
+        |acc, (i, &x)| if x > acc.1 { (i, x) } else { acc },
+    );
+    let excess = m[hi] - (m.iter().sum::<f64>() - m[hi]);
+    if excess > 0.0 {
+        for (i, x) in m.iter_mut().enumerate() {
+            *x += if i == hi { -excess / 3.0 } else { excess / 3.0 };
+        }
+    }
+    let d = Matrix3::from_diagonal(&nalgebra::Vector3::new(m[0], m[1], m[2]));
+    e.eigenvectors * d * e.eigenvectors.transpose()
+}
+
 /// The links (frames) of each body, in file order.
 pub(super) fn links_of(model: &Model, body: usize) -> Vec<&str> {
     model

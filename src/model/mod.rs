@@ -12,7 +12,7 @@ mod joint;
 mod urdf_text;
 
 pub use base::{BasePose, BaseTwist, TWIST_TOLERANCE};
-pub use build::{BaseType, ModelOptions};
+pub use build::{BaseType, InertiaPolicy, ModelOptions};
 pub use check::{MIN_PIVOT_RATIO, pivot_ratios};
 pub use joint::JointKind;
 pub use urdf_text::MAX_URDF_MAGNITUDE;
