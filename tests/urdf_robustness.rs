@@ -177,7 +177,10 @@ fn a_5000_link_chain_loads() {
 fn inertia_repair_is_opt_in_and_gives_the_nearest_physical_tensor() {
     let bad = ARM.replace("izz=\"0.1\"", "izz=\"0.5\"");
     let e = load(&bad).unwrap_err();
-    assert_has(&e, &["link 'arm'", "triangle inequality", "model.inertia: repair"]);
+    assert_has(
+        &e,
+        &["link 'arm'", "triangle inequality", "model.inertia: repair"],
+    );
     let opts = ModelOptions {
         inertia: constraint_dynamics::model::InertiaPolicy::Repair,
         ..Default::default()
