@@ -3,7 +3,7 @@
 use constraint_dynamics::applied::{applied_generalized_force, constraint_forces_at};
 use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::forces::ForceElements;
-use constraint_dynamics::{Result, Scene, System};
+use constraint_dynamics::{Result, System};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 
@@ -24,7 +24,7 @@ pub struct EvalArgs {
 }
 
 pub fn run(a: EvalArgs) -> Result<Value> {
-    let scene = Scene::load(&a.scene)?;
+    let scene = super::state::load_scene(&a.scene)?;
     let mut sys = System::from_scene(&scene)?;
     sys.formulation = match a.formulation.as_str() {
         "auto" => Formulation::Auto,

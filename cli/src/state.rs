@@ -15,6 +15,16 @@ pub struct StateFile {
     pub tau: Option<Vec<f64>>,
 }
 
+/// Load a scene, printing what the loader accepted but a user should know (a non-physical
+/// inertia on a welded link, a repaired body) to stderr, one `warning:` line each.
+pub fn load_scene(path: &Path) -> Result<Scene> {
+    let scene = Scene::load(path)?;
+    for w in &scene.model.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(scene)
+}
+
 /// (q, v, τ) from `path`, or the scene's initial state.
 pub fn load(scene: &Scene, path: Option<&Path>) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>)> {
     let nv = scene.model.nv;
