@@ -264,7 +264,13 @@ impl<'a> Builder<'a> {
                 });
             }
         }
-        self.check_bodies()?;
+        check::bodies(
+            &mut self.model,
+            &self.robot.links,
+            &self.link_defects,
+            self.opts.inertia,
+            self.file,
+        )?;
         self.model.singular = check::singular_joint(&self.model, self.file);
         Ok(self.model)
     }
@@ -344,74 +350,6 @@ impl<'a> Builder<'a> {
                     }
                 }
             }
-        }
-        Ok(())
-    }
-
-    /// Judge what moves: each moving body's merged inertia must be physical (an error naming
-    /// the body, its links and its moments); a link whose own inertia is not physical but that
-    /// is welded to a sound body, or to the world, is a warning naming it.
-    fn check_bodies(&mut self) -> Result<()> {
-        for (li, l) in self.robot.links.iter().enumerate() {
-            let Some(defect) = &self.link_defects[li] else {
-                continue;
-            };
-            let Some(f) = self.model.frames.iter().find(|f| f.name == l.name) else {
-                continue;
-            };
-            let body = f.body;
-            let links = check::links_of(&self.model, body);
-            if body != 0
-                && check::inertia_defect(
-                    self.model.bodies[body].inertia.mass,
-                    &self.model.bodies[body].inertia.inertia_com,
-                )
-                .is_some()
-            {
-                if self.opts.inertia == InertiaPolicy::Repair {
-                    let before = check::describe(&self.model.bodies[body].inertia);
-                    let b = &mut self.model.bodies[body].inertia;
-                    b.inertia_com = check::nearest_physical(&b.inertia_com);
-                    self.model.warnings.push(format!(
-                        "{}: link '{l}' ({defect}): the moving body of joint '{}' was repaired \
-                         (model.inertia: repair): {before} → {}",
-                        self.file,
-                        self.model.bodies[body].joint.name,
-                        check::describe(&self.model.bodies[body].inertia),
-                        l = l.name,
-                    ));
-                    continue;
-                }
-                let element = if links.len() == 1 {
-                    format!("link '{}'", l.name)
-                } else {
-                    format!(
-                        "link '{}' (moving body of joint '{}' with welded links {})",
-                        l.name,
-                        self.model.bodies[body].joint.name,
-                        links.join(", ")
-                    )
-                };
-                return Err(Error::Urdf {
-                    file: self.file.to_string(),
-                    element,
-                    message: format!(
-                        "{defect}; the merged body ({}) is not physical either (fix the URDF, or \
-                         set model.inertia: repair in the scene for the nearest physical tensor)",
-                        check::describe(&self.model.bodies[body].inertia)
-                    ),
-                });
-            }
-            let onto = if body == 0 {
-                "the world".to_string()
-            } else {
-                format!("body '{}'", self.model.bodies[body].name)
-            };
-            self.model.warnings.push(format!(
-                "{}: link '{}': {defect}; ignored: it is welded to {onto}, whose merged inertia \
-                 is physical",
-                self.file, l.name
-            ));
         }
         Ok(())
     }

@@ -6,7 +6,8 @@
 //! welded to a real body: only the merged body moves. Such links give a warning; a moving body
 //! whose merged inertia is not physical is an error naming it, its links and its moments.
 
-use super::{Model, SingularJoint};
+use super::{InertiaPolicy, Model, SingularJoint};
+use crate::error::{Error, Result};
 use crate::spatial::Inertia;
 use nalgebra::{DMatrix, Matrix3, Matrix6, SymmetricEigen};
 
@@ -225,4 +226,78 @@ pub(super) fn singular_joint(m: &Model, file: &str) -> Option<SingularJoint> {
         joint: body.joint.name.clone(),
         message,
     })
+}
+
+/// Judge what moves: each moving body's merged inertia must be physical (an error naming
+/// the body, its links and its moments); a link whose own inertia is not physical but that
+/// is welded to a sound body, or to the world, is a warning naming it.
+pub(super) fn bodies(
+    model: &mut Model,
+    links: &[urdf_rs::Link],
+    link_defects: &[Option<String>],
+    policy: InertiaPolicy,
+    file: &str,
+) -> Result<()> {
+    for (li, l) in links.iter().enumerate() {
+        let Some(defect) = &link_defects[li] else {
+            continue;
+        };
+        let Some(f) = model.frames.iter().find(|f| f.name == l.name) else {
+            continue;
+        };
+        let body = f.body;
+        let links = links_of(model, body);
+        if body != 0
+            && inertia_defect(
+                model.bodies[body].inertia.mass,
+                &model.bodies[body].inertia.inertia_com,
+            )
+            .is_some()
+        {
+            if policy == InertiaPolicy::Repair {
+                let before = describe(&model.bodies[body].inertia);
+                let b = &mut model.bodies[body].inertia;
+                b.inertia_com = nearest_physical(&b.inertia_com);
+                model.warnings.push(format!(
+                    "{}: link '{l}' ({defect}): the moving body of joint '{}' was repaired \
+                     (model.inertia: repair): {before} → {}",
+                    file,
+                    model.bodies[body].joint.name,
+                    describe(&model.bodies[body].inertia),
+                    l = l.name,
+                ));
+                continue;
+            }
+            let element = if links.len() == 1 {
+                format!("link '{}'", l.name)
+            } else {
+                format!(
+                    "link '{}' (moving body of joint '{}' with welded links {})",
+                    l.name,
+                    model.bodies[body].joint.name,
+                    links.join(", ")
+                )
+            };
+            return Err(Error::Urdf {
+                file: file.to_string(),
+                element,
+                message: format!(
+                    "{defect}; the merged body ({}) is not physical either (fix the URDF, or \
+                     set model.inertia: repair in the scene for the nearest physical tensor)",
+                    describe(&model.bodies[body].inertia)
+                ),
+            });
+        }
+        let onto = if body == 0 {
+            "the world".to_string()
+        } else {
+            format!("body '{}'", model.bodies[body].name)
+        };
+        model.warnings.push(format!(
+            "{}: link '{}': {defect}; ignored: it is welded to {onto}, whose merged inertia \
+             is physical",
+            file, l.name
+        ));
+    }
+    Ok(())
 }

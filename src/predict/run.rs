@@ -1,7 +1,7 @@
 //! The prediction loop: control ticks, integration steps, drift control, samples.
 
 use super::drift::Projector;
-use super::guard::EnergyGuard;
+use super::guard::{EnergyGuard, check_work};
 use super::integrator::{
     Accel, DOPRI5, Method, RK4, StepWorkspace, explicit_step, sdirk2_step, semi_implicit_euler_step,
 };
@@ -176,7 +176,8 @@ impl Predictor {
                 "horizon = {horizon} s must be finite and ≥ 0"
             )));
         }
-        self.check_work(horizon)?;
+        let control = (!self.actuators.is_empty()).then_some(self.actuators.control_period);
+        check_work(&self.settings, &self.model, control, horizon)?;
         for (t, c) in commands {
             crate::error::check_finite("command time", &[*t])?;
             self.actuators.check_command(c)?;
@@ -286,36 +287,6 @@ impl Predictor {
             }
         }
         Ok(traj)
-    }
-
-    /// Bounded work, before running: steps, control ticks and samples (`check_counts`), and
-    /// the work of the fixed-step methods: steps × evaluations per step × the model's cost.
-    fn check_work(&self, horizon: f64) -> Result<()> {
-        let s = &self.settings;
-        let control = (!self.actuators.is_empty()).then_some(self.actuators.control_period);
-        s.check_counts(horizon, control)?;
-        let per_step = match s.method {
-            Method::SemiImplicitEuler => 1.0,
-            Method::Rk4 => 4.0,
-            // Adaptive or iterative: counted while running (`advance`).
-            Method::Dopri5 | Method::Sdirk2 => return Ok(()),
-        };
-        let steps = (horizon / s.dt).ceil();
-        let work = steps * per_step * crate::limits::evaluation_cost(&self.model);
-        if work > s.max_work {
-            return Err(Error::WorkLimit {
-                what: format!(
-                    "work units ({steps:e} steps × {per_step} evaluations × {:.3e} per evaluation \
-                     of this {}-body model)",
-                    crate::limits::evaluation_cost(&self.model),
-                    self.model.nbodies() - 1
-                ),
-                estimate: work,
-                limit: s.max_work,
-                hint: "shorten the horizon, raise dt, or raise integration.max_work".into(),
-            });
-        }
-        Ok(())
     }
 
     /// The energy check runs for passive, conservative scenes stepped by a fixed explicit method.
