@@ -68,11 +68,33 @@ pub fn constraint_forces_at(
         .forward_dynamics_with(q, v, &tau, opts)?
         .as_slice()
         .to_vec();
-    Ok(ForcesAtState {
+    let out = ForcesAtState {
         qdd,
         lambda: sys.kkt.lambda.as_slice().to_vec(),
         forces: sys.constraint_forces(),
         generalized_force: sys.kkt.generalized_force.as_slice().to_vec(),
         rank_deficiency: sys.kkt.rank_deficiency,
-    })
+    };
+    // Nothing non-finite leaves: finite inputs can still overflow (v = 1e308 squared).
+    let cause = || {
+        let amax = |x: &[f64]| x.iter().fold(0.0f64, |m, y| m.max(y.abs()));
+        format!(
+            "the state or torques overflow the arithmetic at t = {t} s (max |v| = {:e}, max |τ| \
+             = {:e}); see the input ranges in README.md",
+            amax(v),
+            amax(&tau)
+        )
+    };
+    let outputs = [
+        ("q̈", &out.qdd),
+        ("λ", &out.lambda),
+        ("Jᵀλ", &out.generalized_force),
+    ];
+    if let Some((what, x)) = outputs
+        .into_iter()
+        .find(|(_, x)| x.iter().any(|y| !y.is_finite()))
+    {
+        crate::error::check_output(what, x, &cause())?;
+    }
+    Ok(out)
 }

@@ -41,6 +41,56 @@ pub enum Error {
         message: String,
     },
 
+    /// A URDF number that cannot be used, located: file and line, element and attribute.
+    #[error("{at}: {element}: {message}")]
+    UrdfValue {
+        /// `file:line` of the attribute (line 1-based).
+        at: String,
+        /// The element, the link or joint that holds it and the attribute as written, e.g.
+        /// `<origin> of joint 'knee', xyz="0 nan 0"`.
+        element: String,
+        /// What is wrong with it.
+        message: String,
+    },
+
+    /// The joint-space inertia matrix is singular or nearly so for every configuration the load
+    /// checks: some joint moves (almost) no inertia once the joints below it are free.
+    #[error("{file}: {joint}: {message}")]
+    SingularModel {
+        /// Name of the URDF source.
+        file: String,
+        /// The joint at fault, e.g. `joint 'neck_yaw'`.
+        joint: String,
+        /// The effective inertia found and the links it moves.
+        message: String,
+    },
+
+    /// A request would do more work than its stated limit (steps, samples, evaluations).
+    #[error("{what} = {estimate:.3e} exceeds the limit {limit:.3e}: {hint}")]
+    WorkLimit {
+        /// What is counted, e.g. `integration steps (horizon / dt)`.
+        what: String,
+        /// The count the request asks for (or reached).
+        estimate: f64,
+        /// The limit in force.
+        limit: f64,
+        /// Which setting raises the limit or shortens the request.
+        hint: String,
+    },
+
+    /// A result came out NaN or infinite: the inputs overflow the arithmetic.
+    #[error("{output} is not finite (entry {index} = {value}): {cause}")]
+    NonFiniteOutput {
+        /// Which output, e.g. `q̈` or `sample at t = 0.1 s: λ`.
+        output: String,
+        /// Index of the first non-finite entry.
+        index: usize,
+        /// The value found.
+        value: f64,
+        /// Which inputs are the likely cause.
+        cause: String,
+    },
+
     /// The scene YAML cannot be parsed or names something inconsistent with the model.
     #[error("{file}: {message}")]
     Scene {
@@ -167,4 +217,17 @@ pub fn check_len(what: &str, x: &[f64], expected: usize) -> Result<()> {
         });
     }
     Ok(())
+}
+
+/// Check that every entry of an output `x` is finite, naming the output and the likely `cause`.
+pub fn check_output(output: &str, x: &[f64], cause: &str) -> Result<()> {
+    match x.iter().position(|v| !v.is_finite()) {
+        Some(index) => Err(Error::NonFiniteOutput {
+            output: output.to_string(),
+            index,
+            value: x[index],
+            cause: cause.to_string(),
+        }),
+        None => Ok(()),
+    }
 }

@@ -18,11 +18,13 @@ pub mod derivatives;
 pub mod dynamics;
 pub mod error;
 pub mod forces;
+pub mod limits;
 pub mod linalg;
 pub mod model;
 pub mod predict;
 pub mod projection;
 pub mod scene;
+mod scene_errors;
 pub mod spatial;
 pub mod system;
 

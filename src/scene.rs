@@ -6,7 +6,7 @@ use crate::constraints::ConstraintSpec;
 use crate::dynamics::{Baumgarte, Formulation};
 use crate::error::{Error, Result};
 use crate::forces::ForcesSpec;
-use crate::model::{BaseType, Model, ModelOptions};
+use crate::model::{BaseType, InertiaPolicy, Model, ModelOptions};
 use crate::predict::IntegrationSettings;
 use nalgebra::Vector3;
 use serde::Deserialize;
@@ -61,6 +61,19 @@ pub struct SceneFile {
     /// `uncertainty:` process noise of propagated covariances (default none).
     #[serde(default)]
     pub uncertainty: crate::predict::UncertaintySpec,
+    /// `model:` how the URDF is read (default: inertias checked, not repaired).
+    #[serde(default)]
+    pub model: ModelSettings,
+}
+
+/// `model:` in a scene.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelSettings {
+    /// `inertia:` `check` (refuse a moving body whose merged inertia is not physical) or
+    /// `repair` (use the nearest physical tensor, reported in the model's warnings).
+    #[serde(default)]
+    pub inertia: InertiaPolicy,
 }
 
 /// How the constrained dynamics is solved.
@@ -87,20 +100,17 @@ impl DynamicsSettings {
                     "dynamics: give baumgarte_time_constant or baumgarte gains, not both".into(),
                 ));
             }
-            (Some(t), None) if !(t.is_finite() && t > 0.0) => {
-                return Err(Error::Invalid(format!(
-                    "dynamics.baumgarte_time_constant = {t} s must be positive"
-                )));
+            (Some(t), None) => {
+                let (lo, hi) = crate::limits::BAUMGARTE_TIME_CONSTANT;
+                crate::limits::check_range("dynamics.baumgarte_time_constant", t, lo, hi, "s")?;
+                Baumgarte::from_time_constant(t)
             }
-            (Some(t), None) => Baumgarte::from_time_constant(t),
-            (None, Some(g))
-                if !(g.kp >= 0.0 && g.kd >= 0.0 && g.kp.is_finite() && g.kd.is_finite()) =>
-            {
-                return Err(Error::Invalid(
-                    "dynamics.baumgarte gains must be finite and ≥ 0".into(),
-                ));
+            (None, Some(g)) => {
+                let (kp, kd) = crate::limits::MAX_BAUMGARTE_GAINS;
+                crate::limits::check_range("dynamics.baumgarte.kp", g.kp, 0.0, kp, "1/s²")?;
+                crate::limits::check_range("dynamics.baumgarte.kd", g.kd, 0.0, kd, "1/s")?;
+                g
             }
-            (None, Some(g)) => g,
             (None, None) => Baumgarte::default(),
         };
         Ok((b, self.formulation))
@@ -132,7 +142,12 @@ impl Scene {
         })?;
         let file: SceneFile = serde_yaml::from_str(&text).map_err(|e| Error::Scene {
             file: path.display().to_string(),
-            message: e.to_string(),
+            message: match e.to_string() {
+                m if m.starts_with("constraints") => {
+                    crate::scene_errors::locate_constraint_error(&text).unwrap_or(m)
+                }
+                m => m,
+            },
         })?;
         let urdf = path.parent().unwrap_or(Path::new(".")).join(&file.urdf);
         let urdf_text = std::fs::read_to_string(&urdf).map_err(|e| Error::Io {
@@ -164,6 +179,7 @@ impl Scene {
                 .iter()
                 .map(|(k, v)| (k.clone(), *v))
                 .collect(),
+            inertia: file.model.inertia,
         };
         let model = Model::from_urdf_str(urdf_text, urdf_name, &opts)?;
         let mut q0 = model.neutral();

@@ -6,7 +6,7 @@
 #
 # The network rule: DDS multicasts discovery on every interface, so every test process runs
 # inside a private network namespace that has only loopback (tools/ros2/netns_run.sh). Downloads
-# (crates, the pinned Python peer venv) happen first, outside it; nothing in the namespace can
+# (crates, the pinned Python venvs) happen first, outside it; nothing in the namespace can
 # reach the network.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -14,6 +14,7 @@ cd "$(dirname "$0")/.."
 cargo fetch --locked
 bash tools/ros2/setup_peer_venv.sh
 bash tools/ros2/setup_peer_venv.sh --distro jazzy
+bash tools/robots/setup_venv.sh     # Pinocchio + example-robot-data (tests/example_robot_data.rs)
 cargo build --workspace --all-targets --locked --offline
 
 # Rust tests, then the rclpy/Cyclone interop suite, in one private namespace each. The DDS tests

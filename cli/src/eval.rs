@@ -6,7 +6,7 @@ use constraint_dynamics::derivatives::{
 };
 use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::forces::ForceElements;
-use constraint_dynamics::{Result, Scene, System};
+use constraint_dynamics::{Result, System};
 use nalgebra::DMatrix;
 use serde_json::{Value, json};
 use std::path::PathBuf;
@@ -34,7 +34,7 @@ pub struct EvalArgs {
 }
 
 pub fn run(a: EvalArgs) -> Result<Value> {
-    let scene = Scene::load(&a.scene)?;
+    let scene = super::state::load_scene(&a.scene)?;
     let mut sys = System::from_scene(&scene)?;
     sys.formulation = match a.formulation.as_str() {
         "auto" => Formulation::Auto,

@@ -45,7 +45,7 @@ fn main() -> ExitCode {
         Command::Report(a) => report::run(a),
         Command::Project(a) => project::run(a),
     };
-    match result {
+    match result.and_then(|json| finite_json(&json, "output").map(|()| json)) {
         Ok(json) => {
             println!(
                 "{}",
@@ -57,5 +57,28 @@ fn main() -> ExitCode {
             eprintln!("error: {e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// The last check before printing: serde_json prints NaN and ±∞ as `null`, and no output of
+/// this tool has a `null` by design (absent values are left out), so a `null` anywhere is a
+/// non-finite number that escaped the checks upstream: an error naming its path.
+fn finite_json(v: &serde_json::Value, path: &str) -> constraint_dynamics::Result<()> {
+    use serde_json::Value;
+    match v {
+        Value::Null => Err(constraint_dynamics::Error::NonFiniteOutput {
+            output: path.to_string(),
+            index: 0,
+            value: f64::NAN,
+            cause: "a result overflowed; see the input ranges in README.md".into(),
+        }),
+        Value::Array(a) => a
+            .iter()
+            .enumerate()
+            .try_for_each(|(i, x)| finite_json(x, &format!("{path}[{i}]"))),
+        Value::Object(o) => o
+            .iter()
+            .try_for_each(|(k, x)| finite_json(x, &format!("{path}.{k}"))),
+        _ => Ok(()),
     }
 }

@@ -3,7 +3,7 @@
 
 use constraint_dynamics::actuators::Command;
 use constraint_dynamics::predict::{DriftControl, Method, Predictor};
-use constraint_dynamics::{Error, Result, Scene};
+use constraint_dynamics::{Error, Result};
 use serde::Deserialize;
 use serde_json::Value;
 use std::collections::BTreeMap;
@@ -97,7 +97,7 @@ fn load_commands(path: &Path) -> Result<Vec<(f64, Command)>> {
 }
 
 pub fn run(a: PredictArgs) -> Result<Value> {
-    let scene = Scene::load(&a.scene)?;
+    let scene = super::state::load_scene(&a.scene)?;
     let mut p = Predictor::from_scene(&scene)?;
     if let Some(m) = &a.method {
         p.settings.method =

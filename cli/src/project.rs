@@ -3,7 +3,7 @@
 //! bounds, or the named conflicting set when the request is infeasible.
 
 use constraint_dynamics::projection::{ProjectionRequest, VelocityProjector, project_system};
-use constraint_dynamics::{Error, Result, Scene, System};
+use constraint_dynamics::{Error, Result, System};
 use serde_json::Value;
 use std::path::PathBuf;
 
@@ -24,7 +24,7 @@ pub struct ProjectArgs {
 }
 
 pub fn run(a: ProjectArgs) -> Result<Value> {
-    let scene = Scene::load(&a.scene)?;
+    let scene = super::state::load_scene(&a.scene)?;
     let mut sys = System::from_scene(&scene)?;
     let (q, v, _tau) = super::state::load(&scene, a.state.as_deref())?;
     let text = if a.v_des.trim_start().starts_with('{') {

@@ -15,6 +15,16 @@ pub struct StateFile {
     pub tau: Option<Vec<f64>>,
 }
 
+/// Load a scene, printing what the loader accepted but a user should know (a non-physical
+/// inertia on a welded link, a repaired body) to stderr, one `warning:` line each.
+pub fn load_scene(path: &Path) -> Result<Scene> {
+    let scene = Scene::load(path)?;
+    for w in &scene.model.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(scene)
+}
+
 /// (q, v, τ) from `path`, or the scene's initial state.
 pub fn load(scene: &Scene, path: Option<&Path>) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>)> {
     let nv = scene.model.nv;
@@ -29,9 +39,17 @@ pub fn load(scene: &Scene, path: Option<&Path>) -> Result<(Vec<f64>, Vec<f64>, V
         file: path.display().to_string(),
         message: e.to_string(),
     })?;
-    Ok((
+    let (q, v, tau) = (
         s.q,
         s.v.unwrap_or_else(|| vec![0.0; nv]),
         s.tau.unwrap_or_else(|| vec![0.0; nv]),
-    ))
+    );
+    // Sizes, finiteness and the documented magnitudes (limits::MAX_STATE), naming the file.
+    constraint_dynamics::limits::check_input_state(&scene.model, &q, &v, &tau).map_err(|e| {
+        Error::Scene {
+            file: path.display().to_string(),
+            message: e.to_string(),
+        }
+    })?;
+    Ok((q, v, tau))
 }

@@ -116,10 +116,14 @@ fn unit(name: &str, what: &str, v: [f64; 3]) -> Result<Vector3<f64>> {
 }
 
 fn finite3(name: &str, what: &str, v: [f64; 3]) -> Result<Vector3<f64>> {
-    if v.iter().any(|x| !x.is_finite()) {
+    let max = crate::limits::MAX_LENGTH;
+    if v.iter().any(|x| !x.is_finite() || x.abs() > max) {
         return Err(Error::Constraint {
             name: name.into(),
-            message: format!("{what} is not finite"),
+            message: format!(
+                "{what} [{}, {}, {}] is not finite or beyond {max:e} m",
+                v[0], v[1], v[2]
+            ),
         });
     }
     Ok(Vector3::from(v))
@@ -303,9 +307,11 @@ fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Result<Constr
             distance,
             ..
         } => {
-            if !(distance.is_finite() && *distance > 0.0) {
+            if !(*distance > 0.0 && *distance <= crate::limits::MAX_LENGTH) {
                 return Err(cerr(format!(
-                    "distance {distance} m must be positive and finite"
+                    "distance {} m must be positive and at most {:e} m",
+                    crate::limits::show(*distance),
+                    crate::limits::MAX_LENGTH
                 )));
             }
             Constraint::Distance(DistanceConstraint {
@@ -334,10 +340,16 @@ fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Result<Constr
                     return Err(cerr(format!("joint '{n}' is not a 1-DOF joint")));
                 }
             }
-            if ![*a, *b, *c].iter().all(|x| x.is_finite()) || (*a == 0.0 && *b == 0.0) {
-                return Err(cerr(
-                    "coefficients must be finite and a, b not both zero".into(),
-                ));
+            if ![*a, *b, *c]
+                .iter()
+                .all(|x| x.abs() <= crate::limits::MAX_COEFFICIENT)
+                || (*a == 0.0 && *b == 0.0)
+            {
+                return Err(cerr(format!(
+                    "coefficients a = {a}, b = {b}, c = {c} must be at most {:e} in magnitude \
+                     (finite), a and b not both zero",
+                    crate::limits::MAX_COEFFICIENT
+                )));
             }
             coupling(model, bi, bj, *a, *b, *c)
         }
@@ -349,9 +361,17 @@ fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Result<Constr
             plane_height,
             ..
         } => {
-            if !(radius.is_finite() && *radius > 0.0) {
+            if !(*radius > 0.0 && *radius <= crate::limits::MAX_LENGTH) {
                 return Err(cerr(format!(
-                    "wheel radius {radius} m must be positive and finite"
+                    "wheel radius {} m must be positive and at most {:e} m",
+                    crate::limits::show(*radius),
+                    crate::limits::MAX_LENGTH
+                )));
+            }
+            if !plane_height.is_finite() || plane_height.abs() > crate::limits::MAX_LENGTH {
+                return Err(cerr(format!(
+                    "plane_height {plane_height} m must be finite and at most {:e} m",
+                    crate::limits::MAX_LENGTH
                 )));
             }
             let axis = unit(name, "wheel axis", *axis)?;

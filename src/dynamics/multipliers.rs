@@ -17,6 +17,7 @@ use crate::linalg::{
     cholesky_in_place, cholesky_solve, independent_columns, ltl_factor, ltl_solve_l, ltl_solve_lt,
     mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
 };
+use crate::model::MIN_PIVOT_RATIO;
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 
@@ -117,10 +118,18 @@ fn factor_mass(
 ) -> Result<()> {
     ws.l.copy_from(&data.mass_matrix);
     ws.augmented = false;
-    if ltl_factor(&mut ws.l, &model.v_parent, 1e-14).is_ok() {
+    let m = &data.mass_matrix;
+    // Each pivot against its own diagonal entry too, not only against max diag(M): a point
+    // mass on a 3-axis neck gives a pivot 1e-11 of its entry, far above 1e-14 · max diag, and
+    // q̈ made of rounding noise (icub at q = 0 with a fixed base: −2.8e9 rad/s²).
+    let pivots_ok = |l: &DMatrix<f64>, diag: &dyn Fn(usize) -> f64| {
+        (0..model.nv).find(|&k| l[(k, k)] * l[(k, k)] < MIN_PIVOT_RATIO * diag(k))
+    };
+    if ltl_factor(&mut ws.l, &model.v_parent, 1e-14).is_ok()
+        && pivots_ok(&ws.l, &|k| m[(k, k)]).is_none()
+    {
         return Ok(());
     }
-    let m = &data.mass_matrix;
     let rho = (0..model.nv)
         .map(|i| m[(i, i)])
         .fold(0.0, f64::max)
@@ -135,12 +144,20 @@ fn factor_mass(
     mat_tr_vec(j, ws.b.as_slice(), ws.tmp.as_mut_slice());
     ws.rhs.axpy(rho, &ws.tmp, 1.0);
     ws.augmented = true;
-    cholesky_in_place(&mut ws.l, model.nv, 1e-14).map_err(|i| Error::SingularMass {
+    let singular = |i: usize| Error::SingularMass {
         message: format!(
-            "coordinate '{}' has no inertia and no constraint fixes its motion",
+            "coordinate '{}' has no inertia (or none independent of the others at this \
+             configuration) and no constraint fixes its motion",
             model.v_names[i]
         ),
-    })
+    };
+    cholesky_in_place(&mut ws.l, model.nv, 1e-14).map_err(singular)?;
+    let augmented_diag =
+        |k: usize| m[(k, k)] + rho * (0..j.nrows()).map(|r| j[(r, k)] * j[(r, k)]).sum::<f64>();
+    match pivots_ok(&ws.l, &augmented_diag) {
+        Some(k) => Err(singular(k)),
+        None => Ok(()),
+    }
 }
 
 /// `x ← W⁻ᵀ x` and `x ← W⁻¹ x` for the factor W with M = W Wᵀ (W = Lᵀ of the LTL factor,

@@ -1,10 +1,11 @@
 //! Building a `Model` from URDF text: validation with errors that name the file and element,
 //! merging of fixed (and locked) joints, and the scene's choice of base.
 
+use super::check;
 use super::{Body, Frame, Joint, JointKind, Limits, Mimic, Model};
 use crate::error::{Error, Result};
 use crate::spatial::{Inertia, SE3, rotation_from_rpy};
-use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use nalgebra::{Matrix3, Vector3};
 use serde::Deserialize;
 use std::collections::HashMap;
 
@@ -30,6 +31,21 @@ pub struct ModelOptions {
     pub gravity: Vector3<f64>,
     /// Joints held at a position [rad or m]: merged like fixed joints, so they cost nothing.
     pub locked_joints: Vec<(String, f64)>,
+    /// What to do with a moving body whose merged inertia is not physical (default: refuse).
+    pub inertia: InertiaPolicy,
+}
+
+/// `model.inertia:` in a scene.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InertiaPolicy {
+    /// Refuse the model, naming the body, its links and its principal moments.
+    #[default]
+    Check,
+    /// Replace the body's rotational inertia by the nearest physical one (same principal axes;
+    /// negative moments to 0, then the largest moved down and the others up by a third of the
+    /// triangle-inequality excess each) and report it in `Model::warnings`.
+    Repair,
 }
 
 impl Default for ModelOptions {
@@ -38,19 +54,10 @@ impl Default for ModelOptions {
             base: BaseType::Fixed,
             gravity: Vector3::new(0.0, 0.0, -9.81),
             locked_joints: vec![],
+            inertia: InertiaPolicy::Check,
         }
     }
 }
-
-const KNOWN_JOINT_TYPES: [&str; 7] = [
-    "revolute",
-    "continuous",
-    "prismatic",
-    "fixed",
-    "floating",
-    "planar",
-    "spherical",
-];
 
 impl Model {
     /// Build a model from a URDF file.
@@ -65,7 +72,7 @@ impl Model {
 
     /// Build a model from URDF text; `file` names the source in errors.
     pub fn from_urdf_str(text: &str, file: &str, opts: &ModelOptions) -> Result<Model> {
-        let text = precheck_xml(text, file)?;
+        let text = super::urdf_text::prepare(text, file)?;
         let robot = urdf_rs::read_from_string(&text).map_err(|e| Error::Urdf {
             file: file.to_string(),
             element: "robot".to_string(),
@@ -73,60 +80,6 @@ impl Model {
         })?;
         Builder::new(&robot, file, opts)?.build()
     }
-}
-
-/// Parse with roxmltree for precise XML errors, refuse unknown joint types by name, and fill in
-/// `velocity`/`effort` limits that real URDFs often omit (treated as unbounded).
-fn precheck_xml(text: &str, file: &str) -> Result<String> {
-    let doc = roxmltree::Document::parse(text).map_err(|e| {
-        let pos = e.pos();
-        Error::Xml {
-            file: file.to_string(),
-            line: pos.row,
-            column: pos.col,
-            message: e.to_string(),
-        }
-    })?;
-    let root = doc.root_element();
-    if root.tag_name().name() != "robot" {
-        return Err(Error::Urdf {
-            file: file.to_string(),
-            element: format!("<{}>", root.tag_name().name()),
-            message: "the root element must be <robot>".to_string(),
-        });
-    }
-    let mut inserts: Vec<(usize, String)> = vec![];
-    for joint in root.children().filter(|n| n.has_tag_name("joint")) {
-        let name = joint.attribute("name").unwrap_or("?");
-        let ty = joint.attribute("type").unwrap_or("");
-        if !KNOWN_JOINT_TYPES.contains(&ty) {
-            return Err(Error::Urdf {
-                file: file.to_string(),
-                element: format!("joint '{name}'"),
-                message: format!(
-                    "unknown joint type '{ty}' (known: {})",
-                    KNOWN_JOINT_TYPES.join(", ")
-                ),
-            });
-        }
-        for limit in joint.children().filter(|n| n.has_tag_name("limit")) {
-            let mut extra = String::new();
-            for attr in ["velocity", "effort"] {
-                if limit.attribute(attr).is_none() {
-                    extra.push_str(&format!(" {attr}=\"inf\""));
-                }
-            }
-            if !extra.is_empty() {
-                // Insert right after "<limit".
-                inserts.push((limit.range().start + "<limit".len(), extra));
-            }
-        }
-    }
-    let mut out = text.to_string();
-    for (pos, s) in inserts.into_iter().rev() {
-        out.insert_str(pos, &s);
-    }
-    Ok(out)
 }
 
 fn pose_to_se3(p: &urdf_rs::Pose) -> SE3 {
@@ -139,6 +92,11 @@ struct Builder<'a> {
     opts: &'a ModelOptions,
     children: HashMap<&'a str, Vec<usize>>,
     locked: HashMap<&'a str, f64>,
+    /// The root link (no parent joint).
+    root: &'a str,
+    link_index: HashMap<&'a str, usize>,
+    /// Per link, why its own rotational inertia is not physical (judged after merging).
+    link_defects: Vec<Option<String>>,
     model: Model,
 }
 
@@ -149,7 +107,18 @@ impl<'a> Builder<'a> {
             element,
             message,
         };
+        let g = opts.gravity.norm();
+        if !g.is_finite() || g > crate::limits::MAX_GRAVITY {
+            return Err(Error::Invalid(format!(
+                "gravity = [{}, {}, {}] m/s²: |g| must be finite and at most {:e} m/s²",
+                opts.gravity.x,
+                opts.gravity.y,
+                opts.gravity.z,
+                crate::limits::MAX_GRAVITY
+            )));
+        }
         let mut link_names: HashMap<&str, usize> = HashMap::new();
+        let mut link_defects = Vec::with_capacity(robot.links.len());
         for (i, l) in robot.links.iter().enumerate() {
             if link_names.insert(l.name.as_str(), i).is_some() {
                 return Err(err(
@@ -157,7 +126,9 @@ impl<'a> Builder<'a> {
                     "duplicate link name".into(),
                 ));
             }
-            validate_inertial(&l.inertial).map_err(|m| err(format!("link '{}'", l.name), m))?;
+            link_defects.push(
+                validate_inertial(&l.inertial).map_err(|m| err(format!("link '{}'", l.name), m))?,
+            );
         }
         let mut children: HashMap<&str, Vec<usize>> = HashMap::new();
         let mut parent_of: HashMap<&str, &str> = HashMap::new();
@@ -244,6 +215,8 @@ impl<'a> Builder<'a> {
             mimics: vec![],
             base: opts.base,
             v_parent: vec![],
+            warnings: vec![],
+            singular: None,
         };
         Ok(Self {
             robot,
@@ -251,18 +224,15 @@ impl<'a> Builder<'a> {
             opts,
             children,
             locked,
+            root: roots[0],
+            link_index: link_names,
+            link_defects,
             model,
         })
     }
 
     fn build(mut self) -> Result<Model> {
-        let root = self
-            .robot
-            .links
-            .iter()
-            .find(|l| !self.robot.joints.iter().any(|j| j.child.link == l.name))
-            .map(|l| l.name.clone())
-            .unwrap_or_default();
+        let root = self.root.to_string();
         let root_body = match self.opts.base {
             super::BaseType::Fixed => 0,
             super::BaseType::Planar => self.add_body(
@@ -282,7 +252,7 @@ impl<'a> Builder<'a> {
                 None,
             ),
         };
-        self.visit(&root, root_body, SE3::identity())?;
+        self.visit(&root, root_body)?;
         self.check_unreachable()?;
         for j in &self.robot.joints {
             if let Some(m) = &j.mimic {
@@ -294,12 +264,22 @@ impl<'a> Builder<'a> {
                 });
             }
         }
+        check::bodies(
+            &mut self.model,
+            &self.robot.links,
+            &self.link_defects,
+            self.opts.inertia,
+            self.file,
+        )?;
+        self.model.singular = check::singular_joint(&self.model, self.file);
         Ok(self.model)
     }
 
     fn check_unreachable(&self) -> Result<()> {
+        let reached: std::collections::HashSet<&str> =
+            self.model.frames.iter().map(|f| f.name.as_str()).collect();
         for l in &self.robot.links {
-            if !self.model.frames.iter().any(|f| f.name == l.name) {
+            if !reached.contains(l.name.as_str()) && l.name != self.root {
                 return Err(Error::Urdf {
                     file: self.file.to_string(),
                     element: format!("link '{}'", l.name),
@@ -310,44 +290,64 @@ impl<'a> Builder<'a> {
         Ok(())
     }
 
-    /// Attach `link` (and its inertia) to `body` at `body_m_link`, then recurse into its children.
-    fn visit(&mut self, link: &str, body: usize, body_m_link: SE3) -> Result<()> {
-        let l = self
-            .robot
-            .links
-            .iter()
-            .find(|l| l.name == link)
-            .expect("link exists");
-        if !(body == 0 && link == "world") {
-            self.model.frames.push(Frame {
-                name: link.to_string(),
-                body,
-                placement: body_m_link,
-            });
+    /// Attach `root` and everything below it, depth-first with children in file order (the
+    /// numbering of bodies and coordinates). An explicit stack, not recursion: a chain of
+    /// thousands of links must not overflow the thread's stack.
+    fn visit(&mut self, root: &str, root_body: usize) -> Result<()> {
+        enum Item {
+            /// A link attached to `body` at `body_m_link`.
+            Link(usize, usize, SE3),
+            /// A joint below a link of `body`, whose frame sits at `body_m_parent_link`.
+            Joint(usize, usize, SE3),
         }
-        if body != 0 {
-            let inertia = link_inertia(&l.inertial).transformed(&body_m_link);
-            let b = &mut self.model.bodies[body];
-            b.inertia = b.inertia.add(&inertia);
-        }
-        let kids = self.children.get(link).cloned().unwrap_or_default();
-        for ji in kids {
-            let j = &self.robot.joints[ji];
-            let body_m_joint = body_m_link.compose(&pose_to_se3(&j.origin));
-            let kind = self.joint_kind(j)?;
-            let child = j.child.link.clone();
-            match (kind, self.locked.get(j.name.as_str()).copied()) {
-                (None, _) => self.visit(&child, body, body_m_joint)?,
-                (Some(kind), Some(value)) => {
-                    let q = [value; 1];
-                    if kind.nq() != 1 {
-                        return Err(self.err_joint(j, "only 1-DOF joints can be locked"));
+        let mut stack = vec![Item::Link(
+            self.link_index[root],
+            root_body,
+            SE3::identity(),
+        )];
+        while let Some(item) = stack.pop() {
+            match item {
+                Item::Link(li, body, body_m_link) => {
+                    let l = &self.robot.links[li];
+                    if !(body == 0 && l.name == "world") {
+                        self.model.frames.push(Frame {
+                            name: l.name.clone(),
+                            body,
+                            placement: body_m_link,
+                        });
                     }
-                    self.visit(&child, body, body_m_joint.compose(&kind.transform(&q)))?
+                    if body != 0 {
+                        let inertia = link_inertia(&l.inertial).transformed(&body_m_link);
+                        let b = &mut self.model.bodies[body];
+                        b.inertia = b.inertia.add(&inertia);
+                    }
+                    if let Some(kids) = self.children.get(l.name.as_str()) {
+                        for &ji in kids.iter().rev() {
+                            stack.push(Item::Joint(ji, body, body_m_link));
+                        }
+                    }
                 }
-                (Some(kind), None) => {
-                    let nb = self.add_body(&child, &j.name, kind, body, body_m_joint, Some(j));
-                    self.visit(&child, nb, SE3::identity())?
+                Item::Joint(ji, body, body_m_link) => {
+                    let j = &self.robot.joints[ji];
+                    let body_m_joint = body_m_link.compose(&pose_to_se3(&j.origin));
+                    let kind = self.joint_kind(j)?;
+                    let child = self.link_index[j.child.link.as_str()];
+                    match (kind, self.locked.get(j.name.as_str()).copied()) {
+                        (None, _) => stack.push(Item::Link(child, body, body_m_joint)),
+                        (Some(kind), Some(value)) => {
+                            if kind.nq() != 1 {
+                                return Err(self.err_joint(j, "only 1-DOF joints can be locked"));
+                            }
+                            let at = body_m_joint.compose(&kind.transform(&[value]));
+                            stack.push(Item::Link(child, body, at));
+                        }
+                        (Some(kind), None) => {
+                            let link = j.child.link.clone();
+                            let nb =
+                                self.add_body(&link, &j.name, kind, body, body_m_joint, Some(j));
+                            stack.push(Item::Link(child, nb, SE3::identity()));
+                        }
+                    }
                 }
             }
         }
@@ -504,9 +504,9 @@ fn link_inertia(i: &urdf_rs::Inertial) -> Inertia {
     )
 }
 
-/// Mass ≥ 0; rotational inertia symmetric positive semi-definite (zero principal moments are
-/// accepted for point masses and thin rods) with principal moments obeying the triangle inequality.
-fn validate_inertial(i: &urdf_rs::Inertial) -> std::result::Result<(), String> {
+/// Mass ≥ 0 and finite entries (errors); whether the rotational inertia is physical is
+/// returned apart, to be judged on the merged body (`check_bodies`).
+fn validate_inertial(i: &urdf_rs::Inertial) -> std::result::Result<Option<String>, String> {
     let m = i.mass.value;
     if !m.is_finite() || m < 0.0 {
         return Err(format!("<inertial>: mass {m} kg is negative or not finite"));
@@ -518,20 +518,5 @@ fn validate_inertial(i: &urdf_rs::Inertial) -> std::result::Result<(), String> {
     if ic.iter().any(|x| !x.is_finite()) {
         return Err("<inertia>: entry not finite".into());
     }
-    let ev = SymmetricEigen::new(ic).eigenvalues;
-    let scale = ev.abs().max().max(1e-300);
-    let tol = 1e-9 * scale;
-    if ev.iter().any(|&e| e < -tol) {
-        return Err(format!(
-            "<inertia> is not positive definite: principal moments {:.6e}, {:.6e}, {:.6e} kg·m²",
-            ev[0], ev[1], ev[2]
-        ));
-    }
-    let (a, b, c) = (ev[0], ev[1], ev[2]);
-    if a + b < c - tol || a + c < b - tol || b + c < a - tol {
-        return Err(format!(
-            "<inertia> violates the triangle inequality: principal moments {a:.6e}, {b:.6e}, {c:.6e} kg·m²"
-        ));
-    }
-    Ok(())
+    Ok(check::inertia_defect(m, &ic))
 }

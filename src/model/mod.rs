@@ -7,11 +7,15 @@
 
 mod base;
 mod build;
+mod check;
 mod joint;
+mod urdf_text;
 
 pub use base::{BasePose, BaseTwist, TWIST_TOLERANCE};
-pub use build::{BaseType, ModelOptions};
+pub use build::{BaseType, InertiaPolicy, ModelOptions};
+pub use check::{MIN_PIVOT_RATIO, pivot_ratios};
 pub use joint::JointKind;
+pub use urdf_text::MAX_URDF_MAGNITUDE;
 
 use crate::error::{Error, Result};
 use crate::spatial::{Inertia, Motion, SE3};
@@ -114,6 +118,36 @@ pub struct Model {
     /// Per velocity coordinate, the previous coordinate on the path to the root
     /// (`usize::MAX` for none): the sparsity pattern of M's LTL factor.
     pub v_parent: Vec<usize>,
+    /// What the loader accepted but a user should know, one sentence each naming the file and
+    /// link (e.g. a non-physical inertia on a link welded to a sound body, which is ignored).
+    pub warnings: Vec<String>,
+    /// A joint whose motion moves no inertia, or none independent of the others, at the neutral
+    /// and at a generic configuration (M singular). Not an error for the model alone: a
+    /// constraint can give that joint its dynamics (a massless rod pinned by a loop closure);
+    /// `System::from_scene` refuses the scene when none does.
+    pub singular: Option<SingularJoint>,
+}
+
+/// Why M is singular: the joint at fault and what it moves.
+#[derive(Clone, Debug)]
+pub struct SingularJoint {
+    /// The URDF source.
+    pub file: String,
+    /// The joint's name.
+    pub joint: String,
+    /// Its effective inertia and the links it moves.
+    pub message: String,
+}
+
+impl SingularJoint {
+    /// The load error for a scene in which no constraint fixes this joint.
+    pub fn error(&self) -> Error {
+        Error::SingularModel {
+            file: self.file.clone(),
+            joint: format!("joint '{}'", self.joint),
+            message: self.message.clone(),
+        }
+    }
 }
 
 impl Model {

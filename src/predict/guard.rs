@@ -1,8 +1,11 @@
-//! The energy check of fixed explicit steps on passive, conservative scenes.
+//! The guards of a prediction: its work limits, checked before running, and the energy check of
+//! fixed explicit steps on passive, conservative scenes.
 
 use super::IntegrationSettings;
+use super::integrator::Method;
 use super::trajectory::Sample;
 use crate::error::{Error, Result};
+use crate::model::Model;
 
 /// `max_energy_error`: for a passive, conservative scene stepped by a fixed explicit method, the
 /// energy may not move by more than this fraction of the energy in motion (the largest kinetic
@@ -67,4 +70,37 @@ impl EnergyGuard {
             ),
         })
     }
+}
+
+/// Bounded work, before running: steps, control ticks and samples (`check_counts`), and
+/// the work of the fixed-step methods: steps × evaluations per step × the model's cost.
+pub(super) fn check_work(
+    s: &IntegrationSettings,
+    model: &Model,
+    control: Option<f64>,
+    horizon: f64,
+) -> Result<()> {
+    s.check_counts(horizon, control)?;
+    let per_step = match s.method {
+        Method::SemiImplicitEuler => 1.0,
+        Method::Rk4 => 4.0,
+        // Adaptive or iterative: counted while running (`advance`).
+        Method::Dopri5 | Method::Sdirk2 => return Ok(()),
+    };
+    let steps = (horizon / s.dt).ceil();
+    let work = steps * per_step * crate::limits::evaluation_cost(model);
+    if work > s.max_work {
+        return Err(Error::WorkLimit {
+            what: format!(
+                "work units ({steps:e} steps × {per_step} evaluations × {:.3e} per evaluation \
+                 of this {}-body model)",
+                crate::limits::evaluation_cost(model),
+                model.nbodies() - 1
+            ),
+            estimate: work,
+            limit: s.max_work,
+            hint: "shorten the horizon, raise dt, or raise integration.max_work".into(),
+        });
+    }
+    Ok(())
 }

@@ -72,6 +72,27 @@ pub struct IntegrationSettings {
     /// off).
     #[serde(default = "default_max_energy_error")]
     pub max_energy_error: f64,
+    /// Integration steps (and control ticks) one prediction may take (default 1e6): checked
+    /// before running (horizon / dt, horizon / control period) and while running (dopri5).
+    #[serde(default = "default_max_steps")]
+    pub max_steps: f64,
+    /// Output samples one prediction may hold (default 1e5): horizon / sample_period.
+    #[serde(default = "default_max_samples")]
+    pub max_samples: f64,
+    /// Work units one prediction may cost (default 1e10, ≈ 10–60 s of CPU): dynamics
+    /// evaluations × (bodies + Σ depth² of the coordinates), see `limits::evaluation_cost`.
+    #[serde(default = "default_max_work")]
+    pub max_work: f64,
+}
+
+fn default_max_steps() -> f64 {
+    crate::limits::DEFAULT_MAX_STEPS
+}
+fn default_max_samples() -> f64 {
+    crate::limits::DEFAULT_MAX_SAMPLES
+}
+fn default_max_work() -> f64 {
+    crate::limits::DEFAULT_MAX_WORK
 }
 
 fn default_dt() -> f64 {
@@ -108,6 +129,9 @@ impl Default for IntegrationSettings {
             horizon: default_horizon(),
             sample_period: default_sample(),
             max_energy_error: default_max_energy_error(),
+            max_steps: default_max_steps(),
+            max_samples: default_max_samples(),
+            max_work: default_max_work(),
         }
     }
 }
@@ -129,6 +153,9 @@ impl IntegrationSettings {
         pos("atol", self.atol)?;
         pos("baumgarte_steps", self.baumgarte_steps)?;
         pos("sample_period", self.sample_period)?;
+        pos("max_steps", self.max_steps)?;
+        pos("max_samples", self.max_samples)?;
+        pos("max_work", self.max_work)?;
         if self.max_energy_error.is_nan() || self.max_energy_error <= 0.0 {
             return Err(crate::Error::Invalid(format!(
                 "integration.max_energy_error = {} must be positive (.inf: no check)",
@@ -141,6 +168,60 @@ impl IntegrationSettings {
                 self.horizon
             )));
         }
-        Ok(())
+        self.check_counts(self.horizon, None)
+    }
+
+    /// Refuse, before running, a request over its work limits: steps (horizon / dt and
+    /// horizon / control period), samples (horizon / sample period). `control_period` [s] of the
+    /// scene's actuators if any.
+    pub fn check_counts(&self, horizon: f64, control_period: Option<f64>) -> crate::Result<()> {
+        let limit = |what: &str, n: f64, max: f64, hint: &str| {
+            if n <= max {
+                Ok(())
+            } else {
+                Err(crate::Error::WorkLimit {
+                    what: what.to_string(),
+                    estimate: n,
+                    limit: max,
+                    hint: hint.to_string(),
+                })
+            }
+        };
+        // dopri5's dt is only its first step (it adapts): its steps are counted while running.
+        let fixed = self.method != Method::Dopri5;
+        let steps = if fixed { horizon / self.dt } else { 0.0 };
+        limit(
+            &format!(
+                "integration steps (horizon {} s / dt {} s)",
+                crate::limits::show(horizon),
+                crate::limits::show(self.dt)
+            ),
+            steps,
+            self.max_steps,
+            "shorten the horizon, raise dt, or raise integration.max_steps",
+        )?;
+        if let Some(p) = control_period {
+            limit(
+                &format!(
+                    "control ticks (horizon {} s / control_period {} s)",
+                    crate::limits::show(horizon),
+                    crate::limits::show(p)
+                ),
+                horizon / p,
+                self.max_steps,
+                "shorten the horizon, raise actuators.control_period, or raise \
+                 integration.max_steps",
+            )?;
+        }
+        limit(
+            &format!(
+                "output samples (horizon {} s / sample_period {} s)",
+                crate::limits::show(horizon),
+                crate::limits::show(self.sample_period)
+            ),
+            horizon / self.sample_period,
+            self.max_samples,
+            "shorten the horizon, raise sample_period, or raise integration.max_samples",
+        )
     }
 }

@@ -2,7 +2,7 @@
 
 use super::covariance::{CovariancePropagator, UncertaintySpec};
 use super::drift::Projector;
-use super::guard::EnergyGuard;
+use super::guard::{EnergyGuard, check_work};
 use super::integrator::{
     Accel, DOPRI5, Method, RK4, StepWorkspace, dopri5_error_norm, explicit_step, sdirk2_step,
     semi_implicit_euler_step,
@@ -35,6 +35,8 @@ pub(super) struct Workspace {
     qn: Vec<f64>,
     vn: Vec<f64>,
     tau_n: Vec<f64>,
+    /// Work units of one dynamics evaluation (`limits::evaluation_cost`).
+    cost: f64,
 }
 
 /// The right-hand side: held actuator torques + force elements → constrained q̈.
@@ -147,6 +149,7 @@ impl Predictor {
             qn: vec![0.0; nq],
             vn: vec![0.0; nv],
             tau_n: vec![0.0; nv],
+            cost: crate::limits::evaluation_cost(&model),
         };
         Ok(Self {
             sys,
@@ -187,12 +190,14 @@ impl Predictor {
         opts: PredictOptions,
     ) -> Result<Trajectory> {
         let start = Instant::now();
-        self.model.check_state(q0, v0)?;
+        crate::limits::check_input_state(&self.model, q0, v0, &self.ws.zero)?;
         if !(horizon.is_finite() && horizon >= 0.0) {
             return Err(Error::Invalid(format!(
                 "horizon = {horizon} s must be finite and ≥ 0"
             )));
         }
+        let control = (!self.actuators.is_empty()).then_some(self.actuators.control_period);
+        check_work(&self.settings, &self.model, control, horizon)?;
         for (t, c) in commands {
             crate::error::check_finite("command time", &[*t])?;
             self.actuators.check_command(c)?;
@@ -335,6 +340,7 @@ impl Predictor {
         s: &IntegrationSettings,
     ) -> Result<()> {
         let (t0, t1) = span;
+        let cost = self.ws.cost;
         let model = &self.model;
         let ws = &mut self.ws;
         let mut rhs = Rhs {
@@ -418,6 +424,26 @@ impl Predictor {
                 }
                 t += dt;
                 traj.steps += 1;
+                // Adaptive and implicit methods take as many steps and evaluations as the
+                // problem asks: bounded while running.
+                let work = (traj.evaluations + rhs.evaluations) as f64 * cost;
+                if traj.steps as f64 > s.max_steps || work > s.max_work {
+                    return Err(Error::WorkLimit {
+                        what: format!(
+                            "steps ({}) or work units ({work:.3e}) at t = {t} s",
+                            traj.steps
+                        ),
+                        estimate: (traj.steps as f64).max(work),
+                        limit: if traj.steps as f64 > s.max_steps {
+                            s.max_steps
+                        } else {
+                            s.max_work
+                        },
+                        hint: "loosen rtol, shorten the horizon, or raise integration.max_steps \
+                               / max_work"
+                            .into(),
+                    });
+                }
                 if s.drift == DriftControl::Projection {
                     ws.proj.project(rhs.sys, q, v, true)?;
                 }

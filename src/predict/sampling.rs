@@ -46,6 +46,28 @@ impl Predictor {
             ),
             None => (None, None, None, None),
         };
+        let energies = [ke, pe, position_residual, velocity_residual];
+        if let Some((what, x)) = [
+            ("q", q),
+            ("v", v),
+            ("energies and residuals", &energies[..]),
+        ]
+        .into_iter()
+        .find(|(_, x)| x.iter().any(|y| !y.is_finite()))
+        {
+            crate::error::check_output(
+                &format!("sample at t = {t} s: {what}"),
+                x,
+                "the state overflows the arithmetic; see the input ranges in README.md",
+            )?;
+        }
+        if let Some(c) = &self.covariance {
+            crate::error::check_output(
+                &format!("sample at t = {t} s: covariance"),
+                c.p.as_slice(),
+                "the propagated covariance overflowed; reduce the start covariance or the horizon",
+            )?;
+        }
         Ok(Sample {
             t,
             q: q.to_vec(),

@@ -38,7 +38,9 @@ pub struct Sample {
     pub kinetic_energy: f64,
     /// Gravity + spring potential energy [J].
     pub potential_energy: f64,
-    /// Accumulated local error estimate of the configuration [m or rad] (dopri5), NaN otherwise.
+    /// Accumulated local error estimate of the configuration [m or rad] (dopri5), NaN otherwise
+    /// (then left out of the JSON: a NaN would print as `null`, which the CLI refuses).
+    #[serde(skip_serializing_if = "is_nan")]
     pub error_estimate: f64,
     /// Propagated covariance of (δq, δv), 2nv × 2nv row-major, tangent space (δq a right
     /// perturbation, velocity order) [m², rad², (m/s)², …], when a start covariance was given.
@@ -87,4 +89,8 @@ pub struct Trajectory {
     pub least_squares_evaluations: usize,
     /// CPU (wall) time of the integration [s].
     pub run_time_s: f64,
+}
+
+fn is_nan(x: &f64) -> bool {
+    x.is_nan()
 }
