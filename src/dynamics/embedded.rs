@@ -70,6 +70,7 @@ pub fn embedded_forward_dynamics(
     stab: Baumgarte,
 ) -> Result<()> {
     set.evaluate(model, data, cd, q, v);
+    set.check_finite(cd)?;
     crba(model, data, q);
     nonlinear_effects(model, data, q, v);
     let nv = model.nv;

@@ -95,6 +95,7 @@ pub fn constrained_forward_dynamics(
 ) -> Result<()> {
     // One kinematics pass at (q, v, q̈ = 0) serves the constraints, M and h.
     set.evaluate(model, data, cd, q, v);
+    set.check_finite(cd)?;
     crba_after_kinematics(model, data);
     bias_forces_after_kinematics(model, data);
     for i in 0..model.nv {

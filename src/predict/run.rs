@@ -45,6 +45,8 @@ struct Rhs<'a> {
 impl Accel for Rhs<'_> {
     fn accel(&mut self, t: f64, q: &[f64], v: &[f64], qdd: &mut [f64]) -> Result<()> {
         self.evaluations += 1;
+        // Time reaches the constraints through their workspace (`velocity` rows may use t).
+        self.sys.cdata.t = t;
         applied_generalized_force(
             self.sys,
             self.forces,
@@ -375,6 +377,7 @@ impl Predictor {
                 t += dt;
                 traj.steps += 1;
                 if s.drift == DriftControl::Projection {
+                    rhs.sys.cdata.t = t;
                     ws.proj.project(rhs.sys, q, v, true)?;
                 }
                 if let Some(bad) = q
@@ -439,6 +442,7 @@ impl Predictor {
             )?),
             _ => None,
         };
+        sys.cdata.t = t;
         sys.constraints
             .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
         let cd = &sys.cdata;

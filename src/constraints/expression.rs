@@ -1,0 +1,505 @@
+//! f(q, v, t) written in a scene: parsed and differentiated symbolically by exmex, evaluated
+//! without allocation.
+//!
+//! Syntax: `+ - * / ^`, `sqrt sin cos tan exp ln abs`, decimal and scientific numbers, `pi`,
+//! `t` for time [s], and the symbols declared under `variables:` (`q:NAME` or `v:NAME`, the
+//! model's `q_names` / `v_names`, e.g. `v:root_joint:vx_local`). A unary minus before a power
+//! (`-x^2`) is refused: exmex binds the sign first, `(−x)²`, the opposite of the usual reading.
+//!
+//! exmex reports most syntax errors without a position; a small tokenizer runs first so that a
+//! malformed expression is named with its column. It checks token order only; exmex parses.
+
+use crate::error::ExpressionProblem;
+use crate::model::Model;
+use exmex::prelude::*;
+use exmex::{BinOp, MakeOperators, MatchLiteral, Operator, literal_matcher_from_pattern};
+use std::collections::BTreeMap;
+
+// Exactly the operators the scene syntax promises (exmex's default set also has `e`, `E`,
+// `PI`, … as constants, which would silently shadow a variable called `e`). `abs` is spelled
+// `sqrt(x^2)` for exmex (it has no derivative rule for `abs`), see `rewrite_abs`.
+exmex::ops_factory!(
+    Ops,
+    f64,
+    Operator::make_bin(
+        "+",
+        BinOp {
+            apply: |a, b| a + b,
+            prio: 1,
+            is_commutative: true
+        }
+    ),
+    Operator::make_bin_unary(
+        "-",
+        BinOp {
+            apply: |a, b| a - b,
+            prio: 1,
+            is_commutative: false
+        },
+        |a| -a
+    ),
+    Operator::make_bin(
+        "*",
+        BinOp {
+            apply: |a, b| a * b,
+            prio: 2,
+            is_commutative: true
+        }
+    ),
+    Operator::make_bin(
+        "/",
+        BinOp {
+            apply: |a, b| a / b,
+            prio: 3,
+            is_commutative: false
+        }
+    ),
+    Operator::make_bin(
+        "^",
+        BinOp {
+            apply: |a: f64, b| a.powf(b),
+            prio: 4,
+            is_commutative: false
+        }
+    ),
+    Operator::make_unary("sqrt", |a| a.sqrt()),
+    Operator::make_unary("sin", |a| a.sin()),
+    Operator::make_unary("cos", |a| a.cos()),
+    Operator::make_unary("tan", |a| a.tan()),
+    Operator::make_unary("exp", |a| a.exp()),
+    Operator::make_unary("ln", |a| a.ln()),
+    Operator::make_constant("pi", std::f64::consts::PI)
+);
+literal_matcher_from_pattern!(Number, r"^(([0-9]+(\.[0-9]*)?|\.[0-9]+)([eE][+-]?[0-9]+)?)");
+
+type Ex = FlatEx<f64, Ops, Number>;
+
+/// Functions of the syntax.
+pub const FUNCTIONS: [&str; 7] = ["sqrt", "sin", "cos", "tan", "exp", "ln", "abs"];
+/// Symbols with a fixed meaning: time [s] and π.
+pub const RESERVED: [&str; 2] = ["t", "pi"];
+/// Most distinct symbols one expression may use (values live in a stack buffer).
+pub const MAX_SYMBOLS: usize = 16;
+
+/// What a symbol of the expression stands for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Source {
+    /// Configuration coordinate `q[index]`; `body` carries its joint (for q̇ = G(q) v).
+    Q {
+        /// Index in q.
+        index: usize,
+        /// Body whose joint owns the coordinate.
+        body: usize,
+    },
+    /// Velocity coordinate `v[index]`.
+    V {
+        /// Index in v.
+        index: usize,
+    },
+    /// Time t [s].
+    Time,
+}
+
+/// A parsed f(q, v, t) with its first partial derivatives.
+#[derive(Clone, Debug)]
+pub struct Expression {
+    /// The text as written in the scene.
+    pub text: String,
+    /// Boxed: exmex keeps 32 nodes inline, which would make every `Constraint` that large.
+    f: Box<Ex>,
+    /// ∂f/∂(symbol k), in the order of `symbols`.
+    df: Vec<Ex>,
+    /// The symbols f uses (exmex's order: sorted by name) with what they stand for.
+    pub symbols: Vec<(String, Source)>,
+}
+
+impl Expression {
+    /// Parse `text` with `variables` (symbol → `q:NAME` | `v:NAME`) against the model.
+    pub fn parse(
+        model: &Model,
+        text: &str,
+        variables: &BTreeMap<String, String>,
+    ) -> Result<Expression, ExpressionProblem> {
+        let mut sources = BTreeMap::new();
+        for (sym, coord) in variables {
+            sources.insert(sym.as_str(), variable_source(model, sym, coord)?);
+        }
+        check_tokens(text, |s| sources.contains_key(s))?;
+        let f = Ex::parse(&rewrite_abs(text)).map_err(|e| ExpressionProblem::Syntax {
+            column: 1,
+            message: e.msg().to_string(),
+        })?;
+        let names = f.var_names().to_vec();
+        if names.len() > MAX_SYMBOLS {
+            return Err(ExpressionProblem::Syntax {
+                column: 1,
+                message: format!("{} symbols, at most {MAX_SYMBOLS}", names.len()),
+            });
+        }
+        let mut symbols = Vec::with_capacity(names.len());
+        for n in &names {
+            let src = if n == "t" {
+                Source::Time
+            } else {
+                *sources
+                    .get(n.as_str())
+                    .ok_or_else(|| ExpressionProblem::UnknownSymbol {
+                        symbol: n.clone(),
+                        column: column_of(text, n),
+                    })?
+            };
+            symbols.push((n.clone(), src));
+        }
+        if !symbols.iter().any(|(_, s)| matches!(s, Source::V { .. })) {
+            return Err(ExpressionProblem::Holonomic);
+        }
+        let df = (0..names.len())
+            .map(|k| {
+                f.clone()
+                    .partial(k)
+                    .map_err(|e| ExpressionProblem::Derivative {
+                        symbol: names[k].clone(),
+                        message: e.msg().to_string(),
+                    })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Expression {
+            text: text.to_string(),
+            f: Box::new(f),
+            df,
+            symbols,
+        })
+    }
+
+    /// Number of symbols (the length of a value buffer).
+    pub fn len(&self) -> usize {
+        self.symbols.len()
+    }
+
+    /// True when f uses no symbol (never: parsing refuses it).
+    pub fn is_empty(&self) -> bool {
+        self.symbols.is_empty()
+    }
+
+    /// The symbols' values at (q, v, t) into `vals[..len]`.
+    pub fn values(&self, q: &[f64], v: &[f64], t: f64, vals: &mut [f64; MAX_SYMBOLS]) {
+        for (k, (_, src)) in self.symbols.iter().enumerate() {
+            vals[k] = match *src {
+                Source::Q { index, .. } => q[index],
+                Source::V { index } => v[index],
+                Source::Time => t,
+            };
+        }
+    }
+
+    /// f at the symbols' values (NaN where exmex refuses, which it does only on a length
+    /// mismatch; the caller checks finiteness).
+    pub fn f(&self, vals: &[f64; MAX_SYMBOLS]) -> f64 {
+        self.f.eval(&vals[..self.len()]).unwrap_or(f64::NAN)
+    }
+
+    /// ∂f/∂(symbol k) at the symbols' values.
+    pub fn df(&self, k: usize, vals: &[f64; MAX_SYMBOLS]) -> f64 {
+        self.df[k].eval(&vals[..self.len()]).unwrap_or(f64::NAN)
+    }
+
+    /// The time derivative of a configuration symbol, q̇_i = (G(q) v)_i, without allocation.
+    pub fn qdot(model: &Model, body: usize, index: usize, q: &[f64], v: &[f64]) -> f64 {
+        let j = &model.bodies[body].joint;
+        let (iq, iv, nq, nv) = (j.idx_q, j.idx_v, j.kind.nq(), j.kind.nv());
+        let mut buf = [0.0; 7];
+        j.kind
+            .qdot(&q[iq..iq + nq], &v[iv..iv + nv], &mut buf[..nq]);
+        buf[index - iq]
+    }
+}
+
+fn variable_source(model: &Model, sym: &str, coord: &str) -> Result<Source, ExpressionProblem> {
+    let bad = |message: String| ExpressionProblem::BadVariable {
+        symbol: sym.to_string(),
+        message,
+    };
+    let mut chars = sym.chars();
+    let ident = chars
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_');
+    if !ident {
+        return Err(bad(
+            "a symbol is a letter or _ followed by letters, digits or _".into(),
+        ));
+    }
+    if RESERVED.contains(&sym) || FUNCTIONS.contains(&sym) {
+        return Err(bad(format!(
+            "'{sym}' is reserved (t is time, pi is π, and the functions)"
+        )));
+    }
+    let unknown = |coordinate: &str, known: &[String]| ExpressionProblem::UnknownCoordinate {
+        symbol: sym.to_string(),
+        coordinate: coordinate.to_string(),
+        known: known.join(", "),
+    };
+    match coord.split_once(':') {
+        Some(("q", name)) => {
+            let index = model
+                .q_names
+                .iter()
+                .position(|n| n == name)
+                .ok_or_else(|| unknown(name, &model.q_names))?;
+            let body = (1..model.nbodies())
+                .find(|&b| {
+                    let j = &model.bodies[b].joint;
+                    j.kind.nq() > 0 && (j.idx_q..j.idx_q + j.kind.nq()).contains(&index)
+                })
+                .ok_or_else(|| unknown(name, &model.q_names))?;
+            Ok(Source::Q { index, body })
+        }
+        Some(("v", name)) => {
+            let index = model
+                .v_names
+                .iter()
+                .position(|n| n == name)
+                .ok_or_else(|| unknown(name, &model.v_names))?;
+            Ok(Source::V { index })
+        }
+        _ => Err(bad(format!(
+            "'{coord}' must be q:NAME or v:NAME (a q_names or v_names entry of the model)"
+        ))),
+    }
+}
+
+/// 1-based column of the first occurrence of identifier `sym` in `text` (1 if not found).
+fn column_of(text: &str, sym: &str) -> usize {
+    text.find(sym)
+        .map(|b| text[..b].chars().count() + 1)
+        .unwrap_or(1)
+}
+
+/// `abs(X)` → `sqrt((X)^2)`: the same function, with a derivative exmex knows (X/|X|; at
+/// X = 0 it is not defined, and the NaN is caught as non-finite).
+fn rewrite_abs(text: &str) -> String {
+    let mut out = String::with_capacity(text.len() + 16);
+    let mut rest = text;
+    while let Some(i) = find_word(rest, "abs") {
+        out.push_str(&rest[..i]);
+        let after = rest[i + 3..].trim_start();
+        // check_tokens guaranteed `abs` is followed by a balanced `( … )`.
+        let mut depth = 0usize;
+        let mut end = 0;
+        for (k, c) in after.char_indices() {
+            match c {
+                '(' => depth += 1,
+                ')' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        end = k;
+                        break;
+                    }
+                }
+                _ => {}
+            }
+        }
+        out.push_str("sqrt((");
+        out.push_str(&rewrite_abs(&after[1..end]));
+        out.push_str(")^2)");
+        rest = &after[end + 1..];
+    }
+    out.push_str(rest);
+    out
+}
+
+/// Byte offset of `word` as a whole identifier in `s`.
+fn find_word(s: &str, word: &str) -> Option<usize> {
+    let is_id = |c: char| c.is_ascii_alphanumeric() || c == '_';
+    let mut from = 0;
+    while let Some(i) = s[from..].find(word).map(|i| i + from) {
+        let before = s[..i].chars().next_back().is_some_and(is_id);
+        let after = s[i + word.len()..].chars().next().is_some_and(is_id);
+        if !before && !after {
+            return Some(i);
+        }
+        from = i + word.len();
+    }
+    None
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Tok<'a> {
+    Num,
+    Ident(&'a str),
+    Op(char),
+    Open,
+    Close,
+}
+
+fn tokens(text: &str) -> Result<Vec<(usize, Tok<'_>)>, ExpressionProblem> {
+    let mut out = vec![];
+    let chars: Vec<(usize, char)> = text.char_indices().collect();
+    let mut k = 0;
+    while k < chars.len() {
+        let (byte, c) = chars[k];
+        let col = k + 1;
+        if c.is_whitespace() {
+            k += 1;
+            continue;
+        }
+        let tok = if c.is_ascii_digit() || c == '.' {
+            let m = Number::is_literal(&text[byte..]).ok_or_else(|| ExpressionProblem::Syntax {
+                column: col,
+                message: "malformed number".into(),
+            })?;
+            k += m.chars().count();
+            Tok::Num
+        } else if c.is_ascii_alphabetic() || c == '_' {
+            let len = text[byte..]
+                .find(|ch: char| !(ch.is_ascii_alphanumeric() || ch == '_'))
+                .unwrap_or(text.len() - byte);
+            k += text[byte..byte + len].chars().count();
+            Tok::Ident(&text[byte..byte + len])
+        } else {
+            k += 1;
+            match c {
+                '+' | '-' | '*' | '/' | '^' => Tok::Op(c),
+                '(' => Tok::Open,
+                ')' => Tok::Close,
+                _ => {
+                    return Err(ExpressionProblem::Syntax {
+                        column: col,
+                        message: format!("unexpected character '{c}'"),
+                    });
+                }
+            }
+        };
+        out.push((col, tok));
+    }
+    Ok(out)
+}
+
+/// Token order, parentheses, function calls and symbols, with the column of the first fault.
+fn check_tokens(text: &str, known: impl Fn(&str) -> bool) -> Result<(), ExpressionProblem> {
+    let syntax = |column: usize, message: &str| ExpressionProblem::Syntax {
+        column,
+        message: message.to_string(),
+    };
+    let toks = tokens(text)?;
+    let end_col = text.chars().count() + 1;
+    if toks.is_empty() {
+        return Err(syntax(1, "empty expression"));
+    }
+    let mut expect_operand = true;
+    // Per open parenthesis: its column; per depth: whether the current operand was signed.
+    let mut open: Vec<usize> = vec![];
+    let mut signed: Vec<bool> = vec![false];
+    let mut prev_unary = false;
+    for (i, &(col, tok)) in toks.iter().enumerate() {
+        let depth = open.len();
+        let starts_operand = matches!(tok, Tok::Num | Tok::Ident(_) | Tok::Open);
+        if starts_operand && !expect_operand {
+            return Err(syntax(col, "missing operator before this operand"));
+        }
+        // A function's parenthesis continues the operand its name started (and its sign).
+        let after_function =
+            i > 0 && matches!(toks[i - 1].1, Tok::Ident(n) if FUNCTIONS.contains(&n));
+        if starts_operand && !after_function {
+            signed[depth] = prev_unary;
+        }
+        prev_unary = false;
+        match tok {
+            Tok::Num => expect_operand = false,
+            Tok::Ident(name) => {
+                if FUNCTIONS.contains(&name) {
+                    if !matches!(toks.get(i + 1), Some((_, Tok::Open))) {
+                        return Err(syntax(col, &format!("function '{name}' needs ( … )")));
+                    }
+                } else if RESERVED.contains(&name) || known(name) {
+                    expect_operand = false;
+                } else {
+                    return Err(ExpressionProblem::UnknownSymbol {
+                        symbol: name.to_string(),
+                        column: col,
+                    });
+                }
+            }
+            Tok::Op('+' | '-') if expect_operand => prev_unary = true,
+            Tok::Op(c) => {
+                if expect_operand {
+                    return Err(syntax(col, &format!("'{c}' needs an operand on its left")));
+                }
+                if c == '^' && signed[depth] {
+                    return Err(syntax(
+                        col,
+                        "a sign before a power is ambiguous here (exmex reads -x^2 as (-x)^2): \
+                         write -(x^2) or (-x)^2",
+                    ));
+                }
+                expect_operand = true;
+            }
+            Tok::Open => {
+                open.push(col);
+                signed.push(false);
+                expect_operand = true;
+            }
+            Tok::Close => {
+                if open.is_empty() {
+                    return Err(syntax(col, "')' without a matching '('"));
+                }
+                if expect_operand {
+                    return Err(syntax(col, "missing operand before ')'"));
+                }
+                open.pop();
+                signed.pop();
+                expect_operand = false;
+            }
+        }
+    }
+    if let Some(&col) = open.last() {
+        return Err(syntax(col, "'(' is never closed"));
+    }
+    if expect_operand {
+        return Err(syntax(end_col, "the expression ends after an operator"));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn col(text: &str) -> usize {
+        match check_tokens(text, |s| ["vx", "vy", "x"].contains(&s)) {
+            Err(ExpressionProblem::Syntax { column, .. })
+            | Err(ExpressionProblem::UnknownSymbol { column, .. }) => column,
+            other => panic!("{text}: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn faults_are_located() {
+        assert_eq!(col("vx - 0.5*sqrt(vx^2 + vy^2"), 14);
+        assert_eq!(col("vx - * vy"), 6);
+        assert_eq!(col("vx vy"), 4);
+        assert_eq!(col("vx + foo(vy)"), 6);
+        assert_eq!(col("vx)"), 3);
+        assert_eq!(col("vx +"), 5);
+        assert_eq!(col("vx # 2"), 4);
+        assert_eq!(col("-vx^2"), 4);
+        assert_eq!(col("-sin(x)^2"), 8);
+        assert_eq!(col("sin x"), 1);
+        assert_eq!(col("vx*()"), 5);
+        assert!(
+            check_tokens("-(vx^2) + 2^-1*vy - 1.5e-3*x*t + pi", |s| s == "vx"
+                || s == "vy"
+                || s == "x")
+            .is_ok()
+        );
+    }
+
+    #[test]
+    fn abs_is_rewritten_with_balanced_parentheses() {
+        assert_eq!(rewrite_abs("abs(vx) + absx"), "sqrt((vx)^2) + absx");
+        assert_eq!(
+            rewrite_abs("2*abs((a+b)*abs(c))"),
+            "2*sqrt(((a+b)*sqrt((c)^2))^2)"
+        );
+    }
+}
