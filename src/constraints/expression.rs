@@ -80,6 +80,42 @@ pub const FUNCTIONS: [&str; 7] = ["sqrt", "sin", "cos", "tan", "exp", "ln", "abs
 pub const RESERVED: [&str; 2] = ["t", "pi"];
 /// Most distinct symbols one expression may use (values live in a stack buffer).
 pub const MAX_SYMBOLS: usize = 16;
+/// Most tokens one expression may have. exmex parses and differentiates recursively with
+/// large frames: 20 terms like `3*vx*vz^2` overflowed a 2 MiB test thread, 160 needed 32 MiB
+/// (measured at opt-level 3); parsing runs on its own 64 MiB thread, and 400 tokens (50
+/// terms like `3*vx*vz^2 +`, 8 tokens each) stay well inside it.
+pub const MAX_TOKENS: usize = 400;
+
+/// exmex's parse and the partial derivatives, on a thread with a stack large enough for
+/// `MAX_TOKENS` (once per scene load, not in the hot path).
+fn parse_and_differentiate(text: String) -> Result<(Ex, Vec<Ex>), ExpressionProblem> {
+    let work = move || -> Result<(Ex, Vec<Ex>), ExpressionProblem> {
+        let f = Ex::parse(&text).map_err(|e| ExpressionProblem::Syntax {
+            column: 1,
+            message: e.msg().to_string(),
+        })?;
+        let names = f.var_names().to_vec();
+        let df = (0..names.len())
+            .map(|k| {
+                f.clone()
+                    .partial(k)
+                    .map_err(|e| ExpressionProblem::Derivative {
+                        symbol: names[k].clone(),
+                        message: e.msg().to_string(),
+                    })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok((f, df))
+    };
+    let failed = |message: String| ExpressionProblem::Syntax { column: 1, message };
+    std::thread::Builder::new()
+        .name("expression-parse".into())
+        .stack_size(64 << 20)
+        .spawn(work)
+        .map_err(|e| failed(format!("cannot start the parsing thread: {e}")))?
+        .join()
+        .map_err(|_| failed("the expression library panicked while parsing".into()))?
+}
 
 /// What a symbol of the expression stands for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -124,11 +160,14 @@ impl Expression {
         for (sym, coord) in variables {
             sources.insert(sym.as_str(), variable_source(model, sym, coord)?);
         }
-        check_tokens(text, |s| sources.contains_key(s))?;
-        let f = Ex::parse(&rewrite_abs(text)).map_err(|e| ExpressionProblem::Syntax {
-            column: 1,
-            message: e.msg().to_string(),
-        })?;
+        let ntok = check_tokens(text, |s| sources.contains_key(s))?;
+        if ntok > MAX_TOKENS {
+            return Err(ExpressionProblem::Syntax {
+                column: 1,
+                message: format!("{ntok} tokens, at most {MAX_TOKENS}"),
+            });
+        }
+        let (f, df) = parse_and_differentiate(rewrite_abs(text))?;
         let names = f.var_names().to_vec();
         if names.len() > MAX_SYMBOLS {
             return Err(ExpressionProblem::Syntax {
@@ -153,16 +192,6 @@ impl Expression {
         if !symbols.iter().any(|(_, s)| matches!(s, Source::V { .. })) {
             return Err(ExpressionProblem::Holonomic);
         }
-        let df = (0..names.len())
-            .map(|k| {
-                f.clone()
-                    .partial(k)
-                    .map_err(|e| ExpressionProblem::Derivative {
-                        symbol: names[k].clone(),
-                        message: e.msg().to_string(),
-                    })
-            })
-            .collect::<Result<Vec<_>, _>>()?;
         Ok(Expression {
             text: text.to_string(),
             f: Box::new(f),
@@ -376,7 +405,8 @@ fn tokens(text: &str) -> Result<Vec<(usize, Tok<'_>)>, ExpressionProblem> {
 }
 
 /// Token order, parentheses, function calls and symbols, with the column of the first fault.
-fn check_tokens(text: &str, known: impl Fn(&str) -> bool) -> Result<(), ExpressionProblem> {
+/// Returns the number of tokens.
+fn check_tokens(text: &str, known: impl Fn(&str) -> bool) -> Result<usize, ExpressionProblem> {
     let syntax = |column: usize, message: &str| ExpressionProblem::Syntax {
         column,
         message: message.to_string(),
@@ -458,7 +488,7 @@ fn check_tokens(text: &str, known: impl Fn(&str) -> bool) -> Result<(), Expressi
     if expect_operand {
         return Err(syntax(end_col, "the expression ends after an operator"));
     }
-    Ok(())
+    Ok(toks.len())
 }
 
 #[cfg(test)]
