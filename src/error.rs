@@ -148,8 +148,8 @@ pub enum Error {
         name: String,
         /// The expression as written.
         expression: String,
-        /// What is wrong with it.
-        problem: ExpressionProblem,
+        /// What is wrong with it (boxed: keeps `Error` small for the callers' `Result`s).
+        problem: Box<ExpressionProblem>,
     },
 
     /// Any other invalid argument or option; the string says what.

@@ -398,7 +398,7 @@ fn problem(expression: &str, variables: &str, extra: &str) -> ExpressionProblem 
     match scene_from("point_mass.urdf", "floating", &yaml) {
         Err(Error::Expression { name, problem, .. }) => {
             assert_eq!(name, "c");
-            problem
+            *problem
         }
         Err(e) => panic!("{expression}: another error: {e}"),
         Ok(_) => panic!("{expression}: accepted"),

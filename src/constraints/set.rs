@@ -472,7 +472,7 @@ fn velocity(
     let err = |problem| Error::Expression {
         name: name.into(),
         expression: text.into(),
-        problem,
+        problem: Box::new(problem),
     };
     let expression = Expression::parse(model, text, variables).map_err(err)?;
     if vd == VirtualDisplacements::VelocityDetermined {
