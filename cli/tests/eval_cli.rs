@@ -160,7 +160,7 @@ fn eval_reports_velocity_constraint_forces_with_units() {
     let c = &out["constraints"][0];
     assert_eq!(c["kind"], "velocity");
     assert_eq!(c["rows"], serde_json::json!(["f"]));
-    assert_close("λ", &vecf(&c["lambda"]), &[lam], 1e-15); // achieved 0
+    assert_close("λ", &vecf(&c["lambda"]), &[lam], 1e-15); // achieved 1.1e-16
     let gf = c["generalized_force"].as_array().unwrap();
     let names: Vec<&str> = gf
         .iter()
@@ -176,7 +176,7 @@ fn eval_reports_velocity_constraint_forces_with_units() {
     );
     assert!(gf.iter().all(|e| e["unit"] == "N"));
     let values: Vec<f64> = gf.iter().map(|e| e["value"].as_f64().unwrap()).collect();
-    // ẋ/s, ẏ/s = 0.8, 0.6 at the scene's state; achieved 4.5e-17.
+    // ẋ/s, ẏ/s = 0.8, 0.6 at the scene's state; achieved 1.1e-16.
     assert_close(
         "(∂f/∂v)ᵀλ",
         &values,
