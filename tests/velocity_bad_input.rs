@@ -131,13 +131,6 @@ fn malformed_expressions_are_named() {
         e.contains("constraint 'lift'") && e.contains("column 6"),
         "{e}"
     );
-    // velocity_determined is refused by name until it exists.
-    let e = scene_from(
-        "point_mass.urdf",
-        "floating",
-        "  - name: lift\n    kind: velocity\n    expression: \"vz - vx^2\"\n    variables: {vx: \"v:root_joint:vx_local\", vz: \"v:root_joint:vz_local\"}\n    virtual_displacements: velocity_determined\n",
-    );
-    assert!(matches!(e, Err(Error::Unsupported { .. })), "{:?}", e.err());
 }
 
 /// A derivative that does not exist at the state (√ at 0 in the denominator) is an error that

@@ -20,9 +20,12 @@ fn appell_hamel_with(dependent: &str) -> Scene {
             &format!("    virtual_displacements: chetaev\n    dependent: [{dependent}]\n"),
         );
     assert!(text.contains("dependent:"));
+    // One file per call: the tests run in parallel threads of one process.
+    static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let path = std::env::temp_dir().join(format!(
-        "velocity_dependent_{dependent}_{}.yaml",
-        std::process::id()
+        "velocity_dependent_{dependent}_{}_{}.yaml",
+        std::process::id(),
+        N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
     ));
     std::fs::write(&path, text).unwrap();
     let sc = Scene::load(&path);

@@ -2,11 +2,11 @@
 
 use super::{
     ConstraintKind, ConstraintRows, ConstraintSpec, CouplingConstraint, DistanceConstraint,
-    Expression, NoSideSlipConstraint, PointConstraint, RollingConstraint, RowSink,
-    VelocityConstraint, VirtualDisplacements, WeldConstraint,
+    NoSideSlipConstraint, PointConstraint, RollingConstraint, RowSink, VelocityConstraint,
+    WeldConstraint,
 };
 use crate::algorithm::{Data, forward_kinematics, forward_kinematics_pos};
-use crate::error::{Error, ExpressionProblem, Result};
+use crate::error::{Error, Result};
 use crate::model::{JointKind, Model};
 use crate::spatial::{SE3, rotation_from_rpy};
 use nalgebra::{DMatrix, DVector, Vector3};
@@ -449,70 +449,16 @@ fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Result<Constr
             variables,
             virtual_displacements,
             dependent,
+            reference_velocity,
             ..
-        } => velocity(
+        } => Constraint::Velocity(VelocityConstraint::build(
             model,
             name,
             expression,
             variables,
             *virtual_displacements,
             dependent,
-        )?,
+            reference_velocity,
+        )?),
     })
-}
-
-fn velocity(
-    model: &Model,
-    name: &str,
-    text: &str,
-    variables: &std::collections::BTreeMap<String, String>,
-    vd: VirtualDisplacements,
-    dependent: &[String],
-) -> Result<Constraint> {
-    let err = |problem| Error::Expression {
-        name: name.into(),
-        expression: text.into(),
-        problem: Box::new(problem),
-    };
-    let expression = Expression::parse(model, text, variables).map_err(err)?;
-    if vd == VirtualDisplacements::VelocityDetermined {
-        return Err(Error::Unsupported {
-            what: format!("constraint '{name}': virtual_displacements: velocity_determined"),
-            why: "the seed's B coefficients (eqs. 5–6) are not implemented yet; chetaev is \
-                  (the same for constraints homogeneous in the velocities, seed eq. 22)"
-                .into(),
-        });
-    }
-    let c = VelocityConstraint {
-        expression,
-        dependent: None,
-    };
-    let dependent = match dependent {
-        [] => None,
-        [sym] => {
-            let src = c
-                .expression
-                .symbols
-                .iter()
-                .find(|(s, _)| s == sym)
-                .map(|(_, src)| *src);
-            match src {
-                Some(super::Source::V { index }) => Some(index),
-                _ => {
-                    return Err(err(ExpressionProblem::Dependent {
-                        message: format!("'{sym}' is not a velocity symbol of the expression"),
-                    }));
-                }
-            }
-        }
-        _ => {
-            return Err(err(ExpressionProblem::Dependent {
-                message: format!(
-                    "{} symbols for one equation: name at most one",
-                    dependent.len()
-                ),
-            }));
-        }
-    };
-    Ok(Constraint::Velocity(VelocityConstraint { dependent, ..c }))
 }

@@ -194,6 +194,11 @@ pub enum ConstraintSpec {
         /// constraint; default: chosen from ∂f/∂v).
         #[serde(default)]
         dependent: Vec<String>,
+        /// `reference_velocity:` velocity symbol → v⁽⁰⁾ of the seed's eq. (4), the reference
+        /// frame's velocity the velocity-determined B is expanded about (default 0) [m/s or
+        /// rad/s]; only with `velocity_determined`.
+        #[serde(default)]
+        reference_velocity: BTreeMap<String, f64>,
     },
 }
 

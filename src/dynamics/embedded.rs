@@ -235,18 +235,86 @@ pub fn embedded_forward_dynamics(
     }
     let m = &data.mass_matrix;
     let rhs_full = DVector::from_fn(nv, |i, _| tau[i] - data.tau[i]) - m * &qdd_p;
-    let mr = n.transpose() * m * &n;
-    let rr = n.transpose() * rhs_full;
-    let z = mr
-        .cholesky()
-        .ok_or_else(|| Error::SingularMass {
-            message: "the reduced mass matrix NᵀMN is not positive definite".into(),
-        })?
-        .solve(&rr);
+    // Chetaev: the virtual displacements are N δv_i (NᵀJᵀ = 0, NᵀMN symmetric positive
+    // definite). Velocity-determined rows project on N_B instead (seed eq. 10 with eq. 6's B),
+    // and N_Bᵀ M N is not symmetric.
+    let z = match velocity_determined_projection(set, cd, p, &n, q, v)? {
+        None => (n.transpose() * m * &n)
+            .cholesky()
+            .ok_or_else(|| Error::SingularMass {
+                message: "the reduced mass matrix NᵀMN is not positive definite".into(),
+            })?
+            .solve(&(n.transpose() * rhs_full)),
+        Some(nb) => (nb.transpose() * m * &n)
+            .lu()
+            .solve(&(nb.transpose() * rhs_full))
+            .ok_or_else(|| Error::SingularMass {
+                message: "the reduced matrix N_BᵀMN of the velocity-determined form is singular"
+                    .into(),
+            })?,
+    };
     ws.qdd = &n * z + qdd_p;
     ws.n = n;
     ws.solved_velocities = corrected;
     Ok(())
+}
+
+/// N with the rows of velocity-determined constraints' dependent velocities replaced by the
+/// seed's B (eq. 6, `VelocityConstraint::velocity_determined_b`); None when there are none.
+/// Row d of N is Chetaev's −(∂f/∂v_α)/(∂f/∂v_d) only when d appears in no other row and f's
+/// other velocities are independent; other cases are refused by name.
+fn velocity_determined_projection(
+    set: &ConstraintSet,
+    cd: &ConstraintData,
+    p: &Partition,
+    n: &DMatrix<f64>,
+    q: &[f64],
+    v: &[f64],
+) -> Result<Option<DMatrix<f64>>> {
+    let mut nb: Option<DMatrix<f64>> = None;
+    for (k, c) in set.items.iter().enumerate() {
+        let Constraint::Velocity(vc) = c else {
+            continue;
+        };
+        let (true, Some(d)) = (vc.velocity_determined, vc.dependent) else {
+            continue;
+        };
+        let row = set.ranges[k].start;
+        let unsupported = |why: &str| Error::Unsupported {
+            what: format!("velocity_determined constraint '{}'", set.names[k]),
+            why: why.into(),
+        };
+        if !p.dependent.contains(&d) {
+            return Err(unsupported(
+                "its dependent velocity is not independent of the other constraints here",
+            ));
+        }
+        if (0..set.nrows).any(|r| r != row && cd.j[(r, d)] != 0.0) {
+            return Err(unsupported(
+                "its dependent velocity also appears in other constraint rows (B is defined for \
+                 a velocity only this constraint determines)",
+            ));
+        }
+        let b = vc
+            .velocity_determined_b(q, v, cd.t)
+            .map_err(|m| Error::Constraint {
+                name: set.names[k].clone(),
+                message: format!("velocity-determined B: {m}"),
+            })?;
+        let nbm = nb.get_or_insert_with(|| n.clone());
+        nbm.row_mut(d).fill(0.0);
+        for (alpha, b_alpha) in b {
+            let a = p
+                .independent
+                .iter()
+                .position(|&c| c == alpha)
+                .ok_or_else(|| {
+                    unsupported("another velocity of f is dependent in the embedded partition")
+                })?;
+            nbm[(d, a)] = b_alpha;
+        }
+    }
+    Ok(nb)
 }
 
 fn singular(set: &ConstraintSet) -> Error {
