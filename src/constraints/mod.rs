@@ -9,6 +9,7 @@
 mod coupling;
 mod distance;
 mod expression;
+mod expression_syntax;
 mod forces;
 mod kind;
 mod no_side_slip;
