@@ -58,6 +58,9 @@ pub struct SceneFile {
     /// `actuators:` actuator models (default none).
     #[serde(default)]
     pub actuators: ActuatorsSpec,
+    /// `uncertainty:` process noise of propagated covariances (default none).
+    #[serde(default)]
+    pub uncertainty: crate::predict::UncertaintySpec,
 }
 
 /// How the constrained dynamics is solved.

@@ -116,3 +116,29 @@ fn derivatives_do_not_allocate() {
         );
     }
 }
+
+#[test]
+fn step_linearization_does_not_allocate() {
+    use constraint_dynamics::predict::{Linearization, Method, linearize_step};
+    use constraint_dynamics::{Scene, System};
+    // Full-rank scenes: with dependent rows (the wheeled bases) the multiplier solve's
+    // minimum-norm path still allocates (issue 16), and so would this.
+    for file in [
+        "params/fourbar.yaml",
+        "params/double_fourbar.yaml",
+        "params/pendulum_a01.yaml",
+    ] {
+        let scene = Scene::load(repo_dir().join(file)).unwrap();
+        let mut sys = System::from_scene(&scene).unwrap();
+        let mut lin = Linearization::new(&sys);
+        let tau = vec![0.1; sys.model.nv];
+        let (q, v) = (scene.q0.clone(), scene.v0.clone());
+        for method in [Method::SemiImplicitEuler, Method::Rk4, Method::Dopri5] {
+            linearize_step(&mut sys, &mut lin, method, &q, &v, &tau, 0.01).unwrap();
+            let n = allocations(|| {
+                linearize_step(&mut sys, &mut lin, method, &q, &v, &tau, 0.01).unwrap();
+            });
+            assert_eq!(n, 0, "{file} {method:?}: linearize_step allocates");
+        }
+    }
+}

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Run every test of the project: the core library, the CLI, the ROS 2 nodes, and the interop
-# suite against real ROS 2 peers (rclpy with rmw_fastrtps_cpp, Cyclone DDS).
+# suite against real ROS 2 peers (rclpy with rmw_fastrtps_cpp, Cyclone DDS) of two
+# distributions: Kilted (.venv-ros2, every test) and Jazzy, the LTS most robots run
+# (.venv-ros2-jazzy: the tests with an rclpy or Cyclone peer, and the interop suite).
 #
 # The network rule: DDS multicasts discovery on every interface, so every test process runs
 # inside a private network namespace that has only loopback (tools/ros2/netns_run.sh). Downloads
@@ -11,6 +13,7 @@ cd "$(dirname "$0")/.."
 
 cargo fetch --locked
 bash tools/ros2/setup_peer_venv.sh
+bash tools/ros2/setup_peer_venv.sh --distro jazzy
 cargo build --workspace --all-targets --locked --offline
 
 # Rust tests, then the rclpy/Cyclone interop suite, in one private namespace each. The DDS tests
@@ -21,18 +24,31 @@ tools/ros2/netns_run.sh cargo test --workspace --locked --offline -- --include-i
 cargo_status=${PIPESTATUS[0]}
 tools/ros2/netns_run.sh .venv-ros2/bin/python tools/ros2/interop/interop.py 2>&1 | grep -v '^\[\(ERROR\|WARN\)\]' | tee /tmp/cd_interop.log
 interop_status=${PIPESTATUS[0]}
+# The same peer tests against Jazzy's rclpy (rmw_fastrtps_cpp 8.4 / Fast DDS 2.14).
+CD_ROS2_VENV="$PWD/.venv-ros2-jazzy" tools/ros2/netns_run.sh cargo test -p constraint_dynamics_nodes \
+    --locked --offline --test suite_rclpy_peer --test suite_stack_rclpy --test ros_smoke \
+    -- --include-ignored 2>&1 | tee /tmp/cd_cargo_test_jazzy.log
+jazzy_status=${PIPESTATUS[0]}
+tools/ros2/netns_run.sh .venv-ros2-jazzy/bin/python tools/ros2/interop/interop.py 2>&1 | grep -v '^\[\(ERROR\|WARN\)\]' | tee /tmp/cd_interop_jazzy.log
+interop_jazzy_status=${PIPESTATUS[0]}
 set -e
 
 # One closing line over everything: cargo's test counts plus the interop checks. With
 # --include-ignored cargo ignores nothing: a non-zero count means a test did not run, a failure.
-read -r rust_passed rust_failed rust_ignored < <(grep -E '^test result:' /tmp/cd_cargo_test.log \
-    | awk '{p += $4; f += $6; i += $8} END {print p + 0, f + 0, i + 0}')
-read -r py_passed py_failed < <(grep -E '^interop: [0-9]+ passed' /tmp/cd_interop.log \
-    | awk '{print $2, $4}' | tail -1)
-py_passed=${py_passed:-0}
-py_failed=${py_failed:-1}
+read -r rust_passed rust_failed rust_ignored < <(grep -hE '^test result:' /tmp/cd_cargo_test.log \
+    /tmp/cd_cargo_test_jazzy.log | awk '{p += $4; f += $6; i += $8} END {print p + 0, f + 0, i + 0}')
+py_passed=0
+py_failed=0
+for log in /tmp/cd_interop.log /tmp/cd_interop_jazzy.log; do
+    p=
+    f=
+    read -r p f < <(grep -E '^interop: [0-9]+ passed' "$log" | awk '{print $2, $4}' | tail -1) || true
+    py_passed=$((py_passed + ${p:-0}))
+    py_failed=$((py_failed + ${f:-1})) # no closing line: the interop run failed
+done
 echo "cargo ignored $rust_ignored tests (0 expected: every test runs with --include-ignored)"
 echo "all: $((rust_passed + py_passed)) passed, $((rust_failed + py_failed)) failed, $rust_ignored skipped"
-if [[ $cargo_status -ne 0 || $interop_status -ne 0 || $rust_ignored -ne 0 ]]; then
+if [[ $cargo_status -ne 0 || $interop_status -ne 0 || $jazzy_status -ne 0 \
+    || $interop_jazzy_status -ne 0 || $rust_ignored -ne 0 ]]; then
     exit 1
 fi

@@ -1,6 +1,8 @@
 //! `constraint_dynamics`: inspect a scene from the command line (JSON on stdout).
 
+mod covariance;
 mod eval;
+mod linearize;
 mod predict;
 mod project;
 mod report;
@@ -24,6 +26,8 @@ struct Cli {
 enum Command {
     /// Constrained forward dynamics at one state: q̈, multipliers and constraint forces.
     Eval(eval::EvalArgs),
+    /// Linearize one integrator step: A = ∂x⁺/∂x, B = ∂x⁺/∂τ (x = (q, v), tangent space).
+    Linearize(linearize::LinearizeArgs),
     /// Propagate a scene over a horizon: samples of q, v (λ with --forces), residuals, energy.
     Predict(predict::PredictArgs),
     /// Work-precision report of every integrator on the benchmark scenes (CSV, PNG, README).
@@ -36,6 +40,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Eval(a) => eval::run(a),
+        Command::Linearize(a) => linearize::run(a),
         Command::Predict(a) => predict::run(a),
         Command::Report(a) => report::run(a),
         Command::Project(a) => project::run(a),

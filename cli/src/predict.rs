@@ -40,6 +40,10 @@ pub struct PredictArgs {
     /// Record the multipliers λ and the constraint forces in every sample.
     #[arg(long)]
     forces: bool,
+    /// Start covariance file ({"P": [[...]]} 2nv × 2nv, or {"sigma": {"<v_name>": σ,
+    /// "<v_name>:rate": σ_v}}); every sample then carries its propagated `covariance`.
+    #[arg(long)]
+    covariance: Option<PathBuf>,
 }
 
 /// One entry of the commands file.
@@ -122,6 +126,9 @@ pub fn run(a: PredictArgs) -> Result<Value> {
         Some(path) => load_commands(path)?,
         None => vec![],
     };
+    if let Some(path) = &a.covariance {
+        p.start_covariance = Some(super::covariance::load(&p.sys.model, path)?);
+    }
     let horizon = a.horizon.unwrap_or(p.settings.horizon);
     let traj = p.predict(&q, &v, &commands, horizon)?;
     let mut out = serde_json::to_value(&traj).map_err(|e| Error::Invalid(e.to_string()))?;

@@ -69,6 +69,12 @@ pub enum NodeError {
     /// A thread could not be started.
     #[error("cannot start the worker thread: {0}")]
     Thread(#[from] std::io::Error),
+    /// A lifecycle transition that cannot run.
+    #[error("lifecycle: {0}")]
+    Lifecycle(#[from] crate::lifecycle::LifecycleError),
+    /// A lock held by a thread that panicked.
+    #[error("internal error: a lock was poisoned by a panic")]
+    Poisoned,
     /// Which node an error belongs to.
     #[error("{node}: {source}")]
     InNode {

@@ -20,6 +20,7 @@
 pub mod convert;
 pub mod error;
 pub mod forces;
+pub mod lifecycle;
 // The message structs mirror the .msg/.srv files field by field; their documentation is in
 // `interfaces/constraint_dynamics_msgs/` and the ROS 2 interface packages.
 #[allow(missing_docs)]

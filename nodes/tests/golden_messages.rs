@@ -24,10 +24,14 @@ use constraint_dynamics_nodes::msg::builtin_interfaces::Time;
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::*;
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::{ConstraintForce, ConstraintForces};
 use constraint_dynamics_nodes::msg::geometry_msgs::*;
+use constraint_dynamics_nodes::msg::lifecycle_msgs::{
+    ChangeState, GetAvailableStates, GetAvailableTransitions, GetState, State, TransitionEvent,
+};
 use constraint_dynamics_nodes::msg::nav_msgs::{Odometry, Path};
 use constraint_dynamics_nodes::msg::sensor_msgs::JointState;
 use constraint_dynamics_nodes::msg::std_msgs::{Header, StringMsg};
 use constraint_dynamics_nodes::msg::std_srvs::Trigger;
+use constraint_dynamics_nodes::msg::visualization_msgs::{Marker, MarkerArray};
 use constraint_dynamics_nodes::msg::{RosMessage, RosService};
 use ros2_client::dds::rustdds::RepresentationIdentifier;
 use ros2_client::dds::rustdds::no_key::SerializerAdapter;
@@ -222,6 +226,18 @@ fn rust_messages_match_rclpy_bytes() {
     );
     srv_case!("constraint_dynamics_msgs__ProjectVelocity", ProjectVelocity);
     srv_case!("constraint_dynamics_msgs__Predict", Predict);
+    msg_case!("geometry_msgs__WrenchStamped", WrenchStamped);
+    msg_case!("visualization_msgs__Marker", Marker);
+    msg_case!("visualization_msgs__MarkerArray", MarkerArray);
+    msg_case!("lifecycle_msgs__State", State);
+    msg_case!("lifecycle_msgs__TransitionEvent", TransitionEvent);
+    srv_case!("lifecycle_msgs__ChangeState", ChangeState);
+    srv_case!("lifecycle_msgs__GetState", GetState);
+    srv_case!("lifecycle_msgs__GetAvailableStates", GetAvailableStates);
+    srv_case!(
+        "lifecycle_msgs__GetAvailableTransitions",
+        GetAvailableTransitions
+    );
 
     // Every golden case is checked by some Rust type.
     let mut unchecked: Vec<_> = all

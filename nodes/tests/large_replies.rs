@@ -208,7 +208,12 @@ fn query_tool_gets_large_predict_replies() {
             s[0]["payload_bytes"],
             s[REPEAT - 1]["seconds"].as_f64().unwrap_or(f64::NAN)
         );
-        assert!(suite.stop(), "suite did not stop cleanly");
+        // A worker finishes the (10 s horizon) prediction it is computing before the process
+        // exits: seconds on a loaded machine.
+        assert!(
+            suite.stop_within(Duration::from_secs(30)),
+            "suite did not stop cleanly within 30 s"
+        );
     }
 }
 

@@ -7,7 +7,12 @@
 //!   namespaced frame `robot1/odom`;
 //! - `/diagnostics` carries a status per node named by its fully qualified name, the predictor's
 //!   OK while odometry flows, then WARN naming `odom` once odometry stops (input_timeout 1 s
-//!   of sim time), while `/clock` goes on.
+//!   of sim time), while `/clock` goes on;
+//! - the TwistStamped publisher replaced by a Twist one (0.5 m/s): the predictor switches type
+//!   (graph) and follows; a RustDDS TwistStamped publisher (0.3 m/s) added beside: the predictor
+//!   keeps Twist, drops that writer's messages by its announced type (RustDDS matches readers
+//!   and writers of different types, so they would decode as wrong Twists) and still follows
+//!   0.5 m/s.
 
 mod common;
 
@@ -18,7 +23,7 @@ use std::time::Duration;
 use common::*;
 use constraint_dynamics_nodes::msg::builtin_interfaces::Time;
 use constraint_dynamics_nodes::msg::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
-use constraint_dynamics_nodes::msg::geometry_msgs::TwistStamped;
+use constraint_dynamics_nodes::msg::geometry_msgs::{Twist, TwistStamped};
 use constraint_dynamics_nodes::msg::nav_msgs::Odometry;
 use constraint_dynamics_nodes::msg::rosgraph_msgs::Clock;
 use constraint_dynamics_nodes::msg::sensor_msgs::JointState;
@@ -77,16 +82,27 @@ fn suite_in_a_namespace_on_sim_time_reports_diagnostics() {
                 };
                 js.header.stamp = stamp;
                 let _ = js_pub.async_publish(js).await;
-                let mut cmd = TwistStamped {
-                    twist: twist(0.3, 0.0),
-                    ..Default::default()
-                };
-                cmd.header.stamp = stamp;
-                let _ = cmd_pub.async_publish(cmd).await;
             }
             smol::Timer::after(Duration::from_millis(10)).await;
         }
     });
+
+    // The command, TwistStamped (Nav2), 50 Hz, in a task of its own: dropping it removes the
+    // writer from the graph.
+    let stamped_commands = |cmd_pub: Publisher<TwistStamped>, now: Arc<AtomicI64>, v: f64| async move {
+        loop {
+            let mut cmd = TwistStamped {
+                twist: twist(v, 0.0),
+                ..Default::default()
+            };
+            cmd.header.stamp = Time::from_nanos(now.load(Ordering::SeqCst));
+            let _ = cmd_pub.async_publish(cmd).await;
+            smol::Timer::after(Duration::from_millis(20)).await;
+        }
+    };
+    let cmd_task = t
+        .node
+        .spawn(stamped_commands(cmd_pub, sim_now.clone(), 0.3));
 
     let mut suite = SuiteProcess::spawn(
         env!("CARGO_BIN_EXE_constraint_dynamics_suite"),
@@ -192,9 +208,83 @@ fn suite_in_a_namespace_on_sim_time_reports_diagnostics() {
         "{TEST}: odometry stopped → WARN \"{}\"",
         warn.status[0].message
     );
+
+    // The command publisher is replaced by a plain Twist one (0.5 m/s): the predictor switches.
+    drop(cmd_task);
+    let twist_pub: Publisher<Twist> = t
+        .node
+        .publisher("/robot1/cmd_vel", &qos::reliable(10))
+        .unwrap();
+    let _twist_task = t.node.spawn(async move {
+        loop {
+            let _ = twist_pub.async_publish(twist(0.5, 0.0)).await;
+            smol::Timer::after(Duration::from_millis(20)).await;
+        }
+    });
+    let wait_log = |suite: &SuiteProcess, line: &str| {
+        let deadline = std::time::Instant::now() + WAIT;
+        while !suite.log().contains(line) && std::time::Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        assert!(
+            suite.log().contains(line),
+            "no {line:?} in:\n{}",
+            suite.log()
+        );
+    };
+    wait_log(
+        &suite,
+        "command input /robot1/cmd_vel: geometry_msgs/msg/Twist (published as",
+    );
+    follows(&odom_sub, &sim_now, 0.5, "a Twist publisher");
+    // A RustDDS TwistStamped publisher beside (both types published: the predictor keeps
+    // Twist). RustDDS matches it with the Twist reader, which would decode its bytes as a
+    // wrong Twist: its messages are dropped by the writer's announced type.
+    let cmd_pub2: Publisher<TwistStamped> = t
+        .node
+        .publisher("/robot1/cmd_vel", &qos::reliable(10))
+        .unwrap();
+    let _stamped_again = t
+        .node
+        .spawn(stamped_commands(cmd_pub2, sim_now.clone(), 0.3));
+    wait_log(
+        &suite,
+        "command input: ignoring a publisher of geometry_msgs::msg::dds_::TwistStamped_ \
+         while following geometry_msgs/msg/Twist",
+    );
+    follows(&odom_sub, &sim_now, 0.5, "TwistStamped bytes beside");
     assert!(
         suite.stop(),
         "the suite did not stop cleanly:\n{}",
         suite.log()
     );
+}
+
+/// Ten predictions started after now + 1 s (sim time) all follow forward speed `v` [m/s].
+fn follows(
+    odom_sub: &ros2_client::Subscription<Odometry>,
+    sim_now: &AtomicI64,
+    v: f64,
+    what: &str,
+) {
+    let from = sim_now.load(Ordering::SeqCst) + 2_000_000_000; // + 1 s settling + 1 s horizon
+    let mut seen = 0;
+    take_until(odom_sub, WAIT, |m: &Odometry| {
+        if m.header.stamp.to_nanos() < from {
+            return Err("older".into());
+        }
+        let got = m.twist.twist.linear.x;
+        assert!(
+            (got - v).abs() <= 0.02,
+            "{what}: predicted v {got}, commanded {v}"
+        );
+        seen += 1;
+        if seen >= 10 {
+            Ok(())
+        } else {
+            Err(format!("{seen} so far"))
+        }
+    })
+    .unwrap_or_else(|e| panic!("{what}: {e}"));
+    println!("{TEST}: {what}: 10 predictions at {v} m/s");
 }

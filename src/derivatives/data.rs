@@ -69,6 +69,9 @@ pub struct DerivativeData {
     pub(crate) rhs_v: DMatrix<f64>,
     pub(crate) rhs_c: DMatrix<f64>,
     pub(crate) r1: DMatrix<f64>,
+    /// Orthonormal basis of null(J M⁻¹ Jᵀ) (first columns) when rows are dependent.
+    pub(crate) null_basis: DMatrix<f64>,
+    pub(crate) n_null: usize,
     /// ρ of the augmented M + ρ JᵀJ used when M alone is singular (0: M itself).
     pub(crate) rho: f64,
 }
@@ -122,6 +125,8 @@ impl DerivativeData {
             rhs_v: z(nv, nv),
             rhs_c: z(nc, nv),
             r1: z(nv, nv),
+            null_basis: z(nc, nc),
+            n_null: 0,
             rho: 0.0,
         }
     }
@@ -132,6 +137,11 @@ impl DerivativeData {
         self.ext_m.fill(Vector3::zeros());
         self.ext_pf.fill(Matrix3::zeros());
         self.ext_pdotf.fill(0.0);
+    }
+
+    /// Apply the world-axes pure moment `m` [N·m] to `body` (fixed in world axes).
+    pub(crate) fn add_moment(&mut self, body: usize, m: &Vector3<f64>) {
+        self.ext_m[body] += m;
     }
 
     /// Apply the world-axes force `f` [N] at the world point `p` [m] of `body`; inverse dynamics

@@ -435,3 +435,26 @@ fn sdirk2_stages<F: Accel>(
     }
     Ok(most)
 }
+
+/// RMS of the DOPRI5 error scaled by atol + rtol·|x| (1 for configuration rows, |v| for velocity).
+pub(super) fn dopri5_error_norm(
+    step: &StepWorkspace,
+    v: &[f64],
+    s: &super::IntegrationSettings,
+) -> f64 {
+    let nv = v.len();
+    let (v_old, e) = (step.saved_v(), &step.err);
+    let sum: f64 = e
+        .iter()
+        .enumerate()
+        .map(|(i, ei)| {
+            let x = if i < nv {
+                1.0
+            } else {
+                v_old[i - nv].abs().max(v[i - nv].abs())
+            };
+            (ei / (s.atol + s.rtol * x)).powi(2)
+        })
+        .sum();
+    (sum / e.len().max(1) as f64).sqrt()
+}

@@ -46,3 +46,93 @@ pub fn dexp_inv(model: &Model, theta: &[f64], v: &[f64], out: &mut [f64]) {
         }
     }
 }
+
+/// Writes a joint's twist back into its coordinates (free-flyer: 6, planar: vx, vy, ωz).
+fn write_motion(kind: &JointKind, m: &Motion, out: &mut [f64]) {
+    match kind {
+        JointKind::FreeFlyer => {
+            out[..3].copy_from_slice(m.lin.as_slice());
+            out[3..6].copy_from_slice(m.ang.as_slice());
+        }
+        _ => {
+            out[0] = m.lin.x;
+            out[1] = m.lin.y;
+            out[2] = m.ang.z;
+        }
+    }
+}
+
+/// Applies a per-joint linear map `op(Θ_joint, x_joint)` to the group joints and the identity
+/// to 1-DOF joints (whose group is the line).
+fn per_joint(
+    model: &Model,
+    theta: &[f64],
+    x: &[f64],
+    out: &mut [f64],
+    op: impl Fn(&Motion, &Motion) -> Motion,
+) {
+    for b in model.bodies.iter().skip(1) {
+        let j = &b.joint;
+        let (iv, nv) = (j.idx_v, j.kind.nv());
+        if nv == 1 {
+            out[iv] = x[iv];
+            continue;
+        }
+        let th = motion_of(&j.kind, &theta[iv..iv + nv]);
+        let xx = motion_of(&j.kind, &x[iv..iv + nv]);
+        write_motion(&j.kind, &op(&th, &xx), &mut out[iv..iv + nv]);
+    }
+}
+
+/// `out = Ad(Exp(−Θ)) x`: a right perturbation x of q carried to q ⊕ Θ,
+/// `(q ⊕ x) ⊕ Θ = (q ⊕ Θ) ⊕ Ad(Exp(−Θ)) x`.
+pub fn transport(model: &Model, theta: &[f64], x: &[f64], out: &mut [f64]) {
+    per_joint(model, theta, x, out, |th, xx| {
+        crate::spatial::SE3::exp(th).act_inv_motion(xx)
+    });
+}
+
+/// `out = J_r(Θ) x`, the right Jacobian of the exponential: `q ⊕ (Θ + x) = (q ⊕ Θ) ⊕ J_r(Θ) x`
+/// to first order; the series `Σ (−ad_Θ)^k x / (k+1)!` to 24 terms (|Θ| per step is small; the
+/// terms fall as |Θ|^k/(k+1)!).
+pub fn right_jacobian(model: &Model, theta: &[f64], x: &[f64], out: &mut [f64]) {
+    per_joint(model, theta, x, out, |th, xx| {
+        let mut term = *xx;
+        let mut sum = *xx;
+        for k in 1..24 {
+            term = th.cross_motion(&term) * (-1.0 / (k as f64 + 1.0));
+            sum += term;
+        }
+        sum
+    });
+}
+
+/// Derivative of [`dexp_inv`] (the integrator's truncated series) with respect to Θ along `d`:
+/// `½[d, v] + 1/12 ([d, [Θ, v]] + [Θ, [d, v]]) − 1/720 Σ ad_Θ^a ad_d ad_Θ^(3−a) v`.
+pub fn dexp_inv_dtheta(model: &Model, theta: &[f64], v: &[f64], d: &[f64], out: &mut [f64]) {
+    for b in model.bodies.iter().skip(1) {
+        let j = &b.joint;
+        let (iv, nv) = (j.idx_v, j.kind.nv());
+        if nv == 1 {
+            out[iv] = 0.0;
+            continue;
+        }
+        let th = motion_of(&j.kind, &theta[iv..iv + nv]);
+        let vv = motion_of(&j.kind, &v[iv..iv + nv]);
+        let dd = motion_of(&j.kind, &d[iv..iv + nv]);
+        let ad = |a: &Motion, x: &Motion| a.cross_motion(x);
+        let tv = ad(&th, &vv);
+        let mut r = ad(&dd, &vv) * 0.5 + (ad(&dd, &tv) + ad(&th, &ad(&dd, &vv))) * (1.0 / 12.0);
+        // Σ over the position of ad_d in ad_Θ⁴.
+        let mut fourth = Motion::zero();
+        for pos in 0..4 {
+            let mut x = vv;
+            for k in (0..4).rev() {
+                x = if k == pos { ad(&dd, &x) } else { ad(&th, &x) };
+            }
+            fourth += x;
+        }
+        r -= fourth * (1.0 / 720.0);
+        write_motion(&j.kind, &r, &mut out[iv..iv + nv]);
+    }
+}

@@ -5,15 +5,20 @@
 //! by Baumgarte terms (in the dynamics) or by projecting q and v back onto the constraints after
 //! every step ([`drift`]). Force elements and actuators come from the scene.
 
+mod covariance;
 pub mod drift;
 mod guard;
 mod integrator;
 mod lie;
+mod linearize;
 mod run;
+mod sampling;
 mod trajectory;
 
+pub use covariance::{CovariancePropagator, UncertaintySpec};
 pub use drift::Projector;
 pub use integrator::Method;
+pub use linearize::{Linearization, linearize_step};
 pub use run::Predictor;
 pub use trajectory::{PredictOptions, Sample, Trajectory};
 

@@ -1,33 +1,40 @@
 //! The prediction loop: control ticks, integration steps, drift control, samples.
 
+use super::covariance::{CovariancePropagator, UncertaintySpec};
 use super::drift::Projector;
 use super::guard::EnergyGuard;
 use super::integrator::{
-    Accel, DOPRI5, Method, RK4, StepWorkspace, explicit_step, sdirk2_step, semi_implicit_euler_step,
+    Accel, DOPRI5, Method, RK4, StepWorkspace, dopri5_error_norm, explicit_step, sdirk2_step,
+    semi_implicit_euler_step,
 };
-use super::trajectory::{PredictOptions, Sample, Trajectory};
+use super::trajectory::{PredictOptions, Trajectory};
 use super::{DriftControl, IntegrationSettings};
 use crate::actuators::{Actuators, Command};
-use crate::algorithm::{crba, forward_kinematics, kinetic_energy, potential_energy};
-use crate::applied::{applied_generalized_force, constraint_forces_at};
+use crate::algorithm::{crba, forward_kinematics};
+use crate::applied::applied_generalized_force;
 use crate::dynamics::{Baumgarte, Formulation};
 use crate::error::{Error, Result};
 use crate::forces::ForceElements;
 use crate::model::Model;
 use crate::scene::Scene;
 use crate::system::{DynamicsOptions, System};
+use nalgebra::DMatrix;
 use std::time::Instant;
 
 /// Buffers of a run, sized once per model (the stepping loop allocates nothing).
 #[derive(Clone, Debug, Default)]
-struct Workspace {
+pub(super) struct Workspace {
     step: StepWorkspace,
     proj: Projector,
     /// Least-squares constrained accelerations at singular configurations.
     ls: Projector,
     tau: Vec<f64>,
-    tau_act: Vec<f64>,
+    pub(super) tau_act: Vec<f64>,
     zero: Vec<f64>,
+    /// The state and applied force at the start of a step (covariance propagation).
+    qn: Vec<f64>,
+    vn: Vec<f64>,
+    tau_n: Vec<f64>,
 }
 
 /// The right-hand side: held actuator torques + force elements → constrained q̈.
@@ -102,8 +109,13 @@ pub struct Predictor {
     /// Record λ and the constraint forces in every sample of [`Predictor::predict`] (a setting
     /// of the predictor; [`Predictor::predict_with`] takes it per call instead).
     pub want_forces: bool,
-    model: Model,
-    ws: Workspace,
+    /// `uncertainty:` of the scene (process noise of the covariance).
+    pub uncertainty: UncertaintySpec,
+    /// Start covariance of the next predictions (2nv × 2nv, [δq; δv]); None: no covariance.
+    pub start_covariance: Option<DMatrix<f64>>,
+    pub(super) covariance: Option<CovariancePropagator>,
+    pub(super) model: Model,
+    pub(super) ws: Workspace,
 }
 
 impl Predictor {
@@ -112,7 +124,9 @@ impl Predictor {
         let sys = System::from_scene(scene)?;
         let forces = ForceElements::new(&sys.model, &scene.file.forces)?;
         let actuators = Actuators::new(&sys.model, &scene.file.actuators)?;
-        Self::new(sys, forces, actuators, scene.file.integration.clone())
+        let mut p = Self::new(sys, forces, actuators, scene.file.integration.clone())?;
+        p.uncertainty = scene.file.uncertainty.clone();
+        Ok(p)
     }
 
     /// Build from its parts, validating the integration settings.
@@ -132,6 +146,9 @@ impl Predictor {
             tau: vec![0.0; nv],
             tau_act: vec![0.0; nv],
             zero: vec![0.0; nv],
+            qn: vec![0.0; nq],
+            vn: vec![0.0; nv],
+            tau_n: vec![0.0; nv],
         };
         Ok(Self {
             sys,
@@ -139,6 +156,9 @@ impl Predictor {
             actuators,
             settings,
             want_forces: false,
+            uncertainty: UncertaintySpec::default(),
+            start_covariance: None,
+            covariance: None,
             model,
             ws,
         })
@@ -206,6 +226,16 @@ impl Predictor {
         self.actuators.reset();
         self.ws.step.invalidate();
         self.ws.tau_act.iter_mut().for_each(|x| *x = 0.0);
+        self.covariance = match &self.start_covariance {
+            Some(p0) => Some(CovariancePropagator::start(
+                &mut self.sys,
+                &self.uncertainty,
+                p0,
+                &q,
+                &v,
+            )?),
+            None => None,
+        };
         let period = if self.actuators.is_empty() {
             s.sample_period
         } else {
@@ -320,6 +350,7 @@ impl Predictor {
             least_squares: 0,
         };
         let step = &mut ws.step;
+        let cov = &mut self.covariance;
         let mut t = t0;
         let result = (|| -> Result<()> {
             while t < t1 - 1e-12 {
@@ -328,6 +359,19 @@ impl Predictor {
                 } else {
                     (t1 - t) / ((t1 - t) / s.dt - 1e-9).ceil().max(1.0)
                 };
+                if cov.is_some() {
+                    ws.qn.copy_from_slice(q);
+                    ws.vn.copy_from_slice(v);
+                    let (qn, vn) = (&ws.qn, &ws.vn);
+                    applied_generalized_force(
+                        rhs.sys,
+                        rhs.forces,
+                        (t, qn, vn),
+                        rhs.tau_act,
+                        rhs.zero,
+                        &mut ws.tau_n,
+                    );
+                }
                 match s.method {
                     Method::SemiImplicitEuler => {
                         semi_implicit_euler_step(&mut rhs, model, t, dt, q, v, step)?
@@ -380,6 +424,10 @@ impl Predictor {
                     rhs.sys.cdata.t = t;
                     ws.proj.project(rhs.sys, q, v, true)?;
                 }
+                if let Some(c) = cov.as_mut() {
+                    c.step(rhs.sys, s.method, &ws.qn, &ws.vn, &ws.tau_n, dt)?;
+                    c.project(rhs.sys, q, v)?;
+                }
                 if let Some(bad) = q
                     .iter()
                     .chain(v.iter())
@@ -430,72 +478,4 @@ impl Predictor {
         }
         Ok(())
     }
-
-    fn sample(&mut self, t: f64, q: &[f64], v: &[f64], err: f64, forces: bool) -> Result<Sample> {
-        let sys = &mut self.sys;
-        let at = match forces {
-            true if !sys.constraints.is_empty() => Some(constraint_forces_at(
-                sys,
-                &mut self.forces,
-                (t, q, v),
-                &self.ws.tau_act,
-            )?),
-            _ => None,
-        };
-        sys.cdata.t = t;
-        sys.constraints
-            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
-        let cd = &sys.cdata;
-        let position_residual = (0..sys.constraints.nrows)
-            .filter(|&k| cd.holonomic[k])
-            .map(|k| cd.phi[k].abs())
-            .fold(0.0, f64::max);
-        let velocity_residual = cd.jv.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        let ke = kinetic_energy(&sys.model, &sys.data);
-        let pe = potential_energy(&sys.model, &sys.data)
-            + self.forces.potential_energy(&sys.model, &sys.data, q);
-        let (lambda, forces, generalized_force, rank_deficiency) = match at {
-            Some(f) => (
-                Some(f.lambda),
-                Some(f.forces),
-                Some(f.generalized_force),
-                Some(f.rank_deficiency),
-            ),
-            None => (None, None, None, None),
-        };
-        Ok(Sample {
-            t,
-            q: q.to_vec(),
-            v: v.to_vec(),
-            actuator_torque: self.ws.tau_act.clone(),
-            lambda,
-            forces,
-            generalized_force,
-            rank_deficiency,
-            position_residual,
-            velocity_residual,
-            kinetic_energy: ke,
-            potential_energy: pe,
-            error_estimate: err,
-        })
-    }
-}
-
-/// RMS of the DOPRI5 error scaled by atol + rtol·|x| (1 for configuration rows, |v| for velocity).
-fn dopri5_error_norm(step: &StepWorkspace, v: &[f64], s: &IntegrationSettings) -> f64 {
-    let nv = v.len();
-    let (v_old, e) = (step.saved_v(), &step.err);
-    let sum: f64 = e
-        .iter()
-        .enumerate()
-        .map(|(i, ei)| {
-            let x = if i < nv {
-                1.0
-            } else {
-                v_old[i - nv].abs().max(v[i - nv].abs())
-            };
-            (ei / (s.atol + s.rtol * x)).powi(2)
-        })
-        .sum();
-    (sum / e.len().max(1) as f64).sqrt()
 }

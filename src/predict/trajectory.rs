@@ -40,6 +40,10 @@ pub struct Sample {
     pub potential_energy: f64,
     /// Accumulated local error estimate of the configuration [m or rad] (dopri5), NaN otherwise.
     pub error_estimate: f64,
+    /// Propagated covariance of (δq, δv), 2nv × 2nv row-major, tangent space (δq a right
+    /// perturbation, velocity order) [m², rad², (m/s)², …], when a start covariance was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub covariance: Option<Vec<Vec<f64>>>,
 }
 
 impl Sample {

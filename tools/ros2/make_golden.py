@@ -34,7 +34,12 @@ from rosidl_parser import definition as idl
 from builtin_interfaces.msg import Time
 from std_msgs.msg import Header, String
 from geometry_msgs.msg import (Point, Pose, PoseStamped, PoseWithCovariance, Quaternion, Twist,
-                               TwistStamped, TwistWithCovariance, Vector3, Wrench)
+                               TwistStamped, TwistWithCovariance, Vector3, Wrench, WrenchStamped)
+from std_msgs.msg import ColorRGBA
+from builtin_interfaces.msg import Duration
+from visualization_msgs.msg import Marker, MarkerArray, MeshFile, UVCoordinate
+from lifecycle_msgs.msg import State, Transition, TransitionDescription, TransitionEvent
+from lifecycle_msgs.srv import ChangeState, GetAvailableStates, GetAvailableTransitions, GetState
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from nav_msgs.msg import Odometry, Path
@@ -307,6 +312,53 @@ def cases():
     resp.forces = [constraint_forces(1, sec=1_700_000_400), ConstraintForces()]
     resp.position_error_estimate = 1.5e-4
     out["constraint_dynamics_msgs__Predict_Response"] = resp
+
+    out["geometry_msgs__WrenchStamped"] = WrenchStamped(
+        header=header("left_wheel"), wrench=Wrench(force=vec3(0.0, -3.0, 50.0),
+                                                   torque=vec3(-0.15, 0.0, 1e-17)))
+    # float32 fields hold numbers a float32 represents exactly (the JSON holds doubles).
+    arrow = Marker(header=header("robot1/odom"), ns="constraint_forces", id=1, type=Marker.ARROW,
+                   action=Marker.ADD, scale=vec3(0.02, 0.04, 0.06),
+                   color=ColorRGBA(r=1.0, g=0.125, b=0.125, a=1.0),
+                   lifetime=Duration(sec=1, nanosec=500_000_000), frame_locked=False,
+                   points=[Point(x=1.0, y=2.17, z=0.0), Point(x=1.03, y=2.21, z=0.5)],
+                   text="left_wheel_contact")
+    lines = Marker(header=header("robot1/odom"), ns="predicted_footprint", id=0,
+                   type=Marker.LINE_LIST, action=Marker.ADD, scale=vec3(0.01, 0.0, 0.0),
+                   color=ColorRGBA(r=1.0, g=0.5, b=0.25, a=0.75),
+                   points=[Point(x=0.15, y=0.15, z=0.0), Point(x=-0.25, y=0.15, z=0.0)],
+                   colors=[ColorRGBA(r=0.5, g=0.5, b=0.5, a=1.0)],
+                   uv_coordinates=[UVCoordinate(u=0.25, v=0.75)], texture_resource="tex",
+                   mesh_resource="package://x/m.dae",
+                   mesh_file=MeshFile(filename="m.stl", data=[1, 2, 3]),
+                   mesh_use_embedded_materials=True)
+    lines.texture.format = "png"
+    lines.texture.data = [255, 0]
+    out["visualization_msgs__Marker"] = arrow
+    out["visualization_msgs__MarkerArray"] = MarkerArray(
+        markers=[arrow, lines, Marker(action=Marker.DELETEALL)])
+
+    out["lifecycle_msgs__State"] = State(id=State.TRANSITION_STATE_CONFIGURING, label="configuring")
+    out["lifecycle_msgs__TransitionEvent"] = TransitionEvent(
+        timestamp=1_795_452_830_400_577_640,
+        transition=Transition(id=Transition.TRANSITION_ON_ACTIVATE_SUCCESS,
+                              label="transition_success"),
+        start_state=State(id=13, label="activating"), goal_state=State(id=3, label="active"))
+    out["lifecycle_msgs__ChangeState_Request"] = ChangeState.Request(
+        transition=Transition(id=0, label="shutdown"))
+    out["lifecycle_msgs__ChangeState_Response"] = ChangeState.Response(success=True)
+    out["lifecycle_msgs__GetState_Request"] = GetState.Request()
+    out["lifecycle_msgs__GetState_Response"] = GetState.Response(
+        current_state=State(id=2, label="inactive"))
+    out["lifecycle_msgs__GetAvailableStates_Request"] = GetAvailableStates.Request()
+    out["lifecycle_msgs__GetAvailableStates_Response"] = GetAvailableStates.Response(
+        available_states=[State(id=1, label="unconfigured"), State(id=15, label="errorprocessing")])
+    out["lifecycle_msgs__GetAvailableTransitions_Request"] = GetAvailableTransitions.Request()
+    out["lifecycle_msgs__GetAvailableTransitions_Response"] = GetAvailableTransitions.Response(
+        available_transitions=[TransitionDescription(
+            transition=Transition(id=1, label="configure"),
+            start_state=State(id=1, label="unconfigured"),
+            goal_state=State(id=10, label="configuring"))])
     return out
 
 

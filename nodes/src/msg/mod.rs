@@ -16,12 +16,14 @@ pub mod builtin_interfaces;
 pub mod constraint_dynamics_msgs;
 pub mod diagnostic_msgs;
 pub mod geometry_msgs;
+pub mod lifecycle_msgs;
 pub mod nav_msgs;
 pub mod rcl_interfaces;
 pub mod rosgraph_msgs;
 pub mod sensor_msgs;
 pub mod std_msgs;
 pub mod std_srvs;
+pub mod visualization_msgs;
 
 /// A message type that knows its ROS name (`package/msg/Name`).
 pub trait RosMessage: Message {

@@ -16,4 +16,13 @@ pub struct JointState {
     pub effort: Vec<f64>,
 }
 
-super::ros_messages!("sensor_msgs": JointState);
+/// `sensor_msgs/msg/CompressedImage` (here only as the empty `texture` of a marker).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct CompressedImage {
+    pub header: Header,
+    /// `jpeg`, `png`, … ("" when unused).
+    pub format: String,
+    pub data: Vec<u8>,
+}
+
+super::ros_messages!("sensor_msgs": JointState, CompressedImage);

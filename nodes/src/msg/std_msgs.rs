@@ -20,7 +20,17 @@ pub struct StringMsg {
     pub data: String,
 }
 
-super::ros_messages!("std_msgs": Header);
+/// `std_msgs/msg/ColorRGBA`: each channel in [0, 1] (`float32`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ColorRGBA {
+    pub r: f32,
+    pub g: f32,
+    pub b: f32,
+    /// Opacity: 0 is invisible in rviz2.
+    pub a: f32,
+}
+
+super::ros_messages!("std_msgs": Header, ColorRGBA);
 
 impl ros2_client::Message for StringMsg {}
 impl super::RosMessage for StringMsg {

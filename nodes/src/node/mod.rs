@@ -3,5 +3,6 @@
 //! by [`wiring::start_node`]. The kinds (`crate::predictor`, …) implement both traits.
 
 pub mod health;
+pub mod managed;
 pub mod wiring;
 pub mod worker;

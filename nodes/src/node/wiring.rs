@@ -1,12 +1,15 @@
-//! Starting one node of any kind: its ROS node with declared, validated parameters, the
-//! inputs every node has (`joint_states`, `odom`, `robot_description`, `/clock`), its worker,
-//! and the kind's own topics and services ([`RosWiring`]).
+//! Starting one node of any kind: its ROS node with declared, validated parameters and its
+//! lifecycle ([`super::managed`]), which brings up the inputs every node has (`joint_states`,
+//! `odom`, `robot_description`, `/clock`) and its worker when configured, and the kind's own
+//! topics and services ([`RosWiring`]) when active.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::SyncSender;
 use std::sync::{Arc, Mutex};
 
 use ros2_client::{Context, NodeOptions};
+
+use super::managed::{Managed, Supervisor};
 
 use crate::error::NodeError;
 use crate::msg::RosService;
@@ -17,9 +20,8 @@ use crate::msg::rosgraph_msgs::Clock;
 use crate::msg::sensor_msgs::JointState;
 use crate::msg::std_msgs::Header;
 use crate::msg::std_msgs::StringMsg;
-use crate::node::worker::{Event, NodeLogic, WorkerHandle};
+use crate::node::worker::{Event, NodeLogic};
 use crate::params::NodeParams;
-use crate::robot::Robot;
 use crate::ros::args::{Parameters, RosArgs};
 use crate::ros::context::{RosNode, qos};
 use crate::ros::io::{Reply, serve, subscribe};
@@ -27,10 +29,14 @@ use crate::ros::logging::{self, NodeLog};
 
 /// What a kind's wiring works with.
 pub struct Wiring<'a, N: NodeLogic> {
+    /// The DDS participant's context (for the discovered graph).
+    pub context: &'a Context,
     /// The ROS node.
     pub ros: &'a mut RosNode,
     /// The node's parameters.
     pub params: &'a NodeParams<N::Params>,
+    /// The names of the scene's constraints.
+    pub constraints: &'a [String],
     /// Resolves a topic or service name (namespace, `~`, remappings).
     pub topic: &'a dyn Fn(&str) -> String,
     /// Events to the worker.
@@ -43,42 +49,61 @@ pub struct Wiring<'a, N: NodeLogic> {
     pub tasks: Vec<smol::Task<()>>,
 }
 
+/// Endpoints a kind keeps while they fit the ROS graph (see [`RosWiring::follow_graph`]):
+/// what they were made for (`key`) and the task that owns them.
+pub struct Followed {
+    /// What the endpoints were made for (e.g. the message type of a subscription).
+    pub key: String,
+    /// Owns the endpoints: dropping it removes them from the graph.
+    pub task: smol::Task<()>,
+}
+
 /// A node kind's topics and services: translate messages and requests into its events and
-/// publish its outputs.
+/// publish its outputs. Created when the node is activated, removed when it is deactivated.
 pub trait RosWiring: NodeLogic {
     /// Creates the kind's subscriptions, servers and publishers.
     fn wire(w: &mut Wiring<Self>) -> Result<(), NodeError>;
+
+    /// Called on activation and then every [`GRAPH_PERIOD`] while active: endpoints that
+    /// depend on the discovered graph live in `slot` and may be replaced (the predictor's
+    /// command input follows the type published on its topic). Default: none.
+    fn follow_graph(_w: &mut Wiring<Self>, _slot: &mut Option<Followed>) -> Result<(), NodeError> {
+        Ok(())
+    }
 }
 
-/// A running node: its worker, executor tasks and ROS node (stopped in that order).
+/// How often an active node looks at the discovered graph [`RosWiring::follow_graph`].
+pub const GRAPH_PERIOD: std::time::Duration = std::time::Duration::from_millis(250);
+
+/// A running node: its lifecycle supervisor, which owns the worker, the tasks and the ROS
+/// node.
 pub trait RunningNode: Send {
     /// The node's name.
     fn name(&self) -> &str;
-    /// The ROS node (for its fully qualified name).
-    fn ros(&self) -> Option<&RosNode>;
+    /// The node's fully qualified name.
+    fn fqn(&self) -> &str;
     /// Stops the worker, the tasks, then the ROS node.
     fn stop(&mut self);
 }
 
-struct Running<N: NodeLogic> {
+struct Running {
     name: String,
-    worker: WorkerHandle<N>,
-    tasks: Vec<smol::Task<()>>,
-    ros: Option<RosNode>,
+    fqn: String,
+    supervisor: Option<Supervisor>,
 }
 
-impl<N: NodeLogic> RunningNode for Running<N> {
+impl RunningNode for Running {
     fn name(&self) -> &str {
         &self.name
     }
-    fn ros(&self) -> Option<&RosNode> {
-        self.ros.as_ref()
+    fn fqn(&self) -> &str {
+        &self.fqn
     }
     fn stop(&mut self) {
-        self.worker.stop();
-        self.tasks.clear();
+        if let Some(mut s) = self.supervisor.take() {
+            s.stop();
+        }
         logging::unregister(&self.name);
-        self.ros = None;
     }
 }
 
@@ -87,7 +112,9 @@ pub fn forward<N: NodeLogic>(tx: &SyncSender<Event<N>>, ev: Event<N>) {
     let _ = tx.try_send(ev);
 }
 
-/// Starts node `name` of kind `N` in `namespace` with its parameters.
+/// Starts node `name` of kind `N` in `namespace` with its parameters: its ROS node, its
+/// lifecycle services and, with `autostart` (the default), configured and active at once (a
+/// configuration error is then returned, as before lifecycles existed).
 pub fn start_node<N: RosWiring>(
     context: &Context,
     args: &RosArgs,
@@ -97,23 +124,8 @@ pub fn start_node<N: RosWiring>(
     params: NodeParams<N::Params>,
 ) -> Result<Box<dyn RunningNode>, NodeError> {
     let log = NodeLog::new(name);
-    let robot = Robot::load(&params.common)?;
-    let logic = N::new(robot, params.clone(), log.clone())?;
-    let summary = {
-        let (r, m) = (logic.robot(), logic.robot().model());
-        format!(
-            "scene {}, model '{}' ({:?} base, nq = {}, nv = {}, {} constraints), base frame '{}'",
-            r.scene().path.display(),
-            m.name,
-            m.base,
-            m.nq,
-            m.nv,
-            r.scene().file.constraints.len(),
-            r.base_frame()
-        )
-    };
-
-    // Parameters: declared with their values, validated on set; dynamic ones reach the worker.
+    // Parameters: declared with their values, validated on set; dynamic ones reach the worker
+    // (when there is one: the node is configured).
     let ready = Arc::new(AtomicBool::new(false));
     let current = Arc::new(Mutex::new(ros_params));
     let event_tx: Arc<Mutex<Option<SyncSender<Event<N>>>>> = Arc::new(Mutex::new(None));
@@ -149,38 +161,30 @@ pub fn start_node<N: RosWiring>(
             Ok(())
         }));
     }
-    let mut ros = RosNode::new(context, namespace, name, options)?;
+    let ros = RosNode::new(context, namespace, name, options)?;
     logging::register(name, ros.node.logging_handle());
-
-    let (out_tx, out_rx) = smol::channel::bounded::<N::Output>(16);
-    let (diag_tx, diag_rx) = smol::channel::bounded::<(Time, DiagnosticStatus)>(4);
-    let fqn = format!("{}/{name}", namespace.trim_end_matches('/'));
-    let worker = WorkerHandle::spawn(logic, name, &fqn, out_tx, diag_tx)?;
-    if let Ok(mut slot) = event_tx.lock() {
-        *slot = Some(worker.sender());
-    }
     ready.store(true, Ordering::SeqCst);
-
-    let topic = |t: &str| args.resolve_topic(namespace, name, t);
-    let mut w = Wiring::<N> {
-        ros: &mut ros,
-        params: &params,
-        topic: &topic,
-        tx: worker.sender(),
-        outputs: Some(out_rx),
-        log: log.clone(),
-        tasks: Vec::new(),
-    };
-    wire_state_inputs(&mut w)?;
-    wire_diagnostics(&mut w, diag_rx)?;
-    N::wire(&mut w)?;
-    let tasks = std::mem::take(&mut w.tasks);
-    log.info(&format!("{} ready: {summary}", name));
-    Ok(Box::new(Running::<N> {
+    let fqn = format!("{}/{name}", namespace.trim_end_matches('/'));
+    let autostart = params.common.autostart;
+    let mut managed = Managed::<N>::new(
+        context.clone(),
+        args.clone(),
+        ros,
+        &fqn,
+        (current, event_tx),
+        log.clone(),
+    )?;
+    if autostart {
+        managed.autostart()?;
+    } else {
+        log.info(&format!(
+            "{name} unconfigured (autostart: false): waiting for ~/change_state"
+        ));
+    }
+    Ok(Box::new(Running {
         name: name.to_string(),
-        worker,
-        tasks,
-        ros: Some(ros),
+        fqn,
+        supervisor: Some(managed.spawn()?),
     }))
 }
 
@@ -211,7 +215,7 @@ where
 
 /// The node's status on `/diagnostics` (global, as diagnostic_updater publishes it; the status
 /// name is the node's fully qualified name).
-fn wire_diagnostics<N: NodeLogic>(
+pub(crate) fn wire_diagnostics<N: NodeLogic>(
     w: &mut Wiring<N>,
     statuses: smol::channel::Receiver<(Time, DiagnosticStatus)>,
 ) -> Result<(), NodeError> {
@@ -237,7 +241,7 @@ fn wire_diagnostics<N: NodeLogic>(
 }
 
 /// The inputs every node has: joint states, odometry, the URDF, and `/clock`.
-fn wire_state_inputs<N: NodeLogic>(w: &mut Wiring<N>) -> Result<(), NodeError> {
+pub(crate) fn wire_state_inputs<N: NodeLogic>(w: &mut Wiring<N>) -> Result<(), NodeError> {
     let c = &w.params.common;
     if !c.state.joint_states_topic.is_empty() {
         let sub = w.ros.subscription::<JointState>(

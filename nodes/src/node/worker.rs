@@ -132,6 +132,8 @@ pub enum Event<N: NodeLogic> {
     Params(Box<NodeParams<N::Params>>),
     /// The kind's own input.
     Node(N::Input),
+    /// Lifecycle: active (tick and report) or not (follow inputs only).
+    Active(bool),
     /// Stop the thread.
     Shutdown,
 }
@@ -175,6 +177,7 @@ impl<N: NodeLogic> WorkerHandle<N> {
             last_level: None,
             sim_time: None,
             warned: Default::default(),
+            active: false,
         };
         let thread = std::thread::Builder::new()
             .name(format!("cd-{name}"))
@@ -226,6 +229,14 @@ struct Worker<N: NodeLogic> {
     last_level: Option<u8>,
     sim_time: Option<Time>,
     warned: Warned,
+    /// Lifecycle state: only an active node ticks and publishes its status.
+    active: bool,
+}
+
+/// The worker's two timers.
+struct Timers {
+    diag: RosTimer,
+    tick: Option<RosTimer>,
 }
 
 impl<N: NodeLogic> Worker<N> {
@@ -233,62 +244,86 @@ impl<N: NodeLogic> Worker<N> {
         // Ticks and diagnostics run on the ROS clock (see `RosTimer`).
         let sim = self.logic.params().common.use_sim_time;
         let diag_period = Duration::from_secs_f64(self.logic.params().common.diagnostics.period);
-        let mut diag = RosTimer::new(diag_period);
-        let mut tick = self.logic.tick_period().map(RosTimer::new);
+        let mut timers = Timers {
+            diag: RosTimer::new(diag_period),
+            tick: self.logic.tick_period().map(RosTimer::new),
+        };
         loop {
-            let timeout = tick
-                .as_ref()
-                .map_or(Duration::from_secs(3600), |t| t.wait(sim))
-                .min(diag.wait(sim));
+            // Inactive: only events wake the worker (its timers are not advanced, so waiting
+            // for them would spin).
+            let idle = Duration::from_secs(3600);
+            let timeout = match self.active {
+                true => timers
+                    .tick
+                    .as_ref()
+                    .map_or(idle, |t| t.wait(sim))
+                    .min(timers.diag.wait(sim)),
+                false => idle,
+            };
             match rx.recv_timeout(timeout) {
-                Ok(Event::Shutdown) | Err(RecvTimeoutError::Disconnected) => break,
-                Ok(Event::RobotDescription(urdf)) => {
-                    if self.guarded("robot_description", |w| w.robot_description(&urdf)) {
-                        // A new model re-plans at once.
-                        if let Some(t) = tick.as_mut() {
-                            t.reset();
-                        }
+                Ok(ev) => {
+                    if self.apply(ev, &mut timers) {
+                        return;
                     }
                 }
-                Ok(ev) => {
-                    self.guarded("event", |w| {
-                        w.handle(ev);
-                        false
-                    });
-                }
+                Err(RecvTimeoutError::Disconnected) => return,
                 Err(RecvTimeoutError::Timeout) => {}
             }
             // Apply every queued state message before a tick, so that a prediction never
             // starts from a state older than the queue (a slow tick would otherwise leave it
             // one message behind per period).
             while let Ok(ev) = rx.try_recv() {
-                match ev {
-                    Event::Shutdown => return,
-                    Event::RobotDescription(urdf) => {
-                        if self.guarded("robot_description", |w| w.robot_description(&urdf))
-                            && let Some(t) = tick.as_mut()
-                        {
-                            t.reset();
-                        }
-                    }
-                    ev => {
-                        self.guarded("event", |w| {
-                            w.handle(ev);
-                            false
-                        });
-                    }
+                if self.apply(ev, &mut timers) {
+                    return;
                 }
             }
+            // An inactive node (lifecycle) follows its inputs but neither predicts nor reports.
+            if !self.active {
+                continue;
+            }
             let clock = sim.then_some(self.sim_time);
-            if tick.as_mut().is_some_and(|t| t.due(clock)) {
+            if timers.tick.as_mut().is_some_and(|t| t.due(clock)) {
                 self.guarded("prediction", |w| {
                     w.tick();
                     false
                 });
             }
-            let scheduled = diag.due(clock);
+            let scheduled = timers.diag.due(clock);
             self.publish_status(scheduled);
         }
+    }
+
+    /// Handles one event; true to stop the thread.
+    fn apply(&mut self, ev: Event<N>, timers: &mut Timers) -> bool {
+        match ev {
+            Event::Shutdown => return true,
+            Event::RobotDescription(urdf) => {
+                // A new model re-plans at once.
+                if self.guarded("robot_description", |w| w.robot_description(&urdf))
+                    && let Some(t) = timers.tick.as_mut()
+                {
+                    t.reset();
+                }
+            }
+            Event::Active(active) => {
+                if active && !self.active {
+                    // Predict and report at once on activation.
+                    timers.diag.reset();
+                    if let Some(t) = timers.tick.as_mut() {
+                        t.reset();
+                    }
+                    self.last_level = None;
+                }
+                self.active = active;
+            }
+            ev => {
+                self.guarded("event", |w| {
+                    w.handle(ev);
+                    false
+                });
+            }
+        }
+        false
     }
 
     /// One periodic step, timed and recorded.
@@ -406,7 +441,7 @@ impl<N: NodeLogic> Worker<N> {
                 });
                 self.health.request(started.elapsed().as_secs_f64());
             }
-            Event::Shutdown => {}
+            Event::Shutdown | Event::Active(_) => {}
         }
     }
 

@@ -5,6 +5,10 @@ use serde::{Deserialize, Serialize};
 
 use super::{ParamsError, positive};
 
+#[cfg(test)]
+#[path = "command_tests.rs"]
+mod command_tests;
+
 /// `model.*`: where the robot comes from.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -119,10 +123,16 @@ pub struct NetworkParams {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CommandParams {
-    /// Velocity command topic (predictor only): `geometry_msgs/Twist`, or `TwistStamped`
-    /// with `stamped`. The diff drive follows linear.x [m/s] and angular.z [rad/s].
+    /// Velocity command topic (predictor only): `geometry_msgs/Twist` or `TwistStamped`, see
+    /// `type`. The diff drive follows linear.x [m/s] and angular.z [rad/s].
     pub topic: String,
-    /// The command topic carries `geometry_msgs/TwistStamped` (Nav2's default) [bool].
+    /// The command topic's message type: `auto` follows whichever of `Twist` and
+    /// `TwistStamped` the topic's publishers use (from the DDS graph; `TwistStamped`, Nav2's
+    /// and ros2_control's, while nobody publishes), `twist` or `twist_stamped` force one.
+    #[serde(rename = "type")]
+    pub msg_type: String,
+    /// Older spelling of `type: twist_stamped`: true forces `TwistStamped`; false leaves the
+    /// choice to `type`.
     pub stamped: bool,
     /// A command older than this is replaced by `fallback` [s].
     pub timeout: f64,
@@ -138,10 +148,59 @@ impl Default for CommandParams {
     fn default() -> Self {
         CommandParams {
             topic: "cmd_vel".into(),
+            msg_type: "auto".into(),
             stamped: false,
             timeout: 0.5,
             fallback: "stop".into(),
             hold_joints: true,
+        }
+    }
+}
+
+/// The message type of a velocity command topic.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CommandMsg {
+    /// `geometry_msgs/msg/Twist`.
+    Twist,
+    /// `geometry_msgs/msg/TwistStamped`.
+    TwistStamped,
+}
+
+impl CommandMsg {
+    /// The DDS type name a publisher of this type announces in discovery.
+    pub fn dds_type(self) -> &'static str {
+        match self {
+            CommandMsg::Twist => "geometry_msgs::msg::dds_::Twist_",
+            CommandMsg::TwistStamped => "geometry_msgs::msg::dds_::TwistStamped_",
+        }
+    }
+
+    /// The ROS type name.
+    pub fn ros_type(self) -> &'static str {
+        match self {
+            CommandMsg::Twist => "geometry_msgs/msg/Twist",
+            CommandMsg::TwistStamped => "geometry_msgs/msg/TwistStamped",
+        }
+    }
+
+    /// The type to subscribe with: the forced one; else the one the topic's publishers use
+    /// (`published`: their DDS type names). Where nobody publishes, or both types are
+    /// published, the type followed so far stays (`current`), `TwistStamped` at first — what
+    /// Nav2 (from Kilted, or with `enable_stamped_cmd_vel`) and ros2_control (from Jazzy)
+    /// send.
+    pub fn follow(
+        forced: Option<CommandMsg>,
+        published: &[String],
+        current: Option<CommandMsg>,
+    ) -> CommandMsg {
+        if let Some(f) = forced {
+            return f;
+        }
+        let uses = |t: CommandMsg| published.iter().any(|p| p == t.dds_type());
+        match (uses(CommandMsg::Twist), uses(CommandMsg::TwistStamped)) {
+            (true, false) => CommandMsg::Twist,
+            (false, true) => CommandMsg::TwistStamped,
+            _ => current.unwrap_or(CommandMsg::TwistStamped),
         }
     }
 }
@@ -171,9 +230,33 @@ impl CommandParams {
         }
     }
 
-    /// Checks `timeout` and `fallback`.
+    /// `type` and `stamped` together: `None` = follow the graph, else the forced type.
+    pub fn forced_type(&self) -> Result<Option<CommandMsg>, ParamsError> {
+        let forced = match self.msg_type.as_str() {
+            "auto" => None,
+            "twist" => Some(CommandMsg::Twist),
+            "twist_stamped" => Some(CommandMsg::TwistStamped),
+            other => {
+                return Err(ParamsError::invalid(
+                    "command.type",
+                    format!("{other:?}: expected auto, twist or twist_stamped"),
+                ));
+            }
+        };
+        match (self.stamped, forced) {
+            (false, f) => Ok(f),
+            (true, None | Some(CommandMsg::TwistStamped)) => Ok(Some(CommandMsg::TwistStamped)),
+            (true, Some(CommandMsg::Twist)) => Err(ParamsError::invalid(
+                "command.stamped",
+                "= true contradicts command.type = twist",
+            )),
+        }
+    }
+
+    /// Checks `timeout`, `fallback` and `type`.
     pub fn validate(&self) -> Result<(), ParamsError> {
         positive("command.timeout", self.timeout)?;
+        self.forced_type()?;
         self.fallback().map(|_| ())
     }
 }

@@ -23,8 +23,8 @@ use serde::{Deserialize, Serialize};
 use crate::ros::args::{Parameters, RosArgsError, yaml_to_param};
 
 pub use groups::{
-    CommandParams, DiagnosticsParams, Fallback, FramesParams, ModelParams, NetworkParams,
-    SlipParams, StateParams,
+    CommandMsg, CommandParams, DiagnosticsParams, Fallback, FramesParams, ModelParams,
+    NetworkParams, SlipParams, StateParams,
 };
 pub use kind::NodeKind;
 
@@ -84,6 +84,9 @@ pub struct CommonParams {
     pub enabled: bool,
     /// Stamp messages and run timers on /clock (ROS standard parameter).
     pub use_sim_time: bool,
+    /// Configure and activate the node at start (lifecycle); false = wait, unconfigured, for a
+    /// lifecycle manager's `~/change_state`.
+    pub autostart: bool,
     /// Where the robot comes from.
     pub model: ModelParams,
     /// Where the latest state comes from.
@@ -103,6 +106,7 @@ impl Default for CommonParams {
         CommonParams {
             enabled: true,
             use_sim_time: false,
+            autostart: true,
             model: ModelParams::default(),
             state: StateParams::default(),
             frames: FramesParams::default(),
@@ -114,9 +118,10 @@ impl Default for CommonParams {
 }
 
 /// The top-level keys of [`CommonParams`] (the rest belong to the kind's struct).
-const COMMON_KEYS: [&str; 8] = [
+const COMMON_KEYS: [&str; 9] = [
     "enabled",
     "use_sim_time",
+    "autostart",
     "model",
     "state",
     "frames",
@@ -125,8 +130,8 @@ const COMMON_KEYS: [&str; 8] = [
     "diagnostics",
 ];
 
-/// Parameters no kind may change at run time: `use_sim_time` is read once.
-const NEVER_DYNAMIC: [&str; 1] = ["use_sim_time"];
+/// Parameters no kind may change at run time: `use_sim_time` and `autostart` are read once.
+const NEVER_DYNAMIC: [&str; 2] = ["use_sim_time", "autostart"];
 
 impl CommonParams {
     /// Checks every value, naming the parameter that is wrong.

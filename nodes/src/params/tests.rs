@@ -145,7 +145,8 @@ fn namespaced_example_follows_rcl_key_rules() {
     let ns = parse_params_yaml(&text, "/robot1/cd_predictor").unwrap();
     let p = NodeParams::<PredictorParams>::from_parameters(&ns).unwrap();
     assert_eq!(p.node.rate, 10.0);
-    assert!(p.node.command.stamped);
+    assert_eq!(p.node.command.msg_type, "auto");
+    assert_eq!(p.node.command.forced_type().unwrap(), None);
     assert_eq!(p.common.state.odom_topic, "odom");
     assert_eq!(p.common.frames.odom_frame, "robot1/odom");
     let root = parse_params_yaml(&text, "/cd_predictor").unwrap();

@@ -3,11 +3,13 @@
 //! constraint forces at the current state (`~/constraint_forces`), with slip transitions
 //! logged. Everything the predictor decides to publish is decided in [`PredictorNode::periodic`].
 
+pub mod markers;
 pub mod params;
 pub mod ros;
 
 use std::time::{Duration, Instant};
 
+use constraint_dynamics::algorithm::frame_placement;
 use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::predict::{PredictOptions, Predictor, Trajectory};
 
@@ -16,15 +18,16 @@ use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::constraint_dynamics_msgs::ConstraintForces;
 use crate::msg::diagnostic_msgs::KeyValue;
-use crate::msg::geometry_msgs::Twist;
+use crate::msg::geometry_msgs::{Twist, WrenchStamped};
 use crate::msg::nav_msgs::{Odometry, Path};
 use crate::msg::std_msgs::Header;
+use crate::msg::visualization_msgs::MarkerArray;
 use crate::node::health::kv;
 use crate::node::worker::NodeLogic;
 use crate::params::NodeParams;
 use crate::robot::Robot;
 use crate::ros::logging::NodeLog;
-pub use params::{CovarianceParams, PredictorParams};
+pub use params::{CovarianceParams, MarkerParams, PredictorParams};
 
 /// What one periodic prediction publishes.
 #[derive(Clone, Debug)]
@@ -35,6 +38,10 @@ pub struct PeriodicOutput {
     pub path: Path,
     /// Constraint forces at the start state under the commanded actuator torques.
     pub forces: ConstraintForces,
+    /// rviz2: force arrows and the predicted footprint (`markers.enabled`).
+    pub markers: Option<MarkerArray>,
+    /// Each constraint's wrench in its own frame (`markers.wrenches`): (name, message).
+    pub wrenches: Vec<(String, WrenchStamped)>,
     /// Time spent computing [s].
     pub compute_s: f64,
 }
@@ -202,12 +209,62 @@ impl PredictorNode {
             .map(|c| c.name.clone())
             .collect();
         self.position_residual = traj.samples.last().map_or(0.0, |s| s.position_residual);
+        let (markers, wrenches) = self.markers(&at.forces, &path, now);
         Ok(PeriodicOutput {
             odom,
             path,
             forces,
+            markers,
+            wrenches,
             compute_s: t0.elapsed().as_secs_f64(),
         })
+    }
+
+    /// The rviz2 markers and wrenches of one prediction (forces at the start state, whose
+    /// kinematics the system still holds; the footprint along `path`).
+    fn markers(
+        &mut self,
+        forces: &[constraint_dynamics::constraints::ConstraintForce],
+        path: &Path,
+        now: Time,
+    ) -> (Option<MarkerArray>, Vec<(String, WrenchStamped)>) {
+        let p = &self.params.node.markers;
+        let common = &self.params.common;
+        let sys = &self.predictor.sys;
+        // Frame axes → world at the start state (the forces' state).
+        let rotation = |frame: &str| -> Option<markers::Rotation> {
+            let id = sys.model.frame_id(frame).ok()?;
+            let r = frame_placement(&sys.model, &sys.data, id).rotation;
+            Some([0, 1, 2].map(|i| [r[(i, 0)], r[(i, 1)], r[(i, 2)]]))
+        };
+        let style = markers::MarkerStyle {
+            force_scale: p.force_scale,
+            arrow_width: p.arrow_width,
+            // A few periods, at least 1 s: markers vanish soon after predictions stop.
+            lifetime: (3.0 / self.params.node.rate).max(1.0),
+            line_width: 0.5 * p.arrow_width,
+        };
+        let out = p.enabled.then(|| {
+            let header = Header {
+                stamp: now,
+                frame_id: common.frames.odom_frame.clone(),
+            };
+            let slip = self.robot.slip_test(common);
+            let mut m = markers::force_markers(forces, &slip, &rotation, &header, &style);
+            m.push(markers::footprint_marker(
+                path,
+                &p.polygon(),
+                p.footprint_period,
+                now,
+                &style,
+            ));
+            MarkerArray { markers: m }
+        });
+        let wrenches = match p.wrenches {
+            true => markers::constraint_wrenches(forces, &rotation, &common.frames.odom_frame, now),
+            false => Vec::new(),
+        };
+        (out, wrenches)
     }
 
     fn odometry_at_horizon(&self, traj: &Trajectory, start: Time) -> Result<Odometry, NodeError> {

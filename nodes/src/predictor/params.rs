@@ -20,6 +20,8 @@ pub struct PredictorParams {
     pub publish_path: bool,
     /// Publish `~/constraint_forces` (at the current state, with slip flags).
     pub publish_forces: bool,
+    /// rviz2 markers and per-constraint wrenches.
+    pub markers: MarkerParams,
 }
 
 impl Default for PredictorParams {
@@ -31,6 +33,7 @@ impl Default for PredictorParams {
             horizon: 0.0,
             publish_path: true,
             publish_forces: true,
+            markers: MarkerParams::default(),
         }
     }
 }
@@ -42,6 +45,9 @@ impl KindParams for PredictorParams {
         "horizon",
         "command.timeout",
         "command.fallback",
+        "markers.force_scale",
+        "markers.arrow_width",
+        "markers.footprint",
     ];
 
     fn validate(&self) -> Result<(), ParamsError> {
@@ -52,7 +58,8 @@ impl KindParams for PredictorParams {
         let c = &self.covariance;
         positive("covariance.position_floor", c.position_floor)?;
         positive("covariance.orientation_floor", c.orientation_floor)?;
-        positive("covariance.twist_floor", c.twist_floor)
+        positive("covariance.twist_floor", c.twist_floor)?;
+        self.markers.validate()
     }
 }
 
@@ -76,5 +83,68 @@ impl Default for CovarianceParams {
             orientation_floor: 1e-3,
             twist_floor: 1e-3,
         }
+    }
+}
+
+/// `markers.*`: what rviz2 is shown (`~/markers`, `~/wrench/<constraint>`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MarkerParams {
+    /// Publish `~/markers` (`visualization_msgs/MarkerArray`): force arrows and the predicted
+    /// footprint.
+    pub enabled: bool,
+    /// Force arrow length per newton [m/N] (run-time).
+    pub force_scale: f64,
+    /// Force arrow shaft diameter [m]; footprint lines are half as wide (run-time).
+    pub arrow_width: f64,
+    /// The robot's footprint polygon in the base frame, flat `[x0, y0, x1, y1, …]` [m], at
+    /// least three vertices; the default is the bundled robots' chassis (run-time).
+    pub footprint: Vec<f64>,
+    /// Time between two footprint outlines along the predicted path [s] (run-time).
+    pub footprint_period: f64,
+    /// Also publish each constraint's wrench as `geometry_msgs/WrenchStamped` on
+    /// `~/wrench/<constraint name>`, in the constraint's frame about its origin.
+    pub wrenches: bool,
+}
+
+impl Default for MarkerParams {
+    fn default() -> Self {
+        MarkerParams {
+            enabled: true,
+            force_scale: 0.01,
+            arrow_width: 0.02,
+            // urdf/mobile_manipulator.urdf and diff_drive.urdf: chassis 0.4 × 0.3 m centred
+            // 5 cm behind base_link.
+            footprint: vec![0.15, 0.15, -0.25, 0.15, -0.25, -0.15, 0.15, -0.15],
+            footprint_period: 0.2,
+            wrenches: false,
+        }
+    }
+}
+
+impl MarkerParams {
+    /// Checks every value, naming the one that is wrong.
+    pub fn validate(&self) -> Result<(), ParamsError> {
+        positive("markers.force_scale", self.force_scale)?;
+        positive("markers.arrow_width", self.arrow_width)?;
+        positive("markers.footprint_period", self.footprint_period)?;
+        let f = &self.footprint;
+        if f.len() < 6 || !f.len().is_multiple_of(2) || f.iter().any(|x| !x.is_finite()) {
+            return Err(ParamsError::invalid(
+                "markers.footprint",
+                format!(
+                    "= {f:?} must be [x0, y0, x1, y1, …] with at least three finite vertices [m]"
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// `footprint` as vertices.
+    pub fn polygon(&self) -> Vec<[f64; 2]> {
+        self.footprint
+            .chunks_exact(2)
+            .map(|c| [c[0], c[1]])
+            .collect()
     }
 }

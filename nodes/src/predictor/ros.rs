@@ -1,39 +1,96 @@
-//! `cd_predictor` on ROS: the command subscription and the three publishers.
+//! `cd_predictor` on ROS: the command subscription (following the type published on its
+//! topic), the predicted odometry, path, forces, rviz2 markers and per-constraint wrenches.
 
+use std::collections::HashMap;
+
+use ros2_client::Gid;
+use ros2_client::dds::rustdds::{DomainParticipant, GUID, RTPSEntity};
+
+use super::markers::topic_token;
 use super::{PredictorInput, PredictorNode};
 use crate::error::NodeError;
 use crate::msg::constraint_dynamics_msgs::ConstraintForces;
-use crate::msg::geometry_msgs::{Twist, TwistStamped};
+use crate::msg::geometry_msgs::{Twist, TwistStamped, WrenchStamped};
 use crate::msg::nav_msgs::{Odometry, Path};
-use crate::node::wiring::{RosWiring, Wiring, forward};
+use crate::msg::visualization_msgs::MarkerArray;
+use crate::node::wiring::{Followed, RosWiring, Wiring, forward};
 use crate::node::worker::Event;
+use crate::params::CommandMsg;
 use crate::ros::context::qos;
-use crate::ros::io::subscribe;
+use crate::ros::logging::NodeLog;
+
+/// Takes commands from the writers that announce type `want` only, handing each to `f`.
+///
+/// Why: RustDDS matches a reader with every writer on its topic whatever its type (Fast DDS and
+/// Cyclone compare type names), so a `Twist` reader would decode the bytes of a RustDDS
+/// `TwistStamped` publisher as a wrong but finite `Twist`. Each writer's announced type is
+/// looked up once in discovery; messages of other types are dropped with one warning per writer.
+/// Writers of this process (the suite's command filter) are not in discovery: they are trusted
+/// to publish the type their node is configured with.
+async fn typed_commands<M: serde::de::DeserializeOwned + 'static>(
+    sub: ros2_client::Subscription<M>,
+    participant: DomainParticipant,
+    want: CommandMsg,
+    log: NodeLog,
+    mut f: impl FnMut(M),
+) {
+    let mut verdicts: HashMap<Gid, bool> = HashMap::new();
+    let own_prefix = participant.guid().prefix;
+    let mut errors = 0u64;
+    loop {
+        let (m, info) = match sub.async_take().await {
+            Ok(x) => x,
+            Err(e) => {
+                errors += 1;
+                if errors == 1 || errors.is_power_of_two() {
+                    log.warn(&format!(
+                        "dropped an undecodable command ({errors} so far): {e:?}"
+                    ));
+                }
+                smol::Timer::after(std::time::Duration::from_millis(1)).await;
+                continue;
+            }
+        };
+        let gid = info.publisher_gid();
+        let ok = match verdicts.get(&gid) {
+            Some(&ok) => ok,
+            None => {
+                let announced = participant
+                    .discovered_writers()
+                    .into_iter()
+                    .map(|d| d.publication_topic_data)
+                    .find(|t| Gid::from(t.key) == gid)
+                    .map(|t| t.type_name);
+                let Some(announced) = announced else {
+                    // Discovery lists other participants' writers only. One of this process
+                    // (a command filter of the suite) publishes the type it is configured
+                    // with: trusted. Another not discovered yet: drop, ask on the next.
+                    if GUID::from(gid).prefix == own_prefix {
+                        verdicts.insert(gid, true);
+                        f(m);
+                    }
+                    continue;
+                };
+                let ok = announced == want.dds_type();
+                if !ok {
+                    log.warn(&format!(
+                        "command input: ignoring a publisher of {announced} while following {}",
+                        want.ros_type()
+                    ));
+                }
+                verdicts.insert(gid, ok);
+                ok
+            }
+        };
+        if ok {
+            f(m);
+        }
+    }
+}
 
 impl RosWiring for PredictorNode {
     fn wire(w: &mut Wiring<Self>) -> Result<(), NodeError> {
         let p = &w.params.node;
-        let cmd_topic = (w.topic)(&p.command.topic);
-        let tx = w.tx.clone();
-        if p.command.stamped {
-            let sub = w
-                .ros
-                .subscription::<TwistStamped>(&cmd_topic, &qos::sensor_data())?;
-            w.tasks.push(
-                w.ros
-                    .spawn(subscribe(sub, w.log.clone(), move |m: TwistStamped| {
-                        forward(&tx, Event::Node(PredictorInput::Command(m.twist)))
-                    })),
-            );
-        } else {
-            let sub = w
-                .ros
-                .subscription::<Twist>(&cmd_topic, &qos::sensor_data())?;
-            w.tasks
-                .push(w.ros.spawn(subscribe(sub, w.log.clone(), move |m: Twist| {
-                    forward(&tx, Event::Node(PredictorInput::Command(m)))
-                })));
-        }
         let odom_pub = w
             .ros
             .publisher::<Odometry>(&(w.topic)("~/predicted_odom"), &qos::reliable(10))?;
@@ -51,6 +108,23 @@ impl RosWiring for PredictorNode {
             )?),
             false => None,
         };
+        let markers_pub = match p.markers.enabled {
+            true => Some(
+                w.ros
+                    .publisher::<MarkerArray>(&(w.topic)("~/markers"), &qos::reliable(10))?,
+            ),
+            false => None,
+        };
+        let mut wrench_pubs = HashMap::new();
+        if p.markers.wrenches {
+            for name in w.constraints {
+                let topic = (w.topic)(&format!("~/wrench/{}", topic_token(name)));
+                let publisher = w
+                    .ros
+                    .publisher::<WrenchStamped>(&topic, &qos::reliable(10))?;
+                wrench_pubs.insert(name.clone(), publisher);
+            }
+        }
         let log = w.log.clone();
         let Some(out_rx) = w.outputs.take() else {
             return Ok(());
@@ -71,8 +145,88 @@ impl RosWiring for PredictorNode {
                 {
                     log.warn(&format!("publish constraint_forces: {e:?}"));
                 }
+                if let (Some(p), Some(m)) = (&markers_pub, out.markers)
+                    && let Err(e) = p.async_publish(m).await
+                {
+                    log.warn(&format!("publish markers: {e:?}"));
+                }
+                for (name, msg) in out.wrenches {
+                    if let Some(p) = wrench_pubs.get(&name)
+                        && let Err(e) = p.async_publish(msg).await
+                    {
+                        log.warn(&format!("publish wrench/{name}: {e:?}"));
+                    }
+                }
             }
         }));
+        Ok(())
+    }
+
+    /// The command input: a subscription of the type `command.type` forces, or of the type the
+    /// topic's publishers use (their DDS type names, from discovery), replaced when that
+    /// changes.
+    fn follow_graph(w: &mut Wiring<Self>, slot: &mut Option<Followed>) -> Result<(), NodeError> {
+        let p = &w.params.node.command;
+        let topic = (w.topic)(&p.topic);
+        let forced = p.forced_type()?;
+        let published: Vec<String> = match forced {
+            Some(_) => Vec::new(),
+            None => {
+                let dds_topic = format!("rt{topic}");
+                w.context
+                    .domain_participant()
+                    .discovered_writers()
+                    .into_iter()
+                    .map(|d| d.publication_topic_data)
+                    .filter(|t| t.topic_name == dds_topic)
+                    .map(|t| t.type_name)
+                    .collect()
+            }
+        };
+        let current = slot.as_ref().map(|f| match f.key.as_str() {
+            k if k == CommandMsg::Twist.ros_type() => CommandMsg::Twist,
+            _ => CommandMsg::TwistStamped,
+        });
+        let want = CommandMsg::follow(forced, &published, current);
+        if current == Some(want) {
+            return Ok(());
+        }
+        // The old subscription goes first, so the topic never has two types of ours.
+        *slot = None;
+        let tx = w.tx.clone();
+        let log = w.log.clone();
+        let participant = w.context.domain_participant();
+        let task = match want {
+            CommandMsg::TwistStamped => {
+                let sub = w
+                    .ros
+                    .subscription::<TwistStamped>(&topic, &qos::sensor_data())?;
+                w.ros
+                    .spawn(typed_commands(sub, participant, want, log, move |m| {
+                        forward(&tx, Event::Node(PredictorInput::Command(m.twist)))
+                    }))
+            }
+            CommandMsg::Twist => {
+                let sub = w.ros.subscription::<Twist>(&topic, &qos::sensor_data())?;
+                w.ros
+                    .spawn(typed_commands(sub, participant, want, log, move |m| {
+                        forward(&tx, Event::Node(PredictorInput::Command(m)))
+                    }))
+            }
+        };
+        let why = match (forced, published.is_empty()) {
+            (Some(_), _) => "command.type".to_string(),
+            (None, true) => "nobody publishes it yet".to_string(),
+            (None, false) => format!("published as {}", published.join(", ")),
+        };
+        w.log.info(&format!(
+            "command input {topic}: {} ({why})",
+            want.ros_type()
+        ));
+        *slot = Some(Followed {
+            key: want.ros_type().to_string(),
+            task,
+        });
         Ok(())
     }
 }

@@ -109,6 +109,11 @@ impl Robot {
         &self.scene.model
     }
 
+    /// The constraints' names, in the system's order.
+    pub fn constraint_names(&self) -> &[String] {
+        &self.sys.constraints.names
+    }
+
     /// The multiplier-form system.
     pub fn system(&mut self) -> &mut System {
         &mut self.sys

@@ -28,11 +28,7 @@ pub struct Suite {
 impl Suite {
     /// Fully qualified names of the running nodes.
     pub fn node_names(&self) -> Vec<String> {
-        self.nodes
-            .iter()
-            .filter_map(|n| n.ros())
-            .map(|r| fqn(r.namespace(), r.name()))
-            .collect()
+        self.nodes.iter().map(|n| n.fqn().to_string()).collect()
     }
 
     /// Stops every node.

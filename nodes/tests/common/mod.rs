@@ -155,13 +155,19 @@ impl SuiteProcess {
 
     /// SIGINT, then wait (kill after 5 s); returns the exit status success.
     pub fn stop(&mut self) -> bool {
+        self.stop_within(Duration::from_secs(5))
+    }
+
+    /// SIGINT, then wait up to `limit` (then kill); returns the exit status success. A worker
+    /// finishes the request it is computing before the process exits.
+    pub fn stop_within(&mut self, limit: Duration) -> bool {
         if !self.alive() {
             return self.child.wait().map(|s| s.success()).unwrap_or(false);
         }
         unsafe {
             libc::kill(self.child.id() as libc::pid_t, libc::SIGINT);
         }
-        let deadline = Instant::now() + Duration::from_secs(5);
+        let deadline = Instant::now() + limit;
         while Instant::now() < deadline {
             if let Ok(Some(s)) = self.child.try_wait() {
                 return s.success();

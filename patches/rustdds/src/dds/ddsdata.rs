@@ -20,6 +20,11 @@ pub enum DDSData {
   DisposeByKey {
     change_kind: ChangeKind,
     key: SerializedPayload,
+    // Patched (constraint_dynamics, issue 12): the key hash a writer sends as inline QoS
+    // beside the serialized key. eProsima Fast DDS identifies a disposed discovery endpoint
+    // by the key hash only; without it, endpoints that a RustDDS participant deletes stay in
+    // its graph (`ros2 topic info`, `count_publishers`) until the whole participant goes.
+    key_hash: Option<KeyHash>,
   },
   DisposeByKeyHash {
     change_kind: ChangeKind,
@@ -32,7 +37,24 @@ impl DDSData {
     Self::Data { serialized_payload }
   }
   pub fn new_disposed_by_key(change_kind: ChangeKind, key: SerializedPayload) -> Self {
-    Self::DisposeByKey { change_kind, key }
+    Self::DisposeByKey {
+      change_kind,
+      key,
+      key_hash: None,
+    }
+  }
+
+  /// A dispose by key that also carries the key's hash (sent as `PID_KEY_HASH`).
+  pub fn new_disposed_by_key_with_hash(
+    change_kind: ChangeKind,
+    key: SerializedPayload,
+    key_hash: KeyHash,
+  ) -> Self {
+    Self::DisposeByKey {
+      change_kind,
+      key,
+      key_hash: Some(key_hash),
+    }
   }
 
   pub fn new_disposed_by_key_hash(change_kind: ChangeKind, key_hash: KeyHash) -> Self {

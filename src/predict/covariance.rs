@@ -1,0 +1,281 @@
+//! Covariance of a prediction: the start state's uncertainty carried through the integrator's
+//! own step sensitivity, with process noise, kept on the constraints.
+//!
+//! State x = (q, v) in the tangent space (δq a right perturbation q ⊕ δq, then δv), P 2nv × 2nv.
+//! Per step of size h:
+//!
+//! `P ← T (A P Aᵀ + Q_h) Tᵀ`
+//!
+//! - A = ∂x⁺/∂x of the step ([`linearize_step`], under the generalized force held over it);
+//! - Q_h: white acceleration noise of density σ_i per velocity coordinate (`uncertainty:` in the
+//!   scene, [(m/s²)/√Hz] or [(rad/s²)/√Hz], as robot_localization's continuous process noise)
+//!   integrated exactly over the step as for a double integrator:
+//!   `σ_i² [h³/3, h²/2; h²/2, h]` on (δq_i, δv_i);
+//! - T = diag(T_q, T_v) keeps P on the constraints: `T_v = 1 − M⁻¹Jᵀ (J M⁻¹ Jᵀ)⁻¹ J` (all rows;
+//!   the mass-weighted projection onto J δv = 0 that constraint impulses would make) and T_q the
+//!   same with the holonomic rows only (J_h δq = 0). Dependent rows are dropped first.
+
+use super::integrator::Method;
+use super::linearize::{Linearization, linearize_step};
+use crate::algorithm::crba;
+use crate::error::{Error, Result, check_finite};
+use crate::linalg::{
+    cholesky_in_place, cholesky_solve, gemm_into, semidefinite_cholesky, semidefinite_solve,
+};
+use crate::system::System;
+use nalgebra::DMatrix;
+use serde::Deserialize;
+use std::collections::BTreeMap;
+
+/// `uncertainty:` in a scene.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UncertaintySpec {
+    /// Acceleration noise density σ per velocity coordinate name [(m/s²)/√Hz or (rad/s²)/√Hz]
+    /// (default: none, 0).
+    #[serde(default)]
+    pub acceleration_noise: BTreeMap<String, f64>,
+}
+
+/// Propagates a covariance along a prediction (buffers sized once; a step allocates nothing).
+#[derive(Clone, Debug)]
+pub struct CovariancePropagator {
+    /// The current covariance, 2nv × 2nv, order [δq; δv] in the velocity order.
+    pub p: DMatrix<f64>,
+    /// σ_i² per velocity coordinate.
+    noise: Vec<f64>,
+    lin: Linearization,
+    tmp: DMatrix<f64>,
+    proj: DMatrix<f64>,
+    minv: DMatrix<f64>,
+    chol: DMatrix<f64>,
+    col: Vec<f64>,
+    /// Holonomic rows (for T_q) and all rows (for T_v), built at the first projection (the
+    /// rows' kinds are known once the constraints were evaluated).
+    blocks: Option<[RowProjector; 2]>,
+}
+
+/// `1 − M⁻¹J_Rᵀ (J_R M⁻¹ J_Rᵀ)⁻¹ J_R` for a fixed set R of rows, with its buffers.
+#[derive(Clone, Debug)]
+struct RowProjector {
+    rows: Vec<usize>,
+    minv_jt: DMatrix<f64>,
+    k: DMatrix<f64>,
+    dropped: Vec<bool>,
+    y: Vec<f64>,
+}
+
+impl RowProjector {
+    fn new(rows: Vec<usize>, nv: usize) -> Self {
+        let nr = rows.len();
+        Self {
+            rows,
+            minv_jt: DMatrix::zeros(nv, nr),
+            k: DMatrix::zeros(nr, nr),
+            dropped: vec![false; nr],
+            y: vec![0.0; nr],
+        }
+    }
+
+    /// `proj[off.., off..] −= M⁻¹J_Rᵀ K⁺ J_R` (dependent rows dropped).
+    fn apply(
+        &mut self,
+        j: &DMatrix<f64>,
+        minv: &DMatrix<f64>,
+        proj: &mut DMatrix<f64>,
+        off: usize,
+    ) {
+        let nv = j.ncols();
+        let nr = self.rows.len();
+        if nr == 0 {
+            return;
+        }
+        for (c, &r) in self.rows.iter().enumerate() {
+            for i in 0..nv {
+                self.minv_jt[(i, c)] = (0..nv).map(|k| minv[(i, k)] * j[(r, k)]).sum();
+            }
+        }
+        for (a, &ra) in self.rows.iter().enumerate() {
+            for b in 0..nr {
+                self.k[(a, b)] = (0..nv).map(|i| j[(ra, i)] * self.minv_jt[(i, b)]).sum();
+            }
+        }
+        semidefinite_cholesky(&mut self.k, 1e-9, &mut self.dropped);
+        for c in 0..nv {
+            for (b, &r) in self.rows.iter().enumerate() {
+                self.y[b] = j[(r, c)];
+            }
+            semidefinite_solve(&self.k, &self.dropped, &mut self.y);
+            for i in 0..nv {
+                let s: f64 = (0..nr).map(|b| self.minv_jt[(i, b)] * self.y[b]).sum();
+                proj[(off + i, off + c)] -= s;
+            }
+        }
+    }
+}
+
+impl CovariancePropagator {
+    /// Sized for `sys`, with the process noise of `spec` (names checked against the model).
+    pub fn new(sys: &System, spec: &UncertaintySpec) -> Result<Self> {
+        let nv = sys.model.nv;
+        let mut noise = vec![0.0; nv];
+        for (name, &sigma) in &spec.acceleration_noise {
+            let i = sys.model.v_index(name)?;
+            if !(sigma.is_finite() && sigma >= 0.0) {
+                return Err(Error::Invalid(format!(
+                    "uncertainty.acceleration_noise.{name} = {sigma}: must be finite and ≥ 0"
+                )));
+            }
+            noise[i] = sigma * sigma;
+        }
+        Ok(Self {
+            p: DMatrix::zeros(2 * nv, 2 * nv),
+            noise,
+            lin: Linearization::new(sys),
+            tmp: DMatrix::zeros(2 * nv, 2 * nv),
+            proj: DMatrix::identity(2 * nv, 2 * nv),
+            minv: DMatrix::zeros(nv, nv),
+            chol: DMatrix::zeros(nv, nv),
+            col: vec![0.0; nv],
+            blocks: None,
+        })
+    }
+
+    /// A propagator for a prediction from (q, v): sized for `sys`, started at `p0` kept on the
+    /// constraints.
+    pub fn start(
+        sys: &mut System,
+        spec: &UncertaintySpec,
+        p0: &DMatrix<f64>,
+        q: &[f64],
+        v: &[f64],
+    ) -> Result<Self> {
+        let mut c = Self::new(sys, spec)?;
+        c.reset(p0)?;
+        c.project(sys, q, v)?;
+        Ok(c)
+    }
+
+    /// Set the start covariance (2nv × 2nv, symmetric, finite, non-negative diagonal).
+    pub fn reset(&mut self, p0: &DMatrix<f64>) -> Result<()> {
+        let n = self.p.nrows();
+        if p0.shape() != (n, n) {
+            return Err(Error::Dimension {
+                what: "start covariance (2nv × 2nv)".into(),
+                expected: n,
+                got: p0.nrows(),
+            });
+        }
+        check_finite("start covariance", p0.as_slice())?;
+        for i in 0..n {
+            if p0[(i, i)] < 0.0 {
+                return Err(Error::Invalid(format!(
+                    "start covariance: diagonal entry {i} is negative ({})",
+                    p0[(i, i)]
+                )));
+            }
+            for j in 0..i {
+                if (p0[(i, j)] - p0[(j, i)]).abs() > 1e-12 * (p0[(i, i)] + p0[(j, j)]).max(1e-300) {
+                    return Err(Error::Invalid(format!(
+                        "start covariance is not symmetric at ({i}, {j})"
+                    )));
+                }
+            }
+        }
+        self.p.copy_from(p0);
+        Ok(())
+    }
+
+    /// One step of `method` from (q, v) under the held generalized force τ [N, N·m] with step
+    /// h [s]: `P ← A P Aᵀ + Q_h`, then kept on the constraints at the step's end.
+    #[allow(clippy::too_many_arguments)]
+    pub fn step(
+        &mut self,
+        sys: &mut System,
+        method: Method,
+        q: &[f64],
+        v: &[f64],
+        tau: &[f64],
+        h: f64,
+    ) -> Result<()> {
+        linearize_step(sys, &mut self.lin, method, q, v, tau, h)?;
+        let nv = v.len();
+        gemm_into(&mut self.tmp, 1.0, &self.lin.a, &self.p, 0.0);
+        // P = tmp Aᵀ, written by hand (no transposed copy).
+        for i in 0..2 * nv {
+            for j in 0..2 * nv {
+                self.p[(i, j)] = (0..2 * nv)
+                    .map(|k| self.tmp[(i, k)] * self.lin.a[(j, k)])
+                    .sum();
+            }
+        }
+        for i in 0..nv {
+            let s2 = self.noise[i];
+            if s2 > 0.0 {
+                self.p[(i, i)] += s2 * h * h * h / 3.0;
+                self.p[(i, nv + i)] += s2 * h * h / 2.0;
+                self.p[(nv + i, i)] += s2 * h * h / 2.0;
+                self.p[(nv + i, nv + i)] += s2 * h;
+            }
+        }
+        Ok(())
+    }
+
+    /// Keep P on the constraints at (q, v): `P ← T P Tᵀ` (module doc).
+    pub fn project(&mut self, sys: &mut System, q: &[f64], v: &[f64]) -> Result<()> {
+        let nv = v.len();
+        if sys.constraints.is_empty() {
+            return Ok(());
+        }
+        sys.constraints
+            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
+        crba(&sys.model, &mut sys.data, q);
+        self.chol
+            .view_mut((0, 0), (nv, nv))
+            .copy_from(&sys.data.mass_matrix);
+        cholesky_in_place(&mut self.chol, nv, 1e-14).map_err(|i| Error::SingularMass {
+            message: format!(
+                "coordinate '{}': the covariance's constraint projection needs M⁻¹",
+                sys.model.v_names[i]
+            ),
+        })?;
+        for c in 0..nv {
+            self.col.iter_mut().for_each(|x| *x = 0.0);
+            self.col[c] = 1.0;
+            cholesky_solve(&self.chol, nv, &mut self.col[..nv]);
+            for r in 0..nv {
+                self.minv[(r, c)] = self.col[r];
+            }
+        }
+        self.proj.fill(0.0);
+        for i in 0..2 * nv {
+            self.proj[(i, i)] = 1.0;
+        }
+        let blocks = self.blocks.get_or_insert_with(|| {
+            let cd = &sys.cdata;
+            let holonomic = (0..cd.j.nrows()).filter(|&r| cd.holonomic[r]).collect();
+            [
+                RowProjector::new(holonomic, nv),
+                RowProjector::new((0..cd.j.nrows()).collect(), nv),
+            ]
+        });
+        blocks[0].apply(&sys.cdata.j, &self.minv, &mut self.proj, 0);
+        blocks[1].apply(&sys.cdata.j, &self.minv, &mut self.proj, nv);
+        gemm_into(&mut self.tmp, 1.0, &self.proj, &self.p, 0.0);
+        let n = 2 * nv;
+        for i in 0..n {
+            for j in 0..n {
+                self.p[(i, j)] = (0..n).map(|k| self.tmp[(i, k)] * self.proj[(j, k)]).sum();
+            }
+        }
+        // Exactly symmetric (rounding).
+        for i in 0..n {
+            for j in 0..i {
+                let m = 0.5 * (self.p[(i, j)] + self.p[(j, i)]);
+                self.p[(i, j)] = m;
+                self.p[(j, i)] = m;
+            }
+        }
+        Ok(())
+    }
+}

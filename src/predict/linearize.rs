@@ -1,0 +1,310 @@
+//! Linearization of one integrator step for planners and covariance propagation:
+//! `x⁺ = step(x, u)` with x = (q, v) in the tangent space (δq a right perturbation, q ⊕ δq) and
+//! u = τ (the generalized force, held over the step), gives the discrete-time
+//! `A = ∂x⁺/∂x` (2nv × 2nv) and `B = ∂x⁺/∂u` (2nv × nv).
+//!
+//! The step's own sensitivity, not the continuous Jacobian times dt: the variations are carried
+//! through every stage of the Munthe-Kaas Runge–Kutta step (integrator.rs) — the stage
+//! configuration `q ⊕ Θ_i` (a perturbation δq moves to `Ad(Exp(−Θ_i)) δq + J_r(Θ_i) δΘ_i`), the
+//! stage accelerations by the analytic derivatives of the constrained dynamics
+//! ([`crate::derivatives`]), and the increments `dexp⁻¹_{−Θ}(v)` by the derivative of the same
+//! series. Semi-implicit Euler likewise. The result equals finite differences of the step
+//! (tests).
+
+use super::integrator::{DOPRI5, Method, RK4, Tableau};
+use super::lie::{dexp_inv, dexp_inv_dtheta, right_jacobian, transport};
+use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
+use crate::error::{Error, Result};
+use crate::system::System;
+use nalgebra::DMatrix;
+
+/// Workspace and result of [`linearize_step`], sized once for a system.
+#[derive(Clone, Debug)]
+pub struct Linearization {
+    /// A = ∂(q⁺, v⁺)/∂(q, v), tangent space, 2nv × 2nv.
+    pub a: DMatrix<f64>,
+    /// B = ∂(q⁺, v⁺)/∂τ, 2nv × nv.
+    pub b: DMatrix<f64>,
+    /// q⁺ (nq) and v⁺ (nv) of the step.
+    pub q_next: Vec<f64>,
+    /// v⁺ (nv).
+    pub v_next: Vec<f64>,
+    dd: DerivativeData,
+    /// Per stage: Θ_i, V_i, q_i, k_i = (kΘ, kv) and the variations of Θ_i, V_i, kΘ_i, kv_i for
+    /// the 3nv seed columns [δq | δv | δτ].
+    theta: Vec<Vec<f64>>,
+    vel: Vec<Vec<f64>>,
+    kth: Vec<Vec<f64>>,
+    kv: Vec<Vec<f64>>,
+    d_theta: DMatrix<f64>,
+    d_vel: DMatrix<f64>,
+    d_kth: Vec<DMatrix<f64>>,
+    d_kv: Vec<DMatrix<f64>>,
+    /// Final increment Θ of the step.
+    theta_end: Vec<f64>,
+    qs: Vec<f64>,
+    x: Vec<f64>,
+    y: Vec<f64>,
+    dq: Vec<f64>,
+    moved: Vec<f64>,
+    jr: Vec<f64>,
+}
+
+impl Linearization {
+    /// Size for a system (its model and constraint rows).
+    pub fn new(sys: &System) -> Self {
+        let (nq, nv) = (sys.model.nq, sys.model.nv);
+        let cols = 3 * nv;
+        let stages = 7;
+        Self {
+            a: DMatrix::zeros(2 * nv, 2 * nv),
+            b: DMatrix::zeros(2 * nv, nv),
+            q_next: vec![0.0; nq],
+            v_next: vec![0.0; nv],
+            dd: DerivativeData::new(&sys.model, sys.constraints.nrows),
+            theta: vec![vec![0.0; nv]; stages],
+            vel: vec![vec![0.0; nv]; stages],
+            kth: vec![vec![0.0; nv]; stages],
+            kv: vec![vec![0.0; nv]; stages],
+            d_theta: DMatrix::zeros(nv, cols),
+            d_vel: DMatrix::zeros(nv, cols),
+            d_kth: vec![DMatrix::zeros(nv, cols); stages],
+            d_kv: vec![DMatrix::zeros(nv, cols); stages],
+            theta_end: vec![0.0; nv],
+            qs: vec![0.0; nq],
+            x: vec![0.0; nv],
+            y: vec![0.0; nv],
+            dq: vec![0.0; nv],
+            moved: vec![0.0; nv],
+            jr: vec![0.0; nv],
+        }
+    }
+}
+
+/// q̈ and its derivatives at (q, v, τ) into `dd`: the multiplier form's with constraints (its
+/// Baumgarte gains included), ABA's without.
+fn dynamics(
+    sys: &mut System,
+    dd: &mut DerivativeData,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+) -> Result<()> {
+    if sys.constraints.is_empty() {
+        aba_derivatives(&sys.model, &mut sys.data, dd, q, v, tau)
+    } else {
+        constrained_dynamics_derivatives(
+            &sys.model,
+            &mut sys.data,
+            &sys.constraints,
+            &mut sys.cdata,
+            &mut sys.kkt,
+            dd,
+            q,
+            v,
+            tau,
+            sys.baumgarte,
+        )
+    }
+}
+
+/// One step of `method` from (q, v) under the held generalized force τ with step `dt` [s],
+/// and its linearization, into `lin`. Semi-implicit Euler, RK4 and DOPRI5 (as a fixed step);
+/// SDIRK2 is refused. Drift projection and force elements are not part of this step.
+#[allow(clippy::too_many_arguments)]
+pub fn linearize_step(
+    sys: &mut System,
+    lin: &mut Linearization,
+    method: Method,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    dt: f64,
+) -> Result<()> {
+    sys.model.check_state(q, v)?;
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(Error::Invalid(format!(
+            "linearize: dt = {dt} s must be finite and > 0"
+        )));
+    }
+    match method {
+        Method::SemiImplicitEuler => semi_implicit_euler(sys, lin, q, v, tau, dt),
+        Method::Rk4 => explicit(sys, lin, &RK4, q, v, tau, dt),
+        Method::Dopri5 => explicit(sys, lin, &DOPRI5, q, v, tau, dt),
+        Method::Sdirk2 => Err(Error::Unsupported {
+            what: "linearize with sdirk2".into(),
+            why: "the implicit step's sensitivity is not implemented; use rk4, dopri5 or \
+                  semi_implicit_euler"
+                .into(),
+        }),
+    }
+}
+
+/// Seed of column c of [δq | δv | δτ]: (δq, δv, δτ) unit vectors.
+fn seed(nv: usize, c: usize, which: usize, i: usize) -> f64 {
+    if c / nv == which && c % nv == i {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+fn semi_implicit_euler(
+    sys: &mut System,
+    lin: &mut Linearization,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    dt: f64,
+) -> Result<()> {
+    let nv = v.len();
+    dynamics(sys, &mut lin.dd, q, v, tau)?;
+    for i in 0..nv {
+        lin.v_next[i] = v[i] + dt * lin.dd.qdd[i];
+        lin.theta_end[i] = dt * lin.v_next[i];
+    }
+    sys.model.integrate(q, &lin.v_next, dt, &mut lin.q_next);
+    let model = &sys.model;
+    for c in 0..3 * nv {
+        // δv⁺ = δv + dt (F_q δq + F_v δv + F_τ δτ)
+        for i in 0..nv {
+            let f = &lin.dd;
+            let dqdd = if c < nv {
+                f.dqdd_dq[(i, c)]
+            } else if c < 2 * nv {
+                f.dqdd_dv[(i, c - nv)]
+            } else {
+                f.dqdd_dtau[(i, c - 2 * nv)]
+            };
+            lin.y[i] = seed(nv, c, 1, i) + dt * dqdd;
+            lin.x[i] = dt * lin.y[i];
+            lin.dq[i] = seed(nv, c, 0, i);
+        }
+        finish_column(model, lin, c);
+    }
+    Ok(())
+}
+
+/// Writes column c of A or B from δq (`lin.dq`), δΘ (`lin.x`) and δv⁺ (`lin.y`) at the final
+/// increment Θ (`lin.theta_end`): δq⁺ = Ad(Exp(−Θ)) δq + J_r(Θ) δΘ.
+fn finish_column(model: &crate::model::Model, lin: &mut Linearization, c: usize) {
+    let nv = model.nv;
+    let Linearization {
+        a,
+        b,
+        theta_end,
+        x,
+        y,
+        dq,
+        moved,
+        jr,
+        ..
+    } = lin;
+    transport(model, theta_end, dq, moved);
+    right_jacobian(model, theta_end, x, jr);
+    let (out, col) = if c < 2 * nv { (a, c) } else { (b, c - 2 * nv) };
+    for i in 0..nv {
+        out[(i, col)] = moved[i] + jr[i];
+        out[(nv + i, col)] = y[i];
+    }
+}
+
+/// An explicit Munthe-Kaas RK step (integrator.rs) with its variations.
+fn explicit(
+    sys: &mut System,
+    lin: &mut Linearization,
+    tab: &Tableau,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    dt: f64,
+) -> Result<()> {
+    let nv = v.len();
+    let cols = 3 * nv;
+    let stages = tab.b.len();
+    for st in 0..stages {
+        // Θ_i, V_i and their variations from the earlier stages.
+        for i in 0..nv {
+            let (mut th, mut ve) = (0.0, v[i]);
+            for (j, &a) in tab.a[st].iter().enumerate() {
+                th += dt * a * lin.kth[j][i];
+                ve += dt * a * lin.kv[j][i];
+            }
+            lin.theta[st][i] = th;
+            lin.vel[st][i] = ve;
+        }
+        for c in 0..cols {
+            for i in 0..nv {
+                let (mut th, mut ve) = (0.0, seed(nv, c, 1, i));
+                for (j, &a) in tab.a[st].iter().enumerate() {
+                    th += dt * a * lin.d_kth[j][(i, c)];
+                    ve += dt * a * lin.d_kv[j][(i, c)];
+                }
+                lin.d_theta[(i, c)] = th;
+                lin.d_vel[(i, c)] = ve;
+            }
+        }
+        sys.model.integrate(q, &lin.theta[st], 1.0, &mut lin.qs);
+        dynamics(sys, &mut lin.dd, &lin.qs, &lin.vel[st], tau)?;
+        lin.kv[st].copy_from_slice(lin.dd.qdd.as_slice());
+        dexp_inv(&sys.model, &lin.theta[st], &lin.vel[st], &mut lin.kth[st]);
+        let model = &sys.model;
+        for c in 0..cols {
+            // δq_i = Ad(Exp(−Θ_i)) δq + J_r(Θ_i) δΘ_i (tangent at q_i).
+            for i in 0..nv {
+                lin.dq[i] = seed(nv, c, 0, i);
+                lin.x[i] = lin.d_theta[(i, c)];
+                lin.y[i] = lin.d_vel[(i, c)];
+            }
+            transport(model, &lin.theta[st], &lin.dq, &mut lin.moved);
+            right_jacobian(model, &lin.theta[st], &lin.x, &mut lin.jr);
+            for i in 0..nv {
+                lin.moved[i] += lin.jr[i];
+            }
+            let f = &lin.dd;
+            for i in 0..nv {
+                let mut s = if c >= 2 * nv {
+                    f.dqdd_dtau[(i, c - 2 * nv)]
+                } else {
+                    0.0
+                };
+                for k in 0..nv {
+                    s += f.dqdd_dq[(i, k)] * lin.moved[k] + f.dqdd_dv[(i, k)] * lin.y[k];
+                }
+                lin.d_kv[st][(i, c)] = s;
+            }
+            // δkΘ = ∂dexp⁻¹/∂Θ [δΘ] + dexp⁻¹(δV)
+            dexp_inv_dtheta(model, &lin.theta[st], &lin.vel[st], &lin.x, &mut lin.jr);
+            dexp_inv(model, &lin.theta[st], &lin.y, &mut lin.moved);
+            for i in 0..nv {
+                lin.d_kth[st][(i, c)] = lin.jr[i] + lin.moved[i];
+            }
+        }
+    }
+    // Final combination.
+    for i in 0..nv {
+        let (mut th, mut ve) = (0.0, v[i]);
+        for (j, &bj) in tab.b.iter().enumerate() {
+            th += dt * bj * lin.kth[j][i];
+            ve += dt * bj * lin.kv[j][i];
+        }
+        lin.theta_end[i] = th;
+        lin.v_next[i] = ve;
+    }
+    sys.model.integrate(q, &lin.theta_end, 1.0, &mut lin.q_next);
+    let model = &sys.model;
+    for c in 0..cols {
+        for i in 0..nv {
+            let (mut th, mut ve) = (0.0, seed(nv, c, 1, i));
+            for (j, &bj) in tab.b.iter().enumerate() {
+                th += dt * bj * lin.d_kth[j][(i, c)];
+                ve += dt * bj * lin.d_kv[j][(i, c)];
+            }
+            lin.x[i] = th;
+            lin.y[i] = ve;
+            lin.dq[i] = seed(nv, c, 0, i);
+        }
+        finish_column(model, lin, c);
+    }
+    Ok(())
+}
