@@ -64,6 +64,7 @@ pub fn constraint_forces_at(
         formulation: Formulation::Multipliers,
         ..Default::default()
     };
+    sys.cdata.t = t;
     let qdd = sys
         .forward_dynamics_with(q, v, &tau, opts)?
         .as_slice()

@@ -190,9 +190,84 @@ pub enum Error {
         why: String,
     },
 
+    /// A velocity constraint's expression (`kind: velocity`) is malformed, names something
+    /// unknown, or is not a velocity constraint.
+    #[error("constraint '{name}': expression \"{expression}\": {problem}")]
+    Expression {
+        /// Name of the constraint.
+        name: String,
+        /// The expression as written.
+        expression: String,
+        /// What is wrong with it (boxed: keeps `Error` small for the callers' `Result`s).
+        problem: Box<ExpressionProblem>,
+    },
+
     /// Any other invalid argument or option; the string says what.
     #[error("{0}")]
     Invalid(String),
+}
+
+/// What is wrong with a velocity constraint's expression (see [`Error::Expression`]).
+/// Columns are 1-based character positions in the expression.
+#[derive(Clone, Debug, PartialEq, Error)]
+pub enum ExpressionProblem {
+    /// The text does not parse.
+    #[error("syntax error at column {column}: {message}")]
+    Syntax {
+        /// Where the error was found.
+        column: usize,
+        /// What was expected there.
+        message: String,
+    },
+    /// A symbol of the expression is neither under `variables:`, nor `t`, `pi` or a function.
+    #[error(
+        "unknown symbol '{symbol}' at column {column} (declare it under variables:, or use t for time)"
+    )]
+    UnknownSymbol {
+        /// The symbol.
+        symbol: String,
+        /// Where it appears first.
+        column: usize,
+    },
+    /// A variable maps to a coordinate the model does not have.
+    #[error("variable '{symbol}': unknown coordinate '{coordinate}' (known: {known})")]
+    UnknownCoordinate {
+        /// The variable.
+        symbol: String,
+        /// The coordinate it names (without the `q:`/`v:` prefix).
+        coordinate: String,
+        /// The model's coordinate names of that kind, comma-separated.
+        known: String,
+    },
+    /// A variable's declaration is malformed (name or `q:`/`v:` prefix).
+    #[error("variable '{symbol}': {message}")]
+    BadVariable {
+        /// The variable.
+        symbol: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The expression depends on no velocity.
+    #[error(
+        "it does not depend on any velocity: that is a holonomic constraint f(q, t) = 0, not a \
+         velocity constraint (use a position-level kind, or write its time derivative)"
+    )]
+    Holonomic,
+    /// A partial derivative could not be formed.
+    #[error("no derivative with respect to '{symbol}': {message}")]
+    Derivative {
+        /// The variable.
+        symbol: String,
+        /// The expression library's message.
+        message: String,
+    },
+    /// `dependent:` names something that is not a velocity variable, or as many velocities as
+    /// the expression has.
+    #[error("dependent: {message}")]
+    Dependent {
+        /// What is wrong.
+        message: String,
+    },
 }
 
 /// Check that every entry of `x` is finite, naming `what` in the error.

@@ -146,3 +146,47 @@ fn eval_reports_bad_input_with_a_message_and_exit_code() {
     ]);
     assert!(!ok && err.contains("q: expected 3 values, got 2"), "{err}");
 }
+
+/// `kind: velocity` through the binary (issue 17): λ of Appell–Hamel's ż = a √(ẋ² + ẏ²) at
+/// the scene's state is m g/(1 + a²) (closed form, docs/nonholonomic.md), and the generalized
+/// force (∂f/∂v)ᵀλ = λ (−a ẋ/s, −a ẏ/s, 1) on (vx_local, vy_local, vz_local), in N.
+#[test]
+fn eval_reports_velocity_constraint_forces_with_units() {
+    let (a, g, m) = (0.5, 9.81, 1.0);
+    let scene = repo_dir().join("params/appell_hamel.yaml");
+    let (ok, out, err) = eval(&["--scene", scene.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    let lam = m * g / (1.0 + a * a);
+    let c = &out["constraints"][0];
+    assert_eq!(c["kind"], "velocity");
+    assert_eq!(c["rows"], serde_json::json!(["f"]));
+    assert_close("λ", &vecf(&c["lambda"]), &[lam], 1e-15); // achieved 1.1e-16
+    let gf = c["generalized_force"].as_array().unwrap();
+    let names: Vec<&str> = gf
+        .iter()
+        .map(|e| e["coordinate"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "root_joint:vx_local",
+            "root_joint:vy_local",
+            "root_joint:vz_local"
+        ]
+    );
+    assert!(gf.iter().all(|e| e["unit"] == "N"));
+    let values: Vec<f64> = gf.iter().map(|e| e["value"].as_f64().unwrap()).collect();
+    // ẋ/s, ẏ/s = 0.8, 0.6 at the scene's state; achieved 1.1e-16.
+    assert_close(
+        "(∂f/∂v)ᵀλ",
+        &values,
+        &[-a * 0.8 * lam, -a * 0.6 * lam, lam],
+        1e-15,
+    );
+    assert_close(
+        "f at the scene's state",
+        &vecf(&c["velocity_residual"]),
+        &[0.0],
+        1e-15,
+    );
+}

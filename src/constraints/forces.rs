@@ -44,6 +44,43 @@ pub struct ConstraintForce {
     /// Rolling contacts: magnitude of the tangential (t₁, t₂) force [N].
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tangential_force: Option<f64>,
+    /// `velocity` constraints: the generalized force (∂f/∂v)ᵀλ on each velocity coordinate f
+    /// depends on, with its unit (N on a linear coordinate, N·m on an angular one). λ itself
+    /// is in [that unit × the coordinate's velocity unit / f's unit]: N·s/m per (m/s of f)
+    /// when f is a linear velocity, for instance.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub generalized_force: Option<Vec<GeneralizedForce>>,
+}
+
+/// One entry of a `velocity` constraint's generalized force (∂f/∂v)ᵀλ.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GeneralizedForce {
+    /// Velocity coordinate name (`v_names`).
+    pub coordinate: String,
+    /// The force on it.
+    pub value: f64,
+    /// `N` or `N·m`.
+    pub unit: &'static str,
+}
+
+/// Unit of the generalized force dual to velocity coordinate `i`: N for a translation
+/// (prismatic, a base's linear velocity), N·m for a rotation.
+pub fn generalized_force_unit(model: &Model, i: usize) -> &'static str {
+    use crate::model::JointKind;
+    for b in model.bodies.iter().skip(1) {
+        let j = &b.joint;
+        if (j.idx_v..j.idx_v + j.kind.nv()).contains(&i) {
+            let k = i - j.idx_v;
+            let linear = match j.kind {
+                JointKind::Prismatic { .. } => true,
+                JointKind::FreeFlyer => k < 3,
+                JointKind::Planar => k < 2,
+                _ => false,
+            };
+            return if linear { "N" } else { "N·m" };
+        }
+    }
+    "N·m"
 }
 
 impl ConstraintForce {
@@ -77,6 +114,7 @@ pub(crate) fn row_labels(c: &Constraint) -> Vec<String> {
             .map(|&i| ["t1", "t2", "n"][i].to_string())
             .collect(),
         Constraint::NoSideSlip(_) => vec!["lateral".into()],
+        Constraint::Velocity(_) => vec!["f".into()],
     }
 }
 
@@ -100,6 +138,7 @@ pub fn constraint_forces(
         let mut force = Vector3::zeros();
         let mut torque = Vector3::zeros();
         let (mut normal, mut tangential) = (None, None);
+        let mut generalized = None;
         let frame_id = match c {
             Constraint::Point(p) => Some(p.frame_a),
             Constraint::Weld(w) => Some(w.frame_a),
@@ -107,6 +146,7 @@ pub fn constraint_forces(
             Constraint::Coupling(_) => None,
             Constraint::Rolling(rc) => Some(rc.wheel),
             Constraint::NoSideSlip(ns) => Some(ns.frame),
+            Constraint::Velocity(_) => None,
         };
         let (frame, axes, point) = match c {
             Constraint::Point(p) => {
@@ -172,6 +212,22 @@ pub fn constraint_forces(
                 force = o_m_f.rotation * ns.axis * lam[0];
                 (fname(ns.frame), "world".into(), o_m_f.translation)
             }
+            Constraint::Velocity(vc) => {
+                let mut idx: Vec<usize> = vc.velocity_indices().collect();
+                idx.sort();
+                idx.dedup();
+                let names: Vec<String> = idx.iter().map(|&i| model.v_names[i].clone()).collect();
+                generalized = Some(
+                    idx.iter()
+                        .map(|&i| GeneralizedForce {
+                            coordinate: model.v_names[i].clone(),
+                            value: cd.j[(r.start, i)] * lam[0],
+                            unit: generalized_force_unit(model, i),
+                        })
+                        .collect(),
+                );
+                (names.join("+"), "generalized".into(), Vector3::zeros())
+            }
         };
         out.push(ConstraintForce {
             name: set.names[k].clone(),
@@ -188,6 +244,7 @@ pub fn constraint_forces(
             velocity_residual: cd.jv.rows(r.start, r.len()).iter().copied().collect(),
             normal_force: normal,
             tangential_force: tangential,
+            generalized_force: generalized,
         });
     }
     out

@@ -20,6 +20,8 @@ pub enum ConstraintKind {
     Rolling,
     /// A frame that cannot move along one of its axes (knife edge, nonholonomic).
     NoSideSlip,
+    /// f(q, v, t) = 0 written as an expression, possibly nonlinear in v (nonholonomic).
+    Velocity,
 }
 
 impl ConstraintKind {
@@ -32,12 +34,16 @@ impl ConstraintKind {
             ConstraintKind::Coupling => "coupling",
             ConstraintKind::Rolling => "rolling",
             ConstraintKind::NoSideSlip => "no_side_slip",
+            ConstraintKind::Velocity => "velocity",
         }
     }
 
     /// True for kinds that constrain velocities only (no position residual).
     pub const fn is_nonholonomic(self) -> bool {
-        matches!(self, ConstraintKind::Rolling | ConstraintKind::NoSideSlip)
+        matches!(
+            self,
+            ConstraintKind::Rolling | ConstraintKind::NoSideSlip | ConstraintKind::Velocity
+        )
     }
 }
 
@@ -61,6 +67,7 @@ mod tests {
             (ConstraintKind::Coupling, "coupling"),
             (ConstraintKind::Rolling, "rolling"),
             (ConstraintKind::NoSideSlip, "no_side_slip"),
+            (ConstraintKind::Velocity, "velocity"),
         ] {
             assert_eq!(k.name(), s);
             assert_eq!(k.to_string(), s);

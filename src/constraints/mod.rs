@@ -1,5 +1,6 @@
 //! Constraints: holonomic (point, weld, distance, coupling) and nonholonomic (rolling,
-//! no-side-slip), each kind in one file with its residual φ(q), Jacobian rows J and bias γ = J̇v.
+//! no-side-slip, and `velocity`: f(q, v, t) = 0 written as an expression), each kind in one file
+//! with its residual φ(q), Jacobian rows J and bias γ = J̇v (for `velocity`, γ = ∂f/∂q q̇ + ∂f/∂t).
 //!
 //! A `ConstraintSet` stacks the kinds' rows in scene order (`ranges[k]` are constraint k's rows):
 //! `J(q) v = 0` at velocity level, `J q̈ + γ = 0` at acceleration level, and `φ(q) = 0` on holonomic
@@ -7,6 +8,8 @@
 
 mod coupling;
 mod distance;
+mod expression;
+mod expression_syntax;
 mod forces;
 mod kind;
 mod no_side_slip;
@@ -15,18 +18,21 @@ mod rolling;
 mod set;
 mod slip;
 mod spec;
+mod velocity;
 mod weld;
 
 pub use coupling::CouplingConstraint;
 pub use distance::DistanceConstraint;
-pub use forces::{ConstraintForce, constraint_forces};
+pub use expression::{Expression, FUNCTIONS, MAX_SYMBOLS, RESERVED, Source};
+pub use forces::{ConstraintForce, GeneralizedForce, constraint_forces, generalized_force_unit};
 pub use kind::ConstraintKind;
 pub use no_side_slip::NoSideSlipConstraint;
 pub use point::PointConstraint;
 pub use rolling::RollingConstraint;
 pub use set::{Constraint, ConstraintData, ConstraintSet};
 pub use slip::{SlipTest, SlipVerdict};
-pub use spec::{Axes, ConstraintSpec, Row};
+pub use spec::{Axes, ConstraintSpec, Row, VirtualDisplacements};
+pub use velocity::VelocityConstraint;
 pub use weld::WeldConstraint;
 
 use crate::algorithm::Data;
@@ -45,11 +51,18 @@ pub(crate) trait ConstraintRows {
 /// Where a constraint writes its rows, plus scratch Jacobians (allocated once).
 pub(crate) struct RowSink<'a> {
     pub q: &'a [f64],
+    pub v: &'a [f64],
+    /// Time [s] (expression constraints may depend on it).
+    pub t: f64,
     pub row0: usize,
     pub j: &'a mut DMatrix<f64>,
     pub phi: &'a mut DVector<f64>,
     pub gamma: &'a mut DVector<f64>,
     pub holonomic: &'a mut [bool],
+    /// Velocity residual per row; a kind that sets `residual_given[r]` writes its own (f for
+    /// `velocity`), every other row gets J v after the fill.
+    pub jv: &'a mut DVector<f64>,
+    pub residual_given: &'a mut [bool],
     /// 3 × nv scratch (point Jacobians).
     pub j3: &'a mut DMatrix<f64>,
     /// 3 × nv scratch.

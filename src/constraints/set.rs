@@ -2,7 +2,8 @@
 
 use super::{
     ConstraintKind, ConstraintRows, ConstraintSpec, CouplingConstraint, DistanceConstraint,
-    NoSideSlipConstraint, PointConstraint, RollingConstraint, RowSink, WeldConstraint,
+    NoSideSlipConstraint, PointConstraint, RollingConstraint, RowSink, VelocityConstraint,
+    WeldConstraint,
 };
 use crate::algorithm::{Data, forward_kinematics, forward_kinematics_pos};
 use crate::error::{Error, Result};
@@ -26,6 +27,8 @@ pub enum Constraint {
     Rolling(RollingConstraint),
     /// Knife edge: no velocity of a frame origin along an axis.
     NoSideSlip(NoSideSlipConstraint),
+    /// f(q, v, t) = 0 written as an expression.
+    Velocity(VelocityConstraint),
 }
 
 impl Constraint {
@@ -37,6 +40,7 @@ impl Constraint {
             Constraint::Coupling(c) => c,
             Constraint::Rolling(c) => c,
             Constraint::NoSideSlip(c) => c,
+            Constraint::Velocity(c) => c,
         }
     }
 
@@ -49,6 +53,7 @@ impl Constraint {
             Constraint::Coupling(_) => ConstraintKind::Coupling,
             Constraint::Rolling(_) => ConstraintKind::Rolling,
             Constraint::NoSideSlip(_) => ConstraintKind::NoSideSlip,
+            Constraint::Velocity(_) => ConstraintKind::Velocity,
         }
     }
 }
@@ -75,8 +80,13 @@ pub struct ConstraintData {
     pub phi: DVector<f64>,
     /// γ = J̇ v, nc.
     pub gamma: DVector<f64>,
-    /// Velocity residual J v, nc.
+    /// Velocity residual, nc: J v, or f(q, v, t) on `velocity` rows (nonlinear in v).
     pub jv: DVector<f64>,
+    /// Time of the evaluation [s], read by `velocity` constraints that use `t` (the caller sets
+    /// it; the predictor's right-hand side and drift control do; default 0).
+    pub t: f64,
+    /// Rows whose kind wrote its own velocity residual.
+    pub(crate) residual_given: Vec<bool>,
     /// Row is holonomic (has a position-level residual).
     pub holonomic: Vec<bool>,
     pub(crate) j3: DMatrix<f64>,
@@ -94,6 +104,8 @@ impl ConstraintData {
             phi: DVector::zeros(nc),
             gamma: DVector::zeros(nc),
             jv: DVector::zeros(nc),
+            t: 0.0,
+            residual_given: vec![false; nc],
             holonomic: vec![true; nc],
             j3: DMatrix::zeros(3, nv),
             jtmp: DMatrix::zeros(3, nv),
@@ -202,17 +214,53 @@ impl ConstraintSet {
         let zero = std::mem::take(&mut cd.zero_v);
         forward_kinematics(model, data, q, v, &zero);
         cd.zero_v = zero;
-        self.fill_rows(model, data, cd, q);
+        self.fill_rows(model, data, cd, q, v);
         for r in 0..self.nrows {
-            cd.jv[r] = (0..v.len()).map(|c| cd.j[(r, c)] * v[c]).sum();
+            if !cd.residual_given[r] {
+                cd.jv[r] = (0..v.len()).map(|c| cd.j[(r, c)] * v[c]).sum();
+            }
         }
     }
 
-    /// J, φ, γ from an existing kinematics pass (no J v).
-    pub(crate) fn fill_rows(&self, model: &Model, data: &Data, cd: &mut ConstraintData, q: &[f64]) {
+    /// The first row with a non-finite J entry, γ or velocity residual (an expression
+    /// evaluated where it is undefined, e.g. √ at 0 in its derivative), as an error naming
+    /// the constraint.
+    pub fn check_finite(&self, cd: &ConstraintData) -> Result<()> {
+        for (k, rg) in self.ranges.iter().enumerate() {
+            for r in rg.clone() {
+                let bad = !(cd.gamma[r].is_finite() && cd.jv[r].is_finite())
+                    || cd.j.row(r).iter().any(|x| !x.is_finite());
+                if bad {
+                    return Err(Error::Constraint {
+                        name: self.names[k].clone(),
+                        message: format!(
+                            "non-finite row at t = {} s (f = {}, γ = {}): the constraint is \
+                             not differentiable at this state",
+                            cd.t, cd.jv[r], cd.gamma[r]
+                        ),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// J, φ, γ (and f on `velocity` rows) from an existing kinematics pass (no J v).
+    pub(crate) fn fill_rows(
+        &self,
+        model: &Model,
+        data: &Data,
+        cd: &mut ConstraintData,
+        q: &[f64],
+        v: &[f64],
+    ) {
         for (k, c) in self.items.iter().enumerate() {
             let mut sink = RowSink {
                 q,
+                v,
+                t: cd.t,
+                jv: &mut cd.jv,
+                residual_given: &mut cd.residual_given,
                 row0: self.ranges[k].start,
                 j: &mut cd.j,
                 phi: &mut cd.phi,
@@ -416,5 +464,21 @@ fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Result<Constr
                 axis: unit(name, "axis", *axis)?,
             })
         }
+        ConstraintSpec::Velocity {
+            expression,
+            variables,
+            virtual_displacements,
+            dependent,
+            reference_velocity,
+            ..
+        } => Constraint::Velocity(VelocityConstraint::build(
+            model,
+            name,
+            expression,
+            variables,
+            *virtual_displacements,
+            dependent,
+            reference_velocity,
+        )?),
     })
 }

@@ -92,6 +92,7 @@ mod tests {
             velocity_residual: vec![],
             normal_force: Some(normal),
             tangential_force: Some(2.0),
+            generalized_force: None,
         }
     }
 

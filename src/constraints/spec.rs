@@ -2,6 +2,7 @@
 //! statically dispatched internal kinds.
 
 use serde::Deserialize;
+use std::collections::BTreeMap;
 
 /// One row direction: translations along, or rotations about, an axis.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
@@ -41,6 +42,17 @@ pub enum Axes {
     World,
     /// The axes of `frame_b`.
     Local,
+}
+
+/// Which virtual displacements a `velocity` constraint's force is orthogonal to (seed 001).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VirtualDisplacements {
+    /// Chetaev: ∂f/∂v δv = 0, force along ∂f/∂v (`chetaev`, the default).
+    #[default]
+    Chetaev,
+    /// The seed's velocity-determined displacements, eqs. (5)–(6) (`velocity_determined`).
+    VelocityDetermined,
 }
 
 fn world() -> String {
@@ -163,6 +175,31 @@ pub enum ConstraintSpec {
         /// `axis:` the blocked direction in `frame`'s axes (normalized); no default.
         axis: [f64; 3],
     },
+    /// `f(q, v, t) = 0` written as an expression (`+ - * / ^`, `sqrt sin cos tan exp ln abs`,
+    /// `pi`, `t` [s]), nonholonomic, possibly nonlinear in v. λ: multiplier of the force
+    /// (∂f/∂v)ᵀλ [N or N·m per velocity coordinate].
+    Velocity {
+        /// `name:` unique constraint name (used in row names `name/f` and errors).
+        name: String,
+        /// `expression:` f, in the symbols of `variables` and `t`; no default.
+        expression: String,
+        /// `variables:` symbol → `q:NAME` or `v:NAME` (a `q_names` / `v_names` entry, e.g.
+        /// `v:root_joint:vx_local`, `q:spin`); default none.
+        #[serde(default)]
+        variables: BTreeMap<String, String>,
+        /// `virtual_displacements:` `chetaev` (default) or `velocity_determined`.
+        #[serde(default)]
+        virtual_displacements: VirtualDisplacements,
+        /// `dependent:` the velocity symbol the embedded form solves f for (at most one per
+        /// constraint; default: chosen from ∂f/∂v).
+        #[serde(default)]
+        dependent: Vec<String>,
+        /// `reference_velocity:` velocity symbol → v⁽⁰⁾ of the seed's eq. (4), the reference
+        /// frame's velocity the velocity-determined B is expanded about (default 0) [m/s or
+        /// rad/s]; only with `velocity_determined`.
+        #[serde(default)]
+        reference_velocity: BTreeMap<String, f64>,
+    },
 }
 
 impl ConstraintSpec {
@@ -174,7 +211,8 @@ impl ConstraintSpec {
             | ConstraintSpec::Distance { name, .. }
             | ConstraintSpec::Coupling { name, .. }
             | ConstraintSpec::Rolling { name, .. }
-            | ConstraintSpec::NoSideSlip { name, .. } => name,
+            | ConstraintSpec::NoSideSlip { name, .. }
+            | ConstraintSpec::Velocity { name, .. } => name,
         }
     }
 }

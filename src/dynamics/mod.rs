@@ -11,7 +11,9 @@
 mod embedded;
 mod multipliers;
 
-pub use embedded::{EmbeddedWorkspace, Partition, embedded_forward_dynamics};
+pub use embedded::{
+    EmbeddedWorkspace, Partition, embedded_forward_dynamics, partition, partition_preferring,
+};
 pub use multipliers::{KktWorkspace, constrained_forward_dynamics};
 
 use serde::{Deserialize, Serialize};

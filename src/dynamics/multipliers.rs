@@ -94,8 +94,23 @@ pub fn constrained_forward_dynamics(
     tau: &[f64],
     stab: Baumgarte,
 ) -> Result<()> {
+    // A velocity-determined row's force is not along its J row (non-symmetric KKT).
+    if let Some(k) = set.items.iter().position(
+        |c| matches!(c, crate::constraints::Constraint::Velocity(vc) if vc.velocity_determined),
+    ) {
+        return Err(Error::Unsupported {
+            what: format!(
+                "the multiplier form with velocity_determined constraint '{}'",
+                set.names[k]
+            ),
+            why: "its force is not along ∂f/∂v (a non-symmetric KKT system, not implemented); \
+                  use formulation: embedded"
+                .into(),
+        });
+    }
     // One kinematics pass at (q, v, q̈ = 0) serves the constraints, M and h.
     set.evaluate(model, data, cd, q, v);
+    set.check_finite(cd)?;
     crba_after_kinematics(model, data);
     bias_forces_after_kinematics(model, data);
     for i in 0..model.nv {

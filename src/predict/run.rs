@@ -54,6 +54,8 @@ struct Rhs<'a> {
 impl Accel for Rhs<'_> {
     fn accel(&mut self, t: f64, q: &[f64], v: &[f64], qdd: &mut [f64]) -> Result<()> {
         self.evaluations += 1;
+        // Time reaches the constraints through their workspace (`velocity` rows may use t).
+        self.sys.cdata.t = t;
         applied_generalized_force(
             self.sys,
             self.forces,
@@ -445,6 +447,7 @@ impl Predictor {
                     });
                 }
                 if s.drift == DriftControl::Projection {
+                    rhs.sys.cdata.t = t;
                     ws.proj.project(rhs.sys, q, v, true)?;
                 }
                 if let Some(c) = cov.as_mut() {

@@ -26,6 +26,8 @@ impl Predictor {
             )?),
             _ => None,
         };
+        // Time reaches the constraints through their workspace (`velocity` rows may use t).
+        sys.cdata.t = t;
         sys.constraints
             .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
         let cd = &sys.cdata;

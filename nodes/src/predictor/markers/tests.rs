@@ -36,6 +36,7 @@ fn force(name: &str, kind: ConstraintKind, frame: &str, axes: &str) -> Constrain
         velocity_residual: vec![],
         normal_force: None,
         tangential_force: None,
+        generalized_force: None,
     }
 }
 

@@ -1,0 +1,190 @@
+//! `kind: velocity` — malformed declarations give named errors (with the column of a syntax
+//! fault), over-long expressions are refused by name, and states where the expression has no
+//! derivative are errors, not NaN accelerations.
+
+mod common;
+use common::*;
+use constraint_dynamics::error::ExpressionProblem;
+use constraint_dynamics::{Error, Scene, System};
+
+#[path = "common/counting_alloc.rs"]
+mod counting_alloc;
+use counting_alloc::allocations;
+
+/// A scene from YAML text (the URDF path made absolute), loaded through a temporary file.
+fn scene_from(urdf: &str, base: &str, constraints: &str) -> Result<System, Error> {
+    let urdf = repo_dir().join("urdf").join(urdf);
+    let yaml = format!(
+        "urdf: {:?}\nbase: {base}\nconstraints:\n{constraints}",
+        urdf.display().to_string()
+    );
+    static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let path = std::env::temp_dir().join(format!(
+        "velocity_bad_input_{}_{}.yaml",
+        std::process::id(),
+        N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+    ));
+    std::fs::write(&path, yaml).unwrap();
+    let scene = Scene::load(&path);
+    let _ = std::fs::remove_file(&path);
+    System::from_scene(&scene?)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Malformed declarations are named.
+// ---------------------------------------------------------------------------------------------
+
+fn problem(expression: &str, variables: &str, extra: &str) -> ExpressionProblem {
+    let yaml = format!(
+        "  - name: c\n    kind: velocity\n    expression: {expression:?}\n    variables: {variables}\n{extra}"
+    );
+    match scene_from("point_mass.urdf", "floating", &yaml) {
+        Err(Error::Expression { name, problem, .. }) => {
+            assert_eq!(name, "c");
+            *problem
+        }
+        Err(e) => panic!("{expression}: another error: {e}"),
+        Ok(_) => panic!("{expression}: accepted"),
+    }
+}
+
+#[test]
+fn malformed_expressions_are_named() {
+    let vars = r#"{vx: "v:root_joint:vx_local", vz: "v:root_joint:vz_local", x: "q:root_joint:x"}"#;
+    let syntax = |e: &str| match problem(e, vars, "") {
+        ExpressionProblem::Syntax { column, .. } => column,
+        p => panic!("{e}: {p}"),
+    };
+    assert_eq!(syntax("vz - 0.5*sqrt(vx^2 + x^2"), 14);
+    assert_eq!(syntax("vz - * vx"), 6);
+    assert_eq!(syntax("vz + 2 vx"), 8);
+    assert_eq!(syntax("vz ? vx"), 4);
+    assert_eq!(syntax("-vz^2 + vx"), 4);
+    assert_eq!(syntax(""), 1);
+    match problem("vz - foo*vx", vars, "") {
+        ExpressionProblem::UnknownSymbol { symbol, column } => {
+            assert_eq!((symbol.as_str(), column), ("foo", 6))
+        }
+        p => panic!("{p}"),
+    }
+    match problem(
+        "vz - vx",
+        r#"{vx: "v:root_joint:vx_local", vz: "v:root_joint:vz"}"#,
+        "",
+    ) {
+        ExpressionProblem::UnknownCoordinate {
+            symbol,
+            coordinate,
+            known,
+        } => {
+            assert_eq!(
+                (symbol.as_str(), coordinate.as_str()),
+                ("vz", "root_joint:vz")
+            );
+            assert!(known.contains("root_joint:vz_local"), "{known}");
+        }
+        p => panic!("{p}"),
+    }
+    match problem(
+        "vz - vx",
+        r#"{vx: "v:root_joint:vx_local", vz: "speed:root_joint:vz_local"}"#,
+        "",
+    ) {
+        ExpressionProblem::BadVariable { symbol, .. } => assert_eq!(symbol, "vz"),
+        p => panic!("{p}"),
+    }
+    match problem(
+        "t - vx",
+        r#"{vx: "v:root_joint:vx_local", t: "q:root_joint:z"}"#,
+        "",
+    ) {
+        ExpressionProblem::BadVariable { symbol, message } => {
+            assert_eq!(symbol, "t");
+            assert!(message.contains("reserved"), "{message}");
+        }
+        p => panic!("{p}"),
+    }
+    let holonomic = problem("x^2 + sin(t) - 1", vars, "");
+    assert_eq!(holonomic, ExpressionProblem::Holonomic);
+    assert!(
+        holonomic.to_string().contains("holonomic constraint"),
+        "{holonomic}"
+    );
+    match problem("vz - vx", vars, "    dependent: [x]\n") {
+        ExpressionProblem::Dependent { message } => assert!(message.contains("'x'"), "{message}"),
+        p => panic!("{p}"),
+    }
+    match problem("vz - vx", vars, "    dependent: [vx, vz]\n") {
+        ExpressionProblem::Dependent { .. } => {}
+        p => panic!("{p}"),
+    }
+    // The error message names the constraint, the expression and the column.
+    let e = scene_from(
+        "point_mass.urdf",
+        "floating",
+        "  - name: lift\n    kind: velocity\n    expression: \"vz - (vx\"\n    variables: {vx: \"v:root_joint:vx_local\", vz: \"v:root_joint:vz_local\"}\n",
+    )
+    .err()
+    .unwrap()
+    .to_string();
+    assert!(
+        e.contains("constraint 'lift'") && e.contains("column 6"),
+        "{e}"
+    );
+}
+
+/// A derivative that does not exist at the state (√ at 0 in the denominator) is an error that
+/// names the constraint, not a NaN acceleration.
+#[test]
+fn undefined_derivatives_are_errors_not_nans() {
+    let sc = Scene::load(repo_dir().join("params/appell_hamel.yaml")).unwrap();
+    let mut sys = System::from_scene(&sc).unwrap();
+    let v = vec![0.0; 6];
+    match sys.forward_dynamics(&sc.q0, &v, &[0.0; 6], true) {
+        Err(Error::Constraint { name, message }) => {
+            assert_eq!(name, "lift_with_speed");
+            assert!(message.contains("non-finite"), "{message}");
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+/// Long expressions: exmex recurses deeply (a 2 MiB thread overflowed at 20 terms), so parsing
+/// runs on its own large stack and the length is capped with a named error. Evaluation keeps
+/// up to 32 nodes on the stack; longer expressions allocate, counted here (measured, not a bar).
+#[test]
+fn long_expressions_parse_and_overlong_ones_are_named() {
+    let term = |n: usize| {
+        (0..n)
+            .map(|i| format!("{}*vx*vz^{}", i + 1, i % 3 + 1))
+            .collect::<Vec<_>>()
+            .join(" + ")
+    };
+    let vars = r#"{vx: "v:root_joint:vx_local", vz: "v:root_joint:vz_local"}"#;
+    let decl = |e: &str| {
+        format!("  - name: c\n    kind: velocity\n    expression: {e:?}\n    variables: {vars}\n")
+    };
+    // 45 terms = 359 tokens, under the 400 cap.
+    let mut sys = scene_from("point_mass.urdf", "floating", &decl(&term(45))).unwrap();
+    let q = [0.4, -1.1, 0.7, 0.0, 0.0, 0.0, 1.0];
+    let v = [0.8, -0.5, 0.3, 1.2, -0.7, 0.9];
+    sys.constraints
+        .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v);
+    // Closed form: f = Σ (i+1) vx vz^(i%3+1), ∂f/∂vx = f/vx.
+    let f: f64 = (0..45)
+        .map(|i| (i + 1) as f64 * v[0] * v[2].powi(i % 3 + 1))
+        .sum();
+    assert_close("45-term f", &[sys.cdata.jv[0]], &[f], 1e-14);
+    assert_close("45-term ∂f/∂vx", &[sys.cdata.j[(0, 0)]], &[f / v[0]], 1e-14);
+    let n = allocations(|| {
+        sys.constraints
+            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v)
+    });
+    eprintln!("measured: a 45-term expression allocates {n} times per evaluation");
+    match problem(&term(60), vars, "") {
+        ExpressionProblem::Syntax { message, .. } => {
+            assert!(message.contains("at most 400"), "{message}")
+        }
+        p => panic!("{p}"),
+    }
+}
