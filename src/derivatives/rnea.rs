@@ -204,3 +204,23 @@ pub(crate) fn body_variation_v(
     let da = dd.o_v[body_j].cross_motion(&s) + s.cross_motion(&(dd.o_v[k] - dd.o_v[p]));
     Some((s, da))
 }
+
+/// −(S_i · W) for the coordinates above `body`, W = (δf, p × δf + δm): a variation of an applied
+/// force's direction (or point) that RNEA's material-point term did not include.
+pub(crate) fn subtract_force_variation(
+    model: &Model,
+    dd: &mut DerivativeData,
+    body: usize,
+    j: usize,
+    w: Force,
+) {
+    let mut b = body;
+    while b > 0 {
+        let jb = &model.bodies[b].joint;
+        for c in 0..jb.kind.nv() {
+            let i = jb.idx_v + c;
+            dd.dtau_dq[(i, j)] -= dd.o_s[i].dot(&w);
+        }
+        b = model.bodies[b].parent;
+    }
+}

@@ -10,7 +10,7 @@
 //! body's twist and acceleration (rnea.rs).
 
 use super::DerivativeData;
-use super::rnea::{body_variation_q, body_variation_v};
+use super::rnea::{body_variation_q, body_variation_v, subtract_force_variation};
 use super::rolling::RollingState;
 use super::weld::WeldState;
 use crate::algorithm::{Data, frame_placement, point_position};
@@ -205,26 +205,6 @@ pub(crate) fn register_constraint_forces(
             // Refused by `supported` before any derivative is formed (issue 17 has none yet).
             Constraint::Velocity(_) => {}
         }
-    }
-}
-
-/// −(S_i · W) for the coordinates above `body`, W = (δf, p × δf + δm): a variation of an applied
-/// force's direction (or point) that RNEA's material-point term did not include.
-pub(crate) fn subtract_force_variation(
-    model: &Model,
-    dd: &mut DerivativeData,
-    body: usize,
-    j: usize,
-    w: Force,
-) {
-    let mut b = body;
-    while b > 0 {
-        let jb = &model.bodies[b].joint;
-        for c in 0..jb.kind.nv() {
-            let i = jb.idx_v + c;
-            dd.dtau_dq[(i, j)] -= dd.o_s[i].dot(&w);
-        }
-        b = model.bodies[b].parent;
     }
 }
 

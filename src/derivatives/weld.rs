@@ -201,7 +201,7 @@ impl WeldState {
             for (body, p, sign) in [(self.body_a, self.pa, 1.0), (self.body_b, self.pb, -1.0)] {
                 if body > 0 {
                     let (ff, mm) = (df * sign, dm * sign);
-                    super::rows::subtract_force_variation(
+                    super::rnea::subtract_force_variation(
                         model,
                         dd,
                         body,

@@ -10,7 +10,6 @@ use super::integrator::{
 use super::trajectory::{PredictOptions, Trajectory};
 use super::{DriftControl, IntegrationSettings};
 use crate::actuators::{Actuators, Command};
-use crate::algorithm::{crba, forward_kinematics};
 use crate::applied::applied_generalized_force;
 use crate::dynamics::{Baumgarte, Formulation};
 use crate::error::{Error, Result};
@@ -475,33 +474,5 @@ impl Predictor {
             Error::Diverged { t: tt, message } if tt.is_nan() => Error::Diverged { t, message },
             e => e,
         })
-    }
-
-    /// Refuse, before running, a fixed explicit step beyond the method's stability limit for the
-    /// stiffest spring or damper: dt·max(ω, d/m) from k (M⁻¹)_ii, d (M⁻¹)_ii per joint element.
-    fn check_step_size(&mut self, q: &[f64], v: &[f64], s: &IntegrationSettings) -> Result<()> {
-        let Some(limit) = s.method.explicit_stability_limit() else {
-            return Ok(());
-        };
-        let zero = vec![0.0; v.len()];
-        forward_kinematics(&self.sys.model, &mut self.sys.data, q, v, &zero);
-        let m = crba(&self.sys.model, &mut self.sys.data, q).clone();
-        let reg = m.diagonal().amax().max(1e-12) * 1e-12;
-        let minv = (m + nalgebra::DMatrix::identity(v.len(), v.len()) * reg)
-            .try_inverse()
-            .unwrap_or_default();
-        let rate = self.forces.max_rate(&self.sys.model, &self.sys.data, &minv);
-        if s.dt * rate > limit {
-            return Err(Error::StepTooLarge {
-                message: format!(
-                    "dt = {} s exceeds the {:?} stability limit {:.3e} s for the stiffest force element \
-                     (rate {rate:.3e} 1/s); use a smaller dt or method sdirk2",
-                    s.dt,
-                    s.method,
-                    limit / rate
-                ),
-            });
-        }
-        Ok(())
     }
 }
