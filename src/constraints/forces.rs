@@ -37,8 +37,8 @@ pub struct ConstraintForce {
     pub position_residual: Vec<f64>,
     /// Velocity residual J v of the rows [m/s or rad/s].
     pub velocity_residual: Vec<f64>,
-    /// Rolling contacts: normal force [N] (NaN when the base type holds the height and no normal
-    /// row exists) and tangential force magnitude [N].
+    /// Rolling contacts: normal force [N]; absent when the base type holds the height and no
+    /// normal row exists (nothing non-finite is ever reported).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub normal_force: Option<f64>,
     /// Rolling contacts: magnitude of the tangential (t₁, t₂) force [N].
@@ -200,11 +200,8 @@ pub fn constraint_forces(
                 }
                 force = rc.basis * local;
                 tangential = Some(local.xy().norm());
-                normal = Some(if rc.rows.contains(&2) {
-                    local.z
-                } else {
-                    f64::NAN
-                });
+                // No normal row (a planar base holds the height): no normal force to report.
+                normal = rc.rows.contains(&2).then_some(local.z);
                 (fname(rc.wheel), "world".into(), contact.point)
             }
             Constraint::NoSideSlip(ns) => {
