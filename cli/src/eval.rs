@@ -1,5 +1,6 @@
 //! `eval`: q̈ (and with constraints λ and the forces) at one state.
 
+use crate::json::matrix_rows;
 use constraint_dynamics::applied::{applied_generalized_force, constraint_forces_at};
 use constraint_dynamics::derivatives::{
     DerivativeData, aba_derivatives, constrained_dynamics_derivatives, rnea_derivatives,
@@ -7,7 +8,6 @@ use constraint_dynamics::derivatives::{
 use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::{Result, System};
-use nalgebra::DMatrix;
 use serde_json::{Value, json};
 use std::path::PathBuf;
 
@@ -99,12 +99,8 @@ pub fn run(a: EvalArgs) -> Result<Value> {
         }
     }
     if a.terms {
-        let mm = &sys.data.mass_matrix;
-        let rows: Vec<Vec<f64>> = (0..mm.nrows())
-            .map(|i| mm.row(i).iter().copied().collect())
-            .collect();
         // h = C v + g (data.tau holds the bias forces after the dynamics call)
-        out["M"] = json!(rows);
+        out["M"] = matrix_rows(&sys.data.mass_matrix);
         out["h"] = json!(sys.data.tau.as_slice());
     }
     if a.derivatives {
@@ -115,15 +111,6 @@ pub fn run(a: EvalArgs) -> Result<Value> {
     out["potential_energy"] = json!(pe);
     out["center_of_mass"] = json!(com);
     Ok(out)
-}
-
-/// Rows of a matrix as nested arrays (row-major, the printed coordinate order).
-fn rows(m: &DMatrix<f64>) -> Value {
-    json!(
-        (0..m.nrows())
-            .map(|i| m.row(i).iter().copied().collect::<Vec<f64>>())
-            .collect::<Vec<_>>()
-    )
 }
 
 /// The `derivatives` object of `eval --derivatives`.
@@ -167,18 +154,18 @@ fn derivatives(
         )?;
         out["lambda_unique"] = json!(dd.lambda_unique);
         if dd.lambda_unique {
-            out["dlambda_dq"] = rows(&dd.dlambda_dq);
-            out["dlambda_dv"] = rows(&dd.dlambda_dv);
-            out["dlambda_dtau"] = rows(&dd.dlambda_dtau);
+            out["dlambda_dq"] = matrix_rows(&dd.dlambda_dq);
+            out["dlambda_dv"] = matrix_rows(&dd.dlambda_dv);
+            out["dlambda_dtau"] = matrix_rows(&dd.dlambda_dtau);
         }
     }
-    out["dqdd_dq"] = rows(&dd.dqdd_dq);
-    out["dqdd_dv"] = rows(&dd.dqdd_dv);
-    out["dqdd_dtau"] = rows(&dd.dqdd_dtau);
+    out["dqdd_dq"] = matrix_rows(&dd.dqdd_dq);
+    out["dqdd_dv"] = matrix_rows(&dd.dqdd_dv);
+    out["dqdd_dtau"] = matrix_rows(&dd.dqdd_dtau);
     if terms {
         rnea_derivatives(&sys.model, &mut sys.data, &mut dd, q, v, qdd);
-        out["dtau_dq"] = rows(&dd.dtau_dq);
-        out["dtau_dv"] = rows(&dd.dtau_dv);
+        out["dtau_dq"] = matrix_rows(&dd.dtau_dq);
+        out["dtau_dv"] = matrix_rows(&dd.dtau_dv);
     }
     Ok(out)
 }

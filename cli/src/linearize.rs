@@ -1,9 +1,9 @@
 //! `linearize`: A = ∂x⁺/∂x and B = ∂x⁺/∂τ of one integrator step at a state (x = (q, v) in the
 //! tangent space, δq a right perturbation q ⊕ δq; τ the generalized force held over the step).
 
+use crate::json::matrix_rows;
 use constraint_dynamics::predict::{Linearization, Method, linearize_step};
 use constraint_dynamics::{Error, Result, Scene, System};
-use nalgebra::DMatrix;
 use serde_json::{Value, json};
 use std::path::PathBuf;
 
@@ -21,14 +21,6 @@ pub struct LinearizeArgs {
     /// semi_implicit_euler | rk4 | dopri5 (default: the scene's method).
     #[arg(long)]
     method: Option<String>,
-}
-
-fn rows(m: &DMatrix<f64>) -> Value {
-    json!(
-        (0..m.nrows())
-            .map(|i| m.row(i).iter().copied().collect::<Vec<f64>>())
-            .collect::<Vec<_>>()
-    )
 }
 
 pub fn run(a: LinearizeArgs) -> Result<Value> {
@@ -55,7 +47,7 @@ pub fn run(a: LinearizeArgs) -> Result<Value> {
         "v_names": m.v_names,
         "q_next": lin.q_next,
         "v_next": lin.v_next,
-        "A": rows(&lin.a),
-        "B": rows(&lin.b),
+        "A": matrix_rows(&lin.a),
+        "B": matrix_rows(&lin.b),
     }))
 }

@@ -2,6 +2,7 @@
 
 mod covariance;
 mod eval;
+mod json;
 mod linearize;
 mod predict;
 mod project;

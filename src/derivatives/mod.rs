@@ -21,6 +21,7 @@ mod aba;
 mod constrained;
 mod data;
 mod kkt;
+mod point;
 mod rnea;
 mod rolling;
 mod rows;

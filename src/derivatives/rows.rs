@@ -10,6 +10,7 @@
 //! body's twist and acceleration (rnea.rs).
 
 use super::DerivativeData;
+use super::point::PointKin;
 use super::rnea::{body_variation_q, body_variation_v, subtract_force_variation};
 use super::rolling::RollingState;
 use super::weld::WeldState;
@@ -31,64 +32,6 @@ pub(crate) fn supported(c: &Constraint) -> bool {
             | Constraint::NoSideSlip(_)
             | Constraint::Weld(_)
     )
-}
-
-/// A material point of a body: position, velocity, classical acceleration (world, at q̈).
-struct PointKin {
-    body: usize,
-    p: Vector3<f64>,
-    pd: Vector3<f64>,
-    pdd: Vector3<f64>,
-}
-
-impl PointKin {
-    fn new(
-        model: &Model,
-        data: &Data,
-        dd: &DerivativeData,
-        frame: usize,
-        point: &Vector3<f64>,
-    ) -> Self {
-        let body = model.frames[frame].body;
-        let p = point_position(model, data, frame, point);
-        let (v, a) = (dd.o_v[body], dd.o_a[body]);
-        let pd = v.lin + v.ang.cross(&p);
-        // o_a carries the gravity offset on its linear part; α (angular) does not.
-        let a0 = a.lin + model.gravity;
-        let pdd = a0 + a.ang.cross(&p) + v.ang.cross(&pd);
-        PointKin { body, p, pd, pdd }
-    }
-
-    /// (dp, dṗ, dp̈) along q-column j, None when the point does not move.
-    fn by_q(&self, model: &Model, dd: &DerivativeData, j: usize) -> Option<[Vector3<f64>; 3]> {
-        if self.body == 0 {
-            return None;
-        }
-        let (dv, da) = body_variation_q(model, dd, self.body, j)?;
-        let s = dd.o_s[j];
-        let (w, alpha) = (dd.o_v[self.body].ang, dd.o_a[self.body].ang);
-        let dp = s.lin + s.ang.cross(&self.p);
-        let dpd = dv.lin + dv.ang.cross(&self.p) + w.cross(&dp);
-        let dpdd = da.lin
-            + da.ang.cross(&self.p)
-            + alpha.cross(&dp)
-            + dv.ang.cross(&self.pd)
-            + w.cross(&dpd);
-        Some([dp, dpd, dpdd])
-    }
-
-    /// (dṗ, dp̈) along v_j, None when the point does not move.
-    fn by_v(&self, model: &Model, dd: &DerivativeData, j: usize) -> Option<[Vector3<f64>; 2]> {
-        if self.body == 0 {
-            return None;
-        }
-        let (_, da) = body_variation_v(model, dd, self.body, j)?;
-        let s = dd.o_s[j];
-        let w = dd.o_v[self.body].ang;
-        let dpd = s.lin + s.ang.cross(&self.p);
-        let dpdd = da.lin + da.ang.cross(&self.p) + s.ang.cross(&self.pd) + w.cross(&dpd);
-        Some([dpd, dpdd])
-    }
 }
 
 /// Relative kinematics d = p_A − p_B of two points and their variations.

@@ -9,8 +9,9 @@
 //! Jacobian of SO(3)).
 
 use super::DerivativeData;
+use super::point::PointKin;
 use super::rnea::{body_variation_q, body_variation_v};
-use crate::algorithm::{Data, frame_placement, point_position};
+use crate::algorithm::{Data, frame_placement};
 use crate::constraints::WeldConstraint;
 use crate::model::Model;
 use crate::spatial::{Force, SE3, skew};
@@ -39,9 +40,9 @@ pub(crate) struct WeldState {
     phi: [Vector3<f64>; 2],
     vel: [Vector3<f64>; 2],
     acc: [Vector3<f64>; 2],
-    /// A's origin and B's point at t* (world).
-    pub pa: Vector3<f64>,
-    pub pb: Vector3<f64>,
+    /// A's origin and B's material point at t*.
+    a: PointKin,
+    b: PointKin,
     local: bool,
 }
 
@@ -52,31 +53,23 @@ impl WeldState {
         let o_b = frame_placement(model, data, w.frame_b);
         let r = o_a.rotation * (o_b.rotation * w.target.rotation).transpose();
         let phi_r = SE3::new(r, Vector3::zeros()).log().ang;
-        let pa = o_a.translation;
-        let pb = point_position(model, data, w.frame_b, &w.target.translation);
-        let kin = |b: usize, p: &Vector3<f64>| {
-            let (v, a) = (dd.o_v[b], dd.o_a[b]);
-            let pd = v.lin + v.ang.cross(p);
-            let pdd = a.lin + model.gravity + a.ang.cross(p) + v.ang.cross(&pd);
-            (pd, pdd, v.ang, a.ang)
-        };
-        let (pad, padd, wa, aa) = kin(body_a, &pa);
-        let (pbd, pbdd, wb, ab) = if body_b == 0 {
-            Default::default()
-        } else {
-            kin(body_b, &pb)
-        };
+        let a = PointKin::new(model, data, dd, w.frame_a, &Vector3::zeros());
+        let b = PointKin::new(model, data, dd, w.frame_b, &w.target.translation);
+        // The world (body 0) has no twist or acceleration; its o_a carries only the gravity
+        // offset, which is linear, so α_B = 0 there as well.
+        let (wa, aa) = (dd.o_v[body_a].ang, dd.o_a[body_a].ang);
+        let (wb, ab) = (dd.o_v[body_b].ang, dd.o_a[body_b].ang);
         Self {
             body_a,
             body_b,
             r_b: o_b.rotation,
             r,
             jl_inv: left_jacobian_inv(&phi_r),
-            phi: [pa - pb, phi_r],
-            vel: [pad - pbd, wa - wb],
-            acc: [padd - pbdd, aa - ab],
-            pa,
-            pb,
+            phi: [a.p - b.p, phi_r],
+            vel: [a.pd - b.pd, wa - wb],
+            acc: [a.pdd - b.pdd, aa - ab],
+            a,
+            b,
             local: w.local,
         }
     }
@@ -96,37 +89,27 @@ impl WeldState {
         kp: f64,
         kd: f64,
     ) -> [Vector3<f64>; 2] {
-        let s = dd.o_s[j];
         let z = Vector3::zeros();
-        // Per body: (rotation δ, δv, δa, point motion) of the body if it moves.
-        let var = |body: usize, p: &Vector3<f64>| {
-            if body == 0 {
-                return None;
-            }
-            let (dv, da) = if by_q {
-                body_variation_q(model, dd, body, j)?
-            } else {
-                body_variation_v(model, dd, body, j)?
-            };
-            let (v, a) = (dd.o_v[body], dd.o_a[body]);
-            let pd = v.lin + v.ang.cross(p);
+        // Per side: (rotation δ, δp, δṗ, δp̈) of the point and (δω, δα) of its body, zero when
+        // the body does not move.
+        let var = |pt: &PointKin| {
+            let zero = (z, z, z, z, z, z);
             if by_q {
-                let dp = s.lin + s.ang.cross(p);
-                let dpd = dv.lin + dv.ang.cross(p) + v.ang.cross(&dp);
-                let dpdd = da.lin
-                    + da.ang.cross(p)
-                    + a.ang.cross(&dp)
-                    + dv.ang.cross(&pd)
-                    + v.ang.cross(&dpd);
-                Some((s.ang, dp, dpd, dpdd, dv.ang, da.ang))
+                let Some([dp, dpd, dpdd]) = pt.by_q(model, dd, j) else {
+                    return zero;
+                };
+                let (dv, da) = body_variation_q(model, dd, pt.body, j).expect("moving body");
+                (dd.o_s[j].ang, dp, dpd, dpdd, dv.ang, da.ang)
             } else {
-                let dpd = s.lin + s.ang.cross(p);
-                let dpdd = da.lin + da.ang.cross(p) + s.ang.cross(&pd) + v.ang.cross(&dpd);
-                Some((z, z, dpd, dpdd, s.ang, da.ang))
+                let Some([dpd, dpdd]) = pt.by_v(model, dd, j) else {
+                    return zero;
+                };
+                let (dv, da) = body_variation_v(model, dd, pt.body, j).expect("moving body");
+                (z, z, dpd, dpdd, dv.ang, da.ang)
             }
         };
-        let (ra, pa1, pa2, pa3, wa, aa) = var(self.body_a, &self.pa).unwrap_or((z, z, z, z, z, z));
-        let (rb, pb1, pb2, pb3, wb, ab) = var(self.body_b, &self.pb).unwrap_or((z, z, z, z, z, z));
+        let (ra, pa1, pa2, pa3, wa, aa) = var(&self.a);
+        let (rb, pb1, pb2, pb3, wb, ab) = var(&self.b);
         let d_phi = [pa1 - pb1, self.jl_inv * (ra - self.r * rb)];
         let d_vel = [pa2 - pb2, wa - wb];
         let d_acc = [pa3 - pb3, aa - ab];
@@ -170,11 +153,11 @@ impl WeldState {
     pub fn register(&self, dd: &mut DerivativeData, w: &WeldConstraint, lambda: &[f64]) {
         let (f, m) = self.wrench(w, lambda);
         if self.body_a > 0 {
-            dd.add_point_force(self.body_a, &self.pa, &f);
+            dd.add_point_force(self.body_a, &self.a.p, &f);
             dd.add_moment(self.body_a, &m);
         }
         if self.body_b > 0 {
-            dd.add_point_force(self.body_b, &self.pb, &-f);
+            dd.add_point_force(self.body_b, &self.b.p, &-f);
             dd.add_moment(self.body_b, &-m);
         }
     }
@@ -198,7 +181,7 @@ impl WeldState {
             }
             let rb = dd.o_s[j].ang;
             let (df, dm) = (rb.cross(&f), rb.cross(&m));
-            for (body, p, sign) in [(self.body_a, self.pa, 1.0), (self.body_b, self.pb, -1.0)] {
+            for (body, p, sign) in [(self.body_a, self.a.p, 1.0), (self.body_b, self.b.p, -1.0)] {
                 if body > 0 {
                     let (ff, mm) = (df * sign, dm * sign);
                     super::rnea::subtract_force_variation(
