@@ -2,7 +2,8 @@
 # Run every test of the project: the core library, the CLI, the ROS 2 nodes, and the interop
 # suite against real ROS 2 peers (rclpy with rmw_fastrtps_cpp, Cyclone DDS) of two
 # distributions: Kilted (.venv-ros2, every test) and Jazzy, the LTS most robots run
-# (.venv-ros2-jazzy: the tests with an rclpy or Cyclone peer, and the interop suite).
+# (.venv-ros2-jazzy: the tests with an rclpy or Cyclone peer, and the interop suite); then the
+# node package as colcon installs it (tools/ros2/check_colcon_install.sh).
 #
 # The network rule: DDS multicasts discovery on every interface, so every test process runs
 # inside a private network namespace that has only loopback (tools/ros2/netns_run.sh). Downloads
@@ -15,6 +16,7 @@ cargo fetch --locked
 bash tools/ros2/setup_peer_venv.sh
 bash tools/ros2/setup_peer_venv.sh --distro jazzy
 bash tools/robots/setup_venv.sh     # Pinocchio + example-robot-data (tests/example_robot_data.rs)
+bash tools/ros2/check_colcon_install.sh setup   # colcon + colcon-ros-cargo + cargo-ament-build
 cargo build --workspace --all-targets --locked --offline
 
 # Rust tests, then the rclpy/Cyclone interop suite, in one private namespace each. The DDS tests
@@ -32,6 +34,10 @@ CD_ROS2_VENV="$PWD/.venv-ros2-jazzy" tools/ros2/netns_run.sh cargo test -p const
 jazzy_status=${PIPESTATUS[0]}
 tools/ros2/netns_run.sh .venv-ros2-jazzy/bin/python tools/ros2/interop/interop.py 2>&1 | grep -v '^\[\(ERROR\|WARN\)\]' | tee /tmp/cd_interop_jazzy.log
 interop_jazzy_status=${PIPESTATUS[0]}
+# The node package as colcon installs it (nodes/package.xml), and the installed suite started.
+{ bash tools/ros2/check_colcon_install.sh build && tools/ros2/netns_run.sh \
+    tools/ros2/check_colcon_install.sh run; } 2>&1 | tee /tmp/cd_colcon.log
+colcon_status=${PIPESTATUS[0]}
 set -e
 
 # One closing line over everything: cargo's test counts plus the interop checks. With
@@ -47,9 +53,14 @@ for log in /tmp/cd_interop.log /tmp/cd_interop_jazzy.log; do
     py_passed=$((py_passed + ${p:-0}))
     py_failed=$((py_failed + ${f:-1})) # no closing line: the interop run failed
 done
+read -r colcon_passed colcon_failed < <(grep -E '^colcon: [0-9]+ passed' /tmp/cd_colcon.log \
+    | awk '{p += $2; f += $4} END {print p + 0, f + 0}')
+[[ $colcon_status -eq 0 ]] || colcon_failed=$((colcon_failed > 0 ? colcon_failed : 1))
+py_passed=$((py_passed + colcon_passed))
+py_failed=$((py_failed + colcon_failed))
 echo "cargo ignored $rust_ignored tests (0 expected: every test runs with --include-ignored)"
 echo "all: $((rust_passed + py_passed)) passed, $((rust_failed + py_failed)) failed, $rust_ignored skipped"
 if [[ $cargo_status -ne 0 || $interop_status -ne 0 || $jazzy_status -ne 0 \
-    || $interop_jazzy_status -ne 0 || $rust_ignored -ne 0 ]]; then
+    || $interop_jazzy_status -ne 0 || $colcon_status -ne 0 || $rust_ignored -ne 0 ]]; then
     exit 1
 fi
