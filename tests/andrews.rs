@@ -60,10 +60,11 @@ fn initial_accelerations_and_multipliers_match_the_test_set() {
     let zero = vec![0.0; sys.model.nv];
     let at =
         constraint_forces_at(&mut sys, &mut elements, (0.0, &scene.q0, &scene.v0), &zero).unwrap();
-    // The test set's y(0)[14..21]: q̈(0) = (14222.44…, −10666.83…, 0, 0, 0, 0, 0).
+    // The test set's y(0)[14..21] (given to 30 digits; f64-rounded here): q̈(0) = (14222.44…,
+    // −10666.83…, 0, 0, 0, 0, 0).
     let qdd_ref = [
-        14222.4439199541138705911625887,
-        -10666.8329399655854029433719415,
+        14_222.443_919_954_114,
+        -10_666.832_939_965_585,
         0.0,
         0.0,
         0.0,
@@ -85,8 +86,8 @@ fn initial_accelerations_and_multipliers_match_the_test_set() {
     // G = ∂(E_chain − E_other)/∂q; here λ is the force ON the robot along J = the same G, so
     // λ = −λ_test. Rows: loop_body3 (x, y), loop_body4 (x, y), loop_body6 (x, y).
     let lambda_ref = [
-        98.5668703962410896057654982170,
-        -6.12268834425566265503114393122,
+        98.566_870_396_241_09,
+        -6.122_688_344_255_663,
         0.0,
         0.0,
         0.0,
