@@ -38,6 +38,8 @@ pub struct StatusContext<'a> {
     pub params: &'a DiagnosticsParams,
     /// Kind-specific values (slipping contacts, residuals).
     pub extra: Vec<KeyValue>,
+    /// Kind-specific reasons for a WARN (the predictor's stale inputs).
+    pub warnings: Vec<String>,
 }
 
 /// What a worker records of its node's work.
@@ -103,7 +105,7 @@ impl Health {
     /// The status at ROS time `now`.
     pub fn status(&self, now: Time, ctx: StatusContext) -> DiagnosticStatus {
         let mut values = vec![kv("model", ctx.model)];
-        let mut warnings = Vec::new();
+        let mut warnings = ctx.warnings;
         if let Some(requested) = ctx.requested_rate {
             values.push(kv("requested rate [Hz]", &format!("{requested:.3}")));
             match self.achieved_rate() {
@@ -191,6 +193,7 @@ mod tests {
             subscribed,
             params,
             extra: vec![],
+            warnings: vec![],
         }
     }
 

@@ -59,6 +59,10 @@ pub trait NodeLogic: Sized + Send + 'static {
     fn diagnostics(&self) -> Vec<KeyValue> {
         Vec::new()
     }
+    /// Kind-specific reasons for a WARN status (stale inputs the kind will not use).
+    fn warnings(&self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 /// A period on the ROS clock: wall time, or `/clock` under `use_sim_time` (then it follows the
@@ -353,6 +357,7 @@ impl<N: NodeLogic> Worker<N> {
             subscribed: &self.subscribed,
             params: &params.common.diagnostics,
             extra: self.logic.diagnostics(),
+            warnings: self.logic.warnings(),
         };
         let status = self.health.status(now, ctx);
         if scheduled || self.last_level != Some(status.level) {
@@ -396,6 +401,7 @@ impl<N: NodeLogic> Worker<N> {
                 match self.logic.robot_mut().state_mut().apply_joint_state(&js) {
                     Ok(report) => {
                         self.health.input(Input::JointStates, now);
+                        self.logic.robot_mut().state_mut().joint_states_at = Some(now);
                         if !report.unknown.is_empty() && !self.warned.unknown_joints {
                             self.warned.unknown_joints = true;
                             self.log.info(&format!(
@@ -416,7 +422,10 @@ impl<N: NodeLogic> Worker<N> {
                 let robot = self.logic.robot_mut();
                 let model = robot.model().clone();
                 match robot.state_mut().apply_odometry(&model, &od) {
-                    Ok(()) => self.health.input(Input::Odometry, now),
+                    Ok(()) => {
+                        self.health.input(Input::Odometry, now);
+                        self.logic.robot_mut().state_mut().odom_at = Some(now);
+                    }
                     Err(e) => {
                         let first = !std::mem::replace(&mut self.warned.odometry, true);
                         self.log

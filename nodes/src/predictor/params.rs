@@ -41,6 +41,8 @@ impl Default for PredictorParams {
 impl KindParams for PredictorParams {
     const DYNAMIC: &'static [&'static str] = &[
         "slip.",
+        "state.timeout",
+        "state.stale_behaviour",
         "covariance.",
         "horizon",
         "command.timeout",
