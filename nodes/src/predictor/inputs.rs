@@ -123,4 +123,19 @@ impl StartCovariance {
         add_age_noise(&mut p, &self.noise, age);
         p
     }
+
+    /// [`StartCovariance::at`], or `None` when the propagated covariance would be exactly zero
+    /// (a zero start and no process noise): propagation costs several times the prediction, so
+    /// inputs without covariance (all zeros, as many drivers send) cost nothing extra.
+    pub fn nonzero_at(
+        &self,
+        model: &Model,
+        q: &[f64],
+        state: &StateEstimate,
+        age: f64,
+    ) -> Option<DMatrix<f64>> {
+        let p = self.at(model, q, state, age);
+        let zero = p.iter().all(|x| *x == 0.0) && self.noise.iter().all(|s| *s == 0.0);
+        (!zero).then_some(p)
+    }
 }

@@ -246,10 +246,13 @@ impl PredictorNode {
                 format!("{horizon} s: set `horizon` or the scene's integration.horizon"),
             ));
         }
-        let p0 = self
-            .start_covariance
-            .at(self.robot.model(), &q, self.robot.state(), age);
-        self.predictor.start_covariance = Some(p0);
+        self.predictor.start_covariance = match self.params.node.covariance.propagate {
+            true => {
+                self.start_covariance
+                    .nonzero_at(self.robot.model(), &q, self.robot.state(), age)
+            }
+            false => None,
+        };
         let traj = self
             .predictor
             .predict_with(&q, &v, &[(0.0, cmd)], horizon, PredictOptions::default())

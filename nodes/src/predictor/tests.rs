@@ -196,7 +196,17 @@ fn predicted_pose_covariance_is_the_unicycle_closed_form() {
             worst = worst.max((g - want[a][b]).abs());
         }
     }
-    println!("|Σ − Φ Σ₀ Φᵀ| at 1 s: {worst:.3e} (var x {:.6e})", got[0]);
+    println!(
+        "|Σ − Φ Σ₀ Φᵀ| at 1 s: {worst:.3e} (var x {:.6e}), tick {:.1} ms",
+        got[0],
+        out.compute_s * 1e3
+    );
+    n.params.node.covariance.propagate = false;
+    let plain = tick(&mut n, t0);
+    println!(
+        "the same prediction without covariance: {:.1} ms",
+        plain.compute_s * 1e3
+    );
     // Achieved 6e-7: the PI wheel controllers' tracking error moves Δx, Δy by ~0.1 mm.
     assert!(
         worst < 2e-6,
