@@ -230,6 +230,22 @@ mod tests {
         assert!(s.message.contains("step size"), "{}", s.message);
     }
 
+    /// A kind's own warning (the predictor's stale inputs) makes the status WARN with it.
+    #[test]
+    fn a_kind_warning_is_a_warn() {
+        let p = DiagnosticsParams::default();
+        let mut h = Health::default();
+        for k in 0..5 {
+            h.input(Input::Odometry, at(0.1 * k as f64));
+            h.tick(at(0.1 * k as f64), 0.001, None);
+        }
+        let mut c = ctx(&p, &[Input::Odometry]);
+        c.warnings = vec!["odom stale (odom 0.62 s > state.timeout 0.5 s)".into()];
+        let s = h.status(at(0.45), c);
+        assert_eq!(s.level, DiagnosticStatus::WARN);
+        assert_eq!(s.message, "odom stale (odom 0.62 s > state.timeout 0.5 s)");
+    }
+
     #[test]
     fn missed_rate_and_missing_input_warn() {
         let p = DiagnosticsParams::default();

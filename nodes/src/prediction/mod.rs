@@ -14,8 +14,8 @@ use crate::msg::builtin_interfaces::Time;
 use crate::msg::constraint_dynamics_msgs::srv::{PredictRequest, PredictResponse};
 use crate::node::worker::{NodeLogic, Reply};
 use crate::params::NodeParams;
-use crate::predictor::inputs::{InputAges, StartCovariance};
 use crate::robot::Robot;
+use crate::robot::inputs::{InputAges, StartCovariance};
 use crate::ros::logging::NodeLog;
 pub use params::PredictionParams;
 

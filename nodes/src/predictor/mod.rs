@@ -7,7 +7,6 @@
 //! of the inputs ([`inputs`]); inputs older than `state.timeout` stop the predictions or, with
 //! `state.stale_behaviour: warn`, are used with a WARN and a covariance grown with their age.
 
-pub mod inputs;
 pub mod markers;
 pub mod params;
 pub mod ros;
@@ -32,8 +31,8 @@ use crate::node::health::kv;
 use crate::node::worker::NodeLogic;
 use crate::params::{NodeParams, StaleBehaviour};
 use crate::robot::Robot;
+use crate::robot::inputs::{InputAges, StartCovariance};
 use crate::ros::logging::NodeLog;
-use inputs::{InputAges, StartCovariance};
 pub use params::{CovarianceParams, MarkerParams, PredictorParams};
 
 /// What one periodic prediction publishes.

@@ -1,16 +1,17 @@
-//! What the predictor knows of its state inputs: their age on the ROS clock (stale or not,
+//! What the state inputs say beyond the state: their age on the ROS clock (stale or not,
 //! `state.timeout`) and the start covariance they give (`/odom`'s covariances, the joint-noise
-//! parameters, the scene's process noise over the age).
+//! parameters, the scene's process noise over the age). Used by the predictor and by
+//! `~/predict`.
 
 use constraint_dynamics::Model;
 use constraint_dynamics::predict::UncertaintySpec;
 use nalgebra::DMatrix;
 
+use super::state::StateEstimate;
 use crate::covariance::{JointSigma, add_age_noise, start_covariance};
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::params::{ParamsError, StateParams};
-use crate::robot::state::StateEstimate;
 
 /// The ages of the subscribed state inputs at one tick.
 #[derive(Clone, Debug, Default, PartialEq)]
