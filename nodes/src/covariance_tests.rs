@@ -156,6 +156,41 @@ fn right_perturbation_of_g_d_is_the_odom_displacement_d() {
     }
 }
 
+/// Floating base at a general attitude: odom frame → base frame → odom frame gives the input
+/// back (all six axes), and the twist is copied as is.
+#[test]
+fn floating_round_trip() {
+    let m = model("mobile_manipulator_floating.yaml");
+    let mut q = vec![0.0; m.nq];
+    let att = UnitQuaternion::from_euler_angles(0.4, -0.3, 1.2);
+    q[3..7].copy_from_slice(&[att.i, att.j, att.k, att.w]);
+    // A positive definite 6×6: A Aᵀ + diag with A's entries distinct.
+    let a = DMatrix::from_fn(6, 6, |i, j| 0.01 * ((i * 6 + j) as f64).sin());
+    let s = &a * a.transpose() + DMatrix::from_diagonal_element(6, 6, 1e-3);
+    let mut pose = [0.0; 36];
+    pose.iter_mut()
+        .enumerate()
+        .for_each(|(k, x)| *x = s[(k / 6, k % 6)]);
+    let twist = pose.map(|x| 2.0 * x);
+    let p = start_covariance(&m, &q, &pose, &twist, &[]);
+    let nv = m.nv;
+    assert_eq!(
+        p[(nv + 4, nv + 2)],
+        twist[6 * 4 + 2],
+        "twist copied in the base frame"
+    );
+    let rows: Vec<Vec<f64>> = (0..2 * nv)
+        .map(|i| p.row(i).iter().copied().collect())
+        .collect();
+    let (pose_back, twist_back) = odometry_covariance(&m, &q, &rows);
+    for k in 0..36 {
+        assert!((pose_back[k] - pose[k]).abs() < 1e-15, "pose[{k}]");
+        assert!((twist_back[k] - twist[k]).abs() < 1e-15, "twist[{k}]");
+    }
+    // And the base-frame block really is rotated (not the input).
+    assert!((p[(0, 0)] - pose[0]).abs() > 1e-6);
+}
+
 /// A covariance that is not positive semidefinite is clipped to the nearest one that is (its
 /// negative eigenvalue set to 0), symmetrised first: [[1, 2], [2, 1]] has eigenvalues 3, −1
 /// along (1, 1)/√2 and (1, −1)/√2, so it becomes 1.5 [[1, 1], [1, 1]].

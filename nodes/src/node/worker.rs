@@ -229,8 +229,10 @@ struct Worker<N: NodeLogic> {
     diagnostics: smol::channel::Sender<(Time, DiagnosticStatus)>,
     subscribed: Vec<Input>,
     health: Health,
-    /// Level of the last published status (a change publishes at once).
-    last_level: Option<u8>,
+    /// Level of the last published status, and whether the kind warned (a change of either
+    /// publishes at once: stale inputs are reported when they go stale, even under a WARN
+    /// for another reason).
+    last_level: Option<(u8, bool)>,
     sim_time: Option<Time>,
     warned: Warned,
     /// Lifecycle state: only an active node ticks and publishes its status.
@@ -346,7 +348,8 @@ impl<N: NodeLogic> Worker<N> {
             .tick(now, started.elapsed().as_secs_f64(), error);
     }
 
-    /// Sends the node's status when `scheduled` or when its level changed.
+    /// Sends the node's status when `scheduled` or when its level (or the kind's warning)
+    /// changed.
     fn publish_status(&mut self, scheduled: bool) {
         let now = self.now();
         let params = self.logic.params();
@@ -359,9 +362,11 @@ impl<N: NodeLogic> Worker<N> {
             extra: self.logic.diagnostics(),
             warnings: self.logic.warnings(),
         };
+        let kind_warns = !ctx.warnings.is_empty();
         let status = self.health.status(now, ctx);
-        if scheduled || self.last_level != Some(status.level) {
-            self.last_level = Some(status.level);
+        let level = Some((status.level, kind_warns));
+        if scheduled || self.last_level != level {
+            self.last_level = level;
             let _ = self.diagnostics.try_send((now, status));
         }
     }

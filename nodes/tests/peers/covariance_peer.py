@@ -228,11 +228,11 @@ def check_service(peer):
         r.covariances[0] + r.covariances[n + 1], last_chord]
 
 
-def predictor_warn(peer, t0, text):
-    for _, d in peer.since(peer.diags, t0):
+def predictor_warn(peer, t0, text, with_time=False):
+    for t, d in peer.since(peer.diags, t0):
         for s in d.status:
             if s.name == "/cd_predictor" and s.level == DiagnosticStatus.WARN and text in s.message:
-                return s.message
+                return (t, s.message) if with_time else s.message
     return None
 
 
@@ -246,9 +246,13 @@ def check_stop(peer):
           not late, [started(m) - last for m in late])
     before = [m for _, m in peer.since(peer.odom, t_stop)]
     FIGURES["stop: predictions after the feed stopped (all started within the timeout)"] = len(before)
-    msg = predictor_warn(peer, t_stop, "predictions stopped")
+    found = predictor_warn(peer, t_stop, "predictions stopped", with_time=True)
+    msg = found and found[1]
     check("stop: /diagnostics WARN naming the stale input", msg is not None and "odom" in msg, msg)
     FIGURES["stop: WARN"] = msg
+    if found:
+        FIGURES["stop: WARN received after the last feed + state.timeout [s]"] = \
+            found[0] - (last + TIMEOUT)
 
 
 def set_string(peer, name, value):
