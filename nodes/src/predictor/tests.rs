@@ -272,3 +272,26 @@ fn stale_inputs_stop_or_warn_and_recover() {
     assert!(vo > vy + 0.25, "var x: age 1.5 s {vo}, 0.1 s {vy}");
     assert!(vy > vf, "with noise {vy} vs without {vf}");
 }
+
+/// A joint-noise entry for a joint the model does not have is refused when the node is built,
+/// naming the parameter and the model's joints.
+#[test]
+fn joint_noise_for_an_unknown_joint_is_refused() {
+    let n = node("stop");
+    let mut params = n.params.clone();
+    params
+        .common
+        .state
+        .joint_noise
+        .joints
+        .insert("arm_elbow".into(), vec![0.001, 0.01]);
+    let robot = n.robot.clone();
+    let e = PredictorNode::new(robot, params, NodeLog::new("test"))
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        e.contains("state.joint_noise.joints.arm_elbow") && e.contains("left_wheel_joint"),
+        "{e}"
+    );
+}
