@@ -18,6 +18,7 @@
 #![warn(missing_docs)]
 
 pub mod convert;
+pub mod covariance;
 pub mod error;
 pub mod forces;
 pub mod lifecycle;

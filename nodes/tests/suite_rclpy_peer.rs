@@ -77,6 +77,14 @@ fn rclpy_peer_reads_topics_calls_services_and_parameters() {
         command_period: 0.25,
         horizon: 0.5,
         with_forces: true,
+        with_covariance: true,
+        // Diagonal: σ = 0.01 … 0.18 over [δq; δv] (n = 2 nv = 18).
+        start_covariance: (0..18 * 18)
+            .map(|k| match (k / 18, k % 18) {
+                (i, j) if i == j => (0.01 * (i as f64 + 1.0)).powi(2),
+                _ => 0.0,
+            })
+            .collect(),
     };
     let forces = t.client::<GetConstraintForces>("/cd_forces/get_constraint_forces");
     let project = t.client::<ProjectVelocity>("/cd_projection/project_velocity");
@@ -138,6 +146,15 @@ fn rclpy_peer_reads_topics_calls_services_and_parameters() {
             theirs["message"] = Value::Null;
         }
         assert_eq!(mine["success"], true, "{key}: {}", mine["message"]);
+        if key == "predict" {
+            // A covariance per sample, n = 2 nv = 18, decoded by rclpy too (compared below).
+            let samples = mine["times"].as_array().unwrap().len();
+            assert_eq!(mine["covariance_dimension"], 18);
+            assert_eq!(
+                mine["covariances"].as_array().unwrap().len(),
+                samples * 18 * 18
+            );
+        }
         assert_eq!(
             theirs, mine,
             "{key}: the response rclpy decoded differs from ros2-client's"

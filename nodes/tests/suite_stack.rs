@@ -7,7 +7,8 @@
 //!   namespaced frame `robot1/odom`;
 //! - `/diagnostics` carries a status per node named by its fully qualified name, the predictor's
 //!   OK while odometry flows, then WARN naming `odom` once odometry stops (input_timeout 1 s
-//!   of sim time), while `/clock` goes on;
+//!   of sim time), while `/clock` goes on; odometry returns (predictions stopped meanwhile:
+//!   `state.stale_behaviour: stop`) and the predictor follows again;
 //! - the TwistStamped publisher replaced by a Twist one (0.5 m/s): the predictor switches type
 //!   (graph) and follows; a RustDDS TwistStamped publisher (0.3 m/s) added beside: the predictor
 //!   keeps Twist, drops that writer's messages by its announced type (RustDDS matches readers
@@ -208,6 +209,9 @@ fn suite_in_a_namespace_on_sim_time_reports_diagnostics() {
         "{TEST}: odometry stopped → WARN \"{}\"",
         warn.status[0].message
     );
+    // Odometry returns: the predictor, stopped by `state.stale_behaviour: stop`, resumes (the
+    // checks below need its predictions).
+    odom_on.store(true, Ordering::SeqCst);
 
     // The command publisher is replaced by a plain Twist one (0.5 m/s): the predictor switches.
     drop(cmd_task);

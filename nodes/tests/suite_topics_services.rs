@@ -475,6 +475,7 @@ fn suite_matches_the_core_library() {
             command_period: 0.5,
             horizon: 1.0,
             with_forces: true,
+            ..Default::default()
         },
     );
     assert!(r.success, "{}", r.message);

@@ -302,6 +302,8 @@ def cases():
     req.command_period = 0.1
     req.horizon = 2.0
     req.with_forces = True
+    req.with_covariance = True
+    req.start_covariance = [0.01, 0.002, 0.002, 0.0025]  # bools before float64[]: padding
     out["constraint_dynamics_msgs__Predict_Request"] = req
 
     resp = Predict.Response()
@@ -311,6 +313,9 @@ def cases():
     resp.times = [0.0, 0.05, 0.1]
     resp.forces = [constraint_forces(1, sec=1_700_000_400), ConstraintForces()]
     resp.position_error_estimate = 1.5e-4
+    resp.covariance_dimension = 2  # uint32 after a float64, before a float64[]
+    resp.covariances = [0.01, -0.0, 0.0, 0.0025, 0.0125, 0.001, 0.001, 0.003,
+                        0.02, 0.002, 0.002, 0.004]
     out["constraint_dynamics_msgs__Predict_Response"] = resp
 
     out["geometry_msgs__WrenchStamped"] = WrenchStamped(

@@ -170,6 +170,9 @@ pub mod srv {
         /// [s]
         pub horizon: f64,
         pub with_forces: bool,
+        pub with_covariance: bool,
+        /// 2nv × 2nv row-major, [δq; δv]; empty = the node's (odometry, joint noise).
+        pub start_covariance: Vec<f64>,
     }
 
     /// Response of `Predict`.
@@ -183,6 +186,10 @@ pub mod srv {
         pub forces: Vec<ConstraintForces>,
         /// Estimated position drift [m].
         pub position_error_estimate: f64,
+        /// n = 2nv (with `with_covariance`).
+        pub covariance_dimension: u32,
+        /// Each sample's n × n covariance, row-major, concatenated in `times` order.
+        pub covariances: Vec<f64>,
     }
 
     ros_service!(Predict, PredictRequest, PredictResponse);

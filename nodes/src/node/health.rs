@@ -38,6 +38,8 @@ pub struct StatusContext<'a> {
     pub params: &'a DiagnosticsParams,
     /// Kind-specific values (slipping contacts, residuals).
     pub extra: Vec<KeyValue>,
+    /// Kind-specific reasons for a WARN (the predictor's stale inputs).
+    pub warnings: Vec<String>,
 }
 
 /// What a worker records of its node's work.
@@ -103,7 +105,7 @@ impl Health {
     /// The status at ROS time `now`.
     pub fn status(&self, now: Time, ctx: StatusContext) -> DiagnosticStatus {
         let mut values = vec![kv("model", ctx.model)];
-        let mut warnings = Vec::new();
+        let mut warnings = ctx.warnings;
         if let Some(requested) = ctx.requested_rate {
             values.push(kv("requested rate [Hz]", &format!("{requested:.3}")));
             match self.achieved_rate() {
@@ -191,6 +193,7 @@ mod tests {
             subscribed,
             params,
             extra: vec![],
+            warnings: vec![],
         }
     }
 
@@ -225,6 +228,22 @@ mod tests {
         let s = h.status(at(3.2), ctx(&p, &subs));
         assert_eq!(s.level, DiagnosticStatus::ERROR);
         assert!(s.message.contains("step size"), "{}", s.message);
+    }
+
+    /// A kind's own warning (the predictor's stale inputs) makes the status WARN with it.
+    #[test]
+    fn a_kind_warning_is_a_warn() {
+        let p = DiagnosticsParams::default();
+        let mut h = Health::default();
+        for k in 0..5 {
+            h.input(Input::Odometry, at(0.1 * k as f64));
+            h.tick(at(0.1 * k as f64), 0.001, None);
+        }
+        let mut c = ctx(&p, &[Input::Odometry]);
+        c.warnings = vec!["odom stale (odom 0.62 s > state.timeout 0.5 s)".into()];
+        let s = h.status(at(0.45), c);
+        assert_eq!(s.level, DiagnosticStatus::WARN);
+        assert_eq!(s.message, "odom stale (odom 0.62 s > state.timeout 0.5 s)");
     }
 
     #[test]

@@ -59,6 +59,10 @@ pub trait NodeLogic: Sized + Send + 'static {
     fn diagnostics(&self) -> Vec<KeyValue> {
         Vec::new()
     }
+    /// Kind-specific reasons for a WARN status (stale inputs the kind will not use).
+    fn warnings(&self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 /// A period on the ROS clock: wall time, or `/clock` under `use_sim_time` (then it follows the
@@ -225,8 +229,10 @@ struct Worker<N: NodeLogic> {
     diagnostics: smol::channel::Sender<(Time, DiagnosticStatus)>,
     subscribed: Vec<Input>,
     health: Health,
-    /// Level of the last published status (a change publishes at once).
-    last_level: Option<u8>,
+    /// Level of the last published status, and whether the kind warned (a change of either
+    /// publishes at once: stale inputs are reported when they go stale, even under a WARN
+    /// for another reason).
+    last_level: Option<(u8, bool)>,
     sim_time: Option<Time>,
     warned: Warned,
     /// Lifecycle state: only an active node ticks and publishes its status.
@@ -342,7 +348,8 @@ impl<N: NodeLogic> Worker<N> {
             .tick(now, started.elapsed().as_secs_f64(), error);
     }
 
-    /// Sends the node's status when `scheduled` or when its level changed.
+    /// Sends the node's status when `scheduled` or when its level (or the kind's warning)
+    /// changed.
     fn publish_status(&mut self, scheduled: bool) {
         let now = self.now();
         let params = self.logic.params();
@@ -353,10 +360,13 @@ impl<N: NodeLogic> Worker<N> {
             subscribed: &self.subscribed,
             params: &params.common.diagnostics,
             extra: self.logic.diagnostics(),
+            warnings: self.logic.warnings(),
         };
+        let kind_warns = !ctx.warnings.is_empty();
         let status = self.health.status(now, ctx);
-        if scheduled || self.last_level != Some(status.level) {
-            self.last_level = Some(status.level);
+        let level = Some((status.level, kind_warns));
+        if scheduled || self.last_level != level {
+            self.last_level = level;
             let _ = self.diagnostics.try_send((now, status));
         }
     }
@@ -396,6 +406,7 @@ impl<N: NodeLogic> Worker<N> {
                 match self.logic.robot_mut().state_mut().apply_joint_state(&js) {
                     Ok(report) => {
                         self.health.input(Input::JointStates, now);
+                        self.logic.robot_mut().state_mut().joint_states_at = Some(now);
                         if !report.unknown.is_empty() && !self.warned.unknown_joints {
                             self.warned.unknown_joints = true;
                             self.log.info(&format!(
@@ -416,7 +427,10 @@ impl<N: NodeLogic> Worker<N> {
                 let robot = self.logic.robot_mut();
                 let model = robot.model().clone();
                 match robot.state_mut().apply_odometry(&model, &od) {
-                    Ok(()) => self.health.input(Input::Odometry, now),
+                    Ok(()) => {
+                        self.health.input(Input::Odometry, now);
+                        self.logic.robot_mut().state_mut().odom_at = Some(now);
+                    }
                     Err(e) => {
                         let first = !std::mem::replace(&mut self.warned.odometry, true);
                         self.log

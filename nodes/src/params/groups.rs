@@ -51,6 +51,91 @@ pub struct StateParams {
     /// With `use_latest_state` and no torques in a `get_constraint_forces` request, take the
     /// joint torques from the last `JointState.effort` [N·m, N].
     pub use_measured_effort: bool,
+    /// The predictor's inputs (`odom`, `joint_states`) are stale once the last one received is
+    /// older than this on the ROS clock (`/clock` under `use_sim_time`) [s] (> 0). An input
+    /// never received is not stale: the state is the scene's initial one (and `/diagnostics`
+    /// warns that it never came).
+    pub timeout: f64,
+    /// What the predictor does with stale inputs: `stop` (publish no prediction until they
+    /// return) or `warn` (keep predicting from the last state with a WARN, the start covariance
+    /// grown by the scene's process noise over the age).
+    pub stale_behaviour: String,
+    /// Noise of `joint_states`, for the predictor's start covariance.
+    pub joint_noise: JointNoiseParams,
+}
+
+/// What the predictor does with stale state inputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StaleBehaviour {
+    /// Publish nothing until the inputs return.
+    Stop,
+    /// Keep predicting, with a WARN and a start covariance grown with the age.
+    Warn,
+}
+
+impl StateParams {
+    /// `stale_behaviour` as an enum.
+    pub fn stale_behaviour(&self) -> Result<StaleBehaviour, ParamsError> {
+        match self.stale_behaviour.as_str() {
+            "stop" => Ok(StaleBehaviour::Stop),
+            "warn" => Ok(StaleBehaviour::Warn),
+            other => Err(ParamsError::invalid(
+                "state.stale_behaviour",
+                format!("{other:?}: expected stop or warn"),
+            )),
+        }
+    }
+
+    /// Checks `timeout`, `stale_behaviour` and `joint_noise`.
+    pub fn validate(&self) -> Result<(), ParamsError> {
+        positive("state.timeout", self.timeout)?;
+        self.stale_behaviour()?;
+        self.joint_noise.validate()
+    }
+}
+
+/// `state.joint_noise.*`: standard deviations of the joint states, the diagonal of the start
+/// covariance for every 1-DOF joint (the base's comes from the odometry's covariances).
+/// Default 0: joint states are taken as exact (encoders resolve far below the base's
+/// uncertainty); set them to your encoders' resolution and velocity noise.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct JointNoiseParams {
+    /// σ of every joint position not listed in `joints` [rad or m] (≥ 0).
+    pub position: f64,
+    /// σ of every joint velocity not listed in `joints` [rad/s or m/s] (≥ 0).
+    pub velocity: f64,
+    /// Per joint: `name: [σ_position, σ_velocity]` [rad or m, rad/s or m/s] (≥ 0); names are
+    /// checked against the model when the node is configured.
+    pub joints: std::collections::BTreeMap<String, Vec<f64>>,
+}
+
+impl JointNoiseParams {
+    /// Checks every value, naming the one that is wrong.
+    pub fn validate(&self) -> Result<(), ParamsError> {
+        super::nonneg("state.joint_noise.position", self.position)?;
+        super::nonneg("state.joint_noise.velocity", self.velocity)?;
+        for (name, s) in &self.joints {
+            let key = format!("state.joint_noise.joints.{name}");
+            if s.len() != 2 {
+                return Err(ParamsError::invalid(
+                    &key,
+                    format!("= {s:?} must be [σ_position, σ_velocity]"),
+                ));
+            }
+            super::nonneg(&key, s[0])?;
+            super::nonneg(&key, s[1])?;
+        }
+        Ok(())
+    }
+
+    /// (σ position, σ velocity) of `joint`.
+    pub fn of(&self, joint: &str) -> (f64, f64) {
+        match self.joints.get(joint) {
+            Some(s) if s.len() == 2 => (s[0], s[1]),
+            _ => (self.position, self.velocity),
+        }
+    }
 }
 
 impl Default for StateParams {
@@ -60,6 +145,9 @@ impl Default for StateParams {
             odom_topic: "odom".into(),
             project_to_constraints: true,
             use_measured_effort: true,
+            timeout: 0.5,
+            stale_behaviour: "stop".into(),
+            joint_noise: JointNoiseParams::default(),
         }
     }
 }

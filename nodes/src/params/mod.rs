@@ -23,8 +23,8 @@ use serde::{Deserialize, Serialize};
 use crate::ros::args::{Parameters, RosArgsError, yaml_to_param};
 
 pub use groups::{
-    CommandMsg, CommandParams, DiagnosticsParams, Fallback, FramesParams, ModelParams,
-    NetworkParams, SlipParams, StateParams,
+    CommandMsg, CommandParams, DiagnosticsParams, Fallback, FramesParams, JointNoiseParams,
+    ModelParams, NetworkParams, SlipParams, StaleBehaviour, StateParams,
 };
 pub use kind::NodeKind;
 
@@ -149,6 +149,7 @@ impl CommonParams {
             )?;
         }
         nonempty("frames.odom_frame", &self.frames.odom_frame)?;
+        self.state.validate()?;
         nonneg("slip.friction_coefficient", self.slip.friction_coefficient)?;
         nonneg("slip.planar_normal_force", self.slip.planar_normal_force)?;
         crate::ros::context::NetworkConfig::default()

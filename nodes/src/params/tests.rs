@@ -66,6 +66,19 @@ fn bad_values_are_named() {
             "slip.friction_coefficient",
         ),
         ("network: { interfaces: eth0 }", "network.interfaces"),
+        ("state: { timeout: 0.0 }", "state.timeout"),
+        (
+            "state: { stale_behaviour: ignore }",
+            "state.stale_behaviour",
+        ),
+        (
+            "state: { joint_noise: { position: -0.1 } }",
+            "state.joint_noise.position",
+        ),
+        (
+            "state: { joint_noise: { joints: { arm_elbow: [0.1] } } }",
+            "state.joint_noise.joints.arm_elbow",
+        ),
     ];
     for (body, name) in cases {
         let yaml = format!(
@@ -180,4 +193,28 @@ fn relative_default_topics_resolve_in_the_namespace() {
     );
     // An absolute name is used as given.
     assert_eq!(topic("/odom"), "/odom");
+}
+
+/// Per-joint noise from a parameter file: dotted names of a map, typed; the others take the
+/// group's default.
+#[test]
+fn joint_noise_by_name() {
+    let yaml = "cd_predictor:\n  ros__parameters:\n    model: { scene_file: s.yaml }\n    \
+                state: { timeout: 0.25, stale_behaviour: warn, joint_noise: { position: 0.001, \
+                joints: { arm_elbow: [0.002, 0.03] } } }\n";
+    let p = parse_params_yaml(yaml, "/cd_predictor").unwrap();
+    let pp = NodeParams::<PredictorParams>::from_parameters(&p).unwrap();
+    let st = &pp.common.state;
+    assert_eq!(st.timeout, 0.25);
+    assert_eq!(
+        st.stale_behaviour().unwrap(),
+        crate::params::StaleBehaviour::Warn
+    );
+    assert_eq!(st.joint_noise.of("arm_elbow"), (0.002, 0.03));
+    assert_eq!(st.joint_noise.of("arm_wrist"), (0.001, 0.0));
+    let names: Vec<String> = pp.to_ros().into_iter().map(|(n, _)| n).collect();
+    assert!(
+        names.contains(&"state.joint_noise.joints.arm_elbow".to_string()),
+        "{names:?}"
+    );
 }

@@ -1,11 +1,12 @@
 //! `cd_prediction`: a prediction on request (`~/predict`): from the latest state (or one the
 //! request gives), under a sequence of base commands, over a horizon, with the constraint forces
-//! at every sample if asked.
+//! at every sample if asked, and the propagated covariance at every sample if asked.
 
 pub mod params;
 pub mod ros;
 
 use constraint_dynamics::predict::{PredictOptions, Predictor};
+use nalgebra::DMatrix;
 
 use crate::convert::{path_msg, time_plus};
 use crate::error::NodeError;
@@ -14,6 +15,7 @@ use crate::msg::constraint_dynamics_msgs::srv::{PredictRequest, PredictResponse}
 use crate::node::worker::{NodeLogic, Reply};
 use crate::params::NodeParams;
 use crate::robot::Robot;
+use crate::robot::inputs::{InputAges, StartCovariance};
 use crate::ros::logging::NodeLog;
 pub use params::PredictionParams;
 
@@ -28,6 +30,7 @@ pub struct PredictionNode {
     robot: Robot,
     predictor: Predictor,
     params: NodeParams<PredictionParams>,
+    start_covariance: StartCovariance,
 }
 
 impl NodeLogic for PredictionNode {
@@ -42,10 +45,16 @@ impl NodeLogic for PredictionNode {
     ) -> Result<Self, NodeError> {
         let predictor =
             Predictor::from_scene(robot.scene()).map_err(NodeError::core("predictor"))?;
+        let start_covariance = StartCovariance::new(
+            robot.model(),
+            &params.common.state,
+            &robot.scene().file.uncertainty,
+        )?;
         Ok(PredictionNode {
             robot,
             predictor,
             params,
+            start_covariance,
         })
     }
     fn robot(&self) -> &Robot {
@@ -117,6 +126,34 @@ impl PredictionNode {
         Ok(())
     }
 
+    /// The request's start covariance (n × n row-major, n = 2nv), or the one the latest
+    /// inputs give (odometry covariances, joint noise, process noise over their age).
+    fn request_covariance(
+        &self,
+        req: &PredictRequest,
+        q: &[f64],
+        now: Time,
+    ) -> Result<DMatrix<f64>, NodeError> {
+        let n = 2 * self.robot.model().nv;
+        if req.start_covariance.is_empty() {
+            let state = self.robot.state();
+            let age = InputAges::at(state, &self.params.common.state, now).oldest();
+            return Ok(self.start_covariance.at(self.robot.model(), q, state, age));
+        }
+        if req.start_covariance.len() != n * n {
+            return Err(NodeError::request(
+                "start_covariance",
+                format!(
+                    "{} entries: must be empty or n × n = {} (n = 2 nv = {n})",
+                    req.start_covariance.len(),
+                    n * n
+                ),
+            ));
+        }
+        // The core checks finiteness, symmetry and the diagonal, naming the entry.
+        Ok(DMatrix::from_row_slice(n, n, &req.start_covariance))
+    }
+
     fn try_predict(
         &mut self,
         req: &PredictRequest,
@@ -141,6 +178,10 @@ impl PredictionNode {
         let opts = PredictOptions {
             forces: req.with_forces,
         };
+        self.predictor.start_covariance = match req.with_covariance {
+            true => Some(self.request_covariance(req, &q, now)?),
+            false => None,
+        };
         let traj = self
             .predictor
             .predict_with(&q, &v, &commands, req.horizon, opts)
@@ -164,7 +205,16 @@ impl PredictionNode {
             .samples
             .last()
             .ok_or_else(|| NodeError::request("horizon", "the prediction has no samples"))?;
+        let n = 2 * self.robot.model().nv;
+        let covariances: Vec<f64> = traj
+            .samples
+            .iter()
+            .filter_map(|s| s.covariance.as_ref())
+            .flat_map(|p| p.iter().flatten().copied())
+            .collect();
         Ok(PredictResponse {
+            covariance_dimension: if req.with_covariance { n as u32 } else { 0 },
+            covariances,
             success: true,
             message: format!(
                 "{} samples, {} steps in {:.3} ms ({:?})",

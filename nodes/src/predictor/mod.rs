@@ -2,6 +2,10 @@
 //! publishes the base at the horizon (`~/predicted_odom`), the path (`~/predicted_path`) and the
 //! constraint forces at the current state (`~/constraint_forces`), with slip transitions
 //! logged. Everything the predictor decides to publish is decided in [`PredictorNode::periodic`].
+//!
+//! The predicted odometry carries the covariance the core propagates from the start covariance
+//! of the inputs ([`inputs`]); inputs older than `state.timeout` stop the predictions or, with
+//! `state.stale_behaviour: warn`, are used with a WARN and a covariance grown with their age.
 
 pub mod markers;
 pub mod params;
@@ -13,7 +17,8 @@ use constraint_dynamics::algorithm::frame_placement;
 use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::predict::{PredictOptions, Predictor, Trajectory};
 
-use crate::convert::{diagonal_covariance, path_msg, pose_msg, time_plus, twist_msg};
+use crate::convert::{path_msg, pose_msg, time_plus, twist_msg};
+use crate::covariance::odometry_covariance;
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::constraint_dynamics_msgs::ConstraintForces;
@@ -24,8 +29,9 @@ use crate::msg::std_msgs::Header;
 use crate::msg::visualization_msgs::MarkerArray;
 use crate::node::health::kv;
 use crate::node::worker::NodeLogic;
-use crate::params::NodeParams;
+use crate::params::{NodeParams, StaleBehaviour};
 use crate::robot::Robot;
+use crate::robot::inputs::{InputAges, StartCovariance};
 use crate::ros::logging::NodeLog;
 pub use params::{CovarianceParams, MarkerParams, PredictorParams};
 
@@ -68,6 +74,10 @@ pub struct PredictorNode {
     slipping: Vec<String>,
     /// max |φ| at the last prediction's horizon [m or rad] (for `/diagnostics`).
     position_residual: f64,
+    /// How the inputs' covariances become the start covariance.
+    start_covariance: StartCovariance,
+    /// The stale inputs at the last tick ("odom 0.62 s"), empty when fresh.
+    stale: Vec<String>,
 }
 
 impl NodeLogic for PredictorNode {
@@ -83,6 +93,11 @@ impl NodeLogic for PredictorNode {
         let predictor =
             Predictor::from_scene(robot.scene()).map_err(NodeError::core("predictor"))?;
         let nc = robot.scene().file.constraints.len();
+        let start_covariance = StartCovariance::new(
+            robot.model(),
+            &params.common.state,
+            &robot.scene().file.uncertainty,
+        )?;
         Ok(PredictorNode {
             robot,
             predictor,
@@ -94,6 +109,8 @@ impl NodeLogic for PredictorNode {
             last_slip_log: None,
             slipping: Vec::new(),
             position_residual: 0.0,
+            start_covariance,
+            stale: Vec::new(),
         })
     }
     fn robot(&self) -> &Robot {
@@ -131,14 +148,33 @@ impl NodeLogic for PredictorNode {
             .last_command
             .filter(|(_, at)| (0.0..=timeout).contains(&age(at)))
             .map(|(c, _)| c);
-        let o = self.periodic(now, command)?;
+        let state = &self.params.common.state;
+        let ages = InputAges::at(self.robot.state(), state, now);
+        let stale = ages.stale(state.timeout);
+        let behaviour = state.stale_behaviour()?;
+        self.log_stale(stale);
+        if !self.stale.is_empty() && behaviour == StaleBehaviour::Stop {
+            return Ok(());
+        }
+        let o = self.periodic(now, command, ages.oldest())?;
         self.log
             .debug(&format!("prediction took {:.3} ms", o.compute_s * 1e3));
         out(Box::new(o));
         Ok(())
     }
+    fn warnings(&self) -> Vec<String> {
+        match self.stale.is_empty() {
+            true => Vec::new(),
+            false => vec![self.stale_message(&self.stale)],
+        }
+    }
     fn diagnostics(&self) -> Vec<KeyValue> {
+        let inputs = match self.stale.is_empty() {
+            true => "fresh".to_string(),
+            false => self.stale_message(&self.stale),
+        };
         vec![
+            kv("state inputs", &inputs),
             kv("slipping contacts", &self.slipping.join(", ")),
             kv(
                 "max position residual [m or rad]",
@@ -157,12 +193,42 @@ impl PredictorNode {
         }
     }
 
+    /// "odom stale (odom 0.62 s > state.timeout 0.5 s): predictions stopped".
+    fn stale_message(&self, stale: &[String]) -> String {
+        let state = &self.params.common.state;
+        let what = match state.stale_behaviour() {
+            Ok(StaleBehaviour::Warn) => "predicting from the last state, covariance grown",
+            _ => "predictions stopped",
+        };
+        let names: Vec<&str> = stale.iter().filter_map(|s| s.split(' ').next()).collect();
+        format!(
+            "{} stale ({} > state.timeout {} s): {what}",
+            names.join(", "),
+            stale.join(", "),
+            state.timeout
+        )
+    }
+
+    /// Logs the transitions between fresh and stale inputs (a WARN when they go stale, an INFO
+    /// when they return), not every tick.
+    fn log_stale(&mut self, stale: Vec<String>) {
+        match (self.stale.is_empty(), stale.is_empty()) {
+            (true, false) => self.log.warn(&self.stale_message(&stale)),
+            (false, true) => self
+                .log
+                .info("state inputs fresh again: predicting from them"),
+            _ => {}
+        }
+        self.stale = stale;
+    }
+
     /// One periodic prediction from the latest state under `command` (v, ω) — `None` = no
-    /// fresh command (the fallback applies).
+    /// fresh command (the fallback applies) — from a state `age` [s] old.
     pub fn periodic(
         &mut self,
         now: Time,
         command: Option<[f64; 2]>,
+        age: f64,
     ) -> Result<PeriodicOutput, NodeError> {
         let t0 = Instant::now();
         let common = &self.params.common;
@@ -179,6 +245,13 @@ impl PredictorNode {
                 format!("{horizon} s: set `horizon` or the scene's integration.horizon"),
             ));
         }
+        self.predictor.start_covariance = match self.params.node.covariance.propagate {
+            true => {
+                self.start_covariance
+                    .nonzero_at(self.robot.model(), &q, self.robot.state(), age)
+            }
+            false => None,
+        };
         let traj = self
             .predictor
             .predict_with(&q, &v, &[(0.0, cmd)], horizon, PredictOptions::default())
@@ -278,6 +351,24 @@ impl PredictorNode {
         let sp = err.hypot(c.position_floor);
         let so = err.hypot(c.orientation_floor);
         let st = c.twist_floor;
+        let (mut pose_cov, mut twist_cov) = match &last.covariance {
+            Some(p) => odometry_covariance(model, &last.q, p),
+            None => ([0.0; 36], [0.0; 36]),
+        };
+        // The propagated covariance plus, independent of it, the integration error estimate
+        // and the floors (model error the process noise may not cover); on every axis, so a
+        // planar base's z, roll and pitch carry the floors (robot_localization's "implicit
+        // zero measurement" of a platform constraint: small, not inflated).
+        for (i, s) in [sp, sp, sp, so, so, so].into_iter().enumerate() {
+            pose_cov[7 * i] += s * s;
+            twist_cov[7 * i] += st * st;
+        }
+        if let Some(x) = pose_cov.iter().chain(&twist_cov).find(|x| !x.is_finite()) {
+            return Err(NodeError::request(
+                "predicted covariance",
+                format!("is not finite ({x}): reduce the start covariance or the horizon"),
+            ));
+        }
         let mut odom = Odometry {
             header: Header {
                 stamp: time_plus(start, last.t),
@@ -287,9 +378,9 @@ impl PredictorNode {
             ..Default::default()
         };
         odom.pose.pose = pose_msg(&model.base_pose(&last.q));
-        odom.pose.covariance = diagonal_covariance([sp, sp, sp, so, so, so]);
+        odom.pose.covariance = pose_cov;
         odom.twist.twist = twist_msg(&model.base_twist(&last.v));
-        odom.twist.covariance = diagonal_covariance([st; 6]);
+        odom.twist.covariance = twist_cov;
         Ok(odom)
     }
 

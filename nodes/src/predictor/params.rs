@@ -41,6 +41,8 @@ impl Default for PredictorParams {
 impl KindParams for PredictorParams {
     const DYNAMIC: &'static [&'static str] = &[
         "slip.",
+        "state.timeout",
+        "state.stale_behaviour",
         "covariance.",
         "horizon",
         "command.timeout",
@@ -67,6 +69,10 @@ impl KindParams for PredictorParams {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CovarianceParams {
+    /// Propagate the start covariance (`/odom`'s, `state.joint_noise`) through the prediction
+    /// (the core's step linearization: several times the cost of the prediction alone); false =
+    /// the floors and the error estimate only, as a prediction without covariance.
+    pub propagate: bool,
     /// Standard deviation added to the prediction's error estimate for x, y, z [m] (> 0: the
     /// covariance is never zero; the integrator's estimate does not cover model error).
     pub position_floor: f64,
@@ -79,6 +85,7 @@ pub struct CovarianceParams {
 impl Default for CovarianceParams {
     fn default() -> Self {
         CovarianceParams {
+            propagate: true,
             position_floor: 1e-3,
             orientation_floor: 1e-3,
             twist_floor: 1e-3,

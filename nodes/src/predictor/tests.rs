@@ -89,3 +89,209 @@ fn forces_at_rest_need_no_friction() {
     assert_eq!(f.generalized_force.len(), f.v_names.len());
     assert_eq!(out.path.poses.len(), 51, "1 s at 0.02 s samples, both ends");
 }
+
+/// The diff drive moving at (v, ω) from yaw θ₀, its odometry at `now`.
+fn feed_state(n: &mut PredictorNode, (th0, v, w): (f64, f64, f64), pose_cov: [f64; 36], now: Time) {
+    use crate::msg::geometry_msgs::Vector3;
+    let (r, c) = (0.05, 0.17);
+    let mut od = Odometry::default();
+    od.pose.pose.orientation = crate::convert::quaternion_from_yaw(th0);
+    od.pose.pose.position.x = 1.0;
+    od.pose.covariance = pose_cov;
+    od.twist.twist = Twist {
+        linear: Vector3 {
+            x: v,
+            y: 0.0,
+            z: 0.0,
+        },
+        angular: Vector3 {
+            x: 0.0,
+            y: 0.0,
+            z: w,
+        },
+    };
+    let js = crate::msg::sensor_msgs::JointState {
+        name: vec!["left_wheel_joint".into(), "right_wheel_joint".into()],
+        position: vec![0.0, 0.0],
+        velocity: vec![(v - c * w) / r, (v + c * w) / r],
+        ..Default::default()
+    };
+    let model = n.robot.model().clone();
+    let st = n.robot.state_mut();
+    st.apply_odometry(&model, &od).unwrap();
+    st.apply_joint_state(&js).unwrap();
+    st.odom_at = Some(now);
+    st.joint_states_at = Some(now);
+    let cmd = Twist {
+        linear: Vector3 {
+            x: v,
+            y: 0.0,
+            z: 0.0,
+        },
+        angular: Vector3 {
+            x: 0.0,
+            y: 0.0,
+            z: w,
+        },
+    };
+    n.handle(PredictorInput::Command(cmd), now, &mut |_| {});
+}
+
+/// Σ(T) = Φ Σ₀ Φᵀ for the unicycle at constant (v, ω) with uncertainty in x, y, yaw only:
+/// x(T) = x₀ + (v/ω)(sin(θ₀ + ωT) − sin θ₀), y(T) = y₀ − (v/ω)(cos(θ₀ + ωT) − cos θ₀),
+/// θ(T) = θ₀ + ωT, so Φ = [[1, 0, −Δy], [0, 1, Δx], [0, 0, 1]] over (x, y, yaw) in the odom
+/// frame. Rows/columns (x, y, yaw) ↦ REP-103 indices (0, 1, 5).
+fn unicycle_covariance(s0: [[f64; 3]; 3], (th0, v, w): (f64, f64, f64), t: f64) -> [[f64; 3]; 3] {
+    let dx = v / w * ((th0 + w * t).sin() - th0.sin());
+    let dy = -v / w * ((th0 + w * t).cos() - th0.cos());
+    let phi = [[1.0, 0.0, -dy], [0.0, 1.0, dx], [0.0, 0.0, 1.0]];
+    let mut out = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            out[i][j] = (0..3)
+                .flat_map(|a| (0..3).map(move |b| (a, b)))
+                .map(|(a, b)| phi[i][a] * s0[a][b] * phi[j][b])
+                .sum();
+        }
+    }
+    out
+}
+
+fn rep103(s: [[f64; 3]; 3]) -> [f64; 36] {
+    let idx = [0, 1, 5];
+    let mut c = [0.0; 36];
+    for a in 0..3 {
+        for b in 0..3 {
+            c[6 * idx[a] + idx[b]] = s[a][b];
+        }
+    }
+    c
+}
+
+/// A correlated, anisotropic odom-frame start covariance at yaw 0.3 rad, through the node's
+/// conversion (odom → base frame), the core's propagation and back: the predicted odometry's
+/// pose covariance is the unicycle's Φ Σ₀ Φᵀ at the horizon (1 s), entry by entry. The
+/// floors are set negligible (1e-9 → 1e-18 variance).
+#[test]
+fn predicted_pose_covariance_is_the_unicycle_closed_form() {
+    let mut n = node("stop");
+    n.params.node.covariance.position_floor = 1e-9;
+    n.params.node.covariance.orientation_floor = 1e-9;
+    let s0 = [
+        [0.01, 0.002, 0.001],
+        [0.002, 0.0064, -0.0005],
+        [0.001, -0.0005, 0.0025],
+    ];
+    let motion = (0.3, 0.5, 0.4);
+    let t0 = Time::from_nanos(5_000_000_000);
+    feed_state(&mut n, motion, rep103(s0), t0);
+    let out = tick(&mut n, t0);
+    let want = unicycle_covariance(s0, motion, 1.0);
+    let got = &out.odom.pose.covariance;
+    let idx = [0, 1, 5];
+    let mut worst: f64 = 0.0;
+    for a in 0..3 {
+        for b in 0..3 {
+            let g = got[6 * idx[a] + idx[b]];
+            worst = worst.max((g - want[a][b]).abs());
+        }
+    }
+    println!(
+        "|Σ − Φ Σ₀ Φᵀ| at 1 s: {worst:.3e} (var x {:.6e}), tick {:.1} ms",
+        got[0],
+        out.compute_s * 1e3
+    );
+    n.params.node.covariance.propagate = false;
+    let plain = tick(&mut n, t0);
+    println!(
+        "the same prediction without covariance: {:.1} ms",
+        plain.compute_s * 1e3
+    );
+    // Achieved 6e-7: the PI wheel controllers' tracking error moves Δx, Δy by ~0.1 mm.
+    assert!(
+        worst < 2e-6,
+        "|Σ − Φ Σ₀ Φᵀ| = {worst:e}: {got:?} vs {want:?}"
+    );
+    // z, roll, pitch carry the floors only.
+    assert!(got[14] < 1e-12 && got[21] < 1e-12 && got[28] < 1e-12);
+}
+
+/// `state.stale_behaviour: stop`: no prediction once the inputs are older than
+/// `state.timeout`, a WARN on `/diagnostics`, predictions again when they return. `warn`:
+/// predictions go on, with the start covariance grown by the process noise over the age.
+#[test]
+fn stale_inputs_stop_or_warn_and_recover() {
+    let mut n = node("stop");
+    let t0 = Time::from_nanos(5_000_000_000);
+    let s0 = [[0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.0025]];
+    let motion = (0.0, 0.5, 0.4);
+    feed_state(&mut n, motion, rep103(s0), t0);
+    let ticks = |n: &mut PredictorNode, dt: f64| {
+        let mut got = None;
+        n.tick(time_plus(t0, dt), &mut |o| got = Some(o)).unwrap();
+        got
+    };
+    assert!(ticks(&mut n, 0.45).is_some(), "0.45 s < timeout 0.5 s");
+    assert!(n.warnings().is_empty());
+    assert!(ticks(&mut n, 0.55).is_none(), "0.55 s > timeout: stopped");
+    let w = n.warnings();
+    assert!(
+        w.len() == 1 && w[0].contains("odom") && w[0].contains("predictions stopped"),
+        "{w:?}"
+    );
+    // Inputs return.
+    feed_state(&mut n, motion, rep103(s0), time_plus(t0, 0.9));
+    let fresh = ticks(&mut n, 0.95).expect("predicting again");
+    assert!(n.warnings().is_empty());
+
+    // warn, with acceleration noise 0.5 (m/s²)/√Hz on x: predictions go on, and the pose
+    // variance grows with the age.
+    let mut scene = n.robot.scene().clone();
+    let x = scene.model.v_names[0].clone();
+    scene.file.uncertainty.acceleration_noise.insert(x, 0.5);
+    let mut params = n.params.clone();
+    params.common.state.stale_behaviour = "warn".into();
+    let robot = Robot::from_scene(scene, &params.common).unwrap();
+    let mut n = PredictorNode::new(robot, params, NodeLog::new("test")).unwrap();
+    feed_state(&mut n, motion, rep103(s0), t0);
+    let young = ticks(&mut n, 0.1).unwrap();
+    let old = ticks(&mut n, 1.5).expect("warn: still predicting");
+    assert!(
+        n.warnings()[0].contains("covariance grown"),
+        "{:?}",
+        n.warnings()
+    );
+    let (vy, vo, vf) = (
+        young.odom.pose.covariance[0],
+        old.odom.pose.covariance[0],
+        fresh.odom.pose.covariance[0],
+    );
+    // The start's x variance alone grows by σ² (1.5³ − 0.1³)/3 = 0.281 m² from 0.1 to 1.5 s
+    // (its correlation with the velocity noise adds, the wheel controllers damp the latter).
+    println!("var x at the horizon: fresh {vf:.6}, age 0.1 s {vy:.6}, age 1.5 s {vo:.6}");
+    assert!(vo > vy + 0.25, "var x: age 1.5 s {vo}, 0.1 s {vy}");
+    assert!(vy > vf, "with noise {vy} vs without {vf}");
+}
+
+/// A joint-noise entry for a joint the model does not have is refused when the node is built,
+/// naming the parameter and the model's joints.
+#[test]
+fn joint_noise_for_an_unknown_joint_is_refused() {
+    let n = node("stop");
+    let mut params = n.params.clone();
+    params
+        .common
+        .state
+        .joint_noise
+        .joints
+        .insert("arm_elbow".into(), vec![0.001, 0.01]);
+    let robot = n.robot.clone();
+    let e = PredictorNode::new(robot, params, NodeLog::new("test"))
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        e.contains("state.joint_noise.joints.arm_elbow") && e.contains("left_wheel_joint"),
+        "{e}"
+    );
+}

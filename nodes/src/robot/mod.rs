@@ -4,6 +4,7 @@
 //!
 //! No ROS handles here: inputs and results are the plain message structs of [`crate::msg`].
 
+pub mod inputs;
 pub mod request;
 pub mod state;
 

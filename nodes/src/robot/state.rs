@@ -10,6 +10,7 @@ use constraint_dynamics::model::{BasePose, BaseTwist};
 use constraint_dynamics::{BaseType, Model};
 
 use crate::convert::unit_quaternion;
+use crate::covariance::check_odometry_covariance;
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::nav_msgs::Odometry;
@@ -26,6 +27,14 @@ pub struct StateEstimate {
     pub effort: Vec<f64>,
     /// Stamp of the last message applied.
     pub stamp: Option<Time>,
+    /// The last odometry's pose covariance (odom frame) and twist covariance (base frame),
+    /// REP-103 6×6 row-major; zero until one came.
+    pub odom_covariance: ([f64; 36], [f64; 36]),
+    /// When the last `JointState` / `Odometry` was applied, on the node's ROS clock (set by the
+    /// worker: a message's own stamp may come from another clock).
+    pub joint_states_at: Option<Time>,
+    /// See `joint_states_at`.
+    pub odom_at: Option<Time>,
     /// 1-DOF joint name → (q index, v index).
     joints: HashMap<String, (usize, usize)>,
     base: BaseType,
@@ -56,6 +65,9 @@ impl StateEstimate {
             v: v0.to_vec(),
             effort: vec![0.0; model.nv],
             stamp: None,
+            odom_covariance: ([0.0; 36], [0.0; 36]),
+            joint_states_at: None,
+            odom_at: None,
             joints,
             base: model.base,
         }
@@ -125,8 +137,8 @@ impl StateEstimate {
 
     /// Applies an `Odometry`: the base pose (header frame, e.g. odom) and twist (child frame,
     /// the base). A planar base takes x, y, yaw and vx, vy, wz; a floating base all six; a
-    /// fixed base ignores it. Refused when a used value is not finite or the orientation is
-    /// a zero quaternion.
+    /// fixed base ignores it. Refused when a used value is not finite, a used variance is
+    /// negative, or the orientation is a zero quaternion.
     pub fn apply_odometry(&mut self, model: &Model, od: &Odometry) -> Result<(), NodeError> {
         let p = &od.pose.pose;
         let t = &od.twist.twist;
@@ -146,12 +158,15 @@ impl StateEstimate {
         };
         finite("pose.position", &position)?;
         finite("twist", &[twist.linear, twist.angular].concat())?;
+        check_odometry_covariance(model.base, "pose", &od.pose.covariance)?;
+        check_odometry_covariance(model.base, "twist", &od.twist.covariance)?;
         let pose = BasePose {
             position,
             orientation_xyzw: unit_quaternion(&p.orientation)
                 .map_err(|e| NodeError::message("Odometry: pose.orientation", e.to_string()))?,
         };
         model.set_base(&pose, &twist, &mut self.q, &mut self.v);
+        self.odom_covariance = (od.pose.covariance, od.twist.covariance);
         self.stamp = Some(od.header.stamp);
         Ok(())
     }
@@ -172,5 +187,8 @@ impl StateEstimate {
             }
         }
         self.stamp = old.stamp;
+        self.odom_covariance = old.odom_covariance;
+        self.joint_states_at = old.joint_states_at;
+        self.odom_at = old.odom_at;
     }
 }
