@@ -363,6 +363,8 @@ fn run(opts: Opts) -> Result<(), QueryError> {
                             serde_json::json!({
                                 "reply": i + 1,
                                 "success": r.success,
+                                // Why, when success is false (a refusal is a reply too).
+                                "message": r.message,
                                 "samples": r.path.poses.len(),
                                 "forces": r.forces.len(),
                                 "payload_bytes": bytes,

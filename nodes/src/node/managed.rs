@@ -305,7 +305,18 @@ impl<N: RosWiring> Managed<N> {
         let (out_tx, outputs) = smol::channel::bounded::<N::Output>(16);
         let (diag_tx, statuses) = smol::channel::bounded::<(Time, DiagnosticStatus)>(4);
         let worker = WorkerHandle::spawn(logic, self.ros.name(), &self.fqn, out_tx, diag_tx)?;
-        *self.params.1.lock().map_err(|_| poisoned())? = Some(worker.sender());
+        {
+            // A set that arrived while the scene loaded changed `current` but had no worker to
+            // reach: hand the worker the parameters as they are now, under the lock the set
+            // action takes, so no acknowledged set is lost between the two.
+            let now = self.params.0.lock().map_err(|_| poisoned())?;
+            let sender = worker.sender();
+            if now.values != current.values {
+                let latest = NodeParams::<N::Params>::from_parameters(&now)?;
+                let _ = sender.send(Event::Params(Box::new(latest)));
+            }
+            *self.params.1.lock().map_err(|_| poisoned())? = Some(sender);
+        }
         let mut c = Configured {
             params,
             constraints,

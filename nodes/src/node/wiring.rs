@@ -154,10 +154,14 @@ pub fn start_node<N: RosWiring>(
             let mut c = current.lock().map_err(|e| e.to_string())?;
             let next =
                 NodeParams::<N::Params>::updated(&c, pname, value).map_err(|e| e.to_string())?;
-            c.values.insert(pname.to_string(), value.clone());
+            // A set is acknowledged only once the worker has it: with its queue full the set is
+            // refused (the caller can retry), never dropped after a success reply.
             if let Some(tx) = event_tx.lock().ok().and_then(|t| t.clone()) {
-                let _ = tx.try_send(Event::Params(Box::new(next)));
+                tx.try_send(Event::Params(Box::new(next))).map_err(|_| {
+                    format!("{pname}: the node is busy (request queue full); not set, try again")
+                })?;
             }
+            c.values.insert(pname.to_string(), value.clone());
             Ok(())
         }));
     }
