@@ -1,5 +1,6 @@
 //! Prediction: scene + initial state + commands over time + horizon → samples of q, v, λ (when
-//! asked), constraint residuals (position and velocity), energy and an error estimate.
+//! asked), constraint residuals (position and velocity), energy and a global error estimate of q
+//! (`estimate.rs`: Richardson against a companion run, every method).
 //!
 //! The integrators ([`Method`]) step on the configuration Lie group; drift is controlled per scene
 //! by Baumgarte terms (in the dynamics) or by projecting q and v back onto the constraints after
@@ -40,8 +41,8 @@ pub enum DriftControl {
     Projection,
 }
 
-/// `integration:` in a scene. Defaults: RK4, dt = 1 ms, projection, horizon 1 s, samples every
-/// 10 ms — accurate to ~1e-10 on the bundled scenes at a few µs per step.
+/// `integration:` in a scene. Defaults: RK4, dt = 1 ms, projection, horizon 1 s, max_error 1e-3
+/// on the global error estimate, samples every 10 ms — accurate to ~1e-10 on the bundled scenes at a few µs per step.
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct IntegrationSettings {
