@@ -173,6 +173,23 @@ pub enum Error {
         message: String,
     },
 
+    /// A prediction's global error estimate exceeded `integration.max_error`: the answer would
+    /// have fewer correct digits than asked for.
+    #[error(
+        "the integration error estimate {estimate:.3e} (m or rad) at t = {t} s exceeds \
+         integration.max_error = {max_error:e}: {hint}"
+    )]
+    ErrorEstimateExceeded {
+        /// Time of the first sample over the bound [s].
+        t: f64,
+        /// The estimate there [m or rad].
+        estimate: f64,
+        /// The bound in force [m or rad].
+        max_error: f64,
+        /// A step or tolerance that would meet the bound, from the method's order.
+        hint: String,
+    },
+
     /// The time step is beyond the method's stability limit or SDIRK2's Newton iteration failed.
     #[error("step too large: {message}")]
     StepTooLarge {

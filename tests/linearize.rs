@@ -198,6 +198,9 @@ fn linearized_step_is_the_predictors_step() {
             pred.settings.sample_period = DT;
             pred.settings.drift = DriftControl::None;
             pred.settings.rtol = 1e30; // DOPRI5 takes the first step as given
+            // One step compared with its linearization, whatever its accuracy (SIE's error
+            // estimate over this step is 3.7e-3 on the mobile manipulator).
+            pred.settings.max_error = f64::INFINITY;
             let traj = pred.predict(&scene.q0, &scene.v0, &[], DT).unwrap();
             let last = traj.samples.last().unwrap();
             linearize_step(

@@ -124,6 +124,9 @@ fn rolling_disk_energy_drift_matches_the_reference_run() {
         kd: 20.0,
     };
     p.settings.sample_period = 1e-4;
+    // The reference is a coarse first-order run, reproduced as it is: its global error passes
+    // the default max_error (1e-3) at t = 0.245 s, so the bound is off for this comparison.
+    p.settings.max_error = f64::INFINITY;
     let traj = p
         .predict(&q, &v, &[], chk["duration_s"].as_f64().unwrap())
         .unwrap();

@@ -81,6 +81,9 @@ fn sdirk2_stays_stable_on_stiff_springs_with_decaying_energy() {
     let mut p = predictor(&sc, Method::Sdirk2, 1e-4, DriftControl::None);
     p.forces = ForceElements::new(&p.sys.model, &spec).unwrap();
     p.settings.sample_period = 1e-3;
+    // Damping the unresolved stiff modes is the point: the answer has no correct digit in them,
+    // and its error estimate (1.4e-3 m at 4 ms) says so. This test checks stability.
+    p.settings.max_error = f64::INFINITY;
     let t = p.predict(&sc.q0, &sc.v0, &[], 0.2).unwrap();
     assert!(all_finite(&t));
     let e0 = energy(&t.samples[0]);
@@ -317,8 +320,8 @@ fn a_horizon_of_1e5_steps_keeps_the_drift_bounded_with_projection() {
 }
 
 /// Expected: a step far too large gives a typed error — `StepTooLarge` (before running, or when
-/// SDIRK2's Newton iteration fails) or `Diverged` (energy check, projection failure, state out of
-/// bounds) — never Ok, NaN or a panic: the pendulum with RK4 at dt = 0.5 s and SIE at 0.2 s, the
+/// SDIRK2's Newton iteration fails), `Diverged` (energy check, projection failure, state out of
+/// bounds) or `ErrorEstimateExceeded` (the global error estimate over max_error) — never Ok, NaN or a panic: the pendulum with RK4 at dt = 0.5 s and SIE at 0.2 s, the
 /// fourbar with RK4 at dt = 0.2 s, the stiff chain with SIE at dt = 0.01 s, the pendulum with
 /// SDIRK2 at dt = 2 s.
 #[test]
@@ -340,7 +343,11 @@ fn a_step_far_too_large_is_a_typed_error() {
         p.settings.sample_period = dt;
         let result = p.predict(&sc.q0, &sc.v0, &[], 40.0 * dt);
         match result {
-            Err(e @ (Error::StepTooLarge { .. } | Error::Diverged { .. })) => {
+            Err(
+                e @ (Error::StepTooLarge { .. }
+                | Error::Diverged { .. }
+                | Error::ErrorEstimateExceeded { .. }),
+            ) => {
                 println!("{rel} {method:?} dt {dt}: {e}")
             }
             Err(e) => panic!("{rel} {method:?} dt {dt}: unexpected error {e}"),

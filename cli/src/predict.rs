@@ -37,6 +37,13 @@ pub struct PredictArgs {
     /// Output sample period [s] (default: the scene's).
     #[arg(long)]
     sample_period: Option<f64>,
+    /// Bound on every sample's `error_estimate` [m or rad] (default: the scene's
+    /// integration.max_error, 1e-3; `inf`: no check).
+    #[arg(long)]
+    max_error: Option<f64>,
+    /// Refine dt or the tolerances and rerun when the estimate exceeds max_error.
+    #[arg(long)]
+    adapt: bool,
     /// Record the multipliers λ and the constraint forces in every sample.
     #[arg(long)]
     forces: bool,
@@ -112,6 +119,10 @@ pub fn run(a: PredictArgs) -> Result<Value> {
     if let Some(sp) = a.sample_period {
         p.settings.sample_period = sp;
     }
+    if let Some(e) = a.max_error {
+        p.settings.max_error = e;
+    }
+    p.settings.adapt |= a.adapt;
     p.settings.validate()?;
     p.want_forces = a.forces;
     let (q, v, tau) = super::state::load(&scene, a.state.as_deref())?;

@@ -101,3 +101,88 @@ fn quick_report_writes_csv_png_and_summary() {
     assert!(readme.contains("| a01_pendulum |") && readme.contains("high-precision bar"));
     let _ = std::fs::remove_dir_all(&out_dir);
 }
+
+/// Every bundled scene (params/*.yaml with a URDF, and the report's) predicts its default horizon
+/// with its own integration settings and the default max_error, and every sample carries a
+/// finite `error_estimate` within the bound.
+#[test]
+fn every_bundled_scene_predicts_within_the_default_max_error() {
+    let root = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
+    let mut scenes = vec![];
+    for dir in ["params", "params/report"] {
+        for e in std::fs::read_dir(root.join(dir)).unwrap() {
+            let p = e.unwrap().path();
+            let text = std::fs::read_to_string(&p).unwrap_or_default();
+            if p.extension().is_some_and(|x| x == "yaml") && text.contains("urdf:") {
+                scenes.push(format!(
+                    "{dir}/{}",
+                    p.file_name().unwrap().to_string_lossy()
+                ));
+            }
+        }
+    }
+    scenes.sort();
+    assert!(scenes.len() >= 15, "{scenes:?}");
+    for scene in &scenes {
+        let mut cmd = bin();
+        cmd.args(["predict", "--scene", scene]);
+        if scene.contains("spring_chain_stiff") {
+            // A report scene without `integration:`: RK4's default 1 ms is refused before
+            // running (stability limit 6.3e-4 s), as the report's sweeps expect.
+            cmd.args(["--dt", "1e-5"]);
+        }
+        let out = cmd.output().unwrap();
+        assert!(
+            out.status.success(),
+            "{scene}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+        let est: Vec<f64> = v["samples"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s["error_estimate"].as_f64().unwrap())
+            .collect();
+        let worst = est.iter().fold(0.0f64, |m, x| m.max(*x));
+        println!(
+            "{scene}: {} samples, largest error_estimate {worst:.2e}",
+            est.len()
+        );
+        assert!(est.iter().all(|x| x.is_finite() && *x <= 1e-3), "{scene}");
+    }
+}
+
+/// `--max-error` below what the run achieves stops it with the typed error (non-zero exit, the
+/// message names the time, the estimate and a dt); `--adapt` meets the same bound.
+#[test]
+fn predict_max_error_stops_or_adapts() {
+    let args = [
+        "predict",
+        "--scene",
+        "params/pendulum_a01.yaml",
+        "--horizon",
+        "1",
+        "--method",
+        "semi_implicit_euler",
+        "--max-error",
+        "1e-4",
+    ];
+    let out = bin().args(args).output().unwrap();
+    assert!(!out.status.success());
+    let msg = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        msg.contains("error estimate") && msg.contains("at t = ") && msg.contains("dt = "),
+        "{msg}"
+    );
+    let out = bin().args(args).arg("--adapt").output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["refinements"].as_u64().unwrap() >= 1);
+    let last = v["samples"].as_array().unwrap().last().unwrap();
+    assert!(last["error_estimate"].as_f64().unwrap() <= 1e-4);
+}

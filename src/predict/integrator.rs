@@ -26,6 +26,17 @@ pub enum Method {
 }
 
 impl Method {
+    /// Order of the global error (error ∝ dt^p for fixed steps); DOPRI5's is that of its
+    /// propagated solution.
+    pub fn order(self) -> u32 {
+        match self {
+            Method::SemiImplicitEuler => 1,
+            Method::Rk4 => 4,
+            Method::Dopri5 => 5,
+            Method::Sdirk2 => 2,
+        }
+    }
+
     /// Explicit methods' stability limit of dt·|λ| on the imaginary axis (oscillators).
     pub fn explicit_stability_limit(self) -> Option<f64> {
         match self {
@@ -118,14 +129,19 @@ pub struct StepWorkspace {
     /// Embedded error vector (Θ, Δv) of the last DOPRI5 step (2nv).
     pub err: Vec<f64>,
     /// SDIRK2: ∂k/∂(Θ, v) by finite differences, its LU (I − dt γ ∂k/∂x), pivots, residual.
+    /// `jac` is kept across steps while Newton converges (`jac_valid`); `newton` is refactored
+    /// from it when dt moves by more than rounding (`newton_dt`).
     jac: DMatrix<f64>,
     newton: DMatrix<f64>,
     piv: Vec<usize>,
     resid: Vec<f64>,
     a0: Vec<f64>,
     ap: Vec<f64>,
-    /// dt of the factor in `newton`; NaN when the Jacobian must be recomputed.
+    /// dt of the factor in `newton`.
     newton_dt: f64,
+    /// `jac` may be used (false: recompute it at the next step).
+    jac_valid: bool,
+    /// `jac` was computed at this step's start state (a Newton failure is then final).
     jac_fresh: bool,
 }
 
@@ -147,12 +163,14 @@ impl StepWorkspace {
             a0: vec![0.0; nv],
             ap: vec![0.0; nv],
             newton_dt: f64::NAN,
+            jac_valid: false,
             jac_fresh: false,
         }
     }
 
     /// Forget the SDIRK2 Jacobian (a new run, or the state jumped).
     pub fn invalidate(&mut self) {
+        self.jac_valid = false;
         self.newton_dt = f64::NAN;
     }
 
@@ -301,12 +319,16 @@ fn sdirk2_jacobian<F: Accel>(
         }
     }
     ws.jac_fresh = true;
+    ws.jac_valid = true;
     Ok(())
 }
 
 /// Alexander's L-stable SDIRK2 (γ = 1 − 1/√2) with a simplified Newton iteration on
-/// `(I − dt γ ∂k/∂x) δ = k(x) − k`. The Jacobian (finite differences of q̈) and its LU are kept
-/// from step to step while Newton converges and dt is unchanged, and refreshed otherwise.
+/// `(I − dt γ ∂k/∂x) δ = k(x) − k`. The Jacobian (finite differences of q̈, 2nv evaluations) is
+/// kept from step to step while Newton converges in ≤ 6 iterations and recomputed at the step's
+/// start state when Newton fails or slows down; a dt that differs by more than rounding
+/// (relative 1e-6: sample spans of slightly different length) only refactors the matrix, which
+/// costs no evaluation. Issue 13: comparing dt bit for bit refreshed the Jacobian at most steps.
 pub fn sdirk2_step<F: Accel>(
     f: &mut F,
     model: &Model,
@@ -318,19 +340,20 @@ pub fn sdirk2_step<F: Accel>(
 ) -> Result<()> {
     let g = 1.0 - std::f64::consts::FRAC_1_SQRT_2;
     f.accel(t, q, v, &mut ws.a0)?;
-    if ws.newton_dt != dt {
+    ws.jac_fresh = false;
+    if !ws.jac_valid {
         sdirk2_jacobian(f, model, t, q, v, ws)?;
         factor_newton(ws, dt * g)?;
         ws.newton_dt = dt;
-    } else {
-        ws.jac_fresh = false;
+    } else if (dt - ws.newton_dt).abs() > 1e-6 * ws.newton_dt {
+        factor_newton(ws, dt * g)?;
+        ws.newton_dt = dt;
     }
     loop {
         match sdirk2_stages(f, model, t, dt, q, v, ws) {
             Ok(iterations) => {
-                if iterations > 6 {
-                    ws.newton_dt = f64::NAN; // slow convergence: a fresh Jacobian next step
-                }
+                // Slow convergence: a fresh Jacobian next step.
+                ws.jac_valid = iterations <= 6;
                 break;
             }
             Err(e) if ws.jac_fresh => return Err(e),
@@ -338,6 +361,7 @@ pub fn sdirk2_step<F: Accel>(
                 // A stale Jacobian: refresh it at this state and try once more.
                 sdirk2_jacobian(f, model, t, q, v, ws)?;
                 factor_newton(ws, dt * g)?;
+                ws.newton_dt = dt;
             }
         }
     }

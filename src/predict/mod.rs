@@ -1,12 +1,15 @@
 //! Prediction: scene + initial state + commands over time + horizon → samples of q, v, λ (when
-//! asked), constraint residuals (position and velocity), energy and an error estimate.
+//! asked), constraint residuals (position and velocity), energy and a global error estimate of q
+//! (`estimate.rs`: Richardson against a companion run, every method).
 //!
 //! The integrators ([`Method`]) step on the configuration Lie group; drift is controlled per scene
 //! by Baumgarte terms (in the dynamics) or by projecting q and v back onto the constraints after
 //! every step ([`drift`]). Force elements and actuators come from the scene.
 
+mod advance;
 mod covariance;
 pub mod drift;
+mod estimate;
 mod guard;
 mod integrator;
 mod lie;
@@ -38,8 +41,8 @@ pub enum DriftControl {
     Projection,
 }
 
-/// `integration:` in a scene. Defaults: RK4, dt = 1 ms, projection, horizon 1 s, samples every
-/// 10 ms — accurate to ~1e-10 on the bundled scenes at a few µs per step.
+/// `integration:` in a scene. Defaults: RK4, dt = 1 ms, projection, horizon 1 s, max_error 1e-3
+/// on the global error estimate, samples every 10 ms — accurate to ~1e-10 on the bundled scenes at a few µs per step.
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct IntegrationSettings {
@@ -83,6 +86,19 @@ pub struct IntegrationSettings {
     /// evaluations × (bodies + Σ depth² of the coordinates), see `limits::evaluation_cost`.
     #[serde(default = "default_max_work")]
     pub max_work: f64,
+    /// `max_error:` bound on the global error estimate of q [m or rad] (every sample's
+    /// `error_estimate`, see `estimate.rs`; default 1e-3, `.inf` turns the check off): a run
+    /// over it stops with `Error::ErrorEstimateExceeded` naming a step or tolerance that meets it.
+    #[serde(default = "default_max_error")]
+    pub max_error: f64,
+    /// `adapt:` when the estimate exceeds `max_error`, refine dt (fixed-step methods) or the
+    /// tolerances (dopri5) from the method's order and rerun, at most 4 times (default false).
+    #[serde(default)]
+    pub adapt: bool,
+}
+
+fn default_max_error() -> f64 {
+    1e-3
 }
 
 fn default_max_steps() -> f64 {
@@ -132,6 +148,8 @@ impl Default for IntegrationSettings {
             max_steps: default_max_steps(),
             max_samples: default_max_samples(),
             max_work: default_max_work(),
+            max_error: default_max_error(),
+            adapt: false,
         }
     }
 }
@@ -160,6 +178,12 @@ impl IntegrationSettings {
             return Err(crate::Error::Invalid(format!(
                 "integration.max_energy_error = {} must be positive (.inf: no check)",
                 self.max_energy_error
+            )));
+        }
+        if self.max_error.is_nan() || self.max_error <= 0.0 {
+            return Err(crate::Error::Invalid(format!(
+                "integration.max_error = {} must be positive (.inf: no check)",
+                self.max_error
             )));
         }
         if !(self.horizon.is_finite() && self.horizon >= 0.0) {

@@ -48,11 +48,11 @@ impl Predictor {
             ),
             None => (None, None, None, None),
         };
-        let energies = [ke, pe, position_residual, velocity_residual];
+        let energies = [ke, pe, position_residual, velocity_residual, err];
         if let Some((what, x)) = [
             ("q", q),
             ("v", v),
-            ("energies and residuals", &energies[..]),
+            ("energies, residuals and error estimate", &energies[..]),
         ]
         .into_iter()
         .find(|(_, x)| x.iter().any(|y| !y.is_finite()))

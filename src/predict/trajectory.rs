@@ -38,9 +38,9 @@ pub struct Sample {
     pub kinetic_energy: f64,
     /// Gravity + spring potential energy [J].
     pub potential_energy: f64,
-    /// Accumulated local error estimate of the configuration [m or rad] (dopri5), NaN otherwise
-    /// (then left out of the JSON: a NaN would print as `null`, which the CLI refuses).
-    #[serde(skip_serializing_if = "is_nan")]
+    /// Estimate of the global integration error of q at this time [m or rad]: the largest entry
+    /// of the tangent-space difference from the exact solution of the integrated equations
+    /// (Richardson against a companion run, `predict/estimate.rs`), every method; finite.
     pub error_estimate: f64,
     /// Propagated covariance of (δq, δv), 2nv × 2nv row-major, tangent space (δq a right
     /// perturbation, velocity order) [m², rad², (m/s)², …], when a start covariance was given.
@@ -49,15 +49,10 @@ pub struct Sample {
 }
 
 impl Sample {
-    /// The configuration's error estimate at this sample [m or rad]: the integrator's
-    /// accumulated local error (0 for methods without one) plus the holonomic residual.
+    /// The configuration's error estimate at this sample [m or rad]: the integration error
+    /// estimate plus the holonomic residual.
     pub fn position_error_estimate(&self) -> f64 {
-        let integration = if self.error_estimate.is_finite() {
-            self.error_estimate
-        } else {
-            0.0
-        };
-        integration + self.position_residual
+        self.error_estimate + self.position_residual
     }
 }
 
@@ -78,6 +73,13 @@ pub struct Trajectory {
     pub v_names: Vec<String>,
     /// Integration method used.
     pub method: Method,
+    /// Step [s] (fixed-step methods) and relative tolerance (dopri5) of this run: the scene's,
+    /// or the refined ones after `integration.adapt` reran it.
+    pub dt: f64,
+    /// See `dt`.
+    pub rtol: f64,
+    /// Reruns with a refined step or tolerance (`integration.adapt`).
+    pub refinements: usize,
     /// Output samples, one every sample period over the horizon.
     pub samples: Vec<Sample>,
     /// Accepted steps and right-hand-side evaluations.
@@ -87,10 +89,8 @@ pub struct Trajectory {
     /// Evaluations where the constraint accelerations were inconsistent (at or next to a singular
     /// configuration) and were met in the least-squares sense instead.
     pub least_squares_evaluations: usize,
+    /// Evaluations of the error estimate's companion run (not in `evaluations`).
+    pub estimate_evaluations: usize,
     /// CPU (wall) time of the integration [s].
     pub run_time_s: f64,
-}
-
-fn is_nan(x: &f64) -> bool {
-    x.is_nan()
 }
