@@ -77,7 +77,7 @@ fn a01_estimate_brackets_the_closed_form_error() {
             let last = t.samples.last().unwrap();
             assert!((last.t - A01_HORIZON).abs() < 1e-12);
             let truth = (last.q[0] - q_exact).abs();
-            check_row("A01, 3 s", method, x, truth, last.error_estimate);
+            check_row("A01, 3 s", method, x, truth, last.error_estimate.unwrap());
         }
     }
 }
@@ -129,7 +129,7 @@ fn stiff_chain_estimate_brackets_the_modal_error() {
     for (method, xs) in sweeps {
         for x in xs {
             let (t, truth) = chain_run(k, method, x, 0.05);
-            let e = t.samples.last().unwrap().error_estimate;
+            let e = t.samples.last().unwrap().error_estimate.unwrap();
             check_row("stiff chain 1e4–1e6 N/m, 0.05 s", method, x, truth, e);
         }
     }
@@ -143,7 +143,7 @@ fn very_stiff_chain_sdirk2_estimate_brackets_the_modal_error() {
     let k = [1e6, 1e7, 1e8, 1e7, 1e6];
     for dt in [1e-3, 1e-4, 1e-5, 2.5e-6] {
         let (t, truth) = chain_run(k, Method::Sdirk2, dt, 0.01);
-        let e = t.samples.last().unwrap().error_estimate;
+        let e = t.samples.last().unwrap().error_estimate.unwrap();
         check_row(
             "very stiff chain 1e6–1e8 N/m, 0.01 s",
             Method::Sdirk2,
@@ -184,10 +184,10 @@ fn max_error_stops_with_a_typed_error_naming_a_step_that_meets_it() {
     let last = t.samples.last().unwrap();
     println!(
         "with the hint's dt = {dt:e}: estimate {:.2e}, true error {:.2e}",
-        last.error_estimate,
+        last.error_estimate.unwrap(),
         (last.q[0] - q_exact).abs()
     );
-    assert!(last.error_estimate <= 1e-3);
+    assert!(last.error_estimate.unwrap() <= 1e-3);
     assert!((last.q[0] - q_exact).abs() <= 1e-3);
 }
 
@@ -213,13 +213,47 @@ fn adapt_refines_until_the_bound_is_met() {
         println!(
             "adapt {method:?} from {x:e} to max_error {bound:e}: {} refinements → dt {:e}, rtol \
              {:e}; estimate {:.2e}, true error {truth:.2e}",
-            t.refinements, t.dt, t.rtol, last.error_estimate
+            t.refinements,
+            t.dt,
+            t.rtol,
+            last.error_estimate.unwrap()
         );
         assert!(t.refinements >= 1);
-        assert!(t.samples.iter().all(|s| s.error_estimate <= bound));
+        assert!(t.samples.iter().all(|s| s.error_estimate.unwrap() <= bound));
         assert!(
             truth <= bound,
             "{method:?}: true error {truth:e} over {bound:e}"
         );
     }
+}
+
+/// `error_estimate: false` skips the companion only: the answer is the same to the bit, no sample
+/// carries an estimate, and the evaluations are the answer's alone.
+#[test]
+fn without_the_estimate_the_answer_is_unchanged_and_cheaper() {
+    let sc = scene("params/pendulum_a01.yaml");
+    for (method, x) in [
+        (Method::SemiImplicitEuler, 1e-3),
+        (Method::Rk4, 1e-2),
+        (Method::Sdirk2, 1e-3),
+        (Method::Dopri5, 1e-8),
+    ] {
+        let with = predictor(&sc, method, x)
+            .predict(&sc.q0, &sc.v0, &[], 3.0)
+            .unwrap();
+        let mut p = predictor(&sc, method, x);
+        p.settings.error_estimate = false;
+        let without = p.predict(&sc.q0, &sc.v0, &[], 3.0).unwrap();
+        assert_eq!(with.samples.len(), without.samples.len());
+        for (a, b) in with.samples.iter().zip(&without.samples) {
+            assert_eq!((&a.q, &a.v), (&b.q, &b.v), "{method:?} at t = {}", a.t);
+            assert!(a.error_estimate.is_some() && b.error_estimate.is_none());
+        }
+        assert_eq!(with.evaluations, without.evaluations);
+        assert!(with.estimate_evaluations > 0 && without.estimate_evaluations == 0);
+    }
+    let mut p = predictor(&sc, Method::Rk4, 1e-2);
+    p.settings.error_estimate = false;
+    p.settings.adapt = true;
+    assert!(p.settings.validate().is_err(), "adapt needs the estimate");
 }

@@ -20,7 +20,11 @@ fn prediction_allocations(p: &mut Predictor, sc: &Scene, horizon: f64) -> usize 
     assert_eq!(t.samples.len(), 2);
     // The companion ran (its evaluations counted) and gave a finite estimate.
     assert!(t.estimate_evaluations > 0);
-    assert!(t.samples.iter().all(|s| s.error_estimate.is_finite()));
+    assert!(
+        t.samples
+            .iter()
+            .all(|s| s.error_estimate.is_some_and(f64::is_finite))
+    );
     n
 }
 

@@ -44,6 +44,10 @@ pub struct PredictArgs {
     /// Refine dt or the tolerances and rerun when the estimate exceeds max_error.
     #[arg(long)]
     adapt: bool,
+    /// Skip the error estimate's companion run (about 2× fewer evaluations); samples then have
+    /// no `error_estimate` and max_error is not checked.
+    #[arg(long)]
+    no_error_estimate: bool,
     /// Record the multipliers λ and the constraint forces in every sample.
     #[arg(long)]
     forces: bool,
@@ -123,6 +127,9 @@ pub fn run(a: PredictArgs) -> Result<Value> {
         p.settings.max_error = e;
     }
     p.settings.adapt |= a.adapt;
+    if a.no_error_estimate {
+        p.settings.error_estimate = false;
+    }
     p.settings.validate()?;
     p.want_forces = a.forces;
     let (q, v, tau) = super::state::load(&scene, a.state.as_deref())?;

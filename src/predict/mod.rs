@@ -95,6 +95,16 @@ pub struct IntegrationSettings {
     /// tolerances (dopri5) from the method's order and rerun, at most 4 times (default false).
     #[serde(default)]
     pub adapt: bool,
+    /// `error_estimate:` run the error estimate's companion (default true; estimate.rs). It
+    /// costs about 2× more evaluations; `false` is for callers that bound the error otherwise
+    /// (planner rollouts, a step already validated on the scene): samples then carry no
+    /// `error_estimate` and `max_error` / `adapt` cannot act.
+    #[serde(default = "default_true")]
+    pub error_estimate: bool,
+}
+
+fn default_true() -> bool {
+    true
 }
 
 fn default_max_error() -> f64 {
@@ -150,6 +160,7 @@ impl Default for IntegrationSettings {
             max_work: default_max_work(),
             max_error: default_max_error(),
             adapt: false,
+            error_estimate: true,
         }
     }
 }
@@ -185,6 +196,12 @@ impl IntegrationSettings {
                 "integration.max_error = {} must be positive (.inf: no check)",
                 self.max_error
             )));
+        }
+        if self.adapt && !self.error_estimate {
+            return Err(crate::Error::Invalid(
+                "integration.adapt needs integration.error_estimate: true (it acts on the estimate)"
+                    .into(),
+            ));
         }
         if !(self.horizon.is_finite() && self.horizon >= 0.0) {
             return Err(crate::Error::Invalid(format!(

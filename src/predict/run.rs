@@ -258,7 +258,13 @@ impl Predictor {
                 &mut self.ws.tau_act,
             );
         }
-        let first = self.sample(0.0, &lanes[0].q, &lanes[0].v, 0.0, opts.forces)?;
+        let first = self.sample(
+            0.0,
+            &lanes[0].q,
+            &lanes[0].v,
+            s.error_estimate.then_some(0.0),
+            opts.forces,
+        )?;
         let springs = self
             .forces
             .potential_energy(&self.sys.model, &self.sys.data, &lanes[0].q);
@@ -283,21 +289,25 @@ impl Predictor {
                 let (answer, comp) = lanes.split_at_mut(1);
                 let work = comp[0].evaluations;
                 let largest = self.advance(&mut answer[0], None, work, (t, t_end), s)?;
-                let work = answer[0].evaluations;
-                let cap = Some(0.5 * largest);
-                self.advance(&mut comp[0], cap, work, (t, t_end), companion)
-                    .map_err(companion_error)?;
+                if s.error_estimate {
+                    let work = answer[0].evaluations;
+                    let cap = Some(0.5 * largest);
+                    self.advance(&mut comp[0], cap, work, (t, t_end), companion)
+                        .map_err(companion_error)?;
+                }
                 t = t_end;
                 if t >= next_sample - 1e-9 || t >= horizon - 1e-12 {
                     let [a, c] = &*lanes;
-                    let e = estimate::estimate(&self.model, &a.q, &c.q, factor, &mut self.ws.diff);
+                    let e = s.error_estimate.then(|| {
+                        estimate::estimate(&self.model, &a.q, &c.q, factor, &mut self.ws.diff)
+                    });
                     let sample = self.sample(t, &a.q, &a.v, e, opts.forces)?;
                     let springs =
                         self.forces
                             .potential_energy(&self.sys.model, &self.sys.data, &a.q);
                     guard.check(&sample, springs, a.steps, s)?;
                     traj.samples.push(sample);
-                    if e > s.max_error {
+                    if let Some(e) = e.filter(|&e| e > s.max_error) {
                         return Err(estimate::exceeded(s, e, t, horizon));
                     }
                     while next_sample <= t + 1e-9 {

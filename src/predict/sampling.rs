@@ -13,7 +13,7 @@ impl Predictor {
         t: f64,
         q: &[f64],
         v: &[f64],
-        err: f64,
+        err: Option<f64>,
         forces: bool,
     ) -> Result<Sample> {
         let sys = &mut self.sys;
@@ -48,7 +48,13 @@ impl Predictor {
             ),
             None => (None, None, None, None),
         };
-        let energies = [ke, pe, position_residual, velocity_residual, err];
+        let energies = [
+            ke,
+            pe,
+            position_residual,
+            velocity_residual,
+            err.unwrap_or(0.0),
+        ];
         if let Some((what, x)) = [
             ("q", q),
             ("v", v),

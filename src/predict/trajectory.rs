@@ -40,8 +40,10 @@ pub struct Sample {
     pub potential_energy: f64,
     /// Estimate of the global integration error of q at this time [m or rad]: the largest entry
     /// of the tangent-space difference from the exact solution of the integrated equations
-    /// (Richardson against a companion run, `predict/estimate.rs`), every method; finite.
-    pub error_estimate: f64,
+    /// (Richardson against a companion run, `predict/estimate.rs`), every method; finite. None
+    /// when `integration.error_estimate` is false.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_estimate: Option<f64>,
     /// Propagated covariance of (δq, δv), 2nv × 2nv row-major, tangent space (δq a right
     /// perturbation, velocity order) [m², rad², (m/s)², …], when a start covariance was given.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -50,9 +52,9 @@ pub struct Sample {
 
 impl Sample {
     /// The configuration's error estimate at this sample [m or rad]: the integration error
-    /// estimate plus the holonomic residual.
+    /// estimate (0 when none was made) plus the holonomic residual.
     pub fn position_error_estimate(&self) -> f64 {
-        self.error_estimate + self.position_residual
+        self.error_estimate.unwrap_or(0.0) + self.position_residual
     }
 }
 
