@@ -14,7 +14,7 @@ use crate::algorithm::{Data, bias_forces_after_kinematics, crba_after_kinematics
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
 use crate::linalg::{
-    cholesky_in_place, cholesky_solve, independent_columns, ltl_factor, ltl_solve_l, ltl_solve_lt,
+    MinNormSolver, cholesky_in_place, cholesky_solve, ltl_factor, ltl_solve_l, ltl_solve_lt,
     mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
 };
 use crate::model::MIN_PIVOT_RATIO;
@@ -55,6 +55,8 @@ pub struct KktWorkspace {
     pub allow_inconsistent: bool,
     /// Part of r outside range(S) at the last rank-deficient solve (0 when consistent).
     pub inconsistency: f64,
+    /// The rank-deficient path's workspace.
+    min_norm: MinNormSolver,
 }
 
 impl KktWorkspace {
@@ -76,6 +78,7 @@ impl KktWorkspace {
             augmented: false,
             allow_inconsistent: false,
             inconsistency: 0.0,
+            min_norm: MinNormSolver::new(nv, nc),
         }
     }
 }
@@ -242,32 +245,37 @@ fn solve_kkt(
     Ok(())
 }
 
-/// Minimum-norm λ of the singular S λ = r (allocates; off the regular path).
-///
-/// Column-pivoted QR of Y = W⁻¹Jᵀ picks a maximal independent set I of rows (‖r_kk‖ above
-/// `RANK_TOL_Y` relative). r is projected onto range(S) = span S[:, I] (the part outside it is
-/// the rows' inconsistency: an error above 1e-7 relative, rounding below); S_II λ_I = r̂_I gives
-/// one solution λ₀ (λ_D = 0), and the minimum-norm one is λ₀ minus its projection on
-/// null(S) = span{e_d − S_II⁻¹ S_Id}: together λ = S⁺ r, smooth in the state.
+/// Minimum-norm λ = S⁺ r of the singular S λ = r (`linalg::MinNormSolver`: the columns of
+/// Y = W⁻¹Jᵀ whose QR pivot is above `RANK_TOL_Y` relative are the independent rows). The part of
+/// r outside range(S) is the rows' inconsistency: an error above 1e-7 relative (unless
+/// `allow_inconsistent`), rounding below. λ = S⁺ r varies smoothly with the state whichever
+/// independent set was picked. Allocation-free (only the error message allocates).
 fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
     let nc = set.nrows;
+    // S was overwritten by the failed Cholesky.
     ws.y.tr_mul_to(&ws.y, &mut ws.s);
-    let ind = independent_columns(&ws.y, RANK_TOL_Y);
-    let dep: Vec<usize> = (0..nc).filter(|k| !ind.contains(k)).collect();
-    // Project r onto range(S) = span S[:, I] (unique, whichever independent set was picked, so
-    // λ varies smoothly with the state); what is left over is the inconsistency of the rows.
-    let s_cols = ws.s.select_columns(ind.iter());
-    let gram = (s_cols.transpose() * &s_cols).cholesky().ok_or_else(|| {
-        Error::InconsistentConstraints {
+    let rank = ws
+        .min_norm
+        .solve(
+            &ws.y,
+            &ws.s,
+            ws.r.as_slice(),
+            RANK_TOL_Y,
+            ws.lambda.as_mut_slice(),
+        )
+        .ok_or_else(|| Error::InconsistentConstraints {
             message: "the independent constraint rows are numerically singular".into(),
+        })?;
+    let (mut worst, mut inconsistency) = (0, 0.0);
+    for k in 0..nc {
+        let d = (ws.r[k] - ws.min_norm.r_hat[k]).abs();
+        if d > inconsistency {
+            (worst, inconsistency) = (k, d);
         }
-    })?;
-    let r_hat = &s_cols * gram.solve(&(s_cols.transpose() * &ws.r));
-    let inconsistency = (&ws.r - &r_hat).amax();
+    }
     ws.inconsistency = inconsistency;
     let scale = ws.r.amax().max(1.0);
     if inconsistency > 1e-7 * scale && !ws.allow_inconsistent {
-        let worst = (&ws.r - &r_hat).iamax();
         let name = set
             .ranges
             .iter()
@@ -275,41 +283,12 @@ fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
             .map(|k| set.names[k].clone());
         return Err(Error::InconsistentConstraints {
             message: format!(
-                "the constraint accelerations cannot all be met (rank {} of {nc}; largest \
+                "the constraint accelerations cannot all be met (rank {rank} of {nc}; largest \
                  violation {inconsistency:.3e} on a row of '{}')",
-                ind.len(),
                 name.unwrap_or_default()
             ),
         });
     }
-    let s_ii = ws.s.select_rows(ind.iter()).select_columns(ind.iter());
-    let chol = s_ii
-        .cholesky()
-        .ok_or_else(|| Error::InconsistentConstraints {
-            message: "the independent constraint rows are numerically singular".into(),
-        })?;
-    let lam_i = chol.solve(&r_hat.select_rows(ind.iter()));
-    let mut lambda = DVector::zeros(nc);
-    for (a, &k) in ind.iter().enumerate() {
-        lambda[k] = lam_i[a];
-    }
-    if !dep.is_empty() {
-        let s_id = ws.s.select_rows(ind.iter()).select_columns(dep.iter());
-        let w = chol.solve(&s_id);
-        let mut n = DMatrix::zeros(nc, dep.len());
-        for (b, &d) in dep.iter().enumerate() {
-            n[(d, b)] = 1.0;
-            for (a, &k) in ind.iter().enumerate() {
-                n[(k, b)] = -w[(a, b)];
-            }
-        }
-        let ntn = n.transpose() * &n;
-        let coef = ntn.cholesky().map(|c| c.solve(&(n.transpose() * &lambda)));
-        if let Some(coef) = coef {
-            lambda -= &n * coef;
-        }
-    }
-    ws.lambda.copy_from(&lambda);
-    ws.rank_deficiency = dep.len();
+    ws.rank_deficiency = nc - rank;
     Ok(())
 }
