@@ -4,7 +4,7 @@
 //! S = Yᵀ Y = J M⁻¹ Jᵀ (nc × nc):
 //!   q̈_free = M⁻¹ (τ − h),  S λ = b − J q̈_free,  q̈ = q̈_free + W⁻ᵀ Y λ,
 //! where b = −γ − K_d J v − K_p φ. Redundant or singular constraint sets (S singular) are solved
-//! with the minimum-norm λ from S's eigen-decomposition and the rank deficiency is reported; a right
+//! with the minimum-norm λ = S⁺ r (`linalg::MinNormSolver`) and the rank deficiency is reported; a right
 //! side outside range(S) means the constraints have no solution, an error. When M itself is only
 //! positive semi-definite (a massless link whose motion the constraints fix, like the seed's rod)
 //! the augmented matrix M + ρ JᵀJ replaces M and ρ Jᵀb joins the right side: same q̈ and λ.
@@ -23,8 +23,10 @@ use nalgebra::{DMatrix, DVector};
 
 /// Relative threshold below which a Cholesky pivot of S counts as zero.
 const RANK_TOL: f64 = 1e-12;
-/// The same threshold on Y = L⁻¹Jᵀ (singular values of Y are square roots of S's eigenvalues).
-const RANK_TOL_Y: f64 = 1e-6;
+/// The rank-deficient path's threshold on the pivots of S = YᵀY relative to max diag(S): a row
+/// whose part outside the span of the others is below 1e-6 of the longest column of Y is
+/// dependent (singular values of Y are square roots of S's eigenvalues).
+const RANK_TOL_PIVOT: f64 = 1e-12;
 
 /// Workspace and results of the multiplier form (allocated once per model and constraint set).
 #[derive(Clone, Debug)]
@@ -78,7 +80,7 @@ impl KktWorkspace {
             augmented: false,
             allow_inconsistent: false,
             inconsistency: 0.0,
-            min_norm: MinNormSolver::new(nv, nc),
+            min_norm: MinNormSolver::new(nc),
         }
     }
 }
@@ -245,27 +247,21 @@ fn solve_kkt(
     Ok(())
 }
 
-/// Minimum-norm λ = S⁺ r of the singular S λ = r (`linalg::MinNormSolver`: the columns of
-/// Y = W⁻¹Jᵀ whose QR pivot is above `RANK_TOL_Y` relative are the independent rows). The part of
-/// r outside range(S) is the rows' inconsistency: an error above 1e-7 relative (unless
+/// Minimum-norm λ = S⁺ r of the singular S λ = r (`linalg::MinNormSolver`: pivoted Cholesky
+/// of S, rows whose pivot is above `RANK_TOL_PIVOT` relative are independent). The part of r
+/// outside range(S) is the rows' inconsistency: an error above 1e-7 relative (unless
 /// `allow_inconsistent`), rounding below. λ = S⁺ r varies smoothly with the state whichever
 /// independent set was picked. Allocation-free (only the error message allocates).
 fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
     let nc = set.nrows;
     // S was overwritten by the failed Cholesky.
     ws.y.tr_mul_to(&ws.y, &mut ws.s);
-    let rank = ws
-        .min_norm
-        .solve(
-            &ws.y,
-            &ws.s,
-            ws.r.as_slice(),
-            RANK_TOL_Y,
-            ws.lambda.as_mut_slice(),
-        )
-        .ok_or_else(|| Error::InconsistentConstraints {
-            message: "the independent constraint rows are numerically singular".into(),
-        })?;
+    let rank = ws.min_norm.solve(
+        &ws.s,
+        ws.r.as_slice(),
+        RANK_TOL_PIVOT,
+        ws.lambda.as_mut_slice(),
+    );
     let (mut worst, mut inconsistency) = (0, 0.0);
     for k in 0..nc {
         let d = (ws.r[k] - ws.min_norm.r_hat[k]).abs();
