@@ -69,6 +69,7 @@ impl System {
         let data = Data::new(&model);
         let cdata = ConstraintData::new(&model, &constraints);
         let kkt = KktWorkspace::new(&model, &constraints);
+        let embedded = EmbeddedWorkspace::new(&model, &constraints);
         Self {
             model,
             constraints,
@@ -77,7 +78,7 @@ impl System {
             data,
             cdata,
             kkt,
-            embedded: EmbeddedWorkspace::default(),
+            embedded,
             last_formulation: Formulation::Multipliers,
         }
     }

@@ -121,12 +121,12 @@ fn derivatives_do_not_allocate() {
 fn step_linearization_does_not_allocate() {
     use constraint_dynamics::predict::{Linearization, Method, linearize_step};
     use constraint_dynamics::{Scene, System};
-    // Full-rank scenes: with dependent rows (the wheeled bases) the multiplier solve's
-    // minimum-norm path still allocates (issue 16), and so would this.
+    // Full-rank scenes and a wheeled base whose rolling rows are dependent (minimum-norm λ).
     for file in [
         "params/fourbar.yaml",
         "params/double_fourbar.yaml",
         "params/pendulum_a01.yaml",
+        "params/mobile_manipulator.yaml",
     ] {
         let scene = Scene::load(repo_dir().join(file)).unwrap();
         let mut sys = System::from_scene(&scene).unwrap();

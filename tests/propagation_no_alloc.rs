@@ -1,9 +1,12 @@
 //! The stepping loop allocates nothing: with a counting allocator, a prediction with 4× the steps
 //! (and the same samples) makes exactly as many allocations — every method, with projection, on a
-//! constrained scene (fourbar, full-rank loop) and with force elements (stiff chain). The error
-//! estimate's companion run (two lanes sized once) is part of every prediction, so it is covered.
+//! constrained scene (fourbar, full-rank loop) and with force elements (stiff chain); and RK4 with
+//! projection in both formulations on the rank-deficient and rolling scenes (diff drive, mobile
+//! manipulator, rolling disk). The error estimate's companion run (two lanes sized once) is part
+//! of every prediction, so it is covered.
 
 use constraint_dynamics::Scene;
+use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::predict::{DriftControl, Method, Predictor};
 use std::path::PathBuf;
 
@@ -61,6 +64,36 @@ fn stepping_allocates_nothing_per_step() {
                 4.0 * h
             );
             assert_eq!(short, long, "{rel} {method:?}: the steps allocate");
+        }
+    }
+}
+
+#[test]
+fn stepping_allocates_nothing_per_step_on_rolling_scenes() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    for rel in [
+        "params/report/diff_drive_coasting.yaml",
+        "params/mobile_manipulator.yaml",
+        "params/report/rolling_disk.yaml",
+    ] {
+        let sc = Scene::load(root.join(rel)).unwrap();
+        for formulation in [Formulation::Multipliers, Formulation::Embedded] {
+            let mut p = Predictor::from_scene(&sc).unwrap();
+            p.sys.formulation = formulation;
+            p.settings.method = Method::Rk4;
+            p.settings.dt = 1e-3;
+            p.settings.drift = DriftControl::Projection;
+            let h = 0.05;
+            prediction_allocations(&mut p, &sc, h); // warm-up
+            let (short, long) = (
+                prediction_allocations(&mut p, &sc, h),
+                prediction_allocations(&mut p, &sc, 4.0 * h),
+            );
+            println!(
+                "{rel} {formulation:?}: {short} allocations over {h} s, {long} over {} s",
+                4.0 * h
+            );
+            assert_eq!(short, long, "{rel} {formulation:?}: the steps allocate");
         }
     }
 }

@@ -226,6 +226,14 @@ impl ConstraintSet {
     /// evaluated where it is undefined, e.g. √ at 0 in its derivative), as an error naming
     /// the constraint.
     pub fn check_finite(&self, cd: &ConstraintData) -> Result<()> {
+        // The hot loop's case in one contiguous pass; the row is located only on failure.
+        let finite = |x: &f64| x.is_finite();
+        if [cd.j.as_slice(), cd.gamma.as_slice(), cd.jv.as_slice()]
+            .iter()
+            .all(|s| s.iter().all(finite))
+        {
+            return Ok(());
+        }
         for (k, rg) in self.ranges.iter().enumerate() {
             for r in rg.clone() {
                 let bad = !(cd.gamma[r].is_finite() && cd.jv[r].is_finite())

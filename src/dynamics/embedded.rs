@@ -9,157 +9,176 @@
 //! `velocity` constraint names under `dependent:`; those are also solved from f(q, v, t) = 0 by
 //! Newton before anything else (seed 001, eq. 2: v_d is a function of q, v_i, t), so the
 //! equations are evaluated where f = 0 exactly (`EmbeddedWorkspace::solved_velocities`).
-//! This path allocates: it serves when nobody asks for constraint forces, not in the
-//! allocation-free loop.
+//! Every buffer lives in the [`EmbeddedWorkspace`]: a solve allocates nothing once the workspace
+//! is sized ([`EmbeddedWorkspace::new`], or grown by the first solve), except on
+//! `velocity_determined` rows, whose B comes as a list.
 
 use super::Baumgarte;
-use crate::algorithm::{Data, crba, nonlinear_effects};
+use super::partition::{Partition, PartitionWorkspace, partition_into};
+use crate::algorithm::{Data, bias_forces_after_kinematics, crba_after_kinematics};
 use crate::constraints::{Constraint, ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
-use crate::linalg::independent_columns;
+use crate::linalg::{cholesky_in_place, cholesky_solve, lu_in_place, lu_solve};
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 
-/// The coordinate partition chosen from J: independent and dependent velocity indices.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Partition {
-    /// Independent velocity indices (v_i).
-    pub independent: Vec<usize>,
-    /// Dependent velocity indices (v_d = B v_i).
-    pub dependent: Vec<usize>,
-    /// Rows of J kept (independent rows).
-    pub rows: Vec<usize>,
-}
-
-/// Workspace of the embedded form.
+/// Workspace of the embedded form: the partition, N and every intermediate (sizes nv, nc).
 #[derive(Clone, Debug, Default)]
 pub struct EmbeddedWorkspace {
     /// The partition used at the last solve.
     pub partition: Partition,
-    /// N (nv × (nv − r)).
-    pub n: DMatrix<f64>,
     /// q̈ (nv).
     pub qdd: DVector<f64>,
+    partition_ws: PartitionWorkspace,
+    /// (row, velocity) of each `velocity` constraint naming a dependent velocity; those
+    /// velocities (the preferred dependent columns).
+    declared: Vec<(usize, usize)>,
+    preferred: Vec<usize>,
+    /// v with the declared dependent velocities solved from f = 0 (valid when `solved`).
+    v_solved: Vec<f64>,
+    solved: bool,
+    /// N (leading nv × ni), N_B for velocity-determined rows, M N, the reduced matrix (ni × ni).
+    n: DMatrix<f64>,
+    nb: DMatrix<f64>,
+    mn: DMatrix<f64>,
+    reduced: DMatrix<f64>,
+    /// J_d (r × r) and its LU pivots (also Newton's matrix on the declared velocities).
+    jd: DMatrix<f64>,
+    piv: Vec<usize>,
+    /// b (nc), q̈_p (nv), τ − h − M q̈_p (nv), one column (nc), the reduced unknowns (nv).
+    b: Vec<f64>,
+    qdd_p: Vec<f64>,
+    rhs: Vec<f64>,
+    col: Vec<f64>,
+    z: Vec<f64>,
+}
+
+impl EmbeddedWorkspace {
+    /// Size every buffer for the model (nv) and constraint set (nc).
+    pub fn new(model: &Model, set: &ConstraintSet) -> Self {
+        let mut ws = Self::default();
+        ws.fit(model.nv, set.nrows);
+        ws
+    }
+
     /// The v the last solve used when the scene names dependent velocities: the given v with
     /// those solved from f = 0 (None otherwise).
-    pub solved_velocities: Option<Vec<f64>>,
-}
-
-/// Choose the partition at the current J.
-pub fn partition(j: &DMatrix<f64>) -> Partition {
-    partition_preferring(j, &[])
-}
-
-/// Choose the partition at the current J, taking the `preferred` velocity columns (the scene's
-/// `dependent:`) as dependent first where they are independent, and completing with the
-/// best-conditioned of the others (column-pivoted QR of their part outside the span of the
-/// preferred columns).
-pub fn partition_preferring(j: &DMatrix<f64>, preferred: &[usize]) -> Partition {
-    let nv = j.ncols();
-    let rows = independent_columns(&j.transpose(), 1e-10);
-    let jr = j.select_rows(rows.iter());
-    let mut dependent: Vec<usize> = if preferred.is_empty() {
-        vec![]
-    } else {
-        let jp = jr.select_columns(preferred.iter());
-        independent_columns(&jp, 1e-10)
-            .iter()
-            .map(|&k| preferred[k])
-            .collect()
-    };
-    if dependent.len() < rows.len() {
-        let others: Vec<usize> = (0..nv).filter(|c| !dependent.contains(c)).collect();
-        let mut rest = jr.select_columns(others.iter());
-        if !dependent.is_empty() {
-            let u = jr.select_columns(dependent.iter()).qr().q();
-            rest -= &u * (u.transpose() * &rest);
-        }
-        let more = independent_columns(&rest, 1e-10);
-        let need = rows.len() - dependent.len();
-        dependent.extend(more.iter().take(need).map(|&k| others[k]));
+    pub fn solved_velocities(&self) -> Option<&[f64]> {
+        self.solved.then_some(self.v_solved.as_slice())
     }
-    dependent.sort();
-    let independent = (0..nv).filter(|c| !dependent.contains(c)).collect();
-    let mut rows = rows;
-    rows.sort();
-    Partition {
-        independent,
-        dependent,
-        rows,
+
+    /// Grow the buffers to nv, nc (a no-op once sized).
+    fn fit(&mut self, nv: usize, nc: usize) {
+        if self.qdd.len() == nv && self.b.len() == nc {
+            return;
+        }
+        let r = nc.min(nv);
+        self.partition = Partition {
+            independent: Vec::with_capacity(nv),
+            dependent: Vec::with_capacity(nv),
+            rows: Vec::with_capacity(nc),
+        };
+        self.qdd = DVector::zeros(nv);
+        self.partition_ws = PartitionWorkspace::new(nc, nv);
+        self.declared = Vec::with_capacity(nc);
+        self.preferred = Vec::with_capacity(nc);
+        self.v_solved = vec![0.0; nv];
+        self.n = DMatrix::zeros(nv, nv);
+        self.nb = DMatrix::zeros(nv, nv);
+        self.mn = DMatrix::zeros(nv, nv);
+        self.reduced = DMatrix::zeros(nv, nv);
+        self.jd = DMatrix::zeros(nc.max(r), nc.max(r));
+        self.piv = vec![0; nc.max(nv)];
+        self.b = vec![0.0; nc];
+        self.qdd_p = vec![0.0; nv];
+        self.rhs = vec![0.0; nv];
+        self.col = vec![0.0; nc.max(nv)];
+        self.z = vec![0.0; nv];
     }
 }
 
 /// The `velocity` rows whose constraint names a dependent velocity: (row, velocity index).
-fn declared_dependents(set: &ConstraintSet) -> Vec<(usize, usize)> {
-    set.items
-        .iter()
-        .zip(&set.ranges)
-        .filter_map(|(c, rg)| match c {
-            Constraint::Velocity(vc) => vc.dependent.map(|d| (rg.start, d)),
-            _ => None,
-        })
-        .collect()
+fn declared_dependents(set: &ConstraintSet, out: &mut Vec<(usize, usize)>) {
+    out.clear();
+    out.extend(
+        set.items
+            .iter()
+            .zip(&set.ranges)
+            .filter_map(|(c, rg)| match c {
+                Constraint::Velocity(vc) => vc.dependent.map(|d| (rg.start, d)),
+                _ => None,
+            }),
+    );
 }
 
 /// The seed's eq. (2): the declared dependent velocities solved from f(q, v_i, v_d, t) = 0 by
-/// Newton's method, the other velocities held. Returns the corrected v (None when nothing is
-/// declared). Leaves `cd` evaluated at the corrected state.
-#[allow(clippy::too_many_arguments)]
+/// Newton's method, the other velocities held, into `ws.v_solved` (`ws.solved` false when
+/// nothing is declared). Leaves `cd` evaluated at the corrected state.
 fn solve_dependent_velocities(
     model: &Model,
     data: &mut Data,
     set: &ConstraintSet,
     cd: &mut ConstraintData,
-    decl: &[(usize, usize)],
+    ws: &mut EmbeddedWorkspace,
     q: &[f64],
     v: &[f64],
-) -> Result<Option<Vec<f64>>> {
+) -> Result<()> {
+    ws.solved = false;
+    let decl = &ws.declared;
     if decl.is_empty() {
-        return Ok(None);
+        return Ok(());
     }
-    let mut v = v.to_vec();
+    let v_s = &mut ws.v_solved;
+    v_s.copy_from_slice(v);
     let n = decl.len();
-    let name = |r: usize| {
-        let k = set
-            .ranges
-            .iter()
-            .position(|rg| rg.contains(&r))
-            .unwrap_or(0);
-        set.names[k].clone()
+    let names = || {
+        decl.iter()
+            .map(|&(r, _)| {
+                let k = set
+                    .ranges
+                    .iter()
+                    .position(|rg| rg.contains(&r))
+                    .unwrap_or(0);
+                set.names[k].clone()
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
     };
     for _ in 0..NEWTON_ITERATIONS {
-        set.evaluate(model, data, cd, q, &v);
+        set.evaluate(model, data, cd, q, v_s);
         set.check_finite(cd)?;
-        let f = DVector::from_fn(n, |a, _| cd.jv[decl[a].0]);
-        let scale = decl.iter().map(|&(_, d)| v[d].abs()).fold(1.0, f64::max);
-        if f.amax() <= NEWTON_TOL * scale {
-            return Ok(Some(v));
+        let f = &mut ws.col[..n];
+        for (a, &(row, _)) in decl.iter().enumerate() {
+            f[a] = cd.jv[row];
         }
-        let a = DMatrix::from_fn(n, n, |i, k| cd.j[(decl[i].0, decl[k].1)]);
-        let step = a
-            .lu()
-            .solve(&f)
-            .ok_or_else(|| Error::InconsistentConstraints {
+        let scale = decl.iter().map(|&(_, d)| v_s[d].abs()).fold(1.0, f64::max);
+        if f.iter().fold(0.0f64, |m, x| m.max(x.abs())) <= NEWTON_TOL * scale {
+            ws.solved = true;
+            return Ok(());
+        }
+        for (i, &(row, _)) in decl.iter().enumerate() {
+            for (k, &(_, d)) in decl.iter().enumerate() {
+                ws.jd[(i, k)] = cd.j[(row, d)];
+            }
+        }
+        if !lu_in_place(&mut ws.jd, &mut ws.piv[..n]) {
+            return Err(Error::InconsistentConstraints {
                 message: format!(
                     "∂f/∂(dependent velocities) is singular at this state (constraints: {})",
-                    decl.iter()
-                        .map(|&(r, _)| name(r))
-                        .collect::<Vec<_>>()
-                        .join(", ")
+                    names()
                 ),
-            })?;
+            });
+        }
+        lu_solve(&ws.jd, &ws.piv[..n], f);
         for (i, &(_, d)) in decl.iter().enumerate() {
-            v[d] -= step[i];
+            v_s[d] -= f[i];
         }
     }
     Err(Error::InconsistentConstraints {
         message: format!(
             "Newton's method found no dependent velocities satisfying f = 0 in \
              {NEWTON_ITERATIONS} iterations (constraints: {})",
-            decl.iter()
-                .map(|&(r, _)| name(r))
-                .collect::<Vec<_>>()
-                .join(", ")
+            names()
         ),
     })
 }
@@ -170,7 +189,7 @@ const NEWTON_ITERATIONS: usize = 30;
 const NEWTON_TOL: f64 = 1e-14;
 
 /// q̈ of the constrained system without multipliers (into `ws.qdd`); `ws.partition` is chosen
-/// afresh unless `keep_partition` and it still has the right rank.
+/// afresh at every call from the current J.
 #[allow(clippy::too_many_arguments)]
 pub fn embedded_forward_dynamics(
     model: &Model,
@@ -183,95 +202,158 @@ pub fn embedded_forward_dynamics(
     tau: &[f64],
     stab: Baumgarte,
 ) -> Result<()> {
+    let (nv, nc) = (model.nv, set.nrows);
+    ws.fit(nv, nc);
     // Dependent velocities the scene names are functions of the others (eq. 2): solve them
     // from f first, so the equations below hold at a state that satisfies f = 0 exactly.
-    let decl = declared_dependents(set);
-    let corrected = solve_dependent_velocities(model, data, set, cd, &decl, q, v)?;
-    let v = corrected.as_deref().unwrap_or(v);
+    declared_dependents(set, &mut ws.declared);
+    solve_dependent_velocities(model, data, set, cd, ws, q, v)?;
+    // Taken out of the workspace while it is borrowed below (no allocation), put back after.
+    let v_solved = std::mem::take(&mut ws.v_solved);
+    let v = if ws.solved { v_solved.as_slice() } else { v };
+    let result = solve(model, data, set, cd, ws, q, v, tau, stab);
+    ws.v_solved = v_solved;
+    result
+}
+
+#[allow(clippy::too_many_arguments)]
+fn solve(
+    model: &Model,
+    data: &mut Data,
+    set: &ConstraintSet,
+    cd: &mut ConstraintData,
+    ws: &mut EmbeddedWorkspace,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    stab: Baumgarte,
+) -> Result<()> {
+    let (nv, nc) = (model.nv, set.nrows);
+    // One kinematics pass at (q, v, q̈ = 0) serves the constraints, M and h.
     set.evaluate(model, data, cd, q, v);
     set.check_finite(cd)?;
-    crba(model, data, q);
-    nonlinear_effects(model, data, q, v);
-    let nv = model.nv;
-    let b_full = DVector::from_fn(set.nrows, |k, _| {
-        -cd.gamma[k] - stab.kd * cd.jv[k] - stab.kp * cd.phi[k]
-    });
-    let preferred: Vec<usize> = decl.iter().map(|&(_, d)| d).collect();
-    ws.partition = partition_preferring(&cd.j, &preferred);
+    crba_after_kinematics(model, data);
+    bias_forces_after_kinematics(model, data);
+    for k in 0..nc {
+        ws.b[k] = -cd.gamma[k] - stab.kd * cd.jv[k] - stab.kp * cd.phi[k];
+    }
+    ws.preferred.clear();
+    ws.preferred.extend(ws.declared.iter().map(|&(_, d)| d));
+    partition_into(
+        &cd.j,
+        &ws.preferred,
+        &mut ws.partition_ws,
+        &mut ws.partition,
+    );
     let p = &ws.partition;
-    let jr = cd.j.select_rows(p.rows.iter());
-    let br = b_full.select_rows(p.rows.iter());
-    let jd = jr.select_columns(p.dependent.iter());
-    let ji = jr.select_columns(p.independent.iter());
-    let lu = jd.clone().lu();
     let (nd, ni) = (p.dependent.len(), p.independent.len());
-    let bmat = if nd > 0 {
-        -lu.solve(&ji).ok_or_else(|| singular(set))?
-    } else {
-        DMatrix::zeros(0, ni)
-    };
-    let qdd_d0 = if nd > 0 {
-        lu.solve(&br).ok_or_else(|| singular(set))?
-    } else {
-        DVector::zeros(0)
-    };
-    // The dropped rows must be satisfied too (consistency of redundant constraints).
-    let mut n = DMatrix::zeros(nv, ni);
-    let mut qdd_p = DVector::zeros(nv);
-    for (a, &c) in p.independent.iter().enumerate() {
-        n[(c, a)] = 1.0;
-    }
-    for (k, &c) in p.dependent.iter().enumerate() {
-        for a in 0..ni {
-            n[(c, a)] = bmat[(k, a)];
+    // J_d (rows kept × dependent columns) factored; B = −J_d⁻¹ J_i into N's dependent rows,
+    // q̈_d0 = J_d⁻¹ b_r into q̈_p.
+    for (a, &r) in p.rows.iter().enumerate() {
+        for (k, &c) in p.dependent.iter().enumerate() {
+            ws.jd[(a, k)] = cd.j[(r, c)];
         }
-        qdd_p[c] = qdd_d0[k];
     }
-    let resid = &cd.j * &qdd_p - &b_full;
-    if resid.amax() > 1e-7 * b_full.amax().max(1.0) {
+    if nd > 0 && !lu_in_place(&mut ws.jd, &mut ws.piv[..nd]) {
+        return Err(singular(set));
+    }
+    ws.qdd_p.iter_mut().for_each(|x| *x = 0.0);
+    for a in 0..ni {
+        for c in 0..nv {
+            ws.n[(c, a)] = 0.0;
+        }
+    }
+    for (a, &c) in p.independent.iter().enumerate() {
+        ws.n[(c, a)] = 1.0;
+        if nd > 0 {
+            let col = &mut ws.col[..nd];
+            for (k, &r) in p.rows.iter().enumerate() {
+                col[k] = -cd.j[(r, c)];
+            }
+            lu_solve(&ws.jd, &ws.piv[..nd], col);
+            for (k, &d) in p.dependent.iter().enumerate() {
+                ws.n[(d, a)] = col[k];
+            }
+        }
+    }
+    if nd > 0 {
+        let col = &mut ws.col[..nd];
+        for (k, &r) in p.rows.iter().enumerate() {
+            col[k] = ws.b[r];
+        }
+        lu_solve(&ws.jd, &ws.piv[..nd], col);
+        for (k, &d) in p.dependent.iter().enumerate() {
+            ws.qdd_p[d] = col[k];
+        }
+    }
+    // The dropped rows must be satisfied too (consistency of redundant constraints).
+    let (mut resid, mut bmax) = (0.0f64, 0.0f64);
+    for k in 0..nc {
+        let jq: f64 = (0..nv).map(|c| cd.j[(k, c)] * ws.qdd_p[c]).sum();
+        resid = resid.max((jq - ws.b[k]).abs());
+        bmax = bmax.max(ws.b[k].abs());
+    }
+    if resid > 1e-7 * bmax.max(1.0) {
         return Err(Error::InconsistentConstraints {
-            message: format!("redundant constraint rows disagree by {:.3e}", resid.amax()),
+            message: format!("redundant constraint rows disagree by {resid:.3e}"),
         });
     }
     let m = &data.mass_matrix;
-    let rhs_full = DVector::from_fn(nv, |i, _| tau[i] - data.tau[i]) - m * &qdd_p;
+    for i in 0..nv {
+        let mq: f64 = (0..nv).map(|c| m[(i, c)] * ws.qdd_p[c]).sum();
+        ws.rhs[i] = tau[i] - data.tau[i] - mq;
+    }
+    // M N (nv × ni).
+    for a in 0..ni {
+        for i in 0..nv {
+            ws.mn[(i, a)] = (0..nv).map(|c| m[(i, c)] * ws.n[(c, a)]).sum();
+        }
+    }
     // Chetaev: the virtual displacements are N δv_i (NᵀJᵀ = 0, NᵀMN symmetric positive
     // definite). Velocity-determined rows project on N_B instead (seed eq. 10 with eq. 6's B),
     // and N_Bᵀ M N is not symmetric.
-    let z = match velocity_determined_projection(set, cd, p, &n, q, v)? {
-        None => (n.transpose() * m * &n)
-            .cholesky()
-            .ok_or_else(|| Error::SingularMass {
-                message: "the reduced mass matrix NᵀMN is not positive definite".into(),
-            })?
-            .solve(&(n.transpose() * rhs_full)),
-        Some(nb) => (nb.transpose() * m * &n)
-            .lu()
-            .solve(&(nb.transpose() * rhs_full))
-            .ok_or_else(|| Error::SingularMass {
+    let projected = velocity_determined_projection(set, cd, ws, q, v)?;
+    let test = if projected { &ws.nb } else { &ws.n };
+    for a in 0..ni {
+        for b in 0..ni {
+            ws.reduced[(a, b)] = (0..nv).map(|c| test[(c, a)] * ws.mn[(c, b)]).sum();
+        }
+        ws.z[a] = (0..nv).map(|c| test[(c, a)] * ws.rhs[c]).sum();
+    }
+    let z = &mut ws.z[..ni];
+    if !projected {
+        cholesky_in_place(&mut ws.reduced, ni, 0.0).map_err(|_| Error::SingularMass {
+            message: "the reduced mass matrix NᵀMN is not positive definite".into(),
+        })?;
+        cholesky_solve(&ws.reduced, ni, z);
+    } else {
+        if !lu_in_place(&mut ws.reduced, &mut ws.piv[..ni]) {
+            return Err(Error::SingularMass {
                 message: "the reduced matrix N_BᵀMN of the velocity-determined form is singular"
                     .into(),
-            })?,
-    };
-    ws.qdd = &n * z + qdd_p;
-    ws.n = n;
-    ws.solved_velocities = corrected;
+            });
+        }
+        lu_solve(&ws.reduced, &ws.piv[..ni], z);
+    }
+    for i in 0..nv {
+        ws.qdd[i] = ws.qdd_p[i] + (0..ni).map(|a| ws.n[(i, a)] * z[a]).sum::<f64>();
+    }
     Ok(())
 }
 
-/// N with the rows of velocity-determined constraints' dependent velocities replaced by the
-/// seed's B (eq. 6, `VelocityConstraint::velocity_determined_b`); None when there are none.
-/// Row d of N is Chetaev's −(∂f/∂v_α)/(∂f/∂v_d) only when d appears in no other row and f's
-/// other velocities are independent; other cases are refused by name.
+/// Fill `ws.nb`, N with the rows of velocity-determined constraints' dependent velocities
+/// replaced by the seed's B (eq. 6, `VelocityConstraint::velocity_determined_b`); false when
+/// there are none. Row d of N is Chetaev's −(∂f/∂v_α)/(∂f/∂v_d) only when d appears in no other
+/// row and f's other velocities are independent; other cases are refused by name.
 fn velocity_determined_projection(
     set: &ConstraintSet,
     cd: &ConstraintData,
-    p: &Partition,
-    n: &DMatrix<f64>,
+    ws: &mut EmbeddedWorkspace,
     q: &[f64],
     v: &[f64],
-) -> Result<Option<DMatrix<f64>>> {
-    let mut nb: Option<DMatrix<f64>> = None;
+) -> Result<bool> {
+    let p = &ws.partition;
+    let mut any = false;
     for (k, c) in set.items.iter().enumerate() {
         let Constraint::Velocity(vc) = c else {
             continue;
@@ -301,8 +383,11 @@ fn velocity_determined_projection(
                 name: set.names[k].clone(),
                 message: format!("velocity-determined B: {m}"),
             })?;
-        let nbm = nb.get_or_insert_with(|| n.clone());
-        nbm.row_mut(d).fill(0.0);
+        if !any {
+            ws.nb.copy_from(&ws.n);
+            any = true;
+        }
+        ws.nb.row_mut(d).fill(0.0);
         for (alpha, b_alpha) in b {
             let a = p
                 .independent
@@ -311,10 +396,10 @@ fn velocity_determined_projection(
                 .ok_or_else(|| {
                     unsupported("another velocity of f is dependent in the embedded partition")
                 })?;
-            nbm[(d, a)] = b_alpha;
+            ws.nb[(d, a)] = b_alpha;
         }
     }
-    Ok(nb)
+    Ok(any)
 }
 
 fn singular(set: &ConstraintSet) -> Error {

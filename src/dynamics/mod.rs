@@ -10,11 +10,13 @@
 
 mod embedded;
 mod multipliers;
+mod partition;
 
-pub use embedded::{
-    EmbeddedWorkspace, Partition, embedded_forward_dynamics, partition, partition_preferring,
-};
+pub use embedded::{EmbeddedWorkspace, embedded_forward_dynamics};
 pub use multipliers::{KktWorkspace, constrained_forward_dynamics};
+pub use partition::{
+    Partition, PartitionWorkspace, partition, partition_into, partition_preferring,
+};
 
 use serde::{Deserialize, Serialize};
 

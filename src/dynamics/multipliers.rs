@@ -4,7 +4,7 @@
 //! S = Yᵀ Y = J M⁻¹ Jᵀ (nc × nc):
 //!   q̈_free = M⁻¹ (τ − h),  S λ = b − J q̈_free,  q̈ = q̈_free + W⁻ᵀ Y λ,
 //! where b = −γ − K_d J v − K_p φ. Redundant or singular constraint sets (S singular) are solved
-//! with the minimum-norm λ from S's eigen-decomposition and the rank deficiency is reported; a right
+//! with the minimum-norm λ = S⁺ r (`linalg::MinNormSolver`) and the rank deficiency is reported; a right
 //! side outside range(S) means the constraints have no solution, an error. When M itself is only
 //! positive semi-definite (a massless link whose motion the constraints fix, like the seed's rod)
 //! the augmented matrix M + ρ JᵀJ replaces M and ρ Jᵀb joins the right side: same q̈ and λ.
@@ -14,7 +14,7 @@ use crate::algorithm::{Data, bias_forces_after_kinematics, crba_after_kinematics
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
 use crate::linalg::{
-    cholesky_in_place, cholesky_solve, independent_columns, ltl_factor, ltl_solve_l, ltl_solve_lt,
+    MinNormSolver, cholesky_in_place, cholesky_solve, ltl_factor, ltl_solve_l, ltl_solve_lt,
     mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
 };
 use crate::model::MIN_PIVOT_RATIO;
@@ -23,8 +23,10 @@ use nalgebra::{DMatrix, DVector};
 
 /// Relative threshold below which a Cholesky pivot of S counts as zero.
 const RANK_TOL: f64 = 1e-12;
-/// The same threshold on Y = L⁻¹Jᵀ (singular values of Y are square roots of S's eigenvalues).
-const RANK_TOL_Y: f64 = 1e-6;
+/// The rank-deficient path's threshold on the pivots of S = YᵀY relative to max diag(S): a row
+/// whose part outside the span of the others is below 1e-6 of the longest column of Y is
+/// dependent (singular values of Y are square roots of S's eigenvalues).
+const RANK_TOL_PIVOT: f64 = 1e-12;
 
 /// Workspace and results of the multiplier form (allocated once per model and constraint set).
 #[derive(Clone, Debug)]
@@ -55,6 +57,8 @@ pub struct KktWorkspace {
     pub allow_inconsistent: bool,
     /// Part of r outside range(S) at the last rank-deficient solve (0 when consistent).
     pub inconsistency: f64,
+    /// The rank-deficient path's workspace.
+    min_norm: MinNormSolver,
 }
 
 impl KktWorkspace {
@@ -76,6 +80,7 @@ impl KktWorkspace {
             augmented: false,
             allow_inconsistent: false,
             inconsistency: 0.0,
+            min_norm: MinNormSolver::new(nc),
         }
     }
 }
@@ -242,32 +247,31 @@ fn solve_kkt(
     Ok(())
 }
 
-/// Minimum-norm λ of the singular S λ = r (allocates; off the regular path).
-///
-/// Column-pivoted QR of Y = W⁻¹Jᵀ picks a maximal independent set I of rows (‖r_kk‖ above
-/// `RANK_TOL_Y` relative). r is projected onto range(S) = span S[:, I] (the part outside it is
-/// the rows' inconsistency: an error above 1e-7 relative, rounding below); S_II λ_I = r̂_I gives
-/// one solution λ₀ (λ_D = 0), and the minimum-norm one is λ₀ minus its projection on
-/// null(S) = span{e_d − S_II⁻¹ S_Id}: together λ = S⁺ r, smooth in the state.
+/// Minimum-norm λ = S⁺ r of the singular S λ = r (`linalg::MinNormSolver`: pivoted Cholesky
+/// of S, rows whose pivot is above `RANK_TOL_PIVOT` relative are independent). The part of r
+/// outside range(S) is the rows' inconsistency: an error above 1e-7 relative (unless
+/// `allow_inconsistent`), rounding below. λ = S⁺ r varies smoothly with the state whichever
+/// independent set was picked. Allocation-free (only the error message allocates).
 fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
     let nc = set.nrows;
+    // S was overwritten by the failed Cholesky.
     ws.y.tr_mul_to(&ws.y, &mut ws.s);
-    let ind = independent_columns(&ws.y, RANK_TOL_Y);
-    let dep: Vec<usize> = (0..nc).filter(|k| !ind.contains(k)).collect();
-    // Project r onto range(S) = span S[:, I] (unique, whichever independent set was picked, so
-    // λ varies smoothly with the state); what is left over is the inconsistency of the rows.
-    let s_cols = ws.s.select_columns(ind.iter());
-    let gram = (s_cols.transpose() * &s_cols).cholesky().ok_or_else(|| {
-        Error::InconsistentConstraints {
-            message: "the independent constraint rows are numerically singular".into(),
+    let rank = ws.min_norm.solve(
+        &ws.s,
+        ws.r.as_slice(),
+        RANK_TOL_PIVOT,
+        ws.lambda.as_mut_slice(),
+    );
+    let (mut worst, mut inconsistency) = (0, 0.0);
+    for k in 0..nc {
+        let d = (ws.r[k] - ws.min_norm.r_hat[k]).abs();
+        if d > inconsistency {
+            (worst, inconsistency) = (k, d);
         }
-    })?;
-    let r_hat = &s_cols * gram.solve(&(s_cols.transpose() * &ws.r));
-    let inconsistency = (&ws.r - &r_hat).amax();
+    }
     ws.inconsistency = inconsistency;
     let scale = ws.r.amax().max(1.0);
     if inconsistency > 1e-7 * scale && !ws.allow_inconsistent {
-        let worst = (&ws.r - &r_hat).iamax();
         let name = set
             .ranges
             .iter()
@@ -275,41 +279,12 @@ fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
             .map(|k| set.names[k].clone());
         return Err(Error::InconsistentConstraints {
             message: format!(
-                "the constraint accelerations cannot all be met (rank {} of {nc}; largest \
+                "the constraint accelerations cannot all be met (rank {rank} of {nc}; largest \
                  violation {inconsistency:.3e} on a row of '{}')",
-                ind.len(),
                 name.unwrap_or_default()
             ),
         });
     }
-    let s_ii = ws.s.select_rows(ind.iter()).select_columns(ind.iter());
-    let chol = s_ii
-        .cholesky()
-        .ok_or_else(|| Error::InconsistentConstraints {
-            message: "the independent constraint rows are numerically singular".into(),
-        })?;
-    let lam_i = chol.solve(&r_hat.select_rows(ind.iter()));
-    let mut lambda = DVector::zeros(nc);
-    for (a, &k) in ind.iter().enumerate() {
-        lambda[k] = lam_i[a];
-    }
-    if !dep.is_empty() {
-        let s_id = ws.s.select_rows(ind.iter()).select_columns(dep.iter());
-        let w = chol.solve(&s_id);
-        let mut n = DMatrix::zeros(nc, dep.len());
-        for (b, &d) in dep.iter().enumerate() {
-            n[(d, b)] = 1.0;
-            for (a, &k) in ind.iter().enumerate() {
-                n[(k, b)] = -w[(a, b)];
-            }
-        }
-        let ntn = n.transpose() * &n;
-        let coef = ntn.cholesky().map(|c| c.solve(&(n.transpose() * &lambda)));
-        if let Some(coef) = coef {
-            lambda -= &n * coef;
-        }
-    }
-    ws.lambda.copy_from(&lambda);
-    ws.rank_deficiency = dep.len();
+    ws.rank_deficiency = nc - rank;
     Ok(())
 }

@@ -73,24 +73,6 @@ pub fn mat_tr_vec(a: &DMatrix<f64>, x: &[f64], out: &mut [f64]) {
     }
 }
 
-/// Indices of a maximal set of linearly independent columns of `a` (column-pivoted QR).
-pub fn independent_columns(a: &DMatrix<f64>, tol: f64) -> Vec<usize> {
-    let (m, n) = a.shape();
-    if m == 0 || n == 0 {
-        return vec![];
-    }
-    let qr = a.clone().col_piv_qr();
-    let r = qr.r();
-    let rmax = (0..m.min(n)).map(|i| r[(i, i)].abs()).fold(0.0, f64::max);
-    let rank = (0..m.min(n))
-        .take_while(|&i| r[(i, i)].abs() > tol * rmax.max(f64::MIN_POSITIVE))
-        .count();
-    // Column order of A P: apply the pivoting to a row of column indices.
-    let mut idx = DMatrix::<f64>::from_fn(1, n, |_, j| j as f64);
-    qr.p().permute_columns(&mut idx);
-    (0..rank).map(|j| idx[(0, j)] as usize).collect()
-}
-
 /// `c ← α a b + β c`, naive and allocation-free (nalgebra's `gemm` hands large dynamic
 /// products to matrixmultiply, which allocates packing buffers).
 pub fn gemm_into(c: &mut DMatrix<f64>, alpha: f64, a: &DMatrix<f64>, b: &DMatrix<f64>, beta: f64) {

@@ -3,9 +3,10 @@
 use nalgebra::DMatrix;
 
 /// LU with partial pivoting in place, `P A = L U` (unit L below the diagonal, U on and above it),
-/// `piv[k]` the row swapped with k at step k. False when a pivot is zero or not finite.
+/// `piv[k]` the row swapped with k at step k. Acts on the leading n × n block, n = `piv.len()`
+/// (one workspace serves systems of varying size). False when a pivot is zero or not finite.
 pub fn lu_in_place(a: &mut DMatrix<f64>, piv: &mut [usize]) -> bool {
-    let n = a.nrows();
+    let n = piv.len();
     for k in 0..n {
         let (mut p, mut best) = (k, a[(k, k)].abs());
         for r in k + 1..n {
@@ -18,7 +19,9 @@ pub fn lu_in_place(a: &mut DMatrix<f64>, piv: &mut [usize]) -> bool {
         }
         piv[k] = p;
         if p != k {
-            a.swap_rows(p, k);
+            for c in 0..n {
+                a.swap((p, c), (k, c));
+            }
         }
         let d = a[(k, k)];
         for r in k + 1..n {
@@ -34,9 +37,9 @@ pub fn lu_in_place(a: &mut DMatrix<f64>, piv: &mut [usize]) -> bool {
     true
 }
 
-/// Solve `A x = b` in place with the factor of [`lu_in_place`].
+/// Solve `A x = b` in place with the factor of [`lu_in_place`] (n = `piv.len()`).
 pub fn lu_solve(lu: &DMatrix<f64>, piv: &[usize], b: &mut [f64]) {
-    let n = lu.nrows();
+    let n = piv.len();
     for k in 0..n {
         b.swap(k, piv[k]);
     }

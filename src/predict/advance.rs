@@ -43,7 +43,8 @@ impl Accel for Rhs<'_> {
             self.tau,
         );
         // `formulation: auto` takes the multiplier form here: the same q̈ as the embedded form
-        // (tests/propagation_formulations.rs), allocation-free and about 3× faster.
+        // (tests/propagation_formulations.rs), 1.08–1.7× faster on every bundled scene
+        // (docs/performance.md).
         // Least squares (λ = S⁺ r) where stages or drift make redundant rows disagree: the same
         // formula on both sides of any threshold, so q̈ stays smooth for the implicit method.
         let opts = DynamicsOptions {

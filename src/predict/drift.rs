@@ -75,10 +75,12 @@ impl Projector {
         }
         let mut residual = 0.0;
         if positions {
+            // Leaves the rows (and the kinematics) evaluated at the corrected q.
             residual = self.project_positions(sys, q, v)?;
+        } else {
+            sys.constraints
+                .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
         }
-        sys.constraints
-            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
         let nc = sys.constraints.nrows;
         if sys.cdata.jv.iter().all(|x| *x == 0.0) {
             return Ok(residual);
@@ -93,6 +95,8 @@ impl Projector {
         Ok(residual)
     }
 
+    /// Newton on the holonomic rows. Every correction is followed by an evaluation, so on return
+    /// `sys.cdata` and the kinematics in `sys.data` are those of the final (q, v).
     fn project_positions(&mut self, sys: &mut System, q: &mut [f64], v: &[f64]) -> Result<f64> {
         let mut worst = 0.0;
         for it in 0..=NEWTON_ITERATIONS {

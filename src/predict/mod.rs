@@ -4,7 +4,8 @@
 //!
 //! The integrators ([`Method`]) step on the configuration Lie group; drift is controlled per scene
 //! by Baumgarte terms (in the dynamics) or by projecting q and v back onto the constraints after
-//! every step ([`drift`]). Force elements and actuators come from the scene.
+//! every step ([`drift`]). Force elements and actuators come from the scene. [`Predictor::rollouts`]
+//! runs N command sequences from one state over the cores (sampling planners).
 
 mod advance;
 mod covariance;
@@ -14,6 +15,7 @@ mod guard;
 mod integrator;
 mod lie;
 mod linearize;
+mod rollout;
 mod run;
 mod sampling;
 mod trajectory;
@@ -22,6 +24,7 @@ pub use covariance::{CovariancePropagator, UncertaintySpec};
 pub use drift::Projector;
 pub use integrator::Method;
 pub use linearize::{Linearization, linearize_step};
+pub use rollout::RolloutOptions;
 pub use run::Predictor;
 pub use trajectory::{PredictOptions, Sample, Trajectory};
 

@@ -1,0 +1,100 @@
+//! Criterion benchmarks of prediction and of the two formulations.
+//!
+//! - `horizon/mobile_manipulator/<formulation>`: a 2 s horizon at 1 ms, RK4 with projection
+//!   (params/mobile_manipulator.yaml: two rolling wheels, rank-deficient rows; samples every
+//!   10 ms), in the multiplier and in the embedded form.
+//! - `evaluation/<scene>/<formulation>`: one constrained forward-dynamics evaluation at the
+//!   scene's initial state (params/ and params/report/), multipliers vs embedded: the figures
+//!   behind the predictor's choice of formulation (docs/bench.md).
+
+use constraint_dynamics::dynamics::Formulation;
+use constraint_dynamics::predict::{DriftControl, Method, Predictor};
+use constraint_dynamics::system::DynamicsOptions;
+use constraint_dynamics::{Scene, System};
+use criterion::{Criterion, criterion_group, criterion_main};
+use std::hint::black_box;
+use std::path::PathBuf;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+const FORMS: [(&str, Formulation); 2] = [
+    ("multipliers", Formulation::Multipliers),
+    ("embedded", Formulation::Embedded),
+];
+
+fn horizon(c: &mut Criterion) {
+    let scene = Scene::load(root().join("params/mobile_manipulator.yaml")).expect("scene");
+    for (label, form) in FORMS {
+        let mut p = Predictor::from_scene(&scene).expect("predictor");
+        p.sys.formulation = form;
+        p.settings.method = Method::Rk4;
+        p.settings.dt = 1e-3;
+        p.settings.drift = DriftControl::Projection;
+        // The prediction alone (the error estimate's companion doubles the work; estimate.rs).
+        p.settings.error_estimate = false;
+        p.settings.sample_period = 0.01;
+        let t = p.predict(&scene.q0, &scene.v0, &[], 2.0).expect("predict");
+        assert_eq!((t.steps, t.evaluations), (2000, 8000));
+        c.bench_function(&format!("horizon/mobile_manipulator/{label}"), |b| {
+            b.iter(|| {
+                p.predict(black_box(&scene.q0), black_box(&scene.v0), &[], 2.0)
+                    .unwrap()
+            })
+        });
+    }
+}
+
+fn evaluation(c: &mut Criterion) {
+    let mut scenes: Vec<PathBuf> = ["params", "params/report"]
+        .iter()
+        .flat_map(|d| std::fs::read_dir(root().join(d)).expect("params"))
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.extension().is_some_and(|x| x == "yaml")
+                && std::fs::read_to_string(p).is_ok_and(|t| t.contains("urdf:"))
+        })
+        .collect();
+    scenes.sort();
+    for path in scenes {
+        let name = path.file_stem().unwrap().to_string_lossy().to_string();
+        let scene = Scene::load(&path).expect("scene");
+        let mut sys = System::from_scene(&scene).expect("system");
+        if sys.constraints.is_empty() {
+            continue; // unconstrained: both forms are M⁻¹(τ − h), nothing to compare
+        }
+        let nv = sys.model.nv;
+        let tau: Vec<f64> = (0..nv).map(|i| ((i + 1) as f64 * 0.9).sin()).collect();
+        for (label, formulation) in FORMS {
+            let opts = DynamicsOptions {
+                formulation,
+                allow_inconsistent: true,
+            };
+            sys.forward_dynamics_with(&scene.q0, &scene.v0, &tau, opts)
+                .expect("dynamics");
+            c.bench_function(&format!("evaluation/{name}/{label}"), |b| {
+                b.iter(|| {
+                    sys.forward_dynamics_with(
+                        black_box(&scene.q0),
+                        black_box(&scene.v0),
+                        black_box(&tau),
+                        opts,
+                    )
+                    .unwrap()
+                    .len()
+                })
+            });
+        }
+    }
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default()
+        .sample_size(20)
+        .warm_up_time(std::time::Duration::from_millis(500))
+        .measurement_time(std::time::Duration::from_secs(2));
+    targets = horizon, evaluation
+}
+criterion_main!(benches);

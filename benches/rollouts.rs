@@ -1,0 +1,76 @@
+//! Criterion benchmark of rollouts for sampling planners: N = 2000 command sequences × 56 steps
+//! of 50 ms (Nav2 MPPI's defaults: batch_size 2000, time_steps 56, model_dt 0.05) on the
+//! differential drive with its wheel-speed controllers (params/suite_diff_drive.yaml) at planner
+//! settings: RK4 with projection, dt = control period = 5 ms (the wheel loop's time constant is
+//! ≈ 10 ms; the scene's own dopri5 at rtol 1e-8 with 1 ms control ticks costs ≈ 8× more), on 1
+//! worker thread and on every core: sequences per second per core and the parallel efficiency
+//! T₁ / (n T_n). `ROLLOUTS=N` sets another N.
+
+use constraint_dynamics::Scene;
+use constraint_dynamics::actuators::Command;
+use constraint_dynamics::predict::{DriftControl, Method, Predictor, RolloutOptions};
+use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
+use std::hint::black_box;
+use std::path::PathBuf;
+
+/// (v, ω) in [−0.5, 0.5] m/s × [−1, 1] rad/s, deterministic.
+fn sequences(n: usize, steps: usize) -> Vec<Vec<Command>> {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut uniform = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    (0..n)
+        .map(|_| {
+            (0..steps)
+                .map(|_| Command {
+                    base_twist: Some([0.5 * uniform(), uniform()]),
+                    ..Default::default()
+                })
+                .collect()
+        })
+        .collect()
+}
+
+fn bench(c: &mut Criterion) {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let scene = Scene::load(root.join("params/suite_diff_drive.yaml")).expect("scene");
+    let mut predictor = Predictor::from_scene(&scene).expect("predictor");
+    predictor.settings.method = Method::Rk4;
+    predictor.settings.dt = 0.005;
+    predictor.settings.drift = DriftControl::Projection;
+    // A planner scores thousands of rollouts: no error-estimate companion (2× the work).
+    predictor.settings.error_estimate = false;
+    predictor.actuators.control_period = 0.005;
+    let n: usize = std::env::var("ROLLOUTS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(2000);
+    let seqs = sequences(n, 56);
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut group = c.benchmark_group("rollouts");
+    group.sample_size(10);
+    group.sampling_mode(SamplingMode::Flat);
+    group.warm_up_time(std::time::Duration::from_millis(1));
+    group.throughput(Throughput::Elements(n as u64));
+    for threads in [1, cores] {
+        let opts = RolloutOptions {
+            step: 0.05,
+            forces: false,
+            threads,
+        };
+        group.bench_function(format!("diff_drive/{n}x56x50ms/{threads}_threads"), |b| {
+            b.iter(|| {
+                predictor
+                    .rollouts(black_box(&scene.q0), &scene.v0, &seqs, opts)
+                    .unwrap()
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,123 @@
+//! Rollouts for sampling planners: N command sequences from one state, spread over worker
+//! threads, equal N single predictions bit for bit (each worker reuses one predictor, so this
+//! also shows that a prediction leaves nothing behind that changes the next one).
+
+use constraint_dynamics::Scene;
+use constraint_dynamics::actuators::Command;
+use constraint_dynamics::predict::{PredictOptions, Predictor, RolloutOptions, Trajectory};
+use std::path::PathBuf;
+
+/// Deterministic command sequences: (v, ω) in [−0.5, 0.5] m/s × [−1, 1] rad/s, as a planner's
+/// noisy candidates around a nominal command.
+fn sequences(n: usize, steps: usize) -> Vec<Vec<Command>> {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut uniform = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    (0..n)
+        .map(|_| {
+            (0..steps)
+                .map(|_| Command {
+                    base_twist: Some([0.5 * uniform(), uniform()]),
+                    ..Default::default()
+                })
+                .collect()
+        })
+        .collect()
+}
+
+fn bits(t: &Trajectory) -> Vec<u64> {
+    t.samples
+        .iter()
+        .flat_map(|s| {
+            let forces = s
+                .lambda
+                .iter()
+                .flatten()
+                .chain(s.generalized_force.iter().flatten());
+            std::iter::once(&s.t)
+                .chain(&s.q)
+                .chain(&s.v)
+                .chain(&s.actuator_torque)
+                .chain(forces)
+                .chain([&s.kinetic_energy, &s.potential_energy, &s.position_residual])
+                .map(|x| x.to_bits())
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+#[test]
+fn rollouts_equal_single_predictions_bit_for_bit() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let scene = Scene::load(root.join("params/suite_diff_drive.yaml")).unwrap();
+    let predictor = Predictor::from_scene(&scene).unwrap();
+    let (n, steps, step) = (12, 6, 0.05);
+    let seqs = sequences(n, steps);
+    for (threads, forces) in [(2, false), (3, true), (1, false)] {
+        let opts = RolloutOptions {
+            step,
+            forces,
+            threads,
+        };
+        let rolled = predictor
+            .rollouts(&scene.q0, &scene.v0, &seqs, opts)
+            .unwrap();
+        assert_eq!(rolled.len(), n);
+        for (k, (seq, r)) in seqs.iter().zip(&rolled).enumerate() {
+            // The single prediction, from a fresh predictor each time.
+            let mut single = Predictor::from_scene(&scene).unwrap();
+            single.settings.sample_period = step;
+            let timed: Vec<(f64, Command)> = seq
+                .iter()
+                .enumerate()
+                .map(|(i, c)| (i as f64 * step, c.clone()))
+                .collect();
+            let t = single
+                .predict_with(
+                    &scene.q0,
+                    &scene.v0,
+                    &timed,
+                    steps as f64 * step,
+                    PredictOptions { forces },
+                )
+                .unwrap();
+            assert_eq!(
+                r.samples.len(),
+                steps + 1,
+                "rollout {k}: one sample per step"
+            );
+            assert_eq!(
+                (r.steps, r.evaluations),
+                (t.steps, t.evaluations),
+                "rollout {k} ({threads} threads): work differs"
+            );
+            assert!(
+                bits(r) == bits(&t),
+                "rollout {k} ({threads} threads) differs"
+            );
+            assert_eq!(r.samples[0].lambda.is_some(), forces);
+        }
+        // The commands took effect: the sequences end at different poses.
+        let x_end: Vec<f64> = rolled.iter().map(|r| r.samples[steps].q[0]).collect();
+        assert!(x_end.windows(2).any(|w| w[0] != w[1]), "{x_end:?}");
+    }
+}
+
+#[test]
+fn rollouts_refuse_a_bad_step() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let scene = Scene::load(root.join("params/suite_diff_drive.yaml")).unwrap();
+    let predictor = Predictor::from_scene(&scene).unwrap();
+    for step in [0.0, -0.05, f64::NAN] {
+        let opts = RolloutOptions {
+            step,
+            ..Default::default()
+        };
+        let e = predictor.rollouts(&scene.q0, &scene.v0, &sequences(2, 3), opts);
+        assert!(e.is_err(), "step {step} accepted");
+    }
+}
