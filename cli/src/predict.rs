@@ -151,7 +151,17 @@ pub fn run(a: PredictArgs) -> Result<Value> {
     let traj = p.predict(&q, &v, &commands, horizon)?;
     let mut out = serde_json::to_value(&traj).map_err(|e| Error::Invalid(e.to_string()))?;
     out["scene"] = Value::String(a.scene.display().to_string());
-    out["settings"] =
+    let mut settings =
         serde_json::to_value(&p.settings).map_err(|e| Error::Invalid(e.to_string()))?;
+    // `.inf` turns these checks off; JSON has no infinity (serde_json would write null).
+    for (key, x) in [
+        ("max_error", p.settings.max_error),
+        ("max_energy_error", p.settings.max_energy_error),
+    ] {
+        if x == f64::INFINITY {
+            settings[key] = Value::String("inf".into());
+        }
+    }
+    out["settings"] = settings;
     Ok(out)
 }

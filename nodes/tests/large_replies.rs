@@ -6,7 +6,7 @@
 //! - `constraint_dynamics_query` (ros2-client): replies around the datagram limits, then 20
 //!   consecutive ~420 kB replies (10 s horizon with forces) to one client;
 //! - rclpy (rmw_fastrtps_cpp, `nodes/tests/peers/large_replies_peer.py`): the same on one rclpy
-//!   client, and a 20 s `~/predicted_path` (a topic).
+//!   client, and a 20 s `~/predicted_path` (a topic), to rclpy and to Cyclone DDS.
 //!
 //! They drive processes only (the suite, the query tool, the rclpy peer), each test in its own
 //! loopback-only network namespace (`tools/ros2/netns_run.sh`, root needed; the loopback MTU is
@@ -304,6 +304,38 @@ fn rclpy_client_gets_large_predict_replies() {
             println!(
                 "{TEST}: MTU {mtu}: rclpy received a 20 s predicted_path: {} poses, {} bytes",
                 p["poses"], p["bytes"]
+            );
+            // The same path through a second, independent DDS (Cyclone), the predictor still at
+            // the 20 s horizon the peer set: 1000 poses, fragmented at this MTU.
+            let mut cmd = Command::new(&python);
+            cmd.args([
+                "tools/ros2/cyclone_check.py",
+                "--type",
+                "path",
+                "--topic",
+                "rt/cd_predictor/predicted_path",
+                "--min-poses",
+                "1000",
+                "--timeout",
+                "30",
+            ]);
+            let out = run_limited(cmd, Duration::from_secs(60));
+            let stdout = String::from_utf8_lossy(&out.stdout);
+            let cyc: Value = serde_json::from_str(stdout.lines().last().unwrap_or(""))
+                .unwrap_or_else(|e| {
+                    panic!(
+                        "cyclone_check.py: last line is not JSON ({e}): {stdout}{}",
+                        String::from_utf8_lossy(&out.stderr)
+                    )
+                });
+            assert!(
+                out.status.success() && cyc["poses"].as_u64().unwrap_or(0) >= 1000,
+                "Cyclone: 20 s predicted_path at MTU {mtu}: {cyc}"
+            );
+            println!(
+                "{TEST}: MTU {mtu}: Cyclone DDS received a 20 s predicted_path: {} poses in {:.2} s",
+                cyc["poses"],
+                cyc["first_message_s"].as_f64().unwrap_or(f64::NAN)
             );
         }
     }

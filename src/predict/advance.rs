@@ -98,7 +98,12 @@ impl Predictor {
         let mut rhs = Rhs {
             sys: &mut self.sys,
             forces: &mut self.forces,
-            tau_act: &ws.tau_act,
+            // Each lane under the torque of its own controllers (run.rs, Workspace).
+            tau_act: if cap.is_none() {
+                &ws.tau_act
+            } else {
+                &ws.tau_companion
+            },
             tau: &mut ws.tau,
             zero: &ws.zero,
             ls: &mut ws.ls,

@@ -29,6 +29,11 @@ pub(super) struct Workspace {
     pub(super) ls: Projector,
     pub(super) tau: Vec<f64>,
     pub(super) tau_act: Vec<f64>,
+    /// The companion's own controllers and their torque: feedback acts on the state it is
+    /// computed from, so each lane closes its own loop (with the answer's torques the companion
+    /// would run open-loop and drift away along any unstable mode — an arm held up by its PD).
+    pub(super) companion_actuators: Actuators,
+    pub(super) tau_companion: Vec<f64>,
     pub(super) zero: Vec<f64>,
     /// The state and applied force at the start of a step (covariance propagation).
     pub(super) qn: Vec<f64>,
@@ -88,6 +93,8 @@ impl Predictor {
             ls: Projector::new(&sys),
             tau: vec![0.0; nv],
             tau_act: vec![0.0; nv],
+            companion_actuators: Actuators::default(),
+            tau_companion: vec![0.0; nv],
             zero: vec![0.0; nv],
             qn: vec![0.0; nq],
             vn: vec![0.0; nv],
@@ -186,6 +193,8 @@ impl Predictor {
         self.check_step_size(&q, v0, s)?;
         self.actuators.reset();
         self.ws.tau_act.iter_mut().for_each(|x| *x = 0.0);
+        self.ws.companion_actuators.clone_from(&self.actuators);
+        self.ws.tau_companion.iter_mut().for_each(|x| *x = 0.0);
         let companion = estimate::companion_settings(s);
         let factor = estimate::richardson_factor(s.method);
         // The lanes leave the workspace while they step (disjoint borrows), and come back.
@@ -249,14 +258,16 @@ impl Predictor {
                 .unwrap_or_default()
         };
         if !self.actuators.is_empty() && horizon > 0.0 {
-            let [a, _] = &*lanes;
-            self.actuators.update(
-                &command_at(0.0),
-                &a.q,
-                &a.v,
-                period.min(horizon),
-                &mut self.ws.tau_act,
-            );
+            let [a, c] = &*lanes;
+            let cmd = command_at(0.0);
+            let dt = period.min(horizon);
+            self.actuators
+                .update(&cmd, &a.q, &a.v, dt, &mut self.ws.tau_act);
+            if s.error_estimate {
+                let ws = &mut self.ws;
+                ws.companion_actuators
+                    .update(&cmd, &c.q, &c.v, dt, &mut ws.tau_companion);
+            }
         }
         let first = self.sample(
             0.0,
@@ -277,14 +288,20 @@ impl Predictor {
                 k += 1;
                 let t_end = (k as f64 * period).min(horizon);
                 if !self.actuators.is_empty() && k > 1 {
-                    let a = &lanes[0];
-                    self.actuators.update(
-                        &command_at(t),
-                        &a.q,
-                        &a.v,
-                        t_end - t,
-                        &mut self.ws.tau_act,
-                    );
+                    let [a, c] = &*lanes;
+                    let cmd = command_at(t);
+                    self.actuators
+                        .update(&cmd, &a.q, &a.v, t_end - t, &mut self.ws.tau_act);
+                    if s.error_estimate {
+                        let ws = &mut self.ws;
+                        ws.companion_actuators.update(
+                            &cmd,
+                            &c.q,
+                            &c.v,
+                            t_end - t,
+                            &mut ws.tau_companion,
+                        );
+                    }
                 }
                 let (answer, comp) = lanes.split_at_mut(1);
                 let work = comp[0].evaluations;
