@@ -3,7 +3,8 @@
 //!
 //! **Method: Richardson extrapolation against a companion run.** Beside the answer, the predictor
 //! integrates a companion from the same start over the same sample and control spans, under the
-//! same held actuator torques and drift control, with a finer setting:
+//! same commands and drift control — its controllers (a copy of the actuators) close their loop
+//! on its own state, as the answer's do on the answer's — with a finer setting:
 //!
 //! - fixed-step methods (semi-implicit Euler, RK4, SDIRK2): the step halved, two companion steps
 //!   per step of the answer. With a global error `e(dt) ≈ C dt^p` (p the method's order),
