@@ -6,33 +6,15 @@
 //! worker thread and on every core: sequences per second per core and the parallel efficiency
 //! T₁ / (n T_n). `ROLLOUTS=N` sets another N.
 
+#[path = "../tests/common/command_sequences.rs"]
+mod command_sequences;
+
+use command_sequences::sequences;
 use constraint_dynamics::Scene;
-use constraint_dynamics::actuators::Command;
 use constraint_dynamics::predict::{DriftControl, Method, Predictor, RolloutOptions};
 use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 use std::path::PathBuf;
-
-/// (v, ω) in [−0.5, 0.5] m/s × [−1, 1] rad/s, deterministic.
-fn sequences(n: usize, steps: usize) -> Vec<Vec<Command>> {
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    let mut uniform = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
-    (0..n)
-        .map(|_| {
-            (0..steps)
-                .map(|_| Command {
-                    base_twist: Some([0.5 * uniform(), uniform()]),
-                    ..Default::default()
-                })
-                .collect()
-        })
-        .collect()
-}
 
 fn bench(c: &mut Criterion) {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));

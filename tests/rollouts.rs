@@ -2,32 +2,14 @@
 //! threads, equal N single predictions bit for bit (each worker reuses one predictor, so this
 //! also shows that a prediction leaves nothing behind that changes the next one).
 
+#[path = "common/command_sequences.rs"]
+mod command_sequences;
+
+use command_sequences::sequences;
 use constraint_dynamics::Scene;
 use constraint_dynamics::actuators::Command;
 use constraint_dynamics::predict::{PredictOptions, Predictor, RolloutOptions, Trajectory};
 use std::path::PathBuf;
-
-/// Deterministic command sequences: (v, ω) in [−0.5, 0.5] m/s × [−1, 1] rad/s, as a planner's
-/// noisy candidates around a nominal command.
-fn sequences(n: usize, steps: usize) -> Vec<Vec<Command>> {
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    let mut uniform = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
-    (0..n)
-        .map(|_| {
-            (0..steps)
-                .map(|_| Command {
-                    base_twist: Some([0.5 * uniform(), uniform()]),
-                    ..Default::default()
-                })
-                .collect()
-        })
-        .collect()
-}
 
 fn bits(t: &Trajectory) -> Vec<u64> {
     t.samples
