@@ -3,6 +3,9 @@
 //! - `horizon/mobile_manipulator/<formulation>`: a 2 s horizon at 1 ms, RK4 with projection
 //!   (params/mobile_manipulator.yaml: two rolling wheels, rank-deficient rows; samples every
 //!   10 ms), in the multiplier and in the embedded form.
+//! - `horizon/mobile_manipulator/covariance`: the same (multipliers) with a propagated
+//!   covariance (σ = 1 mm, 1 mrad, 1 mm/s, 1 mrad/s on every coordinate): its cost is read as
+//!   the ratio to `horizon/mobile_manipulator/multipliers` of the same run (issue 14: ≤ 2×).
 //! - `evaluation/<scene>/<formulation>`: one constrained forward-dynamics evaluation at the
 //!   scene's initial state (params/ and params/report/), multipliers vs embedded: the figures
 //!   behind the predictor's choice of formulation (docs/bench.md).
@@ -44,6 +47,23 @@ fn horizon(c: &mut Criterion) {
             })
         });
     }
+    let mut p = Predictor::from_scene(&scene).expect("predictor");
+    p.settings.method = Method::Rk4;
+    p.settings.dt = 1e-3;
+    p.settings.drift = DriftControl::Projection;
+    p.settings.error_estimate = false;
+    p.settings.sample_period = 0.01;
+    let n = 2 * p.sys.model.nv;
+    p.start_covariance = Some(nalgebra::DMatrix::identity(n, n) * 1e-6);
+    let t = p.predict(&scene.q0, &scene.v0, &[], 2.0).expect("predict");
+    assert_eq!((t.steps, t.evaluations), (2000, 8000));
+    assert!(t.samples.last().unwrap().covariance.is_some());
+    c.bench_function("horizon/mobile_manipulator/covariance", |b| {
+        b.iter(|| {
+            p.predict(black_box(&scene.q0), black_box(&scene.v0), &[], 2.0)
+                .unwrap()
+        })
+    });
 }
 
 fn evaluation(c: &mut Criterion) {

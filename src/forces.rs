@@ -239,6 +239,17 @@ impl ForceElements {
             && self.frame_forces.is_empty()
     }
 
+    /// Joint spring-dampers (q index, v index, k [N/m or N·m/rad], d [N·s/m or N·m·s/rad],
+    /// rest [m or rad]): `τ_v −= k (q − rest) + d v`; URDF damping folded in.
+    pub fn joint_spring_dampers(&self) -> &[(usize, usize, f64, f64, f64)] {
+        &self.joint_springs
+    }
+
+    /// True when there are point-to-point spring-dampers (whose direction turns with q).
+    pub fn has_point_springs(&self) -> bool {
+        !self.springs.is_empty()
+    }
+
     /// Largest stiffness-like coefficient, for step-size checks: (k_max [N/m or N·m/rad], d_max).
     pub fn max_gains(&self) -> (f64, f64) {
         let k = self

@@ -56,7 +56,9 @@ fn step_out(
 #[test]
 fn step_linearization_matches_finite_differences_on_every_bundled_scene() {
     let mut worst = 0.0f64;
-    for p in bundled_scenes() {
+    // And the report's floating-base rolling disk.
+    let disk = repo_dir().join("params/report/rolling_disk.yaml");
+    for p in bundled_scenes().into_iter().chain([disk]) {
         let scene = Scene::load(&p).unwrap();
         let name = p.file_name().unwrap().to_string_lossy().to_string();
         let mut sys = System::from_scene(&scene).unwrap();

@@ -227,8 +227,8 @@ impl Predictor {
                     proj.project(rhs.sys, q, v, true)?;
                 }
                 if let Some(c) = cov.as_mut() {
-                    c.step(rhs.sys, s.method, &ws.qn, &ws.vn, &ws.tau_n, dt)?;
-                    c.project(rhs.sys, q, v)?;
+                    let start = (&ws.qn[..], &ws.vn[..]);
+                    c.record_step(rhs.sys, s.method, start, &ws.tau_n, dt, (q, v))?;
                 }
                 if let Some(bad) = q
                     .iter()
@@ -242,6 +242,10 @@ impl Predictor {
                         ),
                     });
                 }
+            }
+            // P is read at the span's end (a sample or control tick).
+            if let Some(c) = cov.as_mut() {
+                c.flush(rhs.sys, s.method)?;
             }
             Ok(())
         })();

@@ -2,23 +2,35 @@
 //! own step sensitivity, with process noise, kept on the constraints.
 //!
 //! State x = (q, v) in the tangent space (δq a right perturbation q ⊕ δq, then δv), P 2nv × 2nv.
-//! Per step of size h:
+//! Per linearized step of size h:
 //!
 //! `P ← T (A P Aᵀ + Q_h) Tᵀ`
 //!
-//! - A = ∂x⁺/∂x of the step ([`linearize_step`], under the generalized force held over it);
+//! - A = ∂x⁺/∂x of one step of the prediction's method ([`linearize_step`], under the
+//!   generalized force held over it) that may span several of the prediction's steps: the
+//!   sensitivity of the flow, not of the step size, is what the covariance needs, and one
+//!   linearization per 2–32 steps is what makes the covariance cheap (covariance_chunks.rs,
+//!   with the check that keeps it honest);
 //! - Q_h: white acceleration noise of density σ_i per velocity coordinate (`uncertainty:` in the
 //!   scene, [(m/s²)/√Hz] or [(rad/s²)/√Hz], as robot_localization's continuous process noise)
 //!   integrated exactly over the step as for a double integrator:
 //!   `σ_i² [h³/3, h²/2; h²/2, h]` on (δq_i, δv_i);
-//! - T = diag(T_q, T_v) keeps P on the constraints: `T_v = 1 − M⁻¹Jᵀ (J M⁻¹ Jᵀ)⁻¹ J` (all rows;
-//!   the mass-weighted projection onto J δv = 0 that constraint impulses would make) and T_q the
-//!   same with the holonomic rows only (J_h δq = 0). Dependent rows are dropped first.
+//! - T keeps P on the tangent space of the constraint manifold {φ_h(q) = 0, J(q) v = 0}:
+//!   `T = [[T_q, 0], [−G N T_q, 1 − G J]]` with `G = M⁻¹Jᵀ (J M⁻¹ Jᵀ)⁻¹` (all rows: the
+//!   mass-weighted projection that constraint impulses would make), T_q the same projection
+//!   with the holonomic rows only (J_h δq = 0), and `N = ∂(J(q) v)/∂δq` at the nominal state:
+//!   a pose perturbation changes which velocities are admissible (a tilted rolling disk), so the
+//!   admissible δv is the one with `J δv + N δq = 0`, not `J δv = 0`. N by central differences
+//!   of J(q ⊕ εe_k) v (ε = 1e-6: error ~1e-10 of N, far below any covariance's own); it vanishes
+//!   where J does not depend on q in the body frame (the diff drive). Dependent rows are dropped
+//!   first.
 
+use super::covariance_chunks::StepHistory;
 use super::integrator::Method;
 use super::linearize::{Linearization, linearize_step};
 use crate::algorithm::crba;
 use crate::error::{Error, Result, check_finite};
+use crate::forces::ForceElements;
 use crate::linalg::{
     cholesky_in_place, cholesky_solve, gemm_into, semidefinite_cholesky, semidefinite_solve,
 };
@@ -44,12 +56,20 @@ pub struct CovariancePropagator {
     pub p: DMatrix<f64>,
     /// σ_i² per velocity coordinate.
     noise: Vec<f64>,
-    lin: Linearization,
+    pub(super) lin: Linearization,
+    /// The prediction's steps not yet in `p` (covariance_chunks.rs).
+    pub(super) history: StepHistory,
     tmp: DMatrix<f64>,
     proj: DMatrix<f64>,
     minv: DMatrix<f64>,
     chol: DMatrix<f64>,
     col: Vec<f64>,
+    /// N = ∂(J v)/∂δq (nc × nv), then N T_q; J(q ⊕ εe_k) v; q ⊕ εe_k.
+    n_jv: DMatrix<f64>,
+    n_tq: DMatrix<f64>,
+    jv_plus: Vec<f64>,
+    q_pert: Vec<f64>,
+    e_k: Vec<f64>,
     /// Holonomic rows (for T_q) and all rows (for T_v), built at the first projection (the
     /// rows' kinds are known once the constraints were evaluated).
     blocks: Option<[RowProjector; 2]>,
@@ -114,9 +134,33 @@ impl RowProjector {
     }
 }
 
+impl RowProjector {
+    /// `proj[off.., ..nv] −= M⁻¹J_Rᵀ K⁺ (N T_q)_R`: the velocity correction a pose perturbation
+    /// needs (module doc), with the factor of the last [`Self::apply`].
+    fn apply_coupling(&mut self, n_tq: &DMatrix<f64>, proj: &mut DMatrix<f64>, off: usize) {
+        let nr = self.rows.len();
+        if nr == 0 {
+            return;
+        }
+        let nv = n_tq.ncols();
+        for c in 0..nv {
+            for (b, &r) in self.rows.iter().enumerate() {
+                self.y[b] = n_tq[(r, c)];
+            }
+            semidefinite_solve(&self.k, &self.dropped, &mut self.y);
+            for i in 0..nv {
+                let s: f64 = (0..nr).map(|b| self.minv_jt[(i, b)] * self.y[b]).sum();
+                proj[(off + i, c)] -= s;
+            }
+        }
+    }
+}
+
 impl CovariancePropagator {
-    /// Sized for `sys`, with the process noise of `spec` (names checked against the model).
-    pub fn new(sys: &System, spec: &UncertaintySpec) -> Result<Self> {
+    /// Sized for `sys`, with the process noise of `spec` (names checked against the model),
+    /// linearizing the joint spring-dampers of `forces` (point springs are not: the caller
+    /// refuses them).
+    pub fn new(sys: &System, forces: &ForceElements, spec: &UncertaintySpec) -> Result<Self> {
         let nv = sys.model.nv;
         let mut noise = vec![0.0; nv];
         for (name, &sigma) in &spec.acceleration_noise {
@@ -131,12 +175,23 @@ impl CovariancePropagator {
         Ok(Self {
             p: DMatrix::zeros(2 * nv, 2 * nv),
             noise,
-            lin: Linearization::new(sys),
+            lin: {
+                let mut lin =
+                    Linearization::new(sys).with_joint_springs(forces.joint_spring_dampers());
+                lin.inputs = false;
+                lin
+            },
+            history: StepHistory::new(sys),
             tmp: DMatrix::zeros(2 * nv, 2 * nv),
             proj: DMatrix::identity(2 * nv, 2 * nv),
             minv: DMatrix::zeros(nv, nv),
             chol: DMatrix::zeros(nv, nv),
             col: vec![0.0; nv],
+            n_jv: DMatrix::zeros(sys.constraints.nrows, nv),
+            n_tq: DMatrix::zeros(sys.constraints.nrows, nv),
+            jv_plus: vec![0.0; sys.constraints.nrows],
+            q_pert: vec![0.0; sys.model.nq],
+            e_k: vec![0.0; nv],
             blocks: None,
         })
     }
@@ -145,12 +200,13 @@ impl CovariancePropagator {
     /// constraints.
     pub fn start(
         sys: &mut System,
+        forces: &ForceElements,
         spec: &UncertaintySpec,
         p0: &DMatrix<f64>,
         q: &[f64],
         v: &[f64],
     ) -> Result<Self> {
-        let mut c = Self::new(sys, spec)?;
+        let mut c = Self::new(sys, forces, spec)?;
         c.reset(p0)?;
         c.project(sys, q, v)?;
         Ok(c)
@@ -187,7 +243,7 @@ impl CovariancePropagator {
     }
 
     /// One step of `method` from (q, v) under the held generalized force τ [N, N·m] with step
-    /// h [s]: `P ← A P Aᵀ + Q_h`, then kept on the constraints at the step's end.
+    /// h [s]: `P ← A P Aᵀ + Q_h` (keep it on the constraints with [`Self::project`] after).
     #[allow(clippy::too_many_arguments)]
     pub fn step(
         &mut self,
@@ -199,7 +255,13 @@ impl CovariancePropagator {
         h: f64,
     ) -> Result<()> {
         linearize_step(sys, &mut self.lin, method, q, v, tau, h)?;
-        let nv = v.len();
+        self.apply_linearization(h);
+        Ok(())
+    }
+
+    /// `P ← A P Aᵀ + Q_h` with A = `self.lin.a` of a step of size h [s].
+    pub(super) fn apply_linearization(&mut self, h: f64) {
+        let nv = self.noise.len();
         gemm_into(&mut self.tmp, 1.0, &self.lin.a, &self.p, 0.0);
         // P = tmp Aᵀ, written by hand (no transposed copy).
         for i in 0..2 * nv {
@@ -218,7 +280,6 @@ impl CovariancePropagator {
                 self.p[(nv + i, nv + i)] += s2 * h;
             }
         }
-        Ok(())
     }
 
     /// Keep P on the constraints at (q, v): `P ← T P Tᵀ` (module doc).
@@ -227,6 +288,7 @@ impl CovariancePropagator {
         if sys.constraints.is_empty() {
             return Ok(());
         }
+        self.velocity_row_variation(sys, q, v);
         sys.constraints
             .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
         crba(&sys.model, &mut sys.data, q);
@@ -261,6 +323,14 @@ impl CovariancePropagator {
         });
         blocks[0].apply(&sys.cdata.j, &self.minv, &mut self.proj, 0);
         blocks[1].apply(&sys.cdata.j, &self.minv, &mut self.proj, nv);
+        // N T_q, then the lower-left block −G N T_q.
+        let nc = self.n_jv.nrows();
+        for r in 0..nc {
+            for c in 0..nv {
+                self.n_tq[(r, c)] = (0..nv).map(|k| self.n_jv[(r, k)] * self.proj[(k, c)]).sum();
+            }
+        }
+        blocks[1].apply_coupling(&self.n_tq, &mut self.proj, nv);
         gemm_into(&mut self.tmp, 1.0, &self.proj, &self.p, 0.0);
         let n = 2 * nv;
         for i in 0..n {
@@ -277,5 +347,32 @@ impl CovariancePropagator {
             }
         }
         Ok(())
+    }
+
+    /// N = ∂(J(q) v)/∂δq by central differences (module doc), into `n_jv`.
+    fn velocity_row_variation(&mut self, sys: &mut System, q: &[f64], v: &[f64]) {
+        const EPS: f64 = 1e-6;
+        let nv = v.len();
+        for k in 0..nv {
+            for sign in [1.0, -1.0] {
+                self.e_k.iter_mut().for_each(|x| *x = 0.0);
+                self.e_k[k] = sign * EPS;
+                sys.model.integrate(q, &self.e_k, 1.0, &mut self.q_pert);
+                sys.constraints.evaluate(
+                    &sys.model,
+                    &mut sys.data,
+                    &mut sys.cdata,
+                    &self.q_pert,
+                    v,
+                );
+                if sign > 0.0 {
+                    self.jv_plus.copy_from_slice(sys.cdata.jv.as_slice());
+                } else {
+                    for r in 0..self.jv_plus.len() {
+                        self.n_jv[(r, k)] = (self.jv_plus[r] - sys.cdata.jv[r]) / (2.0 * EPS);
+                    }
+                }
+            }
+        }
     }
 }

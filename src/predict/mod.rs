@@ -9,6 +9,7 @@
 
 mod advance;
 mod covariance;
+mod covariance_chunks;
 pub mod drift;
 mod estimate;
 mod guard;

@@ -1,0 +1,199 @@
+//! Covariance steps that span several of the prediction's steps.
+//!
+//! The covariance needs the flow's sensitivity Φ(t₁, t₀), not one per integrator step: the
+//! prediction's step is set by the accuracy and stability of its nominal trajectory, while Φ of
+//! a smooth flow is represented as well by one step of the same method over several of them.
+//! So the prediction records its steps (start state, held generalized force, size) and, at the
+//! end of every span (a control tick or a sample: where P is read) or when the record is full,
+//! [`CovariancePropagator::flush`] covers them with linearized steps of m recorded steps each.
+//!
+//! The check that keeps it honest: the linearized step from a chunk's start state also
+//! computes that step's end state; the chunk is accepted only if that reproduces the recorded
+//! end state to [`CHUNK_RTOL`] of the chunk's motion (tangent-space max norm, q and v apart).
+//! Where it does not — a force element that varies within the chunk, a fast transient — the
+//! chunk is halved, down to the single recorded step, which is the exact per-step
+//! linearization. (The chunk's length follows the mismatch as a step-size controller's does:
+//! ×0.9·ratio^(−1/(p+1)), at most doubling.) That check cannot see a stiff mode the nominal does not excite (a stiff
+//! spring at rest: the long step reproduces the state, but its Φ amplifies perturbations along
+//! that mode), so a chunk must also stay inside the method's stability region:
+//! H · ρ ≤ [`CHUNK_STABILITY`], ρ = [`Linearization::stiffness`] (the continuous Jacobian's
+//! spectral radius at the chunk's last stage). The
+//! next chunk stays within that bound at the last linearization.
+
+use super::covariance::CovariancePropagator;
+use super::integrator::Method;
+use super::linearize::{Linearization, linearize_step};
+use crate::error::Result;
+use crate::model::Model;
+use crate::system::System;
+
+/// Most recorded steps per flush (and per linearized step).
+pub(crate) const CHUNK_CAPACITY: usize = 32;
+/// A linearized chunk must reproduce the recorded end state to this fraction of the chunk's
+/// motion (|Δq|∞ for q, |Δv|∞ for v)...
+pub(crate) const CHUNK_RTOL: f64 = 1e-3;
+/// Largest H · ρ of a chunk of several steps (RK4's and DOPRI5's stability regions reach
+/// |hλ| ≈ 2.8 and 3.3 on the real axis; at 0.5 RK4's Φ is within 3e-4 of exp(Hλ) on the stiffest
+/// mode, and far closer on the others).
+pub(crate) const CHUNK_STABILITY: f64 = 0.5;
+/// ...plus this [m, rad; m/s, rad/s per unit of |v|∞ + 1]: the drift projection's and
+/// rounding's share, far below any covariance a prediction reports.
+pub(crate) const CHUNK_ATOL: f64 = 1e-10;
+
+/// The prediction's steps since P was last updated (buffers sized once).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct StepHistory {
+    /// States at the recorded steps' starts and the last one's end (CHUNK_CAPACITY + 1).
+    q: Vec<Vec<f64>>,
+    v: Vec<Vec<f64>>,
+    /// Generalized force held over each recorded step [N, N·m] (CHUNK_CAPACITY).
+    tau: Vec<Vec<f64>>,
+    /// Time of each recorded state since the first [s].
+    t: Vec<f64>,
+    /// Recorded steps.
+    len: usize,
+    /// Recorded steps per linearized step to try next.
+    chunk: usize,
+    diff: Vec<f64>,
+}
+
+impl StepHistory {
+    pub(crate) fn new(sys: &System) -> Self {
+        let (nq, nv) = (sys.model.nq, sys.model.nv);
+        Self {
+            q: vec![vec![0.0; nq]; CHUNK_CAPACITY + 1],
+            v: vec![vec![0.0; nv]; CHUNK_CAPACITY + 1],
+            tau: vec![vec![0.0; nv]; CHUNK_CAPACITY],
+            t: vec![0.0; CHUNK_CAPACITY + 1],
+            len: 0,
+            chunk: CHUNK_CAPACITY,
+            diff: vec![0.0; nv],
+        }
+    }
+
+    /// How far the linearized step `lin` from state `lo` misses the recorded state `hi`, as a
+    /// fraction of what is accepted (≤ 1: reproduced).
+    fn mismatch(&mut self, model: &Model, lin: &Linearization, lo: usize, hi: usize) -> f64 {
+        let max_abs = |x: &[f64]| x.iter().fold(0.0f64, |m, y| m.max(y.abs()));
+        model.difference(&self.q[hi], &lin.q_next, &mut self.diff);
+        let err_q = max_abs(&self.diff);
+        model.difference(&self.q[lo], &self.q[hi], &mut self.diff);
+        let motion_q = max_abs(&self.diff);
+        let (mut err_v, mut motion_v) = (0.0f64, 0.0f64);
+        for i in 0..self.diff.len() {
+            err_v = err_v.max((lin.v_next[i] - self.v[hi][i]).abs());
+            motion_v = motion_v.max((self.v[hi][i] - self.v[lo][i]).abs());
+        }
+        let speed = max_abs(&self.v[hi]);
+        (err_q / (CHUNK_RTOL * motion_q + CHUNK_ATOL))
+            .max(err_v / (CHUNK_RTOL * motion_v + CHUNK_ATOL * (1.0 + speed)))
+    }
+}
+
+/// Steps of the next chunk after one of `m` steps missed by `ratio` (mismatch): the local
+/// error of a p-th order step grows as H^(p+1), so H scales by ratio^(−1/(p+1)), with the
+/// usual safety factor 0.9 and at most doubling.
+fn next_chunk(m: usize, ratio: f64, order: f64) -> usize {
+    let factor = (0.9 * ratio.max(1e-12).powf(-1.0 / (order + 1.0))).min(2.0);
+    ((m as f64 * factor).floor() as usize).max(1)
+}
+
+impl CovariancePropagator {
+    /// Record one step of the prediction: from (q0, v0) under the held generalized force τ
+    /// [N, N·m] for h [s] to (q1, v1) (after drift control). P catches up at [`Self::flush`],
+    /// which this calls when the record is full.
+    #[allow(clippy::too_many_arguments)]
+    pub fn record_step(
+        &mut self,
+        sys: &mut System,
+        method: Method,
+        (q0, v0): (&[f64], &[f64]),
+        tau: &[f64],
+        h: f64,
+        (q1, v1): (&[f64], &[f64]),
+    ) -> Result<()> {
+        let hst = &mut self.history;
+        let k = hst.len;
+        if k == 0 {
+            hst.q[0].copy_from_slice(q0);
+            hst.v[0].copy_from_slice(v0);
+            hst.t[0] = 0.0;
+        }
+        hst.tau[k].copy_from_slice(tau);
+        hst.t[k + 1] = hst.t[k] + h;
+        hst.q[k + 1].copy_from_slice(q1);
+        hst.v[k + 1].copy_from_slice(v1);
+        hst.len += 1;
+        if hst.len == CHUNK_CAPACITY {
+            self.flush(sys, method)?;
+        }
+        Ok(())
+    }
+
+    /// Bring P up to the last recorded state (module doc), kept on the constraints there.
+    pub fn flush(&mut self, sys: &mut System, method: Method) -> Result<()> {
+        // The record leaves `self` while P is updated from it (disjoint borrows; no allocation).
+        let mut hst = std::mem::take(&mut self.history);
+        let result = self.flush_from(sys, method, &mut hst);
+        hst.len = 0;
+        self.history = hst;
+        result
+    }
+
+    fn flush_from(
+        &mut self,
+        sys: &mut System,
+        method: Method,
+        hst: &mut StepHistory,
+    ) -> Result<()> {
+        let n = hst.len;
+        let mut lo = 0;
+        while lo < n {
+            let m = hst.chunk.min(n - lo);
+            let hi = lo + m;
+            let h = hst.t[hi] - hst.t[lo];
+            linearize_step(
+                sys,
+                &mut self.lin,
+                method,
+                &hst.q[lo],
+                &hst.v[lo],
+                &hst.tau[lo],
+                h,
+            )?;
+            // Steps of the chunk the stability bound allows (at least one).
+            let per_step = h / m as f64;
+            let stable = (CHUNK_STABILITY / (self.lin.stiffness() * per_step)).floor();
+            let stable = if stable.is_finite() {
+                (stable as usize).clamp(1, CHUNK_CAPACITY)
+            } else {
+                CHUNK_CAPACITY
+            };
+            let order = match method {
+                Method::SemiImplicitEuler => 1.0,
+                Method::Sdirk2 => 2.0,
+                Method::Rk4 => 4.0,
+                Method::Dopri5 => 5.0,
+            };
+            let ratio = if m > 1 {
+                hst.mismatch(&sys.model, &self.lin, lo, hi)
+            } else {
+                0.0
+            };
+            if m > 1 && (m > stable || ratio > 1.0) {
+                hst.chunk = next_chunk(m, ratio, order).min(m - 1).min(stable);
+                continue;
+            }
+            self.apply_linearization(h);
+            self.project(sys, &hst.q[hi], &hst.v[hi])?;
+            hst.chunk = if m > 1 {
+                next_chunk(m, ratio, order).max(m)
+            } else {
+                2
+            }
+            .min(stable);
+            lo = hi;
+        }
+        Ok(())
+    }
+}
