@@ -244,16 +244,22 @@ impl Actuators {
     /// One control tick at (q, v): update the integrators over `dt` and write the held torques.
     pub fn update(&mut self, cmd: &Command, q: &[f64], v: &[f64], dt: f64, tau: &mut [f64]) {
         tau.iter_mut().for_each(|x| *x = 0.0);
-        let mut targets: Vec<Option<f64>> = self
-            .velocity
-            .iter()
-            .map(|c| cmd.joint_velocity.get(&c.name).copied())
-            .collect();
-        if let (Some((l, r, radius, b)), Some([lin, ang])) = (self.diff_drive, cmd.base_twist) {
-            targets[l] = Some((lin - ang * b / 2.0) / radius);
-            targets[r] = Some((lin + ang * b / 2.0) / radius);
-        }
-        for (c, target) in self.velocity.iter_mut().zip(targets) {
+        // The wheels' targets from a base twist replace their own; no buffer (a control tick
+        // runs inside the prediction's loop and allocates nothing).
+        let twist = match (self.diff_drive, cmd.base_twist) {
+            (Some(drive), Some(twist)) => Some((drive, twist)),
+            _ => None,
+        };
+        for (k, c) in self.velocity.iter_mut().enumerate() {
+            let target = match twist {
+                Some(((l, _, radius, b), [lin, ang])) if k == l => {
+                    Some((lin - ang * b / 2.0) / radius)
+                }
+                Some(((_, r, radius, b), [lin, ang])) if k == r => {
+                    Some((lin + ang * b / 2.0) / radius)
+                }
+                _ => cmd.joint_velocity.get(&c.name).copied(),
+            };
             let Some(target) = target else { continue };
             let e = target - v[c.iv];
             let raw = c.kp * e + c.ki * (c.integral + e * dt);

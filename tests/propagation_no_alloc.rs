@@ -2,8 +2,10 @@
 //! (and the same samples) makes exactly as many allocations — every method, with projection, on a
 //! constrained scene (fourbar, full-rank loop) and with force elements (stiff chain); and RK4 with
 //! projection in both formulations on the rank-deficient and rolling scenes (diff drive, mobile
-//! manipulator, rolling disk). The error estimate's companion run (two lanes sized once) is part
-//! of every prediction, so it is covered.
+//! manipulator, rolling disk); closed-loop actuators following a command with a propagated
+//! covariance (each control tick cloned the command's maps and built a target list: 2
+//! allocations per tick before). The error estimate's companion run (two lanes sized once) is
+//! part of every prediction, so it is covered.
 
 use constraint_dynamics::Scene;
 use constraint_dynamics::dynamics::Formulation;
@@ -96,4 +98,43 @@ fn stepping_allocates_nothing_per_step_on_rolling_scenes() {
             assert_eq!(short, long, "{rel} {formulation:?}: the steps allocate");
         }
     }
+}
+
+/// Closed-loop actuators (a control tick every 1 ms: the diff drive's PI wheel controllers and
+/// the arm's PD joints following a command) and a propagated covariance (its linearized steps and
+/// constraint projection): 4× the ticks and steps, the same allocations.
+#[test]
+fn actuated_prediction_with_covariance_allocates_nothing_per_step() {
+    use constraint_dynamics::actuators::Command;
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let sc = Scene::load(root.join("params/suite_mobile_manipulator.yaml")).unwrap();
+    let mut p = Predictor::from_scene(&sc).unwrap();
+    p.settings.method = Method::Rk4;
+    p.settings.dt = 1e-3;
+    p.settings.drift = DriftControl::Projection;
+    let n = 2 * p.sys.model.nv;
+    p.start_covariance = Some(nalgebra::DMatrix::identity(n, n) * 1e-6);
+    let mut cmd = Command {
+        base_twist: Some([0.3, 0.2]),
+        ..Default::default()
+    };
+    cmd.joint_position.insert("arm_elbow".into(), 0.8);
+    let commands = [(0.0, cmd)];
+    let mut run = |h: f64| {
+        p.settings.sample_period = h;
+        let mut t = None;
+        let n = allocations(|| t = Some(p.predict(&sc.q0, &sc.v0, &commands, h).unwrap()));
+        let t = t.unwrap();
+        assert_eq!(t.samples.len(), 2);
+        assert!(t.samples.iter().all(|s| s.covariance.is_some()));
+        n
+    };
+    let h = 0.05;
+    run(h); // warm-up
+    let (short, long) = (run(h), run(4.0 * h));
+    println!(
+        "actuated mobile manipulator with covariance: {short} allocations over {h} s, {long} over {} s",
+        4.0 * h
+    );
+    assert_eq!(short, long, "the control ticks or the covariance allocate");
 }

@@ -262,24 +262,25 @@ impl Predictor {
         };
         // The first control tick comes before the first sample, so that every sample's forces
         // include the actuator torque held over the interval that ends (or, at t = 0, starts) there.
-        let command_at = |t: f64| {
+        // The command in force at t, borrowed (a clone per control tick allocated its maps).
+        let idle = Command::default();
+        let command_at = |t: f64| -> &Command {
             commands
                 .iter()
                 .rev()
                 .find(|(ts, _)| *ts <= t + 1e-12)
-                .map(|(_, c)| c.clone())
-                .unwrap_or_default()
+                .map_or(&idle, |(_, c)| c)
         };
         if !self.actuators.is_empty() && horizon > 0.0 {
             let [a, c] = &*lanes;
             let cmd = command_at(0.0);
             let dt = period.min(horizon);
             self.actuators
-                .update(&cmd, &a.q, &a.v, dt, &mut self.ws.tau_act);
+                .update(cmd, &a.q, &a.v, dt, &mut self.ws.tau_act);
             if s.error_estimate {
                 let ws = &mut self.ws;
                 ws.companion_actuators
-                    .update(&cmd, &c.q, &c.v, dt, &mut ws.tau_companion);
+                    .update(cmd, &c.q, &c.v, dt, &mut ws.tau_companion);
             }
         }
         let first = self.sample(
@@ -304,11 +305,11 @@ impl Predictor {
                     let [a, c] = &*lanes;
                     let cmd = command_at(t);
                     self.actuators
-                        .update(&cmd, &a.q, &a.v, t_end - t, &mut self.ws.tau_act);
+                        .update(cmd, &a.q, &a.v, t_end - t, &mut self.ws.tau_act);
                     if s.error_estimate {
                         let ws = &mut self.ws;
                         ws.companion_actuators.update(
-                            &cmd,
+                            cmd,
                             &c.q,
                             &c.v,
                             t_end - t,
