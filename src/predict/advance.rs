@@ -243,10 +243,6 @@ impl Predictor {
                     });
                 }
             }
-            // P is read at the span's end (a sample or control tick).
-            if let Some(c) = cov.as_mut() {
-                c.flush(rhs.sys, s.method)?;
-            }
             Ok(())
         })();
         *evaluations += rhs.evaluations;

@@ -3,9 +3,11 @@
 //! The covariance needs the flow's sensitivity Φ(t₁, t₀), not one per integrator step: the
 //! prediction's step is set by the accuracy and stability of its nominal trajectory, while Φ of
 //! a smooth flow is represented as well by one step of the same method over several of them.
-//! So the prediction records its steps (start state, held generalized force, size) and, at the
-//! end of every span (a control tick or a sample: where P is read) or when the record is full,
-//! [`CovariancePropagator::flush`] covers them with linearized steps of m recorded steps each.
+//! So the prediction records its steps (start state, held generalized force, size) and, at every
+//! sample (where P is read) or when the record is full, [`CovariancePropagator::flush`] covers
+//! them with linearized steps of m recorded steps each. A chunk may span control ticks: it holds
+//! the torque of its first step, and the check below refuses it where the controllers' torque
+//! changed enough to matter.
 //!
 //! The check that keeps it honest: the linearized step from a chunk's start state also
 //! computes that step's end state; the chunk is accepted only if that reproduces the recorded
