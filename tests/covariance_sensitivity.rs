@@ -18,7 +18,7 @@ use nalgebra::{DMatrix, DVector};
 
 /// Achieved ≤ 2.9e-4 (the mobile manipulator at 0.5 s; 1.3e-4 on its floating twin, ≤ 3.4e-5
 /// elsewhere, 1.2e-14 on the diff drive whose Φ is exact): the covariance's linearized steps span
-/// several prediction steps (src/predict/covariance_chunks.rs, accepted at 1e-4 of the chunk's
+/// several prediction steps (src/predict/covariance_chunks.rs, accepted at 1e-3 of the chunk's
 /// motion; one linearization per step gives ≤ 4e-7) and N = ∂(Jv)/∂q is a central difference.
 const TOL: f64 = 1e-3;
 
