@@ -280,19 +280,20 @@ impl RosNode {
     }
 
     /// A server of service `S` named `name`, with the Enhanced mapping and
-    /// ROS's default service QoS.
+    /// ROS's default service QoS, except that requests waiting to be taken are kept up to
+    /// [`qos::SERVER_REQUEST_DEPTH`] deep (ROS's 10 dropped the oldest of a client's
+    /// pipelined requests without a trace while the executor was busy).
     pub fn server<S: RosService>(
         &mut self,
         name: &str,
     ) -> Result<Server<S::Request, S::Response>, RosContextError> {
-        let qos = qos::services();
         self.node
             .create_server::<S::Request, S::Response>(
                 ServiceMapping::Enhanced,
                 &self.topic_name(name)?,
                 &S::type_name(),
-                qos.clone(),
-                qos,
+                qos::reliable(qos::SERVER_REQUEST_DEPTH),
+                qos::services(),
             )
             .map_err(|e| RosContextError::Create(format!("{e:?}")))
     }
@@ -400,6 +401,11 @@ pub mod qos {
     pub fn transient_local() -> QosProfile {
         reliable(1).durability(Durability::TransientLocal)
     }
+
+    /// Requests a server keeps until its executor takes them: as deep as a worker's queue
+    /// (`node::worker::QUEUE`), so that a request is answered or refused "busy", never lost
+    /// in the reader's history.
+    pub const SERVER_REQUEST_DEPTH: usize = 1024;
 
     /// `rmw_qos_profile_services_default`: reliable, volatile, keep last 10.
     pub fn services() -> QosProfile {
