@@ -60,3 +60,19 @@ impl RosTimer {
         }
     }
 }
+
+/// Niceness of a periodic worker's thread: the predictor's predictions (tens of ms of CPU
+/// each) yield to the threads that serve requests, so a service call does not wait behind a
+/// prediction for a core (on two cores it did: see docs/nodes.md, "Load and churn").
+pub(crate) const PERIODIC_NICE: i32 = 10;
+
+/// Lowers the calling thread's scheduling priority to [`PERIODIC_NICE`] (Linux: niceness is
+/// per thread). A failure only costs latency, so it is ignored.
+pub(crate) fn lower_priority() {
+    // SAFETY: gettid has no preconditions; setpriority on our own thread id only changes
+    // this thread's niceness.
+    unsafe {
+        let tid = libc::syscall(libc::SYS_gettid) as libc::id_t;
+        libc::setpriority(libc::PRIO_PROCESS, tid, PERIODIC_NICE);
+    }
+}

@@ -224,6 +224,9 @@ struct Timers {
 
 impl<N: NodeLogic> Worker<N> {
     fn run(&mut self, rx: Receiver<Event<N>>) {
+        if self.logic.tick_period().is_some() {
+            crate::node::timer::lower_priority();
+        }
         // Ticks and diagnostics run on the ROS clock (see `RosTimer`).
         let sim = self.logic.params().common.use_sim_time;
         let diag_period = Duration::from_secs_f64(self.logic.params().common.diagnostics.period);
