@@ -299,19 +299,20 @@ impl RosNode {
     }
 
     /// A client of service `S` named `name`, with the Enhanced mapping and
-    /// ROS's default service QoS.
+    /// ROS's default service QoS, except that responses waiting to be taken are kept
+    /// [`qos::SERVER_REQUEST_DEPTH`] deep: the reader receives the responses to every client
+    /// of the service, and with 10 a client that pipelines lost its own among them.
     pub fn client<S: RosService>(
         &mut self,
         name: &str,
     ) -> Result<Client<S::Request, S::Response>, RosContextError> {
-        let qos = qos::services();
         self.node
             .create_client::<S::Request, S::Response>(
                 ServiceMapping::Enhanced,
                 &self.topic_name(name)?,
                 &S::type_name(),
-                qos.clone(),
-                qos,
+                qos::services(),
+                qos::reliable(qos::SERVER_REQUEST_DEPTH),
             )
             .map_err(|e| RosContextError::Create(format!("{e:?}")))
     }
