@@ -279,10 +279,8 @@ impl RosNode {
             .map_err(|e| RosContextError::Create(format!("{e:?}")))
     }
 
-    /// A server of service `S` named `name`, with the Enhanced mapping and
-    /// ROS's default service QoS, except that requests waiting to be taken are kept up to
-    /// [`qos::SERVER_REQUEST_DEPTH`] deep (ROS's 10 dropped the oldest of a client's
-    /// pipelined requests without a trace while the executor was busy).
+    /// A server of service `S` named `name`, with the Enhanced mapping and ROS's default
+    /// service QoS, but [`qos::SERVER_REQUEST_DEPTH`] waiting requests (ROS's 10 lost some).
     pub fn server<S: RosService>(
         &mut self,
         name: &str,
@@ -298,10 +296,9 @@ impl RosNode {
             .map_err(|e| RosContextError::Create(format!("{e:?}")))
     }
 
-    /// A client of service `S` named `name`, with the Enhanced mapping and
-    /// ROS's default service QoS, except that responses waiting to be taken are kept
-    /// [`qos::SERVER_REQUEST_DEPTH`] deep: the reader receives the responses to every client
-    /// of the service, and with 10 a client that pipelines lost its own among them.
+    /// A client of service `S` named `name`, with the Enhanced mapping and ROS's default
+    /// service QoS, but [`qos::SERVER_REQUEST_DEPTH`] waiting responses: its reader gets every
+    /// client's, and with 10 a pipelining client lost its own among them.
     pub fn client<S: RosService>(
         &mut self,
         name: &str,
