@@ -21,7 +21,9 @@ cargo build --workspace --all-targets --locked --offline
 
 # Rust tests, then the rclpy/Cyclone interop suite, in one private namespace each. The DDS tests
 # are #[ignore]d in a plain `cargo test` (they need root and the peer venv, both set up here):
-# --include-ignored runs them, and a missing prerequisite fails them.
+# --include-ignored runs them, and a missing prerequisite fails them. Every nodes/tests/*.rs
+# target runs here, the robustness ones included: suite_load (~85 s; CD_LOAD_SECONDS, default
+# 60), suite_churn (~75 s; CD_CHURN_PARTICIPANTS, default 1000), suite_absurd_params (~15 s).
 set +e
 tools/ros2/netns_run.sh cargo test --workspace --locked --offline -- --include-ignored 2>&1 | tee /tmp/cd_cargo_test.log
 cargo_status=${PIPESTATUS[0]}

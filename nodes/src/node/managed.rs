@@ -32,7 +32,7 @@ use crate::msg::lifecycle_msgs::{
     GetAvailableTransitions, GetAvailableTransitionsResponse, GetState, GetStateResponse,
     TransitionEvent,
 };
-use crate::params::NodeParams;
+use crate::params::{KindParams, NodeParams, WorkBudget};
 use crate::robot::Robot;
 use crate::ros::args::{Parameters, RosArgs};
 use crate::ros::context::{RosNode, qos};
@@ -41,10 +41,15 @@ use crate::ros::logging::NodeLog;
 
 /// The parameters as the ROS node holds them, and the slot through which run-time changes
 /// reach the worker (empty while there is none).
-pub type ParamsLink<N> = (
-    Arc<Mutex<Parameters>>,
-    Arc<Mutex<Option<SyncSender<Event<N>>>>>,
-);
+pub type ParamsLink<N> = (Arc<Mutex<Parameters>>, Arc<Mutex<Option<WorkerLink<N>>>>);
+
+/// What a run-time parameter set reaches while the node is configured.
+pub struct WorkerLink<N: NodeLogic> {
+    /// The worker's events.
+    pub tx: SyncSender<Event<N>>,
+    /// The scene's work limits, which the values that size work must respect.
+    pub budget: WorkBudget,
+}
 
 /// What the lifecycle servers ask the supervisor.
 enum Request {
@@ -287,6 +292,8 @@ impl<N: RosWiring> Managed<N> {
         let current = self.params.0.lock().map_err(|_| poisoned())?.clone();
         let params = NodeParams::<N::Params>::from_parameters(&current)?;
         let robot = Robot::load(&params.common)?;
+        let budget = WorkBudget::of(robot.scene());
+        params.node.check_work(&budget)?;
         let logic = N::new(robot, params.clone(), self.log.clone())?;
         let summary = {
             let (r, m) = (logic.robot(), logic.robot().model());
@@ -315,7 +322,8 @@ impl<N: RosWiring> Managed<N> {
                 let latest = NodeParams::<N::Params>::from_parameters(&now)?;
                 let _ = sender.send(Event::Params(Box::new(latest)));
             }
-            *self.params.1.lock().map_err(|_| poisoned())? = Some(sender);
+            *self.params.1.lock().map_err(|_| poisoned())? =
+                Some(WorkerLink { tx: sender, budget });
         }
         let mut c = Configured {
             params,

@@ -4,5 +4,6 @@
 
 pub mod health;
 pub mod managed;
+mod timer;
 pub mod wiring;
 pub mod worker;

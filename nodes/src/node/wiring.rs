@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex};
 
 use ros2_client::{Context, NodeOptions};
 
-use super::managed::{Managed, Supervisor};
+use super::managed::{Managed, Supervisor, WorkerLink};
 
 use crate::error::NodeError;
 use crate::msg::RosService;
@@ -21,7 +21,7 @@ use crate::msg::sensor_msgs::JointState;
 use crate::msg::std_msgs::Header;
 use crate::msg::std_msgs::StringMsg;
 use crate::node::worker::{Event, NodeLogic};
-use crate::params::NodeParams;
+use crate::params::{NodeParams, WorkBudget};
 use crate::ros::args::{Parameters, RosArgs};
 use crate::ros::context::{RosNode, qos};
 use crate::ros::io::{Reply, serve, subscribe};
@@ -107,6 +107,14 @@ impl RunningNode for Running {
     }
 }
 
+/// The scene's work limits while the node is configured (none before: `configure` checks the
+/// parameters against them then).
+fn budget_of<N: NodeLogic>(link: &Mutex<Option<WorkerLink<N>>>) -> Option<WorkBudget> {
+    link.lock()
+        .ok()
+        .and_then(|l| l.as_ref().map(|l| l.budget.clone()))
+}
+
 /// Sends a state event; a full queue drops it (the next message replaces it anyway).
 pub fn forward<N: NodeLogic>(tx: &SyncSender<Event<N>>, ev: Event<N>) {
     let _ = tx.try_send(ev);
@@ -128,35 +136,41 @@ pub fn start_node<N: RosWiring>(
     // (when there is one: the node is configured).
     let ready = Arc::new(AtomicBool::new(false));
     let current = Arc::new(Mutex::new(ros_params));
-    let event_tx: Arc<Mutex<Option<SyncSender<Event<N>>>>> = Arc::new(Mutex::new(None));
+    let link: Arc<Mutex<Option<WorkerLink<N>>>> = Arc::new(Mutex::new(None));
     let mut options = NodeOptions::new().enable_rosout(true);
     for (pname, value) in params.to_ros() {
         options = options.declare_parameter(&pname, value);
     }
     {
-        let (ready, current) = (ready.clone(), current.clone());
+        let (ready, current, link) = (ready.clone(), current.clone(), link.clone());
         options = options.parameter_validator(Box::new(move |pname, value| {
             if !ready.load(Ordering::SeqCst) {
                 return Ok(());
             }
             let c = current.lock().map_err(|e| e.to_string())?;
-            NodeParams::<N::Params>::updated(&c, pname, value)
+            let budget = budget_of(&link);
+            NodeParams::<N::Params>::updated(&c, pname, value, budget.as_ref())
                 .map(|_| ())
                 .map_err(|e| e.to_string())
         }));
     }
     {
-        let (ready, current, event_tx) = (ready.clone(), current.clone(), event_tx.clone());
+        let (ready, current, link) = (ready.clone(), current.clone(), link.clone());
         options = options.parameter_set_action(Box::new(move |pname, value| {
             if !ready.load(Ordering::SeqCst) {
                 return Ok(());
             }
             let mut c = current.lock().map_err(|e| e.to_string())?;
-            let next =
-                NodeParams::<N::Params>::updated(&c, pname, value).map_err(|e| e.to_string())?;
+            let budget = budget_of(&link);
+            let next = NodeParams::<N::Params>::updated(&c, pname, value, budget.as_ref())
+                .map_err(|e| e.to_string())?;
             // A set is acknowledged only once the worker has it: with its queue full the set is
             // refused (the caller can retry), never dropped after a success reply.
-            if let Some(tx) = event_tx.lock().ok().and_then(|t| t.clone()) {
+            let tx = link
+                .lock()
+                .ok()
+                .and_then(|l| l.as_ref().map(|l| l.tx.clone()));
+            if let Some(tx) = tx {
                 tx.try_send(Event::Params(Box::new(next))).map_err(|_| {
                     format!("{pname}: the node is busy (request queue full); not set, try again")
                 })?;
@@ -175,7 +189,7 @@ pub fn start_node<N: RosWiring>(
         args.clone(),
         ros,
         &fqn,
-        (current, event_tx),
+        (current, link),
         log.clone(),
     )?;
     if autostart {

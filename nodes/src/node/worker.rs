@@ -9,6 +9,8 @@
 //! error, the logic is rebuilt from its scene, and the worker keeps serving.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, sync_channel};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -19,6 +21,7 @@ use crate::msg::diagnostic_msgs::{DiagnosticStatus, KeyValue};
 use crate::msg::nav_msgs::Odometry;
 use crate::msg::sensor_msgs::JointState;
 use crate::node::health::{Health, Input, StatusContext};
+use crate::node::timer::RosTimer;
 use crate::params::{KindParams, NodeParams};
 use crate::robot::Robot;
 use crate::ros::logging::NodeLog;
@@ -65,63 +68,6 @@ pub trait NodeLogic: Sized + Send + 'static {
     }
 }
 
-/// A period on the ROS clock: wall time, or `/clock` under `use_sim_time` (then it follows the
-/// simulation's time, faster or slower than real time, and stops with it).
-struct RosTimer {
-    period: Duration,
-    next_wall: Instant,
-    next_sim: Option<Time>,
-}
-
-impl RosTimer {
-    fn new(period: Duration) -> Self {
-        RosTimer {
-            period,
-            next_wall: Instant::now(),
-            next_sim: None,
-        }
-    }
-
-    /// Fire at the next check.
-    fn reset(&mut self) {
-        self.next_wall = Instant::now();
-        self.next_sim = None;
-    }
-
-    /// How long the worker may sleep before this timer needs a check.
-    fn wait(&self, sim: bool) -> Duration {
-        if sim {
-            Duration::from_secs(3600) // /clock messages wake the worker
-        } else {
-            self.next_wall.saturating_duration_since(Instant::now())
-        }
-    }
-
-    /// True (once) when the period has passed; behind, it does not catch up.
-    fn due(&mut self, sim: Option<Option<Time>>) -> bool {
-        match sim {
-            Some(Some(now)) => {
-                if self.next_sim.is_none_or(|n| now.to_nanos() >= n.to_nanos()) {
-                    self.next_sim = Some(crate::convert::time_plus(now, self.period.as_secs_f64()));
-                    return true;
-                }
-                false
-            }
-            Some(None) => false,
-            None => {
-                if Instant::now() < self.next_wall {
-                    return false;
-                }
-                self.next_wall += self.period;
-                if self.next_wall < Instant::now() {
-                    self.next_wall = Instant::now() + self.period;
-                }
-                true
-            }
-        }
-    }
-}
-
 /// Everything a worker reacts to.
 pub enum Event<N: NodeLogic> {
     /// `joint_states`.
@@ -146,10 +92,19 @@ pub enum Event<N: NodeLogic> {
 /// requests get a "busy" error.
 pub const QUEUE: usize = 1024;
 
+/// How long [`WorkerHandle::stop`] waits for the worker to finish what it is computing. A
+/// prediction cannot be interrupted (it may run for seconds, up to the scene's work limits);
+/// after this the worker is left to finish on its own and then exit, so that stopping a node
+/// — and SIGINT, which stops every node — never waits for a computation.
+pub const STOP_WAIT: Duration = Duration::from_millis(200);
+
 /// The glue's side of a worker.
 pub struct WorkerHandle<N: NodeLogic> {
     tx: SyncSender<Event<N>>,
     thread: Option<JoinHandle<()>>,
+    /// Set by [`WorkerHandle::stop`]: the worker exits before its next event.
+    stopping: Arc<AtomicBool>,
+    name: String,
 }
 
 impl<N: NodeLogic> WorkerHandle<N> {
@@ -170,7 +125,9 @@ impl<N: NodeLogic> WorkerHandle<N> {
         if !common.state.odom_topic.is_empty() {
             subscribed.push(Input::Odometry);
         }
+        let stopping = Arc::new(AtomicBool::new(false));
         let mut worker = Worker {
+            stopping: stopping.clone(),
             logic,
             log: NodeLog::new(name),
             fqn: fqn.to_string(),
@@ -189,6 +146,8 @@ impl<N: NodeLogic> WorkerHandle<N> {
         Ok(WorkerHandle {
             tx,
             thread: Some(thread),
+            stopping,
+            name: name.to_string(),
         })
     }
 
@@ -197,11 +156,27 @@ impl<N: NodeLogic> WorkerHandle<N> {
         self.tx.clone()
     }
 
-    /// Stops the thread and waits for it.
+    /// Stops the thread: it exits before its next event (queued requests are dropped, their
+    /// callers get the "internal error" reply or none). Waits for it at most [`STOP_WAIT`]; a
+    /// worker still computing then is left to finish and exit on its own.
     pub fn stop(&mut self) {
-        let _ = self.tx.send(Event::Shutdown);
-        if let Some(t) = self.thread.take() {
+        self.stopping.store(true, Ordering::SeqCst);
+        // Wakes an idle worker; a full queue means it is busy and will see the flag.
+        let _ = self.tx.try_send(Event::Shutdown);
+        let Some(t) = self.thread.take() else {
+            return;
+        };
+        let deadline = Instant::now() + STOP_WAIT;
+        while !t.is_finished() && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        if t.is_finished() {
             let _ = t.join();
+        } else {
+            NodeLog::new(&self.name).info(&format!(
+                "stopping while a computation runs: not waiting for it (more than {} ms)",
+                STOP_WAIT.as_millis()
+            ));
         }
     }
 }
@@ -221,6 +196,8 @@ struct Warned {
 }
 
 struct Worker<N: NodeLogic> {
+    /// Set when the node stops: exit before the next event.
+    stopping: Arc<AtomicBool>,
     logic: N,
     log: NodeLog,
     /// Fully qualified node name (the diagnostics status' name).
@@ -247,6 +224,9 @@ struct Timers {
 
 impl<N: NodeLogic> Worker<N> {
     fn run(&mut self, rx: Receiver<Event<N>>) {
+        if self.logic.tick_period().is_some() {
+            crate::node::timer::lower_priority();
+        }
         // Ticks and diagnostics run on the ROS clock (see `RosTimer`).
         let sim = self.logic.params().common.use_sim_time;
         let diag_period = Duration::from_secs_f64(self.logic.params().common.diagnostics.period);
@@ -266,7 +246,11 @@ impl<N: NodeLogic> Worker<N> {
                     .min(timers.diag.wait(sim)),
                 false => idle,
             };
-            match rx.recv_timeout(timeout) {
+            let received = rx.recv_timeout(timeout);
+            if self.stopping.load(Ordering::SeqCst) {
+                return;
+            }
+            match received {
                 Ok(ev) => {
                     if self.apply(ev, &mut timers) {
                         return;
@@ -279,9 +263,12 @@ impl<N: NodeLogic> Worker<N> {
             // starts from a state older than the queue (a slow tick would otherwise leave it
             // one message behind per period).
             while let Ok(ev) = rx.try_recv() {
-                if self.apply(ev, &mut timers) {
+                if self.stopping.load(Ordering::SeqCst) || self.apply(ev, &mut timers) {
                     return;
                 }
+            }
+            if self.stopping.load(Ordering::SeqCst) {
+                return;
             }
             // An inactive node (lifecycle) follows its inputs but neither predicts nor reports.
             if !self.active {

@@ -374,7 +374,12 @@ impl Default for DiagnosticsParams {
 impl DiagnosticsParams {
     /// Checks every value, naming the one that is wrong.
     pub fn validate(&self) -> Result<(), ParamsError> {
-        positive("diagnostics.period", self.period)?;
+        super::work::in_range(
+            "diagnostics.period",
+            self.period,
+            super::work::DIAGNOSTICS_PERIOD,
+            "s",
+        )?;
         positive("diagnostics.input_timeout", self.input_timeout)?;
         if !(0.0..=1.0).contains(&self.min_rate_fraction) {
             return Err(ParamsError::invalid(

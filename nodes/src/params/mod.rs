@@ -13,6 +13,7 @@
 
 mod groups;
 mod kind;
+pub mod work;
 
 use std::path::{Path, PathBuf};
 
@@ -27,6 +28,7 @@ pub use groups::{
     ModelParams, NetworkParams, SlipParams, StaleBehaviour, StateParams,
 };
 pub use kind::NodeKind;
+pub use work::WorkBudget;
 
 /// A parameter that is missing, malformed or out of its range.
 #[derive(Debug, thiserror::Error)]
@@ -74,6 +76,13 @@ pub trait KindParams:
 
     /// Checks every value, naming the parameter that is wrong.
     fn validate(&self) -> Result<(), ParamsError>;
+
+    /// Checks the values that size work against the scene's work limits (when the node is
+    /// configured and on every run-time set), naming the parameter and its limit. Default:
+    /// nothing sizes work.
+    fn check_work(&self, _budget: &WorkBudget) -> Result<(), ParamsError> {
+        Ok(())
+    }
 }
 
 /// The groups every node kind has.
@@ -208,11 +217,13 @@ impl<K: KindParams> NodeParams<K> {
     }
 
     /// The parameters with `name` set to `value`, if that name may change at run time and the
-    /// result is valid. `current` holds every parameter's present value.
+    /// result is valid — within the scene's work limits too when the node has a scene
+    /// (`budget`). `current` holds every parameter's present value.
     pub fn updated(
         current: &Parameters,
         name: &str,
         value: &ParameterValue,
+        budget: Option<&WorkBudget>,
     ) -> Result<Self, ParamsError> {
         let dynamic = |d: &&str| name == *d || (d.ends_with('.') && name.starts_with(d));
         if NEVER_DYNAMIC.contains(&name) || !K::DYNAMIC.iter().any(dynamic) {
@@ -223,7 +234,11 @@ impl<K: KindParams> NodeParams<K> {
         }
         let mut params = current.clone();
         params.values.insert(name.to_string(), value.clone());
-        Self::from_parameters(&params)
+        let p = Self::from_parameters(&params)?;
+        if let Some(b) = budget {
+            p.node.check_work(b)?;
+        }
+        Ok(p)
     }
 }
 

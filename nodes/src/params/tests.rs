@@ -119,13 +119,22 @@ fn run_time_changes_only_of_dynamic_parameters() {
     p.common.model.scene_file = "s.yaml".into();
     let mut current = Parameters::default();
     current.values.extend(p.to_ros());
-    let next =
-        NodeParams::<PredictorParams>::updated(&current, "horizon", &ParameterValue::Double(2.0))
-            .unwrap();
+    let next = NodeParams::<PredictorParams>::updated(
+        &current,
+        "horizon",
+        &ParameterValue::Double(2.0),
+        None,
+    )
+    .unwrap();
     assert_eq!(next.node.horizon, 2.0);
-    let e = NodeParams::<PredictorParams>::updated(&current, "rate", &ParameterValue::Double(5.0))
-        .unwrap_err()
-        .to_string();
+    let e = NodeParams::<PredictorParams>::updated(
+        &current,
+        "rate",
+        &ParameterValue::Double(5.0),
+        None,
+    )
+    .unwrap_err()
+    .to_string();
     assert!(
         e.contains("'rate' cannot change while the node runs"),
         "{e}"
@@ -134,6 +143,7 @@ fn run_time_changes_only_of_dynamic_parameters() {
         &current,
         "use_sim_time",
         &ParameterValue::Boolean(true),
+        None,
     )
     .unwrap_err()
     .to_string();
@@ -143,6 +153,7 @@ fn run_time_changes_only_of_dynamic_parameters() {
         &current,
         "covariance.twist_floor",
         &ParameterValue::Double(-1.0),
+        None,
     )
     .unwrap_err()
     .to_string();

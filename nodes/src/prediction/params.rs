@@ -2,7 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::params::{CommandParams, KindParams, ParamsError, positive};
+use crate::params::work::{MAX_COMMANDS, MAX_HORIZON, in_range};
+use crate::params::{CommandParams, KindParams, ParamsError, WorkBudget};
 
 /// The prediction service (`cd_prediction`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -31,11 +32,22 @@ impl KindParams for PredictionParams {
     const DYNAMIC: &'static [&'static str] = &["slip.", "max_horizon", "command.fallback"];
 
     fn validate(&self) -> Result<(), ParamsError> {
-        positive("max_horizon", self.max_horizon)?;
+        in_range("max_horizon", self.max_horizon, (1e-3, MAX_HORIZON), "s")?;
         self.command.validate()?;
-        if self.max_commands == 0 {
-            return Err(ParamsError::invalid("max_commands", "must be at least 1"));
+        if self.max_commands == 0 || self.max_commands > MAX_COMMANDS {
+            return Err(ParamsError::invalid(
+                "max_commands",
+                format!(
+                    "= {} is outside its range [1, {MAX_COMMANDS}]",
+                    self.max_commands
+                ),
+            ));
         }
         Ok(())
+    }
+
+    /// A request of `max_horizon` within the scene's limits.
+    fn check_work(&self, budget: &WorkBudget) -> Result<(), ParamsError> {
+        budget.check_horizon("max_horizon", self.max_horizon, None)
     }
 }

@@ -2,7 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::params::{CommandParams, KindParams, ParamsError, nonempty, nonneg, positive};
+use crate::params::work::{MAX_FOOTPRINT_VERTICES, MAX_HORIZON, RATE, in_range};
+use crate::params::{CommandParams, KindParams, ParamsError, WorkBudget, nonempty, positive};
 
 /// The periodic predictor (`cd_predictor`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -53,8 +54,8 @@ impl KindParams for PredictorParams {
     ];
 
     fn validate(&self) -> Result<(), ParamsError> {
-        positive("rate", self.rate)?;
-        nonneg("horizon", self.horizon)?;
+        in_range("rate", self.rate, RATE, "Hz")?;
+        in_range("horizon", self.horizon, (0.0, MAX_HORIZON), "s")?;
         self.command.validate()?;
         nonempty("command.topic", &self.command.topic)?;
         let c = &self.covariance;
@@ -62,6 +63,18 @@ impl KindParams for PredictorParams {
         positive("covariance.orientation_floor", c.orientation_floor)?;
         positive("covariance.twist_floor", c.twist_floor)?;
         self.markers.validate()
+    }
+
+    /// The horizon (the scene's when 0) within the scene's limits, at `rate`.
+    fn check_work(&self, budget: &WorkBudget) -> Result<(), ParamsError> {
+        let (name, horizon) = match self.horizon {
+            h if h > 0.0 => ("horizon", h),
+            _ => (
+                "horizon (0: the scene's integration.horizon)",
+                budget.scene_horizon(),
+            ),
+        };
+        budget.check_horizon(name, horizon, Some(self.rate))
     }
 }
 
@@ -141,6 +154,15 @@ impl MarkerParams {
                 "markers.footprint",
                 format!(
                     "= {f:?} must be [x0, y0, x1, y1, …] with at least three finite vertices [m]"
+                ),
+            ));
+        }
+        if f.len() > 2 * MAX_FOOTPRINT_VERTICES {
+            return Err(ParamsError::invalid(
+                "markers.footprint",
+                format!(
+                    "has {} vertices, more than its limit of {MAX_FOOTPRINT_VERTICES}",
+                    f.len() / 2
                 ),
             ));
         }

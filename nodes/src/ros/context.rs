@@ -1,20 +1,17 @@
-//! A ros2-client [`Context`] configured the way a ROS user expects, and nodes
-//! whose spinner runs on a background thread.
+//! A ros2-client [`Context`] configured the way a ROS user expects, and nodes whose spinner
+//! runs on a background thread.
 //!
-//! - Domain: `ROS_DOMAIN_ID` (0 if unset), as rcl does; ros2-client's
-//!   `Context::new()` ignores it.
-//! - Network interfaces: all (as ROS does) unless restricted by the
-//!   `ros_interfaces` parameter or the `CD_ROS_INTERFACES` environment variable:
-//!   a comma/space-separated list of IP addresses (`127.0.0.1`, `::1`,
-//!   `192.168.1.20`) or `localhost`. `ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`
-//!   (the kilted way to keep ROS on one machine) restricts to 127.0.0.1 too.
-//!   The restriction is `DomainParticipantBuilder::with_only_networks`.
-//! - Services use [`ServiceMapping::Enhanced`], the mapping that
-//!   interoperates with `rmw_fastrtps_cpp` (rclpy/rclcpp default).
+//! - Domain: `ROS_DOMAIN_ID` (0 if unset), as rcl does; ros2-client's `Context::new()` ignores it.
+//! - Network interfaces: all (as ROS does) unless restricted by the `ros_interfaces` parameter or
+//!   the `CD_ROS_INTERFACES` environment variable: a comma/space-separated list of IP addresses
+//!   (`127.0.0.1`, `::1`, `192.168.1.20`) or `localhost`. `ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`
+//!   (the kilted way to keep ROS on one machine) restricts to 127.0.0.1 too. The restriction is
+//!   `DomainParticipantBuilder::with_only_networks`.
+//! - Services use [`ServiceMapping::Enhanced`], the mapping that interoperates with
+//!   `rmw_fastrtps_cpp` (rclpy/rclcpp default).
 //!
-//! Tests and demos still run inside a loopback-only network namespace
-//! (`tools/ros2/netns_run.sh`): the namespace is the hard guarantee that no
-//! DDS traffic leaves the machine.
+//! Tests and demos still run inside a loopback-only network namespace (`tools/ros2/netns_run.sh`):
+//! the namespace is the hard guarantee that no DDS traffic leaves the machine.
 
 use std::net::IpAddr;
 use std::sync::Arc;
@@ -279,38 +276,36 @@ impl RosNode {
             .map_err(|e| RosContextError::Create(format!("{e:?}")))
     }
 
-    /// A server of service `S` named `name`, with the Enhanced mapping and
-    /// ROS's default service QoS.
+    /// A server of service `S` named `name`, with the Enhanced mapping and ROS's default
+    /// service QoS, but [`qos::service_depth`] waiting requests (ROS's 10 lost some).
     pub fn server<S: RosService>(
         &mut self,
         name: &str,
     ) -> Result<Server<S::Request, S::Response>, RosContextError> {
-        let qos = qos::services();
         self.node
             .create_server::<S::Request, S::Response>(
                 ServiceMapping::Enhanced,
                 &self.topic_name(name)?,
                 &S::type_name(),
-                qos.clone(),
-                qos,
+                qos::reliable(qos::service_depth(S::NAME)),
+                qos::services(),
             )
             .map_err(|e| RosContextError::Create(format!("{e:?}")))
     }
 
-    /// A client of service `S` named `name`, with the Enhanced mapping and
-    /// ROS's default service QoS.
+    /// A client of service `S` named `name`, with the Enhanced mapping and ROS's default service
+    /// QoS, but [`qos::service_depth`] waiting responses (its reader gets every client's).
     pub fn client<S: RosService>(
         &mut self,
         name: &str,
     ) -> Result<Client<S::Request, S::Response>, RosContextError> {
-        let qos = qos::services();
         self.node
             .create_client::<S::Request, S::Response>(
                 ServiceMapping::Enhanced,
                 &self.topic_name(name)?,
                 &S::type_name(),
-                qos.clone(),
-                qos,
+                qos::services(),
+                qos::reliable(qos::service_depth(S::NAME)),
             )
             .map_err(|e| RosContextError::Create(format!("{e:?}")))
     }
@@ -399,6 +394,17 @@ pub mod qos {
     /// Latched (e.g. `/robot_description`): reliable, transient local, keep last 1.
     pub fn transient_local() -> QosProfile {
         reliable(1).durability(Durability::TransientLocal)
+    }
+
+    /// Requests a server's reader (responses a client's) keep until taken, as deep as a worker's
+    /// queue. The cache also keeps that many taken: `Predict` (0.5 MB messages) keeps ROS's 10.
+    pub const SERVER_REQUEST_DEPTH: usize = 1024;
+    /// The history depth of service `name`'s request (server) and response (client) readers.
+    pub fn service_depth(name: &str) -> usize {
+        match name {
+            "Predict" => 10, // never pipelined faster than the executor takes it
+            _ => SERVER_REQUEST_DEPTH,
+        }
     }
 
     /// `rmw_qos_profile_services_default`: reliable, volatile, keep last 10.

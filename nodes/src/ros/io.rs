@@ -33,7 +33,10 @@ pub async fn subscribe<M: serde::de::DeserializeOwned + 'static>(
 }
 
 /// Serves `S`: every request goes to the worker through `send`, whose reply is sent back;
-/// `error` makes the response when the worker cannot answer.
+/// `error` makes the response when the worker cannot answer. Requests are taken as they come
+/// while earlier ones are computed, so a burst reaches the worker's queue and what does not
+/// fit is answered "busy" at once, instead of waiting in the DDS reader's history (where the
+/// oldest are dropped without a trace once it is full).
 pub async fn serve<S, F>(
     server: ros2_client::Server<S::Request, S::Response>,
     log: NodeLog,
@@ -43,30 +46,40 @@ pub async fn serve<S, F>(
     S: RosService,
     F: Fn(S::Request, Reply<S::Response>) -> bool,
 {
+    use futures::stream::FuturesUnordered;
+    use futures::{FutureExt, StreamExt};
+    // The requests the worker has, each waiting for its reply.
+    let mut pending = FuturesUnordered::new();
     loop {
-        let (id, req) = match server.async_receive_request().await {
-            Ok(r) => r,
-            Err(e) => {
-                log.warn(&format!(
-                    "{}: dropped an undecodable request: {e:?}",
-                    S::NAME
-                ));
-                smol::Timer::after(Duration::from_millis(1)).await;
-                continue;
-            }
-        };
-        let (reply_tx, reply_rx) = smol::channel::bounded(1);
-        let resp = if send(req, reply_tx) {
-            match reply_rx.recv().await {
-                Ok(resp) => resp,
-                Err(_) => error(
+        let (id, resp) = futures::select_biased! {
+            (id, reply) = pending.select_next_some() => {
+                let reply: Result<S::Response, smol::channel::RecvError> = reply;
+                let resp = reply.unwrap_or_else(|_| error(
                     "internal error while serving this request (see the node's log); \
                      the node rebuilt its model and keeps serving"
                         .into(),
-                ),
+                ));
+                (id, resp)
             }
-        } else {
-            error("busy: the node's request queue is full, try again".into())
+            // Cancel-safe: a request is taken only when the poll returns it.
+            r = server.async_receive_request().fuse() => match r {
+                Ok((id, req)) => {
+                    let (reply_tx, reply_rx) = smol::channel::bounded(1);
+                    if send(req, reply_tx) {
+                        pending.push(async move { (id, reply_rx.recv().await) });
+                        continue;
+                    }
+                    (id, error("busy: the node's request queue is full, try again".into()))
+                }
+                Err(e) => {
+                    log.warn(&format!(
+                        "{}: dropped an undecodable request: {e:?}",
+                        S::NAME
+                    ));
+                    smol::Timer::after(Duration::from_millis(1)).await;
+                    continue;
+                }
+            },
         };
         if let Err(e) = server.async_send_response(id, resp).await {
             log.warn(&format!("{}: sending the response failed: {e:?}", S::NAME));

@@ -36,10 +36,14 @@ impl Suite {
         self.stop_all();
     }
 
+    /// Stops the nodes side by side: each waits at most `worker::STOP_WAIT` for its worker,
+    /// so a suite stops in about that time whatever its workers are computing.
     fn stop_all(&mut self) {
-        for n in &mut self.nodes {
-            n.stop();
-        }
+        std::thread::scope(|s| {
+            for n in &mut self.nodes {
+                s.spawn(move || n.stop());
+            }
+        });
         self.nodes.clear();
     }
 }

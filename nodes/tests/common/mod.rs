@@ -392,3 +392,62 @@ pub fn assert_close(what: &str, a: &[f64], b: &[f64], tol: f64) {
         panic!("{e}");
     }
 }
+
+/// The resident set of process `pid` [kB] (`VmRSS` of /proc/PID/status).
+pub fn rss_kb(pid: u32) -> u64 {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status"))
+        .unwrap_or_else(|e| panic!("read /proc/{pid}/status: {e}"));
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+        .unwrap_or_else(|| panic!("no VmRSS in /proc/{pid}/status"))
+}
+
+/// Sets parameter `name` of node `fqn` (`/cd_predictor`) through its `set_parameters`
+/// service: (accepted, reason).
+pub fn set_param(
+    client: &Client<
+        ros2_client::rcl_interfaces::SetParametersRequest,
+        ros2_client::rcl_interfaces::SetParametersResponse,
+    >,
+    name: &str,
+    value: ros2_client::ParameterValue,
+) -> (bool, String) {
+    let r = call(
+        client,
+        ros2_client::rcl_interfaces::SetParametersRequest {
+            parameter: vec![ros2_client::parameters::raw::Parameter {
+                name: name.into(),
+                value: value.into(),
+            }],
+        },
+    );
+    let r = r.results.first().expect("one result per parameter");
+    (r.successful, r.reason.clone())
+}
+
+impl SuiteProcess {
+    /// SIGINT, then the time until the process exited (None: still running after `limit`,
+    /// then killed) and whether it exited successfully.
+    pub fn interrupt_timed(&mut self, limit: Duration) -> (Option<Duration>, bool) {
+        assert!(
+            self.alive(),
+            "the suite exited before SIGINT:\n{}",
+            self.log()
+        );
+        let sent = Instant::now();
+        unsafe {
+            libc::kill(self.child.id() as libc::pid_t, libc::SIGINT);
+        }
+        while sent.elapsed() < limit {
+            if let Ok(Some(s)) = self.child.try_wait() {
+                return (Some(sent.elapsed()), s.success());
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        (None, false)
+    }
+}

@@ -2006,15 +2006,19 @@ impl Discovery {
   // already acknowledged it, so the endpoint it announces stays undiscovered.
   //
   // The cache holds samples up to the limit whether or not they have been
-  // read. 4096 lets a waiting sample outlast 4096 newer announcements instead
-  // of 64; at a few hundred bytes per sample, a full cache takes a few MiB per
-  // SEDP topic and DomainParticipant. RustDDS does not enforce max_instances,
-  // and the DataReader keeps History depth samples per instance, so all three
-  // limits are kept consistent.
+  // read, and each one pins its receive buffer until it is reallocated. A
+  // sample that waits for an earlier one's repair is withheld, and the
+  // TopicCache keeps withheld samples beyond this limit (up to
+  // MAX_WITHHELD_BYTES_PER_TOPIC), so the limit only bounds samples already
+  // delivered: 256 (it was 4096, which let every announcement of ~200
+  // departed ros2-client participants stay in memory, ~12 MiB, measured by
+  // constraint_dynamics_nodes' participant churn test). RustDDS does not enforce
+  // max_instances, and the DataReader keeps History depth samples per
+  // instance, so all three limits are kept consistent.
   const SEDP_READER_RESOURCE_LIMITS: ResourceLimits = ResourceLimits {
-    max_samples: 4096,
-    max_instances: 4096,
-    max_samples_per_instance: 4096,
+    max_samples: 256,
+    max_instances: 256,
+    max_samples_per_instance: 256,
   };
 
   // QoS of the built-in SEDP DataReaders (DCPSPublication,
@@ -2197,14 +2201,14 @@ mod tests {
       builtin_topic_names::DCPS_SUBSCRIPTION,
       builtin_topic_names::DCPS_TOPIC,
     ] {
-      assert_eq!(max_samples(topic), 4096, "{topic} cache limit");
+      assert_eq!(max_samples(topic), 256, "{topic} cache limit");
     }
     #[cfg(feature = "security")]
     for topic in [
       builtin_topic_names::DCPS_PUBLICATIONS_SECURE,
       builtin_topic_names::DCPS_SUBSCRIPTIONS_SECURE,
     ] {
-      assert_eq!(max_samples(topic), 4096, "{topic} cache limit");
+      assert_eq!(max_samples(topic), 256, "{topic} cache limit");
     }
     assert_eq!(
       max_samples(builtin_topic_names::DCPS_PARTICIPANT),

@@ -231,6 +231,10 @@ impl DiscoveryDB {
     self.participant_last_life_signs.remove(&guid_prefix);
     #[cfg(feature = "security")]
     self.authentication_statuses.remove(&guid_prefix);
+    // The topic data its readers and writers brought (one record per endpoint and topic):
+    // kept, they accumulated for every participant that ever joined (~20 kB each for a
+    // ros2-client node) on topics that stay alive because someone else still uses them.
+    self.forget_topic_data(|g| g.prefix == guid_prefix);
 
     if active_disposal {
       self.remove_topic_reader_with_prefix(guid_prefix);
@@ -273,6 +277,16 @@ impl DiscoveryDB {
   pub fn remove_topic_reader(&mut self, guid: GUID) {
     info!("remove_topic_reader {guid:?}");
     self.external_topic_readers.remove(&guid);
+    self.forget_topic_data(|g| *g == guid);
+  }
+
+  /// Drops the topic records whose source (the endpoint or participant that announced
+  /// them) matches `source`, and topics left without any record.
+  fn forget_topic_data(&mut self, source: impl Fn(&GUID) -> bool) {
+    for records in self.topics.values_mut() {
+      records.retain(|g, _| !source(g));
+    }
+    self.topics.retain(|_, records| !records.is_empty());
   }
 
   #[cfg(feature = "security")]
@@ -300,6 +314,7 @@ impl DiscoveryDB {
 
   pub fn remove_topic_writer(&mut self, guid: GUID) {
     self.external_topic_writers.remove(&guid);
+    self.forget_topic_data(|g| *g == guid);
   }
 
   // Delete participant proxies, if we have not heard of them within

@@ -519,7 +519,27 @@ where
     }
 
     self.mark_instances_viewed(&instance_generations);
+    self.purge_empty_not_alive(keys);
     result
+  }
+
+  // After a take: forget the taken samples' timestamps, and instances that are
+  // no longer alive (disposed, or without writers) and hold no samples — DDS's
+  // autopurge of not-alive instances. Kept, the discovery readers held one
+  // instance for every endpoint of every participant that ever left.
+  fn purge_empty_not_alive(&mut self, keys: &[(Timestamp, D::K)]) {
+    for (_, key) in keys {
+      let Some(imd) = self.instance_map.get_mut(key) else {
+        continue;
+      };
+      let datasamples = &self.datasamples;
+      imd
+        .instance_samples
+        .retain(|ts| datasamples.contains_key(ts));
+      if imd.instance_samples.is_empty() && imd.instance_state != InstanceState::Alive {
+        self.instance_map.remove(key);
+      }
+    }
   }
 
   // Panics: `keys` must only contain (Timestamp,Key)-pairs that were immediately
@@ -595,6 +615,7 @@ where
     }
 
     self.mark_instances_viewed(&instance_generations);
+    self.purge_empty_not_alive(keys);
     result
   }
 

@@ -289,8 +289,11 @@ where
           decoder,
         ) {
           Ok(key) => {
+            // Disposed: a later dispose by hash has nothing left to resolve, and keeping
+            // the mapping kept one entry per instance that ever existed (every endpoint of
+            // every participant that left, on the discovery readers).
+            hash_to_key_map.remove(&key.hash_key(false));
             let k = Sample::Dispose(key);
-            Self::update_hash_to_key_map(hash_to_key_map, &k);
             Ok(DeserializedCacheChange::new(timestamp, cc, k))
           }
           Err(e) => Err(ReadError::Deserialization {
@@ -305,13 +308,14 @@ where
       }
 
       DDSData::DisposeByKeyHash { key_hash, .. } => {
-        // The cache should know hash -> key mapping even if the sample
-        // has been disposed or .take()n
-        if let Some(key) = hash_to_key_map.get(&key_hash) {
+        // The cache knows the hash -> key mapping while the instance lives,
+        // even if its samples have been .take()n; the dispose ends it (see
+        // DisposeByKey above).
+        if let Some(key) = hash_to_key_map.remove(&key_hash) {
           Ok(DeserializedCacheChange::new(
             timestamp,
             cc,
-            Sample::Dispose(key.clone()),
+            Sample::Dispose(key),
           ))
         } else {
           Err(ReadError::UnknownKey {

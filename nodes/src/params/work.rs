@@ -1,0 +1,175 @@
+//! Bounds on the parameters that size a node's work, so that no value a parameter file or
+//! `ros2 param set` gives can make one cycle's work unbounded (issue 15: `horizon 1e9` was
+//! accepted and the predictor spun a core until killed).
+//!
+//! Two layers, both refusing with the parameter and its range named:
+//! - static ranges, checked with every other value ([`super::KindParams::validate`]): `rate`,
+//!   `horizon`, `max_horizon`, `max_commands`, `diagnostics.period`, the footprint's size;
+//! - the scene's work limits ([`WorkBudget`], checked when the node is configured and on every
+//!   run-time set): a prediction's steps (horizon / dt for the fixed-step methods, horizon /
+//!   `actuators.control_period`) within `integration.max_steps` and its samples (horizon /
+//!   `integration.sample_period`) within `integration.max_samples` — the core's own limits
+//!   (`IntegrationSettings::check_counts`), so a horizon the node accepts is one the core runs —
+//!   and, for the periodic predictor, `rate` × steps per prediction within
+//!   `integration.max_steps` per second.
+
+use constraint_dynamics::Scene;
+use constraint_dynamics::limits::show;
+use constraint_dynamics::predict::{IntegrationSettings, Method};
+
+use super::ParamsError;
+
+/// The predictor's `rate` [Hz]: at most 1 kHz (a tick is a whole prediction), at least one
+/// per 100 s.
+pub const RATE: (f64, f64) = (0.01, 1000.0);
+/// The predictor's `horizon` and the prediction service's `max_horizon` [s], whatever the scene
+/// (the scene's limits usually bound them lower: [`WorkBudget::max_horizon`]).
+pub const MAX_HORIZON: f64 = 3600.0;
+/// The prediction service's `max_commands`.
+pub const MAX_COMMANDS: u32 = 1_000_000;
+/// `diagnostics.period` [s]: a status at most every 10 ms.
+pub const DIAGNOSTICS_PERIOD: (f64, f64) = (0.01, 3600.0);
+/// Vertices of `markers.footprint` (each is drawn at every outline of every prediction).
+pub const MAX_FOOTPRINT_VERTICES: usize = 256;
+
+/// `x` finite and within [lo, hi], or an error naming `name`, the value and the range.
+pub(crate) fn in_range(
+    name: &str,
+    x: f64,
+    range: (f64, f64),
+    unit: &str,
+) -> Result<(), ParamsError> {
+    let (lo, hi) = range;
+    if x.is_finite() && x >= lo && x <= hi {
+        return Ok(());
+    }
+    Err(ParamsError::invalid(
+        name,
+        format!(
+            "= {} {unit} is outside its range [{}, {}] {unit}",
+            show(x),
+            show(lo),
+            show(hi)
+        ),
+    ))
+}
+
+/// What one prediction on a scene may cost: the scene's integration settings and work limits,
+/// and its control period (actuated scenes).
+#[derive(Clone, Debug)]
+pub struct WorkBudget {
+    integration: IntegrationSettings,
+    control_period: Option<f64>,
+}
+
+impl WorkBudget {
+    /// The budget of `scene`'s predictions.
+    pub fn of(scene: &Scene) -> WorkBudget {
+        let a = &scene.file.actuators;
+        let actuated = !a.velocity.is_empty() || !a.position.is_empty() || a.diff_drive.is_some();
+        WorkBudget {
+            integration: scene.file.integration.clone(),
+            control_period: actuated.then(|| a.control_period.unwrap_or(0.001)),
+        }
+    }
+
+    /// A budget from parts (tests).
+    pub fn new(integration: IntegrationSettings, control_period: Option<f64>) -> WorkBudget {
+        WorkBudget {
+            integration,
+            control_period,
+        }
+    }
+
+    /// The scene's default horizon [s] (`integration.horizon`).
+    pub fn scene_horizon(&self) -> f64 {
+        self.integration.horizon
+    }
+
+    /// Steps per second of predicted time: the finest of the fixed step (semi-implicit Euler,
+    /// RK4, SDIRK2; dopri5's `dt` is only its first step), the control period and the sample
+    /// period (dopri5 lands on every sample).
+    fn steps_per_second(&self) -> f64 {
+        let s = &self.integration;
+        let mut k = 1.0 / s.sample_period;
+        if s.method != Method::Dopri5 {
+            k = k.max(1.0 / s.dt);
+        }
+        if let Some(p) = self.control_period {
+            k = k.max(1.0 / p);
+        }
+        k
+    }
+
+    /// The longest horizon one prediction may run [s]: the core's step and sample limits, and
+    /// at `rate` [Hz] also `rate` × steps per prediction ≤ `integration.max_steps` per second.
+    pub fn max_horizon(&self, rate: Option<f64>) -> f64 {
+        let s = &self.integration;
+        let per_second = self.steps_per_second();
+        let mut h = MAX_HORIZON.min(s.max_samples * s.sample_period);
+        if s.method != Method::Dopri5 {
+            h = h.min(s.max_steps * s.dt);
+        }
+        if let Some(p) = self.control_period {
+            h = h.min(s.max_steps * p);
+        }
+        if let Some(r) = rate {
+            h = h.min(s.max_steps / (r * per_second));
+        }
+        h
+    }
+
+    /// Refuses a `horizon` [s] (parameter `name`) over [`WorkBudget::max_horizon`], naming the
+    /// limits that set it.
+    pub fn check_horizon(
+        &self,
+        name: &str,
+        horizon: f64,
+        rate: Option<f64>,
+    ) -> Result<(), ParamsError> {
+        let max = self.max_horizon(rate);
+        let counts = self
+            .integration
+            .check_counts(horizon, self.control_period)
+            .map_err(|e| e.to_string());
+        if horizon.is_finite() && horizon >= 0.0 && horizon <= max && counts.is_ok() {
+            return Ok(());
+        }
+        let s = &self.integration;
+        let step = match (s.method != Method::Dopri5, self.control_period) {
+            (true, Some(p)) => format!(
+                "integration.dt {} s, actuators.control_period {} s",
+                show(s.dt),
+                show(p)
+            ),
+            (true, None) => format!("integration.dt {} s", show(s.dt)),
+            (false, Some(p)) => format!("actuators.control_period {} s", show(p)),
+            (false, None) => format!("integration.sample_period {} s", show(s.sample_period)),
+        };
+        let per_rate = match rate {
+            Some(r) => format!(
+                "; at rate {} Hz, rate × steps per prediction may not exceed integration.max_steps per second",
+                show(r)
+            ),
+            None => String::new(),
+        };
+        Err(ParamsError::invalid(
+            name,
+            format!(
+                "= {} s is beyond its limit of {} s on this scene: one prediction may take \
+                 integration.max_steps = {} steps (horizon / {step}) and integration.max_samples \
+                 = {} samples (horizon / integration.sample_period {} s){per_rate}; shorten it \
+                 or raise the scene's integration limits",
+                show(horizon),
+                show(max),
+                show(s.max_steps),
+                show(s.max_samples),
+                show(s.sample_period),
+            ),
+        ))
+    }
+}
+
+#[cfg(test)]
+#[path = "work_tests.rs"]
+mod tests;
