@@ -130,7 +130,7 @@ def table(pin, ours, version, loads, rounds, pin_text, rustc):
         cells = [f"{ours[r][a][0] / pin[r][c]:.2f}×" for a, c, _ in ALGOS]
         lines.append(f"| {r} | " + " | ".join(cells) + " |")
     lines += ["", "## Times [µs]", "",
-              "| robot (nq, nv, rows) | ours | Pinocchio call | ours | Pinocchio | ratio | ours (median) |",
+              "| robot (nq, nv, rows) | our id | Pinocchio call | ours | Pinocchio | ratio | ours, median |",
               "|---|---|---|---|---|---|---|"]
     for r in ROBOTS:
         p = pin[r]
