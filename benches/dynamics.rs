@@ -1,75 +1,60 @@
-//! Criterion benchmarks of the rigid-body and constrained algorithms on the reference robots
-//! (UR5: 6 DOF, end-effector point held, 3 rows; Solo12 on a free-flyer: 18 DOF, 4 feet, 12 rows).
-//! `tools/bench_vs_pinocchio.py` runs these beside Pinocchio and prints the ratios.
+//! Criterion benchmarks of the rigid-body, constrained and derivative algorithms on the robots
+//! that compiled Pinocchio is timed on by `../shared/tools/anchors/cpp/bench_pin.cpp` (ur5 with
+//! tool0 held, panda with its fingers locked and panda_hand_tcp held, solo12 on four point feet,
+//! talos_reduced on two 6D soles; benches/robots.rs). `tools/bench.py` runs both in one session
+//! and writes docs/bench.md; ids are `robot/algorithm`.
+//!
+//! Each id computes what the Pinocchio call it is compared with returns:
+//! - `fk`: placements, twists and accelerations (`forwardKinematics(q, v, a)`);
+//! - `rnea_derivatives`: ∂τ/∂q, ∂τ/∂v and M (`computeRNEADerivatives` fills M too, so `crba` is
+//!   part of ours);
+//! - `aba_derivatives`: q̈, ∂q̈/∂q, ∂q̈/∂v, M⁻¹ (`computeABADerivatives`);
+//! - `constrained_derivatives`: the solve and ∂(q̈, λ)/∂(q, v, τ) (`constraintDynamics` followed by
+//!   `computeConstraintDynamicsDerivatives`).
 
-#[path = "../tests/common/mod.rs"]
-mod common;
+mod robots;
 
-use constraint_dynamics::Model;
 use constraint_dynamics::algorithm::*;
-use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
+use constraint_dynamics::constraints::ConstraintData;
+use constraint_dynamics::derivatives::{
+    DerivativeData, aba_derivatives, constrained_dynamics_derivatives, rnea_derivatives,
+};
 use constraint_dynamics::dynamics::{Baumgarte, KktWorkspace, constrained_forward_dynamics};
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 
-struct Case {
-    name: &'static str,
-    model: Model,
-    q: Vec<f64>,
-    v: Vec<f64>,
-    tau: Vec<f64>,
-    set: ConstraintSet,
-}
-
-/// A reference case's model, state 2 and its constraints (shared with the tests).
-fn load(name: &'static str, case: &str) -> Case {
-    let json = common::load_case(case);
-    let model = common::case_model(&json);
-    let st = &json["states"][2];
-    let q = common::vecf(&st["q"]);
-    let set = ConstraintSet::new(&model, &common::specs_for(&json, st), &q).expect("constraints");
-    Case {
-        name,
-        q,
-        v: common::vecf(&st["qd"]),
-        tau: common::vecf(&st["tau"]),
-        model,
-        set,
-    }
-}
-
 fn bench(c: &mut Criterion) {
-    let cases = [
-        load("ur5", "ur5_ee_point"),
-        load("solo12", "solo12_four_feet"),
-    ];
-    for k in &cases {
-        let (m, q, v, tau) = (&k.model, &k.q, &k.v, &k.tau);
+    for k in &robots::all() {
+        let (m, q, v, a, tau) = (&k.model, &k.q, &k.v, &k.a, &k.tau);
         let mut d = Data::new(m);
-        c.bench_function(&format!("{}/rnea", k.name), |b| {
+        let id = |algo: &str| format!("{}/{algo}", k.name);
+        c.bench_function(&id("fk"), |b| {
+            b.iter(|| forward_kinematics(m, &mut d, black_box(q), black_box(v), black_box(a)))
+        });
+        c.bench_function(&id("rnea"), |b| {
             b.iter(|| {
-                rnea(m, &mut d, black_box(q), black_box(v), black_box(tau));
+                rnea(m, &mut d, black_box(q), black_box(v), black_box(a));
             })
         });
-        c.bench_function(&format!("{}/crba", k.name), |b| {
+        c.bench_function(&id("crba"), |b| {
             b.iter(|| {
                 crba(m, &mut d, black_box(q));
             })
         });
-        c.bench_function(&format!("{}/aba", k.name), |b| {
+        c.bench_function(&id("aba"), |b| {
             b.iter(|| {
                 aba(m, &mut d, black_box(q), black_box(v), black_box(tau));
             })
         });
         let mut cd = ConstraintData::new(m, &k.set);
         let mut ws = KktWorkspace::new(m, &k.set);
-        c.bench_function(&format!("{}/constraint_terms", k.name), |b| {
+        c.bench_function(&id("constraint_terms"), |b| {
             b.iter(|| {
                 k.set
                     .evaluate(m, &mut d, &mut cd, black_box(q), black_box(v))
             })
         });
-        c.bench_function(&format!("{}/constrained_dynamics", k.name), |b| {
+        c.bench_function(&id("constrained_dynamics"), |b| {
             b.iter(|| {
                 constrained_forward_dynamics(
                     m,
@@ -77,6 +62,43 @@ fn bench(c: &mut Criterion) {
                     &k.set,
                     &mut cd,
                     &mut ws,
+                    black_box(q),
+                    black_box(v),
+                    black_box(tau),
+                    Baumgarte::default(),
+                )
+                .unwrap();
+            })
+        });
+        let mut dd = DerivativeData::new(m, k.set.nrows);
+        c.bench_function(&id("rnea_derivatives"), |b| {
+            b.iter(|| {
+                rnea_derivatives(m, &mut d, &mut dd, black_box(q), black_box(v), black_box(a));
+                crba(m, &mut d, black_box(q));
+            })
+        });
+        c.bench_function(&id("aba_derivatives"), |b| {
+            b.iter(|| {
+                aba_derivatives(
+                    m,
+                    &mut d,
+                    &mut dd,
+                    black_box(q),
+                    black_box(v),
+                    black_box(tau),
+                )
+                .unwrap();
+            })
+        });
+        c.bench_function(&id("constrained_derivatives"), |b| {
+            b.iter(|| {
+                constrained_dynamics_derivatives(
+                    m,
+                    &mut d,
+                    &k.set,
+                    &mut cd,
+                    &mut ws,
+                    &mut dd,
                     black_box(q),
                     black_box(v),
                     black_box(tau),

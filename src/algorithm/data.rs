@@ -1,7 +1,7 @@
 //! The reusable workspace of the algorithms.
 
 use crate::model::Model;
-use crate::spatial::{Force, Inertia, Motion, SE3};
+use crate::spatial::{Force, Motion, OriginInertia, SE3};
 use nalgebra::{DMatrix, DVector, Matrix6, Vector6};
 
 /// Every result and intermediate of the algorithms, sized once for a model.
@@ -19,10 +19,10 @@ pub struct Data {
     pub a_gf: Vec<Motion>,
     /// Body wrenches in body frames (RNEA).
     pub f: Vec<Force>,
-    /// World-axes joint subspace columns ᵒS_i (CRBA).
-    pub o_s: Vec<[Motion; 6]>,
+    /// World-axes subspace column ᵒS_c of each velocity coordinate c (CRBA), nv.
+    pub o_s: Vec<Motion>,
     /// Composite inertias (CRBA), world axes.
-    pub ycrb: Vec<Inertia>,
+    pub ycrb: Vec<OriginInertia>,
     /// Joint-space inertia matrix M(q), nv × nv, symmetric.
     pub mass_matrix: DMatrix<f64>,
     /// RNEA output τ (or bias h = C v + g when called with q̈ = 0), nv.
@@ -52,8 +52,8 @@ impl Data {
             a: vec![Motion::zero(); nb],
             a_gf: vec![Motion::zero(); nb],
             f: vec![Force::zero(); nb],
-            o_s: vec![[Motion::zero(); 6]; nb],
-            ycrb: vec![Inertia::zero(); nb],
+            o_s: vec![Motion::zero(); nv],
+            ycrb: vec![OriginInertia::default(); nb],
             mass_matrix: DMatrix::zeros(nv, nv),
             tau: DVector::zeros(nv),
             qdd: DVector::zeros(nv),

@@ -55,18 +55,24 @@ impl ConstraintRows for WeldConstraint {
         let alpha = |b: usize| data.o_m_i[b].rotation * data.a[b].ang;
         let dw = w(body_a) - w(body_b);
         let g_rot = alpha(body_a) - alpha(body_b);
-        // Angular Jacobian rows J_ωA − J_ωB (world) into j6 rows 3..6.
-        frame_jacobian(model, data, self.frame_b, ReferenceFrame::World, out.j6);
+        // Angular Jacobian rows J_ωA − J_ωB (world) into j6 rows 3..6; J_ωB = 0 when B is fixed
+        // in the world (a sole welded to the ground), so its Jacobian is not built.
         let nv = out.j.ncols();
-        for c in 0..nv {
-            for k in 0..3 {
-                out.jtmp[(k, c)] = out.j6[(3 + k, c)];
+        let b_moves = body_b != 0;
+        if b_moves {
+            frame_jacobian(model, data, self.frame_b, ReferenceFrame::World, out.j6);
+            for c in 0..nv {
+                for k in 0..3 {
+                    out.jtmp[(k, c)] = out.j6[(3 + k, c)];
+                }
             }
         }
         frame_jacobian(model, data, self.frame_a, ReferenceFrame::World, out.j6);
         for c in 0..nv {
             for k in 0..3 {
-                out.j6[(3 + k, c)] -= out.jtmp[(k, c)];
+                if b_moves {
+                    out.j6[(3 + k, c)] -= out.jtmp[(k, c)];
+                }
                 out.j6[(k, c)] = out.j3[(k, c)];
             }
         }

@@ -14,8 +14,8 @@ use crate::algorithm::{Data, bias_forces_after_kinematics, crba_after_kinematics
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
 use crate::linalg::{
-    MinNormSolver, cholesky_in_place, cholesky_solve, ltl_factor, ltl_solve_l, ltl_solve_lt,
-    mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
+    MinNormSolver, cholesky_in_place, cholesky_solve, dot_unrolled, ltl_factor, ltl_solve_l,
+    ltl_solve_lt, mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
 };
 use crate::model::MIN_PIVOT_RATIO;
 use crate::model::Model;
@@ -34,6 +34,8 @@ pub struct KktWorkspace {
     /// LTL factor of M (or dense Cholesky factor of M + ρ JᵀJ when `augmented`).
     pub l: DMatrix<f64>,
     y: DMatrix<f64>,
+    /// First and one-past-last non-zero row of each column of Y.
+    support: Vec<(usize, usize)>,
     s: DMatrix<f64>,
     /// τ − h (nv).
     pub rhs: DVector<f64>,
@@ -68,6 +70,7 @@ impl KktWorkspace {
         Self {
             l: DMatrix::zeros(nv, nv),
             y: DMatrix::zeros(nv, nc),
+            support: vec![(0, 0); nc],
             s: DMatrix::zeros(nc, nc),
             rhs: DVector::zeros(nv),
             b: DVector::zeros(nc),
@@ -215,15 +218,19 @@ fn solve_kkt(
         ws.generalized_force.fill(0.0);
         return Ok(());
     }
-    // Y = L⁻¹ Jᵀ, S = Yᵀ Y
+    // Y = L⁻¹ Jᵀ with each column's non-zero rows: a row of J on one branch (a foot) keeps its
+    // column of Y on that branch and its ancestors (the LTL factor's sparsity).
     for k in 0..nc {
         for i in 0..nv {
             ws.y[(i, k)] = cd.j[(k, i)];
         }
         let mut col = ws.y.column_mut(k);
         half_solve(model, &ws.l, ws.augmented, col.as_mut_slice());
+        let first = col.iter().position(|&x| x != 0.0).unwrap_or(0);
+        let last = col.iter().rposition(|&x| x != 0.0).map_or(0, |i| i + 1);
+        ws.support[k] = (first, last.max(first));
     }
-    ws.y.tr_mul_to(&ws.y, &mut ws.s);
+    schur_lower(ws, nv, nc);
     // r = b − J q̈_free
     mat_vec(&cd.j, ws.qdd.as_slice(), ws.r.as_mut_slice());
     for k in 0..nc {
@@ -245,6 +252,25 @@ fn solve_kkt(
         ws.generalized_force.as_mut_slice(),
     );
     Ok(())
+}
+
+/// The lower triangle of S = Yᵀ Y (all that the Cholesky factor reads), each entry summed over
+/// the overlap of its two columns' non-zero ranges: two feet overlap on the base's rows only.
+fn schur_lower(ws: &mut KktWorkspace, nv: usize, nc: usize) {
+    let y = ws.y.as_slice();
+    for a in 0..nc {
+        for b in a..nc {
+            let (lo, hi) = (
+                ws.support[a].0.max(ws.support[b].0),
+                ws.support[a].1.min(ws.support[b].1),
+            );
+            ws.s[(b, a)] = if lo < hi {
+                dot_unrolled(&y[a * nv + lo..a * nv + hi], &y[b * nv + lo..b * nv + hi])
+            } else {
+                0.0
+            };
+        }
+    }
 }
 
 /// Minimum-norm λ = S⁺ r of the singular S λ = r (`linalg::MinNormSolver`: pivoted Cholesky

@@ -105,7 +105,7 @@ impl JointKind {
                 let (sn, cs) = q[0].sin_cos();
                 let r = match aligned {
                     Some((i, sign)) => {
-                        let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+                        let (j, k) = (NEXT_AXIS[*i], NEXT_AXIS[NEXT_AXIS[*i]]);
                         let mut r = Matrix3::identity();
                         r[(j, j)] = cs;
                         r[(k, k)] = cs;
@@ -118,16 +118,8 @@ impl JointKind {
                 SE3::new(r, Vector3::zeros())
             }
             JointKind::Prismatic { axis } => SE3::new(Matrix3::identity(), axis * q[0]),
-            JointKind::FreeFlyer => {
-                let quat = Quaternion::new(q[6], q[3], q[4], q[5]);
-                let r = UnitQuaternion::new_unchecked(quat).to_rotation_matrix();
-                SE3::new(*r.matrix(), Vector3::new(q[0], q[1], q[2]))
-            }
-            JointKind::Planar => {
-                let (s, c) = q[2].sin_cos();
-                let r = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
-                SE3::new(r, Vector3::new(q[0], q[1], 0.0))
-            }
+            JointKind::FreeFlyer => free_flyer_transform(q),
+            JointKind::Planar => planar_transform(q),
         }
     }
 
@@ -251,4 +243,24 @@ fn write_free_flyer(m: &SE3, q: &mut [f64]) {
     q[4] = quat.j;
     q[5] = quat.k;
     q[6] = quat.w;
+}
+
+/// The axis after axis i in cyclic order (x → y → z → x), a table rather than `(i + 1) % 3`:
+/// an integer division per joint and pass was measurable.
+const NEXT_AXIS: [usize; 3] = [1, 2, 0];
+
+// The base joints' transforms, kept out of line: they run once per model and forward pass,
+// while the small revolute and prismatic arms of `transform` are inlined into every pass.
+#[inline(never)]
+fn free_flyer_transform(q: &[f64]) -> SE3 {
+    let quat = Quaternion::new(q[6], q[3], q[4], q[5]);
+    let r = UnitQuaternion::new_unchecked(quat).to_rotation_matrix();
+    SE3::new(*r.matrix(), Vector3::new(q[0], q[1], q[2]))
+}
+
+#[inline(never)]
+fn planar_transform(q: &[f64]) -> SE3 {
+    let (s, c) = q[2].sin_cos();
+    let r = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+    SE3::new(r, Vector3::new(q[0], q[1], 0.0))
 }

@@ -104,3 +104,74 @@ impl Inertia {
         0.5 * v.dot(&self.mul_motion(v))
     }
 }
+
+/// A spatial inertia about the frame origin in its additive form: mass m, first moment
+/// h = m c and rotational inertia about the origin I_O = I_c + m (|c|² 1 − c cᵀ), the latter
+/// symmetric and stored as `[xx, yy, zz, xy, xz, yz]`. Inertias of bodies expressed in one frame
+/// add component by component in this form, with no division or parallel-axis shift (as
+/// [`Inertia::add`] needs), which is what CRBA's composite inertias do on every body.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct OriginInertia {
+    /// Mass [kg].
+    pub mass: f64,
+    /// First moment m c [kg·m].
+    pub h: Vector3<f64>,
+    /// Rotational inertia about the origin, `[xx, yy, zz, xy, xz, yz]` [kg·m²].
+    pub i_o: [f64; 6],
+}
+
+impl OriginInertia {
+    /// `inertia` (given in frame F) expressed in frame a, given `a_m_f`.
+    #[inline]
+    pub fn transformed(inertia: &Inertia, a_m_f: &SE3) -> Self {
+        let r = &a_m_f.rotation;
+        let m = inertia.mass;
+        let c = a_m_f.act_point(&inertia.com);
+        // R I_c Rᵀ: B = R I_c, then only the six distinct entries of B Rᵀ.
+        let b = r * inertia.inertia_com;
+        let e = |i: usize, j: usize| {
+            b[(i, 0)] * r[(j, 0)] + b[(i, 1)] * r[(j, 1)] + b[(i, 2)] * r[(j, 2)]
+        };
+        let h = c * m;
+        let (xx, yy, zz) = (h.x * c.x, h.y * c.y, h.z * c.z);
+        Self {
+            mass: m,
+            h,
+            i_o: [
+                e(0, 0) + yy + zz,
+                e(1, 1) + xx + zz,
+                e(2, 2) + xx + yy,
+                e(0, 1) - h.x * c.y,
+                e(0, 2) - h.x * c.z,
+                e(1, 2) - h.y * c.z,
+            ],
+        }
+    }
+
+    /// `f = I v`: `f = m v_O − h × ω`, `n_O = I_O ω + h × v_O`.
+    #[inline]
+    pub fn mul_motion(&self, v: &Motion) -> Force {
+        let [xx, yy, zz, xy, xz, yz] = self.i_o;
+        let w = &v.ang;
+        let iw = Vector3::new(
+            xx * w.x + xy * w.y + xz * w.z,
+            xy * w.x + yy * w.y + yz * w.z,
+            xz * w.x + yz * w.y + zz * w.z,
+        );
+        Force {
+            lin: v.lin * self.mass - self.h.cross(w),
+            ang: iw + self.h.cross(&v.lin),
+        }
+    }
+}
+
+impl std::ops::AddAssign for OriginInertia {
+    #[inline]
+    fn add_assign(&mut self, o: Self) {
+        self.mass += o.mass;
+        self.h += o.h;
+        for (a, b) in self.i_o.iter_mut().zip(o.i_o) {
+            *a += b;
+        }
+    }
+}

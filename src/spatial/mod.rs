@@ -10,7 +10,7 @@ mod inertia;
 mod motion;
 mod se3;
 
-pub use inertia::Inertia;
+pub use inertia::{Inertia, OriginInertia};
 pub use motion::{Force, Motion};
 pub use se3::{SE3, skew};
 
