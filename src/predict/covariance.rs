@@ -132,9 +132,7 @@ impl RowProjector {
             }
         }
     }
-}
 
-impl RowProjector {
     /// `proj[off.., ..nv] −= M⁻¹J_Rᵀ K⁺ (N T_q)_R`: the velocity correction a pose perturbation
     /// needs (module doc), with the factor of the last [`Self::apply`].
     fn apply_coupling(&mut self, n_tq: &DMatrix<f64>, proj: &mut DMatrix<f64>, off: usize) {
