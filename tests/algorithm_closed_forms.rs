@@ -24,7 +24,7 @@ use nalgebra::{DVector, Matrix3, Vector3};
 
 /// The arm: 2 kg, COM 0.25 m out along x, izz 0.05 kg m² about its COM, spinning about world z at
 /// the origin. `child` is the joint that carries the second body 0.5 m out along the arm.
-fn arm_with(child_joint: &str, body_inertia: &str) -> Model {
+fn arm_with(child_joint: &str, rpy: &str, body_inertia: &str) -> Model {
     let urdf = format!(
         r#"<robot name="arm_with_free_body">
   <link name="base"/>
@@ -38,7 +38,7 @@ fn arm_with(child_joint: &str, body_inertia: &str) -> Model {
   <joint name="spin" type="revolute"><parent link="base"/><child link="arm"/>
     <axis xyz="0 0 1"/><limit lower="-10" upper="10" effort="1" velocity="1"/></joint>
   <joint name="carry" type="{child_joint}"><parent link="arm"/><child link="body"/>
-    <origin xyz="0.5 0 0"/><axis xyz="0 0 1"/></joint>
+    <origin xyz="0.5 0 0" rpy="{rpy}"/><axis xyz="0 0 1"/></joint>
 </robot>"#
     );
     Model::from_urdf_str(
@@ -77,6 +77,7 @@ fn check_inverse_dynamics(what: &str, model: &Model, q: &[f64], v: &[f64], tau: 
 fn puck_on_a_planar_joint_below_a_spinning_arm_moves_freely_in_its_plane() {
     let model = arm_with(
         "planar",
+        "0 0 0",
         r#"<inertia ixx="0.02" ixy="0" ixz="0" iyy="0.03" iyz="0" izz="0.01"/>"#,
     );
     assert_eq!((model.nq, model.nv), (4, 4));
@@ -110,6 +111,7 @@ fn puck_on_a_planar_joint_below_a_spinning_arm_moves_freely_in_its_plane() {
 fn body_on_a_floating_joint_below_a_spinning_arm_falls_freely() {
     let model = arm_with(
         "floating",
+        "0 0 0",
         r#"<inertia ixx="0.03" ixy="0.003" ixz="-0.002" iyy="0.05" iyz="0.001" izz="0.04"/>"#,
     );
     assert_eq!((model.nq, model.nv), (8, 7));
@@ -173,4 +175,44 @@ fn body_on_a_floating_joint_below_a_spinning_arm_falls_freely() {
     let m = crba(&model, &mut data, &q).clone();
     let vv = DVector::from_column_slice(&v);
     assert_close("½ vᵀ M v", &[0.5 * vv.dot(&(m * &vv))], &[ke], 1e-14); // achieved 5.6e-17
+}
+
+/// The planar joint turned so that its plane is vertical (normal along the arm): the arm's spin
+/// now lies in the puck's plane, so the velocity product v × v_J leaves the joint's subspace
+/// (which the horizontal case never does). Free in its plane, the puck's COM acceleration
+/// projected on the plane is gravity's projection, and no torque acts about the plane normal n:
+/// n · (I_w ω̇ + ω × I_w ω) = 0.
+#[test]
+fn puck_on_a_vertical_planar_joint_is_free_in_its_plane() {
+    let model = arm_with(
+        "planar",
+        "0 1.5707963267948966 0",
+        r#"<inertia ixx="0.02" ixy="0.004" ixz="0" iyy="0.03" iyz="-0.002" izz="0.04"/>"#,
+    );
+    let frame = model.frame_id("body").unwrap();
+    let body = model.frames[frame].body;
+    let q = [0.7, 0.2, -0.1, 0.4];
+    let v = [1.3, -0.6, 0.9, 2.1];
+    let tau = [0.37, 0.0, 0.0, 0.0];
+    check_inverse_dynamics("vertical planar", &model, &q, &v, &tau);
+    let mut data = Data::new(&model);
+    let qdd = aba(&model, &mut data, &q, &v, &tau).clone();
+    forward_kinematics(&model, &mut data, &q, &v, qdd.as_slice());
+    let r = data.o_m_i[body].rotation;
+    let n = r * Vector3::z();
+    let g = Vector3::new(0.0, 0.0, -9.81);
+    let a_com = point_classical_acceleration(&model, &data, frame, &Vector3::zeros());
+    let in_plane = |x: Vector3<f64>| x - n * n.dot(&x);
+    assert_close(
+        "COM acceleration in the plane",
+        in_plane(a_com).as_slice(),
+        in_plane(g).as_slice(),
+        2e-15,
+    ); // achieved 4.4e-17 (closed form: gravity's projection)
+    let i_body = Matrix3::new(0.02, 0.004, 0.0, 0.004, 0.03, -0.002, 0.0, -0.002, 0.04);
+    let i_w = r * i_body * r.transpose();
+    let omega = r * data.v[body].ang;
+    let alpha = r * data.a[body].ang;
+    let torque_n = n.dot(&(i_w * alpha + omega.cross(&(i_w * omega))));
+    assert_close("torque about the normal", &[torque_n], &[0.0], 1e-15); // achieved 4.5e-17; floor 1e-15
 }
