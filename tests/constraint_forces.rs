@@ -6,7 +6,9 @@
 mod common;
 use common::*;
 use constraint_dynamics::constraints::generalized_force_unit;
-use constraint_dynamics::constraints::{ConstraintKind, ConstraintSet, ConstraintSpec, Row};
+use constraint_dynamics::constraints::{
+    Constraint, ConstraintKind, ConstraintSet, ConstraintSpec, Row,
+};
 use constraint_dynamics::dynamics::{Baumgarte, Formulation};
 use constraint_dynamics::{BaseType, Model, ModelOptions, System};
 use std::collections::BTreeMap;
@@ -190,6 +192,14 @@ fn velocity_constraint_generalized_force_has_units_per_coordinate() {
         names,
         [("root_joint:vx_local", "N"), ("root_joint:wz", "N·m")]
     );
+    // The parsed expression has the two symbols it was written with (never empty).
+    match &sys.constraints.items[0] {
+        Constraint::Velocity(vc) => {
+            assert!(!vc.expression.is_empty());
+            assert_eq!(vc.expression.len(), 2);
+        }
+        other => panic!("expected a velocity constraint, got {other:?}"),
+    }
     let values: Vec<f64> = g.iter().map(|x| x.value).collect();
     assert_close("(∂f/∂v)ᵀλ", &values, &[lambda, -0.5 * lambda], 1e-14); // achieved 0
 }
@@ -295,4 +305,42 @@ fn disk_rolls_down_an_incline_at_two_thirds_g_sin_alpha() {
             1e-15, // achieved ≤ 5.9e-17 (δ by construction)
         );
     }
+}
+
+/// A set of two declarations stacks their rows in order: the pin's 2 rows, then the contact's 3
+/// (a free-flyer can move the contact along n, so the normal row is kept); names find them.
+#[test]
+fn constraint_set_stacks_rows_in_declaration_order() {
+    let model = disk(BaseType::Floating);
+    let specs = [
+        ConstraintSpec::Point {
+            name: "pin".into(),
+            frame_a: "disk".into(),
+            point_a: [0.0, 0.0, 0.1],
+            frame_b: "world".into(),
+            point_b: [0.0, 0.0, 0.2],
+            rows: vec![Row::X, Row::Z],
+        },
+        ConstraintSpec::Rolling {
+            name: "contact".into(),
+            wheel: "disk".into(),
+            axis: [0.0, 1.0, 0.0],
+            radius: 0.1,
+            plane_normal: [0.0, 0.0, 1.0],
+            plane_height: 0.0,
+        },
+    ];
+    let q = [0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0];
+    let set = ConstraintSet::new(&model, &specs, &q).unwrap();
+    assert_eq!(set.nrows, 5);
+    assert_eq!(set.ranges, [0..2, 2..5]);
+    assert_eq!(
+        (set.index("pin"), set.index("contact"), set.index("x")),
+        (Some(0), Some(1), None)
+    );
+    assert_eq!(
+        set.row_names(),
+        ["pin/x", "pin/z", "contact/t1", "contact/t2", "contact/n"]
+    );
+    assert!(!set.is_empty());
 }
