@@ -416,3 +416,28 @@ fn distance_pendulum_off_the_vertical() {
         ); // achieved 1.7e-18 (δ by construction)
     }
 }
+
+/// Units of joints that do not start at velocity index 0: a revolute arm (N·m) carrying a body
+/// on a floating joint (3 forces, 3 torques) or a puck on a planar joint (2 forces, 1 torque).
+#[test]
+fn units_of_multi_dof_joints_after_the_first_coordinate() {
+    let robot = |joint: &str| {
+        let urdf = format!(
+            r#"<robot name="arm"><link name="base"/>
+  <link name="arm"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+  <link name="body"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+  <joint name="spin" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="carry" type="{joint}"><parent link="arm"/><child link="body"/><axis xyz="0 0 1"/></joint>
+</robot>"#
+        );
+        Model::from_urdf_str(&urdf, "arm.urdf", &ModelOptions::default()).unwrap()
+    };
+    let units =
+        |m: &Model| -> Vec<&str> { (0..m.nv).map(|i| generalized_force_unit(m, i)).collect() };
+    assert_eq!(
+        units(&robot("floating")),
+        ["N·m", "N", "N", "N", "N·m", "N·m", "N·m"]
+    );
+    assert_eq!(units(&robot("planar")), ["N·m", "N", "N", "N·m"]);
+}
