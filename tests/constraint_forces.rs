@@ -441,3 +441,46 @@ fn units_of_multi_dof_joints_after_the_first_coordinate() {
     );
     assert_eq!(units(&robot("planar")), ["N·m", "N", "N", "N·m"]);
 }
+
+/// The scene format's documented defaults (`constraints/spec.rs`): a point constraint holds all
+/// three world axes against the world's origin, a weld all six rows in world axes, a rolling
+/// contact runs on the plane z = 0.
+#[test]
+fn omitted_fields_take_the_documented_defaults() {
+    use constraint_dynamics::constraints::Axes;
+    let spec = |yaml: &str| serde_yaml::from_str::<ConstraintSpec>(yaml).unwrap();
+    assert_eq!(
+        spec("{name: p, kind: point, frame_a: disk}"),
+        ConstraintSpec::Point {
+            name: "p".into(),
+            frame_a: "disk".into(),
+            point_a: [0.0; 3],
+            frame_b: "world".into(),
+            point_b: [0.0; 3],
+            rows: vec![Row::X, Row::Y, Row::Z],
+        }
+    );
+    assert_eq!(
+        spec("{name: w, kind: weld, frame_a: disk}"),
+        ConstraintSpec::Weld {
+            name: "w".into(),
+            frame_a: "disk".into(),
+            frame_b: "world".into(),
+            axes: Axes::World,
+            rows: vec![Row::X, Row::Y, Row::Z, Row::Rx, Row::Ry, Row::Rz],
+            relative_xyz: [0.0; 3],
+            relative_rpy: [0.0; 3],
+        }
+    );
+    assert_eq!(
+        spec("{name: c, kind: rolling, wheel: disk, axis: [0, 1, 0], radius: 0.1}"),
+        ConstraintSpec::Rolling {
+            name: "c".into(),
+            wheel: "disk".into(),
+            axis: [0.0, 1.0, 0.0],
+            radius: 0.1,
+            plane_normal: [0.0, 0.0, 1.0],
+            plane_height: 0.0,
+        }
+    );
+}
