@@ -197,6 +197,13 @@ fn velocity_constraint_generalized_force_has_units_per_coordinate() {
         Constraint::Velocity(vc) => {
             assert!(!vc.expression.is_empty());
             assert_eq!(vc.expression.len(), 2);
+            // f = vx − 0.5 wz at v = (0.4, 0, 0.2): 0.3.
+            assert_close(
+                "f",
+                &[vc.residual(&q, &[0.4, 0.0, 0.2], 0.0)],
+                &[0.3],
+                1e-15,
+            ); // achieved 5.6e-17
         }
         other => panic!("expected a velocity constraint, got {other:?}"),
     }
@@ -483,4 +490,46 @@ fn omitted_fields_take_the_documented_defaults() {
             plane_height: 0.0,
         }
     );
+}
+
+/// A body welded to a moving base (both free: a floating base and a floating joint 0.5 m out)
+/// falls with it: at rest the pair is in free fall, q̈ = g on the base and 0 in the joint, and
+/// the weld carries nothing (λ = 0).
+#[test]
+fn body_welded_to_a_falling_base_falls_with_it() {
+    let urdf = r#"<robot name="pair">
+  <link name="a"><inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.15"/></inertial></link>
+  <link name="b"><inertial><mass value="2"/><inertia ixx="0.3" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.25"/></inertial></link>
+  <joint name="free" type="floating"><parent link="a"/><child link="b"/><origin xyz="0.5 0 0"/></joint>
+</robot>"#;
+    let model = Model::from_urdf_str(
+        urdf,
+        "pair.urdf",
+        &ModelOptions {
+            base: BaseType::Floating,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let spec = ConstraintSpec::Weld {
+        name: "w".into(),
+        frame_a: "b".into(),
+        frame_b: "a".into(),
+        axes: constraint_dynamics::constraints::Axes::World,
+        rows: vec![Row::X, Row::Y, Row::Z, Row::Rx, Row::Ry, Row::Rz],
+        relative_xyz: [0.5, 0.0, 0.0],
+        relative_rpy: [0.0; 3],
+    };
+    // Base at identity 1 m up, the joint at its zero pose (b where the weld wants it).
+    let mut q = vec![0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    q.extend([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+    let mut sys = system(model, &[spec], &q);
+    let qdd = sys
+        .forward_dynamics(&q, &[0.0; 12], &[0.0; 12], true)
+        .unwrap()
+        .clone();
+    let mut expected = [0.0; 12];
+    expected[2] = -9.81;
+    assert_close("q̈", qdd.as_slice(), &expected, 1e-15); // achieved 1.8e-17 (free fall)
+    assert_close("λ", sys.kkt.lambda.as_slice(), &[0.0; 6], 5e-14); // achieved 9.5e-16
 }
