@@ -142,6 +142,11 @@ fn constraint_errors_name_the_constraint_and_problem() {
         "constraints:\n  - {name: w, kind: rolling, wheel: left_wheel, axis: [0,1,0], radius: 0.0}\n",
     );
     assert_has(&e, &["constraint 'w'", "radius 0 m must be positive"]);
+    // A distance of exactly 0 has no direction: refused like a negative one.
+    let e = system_err(
+        "constraints:\n  - {name: rod, kind: distance, frame_a: left_wheel, frame_b: world, distance: 0.0}\n",
+    );
+    assert_has(&e, &["constraint 'rod'", "distance 0 m must be positive"]);
     let e = system_err(
         "constraints:\n  - {name: w, kind: rolling, wheel: left_wheel, axis: [0,1,0], radius: 0.05, plane_normal: [0,1,0]}\n",
     );
@@ -150,6 +155,16 @@ fn constraint_errors_name_the_constraint_and_problem() {
         "constraints:\n  - {name: g, kind: coupling, joint_i: left_wheel_joint, joint_j: nope, a: 1, b: 1, c: 0}\n",
     );
     assert_has(&e, &["constraint 'g'", "unknown joint 'nope'"]);
+    // 0·q_i + 0·q_j = c constrains nothing: refused; a single zero coefficient is a lock.
+    let e = system_err(
+        "constraints:\n  - {name: g, kind: coupling, joint_i: left_wheel_joint, joint_j: right_wheel_joint, a: 0, b: 0, c: 0}\n",
+    );
+    assert_has(&e, &["constraint 'g'", "a and b not both zero"]);
+    let p = write_scene(
+        "lock.yaml",
+        "constraints:\n  - {name: g, kind: coupling, joint_i: left_wheel_joint, joint_j: right_wheel_joint, a: 0, b: 1, c: 0}\n",
+    );
+    System::from_scene(&Scene::load(&p).unwrap()).unwrap();
 }
 
 #[test]

@@ -188,3 +188,35 @@ fn long_expressions_parse_and_overlong_ones_are_named() {
         p => panic!("{p}"),
     }
 }
+
+/// At most `MAX_SYMBOLS` = 16 distinct symbols (their values live in a stack buffer): 16 are
+/// accepted, 17 named. Several symbols may name one coordinate: 16 symbols all naming vx give
+/// f = 16 vx, so ∂f/∂vx = 16 (the derivatives of the symbols of one coordinate add up).
+#[test]
+fn sixteen_symbols_are_accepted_and_seventeen_named() {
+    let decl = |n: usize| {
+        let names: Vec<String> = (0..n).map(|i| format!("s{i}")).collect();
+        let vars: Vec<String> = names
+            .iter()
+            .map(|s| format!("{s}: \"v:root_joint:vx_local\""))
+            .collect();
+        (names.join(" + "), format!("{{{}}}", vars.join(", ")))
+    };
+    let (e16, v16) = decl(16);
+    let yaml =
+        format!("  - name: c\n    kind: velocity\n    expression: {e16:?}\n    variables: {v16}\n");
+    let mut sys = scene_from("point_mass.urdf", "floating", &yaml).unwrap();
+    let q = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+    let v = [0.3, 0.0, 0.0, 0.0, 0.0, 0.0];
+    sys.constraints
+        .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v);
+    assert_close("f = 16 vx", &[sys.cdata.jv[0]], &[16.0 * 0.3], 1e-15); // achieved 1.9e-16 (sum of 16 equal terms)
+    assert_close("∂f/∂vx = 16", &[sys.cdata.j[(0, 0)]], &[16.0], 1e-15); // achieved 0; floor 1e-15
+    let (e17, v17) = decl(17);
+    match problem(&e17, &v17, "") {
+        ExpressionProblem::Syntax { message, .. } => {
+            assert!(message.contains("17 symbols, at most 16"), "{message}")
+        }
+        p => panic!("17 symbols: {p}"),
+    }
+}

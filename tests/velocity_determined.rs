@@ -196,3 +196,50 @@ fn velocity_determined_needs_a_dependent_velocity() {
         other => panic!("{:?}", other.err()),
     }
 }
+
+/// B for a constraint nonlinear in its dependent velocity, f = ż³ + ż − ẋ on the point mass
+/// (`dependent: [vz]`, reference ẋ⁰ = 1): with one independent velocity, eq. (6) integrates to
+/// B = (q̂(ẋ) − q̂(ẋ⁰)) / (ẋ − ẋ⁰) (fundamental theorem of calculus); at ẋ = 2, q̂ = 1, and
+/// q̂(1) is the real root of z³ + z = 1 (Cardano). B is evaluated where Newton has solved f = 0
+/// at each quadrature node, so this needs Newton to run (the tests above use an f linear in ż,
+/// whose B does not). ẋ⁰ = 1 keeps the interval [1, 2] away from q̂'s branch points at
+/// ẋ = ±0.385i, where 8-point Gauss–Legendre converges slowly (from ẋ⁰ = 0 it reaches 5e-6).
+#[test]
+fn b_of_a_constraint_nonlinear_in_the_dependent_velocity() {
+    use constraint_dynamics::constraints::{VelocityConstraint, VirtualDisplacements};
+    use constraint_dynamics::{BaseType, Model, ModelOptions};
+    use std::collections::BTreeMap;
+    let model = Model::from_urdf_file(
+        repo_dir().join("urdf/point_mass.urdf"),
+        &ModelOptions {
+            base: BaseType::Floating,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let vars: BTreeMap<String, String> = [
+        ("vx".to_string(), "v:root_joint:vx_local".to_string()),
+        ("vz".to_string(), "v:root_joint:vz_local".to_string()),
+    ]
+    .into();
+    let c = VelocityConstraint::build(
+        &model,
+        "c",
+        "vz^3 + vz - vx",
+        &vars,
+        VirtualDisplacements::VelocityDetermined,
+        &["vz".to_string()],
+        &BTreeMap::from([("vx".to_string(), 1.0)]),
+    )
+    .unwrap();
+    let q = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+    // v_z given away from the solution (Newton starts there).
+    let b = c
+        .velocity_determined_b(&q, &[2.0, 0.0, 0.3, 0.0, 0.0, 0.0], 0.0)
+        .unwrap();
+    assert_eq!(b.len(), 1);
+    assert_eq!(b[0].0, 0);
+    let d = (0.25f64 + 1.0 / 27.0).sqrt();
+    let root1 = (0.5 + d).cbrt() + (0.5 - d).cbrt(); // z³ + z = 1 by Cardano
+    assert_close("B", &[b[0].1], &[1.0 - root1], 1e-12); // achieved 3.7e-14 (closed form (q̂(2) − q̂(1)) / (2 − 1))
+}
