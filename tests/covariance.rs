@@ -42,23 +42,6 @@ impl Rng {
     }
 }
 
-fn rows_to_matrix(rows: &[Vec<f64>]) -> DMatrix<f64> {
-    DMatrix::from_fn(rows.len(), rows.len(), |i, j| rows[i][j])
-}
-
-/// (δq, δv) of a state relative to a reference, in the tangent space.
-fn tangent(model: &Model, q_ref: &[f64], v_ref: &[f64], q: &[f64], v: &[f64]) -> DVector<f64> {
-    let nv = model.nv;
-    let mut d = vec![0.0; nv];
-    model.difference(q_ref, q, &mut d);
-    let mut x = DVector::zeros(2 * nv);
-    x.rows_mut(0, nv).copy_from_slice(&d);
-    for i in 0..nv {
-        x[nv + i] = v[i] - v_ref[i];
-    }
-    x
-}
-
 /// The Monte Carlo comparison of one prediction from (q0, v0) with start covariance p0 over
 /// `horizon` [s]: (propagated P at the horizon, sample covariance of `n` runs from the start
 /// covariance after the constraint projection).

@@ -13,30 +13,14 @@ mod common;
 use common::*;
 use constraint_dynamics::forces::JointSpringSpec;
 use constraint_dynamics::predict::Predictor;
-use constraint_dynamics::{Error, Model, Scene};
-use nalgebra::{DMatrix, DVector};
+use constraint_dynamics::{Error, Scene};
+use nalgebra::DMatrix;
 
 /// Achieved ≤ 2.9e-4 (the mobile manipulator at 0.5 s; 1.3e-4 on its floating twin, ≤ 3.4e-5
 /// elsewhere, 1.2e-14 on the diff drive whose Φ is exact): the covariance's linearized steps span
 /// several prediction steps (src/predict/covariance_chunks.rs, accepted at 1e-3 of the chunk's
 /// motion; one linearization per step gives ≤ 4e-7) and N = ∂(Jv)/∂q is a central difference.
 const TOL: f64 = 1e-3;
-
-fn rows_to_matrix(rows: &[Vec<f64>]) -> DMatrix<f64> {
-    DMatrix::from_fn(rows.len(), rows.len(), |i, j| rows[i][j])
-}
-
-fn tangent(model: &Model, q_ref: &[f64], v_ref: &[f64], q: &[f64], v: &[f64]) -> DVector<f64> {
-    let nv = model.nv;
-    let mut d = vec![0.0; nv];
-    model.difference(q_ref, q, &mut d);
-    let mut x = DVector::zeros(2 * nv);
-    x.rows_mut(0, nv).copy_from_slice(&d);
-    for i in 0..nv {
-        x[nv + i] = v[i] - v_ref[i];
-    }
-    x
-}
 
 /// |P − P_fd| / |P_fd| at `horizon` [s] from σ = 1 mm / 1 mrad (/s) on every coordinate.
 fn relative_difference(file: &str, horizon: f64) -> f64 {

@@ -166,3 +166,22 @@ pub fn bundled_scenes() -> Vec<std::path::PathBuf> {
     v.sort();
     v
 }
+
+/// A covariance row list (`Sample::covariance`) as a matrix.
+pub fn rows_to_matrix(rows: &[Vec<f64>]) -> DMatrix<f64> {
+    DMatrix::from_fn(rows.len(), rows.len(), |i, j| rows[i][j])
+}
+
+/// (δq, δv) of a state relative to a reference, in the tangent space (δq = q_ref⁻¹ q on the
+/// group, the covariance's order).
+pub fn tangent(model: &Model, q_ref: &[f64], v_ref: &[f64], q: &[f64], v: &[f64]) -> DVector<f64> {
+    let nv = model.nv;
+    let mut d = vec![0.0; nv];
+    model.difference(q_ref, q, &mut d);
+    let mut x = DVector::zeros(2 * nv);
+    x.rows_mut(0, nv).copy_from_slice(&d);
+    for i in 0..nv {
+        x[nv + i] = v[i] - v_ref[i];
+    }
+    x
+}
