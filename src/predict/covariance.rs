@@ -6,7 +6,7 @@
 //!
 //! `P ← T (A P Aᵀ + Q_h) Tᵀ`
 //!
-//! - A = ∂x⁺/∂x of one step of the prediction's method ([`linearize_step`], under the
+//! - A = ∂x⁺/∂x of one step of the prediction's method ([`linearize_step`](super::linearize::linearize_step), under the
 //!   generalized force held over it) that may span several of the prediction's steps: the
 //!   sensitivity of the flow, not of the step size, is what the covariance needs, and one
 //!   linearization per 2–32 steps is what makes the covariance cheap (covariance_chunks.rs,
@@ -26,8 +26,7 @@
 //!   first.
 
 use super::covariance_chunks::StepHistory;
-use super::integrator::Method;
-use super::linearize::{Linearization, linearize_step};
+use super::linearize::Linearization;
 use crate::algorithm::crba;
 use crate::error::{Error, Result, check_finite};
 use crate::forces::ForceElements;
@@ -237,23 +236,6 @@ impl CovariancePropagator {
             }
         }
         self.p.copy_from(p0);
-        Ok(())
-    }
-
-    /// One step of `method` from (q, v) under the held generalized force τ [N, N·m] with step
-    /// h [s]: `P ← A P Aᵀ + Q_h` (keep it on the constraints with [`Self::project`] after).
-    #[allow(clippy::too_many_arguments)]
-    pub fn step(
-        &mut self,
-        sys: &mut System,
-        method: Method,
-        q: &[f64],
-        v: &[f64],
-        tau: &[f64],
-        h: f64,
-    ) -> Result<()> {
-        linearize_step(sys, &mut self.lin, method, q, v, tau, h)?;
-        self.apply_linearization(h);
         Ok(())
     }
 
