@@ -25,12 +25,18 @@ pub struct PredictArgs {
     /// Horizon [s] (default: the scene's integration.horizon).
     #[arg(long)]
     horizon: Option<f64>,
-    /// semi_implicit_euler | rk4 | dopri5 | sdirk2 (default: the scene's).
+    /// semi_implicit_euler | rk4 | dopri5 | sdirk2 | radau5 (default: the scene's).
     #[arg(long)]
     method: Option<String>,
-    /// Step [s] (fixed-step methods; first step of dopri5).
+    /// Step [s] (fixed-step methods; first step of dopri5 and radau5).
     #[arg(long)]
     dt: Option<f64>,
+    /// Relative tolerance of dopri5 and radau5 (default: the scene's).
+    #[arg(long)]
+    rtol: Option<f64>,
+    /// Absolute tolerance of dopri5 and radau5 [m, rad, m/s, rad/s] (default: the scene's).
+    #[arg(long)]
+    atol: Option<f64>,
     /// none | baumgarte | projection (default: the scene's).
     #[arg(long)]
     drift: Option<String>,
@@ -111,14 +117,23 @@ pub fn run(a: PredictArgs) -> Result<Value> {
     let scene = super::state::load_scene(&a.scene)?;
     let mut p = Predictor::from_scene(&scene)?;
     if let Some(m) = &a.method {
-        p.settings.method =
-            parse_enum::<Method>("method", m, "semi_implicit_euler, rk4, dopri5, sdirk2")?;
+        p.settings.method = parse_enum::<Method>(
+            "method",
+            m,
+            "semi_implicit_euler, rk4, dopri5, sdirk2, radau5",
+        )?;
     }
     if let Some(d) = &a.drift {
         p.settings.drift = parse_enum::<DriftControl>("drift", d, "none, baumgarte, projection")?;
     }
     if let Some(dt) = a.dt {
         p.settings.dt = dt;
+    }
+    if let Some(r) = a.rtol {
+        p.settings.rtol = r;
+    }
+    if let Some(r) = a.atol {
+        p.settings.atol = r;
     }
     if let Some(sp) = a.sample_period {
         p.settings.sample_period = sp;

@@ -7,15 +7,48 @@ use super::IntegrationSettings;
 use super::drift::Projector;
 use super::estimate::Lane;
 use super::integrator::{
-    Accel, DOPRI5, Method, RK4, dopri5_error_norm, explicit_step, sdirk2_step,
-    semi_implicit_euler_step,
+    Accel, DOPRI5, JacobianScratch, Method, RK4, accel_jacobian_fd, dopri5_error_norm,
+    explicit_step, sdirk2_step, semi_implicit_euler_step, stage,
 };
+use super::radau::radau5_step;
 use super::run::Predictor;
 use crate::applied::applied_generalized_force;
+use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
 use crate::dynamics::Formulation;
 use crate::error::{Error, Result};
 use crate::forces::ForceElements;
+use crate::model::Model;
 use crate::system::{DynamicsOptions, System};
+use nalgebra::DMatrix;
+
+/// Buffers of the right-hand side's Jacobian: the analytic derivatives of the dynamics and the
+/// force elements' generalized force differenced (kinematics only).
+#[derive(Clone, Debug, Default)]
+pub(super) struct JacobianWork {
+    /// None: finite differences of the whole right-hand side.
+    dd: Option<DerivativeData>,
+    tau_p: Vec<f64>,
+    tau_m: Vec<f64>,
+    dtau: Vec<f64>,
+    dx: Vec<f64>,
+    qs: Vec<f64>,
+    vs: Vec<f64>,
+}
+
+impl JacobianWork {
+    pub(super) fn new(sys: &System) -> Self {
+        let (nq, nv) = (sys.model.nq, sys.model.nv);
+        Self {
+            dd: Some(DerivativeData::new(&sys.model, sys.constraints.nrows)),
+            tau_p: vec![0.0; nv],
+            tau_m: vec![0.0; nv],
+            dtau: vec![0.0; nv],
+            dx: vec![0.0; 2 * nv],
+            qs: vec![0.0; nq],
+            vs: vec![0.0; nv],
+        }
+    }
+}
 
 /// The right-hand side: held actuator torques + force elements → constrained q̈.
 struct Rhs<'a> {
@@ -25,6 +58,7 @@ struct Rhs<'a> {
     tau: &'a mut [f64],
     zero: &'a [f64],
     ls: &'a mut Projector,
+    jw: &'a mut JacobianWork,
     evaluations: usize,
     least_squares: usize,
 }
@@ -74,6 +108,97 @@ impl Accel for Rhs<'_> {
             Err(e) => Err(e),
         }
     }
+
+    /// Analytic: the derivatives of the constrained (or free) forward dynamics at the applied τ,
+    /// plus ∂q̈/∂τ · ∂τ_elements/∂(q, v) with the force elements' generalized force by central
+    /// differences (kinematics only: a point spring's geometric stiffness included). Falls back to
+    /// differences of the whole right-hand side where the derivatives are not available (a kind
+    /// without them, or a singular configuration).
+    fn accel_jacobian(
+        &mut self,
+        model: &Model,
+        (t, q, v): (f64, &[f64], &[f64]),
+        qdd: &[f64],
+        jac: &mut DMatrix<f64>,
+        scratch: &mut JacobianScratch,
+    ) -> Result<bool> {
+        let nv = v.len();
+        self.sys.cdata.t = t;
+        applied_generalized_force(
+            self.sys,
+            self.forces,
+            (t, q, v),
+            self.tau_act,
+            self.zero,
+            self.tau,
+        );
+        let Some(dd) = self.jw.dd.as_mut() else {
+            accel_jacobian_fd(self, model, (t, q, v), qdd, jac, scratch)?;
+            return Ok(false);
+        };
+        let sys = &mut *self.sys;
+        let analytic = if sys.constraints.is_empty() {
+            aba_derivatives(&sys.model, &mut sys.data, dd, q, v, self.tau)
+        } else {
+            constrained_dynamics_derivatives(
+                &sys.model,
+                &mut sys.data,
+                &sys.constraints,
+                &mut sys.cdata,
+                &mut sys.kkt,
+                dd,
+                q,
+                v,
+                self.tau,
+                sys.baumgarte,
+            )
+        };
+        if analytic.is_err() {
+            accel_jacobian_fd(self, model, (t, q, v), qdd, jac, scratch)?;
+            return Ok(false);
+        }
+        for r in 0..nv {
+            for c in 0..nv {
+                jac[(nv + r, c)] = dd.dqdd_dq[(r, c)];
+                jac[(nv + r, nv + c)] = dd.dqdd_dv[(r, c)];
+            }
+        }
+        if self.forces.is_empty() {
+            return Ok(true);
+        }
+        let jw = &mut *self.jw;
+        let dd = jw.dd.as_ref().expect("checked above");
+        for col in 0..2 * nv {
+            let eps = 1e-6
+                * if col < nv {
+                    1.0
+                } else {
+                    v[col - nv].abs().max(1.0)
+                };
+            for (sign, out) in [(1.0, &mut jw.tau_p), (-1.0, &mut jw.tau_m)] {
+                jw.dx.iter_mut().for_each(|x| *x = 0.0);
+                jw.dx[col] = sign * eps;
+                stage(model, q, v, &jw.dx, &mut jw.qs, &mut jw.vs);
+                applied_generalized_force(
+                    self.sys,
+                    self.forces,
+                    (t, &jw.qs, &jw.vs),
+                    self.tau_act,
+                    self.zero,
+                    out,
+                );
+            }
+            for j in 0..nv {
+                jw.dtau[j] = (jw.tau_p[j] - jw.tau_m[j]) / (2.0 * eps);
+            }
+            for r in 0..nv {
+                jac[(nv + r, col)] += (0..nv)
+                    .map(|j| dd.dqdd_dtau[(r, j)] * jw.dtau[j])
+                    .sum::<f64>();
+            }
+        }
+        Ok(true)
+    }
 }
 
 impl Predictor {
@@ -107,6 +232,7 @@ impl Predictor {
             tau: &mut ws.tau,
             zero: &ws.zero,
             ls: &mut ws.ls,
+            jw: &mut ws.jw,
             evaluations: 0,
             least_squares: 0,
         };
@@ -114,6 +240,7 @@ impl Predictor {
             q,
             v,
             step,
+            radau,
             proj,
             h,
             steps,
@@ -136,7 +263,7 @@ impl Predictor {
         let mut t = t0;
         let result = (|| -> Result<()> {
             while t < t1 - 1e-12 {
-                let dt = if s.method == Method::Dopri5 {
+                let dt = if s.method.is_adaptive() {
                     h.min(t1 - t).min(cap)
                 } else {
                     h_fixed
@@ -154,50 +281,48 @@ impl Predictor {
                         &mut ws.tau_n,
                     );
                 }
-                match s.method {
+                // Adaptive methods: (accepted, next step); a rejected step left (q, v) as they were.
+                let adapt = match s.method {
                     Method::SemiImplicitEuler => {
-                        semi_implicit_euler_step(&mut rhs, model, t, dt, q, v, step)?
+                        semi_implicit_euler_step(&mut rhs, model, t, dt, q, v, step)?;
+                        None
                     }
-                    Method::Rk4 => explicit_step(&mut rhs, model, &RK4, t, dt, q, v, step)?,
-                    Method::Sdirk2 => sdirk2_step(&mut rhs, model, t, dt, q, v, step)?,
+                    Method::Rk4 => {
+                        explicit_step(&mut rhs, model, &RK4, t, dt, q, v, step)?;
+                        None
+                    }
+                    Method::Sdirk2 => {
+                        sdirk2_step(&mut rhs, model, t, dt, q, v, step)?;
+                        None
+                    }
                     Method::Dopri5 => {
                         explicit_step(&mut rhs, model, &DOPRI5, t, dt, q, v, step)?;
                         let norm = dopri5_error_norm(step, v, s);
                         let factor = (0.9 * norm.max(1e-10).powf(-0.2)).clamp(0.2, 5.0);
                         if norm > 1.0 || !norm.is_finite() {
                             step.restore(q, v);
-                            *h = dt * factor.min(0.5);
-                            if *h < 1e-14 * t1.max(1.0) {
-                                let singular = if rhs.least_squares > 0 {
-                                    format!(
-                                        " at a singular configuration of the constraints (the \
-                                         constraint accelerations were inconsistent {} times): \
-                                         loosen rtol, or use rk4 with projection",
-                                        rhs.least_squares
-                                    )
-                                } else {
-                                    String::new()
-                                };
-                                return Err(Error::Diverged {
-                                    t,
-                                    message: format!(
-                                        "dopri5 cannot meet rtol = {:e} (step size underflow, \
-                                         h = {h:e} s){singular}",
-                                        s.rtol
-                                    ),
-                                });
-                            }
-                            continue;
-                        }
-                        // A step shortened to land on t1 does not shrink the next one.
-                        *h = if dt < *h {
-                            (dt * factor).max(*h)
+                            Some((false, dt * factor.min(0.5)))
                         } else {
-                            dt * factor
-                        };
+                            Some((true, dt * factor))
+                        }
                     }
+                    Method::Radau5 => {
+                        let o = radau5_step(&mut rhs, model, t, dt, q, v, radau, (s.rtol, s.atol))?;
+                        Some((o.accepted, o.h_next))
+                    }
+                };
+                if let Some((accepted, h_next)) = adapt {
+                    if !accepted {
+                        *h = h_next;
+                        if *h < 1e-14 * t1.max(1.0) {
+                            return Err(underflow(s, *h, rhs.least_squares));
+                        }
+                        continue;
+                    }
+                    // A step shortened to land on t1 does not shrink the next one.
+                    *h = if dt < *h { h_next.max(*h) } else { h_next };
                 }
-                if s.method == Method::Dopri5 {
+                if s.method.is_adaptive() {
                     t += dt;
                 } else {
                     i += 1.0;
@@ -251,6 +376,26 @@ impl Predictor {
             Error::Diverged { t: tt, message } if tt.is_nan() => Error::Diverged { t, message },
             e => e,
         })
+    }
+}
+
+/// An adaptive method that cannot meet its tolerance: the step underflowed.
+fn underflow(s: &IntegrationSettings, h: f64, least_squares: usize) -> Error {
+    let singular = if least_squares > 0 {
+        format!(
+            " at a singular configuration of the constraints (the constraint accelerations were \
+             inconsistent {least_squares} times): loosen rtol, or use rk4 with projection"
+        )
+    } else {
+        String::new()
+    };
+    Error::Diverged {
+        t: f64::NAN,
+        message: format!(
+            "{} cannot meet rtol = {:e} (step size underflow, h = {h:e} s){singular}",
+            s.method.name(),
+            s.rtol
+        ),
     }
 }
 

@@ -27,6 +27,7 @@
 use super::IntegrationSettings;
 use super::drift::Projector;
 use super::integrator::{Method, StepWorkspace};
+use super::radau::RadauWorkspace;
 use crate::error::Error;
 use crate::model::Model;
 use crate::system::System;
@@ -48,6 +49,7 @@ pub(super) struct Lane {
     pub q: Vec<f64>,
     pub v: Vec<f64>,
     pub step: StepWorkspace,
+    pub radau: RadauWorkspace,
     pub proj: Projector,
     /// DOPRI5's next step [s].
     pub h: f64,
@@ -63,6 +65,7 @@ impl Lane {
             q: vec![0.0; nq],
             v: vec![0.0; nv],
             step: StepWorkspace::new(nq, nv),
+            radau: RadauWorkspace::new(nq, nv),
             proj: Projector::new(sys),
             h: 0.0,
             steps: 0,
@@ -76,6 +79,7 @@ impl Lane {
         self.q.copy_from_slice(q);
         self.v.copy_from_slice(v);
         self.step.invalidate();
+        self.radau.reset();
         self.h = h;
         self.steps = 0;
         self.evaluations = 0;
@@ -88,7 +92,7 @@ impl Lane {
 pub(super) fn companion_settings(s: &IntegrationSettings) -> IntegrationSettings {
     let mut c = s.clone();
     match s.method {
-        Method::Dopri5 => {
+        Method::Dopri5 | Method::Radau5 => {
             c.rtol = s.rtol / DOPRI5_TIGHTENING;
             c.atol = s.atol / DOPRI5_TIGHTENING;
         }
@@ -101,7 +105,7 @@ pub(super) fn companion_settings(s: &IntegrationSettings) -> IntegrationSettings
 /// Richardson factor turning the answer–companion difference into the answer's error.
 pub(super) fn richardson_factor(method: Method) -> f64 {
     let r = match method {
-        Method::Dopri5 => DOPRI5_TIGHTENING,
+        Method::Dopri5 | Method::Radau5 => DOPRI5_TIGHTENING,
         m => 2f64.powi(m.order() as i32),
     };
     r / (r - 1.0)
@@ -133,7 +137,7 @@ pub(super) fn refined(
     let ratio = (SAFETY * s.max_error / at_horizon).min(1.0);
     let mut r = s.clone();
     match s.method {
-        Method::Dopri5 => {
+        Method::Dopri5 | Method::Radau5 => {
             let f = ratio.min(0.9);
             r.rtol = s.rtol * f;
             r.atol = s.atol * f;
@@ -148,7 +152,7 @@ pub(super) fn refined(
 pub(super) fn exceeded(s: &IntegrationSettings, e: f64, t: f64, horizon: f64) -> Error {
     let r = refined(s, e, t, horizon);
     let hint = match s.method {
-        Method::Dopri5 => format!(
+        Method::Dopri5 | Method::Radau5 => format!(
             "rtol = {:.2e}, atol = {:.2e} should meet it (the error is about proportional to the \
              tolerance), or set integration.adapt: true",
             r.rtol, r.atol

@@ -23,6 +23,9 @@ pub enum Method {
     Dopri5,
     /// Alexander's 2-stage L-stable SDIRK (order 2) with simplified Newton: for stiff scenes.
     Sdirk2,
+    /// Radau IIA of order 5 (3 implicit stages, L-stable), adaptive with rtol/atol (radau.rs):
+    /// for stiff scenes at any accuracy.
+    Radau5,
 }
 
 impl Method {
@@ -34,7 +37,24 @@ impl Method {
             Method::Rk4 => 4,
             Method::Dopri5 => 5,
             Method::Sdirk2 => 2,
+            Method::Radau5 => 5,
         }
+    }
+
+    /// The name a scene or the CLI uses.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::SemiImplicitEuler => "semi_implicit_euler",
+            Method::Rk4 => "rk4",
+            Method::Dopri5 => "dopri5",
+            Method::Sdirk2 => "sdirk2",
+            Method::Radau5 => "radau5",
+        }
+    }
+
+    /// The step adapts to rtol/atol (`dt` is only the first step).
+    pub fn is_adaptive(self) -> bool {
+        matches!(self, Method::Dopri5 | Method::Radau5)
     }
 
     /// Explicit methods' stability limit of dt·|λ| on the imaginary axis (oscillators).
@@ -42,7 +62,7 @@ impl Method {
         match self {
             Method::SemiImplicitEuler => Some(2.0),
             Method::Rk4 => Some(2.8),
-            Method::Dopri5 | Method::Sdirk2 => None,
+            Method::Dopri5 | Method::Sdirk2 | Method::Radau5 => None,
         }
     }
 }
@@ -111,9 +131,73 @@ pub const DOPRI5: Tableau = Tableau {
     c: &[0.0, 0.2, 0.3, 0.8, 8.0 / 9.0, 1.0, 1.0],
 };
 
-/// q̈ = f(t, q, v).
+/// q̈ = f(t, q, v), and its Jacobian for the implicit methods.
 pub trait Accel {
     fn accel(&mut self, t: f64, q: &[f64], v: &[f64], qdd: &mut [f64]) -> Result<()>;
+
+    /// ∂q̈/∂(δq, v) at (t, q, v) (δq a right tangent perturbation, q ⊕ δq) into the lower half of
+    /// `jac` (2nv × 2nv: rows nv.., columns [δq | δv]); `qdd` is q̈(t, q, v). Returns whether
+    /// it was analytic. Default: forward differences, 2nv evaluations.
+    fn accel_jacobian(
+        &mut self,
+        model: &Model,
+        (t, q, v): (f64, &[f64], &[f64]),
+        qdd: &[f64],
+        jac: &mut DMatrix<f64>,
+        scratch: &mut JacobianScratch,
+    ) -> Result<bool> {
+        accel_jacobian_fd(self, model, (t, q, v), qdd, jac, scratch)?;
+        Ok(false)
+    }
+}
+
+/// Buffers of a finite-difference Jacobian (nv or 2nv each).
+#[derive(Clone, Debug, Default)]
+pub struct JacobianScratch {
+    dx: Vec<f64>,
+    qs: Vec<f64>,
+    vs: Vec<f64>,
+    ap: Vec<f64>,
+}
+
+impl JacobianScratch {
+    pub fn new(nq: usize, nv: usize) -> Self {
+        Self {
+            dx: vec![0.0; 2 * nv],
+            qs: vec![0.0; nq],
+            vs: vec![0.0; nv],
+            ap: vec![0.0; nv],
+        }
+    }
+}
+
+/// ∂q̈/∂(δq, v) by forward differences (step 1e-7, relative to |v| for velocity columns) into
+/// the lower half of `jac`; `qdd` = q̈(t, q, v).
+pub fn accel_jacobian_fd<F: Accel + ?Sized>(
+    f: &mut F,
+    model: &Model,
+    (t, q, v): (f64, &[f64], &[f64]),
+    qdd: &[f64],
+    jac: &mut DMatrix<f64>,
+    s: &mut JacobianScratch,
+) -> Result<()> {
+    let nv = v.len();
+    for col in 0..2 * nv {
+        s.dx.iter_mut().for_each(|x| *x = 0.0);
+        let scale = if col < nv {
+            1.0
+        } else {
+            v[col - nv].abs().max(1.0)
+        };
+        let eps = 1e-7 * scale;
+        s.dx[col] = eps;
+        stage(model, q, v, &s.dx, &mut s.qs, &mut s.vs);
+        f.accel(t, &s.qs, &s.vs, &mut s.ap)?;
+        for r in 0..nv {
+            jac[(nv + r, col)] = (s.ap[r] - qdd[r]) / eps;
+        }
+    }
+    Ok(())
 }
 
 /// Buffers of one step, sized for a model (nq, nv) and reused by every step.
@@ -128,7 +212,7 @@ pub struct StepWorkspace {
     v0: Vec<f64>,
     /// Embedded error vector (Θ, Δv) of the last DOPRI5 step (2nv).
     pub err: Vec<f64>,
-    /// SDIRK2: ∂k/∂(Θ, v) by finite differences, its LU (I − dt γ ∂k/∂x), pivots, residual.
+    /// SDIRK2: ∂k/∂(Θ, v) (analytic, or finite differences), its LU (I − dt γ ∂k/∂x), pivots, residual.
     /// `jac` is kept across steps while Newton converges (`jac_valid`); `newton` is refactored
     /// from it when dt moves by more than rounding (`newton_dt`).
     jac: DMatrix<f64>,
@@ -136,7 +220,7 @@ pub struct StepWorkspace {
     piv: Vec<usize>,
     resid: Vec<f64>,
     a0: Vec<f64>,
-    ap: Vec<f64>,
+    scratch: JacobianScratch,
     /// dt of the factor in `newton`.
     newton_dt: f64,
     /// `jac` may be used (false: recompute it at the next step).
@@ -161,7 +245,7 @@ impl StepWorkspace {
             piv: vec![0; n],
             resid: vec![0.0; n],
             a0: vec![0.0; nv],
-            ap: vec![0.0; nv],
+            scratch: JacobianScratch::new(nq, nv),
             newton_dt: f64::NAN,
             jac_valid: false,
             jac_fresh: false,
@@ -193,7 +277,14 @@ impl StepWorkspace {
 }
 
 /// Stage state from the increment `dx = (Θ, Δv)`: q = q_n ⊕ Θ, v = v_n + Δv.
-fn stage(model: &Model, q: &[f64], v: &[f64], dx: &[f64], qs: &mut [f64], vs: &mut [f64]) {
+pub(super) fn stage(
+    model: &Model,
+    q: &[f64],
+    v: &[f64],
+    dx: &[f64],
+    qs: &mut [f64],
+    vs: &mut [f64],
+) {
     let nv = v.len();
     model.integrate(q, &dx[..nv], 1.0, qs);
     for i in 0..nv {
@@ -202,7 +293,7 @@ fn stage(model: &Model, q: &[f64], v: &[f64], dx: &[f64], qs: &mut [f64], vs: &m
 }
 
 /// Stage derivative k = (dexp⁻¹_{−Θ}(v_s), q̈(q_s, v_s)).
-fn derivative<F: Accel>(
+pub(super) fn derivative<F: Accel>(
     f: &mut F,
     model: &Model,
     t: f64,
@@ -288,7 +379,8 @@ pub fn semi_implicit_euler_step<F: Accel>(
     Ok(())
 }
 
-/// ∂k/∂(Θ, v) at (q_n, v_n) by forward differences into `ws.jac` (`ws.a0` = q̈(q_n, v_n)).
+/// ∂k/∂(Θ, v) at (q_n, v_n) into `ws.jac` (`ws.a0` = q̈(q_n, v_n)): [[0, 1], [∂q̈/∂q, ∂q̈/∂v]],
+/// analytic where the right-hand side has derivatives.
 fn sdirk2_jacobian<F: Accel>(
     f: &mut F,
     model: &Model,
@@ -298,33 +390,18 @@ fn sdirk2_jacobian<F: Accel>(
     ws: &mut StepWorkspace,
 ) -> Result<()> {
     let nv = v.len();
-    let n = 2 * nv;
     ws.jac.fill(0.0);
-    for col in 0..n {
-        ws.dx.iter_mut().for_each(|x| *x = 0.0);
-        let scale = if col < nv {
-            1.0
-        } else {
-            v[col - nv].abs().max(1.0)
-        };
-        let eps = 1e-7 * scale;
-        ws.dx[col] = eps;
-        stage(model, q, v, &ws.dx, &mut ws.qs, &mut ws.vs);
-        f.accel(t, &ws.qs, &ws.vs, &mut ws.ap)?;
-        for r in 0..nv {
-            ws.jac[(nv + r, col)] = (ws.ap[r] - ws.a0[r]) / eps;
-        }
-        if col >= nv {
-            ws.jac[(col - nv, col)] = 1.0; // ∂(stage velocity)/∂v
-        }
+    for i in 0..nv {
+        ws.jac[(i, nv + i)] = 1.0; // ∂(stage velocity)/∂v
     }
+    f.accel_jacobian(model, (t, q, v), &ws.a0, &mut ws.jac, &mut ws.scratch)?;
     ws.jac_fresh = true;
     ws.jac_valid = true;
     Ok(())
 }
 
 /// Alexander's L-stable SDIRK2 (γ = 1 − 1/√2) with a simplified Newton iteration on
-/// `(I − dt γ ∂k/∂x) δ = k(x) − k`. The Jacobian (finite differences of q̈, 2nv evaluations) is
+/// `(I − dt γ ∂k/∂x) δ = k(x) − k`. The Jacobian (analytic, or finite differences of q̈) is
 /// kept from step to step while Newton converges in ≤ 6 iterations and recomputed at the step's
 /// start state when Newton fails or slows down; a dt that differs by more than rounding
 /// (relative 1e-6: sample spans of slightly different length) only refactors the matrix, which

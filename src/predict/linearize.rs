@@ -217,8 +217,8 @@ pub fn linearize_step(
         Method::SemiImplicitEuler => semi_implicit_euler(sys, lin, q, v, tau, dt),
         Method::Rk4 => explicit(sys, lin, &RK4, q, v, tau, dt),
         Method::Dopri5 => explicit(sys, lin, &DOPRI5, q, v, tau, dt),
-        Method::Sdirk2 => Err(Error::Unsupported {
-            what: "linearize with sdirk2".into(),
+        Method::Sdirk2 | Method::Radau5 => Err(Error::Unsupported {
+            what: format!("linearize with {method:?}"),
             why: "the implicit step's sensitivity is not implemented; use rk4, dopri5 or \
                   semi_implicit_euler"
                 .into(),

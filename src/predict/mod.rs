@@ -16,6 +16,8 @@ mod guard;
 mod integrator;
 mod lie;
 mod linearize;
+mod radau;
+mod radau_tableau;
 mod rollout;
 mod run;
 mod sampling;
@@ -50,13 +52,13 @@ pub enum DriftControl {
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct IntegrationSettings {
-    /// `method:` semi_implicit_euler | rk4 | dopri5 | sdirk2 (default `rk4`).
+    /// `method:` semi_implicit_euler | rk4 | dopri5 | sdirk2 | radau5 (default `rk4`).
     #[serde(default)]
     pub method: Method,
-    /// Step [s] (fixed-step methods; first step of dopri5).
+    /// Step [s] (fixed-step methods; first step of dopri5 and radau5).
     #[serde(default = "default_dt")]
     pub dt: f64,
-    /// Relative and absolute tolerances of dopri5.
+    /// Relative and absolute tolerances of dopri5 and radau5.
     #[serde(default = "default_rtol")]
     pub rtol: f64,
     /// `atol:` absolute tolerance of dopri5 [m, rad, m/s or rad/s per entry] (default 1e-10).
@@ -233,7 +235,7 @@ impl IntegrationSettings {
             }
         };
         // dopri5's dt is only its first step (it adapts): its steps are counted while running.
-        let fixed = self.method != Method::Dopri5;
+        let fixed = !self.method.is_adaptive();
         let steps = if fixed { horizon / self.dt } else { 0.0 };
         limit(
             &format!(

@@ -1,6 +1,6 @@
 //! The prediction loop: control ticks, integration steps, drift control, samples.
 
-use super::advance::companion_error;
+use super::advance::{JacobianWork, companion_error};
 use super::covariance::{CovariancePropagator, UncertaintySpec};
 use super::drift::Projector;
 use super::estimate::{self, Lane, MAX_REFINEMENTS};
@@ -39,6 +39,8 @@ pub(super) struct Workspace {
     pub(super) qn: Vec<f64>,
     pub(super) vn: Vec<f64>,
     pub(super) tau_n: Vec<f64>,
+    /// The implicit methods' Jacobian (advance.rs).
+    pub(super) jw: JacobianWork,
     /// Work units of one dynamics evaluation (`limits::evaluation_cost`).
     pub(super) cost: f64,
 }
@@ -100,6 +102,7 @@ impl Predictor {
             vn: vec![0.0; nv],
             tau_n: vec![0.0; nv],
             cost: crate::limits::evaluation_cost(&model),
+            jw: JacobianWork::new(&sys),
         };
         Ok(Self {
             sys,
@@ -256,6 +259,7 @@ impl Predictor {
             steps: 0,
             evaluations: 0,
             least_squares_evaluations: 0,
+            jacobians: 0,
             estimate_evaluations: 0,
             refinements: 0,
             run_time_s: 0.0,
@@ -357,6 +361,7 @@ impl Predictor {
         traj.steps = a.steps;
         traj.evaluations = a.evaluations;
         traj.least_squares_evaluations = a.least_squares;
+        traj.jacobians = a.radau.jacobians;
         traj.estimate_evaluations = c.evaluations;
         result.map(|()| traj)
     }

@@ -91,6 +91,9 @@ pub struct Trajectory {
     /// Evaluations where the constraint accelerations were inconsistent (at or next to a singular
     /// configuration) and were met in the least-squares sense instead.
     pub least_squares_evaluations: usize,
+    /// Jacobians of the implicit Newton iteration (radau5; analytic where the scene has
+    /// derivatives, else by 2nv evaluations counted in `evaluations`).
+    pub jacobians: usize,
     /// Evaluations of the error estimate's companion run (not in `evaluations`).
     pub estimate_evaluations: usize,
     /// CPU (wall) time of the integration [s].

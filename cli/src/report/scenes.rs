@@ -41,6 +41,7 @@ impl Line {
             Method::Rk4 => "rk4",
             Method::Dopri5 => "dopri5",
             Method::Sdirk2 => "sdirk2",
+            Method::Radau5 => "radau5",
         };
         match self.drift {
             DriftControl::None => format!("{m}/none"),

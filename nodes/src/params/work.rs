@@ -15,7 +15,7 @@
 
 use constraint_dynamics::Scene;
 use constraint_dynamics::limits::show;
-use constraint_dynamics::predict::{IntegrationSettings, Method};
+use constraint_dynamics::predict::IntegrationSettings;
 
 use super::ParamsError;
 
@@ -92,7 +92,7 @@ impl WorkBudget {
     fn steps_per_second(&self) -> f64 {
         let s = &self.integration;
         let mut k = 1.0 / s.sample_period;
-        if s.method != Method::Dopri5 {
+        if !s.method.is_adaptive() {
             k = k.max(1.0 / s.dt);
         }
         if let Some(p) = self.control_period {
@@ -107,7 +107,7 @@ impl WorkBudget {
         let s = &self.integration;
         let per_second = self.steps_per_second();
         let mut h = MAX_HORIZON.min(s.max_samples * s.sample_period);
-        if s.method != Method::Dopri5 {
+        if !s.method.is_adaptive() {
             h = h.min(s.max_steps * s.dt);
         }
         if let Some(p) = self.control_period {
@@ -136,7 +136,7 @@ impl WorkBudget {
             return Ok(());
         }
         let s = &self.integration;
-        let step = match (s.method != Method::Dopri5, self.control_period) {
+        let step = match (!s.method.is_adaptive(), self.control_period) {
             (true, Some(p)) => format!(
                 "integration.dt {} s, actuators.control_period {} s",
                 show(s.dt),
