@@ -10,6 +10,7 @@
 # access on the first run, and a C compiler (gcc, or $CC) for the generated code. Prints one line
 # with the versions; exits non-zero when the venv cannot be made.
 set -euo pipefail
+trap 'echo "setup_casadi_venv: failed at line $LINENO: the CasADi peer needs python3 with venv, and PyPI access on its first run" >&2' ERR
 
 HERE=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 REPO=$(cd "$HERE/../.." && pwd)
