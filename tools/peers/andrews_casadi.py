@@ -21,9 +21,9 @@ values) to 1e-13 relative. The C code of the ODE and DAE right-hand sides and th
 written by CasADi's code generator, compiled with gcc -O3 -fPIC -shared into a cache folder
 (named by the SHA-256 of the source and flags: compiled once) and loaded with `casadi.external`,
 as a CasADi user does. The integrators are built once per (solver, tolerance) and called 1 + reps
-times; the CPU time of a run (cpu_s) is the least over the reps of the wall-clock time of one
-call on one core (time.perf_counter, as the report measures the project's runs; process_cpu_s is
-the same by time.process_time); the compile and the integrator construction are outside it.
+times; the CPU time of a run (process_cpu_s) is the least over the reps of the process CPU time
+of one call (time.process_time, as the report measures the project's runs; cpu_s is the same by
+wall clock, time.perf_counter); the compile and the integrator construction are outside it.
 Evaluations are CasADi's SUNDIALS stats: right-hand-side (IDAS: residual) evaluations (nfevals),
 and the Jacobian evaluations apart (n_call_jacF).
 
@@ -312,8 +312,8 @@ def main():
         "compile_s": compile_s,
         "names": NAMES,
         "t_end": T_END,
-        "cpu": f"wall-clock time (time.perf_counter) of one integrator call, the least of {reps} "
-        "after a warm-up call (process_cpu_s: the same by time.process_time)",
+        "cpu": f"process CPU time (time.process_time, process_cpu_s; the report's measure) of one "
+        f"integrator call, the least of {reps} after a warm-up call; cpu_s: the same by wall clock",
         "model_check": check,
         "runs": runs,
     }
