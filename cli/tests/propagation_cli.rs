@@ -99,6 +99,11 @@ fn quick_report_writes_csv_png_and_summary() {
     );
     let readme = std::fs::read_to_string(out_dir.join("README.md")).unwrap();
     assert!(readme.contains("| a01_pendulum |") && readme.contains("high-precision bar"));
+    // Andrews' squeezer: the digits view, and the CasADi peer said not run (no PyPI in CI).
+    assert!(readme.contains("| andrews |") && readme.contains("≥ 12 digits"));
+    assert!(readme.contains("Peers not run"));
+    let csv = std::fs::read_to_string(out_dir.join("andrews.csv")).unwrap();
+    assert!(csv.contains("dopri5/projection") && !csv.contains("casadi/"));
     let _ = std::fs::remove_dir_all(&out_dir);
 }
 

@@ -16,13 +16,22 @@ fn register() {
     });
 }
 
-/// One series: a label and (CPU time [s], value) points.
+/// One series: a label and (CPU time [s], value) points; an external peer's is drawn with
+/// triangles and a thinner line.
 pub struct Series {
     pub label: String,
     pub points: Vec<(f64, f64)>,
+    pub peer: bool,
 }
 
 const FLOOR: f64 = 1e-17;
+
+const PEER_COLORS: [RGBColor; 4] = [
+    RGBColor(0, 0, 0),
+    RGBColor(150, 75, 0),
+    RGBColor(110, 110, 110),
+    RGBColor(120, 0, 60),
+];
 
 /// Tick labels at mantissas 1, 2 and 5 only (log axes get a tick at every integer mantissa).
 fn label(x: &f64) -> String {
@@ -72,22 +81,46 @@ pub fn work_precision(
         .label_style(("sans-serif", 15))
         .draw()
         .map_err(e)?;
+    let mut peers = 0;
     for (i, s) in series.iter().enumerate() {
         if s.points.is_empty() {
             continue;
         }
-        let color = Palette99::pick(i).to_rgba();
+        // Peers in dark colours of their own (and triangles), the project's from the palette.
+        let color = if s.peer {
+            PEER_COLORS[peers % PEER_COLORS.len()].to_rgba()
+        } else {
+            Palette99::pick(i - peers).to_rgba()
+        };
+        peers += s.peer as usize;
+        let width = if s.peer { 1 } else { 2 };
         let pts: Vec<(f64, f64)> = s.points.iter().map(|&(x, y)| (x, y.max(FLOOR))).collect();
+        let peer = s.peer;
         chart
-            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(width)))
             .map_err(e)?
             .label(s.label.clone())
             .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                let line = PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(width));
+                let mark: DynElement<_, _> = if peer {
+                    TriangleMarker::new((x + 10, y), 6, color.filled()).into_dyn()
+                } else {
+                    Circle::new((x + 10, y), 3, color.filled()).into_dyn()
+                };
+                EmptyElement::at((0, 0)) + line + mark
             });
-        chart
-            .draw_series(pts.into_iter().map(|p| Circle::new(p, 4, color.filled())))
-            .map_err(e)?;
+        if s.peer {
+            chart
+                .draw_series(
+                    pts.into_iter()
+                        .map(|p| TriangleMarker::new(p, 7, color.filled())),
+                )
+                .map_err(e)?;
+        } else {
+            chart
+                .draw_series(pts.into_iter().map(|p| Circle::new(p, 4, color.filled())))
+                .map_err(e)?;
+        }
     }
     chart
         .configure_series_labels()
