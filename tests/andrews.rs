@@ -143,11 +143,12 @@ fn dopri5_reaches_the_test_set_reference_at_0_03_s() {
 #[test]
 fn error_estimate_brackets_the_reference_error() {
     let scene = scene();
-    let sweeps: [(Method, &[f64]); 4] = [
+    let sweeps: [(Method, &[f64]); 5] = [
         (Method::SemiImplicitEuler, &[4e-6, 2e-6, 1e-6]),
         (Method::Rk4, &[1.6e-4, 1.2e-4, 8e-5]),
         (Method::Sdirk2, &[1e-4, 5e-5, 2.5e-5]),
         (Method::Dopri5, &[1e-5, 1e-6, 1e-7]),
+        (Method::Radau5, &[1e-5, 1e-6, 1e-7]),
     ];
     let mut worst: (f64, f64) = (f64::INFINITY, 0.0);
     for (method, xs) in sweeps {
@@ -155,7 +156,7 @@ fn error_estimate_brackets_the_reference_error() {
             let mut p = Predictor::from_scene(&scene).unwrap();
             p.settings.method = method;
             p.settings.max_error = f64::INFINITY;
-            if method == Method::Dopri5 {
+            if method.is_adaptive() {
                 p.settings.rtol = x;
                 p.settings.atol = x;
             } else {
@@ -171,11 +172,7 @@ fn error_estimate_brackets_the_reference_error() {
                 .fold(0.0, f64::max);
             let estimate = last.error_estimate.unwrap();
             let ratio = estimate / truth;
-            let what = if method == Method::Dopri5 {
-                "rtol"
-            } else {
-                "dt"
-            };
+            let what = if method.is_adaptive() { "rtol" } else { "dt" };
             println!(
                 "| Andrews, 0.03 s | {method:?} | {what} = {x:e} | {truth:.2e} | {estimate:.2e} \
                  | {ratio:.2} | {} + {} |",
