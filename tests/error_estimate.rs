@@ -27,7 +27,7 @@ fn predictor(sc: &Scene, method: Method, x: f64) -> Predictor {
     p.settings.method = method;
     p.settings.drift = DriftControl::None;
     p.settings.max_error = f64::INFINITY;
-    if method == Method::Dopri5 {
+    if method.is_adaptive() {
         p.settings.rtol = x;
         p.settings.atol = x;
     } else {
@@ -40,11 +40,7 @@ fn predictor(sc: &Scene, method: Method, x: f64) -> Predictor {
 /// is [0.1, 100]).
 fn check_row(scene: &str, method: Method, x: f64, truth: f64, estimate: f64) {
     let ratio = estimate / truth;
-    let what = if method == Method::Dopri5 {
-        "rtol"
-    } else {
-        "dt"
-    };
+    let what = if method.is_adaptive() { "rtol" } else { "dt" };
     println!(
         "| {scene} | {method:?} | {what} = {x:e} | {truth:.2e} | {estimate:.2e} | {ratio:.2} |"
     );
@@ -56,12 +52,14 @@ fn check_row(scene: &str, method: Method, x: f64, truth: f64, estimate: f64) {
 
 const A01_HORIZON: f64 = 3.0;
 
-fn a01_sweeps() -> [(Method, [f64; 4]); 4] {
+fn a01_sweeps() -> [(Method, [f64; 4]); 6] {
     [
         (Method::SemiImplicitEuler, [4e-3, 2e-3, 1e-3, 5e-4]),
         (Method::Rk4, [0.04, 0.02, 0.01, 5e-3]),
         (Method::Sdirk2, [8e-3, 4e-3, 2e-3, 1e-3]),
         (Method::Dopri5, [1e-5, 1e-7, 1e-9, 1e-11]),
+        (Method::Dop853, [1e-5, 1e-7, 1e-9, 1e-11]),
+        (Method::Radau5, [1e-5, 1e-7, 1e-9, 1e-11]),
     ]
 }
 
@@ -202,6 +200,8 @@ fn adapt_refines_until_the_bound_is_met() {
         (Method::Rk4, 0.04, 1e-8),
         (Method::Sdirk2, 8e-3, 1e-5),
         (Method::Dopri5, 1e-4, 1e-9),
+        (Method::Dop853, 1e-3, 1e-12),
+        (Method::Radau5, 1e-4, 1e-8),
     ] {
         let mut p = predictor(&sc, method, x);
         p.settings.max_error = bound;
@@ -237,6 +237,8 @@ fn without_the_estimate_the_answer_is_unchanged_and_cheaper() {
         (Method::Rk4, 1e-2),
         (Method::Sdirk2, 1e-3),
         (Method::Dopri5, 1e-8),
+        (Method::Dop853, 1e-8),
+        (Method::Radau5, 1e-8),
     ] {
         let with = predictor(&sc, method, x)
             .predict(&sc.q0, &sc.v0, &[], 3.0)

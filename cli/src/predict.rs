@@ -25,16 +25,16 @@ pub struct PredictArgs {
     /// Horizon [s] (default: the scene's integration.horizon).
     #[arg(long)]
     horizon: Option<f64>,
-    /// semi_implicit_euler | rk4 | dopri5 | sdirk2 | radau5 (default: the scene's).
+    /// semi_implicit_euler | rk4 | dopri5 | dop853 | sdirk2 | radau5 (default: the scene's).
     #[arg(long)]
     method: Option<String>,
-    /// Step [s] (fixed-step methods; first step of dopri5 and radau5).
+    /// Step [s] (fixed-step methods; first step of the adaptive methods).
     #[arg(long)]
     dt: Option<f64>,
-    /// Relative tolerance of dopri5 and radau5 (default: the scene's).
+    /// Relative tolerance of dopri5, dop853 and radau5 (default: the scene's).
     #[arg(long)]
     rtol: Option<f64>,
-    /// Absolute tolerance of dopri5 and radau5 [m, rad, m/s, rad/s] (default: the scene's).
+    /// Absolute tolerance of dopri5, dop853 and radau5 [m, rad, m/s, rad/s] (default: the scene's).
     #[arg(long)]
     atol: Option<f64>,
     /// none | baumgarte | projection (default: the scene's).
@@ -120,7 +120,7 @@ pub fn run(a: PredictArgs) -> Result<Value> {
         p.settings.method = parse_enum::<Method>(
             "method",
             m,
-            "semi_implicit_euler, rk4, dopri5, sdirk2, radau5",
+            "semi_implicit_euler, rk4, dopri5, dop853, sdirk2, radau5",
         )?;
     }
     if let Some(d) = &a.drift {

@@ -7,8 +7,8 @@ use super::IntegrationSettings;
 use super::drift::Projector;
 use super::estimate::Lane;
 use super::integrator::{
-    Accel, DOPRI5, JacobianScratch, Method, RK4, accel_jacobian_fd, dopri5_error_norm,
-    explicit_step, sdirk2_step, semi_implicit_euler_step, stage,
+    Accel, DOP853, DOPRI5, JacobianScratch, Method, RK4, accel_jacobian_fd, dop853_error_norm,
+    dopri5_error_norm, explicit_step, sdirk2_step, semi_implicit_euler_step, stage,
 };
 use super::radau::radau5_step;
 use super::run::Predictor;
@@ -299,6 +299,17 @@ impl Predictor {
                         explicit_step(&mut rhs, model, &DOPRI5, t, dt, q, v, step)?;
                         let norm = dopri5_error_norm(step, v, s);
                         let factor = (0.9 * norm.max(1e-10).powf(-0.2)).clamp(0.2, 5.0);
+                        if norm > 1.0 || !norm.is_finite() {
+                            step.restore(q, v);
+                            Some((false, dt * factor.min(0.5)))
+                        } else {
+                            Some((true, dt * factor))
+                        }
+                    }
+                    Method::Dop853 => {
+                        explicit_step(&mut rhs, model, &DOP853, t, dt, q, v, step)?;
+                        let norm = dop853_error_norm(step, v, s);
+                        let factor = (0.9 * norm.max(1e-12).powf(-1.0 / 8.0)).clamp(0.2, 10.0);
                         if norm > 1.0 || !norm.is_finite() {
                             step.restore(q, v);
                             Some((false, dt * factor.min(0.5)))

@@ -180,6 +180,7 @@ impl CovariancePropagator {
                 Method::Sdirk2 => 2.0,
                 Method::Rk4 => 4.0,
                 Method::Dopri5 | Method::Radau5 => 5.0,
+                Method::Dop853 => 8.0,
             };
             let ratio = if m > 1 {
                 hst.mismatch(&sys.model, &self.lin, lo, hi)

@@ -10,8 +10,8 @@
 //!   per step of the answer. With a global error `e(dt) ≈ C dt^p` (p the method's order),
 //!   `e(dt) ≈ (q_dt ⊖ q_dt/2) · 2^p / (2^p − 1)`: factor 2 (SIE), 4/3 (SDIRK2), 16/15 (RK4).
 //!   Cost: two extra steps per step, 3× the evaluations.
-//! - DOPRI5: the tolerances divided by K = 32 and every step at most half the answer's largest
-//!   in the span. Where the tolerance sets the step, DOPRI5's global error is about proportional
+//! - adaptive methods (DOPRI5, DOP853, Radau5; order p): the tolerances divided by K = 2^p (32,
+//!   256, 32) and every step at most half the answer's largest in the span. DOPRI5 in detail: Where the tolerance sets the step, DOPRI5's global error is about proportional
 //!   to it; where the span caps the step (smooth motion, loose tolerance) both lanes would take
 //!   the same single step, and the halved step divides the error by 2⁵ = 32 = K instead. Either
 //!   way `e ≈ (q ⊖ q_c) · K / (K − 1)`. Cost: about K^(1/5) = 2× the steps, 3× in all.
@@ -32,8 +32,11 @@ use crate::error::Error;
 use crate::model::Model;
 use crate::system::System;
 
-/// DOPRI5's companion runs at rtol / K and atol / K.
-pub(super) const DOPRI5_TIGHTENING: f64 = 32.0;
+/// An adaptive method's companion runs at rtol / K and atol / K, K = 2^p (p its order: 32 for
+/// DOPRI5 and Radau5, 256 for DOP853): the error a halved step divides by.
+pub(super) fn tightening(m: Method) -> f64 {
+    2f64.powi(m.order() as i32)
+}
 
 /// `integration.adapt`: at most this many reruns with a refined step or tolerance.
 pub(super) const MAX_REFINEMENTS: usize = 4;
@@ -92,9 +95,9 @@ impl Lane {
 pub(super) fn companion_settings(s: &IntegrationSettings) -> IntegrationSettings {
     let mut c = s.clone();
     match s.method {
-        Method::Dopri5 | Method::Radau5 => {
-            c.rtol = s.rtol / DOPRI5_TIGHTENING;
-            c.atol = s.atol / DOPRI5_TIGHTENING;
+        m if m.is_adaptive() => {
+            c.rtol = s.rtol / tightening(m);
+            c.atol = s.atol / tightening(m);
         }
         _ => c.dt = s.dt / 2.0,
     }
@@ -105,7 +108,6 @@ pub(super) fn companion_settings(s: &IntegrationSettings) -> IntegrationSettings
 /// Richardson factor turning the answer–companion difference into the answer's error.
 pub(super) fn richardson_factor(method: Method) -> f64 {
     let r = match method {
-        Method::Dopri5 | Method::Radau5 => DOPRI5_TIGHTENING,
         m => 2f64.powi(m.order() as i32),
     };
     r / (r - 1.0)
@@ -137,7 +139,7 @@ pub(super) fn refined(
     let ratio = (SAFETY * s.max_error / at_horizon).min(1.0);
     let mut r = s.clone();
     match s.method {
-        Method::Dopri5 | Method::Radau5 => {
+        m if m.is_adaptive() => {
             let f = ratio.min(0.9);
             r.rtol = s.rtol * f;
             r.atol = s.atol * f;
@@ -152,7 +154,7 @@ pub(super) fn refined(
 pub(super) fn exceeded(s: &IntegrationSettings, e: f64, t: f64, horizon: f64) -> Error {
     let r = refined(s, e, t, horizon);
     let hint = match s.method {
-        Method::Dopri5 | Method::Radau5 => format!(
+        m if m.is_adaptive() => format!(
             "rtol = {:.2e}, atol = {:.2e} should meet it (the error is about proportional to the \
              tolerance), or set integration.adapt: true",
             r.rtol, r.atol

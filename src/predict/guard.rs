@@ -89,7 +89,7 @@ pub(super) fn check_work(
         Method::SemiImplicitEuler => 3.0,
         Method::Rk4 => 12.0,
         // Adaptive or iterative: counted while running (`advance`).
-        Method::Dopri5 | Method::Sdirk2 | Method::Radau5 => return Ok(()),
+        Method::Dopri5 | Method::Dop853 | Method::Sdirk2 | Method::Radau5 => return Ok(()),
     };
     let steps = (horizon / s.dt).ceil();
     let work = steps * per_step * crate::limits::evaluation_cost(model);

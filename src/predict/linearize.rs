@@ -11,7 +11,7 @@
 //! series. Semi-implicit Euler likewise. The result equals finite differences of the step
 //! (tests).
 
-use super::integrator::{DOPRI5, Method, RK4, Tableau};
+use super::integrator::{DOP853, DOPRI5, Method, RK4, Tableau};
 use super::lie::{dexp_inv, dexp_inv_dtheta, right_jacobian, transport};
 use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
 use crate::error::{Error, Result};
@@ -117,7 +117,7 @@ impl Linearization {
     pub fn new(sys: &System) -> Self {
         let (nq, nv) = (sys.model.nq, sys.model.nv);
         let cols = 3 * nv;
-        let stages = 7;
+        let stages = super::integrator::MAX_STAGES;
         Self {
             a: DMatrix::zeros(2 * nv, 2 * nv),
             b: DMatrix::zeros(2 * nv, nv),
@@ -217,6 +217,7 @@ pub fn linearize_step(
         Method::SemiImplicitEuler => semi_implicit_euler(sys, lin, q, v, tau, dt),
         Method::Rk4 => explicit(sys, lin, &RK4, q, v, tau, dt),
         Method::Dopri5 => explicit(sys, lin, &DOPRI5, q, v, tau, dt),
+        Method::Dop853 => explicit(sys, lin, &DOP853, q, v, tau, dt),
         Method::Sdirk2 | Method::Radau5 => Err(Error::Unsupported {
             what: format!("linearize with {method:?}"),
             why: "the implicit step's sensitivity is not implemented; use rk4, dopri5 or \

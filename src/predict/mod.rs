@@ -21,6 +21,7 @@ mod radau_tableau;
 mod rollout;
 mod run;
 mod sampling;
+mod tableaus;
 mod trajectory;
 
 pub use covariance::{CovariancePropagator, UncertaintySpec};
@@ -52,13 +53,13 @@ pub enum DriftControl {
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct IntegrationSettings {
-    /// `method:` semi_implicit_euler | rk4 | dopri5 | sdirk2 | radau5 (default `rk4`).
+    /// `method:` semi_implicit_euler | rk4 | dopri5 | dop853 | sdirk2 | radau5 (default `rk4`).
     #[serde(default)]
     pub method: Method,
-    /// Step [s] (fixed-step methods; first step of dopri5 and radau5).
+    /// Step [s] (fixed-step methods; first step of the adaptive ones).
     #[serde(default = "default_dt")]
     pub dt: f64,
-    /// Relative and absolute tolerances of dopri5 and radau5.
+    /// Relative and absolute tolerances of the adaptive methods (dopri5, dop853, radau5).
     #[serde(default = "default_rtol")]
     pub rtol: f64,
     /// `atol:` absolute tolerance of dopri5 [m, rad, m/s or rad/s per entry] (default 1e-10).
