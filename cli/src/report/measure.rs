@@ -157,5 +157,7 @@ pub(super) fn measure(scene: &Scene, b: &Bench, line: &Line, x: f64, refs: &Refs
     }
     (row.steps, row.evaluations, row.cpu) = (t.steps, t.evaluations, cpu);
     row.least_squares = t.least_squares_evaluations;
+    // radau5's Newton Jacobians (the other methods count none), like the peers'.
+    row.jacobian_evaluations = (t.jacobians > 0).then_some(t.jacobians);
     row
 }

@@ -40,7 +40,7 @@ pub(super) fn digits_view(rows: &[Row], qmax: f64) -> String {
         "**Digits.** The fastest run of each line to ≥ 10 and ≥ 12 significant digits in q \
          (error ≤ 1e-10·|q|max and ≤ 1e-12·|q|max, |q|max = {qmax:.4} rad; digits = \
          −log10(error / |q|max)); `—` when no run of the line gets there (its best in \
-         brackets). Evaluations: right-hand sides (peers: + Jacobians).\n"
+         brackets). Evaluations: right-hand sides (radau5 and the peers: + Jacobians).\n"
     );
     s.push_str("| line | ≥ 10 digits | ≥ 12 digits |\n|---|---|---|\n");
     let mut labels: Vec<&str> = rows.iter().map(|r| r.line.as_str()).collect();
