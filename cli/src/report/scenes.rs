@@ -21,7 +21,8 @@ pub enum Reference {
     /// Error of a sample against a closed form (max over the samples is reported).
     ClosedForm(Box<dyn Fn(&Sample) -> f64>),
     /// A tighter solution by another method: dopri5 (rtol = atol = 1e-13, projection) for the
-    /// fixed-step rows and RK4 at `rk4_dt` (projection) for the dopri5 rows.
+    /// fixed-step rows and RK4 at `rk4_dt` (projection) for the tolerance-driven rows (dopri5,
+    /// radau5).
     Numerical { rk4_dt: f64 },
     /// The state at the end of the horizon only, against dopri5 at rtol = atol = `rtol`
     /// (projection) for the fixed-step rows and the peers, and RK4 at `rk4_dt` (projection) for
@@ -157,7 +158,7 @@ const ANDREWS_Q: [f64; 7] = [
 
 const NUMERICAL: &str = "tighter solution by another method: dopri5 rtol = atol = 1e-13 with \
                          projection for the fixed-step rows, RK4 at a small step with projection \
-                         for the dopri5 rows";
+                         for the dopri5 and radau5 rows";
 
 /// Every benchmark scene, full or quick.
 pub fn benches(quick: bool) -> Vec<Bench> {
