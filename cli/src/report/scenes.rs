@@ -131,6 +131,7 @@ fn lines(constrained: bool, sie: f64, rk4: f64, sdirk2: f64, quick: bool) -> Vec
         line(Method::Rk4, p, halvings(rk4, n)),
         line(Method::Sdirk2, p, halvings(sdirk2, n)),
         line(Method::Dopri5, p, tols.clone()),
+        line(Method::Dop853, p, tols.clone()),
         line(Method::Radau5, p, tols.clone()),
     ];
     if constrained {
@@ -158,7 +159,7 @@ const ANDREWS_Q: [f64; 7] = [
 
 const NUMERICAL: &str = "tighter solution by another method: dopri5 rtol = atol = 1e-13 with \
                          projection for the fixed-step rows, RK4 at a small step with projection \
-                         for the dopri5 and radau5 rows";
+                         for the dopri5, dop853 and radau5 rows";
 
 /// Every benchmark scene, full or quick.
 pub fn benches(quick: bool) -> Vec<Bench> {
