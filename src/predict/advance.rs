@@ -10,10 +10,11 @@ use super::integrator::{
     Accel, DOP853, DOPRI5, JacobianScratch, Method, RK4, accel_jacobian_fd, dop853_error_norm,
     dopri5_error_norm, explicit_step, sdirk2_step, semi_implicit_euler_step, stage,
 };
+use super::linearize::dynamics_derivatives;
 use super::radau::radau5_step;
 use super::run::Predictor;
 use crate::applied::applied_generalized_force;
-use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
+use crate::derivatives::DerivativeData;
 use crate::dynamics::Formulation;
 use crate::error::{Error, Result};
 use crate::forces::ForceElements;
@@ -136,23 +137,7 @@ impl Accel for Rhs<'_> {
             accel_jacobian_fd(self, model, (t, q, v), qdd, jac, scratch)?;
             return Ok(false);
         };
-        let sys = &mut *self.sys;
-        let analytic = if sys.constraints.is_empty() {
-            aba_derivatives(&sys.model, &mut sys.data, dd, q, v, self.tau)
-        } else {
-            constrained_dynamics_derivatives(
-                &sys.model,
-                &mut sys.data,
-                &sys.constraints,
-                &mut sys.cdata,
-                &mut sys.kkt,
-                dd,
-                q,
-                v,
-                self.tau,
-                sys.baumgarte,
-            )
-        };
+        let analytic = dynamics_derivatives(self.sys, dd, q, v, self.tau);
         if analytic.is_err() {
             accel_jacobian_fd(self, model, (t, q, v), qdd, jac, scratch)?;
             return Ok(false);

@@ -167,8 +167,29 @@ fn dynamics(
         // −k (q − rest) − d v at the stage, minus the same at the start.
         tau_stage[iv] -= k * (q[iq] - q0[iq]) + d * (v[iv] - v0[iv]);
     }
+    dynamics_derivatives(sys, dd, q, v, tau_stage)?;
+    let nv = v.len();
+    for &(_, iv, k, d, _) in springs {
+        for i in 0..nv {
+            let g = dd.dqdd_dtau[(i, iv)];
+            dd.dqdd_dq[(i, iv)] -= g * k;
+            dd.dqdd_dv[(i, iv)] -= g * d;
+        }
+    }
+    Ok(())
+}
+
+/// q̈ and ∂q̈/∂(q, v, τ) at (q, v, τ) into `dd`: the multiplier form's (its Baumgarte gains
+/// included) with constraints, ABA's without.
+pub(super) fn dynamics_derivatives(
+    sys: &mut System,
+    dd: &mut DerivativeData,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+) -> Result<()> {
     if sys.constraints.is_empty() {
-        aba_derivatives(&sys.model, &mut sys.data, dd, q, v, tau_stage)?;
+        aba_derivatives(&sys.model, &mut sys.data, dd, q, v, tau)
     } else {
         constrained_dynamics_derivatives(
             &sys.model,
@@ -179,19 +200,10 @@ fn dynamics(
             dd,
             q,
             v,
-            tau_stage,
+            tau,
             sys.baumgarte,
-        )?;
+        )
     }
-    let nv = v.len();
-    for &(_, iv, k, d, _) in springs {
-        for i in 0..nv {
-            let g = dd.dqdd_dtau[(i, iv)];
-            dd.dqdd_dq[(i, iv)] -= g * k;
-            dd.dqdd_dv[(i, iv)] -= g * d;
-        }
-    }
-    Ok(())
 }
 
 /// One step of `method` from (q, v) under the held generalized force τ with step `dt` [s],

@@ -22,7 +22,7 @@ use super::radau_tableau::RadauCoefficients;
 use crate::error::{Error, Result};
 use crate::linalg::{lu_in_place, lu_solve};
 use crate::model::Model;
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::{DMatrix, Matrix3, Vector3};
 
 /// Newton iterations per step before the step is rejected (RADAU5's NIT).
 const MAX_NEWTON: usize = 7;
@@ -338,11 +338,16 @@ fn starting_values(ws: &mut RadauWorkspace, h: f64) {
             };
         }
     }
-    for k in 0..n {
-        let z = Vector3::new(ws.z[0][k], ws.z[1][k], ws.z[2][k]);
-        let w = ws.co.t_inv * z;
+    let t_inv = ws.co.t_inv;
+    apply3(&t_inv, &ws.z, &mut ws.w);
+}
+
+/// out_i = Σ_j m_ij x_j, per component (the stage transformations Z ↔ W).
+fn apply3(m: &Matrix3<f64>, x: &[Vec<f64>; 3], out: &mut [Vec<f64>; 3]) {
+    for k in 0..x[0].len() {
+        let y = m * Vector3::new(x[0][k], x[1][k], x[2][k]);
         for i in 0..3 {
-            ws.w[i][k] = w[i];
+            out[i][k] = y[i];
         }
     }
 }
@@ -405,14 +410,8 @@ fn newton_update(ws: &mut RadauWorkspace, h: f64) -> f64 {
 
 /// Z = T W.
 fn transform_back(ws: &mut RadauWorkspace) {
-    let n = ws.f0.len();
     let t = ws.co.t;
-    for k in 0..n {
-        let z = t * Vector3::new(ws.w[0][k], ws.w[1][k], ws.w[2][k]);
-        for i in 0..3 {
-            ws.z[i][k] = z[i];
-        }
-    }
+    apply3(&t, &ws.w, &mut ws.z);
 }
 
 /// Hairer's estimate `(γ/h − J)⁻¹ (f₀ + Σ d_i Z_i / h)` as a scaled RMS norm; when it fails at
