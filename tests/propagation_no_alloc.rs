@@ -46,7 +46,9 @@ fn stepping_allocates_nothing_per_step() {
             Method::SemiImplicitEuler,
             Method::Rk4,
             Method::Dopri5,
+            Method::Dop853,
             Method::Sdirk2,
+            Method::Radau5,
         ] {
             let mut p = Predictor::from_scene(&sc).unwrap();
             p.settings.method = method;
