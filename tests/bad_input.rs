@@ -167,6 +167,29 @@ fn constraint_errors_name_the_constraint_and_problem() {
     System::from_scene(&Scene::load(&p).unwrap()).unwrap();
 }
 
+/// The ground plane's height is bounded like every length (`limits::MAX_LENGTH` = 1e6 m, "at
+/// most": 1e6 itself is accepted) and must be finite.
+#[test]
+fn rolling_plane_height_is_finite_and_at_most_the_length_limit() {
+    let rolling = |h: &str| {
+        format!(
+            "constraints:\n  - {{name: w, kind: rolling, wheel: left_wheel, axis: [0,1,0], radius: 0.05, plane_height: {h}}}\n"
+        )
+    };
+    // Own file names: `system_err`'s c.yaml is shared with the other tests' threads.
+    let load = |k: usize, h: &str| {
+        let p = write_scene(&format!("height{k}.yaml"), &rolling(h));
+        System::from_scene(&Scene::load(&p).unwrap())
+    };
+    for (k, h) in ["2e6", "-2e6", ".nan", ".inf"].into_iter().enumerate() {
+        let e = load(k, h).unwrap_err().to_string();
+        assert_has(&e, &["constraint 'w'", "plane_height", "at most 1e6 m"]);
+    }
+    for (k, h) in ["1e6", "-1e6"].into_iter().enumerate() {
+        load(4 + k, h).unwrap();
+    }
+}
+
 #[test]
 fn inconsistent_constraints_are_an_error_not_garbage() {
     // The same wheel joint coupled to two incompatible accelerations: q_l − q_r = 0 and

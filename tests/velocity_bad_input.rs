@@ -104,6 +104,18 @@ fn malformed_expressions_are_named() {
         }
         p => panic!("{p}"),
     }
+    // A symbol is an identifier: a letter or _, then letters, digits or _ (both halves of the
+    // rule: a digit first, and a bad character after a good first letter).
+    for bad in ["2vx", "v-x", "v x"] {
+        let vars = format!(r#"{{vz: "v:root_joint:vz_local", "{bad}": "v:root_joint:vx_local"}}"#);
+        match problem("vz", &vars, "") {
+            ExpressionProblem::BadVariable { symbol, message } => {
+                assert_eq!(symbol, bad);
+                assert!(message.contains("letter or _ followed by"), "{message}");
+            }
+            p => panic!("{bad}: {p}"),
+        }
+    }
     let holonomic = problem("x^2 + sin(t) - 1", vars, "");
     assert_eq!(holonomic, ExpressionProblem::Holonomic);
     assert!(
