@@ -190,6 +190,47 @@ fn rolling_plane_height_is_finite_and_at_most_the_length_limit() {
     }
 }
 
+/// Axes and normals are directions: a zero or infinite vector has none and is refused by name
+/// (the rolling wheel's axis and plane normal, the knife edge's axis).
+#[test]
+fn zero_and_infinite_axes_are_refused() {
+    let cases = [
+        (
+            "{name: w, kind: rolling, wheel: left_wheel, axis: [0,0,0], radius: 0.05}",
+            "wheel axis",
+        ),
+        (
+            "{name: w, kind: rolling, wheel: left_wheel, axis: [.inf,0,0], radius: 0.05}",
+            "wheel axis",
+        ),
+        (
+            "{name: w, kind: rolling, wheel: left_wheel, axis: [0,1,0], radius: 0.05, plane_normal: [0,0,0]}",
+            "plane normal",
+        ),
+        (
+            "{name: w, kind: no_side_slip, frame: base_link, axis: [0,0,0]}",
+            "axis",
+        ),
+        (
+            "{name: w, kind: no_side_slip, frame: base_link, axis: [0,-.inf,0]}",
+            "axis",
+        ),
+    ];
+    for (k, (c, what)) in cases.into_iter().enumerate() {
+        let p = write_scene(
+            &format!("axis{k}.yaml"),
+            &format!("constraints:\n  - {c}\n"),
+        );
+        let e = System::from_scene(&Scene::load(&p).unwrap())
+            .unwrap_err()
+            .to_string();
+        assert_has(
+            &e,
+            &["constraint 'w'", &format!("{what} is zero or not finite")],
+        );
+    }
+}
+
 #[test]
 fn inconsistent_constraints_are_an_error_not_garbage() {
     // The same wheel joint coupled to two incompatible accelerations: q_l − q_r = 0 and

@@ -84,6 +84,32 @@ fn welded_body_carries_its_weight_and_baumgarte_pulls_it_back() {
     );
 }
 
+/// Statics of the weld: the disk held at a rotated pose against a generalized force τ =
+/// (f, m) in its own axes (the free-flyer's) stays at rest, and the weld supplies the opposite
+/// wrench in world axes, −R f + m g ẑ and −R m (about the COM, the frame origin): every
+/// torque row lands on its own axis.
+#[test]
+fn welded_body_holds_an_applied_wrench() {
+    let model = disk();
+    let (rpy, xyz) = ([0.3, -0.2, 1.1], [0.5, -0.4, 1.2]);
+    let target = UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]);
+    let q = q_at(xyz, &target);
+    let set = ConstraintSet::new(&model, &[weld(rpy, xyz)], &q).unwrap();
+    let mut sys = System::new(model, set, Baumgarte::default(), Formulation::Multipliers);
+    let tau = [0.4, -0.7, 0.2, 0.3, -0.5, 0.8];
+    let qdd = sys
+        .forward_dynamics(&q, &[0.0; 6], &tau, true)
+        .unwrap()
+        .clone();
+    assert_close("q̈", qdd.as_slice(), &[0.0; 6], 1e-13); // achieved 1.4e-14 (at rest)
+    let r = target.to_rotation_matrix();
+    let force = -(r * Vector3::new(tau[0], tau[1], tau[2])) + Vector3::new(0.0, 0.0, 9.81);
+    let torque = -(r * Vector3::new(tau[3], tau[4], tau[5]));
+    let f = &sys.constraint_forces()[0];
+    assert_close("weld force", &f.force, force.as_slice(), 1e-14); // achieved 3.7e-16 (statics)
+    assert_close("weld torque", &f.torque, torque.as_slice(), 1e-14); // achieved 3.3e-16
+}
+
 #[test]
 fn distance_pendulum_tension_is_m_g_plus_m_u2_over_l() {
     // Disk origin (its COM) on a massless rod of length L = 1 m from the world point (0, 0, 1):
