@@ -161,6 +161,30 @@ fn undefined_derivatives_are_errors_not_nans() {
     }
 }
 
+/// With a well-defined constraint declared first, the error names the one that is undefined at
+/// the state (√ at 0 in the derivative of the second), not the first row checked.
+#[test]
+fn the_non_finite_row_names_its_own_constraint() {
+    let yaml = r#"  - name: servo
+    kind: velocity
+    expression: "vx - 0.5"
+    variables: {vx: "v:root_joint:vx_local"}
+  - name: lift
+    kind: velocity
+    expression: "vz - 0.5*sqrt(vx^2 + vy^2)"
+    variables: {vx: "v:root_joint:vx_local", vy: "v:root_joint:vy_local", vz: "v:root_joint:vz_local"}
+"#;
+    let mut sys = scene_from("point_mass.urdf", "floating", yaml).unwrap();
+    let q = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    match sys.forward_dynamics(&q, &[0.0; 6], &[0.0; 6], true) {
+        Err(Error::Constraint { name, message }) => {
+            assert_eq!(name, "lift");
+            assert!(message.contains("non-finite"), "{message}");
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
 /// Long expressions: exmex recurses deeply (a 2 MiB thread overflowed at 20 terms), so parsing
 /// runs on its own large stack and the length is capped with a named error. Evaluation keeps
 /// up to 32 nodes on the stack; longer expressions allocate, counted here (measured, not a bar).
