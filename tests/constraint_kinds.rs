@@ -110,6 +110,65 @@ fn welded_body_holds_an_applied_wrench() {
     assert_close("weld torque", &f.torque, torque.as_slice(), 1e-14); // achieved 3.3e-16
 }
 
+/// A body welded to a moving base (both free: a floating base a, and b on a floating joint
+/// 0.5 m out along x) turns with it as one rigid body. A couple τ on the base at rest: the
+/// COM c = (1/3, 0, 0) falls at g, and α = I_c⁻¹ τ with the composite inertia about c,
+/// I_c = I_a + I_b + diag(0, s, s), s = m_a (1/3)² + m_b (1/6)² = 1/6 (Steiner); the base
+/// origin accelerates at g + α × (−1/3, 0, 0) and the joint does not move (q̈ = 0).
+#[test]
+fn body_welded_to_a_moving_base_turns_with_it() {
+    let urdf = r#"<robot name="pair">
+  <link name="a"><inertial><mass value="1"/><inertia ixx="0.1" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.15"/></inertial></link>
+  <link name="b"><inertial><mass value="2"/><inertia ixx="0.3" ixy="0" ixz="0" iyy="0.2" iyz="0" izz="0.25"/></inertial></link>
+  <joint name="free" type="floating"><parent link="a"/><child link="b"/><origin xyz="0.5 0 0"/></joint>
+</robot>"#;
+    let model = Model::from_urdf_str(
+        urdf,
+        "pair.urdf",
+        &ModelOptions {
+            base: BaseType::Floating,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let spec = ConstraintSpec::Weld {
+        name: "w".into(),
+        frame_a: "b".into(),
+        frame_b: "a".into(),
+        axes: Axes::World,
+        rows: vec![Row::X, Row::Y, Row::Z, Row::Rx, Row::Ry, Row::Rz],
+        relative_xyz: [0.5, 0.0, 0.0],
+        relative_rpy: [0.0; 3],
+    };
+    let mut q = vec![0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    q.extend([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+    let set = ConstraintSet::new(&model, &[spec], &q).unwrap();
+    let mut sys = System::new(model, set, Baumgarte::default(), Formulation::Multipliers);
+    let couple = [0.3, -0.5, 0.8];
+    let mut tau = [0.0; 12];
+    tau[3..6].copy_from_slice(&couple);
+    let qdd = sys
+        .forward_dynamics(&q, &[0.0; 12], &tau, true)
+        .unwrap()
+        .clone();
+    let s = 1.0 / 6.0;
+    let alpha = [
+        couple[0] / 0.4,
+        couple[1] / (0.4 + s),
+        couple[2] / (0.4 + s),
+    ];
+    let mut expected = [0.0; 12];
+    expected[..6].copy_from_slice(&[
+        0.0,
+        -alpha[2] / 3.0,
+        -9.81 + alpha[1] / 3.0,
+        alpha[0],
+        alpha[1],
+        alpha[2],
+    ]);
+    assert_close("q̈", qdd.as_slice(), &expected, 1e-14); // achieved 1.8e-16 (rigid pair)
+}
+
 #[test]
 fn distance_pendulum_tension_is_m_g_plus_m_u2_over_l() {
     // Disk origin (its COM) on a massless rod of length L = 1 m from the world point (0, 0, 1):
