@@ -231,6 +231,32 @@ fn zero_and_infinite_axes_are_refused() {
     }
 }
 
+/// Points are lengths bounded by `limits::MAX_LENGTH` = 1e6 m ("at most": 1e6 is accepted) and
+/// must be finite; a row that the kind does not have is named by its YAML spelling.
+#[test]
+fn points_beyond_the_length_limit_and_foreign_rows_are_named() {
+    let point = |k: usize, p: &str, rows: &str| {
+        let body = format!(
+            "constraints:\n  - {{name: h, kind: point, frame_a: base_link, point_a: {p}, rows: {rows}}}\n"
+        );
+        let path = write_scene(&format!("point{k}.yaml"), &body);
+        System::from_scene(&Scene::load(&path).unwrap())
+    };
+    for (k, p) in ["[0, 0, 2e6]", "[-2e6, 0, 0]", "[0, .nan, 0]"]
+        .into_iter()
+        .enumerate()
+    {
+        let e = point(k, p, "[x, y]").unwrap_err().to_string();
+        assert_has(&e, &["constraint 'h'", "point_a", "beyond 1e6 m"]);
+    }
+    point(3, "[1e6, 0, -1e6]", "[x, y]").unwrap();
+    let e = point(4, "[0, 0, 0]", "[x, rx]").unwrap_err().to_string();
+    assert_has(
+        &e,
+        &["constraint 'h'", "row 'rx' is not valid for this kind"],
+    );
+}
+
 #[test]
 fn inconsistent_constraints_are_an_error_not_garbage() {
     // The same wheel joint coupled to two incompatible accelerations: q_l − q_r = 0 and

@@ -183,6 +183,21 @@ fn the_non_finite_row_names_its_own_constraint() {
         }
         other => panic!("{other:?}"),
     }
+    // Only γ undefined: f = vx − √x at x = 0 has ∂f/∂v = (1) and f = 0, but ∂f/∂x = −∞.
+    let yaml = r#"  - name: root
+    kind: velocity
+    expression: "vx - sqrt(x)"
+    variables: {vx: "v:root_joint:vx_local", x: "q:root_joint:x"}
+"#;
+    let mut sys = scene_from("point_mass.urdf", "floating", yaml).unwrap();
+    let q = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    match sys.forward_dynamics(&q, &[0.0, 0.0, 0.0, 0.0, 0.0, 0.0], &[0.0; 6], true) {
+        Err(Error::Constraint { name, message }) => {
+            assert_eq!(name, "root");
+            assert!(message.contains("non-finite"), "{message}");
+        }
+        other => panic!("{other:?}"),
+    }
 }
 
 /// Long expressions: exmex recurses deeply (a 2 MiB thread overflowed at 20 terms), so parsing
