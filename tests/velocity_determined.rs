@@ -284,3 +284,44 @@ fn b_at_a_large_dependent_velocity() {
     assert_eq!(b[0].0, 0);
     assert_close("B", &[b[0].1], &[1.0], 1e-15); // achieved 0 (linear q̂; floor 1e-15)
 }
+
+/// Where Newton cannot take a step (∂f/∂v_d = 0 at its start, f = v_z² − v_x from v_z = 0) or f
+/// is not defined (f = v_z − ln(v_x − 0.5), undefined for v_x ≤ 0.5, on the way from v_x⁰ = 0),
+/// `velocity_determined_b` says so at the first node it visits (σ = (1 − 0.1834)/2 = 0.408,
+/// of the innermost Gauss–Legendre pair), instead of iterating on ∞ or NaN.
+#[test]
+fn b_where_newton_cannot_start_names_the_cause() {
+    use constraint_dynamics::constraints::{VelocityConstraint, VirtualDisplacements};
+    use constraint_dynamics::{BaseType, Model, ModelOptions};
+    use std::collections::BTreeMap;
+    let model = Model::from_urdf_file(
+        repo_dir().join("urdf/point_mass.urdf"),
+        &ModelOptions {
+            base: BaseType::Floating,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let vars: BTreeMap<String, String> = [
+        ("vx".to_string(), "v:root_joint:vx_local".to_string()),
+        ("vz".to_string(), "v:root_joint:vz_local".to_string()),
+    ]
+    .into();
+    let q = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+    for f in ["vz^2 - vx", "vz - ln(vx - 0.5)"] {
+        let c = VelocityConstraint::build(
+            &model,
+            "c",
+            f,
+            &vars,
+            VirtualDisplacements::VelocityDetermined,
+            &["vz".to_string()],
+            &BTreeMap::new(),
+        )
+        .unwrap();
+        let e = c
+            .velocity_determined_b(&q, &[1.0, 0.0, 0.0, 0.0, 0.0, 0.0], 0.0)
+            .unwrap_err();
+        assert_eq!(e, "f or ∂f/∂v_d undefined at σ = 0.408", "{f}");
+    }
+}
