@@ -213,6 +213,23 @@ fn distance_pendulum_tension_is_m_g_plus_m_u2_over_l() {
             1e-15, // achieved 0
         );
     }
+    // Off the velocity constraint: also a radial speed w (the rod lengthening), without
+    // Baumgarte. The constraint then holds |d|¨ = 0: n·d̈ + (|ḋ|² − (n·ḋ)²)/|d| = 0 with
+    // |ḋ|² − (n·ḋ)² = u², so the centre still accelerates upward by u²/L whatever w is.
+    sys.baumgarte = Baumgarte { kp: 0.0, kd: 0.0 };
+    for (u, w) in [(0.7, 0.4), (3.0, -1.5)] {
+        let v = [u, 0.0, w, 0.0, 0.0, 0.0];
+        let qdd = sys
+            .forward_dynamics(&q, &v, &[0.0; 6], true)
+            .unwrap()
+            .clone();
+        assert_close(
+            &format!("u = {u}, w = {w}: q̈"),
+            qdd.as_slice(),
+            &[0.0, 0.0, u * u, 0.0, 0.0, 0.0],
+            1e-14, // achieved ≤ 2.8e-16 (closed form u²/L)
+        );
+    }
 }
 
 #[test]
