@@ -238,6 +238,20 @@ fn long_expressions_parse_and_overlong_ones_are_named() {
         }
         p => panic!("{p}"),
     }
+    // The cap is inclusive: 50 terms are 8·50 − 1 = 399 tokens, a leading sign makes 400
+    // (accepted), `+ vx` at the end 401 (named).
+    scene_from(
+        "point_mass.urdf",
+        "floating",
+        &decl(&format!("-{}", term(50))),
+    )
+    .unwrap();
+    match problem(&format!("{} + vx", term(50)), vars, "") {
+        ExpressionProblem::Syntax { message, .. } => {
+            assert_eq!(message, "401 tokens, at most 400")
+        }
+        p => panic!("{p}"),
+    }
 }
 
 /// At most `MAX_SYMBOLS` = 16 distinct symbols (their values live in a stack buffer): 16 are
