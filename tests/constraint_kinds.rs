@@ -110,6 +110,55 @@ fn welded_body_holds_an_applied_wrench() {
     assert_close("weld torque", &f.torque, torque.as_slice(), 1e-14); // achieved 3.3e-16
 }
 
+/// Axes and normals are directions: declared with any length they act as their unit vectors.
+/// The knife edge on the planar disk (axis [0, 2.5, 0], moving at u, turning at ω) carries
+/// λ = m u ω, the lateral force along the unit axis; the disk resting upright on the ground
+/// (wheel axis [0, 4, 0], plane normal [0, 0, 3]) carries its weight m g on the normal row.
+#[test]
+fn axes_and_normals_of_any_length_act_as_unit_vectors() {
+    let planar = Model::from_urdf_file(
+        reference_dir().join("urdf/disk.urdf"),
+        &ModelOptions {
+            base: BaseType::Planar,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let edge = ConstraintSpec::NoSideSlip {
+        name: "edge".into(),
+        frame: "disk".into(),
+        axis: [0.0, 2.5, 0.0],
+    };
+    let q = [0.4, 0.1, 0.6];
+    let set = ConstraintSet::new(&planar, &[edge], &q).unwrap();
+    let mut sys = System::new(planar, set, Baumgarte::default(), Formulation::Multipliers);
+    let (u, w) = (1.5, -0.8);
+    sys.forward_dynamics(&q, &[u, 0.0, w], &[0.0; 3], true)
+        .unwrap();
+    assert_close("knife edge λ", sys.kkt.lambda.as_slice(), &[u * w], 1e-15); // achieved 0 (m u ω)
+
+    let contact = ConstraintSpec::Rolling {
+        name: "contact".into(),
+        wheel: "disk".into(),
+        axis: [0.0, 4.0, 0.0],
+        radius: 0.1,
+        plane_normal: [0.0, 0.0, 3.0],
+        plane_height: 0.0,
+    };
+    let q = q_at([0.0, 0.0, 0.1], &UnitQuaternion::identity());
+    let model = disk();
+    let set = ConstraintSet::new(&model, &[contact], &q).unwrap();
+    let mut sys = System::new(model, set, Baumgarte::default(), Formulation::Multipliers);
+    let qdd = sys
+        .forward_dynamics(&q, &[0.0; 6], &[0.0; 6], true)
+        .unwrap()
+        .clone();
+    assert_close("resting disk q̈", qdd.as_slice(), &[0.0; 6], 1e-15); // achieved 0
+    let f = &sys.constraint_forces()[0];
+    assert_close("normal force", &[f.normal_force.unwrap()], &[9.81], 1e-15); // achieved 0 (m g)
+    assert_close("φ", &f.position_residual, &[0.0; 3], 1e-15); // achieved 0 (on the plane)
+}
+
 #[test]
 fn distance_pendulum_tension_is_m_g_plus_m_u2_over_l() {
     // Disk origin (its COM) on a massless rod of length L = 1 m from the world point (0, 0, 1):
