@@ -167,6 +167,96 @@ fn constraint_errors_name_the_constraint_and_problem() {
     System::from_scene(&Scene::load(&p).unwrap()).unwrap();
 }
 
+/// The ground plane's height is bounded like every length (`limits::MAX_LENGTH` = 1e6 m, "at
+/// most": 1e6 itself is accepted) and must be finite.
+#[test]
+fn rolling_plane_height_is_finite_and_at_most_the_length_limit() {
+    let rolling = |h: &str| {
+        format!(
+            "constraints:\n  - {{name: w, kind: rolling, wheel: left_wheel, axis: [0,1,0], radius: 0.05, plane_height: {h}}}\n"
+        )
+    };
+    // Own file names: `system_err`'s c.yaml is shared with the other tests' threads.
+    let load = |k: usize, h: &str| {
+        let p = write_scene(&format!("height{k}.yaml"), &rolling(h));
+        System::from_scene(&Scene::load(&p).unwrap())
+    };
+    for (k, h) in ["2e6", "-2e6", ".nan", ".inf"].into_iter().enumerate() {
+        let e = load(k, h).unwrap_err().to_string();
+        assert_has(&e, &["constraint 'w'", "plane_height", "at most 1e6 m"]);
+    }
+    for (k, h) in ["1e6", "-1e6"].into_iter().enumerate() {
+        load(4 + k, h).unwrap();
+    }
+}
+
+/// Axes and normals are directions: a zero or infinite vector has none and is refused by name
+/// (the rolling wheel's axis and plane normal, the knife edge's axis).
+#[test]
+fn zero_and_infinite_axes_are_refused() {
+    let cases = [
+        (
+            "{name: w, kind: rolling, wheel: left_wheel, axis: [0,0,0], radius: 0.05}",
+            "wheel axis",
+        ),
+        (
+            "{name: w, kind: rolling, wheel: left_wheel, axis: [.inf,0,0], radius: 0.05}",
+            "wheel axis",
+        ),
+        (
+            "{name: w, kind: rolling, wheel: left_wheel, axis: [0,1,0], radius: 0.05, plane_normal: [0,0,0]}",
+            "plane normal",
+        ),
+        (
+            "{name: w, kind: no_side_slip, frame: base_link, axis: [0,0,0]}",
+            "axis",
+        ),
+        (
+            "{name: w, kind: no_side_slip, frame: base_link, axis: [0,-.inf,0]}",
+            "axis",
+        ),
+    ];
+    for (k, (c, what)) in cases.into_iter().enumerate() {
+        let p = write_scene(
+            &format!("axis{k}.yaml"),
+            &format!("constraints:\n  - {c}\n"),
+        );
+        let e = System::from_scene(&Scene::load(&p).unwrap())
+            .unwrap_err()
+            .to_string();
+        assert_has(
+            &e,
+            &["constraint 'w'", &format!("{what} is zero or not finite")],
+        );
+    }
+}
+
+/// Points are lengths bounded by `limits::MAX_LENGTH` = 1e6 m ("at most": 1e6 is accepted) and
+/// must be finite; a row that the kind does not have is named by its YAML spelling.
+#[test]
+fn points_beyond_the_length_limit_and_foreign_rows_are_named() {
+    let point = |k: usize, p: &str, rows: &str| {
+        let body = format!(
+            "constraints:\n  - {{name: h, kind: point, frame_a: base_link, point_a: {p}, rows: {rows}}}\n"
+        );
+        let path = write_scene(&format!("point{k}.yaml"), &body);
+        System::from_scene(&Scene::load(&path).unwrap())
+    };
+    for (k, p) in ["[0, 0, 2e6]", "[-2e6, 0, 0]", "[0, .nan, 0]"]
+        .into_iter()
+        .enumerate()
+    {
+        let e = point(k, p, "[x, y]").unwrap_err().to_string();
+        assert_has(&e, &["constraint 'h'", "point_a", "beyond 1e6 m"]);
+    }
+    point(3, "[1e6, 0, -1e6]", "[x, y]").unwrap();
+    let e = point(4, "[0, 0, 0]", "[x, rx]").unwrap_err().to_string();
+    assert_has(
+        &e,
+        &["constraint 'h'", "row 'rx' is not valid for this kind"],
+    );
+}
+
 #[test]
 fn inconsistent_constraints_are_an_error_not_garbage() {
     // The same wheel joint coupled to two incompatible accelerations: q_l − q_r = 0 and
@@ -201,5 +291,6 @@ fn nan_and_wrong_sizes_are_named() {
         .unwrap_err()
         .to_string();
     assert_has(&e, &["q: entry 1 is not finite"]);
-    let _ = ConstraintSet::new(&sys.model, &[] as &[ConstraintSpec], &scene.q0).unwrap();
+    let none = ConstraintSet::new(&sys.model, &[] as &[ConstraintSpec], &scene.q0).unwrap();
+    assert!(none.is_empty() && none.nrows == 0);
 }

@@ -84,6 +84,81 @@ fn welded_body_carries_its_weight_and_baumgarte_pulls_it_back() {
     );
 }
 
+/// Statics of the weld: the disk held at a rotated pose against a generalized force τ =
+/// (f, m) in its own axes (the free-flyer's) stays at rest, and the weld supplies the opposite
+/// wrench in world axes, −R f + m g ẑ and −R m (about the COM, the frame origin): every
+/// torque row lands on its own axis.
+#[test]
+fn welded_body_holds_an_applied_wrench() {
+    let model = disk();
+    let (rpy, xyz) = ([0.3, -0.2, 1.1], [0.5, -0.4, 1.2]);
+    let target = UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]);
+    let q = q_at(xyz, &target);
+    let set = ConstraintSet::new(&model, &[weld(rpy, xyz)], &q).unwrap();
+    let mut sys = System::new(model, set, Baumgarte::default(), Formulation::Multipliers);
+    let tau = [0.4, -0.7, 0.2, 0.3, -0.5, 0.8];
+    let qdd = sys
+        .forward_dynamics(&q, &[0.0; 6], &tau, true)
+        .unwrap()
+        .clone();
+    assert_close("q̈", qdd.as_slice(), &[0.0; 6], 1e-13); // achieved 1.4e-14 (at rest)
+    let r = target.to_rotation_matrix();
+    let force = -(r * Vector3::new(tau[0], tau[1], tau[2])) + Vector3::new(0.0, 0.0, 9.81);
+    let torque = -(r * Vector3::new(tau[3], tau[4], tau[5]));
+    let f = &sys.constraint_forces()[0];
+    assert_close("weld force", &f.force, force.as_slice(), 1e-14); // achieved 3.7e-16 (statics)
+    assert_close("weld torque", &f.torque, torque.as_slice(), 1e-14); // achieved 3.3e-16
+}
+
+/// Axes and normals are directions: declared with any length they act as their unit vectors.
+/// The knife edge on the planar disk (axis [0, 2.5, 0], moving at u, turning at ω) carries
+/// λ = m u ω, the lateral force along the unit axis; the disk resting upright on the ground
+/// (wheel axis [0, 4, 0], plane normal [0, 0, 3]) carries its weight m g on the normal row.
+#[test]
+fn axes_and_normals_of_any_length_act_as_unit_vectors() {
+    let planar = Model::from_urdf_file(
+        reference_dir().join("urdf/disk.urdf"),
+        &ModelOptions {
+            base: BaseType::Planar,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let edge = ConstraintSpec::NoSideSlip {
+        name: "edge".into(),
+        frame: "disk".into(),
+        axis: [0.0, 2.5, 0.0],
+    };
+    let q = [0.4, 0.1, 0.6];
+    let set = ConstraintSet::new(&planar, &[edge], &q).unwrap();
+    let mut sys = System::new(planar, set, Baumgarte::default(), Formulation::Multipliers);
+    let (u, w) = (1.5, -0.8);
+    sys.forward_dynamics(&q, &[u, 0.0, w], &[0.0; 3], true)
+        .unwrap();
+    assert_close("knife edge λ", sys.kkt.lambda.as_slice(), &[u * w], 1e-15); // achieved 0 (m u ω)
+
+    let contact = ConstraintSpec::Rolling {
+        name: "contact".into(),
+        wheel: "disk".into(),
+        axis: [0.0, 4.0, 0.0],
+        radius: 0.1,
+        plane_normal: [0.0, 0.0, 3.0],
+        plane_height: 0.0,
+    };
+    let q = q_at([0.0, 0.0, 0.1], &UnitQuaternion::identity());
+    let model = disk();
+    let set = ConstraintSet::new(&model, &[contact], &q).unwrap();
+    let mut sys = System::new(model, set, Baumgarte::default(), Formulation::Multipliers);
+    let qdd = sys
+        .forward_dynamics(&q, &[0.0; 6], &[0.0; 6], true)
+        .unwrap()
+        .clone();
+    assert_close("resting disk q̈", qdd.as_slice(), &[0.0; 6], 1e-15); // achieved 0
+    let f = &sys.constraint_forces()[0];
+    assert_close("normal force", &[f.normal_force.unwrap()], &[9.81], 1e-15); // achieved 0 (m g)
+    assert_close("φ", &f.position_residual, &[0.0; 3], 1e-15); // achieved 0 (on the plane)
+}
+
 #[test]
 fn distance_pendulum_tension_is_m_g_plus_m_u2_over_l() {
     // Disk origin (its COM) on a massless rod of length L = 1 m from the world point (0, 0, 1):
@@ -126,6 +201,23 @@ fn distance_pendulum_tension_is_m_g_plus_m_u2_over_l() {
             &f.force,
             &[0.0, 0.0, 9.81 + u * u],
             1e-15, // achieved 0
+        );
+    }
+    // Off the velocity constraint: also a radial speed w (the rod lengthening), without
+    // Baumgarte. The constraint then holds |d|¨ = 0: n·d̈ + (|ḋ|² − (n·ḋ)²)/|d| = 0 with
+    // |ḋ|² − (n·ḋ)² = u², so the centre still accelerates upward by u²/L whatever w is.
+    sys.baumgarte = Baumgarte { kp: 0.0, kd: 0.0 };
+    for (u, w) in [(0.7, 0.4), (3.0, -1.5)] {
+        let v = [u, 0.0, w, 0.0, 0.0, 0.0];
+        let qdd = sys
+            .forward_dynamics(&q, &v, &[0.0; 6], true)
+            .unwrap()
+            .clone();
+        assert_close(
+            &format!("u = {u}, w = {w}: q̈"),
+            qdd.as_slice(),
+            &[0.0, 0.0, u * u, 0.0, 0.0, 0.0],
+            1e-14, // achieved ≤ 2.8e-16 (closed form u²/L)
         );
     }
 }

@@ -104,6 +104,18 @@ fn malformed_expressions_are_named() {
         }
         p => panic!("{p}"),
     }
+    // A symbol is an identifier: a letter or _, then letters, digits or _ (both halves of the
+    // rule: a digit first, and a bad character after a good first letter).
+    for bad in ["2vx", "v-x", "v x"] {
+        let vars = format!(r#"{{vz: "v:root_joint:vz_local", "{bad}": "v:root_joint:vx_local"}}"#);
+        match problem("vz", &vars, "") {
+            ExpressionProblem::BadVariable { symbol, message } => {
+                assert_eq!(symbol, bad);
+                assert!(message.contains("letter or _ followed by"), "{message}");
+            }
+            p => panic!("{bad}: {p}"),
+        }
+    }
     let holonomic = problem("x^2 + sin(t) - 1", vars, "");
     assert_eq!(holonomic, ExpressionProblem::Holonomic);
     assert!(
@@ -149,6 +161,45 @@ fn undefined_derivatives_are_errors_not_nans() {
     }
 }
 
+/// With a well-defined constraint declared first, the error names the one that is undefined at
+/// the state (√ at 0 in the derivative of the second), not the first row checked.
+#[test]
+fn the_non_finite_row_names_its_own_constraint() {
+    let yaml = r#"  - name: servo
+    kind: velocity
+    expression: "vx - 0.5"
+    variables: {vx: "v:root_joint:vx_local"}
+  - name: lift
+    kind: velocity
+    expression: "vz - 0.5*sqrt(vx^2 + vy^2)"
+    variables: {vx: "v:root_joint:vx_local", vy: "v:root_joint:vy_local", vz: "v:root_joint:vz_local"}
+"#;
+    let mut sys = scene_from("point_mass.urdf", "floating", yaml).unwrap();
+    let q = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    match sys.forward_dynamics(&q, &[0.0; 6], &[0.0; 6], true) {
+        Err(Error::Constraint { name, message }) => {
+            assert_eq!(name, "lift");
+            assert!(message.contains("non-finite"), "{message}");
+        }
+        other => panic!("{other:?}"),
+    }
+    // Only γ undefined: f = vx − √x at x = 0 has ∂f/∂v = (1) and f = 0, but ∂f/∂x = −∞.
+    let yaml = r#"  - name: root
+    kind: velocity
+    expression: "vx - sqrt(x)"
+    variables: {vx: "v:root_joint:vx_local", x: "q:root_joint:x"}
+"#;
+    let mut sys = scene_from("point_mass.urdf", "floating", yaml).unwrap();
+    let q = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    match sys.forward_dynamics(&q, &[0.0, 0.0, 0.0, 0.0, 0.0, 0.0], &[0.0; 6], true) {
+        Err(Error::Constraint { name, message }) => {
+            assert_eq!(name, "root");
+            assert!(message.contains("non-finite"), "{message}");
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
 /// Long expressions: exmex recurses deeply (a 2 MiB thread overflowed at 20 terms), so parsing
 /// runs on its own large stack and the length is capped with a named error. Evaluation keeps
 /// up to 32 nodes on the stack; longer expressions allocate, counted here (measured, not a bar).
@@ -184,6 +235,20 @@ fn long_expressions_parse_and_overlong_ones_are_named() {
     match problem(&term(60), vars, "") {
         ExpressionProblem::Syntax { message, .. } => {
             assert!(message.contains("at most 400"), "{message}")
+        }
+        p => panic!("{p}"),
+    }
+    // The cap is inclusive: 50 terms are 8·50 − 1 = 399 tokens, a leading sign makes 400
+    // (accepted), `+ vx` at the end 401 (named).
+    scene_from(
+        "point_mass.urdf",
+        "floating",
+        &decl(&format!("-{}", term(50))),
+    )
+    .unwrap();
+    match problem(&format!("{} + vx", term(50)), vars, "") {
+        ExpressionProblem::Syntax { message, .. } => {
+            assert_eq!(message, "401 tokens, at most 400")
         }
         p => panic!("{p}"),
     }

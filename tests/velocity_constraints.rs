@@ -297,6 +297,19 @@ fn expression_rows_match_finite_differences() {
     let q = [0.5, -0.3, 0.8, 1.3, -0.4];
     let v = [0.6, 0.2, -0.4, 3.0, 2.5];
     let w2 = check_rows_against_differences(&mut sys, &q, &v, 1.25);
+    // f itself, the expression written out here on the model's coordinates (q: x, y, yaw,
+    // left, right; v: vx, vy, wz, wl, wr): every symbol reads its own coordinate (the rows
+    // above are checked against differences of f, which a symbol bound to the wrong
+    // coordinate would pass).
+    let t = 1.25f64;
+    let f_hand = v[0] * q[2].cos() + v[1] * q[2].sin().powi(2)
+        - 0.05 * (v[3] + v[4]) * (0.1 * q[0]).exp()
+        + v[2] * q[1] * t
+        - q[3] * 0.01 * v[3] * v[3];
+    sys.cdata.t = t;
+    sys.constraints
+        .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v);
+    assert_close("f (planar)", sys.cdata.jv.as_slice(), &[f_hand], 1e-15); // achieved 0
     eprintln!("worst row difference: floating {w1:.2e}, planar {w2:.2e}");
 }
 

@@ -243,3 +243,85 @@ fn b_of_a_constraint_nonlinear_in_the_dependent_velocity() {
     let root1 = (0.5 + d).cbrt() + (0.5 - d).cbrt(); // z³ + z = 1 by Cardano
     assert_close("B", &[b[0].1], &[1.0 - root1], 1e-12); // achieved 3.7e-14 (closed form (q̂(2) − q̂(1)) / (2 − 1))
 }
+
+/// Newton's stopping test in `velocity_determined_b` is relative to the size of the dependent
+/// velocity: at |v_d| ≈ 1000 the residual of f = v_z − v_x − 0.1 cannot fall below 2⁻⁵⁶ ≈
+/// 1.4e-17 (v_z − v_x is a multiple of ulp(1000) = 2⁻⁴³, 0.1 is not), well inside 1e-14 |v_d|.
+/// q̂(v_x) = v_x + 0.1, so B = (q̂(1000) − q̂(0)) / 1000 = 1 (reference v_x⁰ = 0).
+#[test]
+fn b_at_a_large_dependent_velocity() {
+    use constraint_dynamics::constraints::{VelocityConstraint, VirtualDisplacements};
+    use constraint_dynamics::{BaseType, Model, ModelOptions};
+    use std::collections::BTreeMap;
+    let model = Model::from_urdf_file(
+        repo_dir().join("urdf/point_mass.urdf"),
+        &ModelOptions {
+            base: BaseType::Floating,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let vars: BTreeMap<String, String> = [
+        ("vx".to_string(), "v:root_joint:vx_local".to_string()),
+        ("vz".to_string(), "v:root_joint:vz_local".to_string()),
+    ]
+    .into();
+    let c = VelocityConstraint::build(
+        &model,
+        "c",
+        "vz - vx - 0.1",
+        &vars,
+        VirtualDisplacements::VelocityDetermined,
+        &["vz".to_string()],
+        &BTreeMap::new(),
+    )
+    .unwrap();
+    let q = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+    let b = c
+        .velocity_determined_b(&q, &[1000.0, 0.0, 3.0, 0.0, 0.0, 0.0], 0.0)
+        .unwrap();
+    assert_eq!(b.len(), 1);
+    assert_eq!(b[0].0, 0);
+    assert_close("B", &[b[0].1], &[1.0], 1e-15); // achieved 0 (linear q̂; floor 1e-15)
+}
+
+/// Where Newton cannot take a step (∂f/∂v_d = 0 at its start, f = v_z² − v_x from v_z = 0) or f
+/// is not defined (f = v_z − ln(v_x − 0.5), undefined for v_x ≤ 0.5, on the way from v_x⁰ = 0),
+/// `velocity_determined_b` says so at the first node it visits (σ = (1 − 0.1834)/2 = 0.408,
+/// of the innermost Gauss–Legendre pair), instead of iterating on ∞ or NaN.
+#[test]
+fn b_where_newton_cannot_start_names_the_cause() {
+    use constraint_dynamics::constraints::{VelocityConstraint, VirtualDisplacements};
+    use constraint_dynamics::{BaseType, Model, ModelOptions};
+    use std::collections::BTreeMap;
+    let model = Model::from_urdf_file(
+        repo_dir().join("urdf/point_mass.urdf"),
+        &ModelOptions {
+            base: BaseType::Floating,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let vars: BTreeMap<String, String> = [
+        ("vx".to_string(), "v:root_joint:vx_local".to_string()),
+        ("vz".to_string(), "v:root_joint:vz_local".to_string()),
+    ]
+    .into();
+    let q = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+    for f in ["vz^2 - vx", "vz - ln(vx - 0.5)"] {
+        let c = VelocityConstraint::build(
+            &model,
+            "c",
+            f,
+            &vars,
+            VirtualDisplacements::VelocityDetermined,
+            &["vz".to_string()],
+            &BTreeMap::new(),
+        )
+        .unwrap();
+        let e = c
+            .velocity_determined_b(&q, &[1.0, 0.0, 0.0, 0.0, 0.0, 0.0], 0.0)
+            .unwrap_err();
+        assert_eq!(e, "f or ∂f/∂v_d undefined at σ = 0.408", "{f}");
+    }
+}

@@ -236,5 +236,9 @@ mod tests {
             rewrite_abs("2*abs((a+b)*abs(c))"),
             "2*sqrt(((a+b)*sqrt((c)^2))^2)"
         );
+        // An identifier containing `abs` before the call: the search resumes after it and
+        // finds the call at its own byte offset (7), not relative to where it resumed (3).
+        assert_eq!(rewrite_abs("absx + abs(vx)"), "absx + sqrt((vx)^2)");
+        assert_eq!(rewrite_abs("xabs*abs(vy)"), "xabs*sqrt((vy)^2)");
     }
 }

@@ -74,4 +74,21 @@ mod tests {
             assert_eq!(serde_json::to_value(k).unwrap(), serde_json::json!(s));
         }
     }
+
+    #[test]
+    fn velocity_level_kinds_are_the_nonholonomic_ones() {
+        // The module's definition (constraints/mod.rs): point, weld, distance and coupling are
+        // holonomic; rolling, no-side-slip and velocity constrain velocities only.
+        for (k, nonholonomic) in [
+            (ConstraintKind::Point, false),
+            (ConstraintKind::Weld, false),
+            (ConstraintKind::Distance, false),
+            (ConstraintKind::Coupling, false),
+            (ConstraintKind::Rolling, true),
+            (ConstraintKind::NoSideSlip, true),
+            (ConstraintKind::Velocity, true),
+        ] {
+            assert_eq!(k.is_nonholonomic(), nonholonomic, "{k}");
+        }
+    }
 }

@@ -114,6 +114,12 @@ mod tests {
             ..test
         };
         assert!(!test.judge(&f).unwrap().slipping);
+        // At the limit |f_t| = μ N (2 N = 0.25 · 8 N, exact in binary) the tyre still grips.
+        let at_limit = SlipTest {
+            friction_coefficient: 0.25,
+            ..test
+        };
+        assert!(!at_limit.judge(&contact(8.0)).unwrap().slipping);
         // No normal row (planar base): N is the fallback, 2 N > 0.5 · 1 N.
         let v = test.judge(&contact(f64::NAN)).unwrap();
         assert_eq!((v.normal_force, v.slipping), (1.0, true));
