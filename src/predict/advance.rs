@@ -64,10 +64,10 @@ struct Rhs<'a> {
     least_squares: usize,
 }
 
-impl Accel for Rhs<'_> {
-    fn accel(&mut self, t: f64, q: &[f64], v: &[f64], qdd: &mut [f64]) -> Result<()> {
-        self.evaluations += 1;
-        // Time reaches the constraints through their workspace (`velocity` rows may use t).
+impl Rhs<'_> {
+    /// τ at (t, q, v) into `tau`; time reaches the constraints through their workspace
+    /// (`velocity` rows may use t).
+    fn apply(&mut self, t: f64, q: &[f64], v: &[f64]) {
         self.sys.cdata.t = t;
         applied_generalized_force(
             self.sys,
@@ -77,6 +77,13 @@ impl Accel for Rhs<'_> {
             self.zero,
             self.tau,
         );
+    }
+}
+
+impl Accel for Rhs<'_> {
+    fn accel(&mut self, t: f64, q: &[f64], v: &[f64], qdd: &mut [f64]) -> Result<()> {
+        self.evaluations += 1;
+        self.apply(t, q, v);
         // `formulation: auto` takes the multiplier form here: the same q̈ as the embedded form
         // (tests/propagation_formulations.rs), 1.08–1.7× faster on every bundled scene
         // (docs/performance.md).
@@ -124,15 +131,7 @@ impl Accel for Rhs<'_> {
         scratch: &mut JacobianScratch,
     ) -> Result<bool> {
         let nv = v.len();
-        self.sys.cdata.t = t;
-        applied_generalized_force(
-            self.sys,
-            self.forces,
-            (t, q, v),
-            self.tau_act,
-            self.zero,
-            self.tau,
-        );
+        self.apply(t, q, v);
         let Some(dd) = self.jw.dd.as_mut() else {
             accel_jacobian_fd(self, model, (t, q, v), qdd, jac, scratch)?;
             return Ok(false);
