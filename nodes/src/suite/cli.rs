@@ -5,6 +5,7 @@ use std::time::Duration;
 
 use crate::params::NodeKind;
 use crate::ros::args::RosArgs;
+use crate::ros::heap::HeapTrimmer;
 use crate::ros::logging;
 
 use super::start;
@@ -68,8 +69,10 @@ pub fn main(only: Option<NodeKind>) -> std::process::ExitCode {
         "running {} (Ctrl-C to stop)",
         suite.node_names().join(", ")
     );
+    let mut heap = HeapTrimmer::default();
     while !STOP.load(Ordering::SeqCst) {
         std::thread::sleep(Duration::from_millis(50));
+        heap.tick();
     }
     log::info!(target: "constraint_dynamics_nodes", "shutting down");
     suite.shutdown();
