@@ -94,18 +94,42 @@ pub fn mat_tr_vec(a: &DMatrix<f64>, x: &[f64], out: &mut [f64]) {
     }
 }
 
-/// `c ← α a b + β c`, naive and allocation-free (nalgebra's `gemm` hands large dynamic
+/// `c ← α a b + β c`, allocation-free (nalgebra's `gemm` hands large dynamic
 /// products to matrixmultiply, which allocates packing buffers).
 pub fn gemm_into(c: &mut DMatrix<f64>, alpha: f64, a: &DMatrix<f64>, b: &DMatrix<f64>, beta: f64) {
-    debug_assert_eq!(a.ncols(), b.nrows());
-    debug_assert_eq!((c.nrows(), c.ncols()), (a.nrows(), b.ncols()));
-    for j in 0..b.ncols() {
-        for i in 0..a.nrows() {
-            let mut s = 0.0;
-            for k in 0..a.ncols() {
-                s += a[(i, k)] * b[(k, j)];
+    gemm_columns(c, alpha, a, b, beta, b.ncols());
+}
+
+/// `c[:, ..ncols] ← α a b[:, ..ncols] + β c[:, ..ncols]`, allocation-free: column by column
+/// as sums of a's columns (contiguous in nalgebra's column-major storage, so the inner loop
+/// vectorizes and needs no bounds checks).
+pub fn gemm_columns(
+    c: &mut DMatrix<f64>,
+    alpha: f64,
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    beta: f64,
+    ncols: usize,
+) {
+    let (m, kdim) = a.shape();
+    assert!(b.nrows() == kdim && c.nrows() == m && ncols <= b.ncols() && ncols <= c.ncols());
+    let (a_s, b_s) = (a.as_slice(), b.as_slice());
+    for (j, cj) in c
+        .as_mut_slice()
+        .chunks_exact_mut(m.max(1))
+        .take(ncols)
+        .enumerate()
+    {
+        if beta == 0.0 {
+            cj.fill(0.0);
+        } else if beta != 1.0 {
+            cj.iter_mut().for_each(|x| *x *= beta);
+        }
+        for (k, ak) in a_s.chunks_exact(m.max(1)).enumerate() {
+            let s = alpha * b_s[j * kdim + k];
+            for (ci, ai) in cj.iter_mut().zip(ak) {
+                *ci += ai * s;
             }
-            c[(i, j)] = alpha * s + if beta == 0.0 { 0.0 } else { beta * c[(i, j)] };
         }
     }
 }

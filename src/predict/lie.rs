@@ -6,7 +6,7 @@
 
 use crate::model::{JointKind, Model};
 use crate::spatial::Motion;
-use nalgebra::Vector3;
+use nalgebra::{DMatrix, Vector3};
 
 fn motion_of(kind: &JointKind, x: &[f64]) -> Motion {
     match kind {
@@ -134,5 +134,90 @@ pub fn dexp_inv_dtheta(model: &Model, theta: &[f64], v: &[f64], d: &[f64], out: 
         }
         r -= fourth * (1.0 / 720.0);
         write_motion(&j.kind, &r, &mut out[iv..iv + nv]);
+    }
+}
+
+/// The linear maps of one Runge–Kutta stage at (Θ, V) as dense nv × nv matrices, block
+/// diagonal (a group joint's block; identity, or zero for the derivative, on 1-DOF joints): a
+/// linearization applies them to all its seed columns at once by matrix products, instead of
+/// joint by joint per column (where the exponentials' sin/cos were recomputed 2nv times).
+#[derive(Clone, Debug)]
+pub struct StageMaps {
+    /// x ↦ Ad(Exp(−Θ)) x ([`transport`]).
+    pub transport: DMatrix<f64>,
+    /// x ↦ J_r(Θ) x ([`right_jacobian`]).
+    pub right_jacobian: DMatrix<f64>,
+    /// d ↦ ∂dexp⁻¹_{−Θ}(V)/∂Θ [d] ([`dexp_inv_dtheta`]).
+    pub dexp_inv_dtheta: DMatrix<f64>,
+    /// x ↦ dexp⁻¹_{−Θ}(x) ([`dexp_inv`]).
+    pub dexp_inv: DMatrix<f64>,
+    unit: Vec<f64>,
+    out: Vec<f64>,
+}
+
+impl StageMaps {
+    /// Sized for nv velocity coordinates.
+    pub fn new(nv: usize) -> Self {
+        Self {
+            transport: DMatrix::zeros(nv, nv),
+            right_jacobian: DMatrix::zeros(nv, nv),
+            dexp_inv_dtheta: DMatrix::zeros(nv, nv),
+            dexp_inv: DMatrix::zeros(nv, nv),
+            unit: vec![0.0; nv],
+            out: vec![0.0; nv],
+        }
+    }
+
+    /// The maps at Θ, and with `vel` = Some(V) also the two dexp⁻¹ maps (the end of a step
+    /// needs only the first two).
+    pub fn build(&mut self, model: &Model, theta: &[f64], vel: Option<&[f64]>) {
+        self.transport.fill(0.0);
+        self.right_jacobian.fill(0.0);
+        if vel.is_some() {
+            self.dexp_inv_dtheta.fill(0.0);
+            self.dexp_inv.fill(0.0);
+        }
+        for b in model.bodies.iter().skip(1) {
+            let j = &b.joint;
+            let (iv, nv) = (j.idx_v, j.kind.nv());
+            if nv == 1 {
+                self.transport[(iv, iv)] = 1.0;
+                self.right_jacobian[(iv, iv)] = 1.0;
+                self.dexp_inv[(iv, iv)] = 1.0;
+                continue;
+            }
+            for k in iv..iv + nv {
+                // Column k of a per-joint map: the map of the unit vector, which is zero on
+                // every other joint.
+                self.unit[k] = 1.0;
+                let maps: [(&mut DMatrix<f64>, bool); 4] = [
+                    (&mut self.transport, true),
+                    (&mut self.right_jacobian, true),
+                    (&mut self.dexp_inv_dtheta, vel.is_some()),
+                    (&mut self.dexp_inv, vel.is_some()),
+                ];
+                for (which, (m, wanted)) in maps.into_iter().enumerate() {
+                    if !wanted {
+                        continue;
+                    }
+                    match which {
+                        0 => transport(model, theta, &self.unit, &mut self.out),
+                        1 => right_jacobian(model, theta, &self.unit, &mut self.out),
+                        2 => dexp_inv_dtheta(
+                            model,
+                            theta,
+                            vel.unwrap_or(&[]),
+                            &self.unit,
+                            &mut self.out,
+                        ),
+                        _ => dexp_inv(model, theta, &self.unit, &mut self.out),
+                    }
+                    for r in iv..iv + nv {
+                        m[(r, k)] = self.out[r];
+                    }
+                }
+                self.unit[k] = 0.0;
+            }
+        }
     }
 }

@@ -12,9 +12,10 @@
 //! (tests).
 
 use super::integrator::{DOP853, DOPRI5, Method, RK4, Tableau};
-use super::lie::{dexp_inv, dexp_inv_dtheta, right_jacobian, transport};
+use super::lie::{StageMaps, dexp_inv, right_jacobian, transport};
 use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
 use crate::error::{Error, Result};
+use crate::linalg::gemm_columns;
 use crate::system::System;
 use nalgebra::DMatrix;
 
@@ -51,6 +52,9 @@ pub struct Linearization {
     d_kv: Vec<DMatrix<f64>>,
     /// Final increment Θ of the step.
     theta_end: Vec<f64>,
+    /// The current stage's Lie maps and δq_i over the seed columns (nv × 3nv).
+    maps: StageMaps,
+    moved_cols: DMatrix<f64>,
     qs: Vec<f64>,
     x: Vec<f64>,
     y: Vec<f64>,
@@ -136,6 +140,8 @@ impl Linearization {
             d_kth: vec![DMatrix::zeros(nv, cols); stages],
             d_kv: vec![DMatrix::zeros(nv, cols); stages],
             theta_end: vec![0.0; nv],
+            maps: StageMaps::new(nv),
+            moved_cols: DMatrix::zeros(nv, cols),
             qs: vec![0.0; nq],
             x: vec![0.0; nv],
             y: vec![0.0; nv],
@@ -318,7 +324,8 @@ fn finish_column(model: &crate::model::Model, lin: &mut Linearization, c: usize)
     }
 }
 
-/// An explicit Munthe-Kaas RK step (integrator.rs) with its variations.
+/// An explicit Munthe-Kaas RK step (integrator.rs) with its variations, all seed columns at
+/// once as matrix products (the stage's Lie maps built once, [`StageMaps`]).
 fn explicit(
     sys: &mut System,
     lin: &mut Linearization,
@@ -342,17 +349,7 @@ fn explicit(
             lin.theta[st][i] = th;
             lin.vel[st][i] = ve;
         }
-        for c in 0..cols {
-            for i in 0..nv {
-                let (mut th, mut ve) = (0.0, seed(nv, c, 1, i));
-                for (j, &a) in tab.a[st].iter().enumerate() {
-                    th += dt * a * lin.d_kth[j][(i, c)];
-                    ve += dt * a * lin.d_kv[j][(i, c)];
-                }
-                lin.d_theta[(i, c)] = th;
-                lin.d_vel[(i, c)] = ve;
-            }
-        }
+        combine_variations(lin, tab.a[st], dt);
         sys.model.integrate(q, &lin.theta[st], 1.0, &mut lin.qs);
         let springs = &lin.joint_springs;
         let stage = (&lin.qs[..], &lin.vel[st][..]);
@@ -368,38 +365,30 @@ fn explicit(
         )?;
         lin.kv[st].copy_from_slice(lin.dd.qdd.as_slice());
         dexp_inv(&sys.model, &lin.theta[st], &lin.vel[st], &mut lin.kth[st]);
-        let model = &sys.model;
-        for c in 0..cols {
-            // δq_i = Ad(Exp(−Θ_i)) δq + J_r(Θ_i) δΘ_i (tangent at q_i).
+        lin.maps
+            .build(&sys.model, &lin.theta[st], Some(&lin.vel[st]));
+        // δq_i = Ad(Exp(−Θ_i)) δq + J_r(Θ_i) δΘ_i (tangent at q_i).
+        tangent_variation(lin, cols);
+        // δkv_i = ∂q̈/∂q δq_i + ∂q̈/∂v δV_i + ∂q̈/∂τ δτ.
+        let (f, d_kv) = (&lin.dd, &mut lin.d_kv[st]);
+        gemm_columns(d_kv, 1.0, &f.dqdd_dq, &lin.moved_cols, 0.0, cols);
+        gemm_columns(d_kv, 1.0, &f.dqdd_dv, &lin.d_vel, 1.0, cols);
+        for c in 2 * nv..cols {
             for i in 0..nv {
-                lin.dq[i] = seed(nv, c, 0, i);
-                lin.x[i] = lin.d_theta[(i, c)];
-                lin.y[i] = lin.d_vel[(i, c)];
-            }
-            transport(model, &lin.theta[st], &lin.dq, &mut lin.moved);
-            right_jacobian(model, &lin.theta[st], &lin.x, &mut lin.jr);
-            for i in 0..nv {
-                lin.moved[i] += lin.jr[i];
-            }
-            let f = &lin.dd;
-            for i in 0..nv {
-                let mut s = if c >= 2 * nv {
-                    f.dqdd_dtau[(i, c - 2 * nv)]
-                } else {
-                    0.0
-                };
-                for k in 0..nv {
-                    s += f.dqdd_dq[(i, k)] * lin.moved[k] + f.dqdd_dv[(i, k)] * lin.y[k];
-                }
-                lin.d_kv[st][(i, c)] = s;
-            }
-            // δkΘ = ∂dexp⁻¹/∂Θ [δΘ] + dexp⁻¹(δV)
-            dexp_inv_dtheta(model, &lin.theta[st], &lin.vel[st], &lin.x, &mut lin.jr);
-            dexp_inv(model, &lin.theta[st], &lin.y, &mut lin.moved);
-            for i in 0..nv {
-                lin.d_kth[st][(i, c)] = lin.jr[i] + lin.moved[i];
+                d_kv[(i, c)] += f.dqdd_dtau[(i, c - 2 * nv)];
             }
         }
+        // δkΘ_i = ∂dexp⁻¹/∂Θ [δΘ_i] + dexp⁻¹(δV_i).
+        let d_kth = &mut lin.d_kth[st];
+        gemm_columns(
+            d_kth,
+            1.0,
+            &lin.maps.dexp_inv_dtheta,
+            &lin.d_theta,
+            0.0,
+            cols,
+        );
+        gemm_columns(d_kth, 1.0, &lin.maps.dexp_inv, &lin.d_vel, 1.0, cols);
     }
     // Final combination.
     for i in 0..nv {
@@ -412,19 +401,67 @@ fn explicit(
         lin.v_next[i] = ve;
     }
     sys.model.integrate(q, &lin.theta_end, 1.0, &mut lin.q_next);
-    let model = &sys.model;
+    combine_variations(lin, tab.b, dt);
+    lin.maps.build(&sys.model, &lin.theta_end, None);
+    tangent_variation(lin, cols);
     for c in 0..cols {
+        let (out, col) = if c < 2 * nv {
+            (&mut lin.a, c)
+        } else {
+            (&mut lin.b, c - 2 * nv)
+        };
         for i in 0..nv {
-            let (mut th, mut ve) = (0.0, seed(nv, c, 1, i));
-            for (j, &bj) in tab.b.iter().enumerate() {
-                th += dt * bj * lin.d_kth[j][(i, c)];
-                ve += dt * bj * lin.d_kv[j][(i, c)];
-            }
-            lin.x[i] = th;
-            lin.y[i] = ve;
-            lin.dq[i] = seed(nv, c, 0, i);
+            out[(i, col)] = lin.moved_cols[(i, c)];
+            out[(nv + i, col)] = lin.d_vel[(i, c)];
         }
-        finish_column(model, lin, c);
     }
     Ok(())
+}
+
+/// `d_theta = Σ_j dt w_j δkΘ_j` and `d_vel = δv + Σ_j dt w_j δkv_j` over the seed columns, for
+/// a stage's row of A (w = a_i) or the final weights (w = b).
+fn combine_variations(lin: &mut Linearization, weights: &[f64], dt: f64) {
+    let nv = lin.v_next.len();
+    let len = nv * lin.columns();
+    let (d_theta, d_vel) = (
+        &mut lin.d_theta.as_mut_slice()[..len],
+        &mut lin.d_vel.as_mut_slice()[..len],
+    );
+    d_theta.fill(0.0);
+    d_vel.fill(0.0);
+    for (j, &w) in weights.iter().enumerate() {
+        let kth = &lin.d_kth[j].as_slice()[..len];
+        let kv = &lin.d_kv[j].as_slice()[..len];
+        for ((t, v), (a, b)) in d_theta
+            .iter_mut()
+            .zip(d_vel.iter_mut())
+            .zip(kth.iter().zip(kv))
+        {
+            *t += dt * w * a;
+            *v += dt * w * b;
+        }
+    }
+    // The seed δv: column nv + i is e_i.
+    for i in 0..nv {
+        lin.d_vel[(i, nv + i)] += 1.0;
+    }
+}
+
+/// `moved_cols = Ad(Exp(−Θ)) δq + J_r(Θ) d_theta` over the seed columns, with the maps of
+/// the last [`StageMaps::build`] (column i < nv of δq is e_i, the rest zero).
+fn tangent_variation(lin: &mut Linearization, cols: usize) {
+    let nv = lin.v_next.len();
+    gemm_columns(
+        &mut lin.moved_cols,
+        1.0,
+        &lin.maps.right_jacobian,
+        &lin.d_theta,
+        0.0,
+        cols,
+    );
+    for c in 0..nv {
+        for i in 0..nv {
+            lin.moved_cols[(i, c)] += lin.maps.transport[(i, c)];
+        }
+    }
 }
