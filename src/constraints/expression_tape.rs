@@ -6,6 +6,8 @@ use super::expression::MAX_TOKENS;
 
 /// Longest tape: every token adds at most one entry (parentheses and a `+` sign add none).
 pub(super) const MAX_TAPE: usize = MAX_TOKENS;
+/// Tapes up to this long are evaluated on buffers of this size.
+const SHORT: usize = 48;
 
 /// A function of the syntax.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -146,7 +148,26 @@ impl Tape {
 
     /// The value at the symbols' values `vals`.
     pub(super) fn eval(&self, vals: &[f64]) -> f64 {
-        let mut stack = [0.0f64; MAX_TAPE];
+        // Most scene expressions are short: a small buffer spares zeroing the largest one.
+        if self.ops.len() <= SHORT {
+            self.eval_in::<SHORT>(vals)
+        } else {
+            self.eval_in::<MAX_TAPE>(vals)
+        }
+    }
+
+    /// The value, and ∂/∂(symbol k) into `grad[k]` for every k < `vals.len()`.
+    pub(super) fn gradient(&self, vals: &[f64], grad: &mut [f64]) -> f64 {
+        if self.ops.len() <= SHORT {
+            self.gradient_in::<SHORT>(vals, grad)
+        } else {
+            self.gradient_in::<MAX_TAPE>(vals, grad)
+        }
+    }
+
+    /// `eval` with buffers of N ≥ the tape's length.
+    fn eval_in<const N: usize>(&self, vals: &[f64]) -> f64 {
+        let mut stack = [0.0f64; N];
         let mut sp = 0;
         for op in &self.ops {
             match *op {
@@ -168,14 +189,14 @@ impl Tape {
         stack[0]
     }
 
-    /// The value, and ∂/∂(symbol k) into `grad[k]` for every k < `vals.len()`: a forward pass
-    /// keeps each entry's value and operands, then the adjoints flow back once. Non-finite
-    /// partials (√ at 0, ln of 0) come out as they are; the caller checks finiteness.
-    pub(super) fn gradient(&self, vals: &[f64], grad: &mut [f64]) -> f64 {
+    /// `gradient` with buffers of N ≥ the tape's length: a forward pass keeps each entry's
+    /// value and operands, then the adjoints flow back once. Non-finite partials (√ at 0, ln
+    /// of 0) come out as they are; the caller checks finiteness.
+    fn gradient_in<const N: usize>(&self, vals: &[f64], grad: &mut [f64]) -> f64 {
         let n = self.ops.len();
-        let mut value = [0.0f64; MAX_TAPE];
-        let mut args = [(0u16, 0u16); MAX_TAPE];
-        let mut stack = [0u16; MAX_TAPE];
+        let mut value = [0.0f64; N];
+        let mut args = [(0u16, 0u16); N];
+        let mut stack = [0u16; N];
         let mut sp = 0;
         for (i, op) in self.ops.iter().enumerate() {
             value[i] = match *op {
@@ -199,7 +220,7 @@ impl Tape {
             sp += 1;
         }
         grad[..vals.len()].fill(0.0);
-        let mut adj = [0.0f64; MAX_TAPE];
+        let mut adj = [0.0f64; N];
         adj[n - 1] = 1.0;
         for i in (0..n).rev() {
             let g = adj[i];

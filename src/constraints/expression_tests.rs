@@ -222,3 +222,25 @@ fn seventeen_symbols_are_named_at_the_seventeenth() {
     }
     assert!(compile(&names[..16].join("+"), |s| s.starts_with('s')).is_ok());
 }
+
+/// Tapes longer than the short buffers (48 entries) take the full-size ones: both give the
+/// closed form, at the boundary and past it.
+#[test]
+fn long_tapes_match_closed_forms() {
+    let a = 0.3f64;
+    // Σ_{i=1}^{n} (a + i)^2: 5 entries per term (a, i, Add, 2, Pow) and n − 1 Adds, so 47
+    // entries at n = 8 and 53 at n = 9.
+    for n in [8, 9, 40] {
+        let text = (1..=n)
+            .map(|i| format!("(a + {i})^2"))
+            .collect::<Vec<_>>()
+            .join(" + ");
+        let c = compile(&text, |s| s == "a").unwrap();
+        assert_eq!(c.tape.ops.len(), 6 * n - 1, "{n}");
+        let (f, g) = run(&text, &["a"], &[a]);
+        let f_cf: f64 = (1..=n).map(|i| (a + i as f64).powi(2)).sum();
+        let g_cf: f64 = (1..=n).map(|i| 2.0 * (a + i as f64)).sum();
+        assert_rel("Σ (a + i)²", &[f], &[f_cf], 1e-15);
+        assert_rel("Σ 2(a + i)", &g, &[g_cf], 1e-15);
+    }
+}
