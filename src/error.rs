@@ -270,14 +270,6 @@ pub enum ExpressionProblem {
          velocity constraint (use a position-level kind, or write its time derivative)"
     )]
     Holonomic,
-    /// A partial derivative could not be formed.
-    #[error("no derivative with respect to '{symbol}': {message}")]
-    Derivative {
-        /// The variable.
-        symbol: String,
-        /// The expression library's message.
-        message: String,
-    },
     /// `dependent:` names something that is not a velocity variable, or as many velocities as
     /// the expression has.
     #[error("dependent: {message}")]

@@ -59,8 +59,20 @@ fn malformed_expressions_are_named() {
     assert_eq!(syntax("vz - * vx"), 6);
     assert_eq!(syntax("vz + 2 vx"), 8);
     assert_eq!(syntax("vz ? vx"), 4);
-    assert_eq!(syntax("-vz^2 + vx"), 4);
     assert_eq!(syntax(""), 1);
+    assert_eq!(syntax("vz + sin(vx"), 9);
+    assert_eq!(syntax("vz + vx^"), 9);
+    assert_eq!(
+        syntax(&format!("{}vz{}", "(".repeat(65), ")".repeat(65))),
+        65
+    );
+    match problem("vz + foo(vx)", vars, "") {
+        ExpressionProblem::Syntax { column, message } => {
+            assert_eq!(column, 6);
+            assert!(message.starts_with("unknown function 'foo'"), "{message}");
+        }
+        p => panic!("{p}"),
+    }
     match problem("vz - foo*vx", vars, "") {
         ExpressionProblem::UnknownSymbol { symbol, column } => {
             assert_eq!((symbol.as_str(), column), ("foo", 6))
@@ -200,9 +212,8 @@ fn the_non_finite_row_names_its_own_constraint() {
     }
 }
 
-/// Long expressions: exmex recurses deeply (a 2 MiB thread overflowed at 20 terms), so parsing
-/// runs on its own large stack and the length is capped with a named error. Evaluation keeps
-/// up to 32 nodes on the stack; longer expressions allocate, counted here (measured, not a bar).
+/// Long expressions parse (the parser's recursion is bounded by the nesting depth, not the
+/// length), evaluate without allocating, and the length is capped with a named error.
 #[test]
 fn long_expressions_parse_and_overlong_ones_are_named() {
     let term = |n: usize| {
@@ -231,7 +242,7 @@ fn long_expressions_parse_and_overlong_ones_are_named() {
         sys.constraints
             .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v)
     });
-    eprintln!("measured: a 45-term expression allocates {n} times per evaluation");
+    assert_eq!(n, 0, "a 45-term expression's rows allocate");
     match problem(&term(60), vars, "") {
         ExpressionProblem::Syntax { message, .. } => {
             assert!(message.contains("at most 400"), "{message}")
@@ -284,4 +295,66 @@ fn sixteen_symbols_are_accepted_and_seventeen_named() {
         }
         p => panic!("17 symbols: {p}"),
     }
+}
+
+/// A sign before a power negates the power, `-vz^2` = −(vz²) (exmex bound the sign first,
+/// (−vz)², so it was refused until the project parsed expressions itself).
+#[test]
+fn a_sign_before_a_power_negates_the_power() {
+    let vars = r#"{vx: "v:root_joint:vx_local", vz: "v:root_joint:vz_local"}"#;
+    let yaml = format!(
+        "  - name: c\n    kind: velocity\n    expression: \"-vz^2 + vx\"\n    variables: {vars}\n"
+    );
+    let mut sys = scene_from("point_mass.urdf", "floating", &yaml).unwrap();
+    let q = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    let v = [0.8, -0.5, 0.3, 1.2, -0.7, 0.9];
+    sys.constraints
+        .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v);
+    // f = 0.8 − 0.3² = 0.71 (not 0.8 + 0.09), ∂f/∂vx = 1, ∂f/∂vz = −2·0.3.
+    assert_close("f = -vz^2 + vx", &[sys.cdata.jv[0]], &[0.71], 1e-15);
+    let row: Vec<f64> = (0..6).map(|i| sys.cdata.j[(0, i)]).collect();
+    assert_close("∂f/∂v", &row, &[1.0, 0.0, -0.6, 0.0, 0.0, 0.0], 1e-15);
+}
+
+/// The expression's value and its gradient (every symbol in one sweep) allocate nothing, at
+/// the longest expression accepted (400 tokens, 15 symbols).
+#[test]
+fn evaluation_and_gradient_do_not_allocate() {
+    use constraint_dynamics::constraints::{Expression, MAX_SYMBOLS};
+    let sys = scene_from(
+        "point_mass.urdf",
+        "floating",
+        "  - name: c\n    kind: velocity\n    expression: \"vx\"\n    variables: {vx: \"v:root_joint:vx_local\"}\n",
+    )
+    .unwrap();
+    let names: Vec<String> = (0..15).map(|i| format!("s{i}")).collect();
+    let mut vars: std::collections::BTreeMap<String, String> = names
+        .iter()
+        .map(|s| (s.clone(), "q:root_joint:x".to_string()))
+        .collect();
+    vars.insert("vx".into(), "v:root_joint:vx_local".into());
+    // A sign, 44 terms `sin(s0 + vx)^2` of 8 tokens joined by 43 `+`, and `+ 0*vx`: 400 tokens.
+    let text = (0..44)
+        .map(|i| format!("sin({} + vx)^2", names[i % 15]))
+        .collect::<Vec<_>>()
+        .join(" + ");
+    let e = Expression::parse(&sys.model, &format!("-{text} + 0*vx"), &vars).unwrap();
+    assert_eq!(e.len(), 16);
+    let q = [0.4, -1.1, 0.7, 0.0, 0.0, 0.0, 1.0];
+    let v = [0.8, -0.5, 0.3, 1.2, -0.7, 0.9];
+    let mut vals = [0.0; MAX_SYMBOLS];
+    let mut grad = [0.0; MAX_SYMBOLS];
+    let (mut f, mut g) = (0.0, 0.0);
+    let n = allocations(|| {
+        e.values(&q, &v, 0.0, &mut vals);
+        f = e.f(&vals);
+        g = e.gradient(&vals, &mut grad);
+    });
+    assert_eq!(n, 0, "f and its gradient allocate");
+    // Every s_k reads x = 0.4 and the sign negates the first term only:
+    // f = (43 − 1) sin²(0.4 + 0.8), ∂f/∂vx = 42 sin(2·1.2).
+    let s = 1.2f64;
+    assert_close("f", &[f, g], &[42.0 * s.sin().powi(2); 2], 1e-15); // achieved 0
+    let dvx = e.symbols.iter().position(|(n, _)| n == "vx").unwrap();
+    assert_close("∂f/∂vx", &[grad[dvx]], &[42.0 * (2.0 * s).sin()], 1e-15); // achieved 5.0e-16
 }

@@ -283,6 +283,19 @@ fn expression_rows_match_finite_differences() {
     let q = [0.4, -1.1, 0.7, a / n, b / n, c / n, 1.0 / n];
     let v = [0.8, -0.5, 0.3, 1.2, -0.7, 0.9];
     let w1 = check_rows_against_differences(&mut sys, &q, &v, 0.37);
+    // f itself, written out on (x, y, z, qx, qy, qz, qw) and (vx, vy, vz, wx, wy, wz): exmex
+    // read `sqrt(vx^2 + vy^2 + 1)` as `vx^2 + sqrt(vy^2 + 1)`, which the differences above
+    // could not see (its derivatives were those of the misread f).
+    let t = 0.37f64;
+    let f_hand = v[2] * q[0].cos() - 0.3 * (v[0] * v[0] + v[1] * v[1] + 1.0).sqrt() * (-t).exp()
+        + q[2] * v[1].powi(3)
+        + (2.0 + q[5] * q[5]).ln() * v[5]
+        - (v[0] - 0.2).abs() * (0.1 * q[1]).tan()
+        + v[3] * q[6] * q[6] / (1.5 + t.sin());
+    sys.cdata.t = t;
+    sys.constraints
+        .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v);
+    assert_close("f (floating)", sys.cdata.jv.as_slice(), &[f_hand], 1e-15);
     // Planar base with a wheel angle and yaw (q̇ of x, y is the world velocity R(yaw) v).
     let planar = r#"
   - name: pursuit

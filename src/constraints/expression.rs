@@ -1,79 +1,22 @@
-//! f(q, v, t) written in a scene: parsed and differentiated symbolically by exmex, evaluated
-//! without allocation.
+//! f(q, v, t) written in a scene: parsed by our own recursive-descent parser
+//! (`expression_syntax.rs`) into a postfix tape (`expression_tape.rs`) that is evaluated and
+//! differentiated (reverse mode, all symbols in one sweep) without allocation.
 //!
 //! Syntax: `+ - * / ^`, `sqrt sin cos tan exp ln abs`, decimal and scientific numbers, `pi`,
 //! `t` for time [s], and the symbols declared under `variables:` (`q:NAME` or `v:NAME`, the
-//! model's `q_names` / `v_names`, e.g. `v:root_joint:vx_local`). A unary minus before a power
-//! (`-x^2`) is refused: exmex binds the sign first, `(−x)²`, the opposite of the usual reading.
+//! model's `q_names` / `v_names`, e.g. `v:root_joint:vx_local`), read the usual mathematical
+//! way: `-x^2` is −(x²), `2^3^2` is 2⁹, `a/b*c` is (a/b)·c.
 //!
-//! exmex reports most syntax errors without a position; a small tokenizer runs first so that a
-//! malformed expression is named with its column. It checks token order only; exmex parses.
+//! We do not use exmex (0.21.0, used here before): it evaluated `sqrt(vx^2 + vy^2 + 1)` as
+//! `vx^2 + sqrt(vy^2 + 1)` (likewise `exp(a + b^2 + 2)`), with derivatives matching the misread
+//! f, so the difference checks could not see it. A grammar of five rules is small enough to own
+//! and test against closed forms, and it gives every syntax error a column.
 
-use super::expression_syntax::{check_tokens, rewrite_abs};
+use super::expression_syntax::compile;
+use super::expression_tape::Tape;
 use crate::error::ExpressionProblem;
 use crate::model::Model;
-use exmex::prelude::*;
-use exmex::{BinOp, MakeOperators, MatchLiteral, Operator, literal_matcher_from_pattern};
 use std::collections::BTreeMap;
-
-// Exactly the operators the scene syntax promises (exmex's default set also has `e`, `E`,
-// `PI`, … as constants, which would silently shadow a variable called `e`). `abs` is spelled
-// `sqrt(x^2)` for exmex (it has no derivative rule for `abs`), see `rewrite_abs`.
-exmex::ops_factory!(
-    Ops,
-    f64,
-    Operator::make_bin(
-        "+",
-        BinOp {
-            apply: |a, b| a + b,
-            prio: 1,
-            is_commutative: true
-        }
-    ),
-    Operator::make_bin_unary(
-        "-",
-        BinOp {
-            apply: |a, b| a - b,
-            prio: 1,
-            is_commutative: false
-        },
-        |a| -a
-    ),
-    Operator::make_bin(
-        "*",
-        BinOp {
-            apply: |a, b| a * b,
-            prio: 2,
-            is_commutative: true
-        }
-    ),
-    Operator::make_bin(
-        "/",
-        BinOp {
-            apply: |a, b| a / b,
-            prio: 3,
-            is_commutative: false
-        }
-    ),
-    Operator::make_bin(
-        "^",
-        BinOp {
-            apply: |a: f64, b| a.powf(b),
-            prio: 4,
-            is_commutative: false
-        }
-    ),
-    Operator::make_unary("sqrt", |a| a.sqrt()),
-    Operator::make_unary("sin", |a| a.sin()),
-    Operator::make_unary("cos", |a| a.cos()),
-    Operator::make_unary("tan", |a| a.tan()),
-    Operator::make_unary("exp", |a| a.exp()),
-    Operator::make_unary("ln", |a| a.ln()),
-    Operator::make_constant("pi", std::f64::consts::PI)
-);
-literal_matcher_from_pattern!(Number, r"^(([0-9]+(\.[0-9]*)?|\.[0-9]+)([eE][+-]?[0-9]+)?)");
-
-type Ex = FlatEx<f64, Ops, Number>;
 
 /// Functions of the syntax.
 pub const FUNCTIONS: [&str; 7] = ["sqrt", "sin", "cos", "tan", "exp", "ln", "abs"];
@@ -81,42 +24,9 @@ pub const FUNCTIONS: [&str; 7] = ["sqrt", "sin", "cos", "tan", "exp", "ln", "abs
 pub const RESERVED: [&str; 2] = ["t", "pi"];
 /// Most distinct symbols one expression may use (values live in a stack buffer).
 pub const MAX_SYMBOLS: usize = 16;
-/// Most tokens one expression may have. exmex parses and differentiates recursively with
-/// large frames: 20 terms like `3*vx*vz^2` overflowed a 2 MiB test thread, 160 needed 32 MiB
-/// (measured at opt-level 3); parsing runs on its own 64 MiB thread, and 400 tokens (50
-/// terms like `3*vx*vz^2 +`, 8 tokens each) stay well inside it.
+/// Most tokens one expression may have: it bounds the tape, whose evaluation buffers live on
+/// the stack (about 8 KiB for the gradient). 400 tokens are 50 terms like `3*vx*vz^2 +`.
 pub const MAX_TOKENS: usize = 400;
-
-/// exmex's parse and the partial derivatives, on a thread with a stack large enough for
-/// `MAX_TOKENS` (once per scene load, not in the hot path).
-fn parse_and_differentiate(text: String) -> Result<(Ex, Vec<Ex>), ExpressionProblem> {
-    let work = move || -> Result<(Ex, Vec<Ex>), ExpressionProblem> {
-        let f = Ex::parse(&text).map_err(|e| ExpressionProblem::Syntax {
-            column: 1,
-            message: e.msg().to_string(),
-        })?;
-        let names = f.var_names().to_vec();
-        let df = (0..names.len())
-            .map(|k| {
-                f.clone()
-                    .partial(k)
-                    .map_err(|e| ExpressionProblem::Derivative {
-                        symbol: names[k].clone(),
-                        message: e.msg().to_string(),
-                    })
-            })
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok((f, df))
-    };
-    let failed = |message: String| ExpressionProblem::Syntax { column: 1, message };
-    std::thread::Builder::new()
-        .name("expression-parse".into())
-        .stack_size(64 << 20)
-        .spawn(work)
-        .map_err(|e| failed(format!("cannot start the parsing thread: {e}")))?
-        .join()
-        .map_err(|_| failed("the expression library panicked while parsing".into()))?
-}
 
 /// What a symbol of the expression stands for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -137,16 +47,14 @@ pub enum Source {
     Time,
 }
 
-/// A parsed f(q, v, t) with its first partial derivatives.
+/// A parsed f(q, v, t), compiled for evaluation and its gradient.
 #[derive(Clone, Debug)]
 pub struct Expression {
     /// The text as written in the scene.
     pub text: String,
-    /// Boxed: exmex keeps 32 nodes inline, which would make every `Constraint` that large.
-    f: Box<Ex>,
-    /// ∂f/∂(symbol k), in the order of `symbols`.
-    df: Vec<Ex>,
-    /// The symbols f uses (exmex's order: sorted by name) with what they stand for.
+    /// f as a postfix tape over the symbols' indices in `symbols`.
+    tape: Tape,
+    /// The symbols f uses (sorted by name) with what they stand for.
     pub symbols: Vec<(String, Source)>,
 }
 
@@ -161,42 +69,26 @@ impl Expression {
         for (sym, coord) in variables {
             sources.insert(sym.as_str(), variable_source(model, sym, coord)?);
         }
-        let ntok = check_tokens(text, |s| sources.contains_key(s))?;
-        if ntok > MAX_TOKENS {
-            return Err(ExpressionProblem::Syntax {
-                column: 1,
-                message: format!("{ntok} tokens, at most {MAX_TOKENS}"),
-            });
-        }
-        let (f, df) = parse_and_differentiate(rewrite_abs(text))?;
-        let names = f.var_names().to_vec();
-        if names.len() > MAX_SYMBOLS {
-            return Err(ExpressionProblem::Syntax {
-                column: 1,
-                message: format!("{} symbols, at most {MAX_SYMBOLS}", names.len()),
-            });
-        }
-        let mut symbols = Vec::with_capacity(names.len());
-        for n in &names {
-            let src = if n == "t" {
-                Source::Time
-            } else {
-                *sources
-                    .get(n.as_str())
-                    .ok_or_else(|| ExpressionProblem::UnknownSymbol {
-                        symbol: n.clone(),
-                        column: column_of(text, n),
-                    })?
-            };
-            symbols.push((n.clone(), src));
-        }
+        let compiled = compile(text, |s| sources.contains_key(s))?;
+        // `compile` accepts only `t` and the declared symbols, so every lookup succeeds.
+        let symbols: Vec<(String, Source)> = compiled
+            .symbols
+            .into_iter()
+            .map(|(name, _)| {
+                let src = if name == "t" {
+                    Source::Time
+                } else {
+                    sources[name.as_str()]
+                };
+                (name, src)
+            })
+            .collect();
         if !symbols.iter().any(|(_, s)| matches!(s, Source::V { .. })) {
             return Err(ExpressionProblem::Holonomic);
         }
         Ok(Expression {
             text: text.to_string(),
-            f: Box::new(f),
-            df,
+            tape: compiled.tape,
             symbols,
         })
     }
@@ -222,15 +114,22 @@ impl Expression {
         }
     }
 
-    /// f at the symbols' values (NaN where exmex refuses, which it does only on a length
-    /// mismatch; the caller checks finiteness).
+    /// f at the symbols' values (non-finite where f is undefined; the caller checks).
     pub fn f(&self, vals: &[f64; MAX_SYMBOLS]) -> f64 {
-        self.f.eval(&vals[..self.len()]).unwrap_or(f64::NAN)
+        self.tape.eval(&vals[..self.len()])
     }
 
-    /// ∂f/∂(symbol k) at the symbols' values.
+    /// f, and ∂f/∂(symbol k) into `grad[k]` for every symbol, in one sweep.
+    pub fn gradient(&self, vals: &[f64; MAX_SYMBOLS], grad: &mut [f64; MAX_SYMBOLS]) -> f64 {
+        self.tape.gradient(&vals[..self.len()], grad)
+    }
+
+    /// ∂f/∂(symbol k) at the symbols' values (a whole gradient sweep: for several k, call
+    /// `gradient` once).
     pub fn df(&self, k: usize, vals: &[f64; MAX_SYMBOLS]) -> f64 {
-        self.df[k].eval(&vals[..self.len()]).unwrap_or(f64::NAN)
+        let mut grad = [0.0; MAX_SYMBOLS];
+        self.gradient(vals, &mut grad);
+        grad[k]
     }
 
     /// The time derivative of a configuration symbol, q̇_i = (G(q) v)_i, without allocation.
@@ -296,11 +195,4 @@ fn variable_source(model: &Model, sym: &str, coord: &str) -> Result<Source, Expr
             "'{coord}' must be q:NAME or v:NAME (a q_names or v_names entry of the model)"
         ))),
     }
-}
-
-/// 1-based column of the first occurrence of identifier `sym` in `text` (1 if not found).
-fn column_of(text: &str, sym: &str) -> usize {
-    text.find(sym)
-        .map(|b| text[..b].chars().count() + 1)
-        .unwrap_or(1)
 }

@@ -10,6 +10,9 @@ mod coupling;
 mod distance;
 mod expression;
 mod expression_syntax;
+mod expression_tape;
+#[cfg(test)]
+mod expression_tests;
 mod forces;
 mod kind;
 mod no_side_slip;

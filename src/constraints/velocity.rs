@@ -121,12 +121,12 @@ impl VelocityConstraint {
         })
     }
 
-    /// ∂f/∂v[index] at the symbols' values (several symbols may name one coordinate).
-    fn df_dv(&self, index: usize, vals: &[f64; MAX_SYMBOLS]) -> f64 {
+    /// ∂f/∂v[index] from the symbols' gradient (several symbols may name one coordinate).
+    fn df_dv(&self, index: usize, grad: &[f64; MAX_SYMBOLS]) -> f64 {
         let e = &self.expression;
         (0..e.len())
             .filter(|&k| e.symbols[k].1 == Source::V { index })
-            .map(|k| e.df(k, vals))
+            .map(|k| grad[k])
             .sum()
     }
 
@@ -154,6 +154,7 @@ impl VelocityConstraint {
         let mut b = vec![0.0; alphas.len()];
         let mut u = v.to_vec();
         let mut vals = [0.0; MAX_SYMBOLS];
+        let mut grad = [0.0; MAX_SYMBOLS];
         let nodes = GAUSS8
             .iter()
             .flat_map(|&(x, w)| [((1.0 - x) / 2.0, w / 2.0), ((1.0 + x) / 2.0, w / 2.0)]);
@@ -165,8 +166,8 @@ impl VelocityConstraint {
             let mut done = false;
             for _ in 0..50 {
                 self.expression.values(q, &u, t, &mut vals);
-                let f = self.expression.f(&vals);
-                let fd = self.df_dv(d, &vals);
+                let f = self.expression.gradient(&vals, &mut grad);
+                let fd = self.df_dv(d, &grad);
                 if !(f.is_finite() && fd.is_finite()) || fd == 0.0 {
                     return Err(format!("f or ∂f/∂v_d undefined at σ = {sigma:.3}"));
                 }
@@ -181,9 +182,9 @@ impl VelocityConstraint {
                     "no dependent velocity solves f = 0 at σ = {sigma:.3}"
                 ));
             }
-            let fd = self.df_dv(d, &vals);
+            let fd = self.df_dv(d, &grad);
             for (k, &a) in alphas.iter().enumerate() {
-                b[k] -= w * self.df_dv(a, &vals) / fd;
+                b[k] -= w * self.df_dv(a, &grad) / fd;
             }
         }
         Ok(alphas.into_iter().zip(b).collect())
@@ -216,9 +217,10 @@ impl ConstraintRows for VelocityConstraint {
         e.values(out.q, out.v, out.t, &mut vals);
         let r = out.row0;
         out.clear_row(0);
+        let mut grad = [0.0; MAX_SYMBOLS];
+        let f = e.gradient(&vals, &mut grad);
         let mut gamma = 0.0;
-        for (k, (_, src)) in e.symbols.iter().enumerate() {
-            let d = e.df(k, &vals);
+        for (&d, (_, src)) in grad.iter().zip(&e.symbols) {
             match *src {
                 Source::V { index } => out.j[(r, index)] += d,
                 Source::Q { index, body } => {
@@ -228,7 +230,7 @@ impl ConstraintRows for VelocityConstraint {
             }
         }
         out.finish(r, 0.0, gamma, false);
-        out.jv[r] = e.f(&vals);
+        out.jv[r] = f;
         out.residual_given[r] = true;
     }
 }
