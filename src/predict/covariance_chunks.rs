@@ -155,7 +155,10 @@ impl CovariancePropagator {
         let n = hst.len;
         let mut lo = 0;
         while lo < n {
-            let m = hst.chunk.min(n - lo);
+            // The rest in equal pieces of at most `chunk` steps: no short leftover chunk.
+            let rest = n - lo;
+            let pieces = rest.div_ceil(hst.chunk);
+            let m = rest.div_ceil(pieces);
             let hi = lo + m;
             let h = hst.t[hi] - hst.t[lo];
             linearize_step(
@@ -193,12 +196,14 @@ impl CovariancePropagator {
             }
             self.apply_linearization(h);
             self.project(sys, &hst.q[hi], &hst.v[hi])?;
-            hst.chunk = if m > 1 {
-                next_chunk(m, ratio, order).max(m)
+            // An accepted chunk never shrinks the next: a piece shorter than `chunk` (the
+            // rest before a sample) says nothing against the longer one.
+            let grown = if m > 1 {
+                next_chunk(m, ratio, order)
             } else {
                 2
-            }
-            .min(stable);
+            };
+            hst.chunk = grown.max(hst.chunk).min(stable);
             lo = hi;
         }
         Ok(())
