@@ -6,7 +6,7 @@
 
 use super::rnea::rnea_derivatives_with_point_forces;
 use super::{DerivativeData, kkt, rows};
-use crate::algorithm::{Data, crba};
+use crate::algorithm::Data;
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::dynamics::{Baumgarte, KktWorkspace, constrained_forward_dynamics};
 use crate::error::{Error, Result};
@@ -54,7 +54,7 @@ pub fn constrained_dynamics_derivatives(
     rnea_derivatives_with_point_forces(model, data, dd, q, v, qdd.as_slice());
     dd.qdd = qdd;
     rows::force_corrections(model, data, set, ws.lambda.as_slice(), dd);
-    crba(model, data, q);
+    // M is still in `data` from the forward dynamics (nothing since wrote it).
     kkt::invert_mass_or_augmented(model, data, cd, dd)?;
     rows::row_derivatives(model, data, set, cd, dd, stab);
     kkt::solve_kkt_derivatives(cd, dd);
