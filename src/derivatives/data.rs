@@ -35,6 +35,10 @@ pub struct DerivativeData {
     /// minimum-norm choice) has no derivative, the λ derivatives are zero, and only the q̈
     /// derivatives (which are unique) are meaningful.
     pub lambda_unique: bool,
+    /// Compute the τ derivatives (default true). False spares the constrained derivatives a
+    /// third of the KKT solve and leaves `dqdd_dtau` and `dlambda_dtau` as they were; a
+    /// covariance without joint springs needs only ∂q̈/∂(q, v).
+    pub with_tau: bool,
     /// q̈ at which the derivatives were taken (nv).
     pub qdd: DVector<f64>,
 
@@ -102,6 +106,7 @@ impl DerivativeData {
             dlambda_dv: z(nc, nv),
             dlambda_dtau: z(nc, nv),
             lambda_unique: true,
+            with_tau: true,
             qdd: DVector::zeros(nv),
             o_v: vec![Motion::zero(); nb],
             o_a: vec![Motion::zero(); nb],

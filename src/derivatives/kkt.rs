@@ -81,6 +81,9 @@ pub(crate) fn solve_kkt_derivatives(cd: &ConstraintData, dd: &mut DerivativeData
     dd.rhs_c -= &dd.rows_dv;
     solve_columns(dd, Input::V);
     // τ: R₁ = 1, R₂ = 0.
+    if !dd.with_tau {
+        return;
+    }
     dd.rhs_v.copy_from(&dd.minv);
     gemm_into(&mut dd.rhs_c, -1.0, j, &dd.rhs_v, 0.0);
     solve_columns(dd, Input::Tau);

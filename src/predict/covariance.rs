@@ -2,9 +2,9 @@
 //! own step sensitivity, with process noise, kept on the constraints.
 //!
 //! State x = (q, v) in the tangent space (δq a right perturbation q ⊕ δq, then δv), P 2nv × 2nv.
-//! Per linearized step of size h:
+//! Per linearized step of size h, `P ← A P Aᵀ + Q_h`, and where P is read (covariance_chunks.rs)
 //!
-//! `P ← T (A P Aᵀ + Q_h) Tᵀ`
+//! `P ← T P Tᵀ`
 //!
 //! - A = ∂x⁺/∂x of one step of the prediction's method ([`linearize_step`](super::linearize::linearize_step), under the
 //!   generalized force held over it) that may span several of the prediction's steps: the
@@ -73,6 +73,14 @@ pub struct CovariancePropagator {
     /// Holonomic rows (for T_q) and all rows (for T_v), built at the first projection (the
     /// rows' kinds are known once the constraints were evaluated).
     blocks: Option<[RowProjector; 2]>,
+}
+
+/// `P ← A P Aᵀ` for a symmetric P, as `A (A P)ᵀ`: two column-major products and an in-place
+/// transpose, no allocation.
+fn congruence(p: &mut DMatrix<f64>, a: &DMatrix<f64>, tmp: &mut DMatrix<f64>) {
+    gemm_into(tmp, 1.0, a, p, 0.0);
+    tmp.transpose_mut();
+    gemm_into(p, 1.0, a, tmp, 0.0);
 }
 
 /// `1 − M⁻¹J_Rᵀ (J_R M⁻¹ J_Rᵀ)⁻¹ J_R` for a fixed set R of rows, with its buffers.
@@ -243,15 +251,7 @@ impl CovariancePropagator {
     /// `P ← A P Aᵀ + Q_h` with A = `self.lin.a` of a step of size h [s].
     pub(super) fn apply_linearization(&mut self, h: f64) {
         let nv = self.noise.len();
-        gemm_into(&mut self.tmp, 1.0, &self.lin.a, &self.p, 0.0);
-        // P = tmp Aᵀ, written by hand (no transposed copy).
-        for i in 0..2 * nv {
-            for j in 0..2 * nv {
-                self.p[(i, j)] = (0..2 * nv)
-                    .map(|k| self.tmp[(i, k)] * self.lin.a[(j, k)])
-                    .sum();
-            }
-        }
+        congruence(&mut self.p, &self.lin.a, &mut self.tmp);
         for i in 0..nv {
             let s2 = self.noise[i];
             if s2 > 0.0 {
@@ -310,13 +310,8 @@ impl CovariancePropagator {
             }
         }
         blocks[1].apply_coupling(&self.n_tq, &mut self.proj, nv);
-        gemm_into(&mut self.tmp, 1.0, &self.proj, &self.p, 0.0);
+        congruence(&mut self.p, &self.proj, &mut self.tmp);
         let n = 2 * nv;
-        for i in 0..n {
-            for j in 0..n {
-                self.p[(i, j)] = (0..n).map(|k| self.tmp[(i, k)] * self.proj[(j, k)]).sum();
-            }
-        }
         // Exactly symmetric (rounding).
         for i in 0..n {
             for j in 0..i {

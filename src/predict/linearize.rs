@@ -231,6 +231,8 @@ pub fn linearize_step(
             "linearize: dt = {dt} s must be finite and > 0"
         )));
     }
+    // ∂q̈/∂τ enters only B and the joint springs' stiffness and damping.
+    lin.dd.with_tau = lin.inputs || !lin.joint_springs.is_empty();
     match method {
         Method::SemiImplicitEuler => semi_implicit_euler(sys, lin, q, v, tau, dt),
         Method::Rk4 => explicit(sys, lin, &RK4, q, v, tau, dt),
@@ -367,8 +369,9 @@ fn explicit(
         dexp_inv(&sys.model, &lin.theta[st], &lin.vel[st], &mut lin.kth[st]);
         lin.maps
             .build(&sys.model, &lin.theta[st], Some(&lin.vel[st]));
-        // δq_i = Ad(Exp(−Θ_i)) δq + J_r(Θ_i) δΘ_i (tangent at q_i).
-        tangent_variation(lin, cols);
+        // δq_i = Ad(Exp(−Θ_i)) δq + J_r(Θ_i) δΘ_i (tangent at q_i); δΘ_i = 0 at a first stage.
+        let first = tab.a[st].is_empty();
+        tangent_variation(lin, cols, first);
         // δkv_i = ∂q̈/∂q δq_i + ∂q̈/∂v δV_i + ∂q̈/∂τ δτ.
         let (f, d_kv) = (&lin.dd, &mut lin.d_kv[st]);
         gemm_columns(d_kv, 1.0, &f.dqdd_dq, &lin.moved_cols, 0.0, cols);
@@ -380,15 +383,17 @@ fn explicit(
         }
         // δkΘ_i = ∂dexp⁻¹/∂Θ [δΘ_i] + dexp⁻¹(δV_i).
         let d_kth = &mut lin.d_kth[st];
-        gemm_columns(
-            d_kth,
-            1.0,
-            &lin.maps.dexp_inv_dtheta,
-            &lin.d_theta,
-            0.0,
-            cols,
-        );
-        gemm_columns(d_kth, 1.0, &lin.maps.dexp_inv, &lin.d_vel, 1.0, cols);
+        gemm_columns(d_kth, 1.0, &lin.maps.dexp_inv, &lin.d_vel, 0.0, cols);
+        if !first {
+            gemm_columns(
+                d_kth,
+                1.0,
+                &lin.maps.dexp_inv_dtheta,
+                &lin.d_theta,
+                1.0,
+                cols,
+            );
+        }
     }
     // Final combination.
     for i in 0..nv {
@@ -403,7 +408,7 @@ fn explicit(
     sys.model.integrate(q, &lin.theta_end, 1.0, &mut lin.q_next);
     combine_variations(lin, tab.b, dt);
     lin.maps.build(&sys.model, &lin.theta_end, None);
-    tangent_variation(lin, cols);
+    tangent_variation(lin, cols, false);
     for c in 0..cols {
         let (out, col) = if c < 2 * nv {
             (&mut lin.a, c)
@@ -448,17 +453,22 @@ fn combine_variations(lin: &mut Linearization, weights: &[f64], dt: f64) {
 }
 
 /// `moved_cols = Ad(Exp(−Θ)) δq + J_r(Θ) d_theta` over the seed columns, with the maps of
-/// the last [`StageMaps::build`] (column i < nv of δq is e_i, the rest zero).
-fn tangent_variation(lin: &mut Linearization, cols: usize) {
+/// the last [`StageMaps::build`] (column i < nv of δq is e_i, the rest zero); `d_theta_zero`:
+/// d_theta is known to be zero (a first stage), so only the transport is written.
+fn tangent_variation(lin: &mut Linearization, cols: usize, d_theta_zero: bool) {
     let nv = lin.v_next.len();
-    gemm_columns(
-        &mut lin.moved_cols,
-        1.0,
-        &lin.maps.right_jacobian,
-        &lin.d_theta,
-        0.0,
-        cols,
-    );
+    if d_theta_zero {
+        lin.moved_cols.columns_mut(0, cols).fill(0.0);
+    } else {
+        gemm_columns(
+            &mut lin.moved_cols,
+            1.0,
+            &lin.maps.right_jacobian,
+            &lin.d_theta,
+            0.0,
+            cols,
+        );
+    }
     for c in 0..nv {
         for i in 0..nv {
             lin.moved_cols[(i, c)] += lin.maps.transport[(i, c)];
