@@ -239,9 +239,9 @@ fn odometry() -> impl Strategy<Value = Odometry> {
             od.pose.pose.orientation.z = p[5];
             od.pose.pose.orientation.w = p[6];
             od.twist.twist = t;
-            for i in 0..6 {
-                od.pose.covariance[7 * i] = c[i];
-                od.twist.covariance[7 * i] = c[i];
+            for (i, x) in c.iter().enumerate() {
+                od.pose.covariance[7 * i] = *x;
+                od.twist.covariance[7 * i] = *x;
             }
             od
         })
@@ -364,8 +364,7 @@ proptest! {
         od in prop::collection::vec(odometry(), 0..3),
         now in stamp(),
     ) {
-        let mut p = PredictorParams::default();
-        p.horizon = 0.5;
+        let p = PredictorParams { horizon: 0.5, ..Default::default() };
         let mut n: PredictorNode = node(p);
         feed(n.robot_mut(), &js, &od);
         for (c, at) in cmds {
@@ -409,8 +408,7 @@ proptest! {
             2 => text,
             _ => String::from_utf8_lossy(&junk).into_owned(),
         };
-        let mut p = PredictorParams::default();
-        p.horizon = 0.3;
+        let p = PredictorParams { horizon: 0.3, ..Default::default() };
         let n: PredictorNode = node(p);
         let common = n.params().common.clone();
         match timed("with_urdf", || n.robot().with_urdf(&urdf, &common)) {
