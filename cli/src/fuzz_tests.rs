@@ -167,3 +167,14 @@ proptest! {
         }
     }
 }
+
+/// Found by tools/fuzz_long.sh (seed 503634): σ = 1e308 squared to +∞ in P.
+#[test]
+fn covariance_sigma_1e308_is_refused() {
+    let sc = scene();
+    let path = file(r#"{"sigma": {"arm_elbow": 1e308}}"#);
+    let r = covariance::load(&sc.model, &path);
+    let _ = std::fs::remove_file(&path);
+    let e = r.expect_err("sigma 1e308 must be refused").to_string();
+    assert!(e.contains("sigma.arm_elbow"), "{e}");
+}
