@@ -97,5 +97,21 @@ pub fn constraint_forces_at(
     {
         crate::error::check_output(what, x, &cause())?;
     }
+    for f in &out.forces {
+        let numbers: Vec<f64> = [&f.force[..], &f.torque, &f.point_world, &f.lambda]
+            .into_iter()
+            .flatten()
+            .chain(&f.position_residual)
+            .chain(&f.velocity_residual)
+            .chain(f.normal_force.iter())
+            .chain(f.tangential_force.iter())
+            .copied()
+            .collect();
+        crate::error::check_output(
+            &format!("constraint force '{}'", f.name),
+            &numbers,
+            &cause(),
+        )?;
+    }
     Ok(out)
 }

@@ -40,8 +40,10 @@ pub fn load(model: &Model, path: &Path) -> Result<DMatrix<f64>> {
         (None, Some(sigma)) => {
             let mut p = DMatrix::zeros(n, n);
             for (name, &s) in &sigma {
-                if !(s.is_finite() && s >= 0.0) {
-                    return Err(err(format!("sigma.{name} = {s}: must be finite and ≥ 0")));
+                if !((s * s).is_finite() && s >= 0.0) {
+                    return Err(err(format!(
+                        "sigma.{name} = {s}: must be ≥ 0 with a finite square"
+                    )));
                 }
                 let (base, off) = match name.strip_suffix(":rate") {
                     Some(b) => (b, model.nv),

@@ -2,6 +2,8 @@
 
 mod covariance;
 mod eval;
+#[cfg(test)]
+mod fuzz_tests;
 mod json;
 mod linearize;
 mod predict;

@@ -87,6 +87,12 @@ fn parse_enum<T: for<'de> Deserialize<'de>>(
         .map_err(|_| Error::Invalid(format!("--{option} '{value}': expected one of {expected}")))
 }
 
+/// The commands-file parser, for the fuzz tests.
+#[cfg(test)]
+pub fn fuzz_load_commands(path: &Path) -> Result<Vec<(f64, Command)>> {
+    load_commands(path)
+}
+
 fn load_commands(path: &Path) -> Result<Vec<(f64, Command)>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
         path: path.display().to_string(),

@@ -199,7 +199,8 @@ pub fn constraint_forces(
                     local[row] = lam[i];
                 }
                 force = rc.basis * local;
-                tangential = Some(local.xy().norm());
+                // hypot: finite wherever both components are (|t| ~ 1e308 squared overflows).
+                tangential = Some(local.x.hypot(local.y));
                 // No normal row (a planar base holds the height): no normal force to report.
                 normal = rc.rows.contains(&2).then_some(local.z);
                 (fname(rc.wheel), "world".into(), contact.point)
