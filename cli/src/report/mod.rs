@@ -123,24 +123,7 @@ pub fn run(a: ReportArgs) -> Result<Value> {
             Reference::ClosedForm(_) => Refs::None,
             Reference::Numerical { rk4_dt } => {
                 pb.set_message(format!("{}: references", b.key));
-                let (dopri, _) = predict(
-                    &scene,
-                    Method::Dopri5,
-                    DriftControl::Projection,
-                    true,
-                    1e-13,
-                    b.horizon,
-                )?;
-                pb.inc(1);
-                let (rk4, _) = predict(
-                    &scene,
-                    Method::Rk4,
-                    DriftControl::Projection,
-                    false,
-                    *rk4_dt,
-                    b.horizon,
-                )?;
-                pb.inc(1);
+                let (dopri, rk4) = reference_pair(&scene, 1e-13, *rk4_dt, b.horizon, &pb)?;
                 let gap = distance(&scene, &rk4, &dopri);
                 note = format!(" (RK4 dt = {rk4_dt:e} s; the two references agree to {gap:.1e})");
                 Refs::Trajectories(Box::new((dopri, rk4)))
@@ -152,24 +135,7 @@ pub fn run(a: ReportArgs) -> Result<Value> {
             } => {
                 pb.set_message(format!("{}: references", b.key));
                 let last = |t: Trajectory| t.samples.last().map(|s| s.q.clone());
-                let (dopri, _) = predict(
-                    &scene,
-                    Method::Dopri5,
-                    DriftControl::Projection,
-                    true,
-                    *rtol,
-                    b.horizon,
-                )?;
-                pb.inc(1);
-                let (rk4, _) = predict(
-                    &scene,
-                    Method::Rk4,
-                    DriftControl::Projection,
-                    false,
-                    *rk4_dt,
-                    b.horizon,
-                )?;
-                pb.inc(1);
+                let (dopri, rk4) = reference_pair(&scene, *rtol, *rk4_dt, b.horizon, &pb)?;
                 let (Some(dopri), Some(rk4)) = (last(dopri), last(rk4)) else {
                     return Err(Error::Invalid(format!("{}: empty reference run", b.key)));
                 };
@@ -376,4 +342,34 @@ fn readme(
          | scene | ≤ 1e-3 | ≤ 1e-6 | ≤ 1e-9 |\n|---|---|---|---|\n{table}\n\
          ## Scenes\n{scenes}"
     )
+}
+
+/// The two independent reference runs of a scene: DOPRI5 at `rtol` and RK4 at `rk4_dt` [s],
+/// both with projection, over `horizon` [s].
+fn reference_pair(
+    scene: &Scene,
+    rtol: f64,
+    rk4_dt: f64,
+    horizon: f64,
+    pb: &ProgressBar,
+) -> Result<(Trajectory, Trajectory)> {
+    let (dopri, _) = predict(
+        scene,
+        Method::Dopri5,
+        DriftControl::Projection,
+        true,
+        rtol,
+        horizon,
+    )?;
+    pb.inc(1);
+    let (rk4, _) = predict(
+        scene,
+        Method::Rk4,
+        DriftControl::Projection,
+        false,
+        rk4_dt,
+        horizon,
+    )?;
+    pb.inc(1);
+    Ok((dopri, rk4))
 }
