@@ -15,7 +15,10 @@
 //! - Baumgarte gains from a time constant are the critically damped closed form;
 //! - a material point's acceleration is J_p q̈ + its bias (the constraints' γ);
 //! - gravity's potential energy is −m g·c (centre of mass c), and the A01 pendulum's centre of
-//!   mass is its point mass.
+//!   mass is its point mass;
+//! - the analytic derivatives of forward dynamics (∂q̈/∂q, ∂q̈/∂v, M⁻¹) equal central finite
+//!   differences of ABA (the constrained ones are checked on every bundled scene by
+//!   `derivatives_fd.rs`, and against Pinocchio's by `derivatives.rs`).
 //!
 //! Bounded: 64 cases per property (`PROPTEST_CASES` overrides), a fixed seed so that CI runs
 //! the same cases (`PROPTEST_RNG_SEED` overrides), no persistence file. Tolerances are set from
@@ -691,13 +694,85 @@ proptest! {
     }
 }
 
+// ---------------------------------------------------------------------------------------------
+// Analytic derivatives = finite differences.
+
+static DERIV: Worst = Worst::new(
+    "|∂q̈/∂(q, v, τ) − finite differences| / max(1, |finite differences|) (ABA derivatives)",
+);
+
+/// Central differences of ABA along each coordinate: q on the Lie group (q ⊕ h e_j), h and h/2
+/// combined by Richardson extrapolation (error O(h⁴)); v and τ with h = 1, exact up to rounding
+/// because q̈ is quadratic in v and linear in τ.
+fn aba_differences(model: &Model, q: &[f64], v: &[f64], tau: &[f64]) -> [DMatrix<f64>; 3] {
+    let nv = model.nv;
+    let mut data = Data::new(model);
+    let mut out = [
+        DMatrix::zeros(nv, nv),
+        DMatrix::zeros(nv, nv),
+        DMatrix::zeros(nv, nv),
+    ];
+    let mut qp = vec![0.0; model.nq];
+    for j in 0..nv {
+        let mut e = vec![0.0; nv];
+        e[j] = 1.0;
+        let mut on_q = |t: f64| {
+            model.integrate(q, &e, t, &mut qp);
+            aba(model, &mut data, &qp, v, tau).clone()
+        };
+        let central = |f: &mut dyn FnMut(f64) -> DVector<f64>, h: f64| (f(h) - f(-h)) / (2.0 * h);
+        let h = 5e-4;
+        let (d1, d2) = (central(&mut on_q, h), central(&mut on_q, h / 2.0));
+        out[0].set_column(j, &((d2 * 4.0 - d1) / 3.0));
+        let mut vp = v.to_vec();
+        let mut on_v = |t: f64| {
+            vp[j] = v[j] + t;
+            aba(model, &mut data, q, &vp, tau).clone()
+        };
+        out[1].set_column(j, &central(&mut on_v, 1.0));
+        let mut tp = tau.to_vec();
+        let mut on_tau = |t: f64| {
+            tp[j] = tau[j] + t;
+            aba(model, &mut data, q, v, &tp).clone()
+        };
+        out[2].set_column(j, &central(&mut on_tau, 1.0));
+    }
+    out
+}
+
+proptest! {
+    #![proptest_config(config())]
+
+    /// ∂q̈/∂q, ∂q̈/∂v and M⁻¹ of `aba_derivatives` at random robots and states (v in [−3, 3),
+    /// τ in [−10, 10)) against central differences of ABA itself.
+    #[test]
+    fn aba_derivatives_equal_finite_differences((r, uq, uv, ut) in robot_inputs()) {
+        use constraint_dynamics::derivatives::{DerivativeData, aba_derivatives};
+        let (name, model) = &robots()[r];
+        let q = config_from(model, &uq);
+        let v = scaled(&uv, model.nv, 3.0);
+        let tau = scaled(&ut, model.nv, 10.0);
+        let mut data = Data::new(model);
+        let mut dd = DerivativeData::new(model, 0);
+        aba_derivatives(model, &mut data, &mut dd, &q, &v, &tau).unwrap();
+        let fd = aba_differences(model, &q, &v, &tau);
+        for (what, ours, fd) in [("dqdd_dq", &dd.dqdd_dq, &fd[0]), ("dqdd_dv", &dd.dqdd_dv, &fd[1]), ("Minv", &dd.minv, &fd[2])] {
+            let e = (ours - fd).amax() / fd.amax().max(1.0);
+            DERIV.note(e);
+            // Worst case over the 64 cases: 1.21e-9 (the differences' own O(h⁴) error on
+            // q; v and τ reach rounding); tol 1e-7.
+            prop_assert!(e <= 1e-7, "{}: {} differs from finite differences by {:e}", name, what, e);
+        }
+    }
+}
+
 /// Prints the worst figures of every property (run with `-- --nocapture --test-threads=1` after
 /// the others to read them; in a parallel run the figures of properties still running are 0).
 #[test]
 fn zz_report_worst_figures() {
     for w in [
         &RNEA_ABA, &M_COLS, &M_COND, &POINT_ACC, &COM_PE, &PEND_COM, &FORMS, &KKT_STAT, &KKT_JV,
-        &KKT_BOUND, &KKT_SIGN, &KKT_COMPL, &LIE_DIFF, &LIE_INT, &ORDER,
+        &KKT_BOUND, &KKT_SIGN, &KKT_COMPL, &LIE_DIFF, &LIE_INT, &ORDER, &DERIV,
     ] {
         w.report();
     }

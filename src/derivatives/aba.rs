@@ -2,9 +2,9 @@
 //! M q̈ + h = τ gives ∂q̈/∂x = −M⁻¹ ∂τ/∂x of inverse dynamics taken at a = q̈, and ∂q̈/∂τ = M⁻¹.
 
 use super::{DerivativeData, rnea::rnea_derivatives_with_point_forces};
-use crate::algorithm::{Data, aba, crba};
+use crate::algorithm::{Data, aba};
 use crate::error::{Error, Result};
-use crate::linalg::{cholesky_in_place, cholesky_solve, gemm_into};
+use crate::linalg::{gemm_into, spd_inverse};
 use crate::model::Model;
 
 /// q̈ = ABA(q, v, τ) into `dd.qdd` and its derivatives into `dd.dqdd_dq`, `dd.dqdd_dv`,
@@ -19,13 +19,13 @@ pub fn aba_derivatives(
 ) -> Result<()> {
     aba(model, data, q, v, tau);
     dd.qdd.copy_from(&data.qdd);
-    crba(model, data, q);
-    inverse_mass_matrix(model, data, dd)?;
     dd.clear_point_forces();
     // Moved out and back (no copy, no allocation) so RNEA can read q̈ while writing `dd`.
     let qdd = std::mem::take(&mut dd.qdd);
     rnea_derivatives_with_point_forces(model, data, dd, q, v, qdd.as_slice());
     dd.qdd = qdd;
+    // M at q came with the RNEA derivatives (∂τ/∂q̈).
+    inverse_mass_matrix(model, data, dd)?;
     gemm_into(&mut dd.dqdd_dq, -1.0, &dd.minv, &dd.dtau_dq, 0.0);
     gemm_into(&mut dd.dqdd_dv, -1.0, &dd.minv, &dd.dtau_dv, 0.0);
     dd.dqdd_dtau.copy_from(&dd.minv);
@@ -51,12 +51,5 @@ pub fn inverse_mass_matrix(model: &Model, data: &Data, dd: &mut DerivativeData) 
 /// Factors the symmetric positive-definite leading nv × nv block of `dd.chol` and writes its
 /// inverse into `dd.minv`; Err(pivot) when it is not positive definite.
 pub(crate) fn invert_factor(nv: usize, dd: &mut DerivativeData) -> std::result::Result<(), usize> {
-    cholesky_in_place(&mut dd.chol, nv, 1e-14)?;
-    for c in 0..nv {
-        dd.col.fill(0.0);
-        dd.col[c] = 1.0;
-        cholesky_solve(&dd.chol, nv, &mut dd.col.as_mut_slice()[..nv]);
-        dd.minv.column_mut(c).copy_from(&dd.col.rows(0, nv));
-    }
-    Ok(())
+    spd_inverse(&mut dd.chol, nv, 1e-14, &mut dd.minv)
 }

@@ -1,9 +1,10 @@
 //! The reusable workspace of the derivative algorithms: world-axes kinematics, the per-column
 //! variations and every output matrix, sized once for a model and a number of constraint rows.
 
+use super::rnea::Column;
 use crate::model::Model;
 use crate::spatial::{Force, Inertia, Motion};
-use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Vector3};
 
 /// Results and intermediates of [`rnea_derivatives`](super::rnea_derivatives),
 /// [`aba_derivatives`](super::aba_derivatives) and
@@ -57,6 +58,17 @@ pub struct DerivativeData {
     pub(crate) subtree_end: Vec<usize>,
     /// Per-column variation of the composite wrenches.
     pub(crate) df: Vec<Force>,
+    /// End of each body's subtree in velocity coordinates: `idx_v .. v_end[b]`.
+    pub(crate) v_end: Vec<usize>,
+    /// Composite world inertia Y, its variation Ẏ and the applied forces' G per body
+    /// (rnea.rs), summed leaf to root during the backward pass.
+    pub(crate) ycrb: Vec<Matrix6<f64>>,
+    pub(crate) dycrb: Vec<Matrix6<f64>>,
+    pub(crate) gext: Vec<Matrix6<f64>>,
+    /// Whether any point force or moment is applied (G is zero everywhere otherwise).
+    pub(crate) has_applied: bool,
+    /// The backward pass's 6-vectors per velocity coordinate.
+    pub(crate) cols: Vec<Column>,
     /// Point forces applied per body (world axes): Σf, Σ p × f, Σ p fᵀ, Σ p·f.
     pub(crate) ext_f: Vec<Vector3<f64>>,
     pub(crate) ext_m: Vec<Vector3<f64>>,
@@ -64,7 +76,6 @@ pub struct DerivativeData {
     pub(crate) ext_pdotf: Vec<f64>,
     // Dense scratch of the constrained solve.
     pub(crate) chol: DMatrix<f64>,
-    pub(crate) col: DVector<f64>,
     pub(crate) rows_dq: DMatrix<f64>,
     pub(crate) rows_dv: DMatrix<f64>,
     pub(crate) minv_jt: DMatrix<f64>,
@@ -94,6 +105,18 @@ impl DerivativeData {
             let j = &model.bodies[b].joint;
             dof_body[j.idx_v..j.idx_v + j.kind.nv()].fill(b);
         }
+        // Bodies are numbered depth-first and their coordinates in the same order, so each
+        // subtree's coordinates are contiguous.
+        let v_end: Vec<usize> = (0..nb)
+            .map(|b| {
+                let e = subtree_end[b];
+                if e < nb {
+                    model.bodies[e].joint.idx_v
+                } else {
+                    nv
+                }
+            })
+            .collect();
         let z = |r, c| DMatrix::zeros(r, c);
         Self {
             dtau_dq: z(nv, nv),
@@ -116,12 +139,17 @@ impl DerivativeData {
             dof_body,
             subtree_end,
             df: vec![Force::zero(); nb],
+            v_end,
+            ycrb: vec![Matrix6::zeros(); nb],
+            dycrb: vec![Matrix6::zeros(); nb],
+            gext: vec![Matrix6::zeros(); nb],
+            has_applied: false,
+            cols: vec![Column::default(); nv],
             ext_f: vec![Vector3::zeros(); nb],
             ext_m: vec![Vector3::zeros(); nb],
             ext_pf: vec![Matrix3::zeros(); nb],
             ext_pdotf: vec![0.0; nb],
             chol: z(nv.max(nc), nv.max(nc)),
-            col: DVector::zeros(nv.max(nc)),
             rows_dq: z(nc, nv),
             rows_dv: z(nc, nv),
             minv_jt: z(nv, nc),

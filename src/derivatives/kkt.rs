@@ -6,7 +6,10 @@ use super::aba::invert_factor;
 use crate::algorithm::Data;
 use crate::constraints::ConstraintData;
 use crate::error::{Error, Result};
-use crate::linalg::{gemm_into, gemm_tr_into, semidefinite_cholesky, semidefinite_solve};
+use crate::linalg::{
+    gemm_into, gemm_nt_into, gemm_tr_into, semidefinite_cholesky, semidefinite_solve,
+    semidefinite_solve_columns,
+};
 use crate::model::Model;
 
 /// Rank test of J M⁻¹ Jᵀ: a row whose Cholesky pivot is below this fraction of the largest
@@ -53,12 +56,7 @@ pub(crate) fn invert_mass_or_augmented(
 /// R₁ + ρ Jᵀ R₂ when ρ > 0).
 pub(crate) fn solve_kkt_derivatives(cd: &ConstraintData, dd: &mut DerivativeData) {
     let j = &cd.j;
-    // M⁻¹Jᵀ by columns (M⁻¹ is symmetric), without forming Jᵀ.
-    for c in 0..j.nrows() {
-        for i in 0..j.ncols() {
-            dd.minv_jt[(i, c)] = (0..j.ncols()).map(|k| dd.minv[(i, k)] * j[(c, k)]).sum();
-        }
-    }
+    gemm_nt_into(&mut dd.minv_jt, 1.0, &dd.minv, j, 0.0);
     gemm_into(&mut dd.schur, 1.0, j, &dd.minv_jt, 0.0);
     let rank = semidefinite_cholesky(&mut dd.schur, RANK_TOL, &mut dd.dropped);
     dd.lambda_unique = rank == j.nrows();
@@ -67,7 +65,9 @@ pub(crate) fn solve_kkt_derivatives(cd: &ConstraintData, dd: &mut DerivativeData
     // q: R₁ = −∂(RNEA − Jᵀλ)/∂q, R₂ = −rows_dq.
     dd.r1.copy_from(&dd.dtau_dq);
     dd.r1.neg_mut();
-    gemm_tr_into(&mut dd.r1, -dd.rho, j, &dd.rows_dq, 1.0);
+    if dd.rho != 0.0 {
+        gemm_tr_into(&mut dd.r1, -dd.rho, j, &dd.rows_dq, 1.0);
+    }
     gemm_into(&mut dd.rhs_v, 1.0, &dd.minv, &dd.r1, 0.0);
     gemm_into(&mut dd.rhs_c, -1.0, j, &dd.rhs_v, 0.0);
     dd.rhs_c -= &dd.rows_dq;
@@ -75,7 +75,9 @@ pub(crate) fn solve_kkt_derivatives(cd: &ConstraintData, dd: &mut DerivativeData
     // v
     dd.r1.copy_from(&dd.dtau_dv);
     dd.r1.neg_mut();
-    gemm_tr_into(&mut dd.r1, -dd.rho, j, &dd.rows_dv, 1.0);
+    if dd.rho != 0.0 {
+        gemm_tr_into(&mut dd.r1, -dd.rho, j, &dd.rows_dv, 1.0);
+    }
     gemm_into(&mut dd.rhs_v, 1.0, &dd.minv, &dd.r1, 0.0);
     gemm_into(&mut dd.rhs_c, -1.0, j, &dd.rhs_v, 0.0);
     dd.rhs_c -= &dd.rows_dv;
@@ -85,7 +87,12 @@ pub(crate) fn solve_kkt_derivatives(cd: &ConstraintData, dd: &mut DerivativeData
         return;
     }
     dd.rhs_v.copy_from(&dd.minv);
-    gemm_into(&mut dd.rhs_c, -1.0, j, &dd.rhs_v, 0.0);
+    // −J M⁻¹ = −(M⁻¹Jᵀ)ᵀ, M⁻¹ being symmetric.
+    for (r, row) in dd.minv_jt.column_iter().enumerate() {
+        for (c, x) in row.iter().enumerate() {
+            dd.rhs_c[(r, c)] = -x;
+        }
+    }
     solve_columns(dd, Input::Tau);
 }
 
@@ -152,8 +159,8 @@ fn solve_columns(dd: &mut DerivativeData, input: Input) {
                 rhs_c[(r, c)] -= dot * null_basis[(r, k)];
             }
         }
-        semidefinite_solve(schur, dropped, rhs_c.column_mut(c).as_mut_slice());
     }
+    semidefinite_solve_columns(schur, dropped, rhs_c);
     gemm_into(rhs_v, 1.0, minv_jt, rhs_c, 1.0);
     let (dqdd, dlambda) = match input {
         Input::Q => (&mut dd.dqdd_dq, &mut dd.dlambda_dq),

