@@ -64,24 +64,6 @@ impl DDSData {
     }
   }
 
-  /// Patched (constraint_dynamics, issue 15): a payload received from the network is a slice
-  /// of the UDP listener's 256 KiB receive chunk (`udp_listener.rs`), so every sample kept in a
-  /// cache (the SEDP readers keep up to 256 per topic) kept its whole chunk allocated: a suite
-  /// seeing participants come and go held several MB of chunks for a few kB of samples. A
-  /// payload up to 16 KiB is copied into an allocation of its own; larger ones (reassembled
-  /// fragments) already have one.
-  pub fn detach_from_receive_buffer(&mut self) {
-    const MAX_COPIED: usize = 16 * 1024;
-    let payload = match self {
-      DDSData::Data { serialized_payload } => serialized_payload,
-      DDSData::DisposeByKey { key, .. } => key,
-      DDSData::DisposeByKeyHash { .. } => return,
-    };
-    if payload.value.len() <= MAX_COPIED {
-      payload.value = Bytes::copy_from_slice(&payload.value);
-    }
-  }
-
   pub fn change_kind(&self) -> ChangeKind {
     match self {
       DDSData::Data {..} /*| DDSData::DataFrags {..}*/ => ChangeKind::Alive,

@@ -300,9 +300,7 @@ impl TopicCache {
     self.changes.get(instant)
   }
 
-  pub fn add_change(&mut self, instant: &Timestamp, mut cache_change: CacheChange) {
-    // Patched (constraint_dynamics, issue 15): see `DDSData::detach_from_receive_buffer`.
-    cache_change.data_value.detach_from_receive_buffer();
+  pub fn add_change(&mut self, instant: &Timestamp, cache_change: CacheChange) {
     self
       .add_change_internal(instant, cache_change)
       .map(|cc_back| {
