@@ -380,6 +380,14 @@ impl Spinner {
               }
               Some(GraphEvent::EntityUndeclared(guid_entity(EntityKind::Publisher, guid)))
             }
+            // Patched (constraint_dynamics, issue 15): a departed participant's
+            // ros_discovery_info record was kept forever (~0.85 kB per short-lived
+            // client participant, the largest per-participant owner in a churn test).
+            DomainParticipantStatusEvent::ParticipantLost { id, .. } => {
+              self.external_nodes.lock().unwrap()
+                .retain(|gid, _| rustdds::GUID::from(*gid).prefix != id);
+              None
+            }
 
             _ => None,
           };
