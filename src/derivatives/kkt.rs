@@ -7,8 +7,8 @@ use crate::algorithm::Data;
 use crate::constraints::ConstraintData;
 use crate::error::{Error, Result};
 use crate::linalg::{
-    gemm_into, gemm_nt_into, gemm_tr_into, semidefinite_cholesky, semidefinite_solve,
-    semidefinite_solve_columns,
+    gemm_into, gemm_nt_into, gemm_tr_into, inverse_from_cholesky, semidefinite_cholesky,
+    semidefinite_solve, semidefinite_solve_columns,
 };
 use crate::model::Model;
 
@@ -60,25 +60,34 @@ pub(crate) fn solve_kkt_derivatives(cd: &ConstraintData, dd: &mut DerivativeData
     gemm_into(&mut dd.schur, 1.0, j, &dd.minv_jt, 0.0);
     let rank = semidefinite_cholesky(&mut dd.schur, RANK_TOL, &mut dd.dropped);
     dd.lambda_unique = rank == j.nrows();
+    if dd.lambda_unique {
+        // Full rank: K⁻¹ once, then a product per input instead of triangular solves per
+        // column (the factor in `schur` becomes L⁻¹; nothing else reads it then).
+        inverse_from_cholesky(&mut dd.schur, j.nrows(), &mut dd.schur_inv);
+    }
     null_space_of_schur(j, dd);
 
     // q: R₁ = −∂(RNEA − Jᵀλ)/∂q, R₂ = −rows_dq.
-    dd.r1.copy_from(&dd.dtau_dq);
-    dd.r1.neg_mut();
-    if dd.rho != 0.0 {
+    if dd.rho == 0.0 {
+        gemm_into(&mut dd.rhs_v, -1.0, &dd.minv, &dd.dtau_dq, 0.0);
+    } else {
+        dd.r1.copy_from(&dd.dtau_dq);
+        dd.r1.neg_mut();
         gemm_tr_into(&mut dd.r1, -dd.rho, j, &dd.rows_dq, 1.0);
+        gemm_into(&mut dd.rhs_v, 1.0, &dd.minv, &dd.r1, 0.0);
     }
-    gemm_into(&mut dd.rhs_v, 1.0, &dd.minv, &dd.r1, 0.0);
     gemm_into(&mut dd.rhs_c, -1.0, j, &dd.rhs_v, 0.0);
     dd.rhs_c -= &dd.rows_dq;
     solve_columns(dd, Input::Q);
     // v
-    dd.r1.copy_from(&dd.dtau_dv);
-    dd.r1.neg_mut();
-    if dd.rho != 0.0 {
+    if dd.rho == 0.0 {
+        gemm_into(&mut dd.rhs_v, -1.0, &dd.minv, &dd.dtau_dv, 0.0);
+    } else {
+        dd.r1.copy_from(&dd.dtau_dv);
+        dd.r1.neg_mut();
         gemm_tr_into(&mut dd.r1, -dd.rho, j, &dd.rows_dv, 1.0);
+        gemm_into(&mut dd.rhs_v, 1.0, &dd.minv, &dd.r1, 0.0);
     }
-    gemm_into(&mut dd.rhs_v, 1.0, &dd.minv, &dd.r1, 0.0);
     gemm_into(&mut dd.rhs_c, -1.0, j, &dd.rhs_v, 0.0);
     dd.rhs_c -= &dd.rows_dv;
     solve_columns(dd, Input::V);
@@ -144,14 +153,21 @@ fn null_space_of_schur(j: &nalgebra::DMatrix<f64>, dd: &mut DerivativeData) {
 fn solve_columns(dd: &mut DerivativeData, input: Input) {
     let DerivativeData {
         schur,
+        schur_inv,
         dropped,
         rhs_c,
+        rhs_c_scratch,
         rhs_v,
         minv_jt,
         null_basis,
         n_null,
+        lambda_unique,
         ..
     } = dd;
+    if *lambda_unique {
+        gemm_into(rhs_c_scratch, 1.0, schur_inv, rhs_c, 0.0);
+        rhs_c.copy_from(rhs_c_scratch);
+    }
     for c in 0..rhs_c.ncols() {
         for k in 0..*n_null {
             let dot = null_basis.column(k).dot(&rhs_c.column(c));
@@ -160,7 +176,9 @@ fn solve_columns(dd: &mut DerivativeData, input: Input) {
             }
         }
     }
-    semidefinite_solve_columns(schur, dropped, rhs_c);
+    if !*lambda_unique {
+        semidefinite_solve_columns(schur, dropped, rhs_c);
+    }
     gemm_into(rhs_v, 1.0, minv_jt, rhs_c, 1.0);
     let (dqdd, dlambda) = match input {
         Input::Q => (&mut dd.dqdd_dq, &mut dd.dlambda_dq),

@@ -52,6 +52,15 @@ pub fn spd_inverse(
     out: &mut DMatrix<f64>,
 ) -> Result<(), usize> {
     cholesky_in_place(a, n, rel_tol)?;
+    inverse_from_cholesky(a, n, out);
+    Ok(())
+}
+}
+
+wide_fn! {
+/// A⁻¹ into the leading n × n block of `out` (both triangles) from the Cholesky factor L of A
+/// in the lower triangle of `a`'s leading block, which becomes L⁻¹ (see [`spd_inverse`]).
+pub fn inverse_from_cholesky(a: &mut DMatrix<f64>, n: usize, out: &mut DMatrix<f64>) {
     let ld = a.nrows();
     let s = a.as_mut_slice();
     // L⁻¹ in place, last column first: column j of L⁻¹ is −(L⁻¹)_jj · T x, with x the column
@@ -81,7 +90,6 @@ pub fn spd_inverse(
             out[(b, r)] = x;
         }
     }
-    Ok(())
 }
 }
 
@@ -155,11 +163,49 @@ pub fn gemm_into(c: &mut DMatrix<f64>, alpha: f64, a: &DMatrix<f64>, b: &DMatrix
     gemm_columns(c, alpha, a, b, beta, b.ncols());
 }
 
-wide_fn! {
 /// `c[:, ..ncols] ← α a b[:, ..ncols] + β c[:, ..ncols]`, allocation-free: column by column
 /// as sums of a's columns (contiguous in nalgebra's column-major storage, so the inner loop
-/// vectorizes and needs no bounds checks).
+/// vectorizes and needs no bounds checks). On a CPU with AVX2 and FMA the same loop runs four
+/// lanes wide with fused multiply-adds (one rounding per product-sum instead of two; the
+/// derivatives' products on 38 coordinates take half the time).
 pub fn gemm_columns(
+    c: &mut DMatrix<f64>,
+    alpha: f64,
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    beta: f64,
+    ncols: usize,
+) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        #[target_feature(enable = "avx2,fma")]
+        fn fused(
+            c: &mut DMatrix<f64>,
+            alpha: f64,
+            a: &DMatrix<f64>,
+            b: &DMatrix<f64>,
+            beta: f64,
+            ncols: usize,
+        ) {
+            gemm_kernel::<true>(c, alpha, a, b, beta, ncols)
+        }
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU has AVX2 and FMA (checked at run time just above).
+            return unsafe { fused(c, alpha, a, b, beta, ncols) };
+        }
+    }
+    gemm_kernel::<false>(c, alpha, a, b, beta, ncols)
+}
+
+/// `x·y + z`, fused (one rounding) when `FUSED`: only in code compiled with FMA, where it is a
+/// single instruction (elsewhere `mul_add` is a slow library call).
+#[inline(always)]
+fn madd<const FUSED: bool>(x: f64, y: f64, z: f64) -> f64 {
+    if FUSED { x.mul_add(y, z) } else { x * y + z }
+}
+
+#[inline(always)]
+fn gemm_kernel<const FUSED: bool>(
     c: &mut DMatrix<f64>,
     alpha: f64,
     a: &DMatrix<f64>,
@@ -195,18 +241,19 @@ pub fn gemm_columns(
             let (a1, rest) = rest.split_at(m);
             let (a2, a3) = rest.split_at(m);
             for i in 0..m {
-                cj[i] += a0[i] * s[0] + a1[i] * s[1] + a2[i] * s[2] + a3[i] * s[3];
+                let x = madd::<FUSED>(a0[i], s[0], a1[i] * s[1]);
+                let y = madd::<FUSED>(a2[i], s[2], a3[i] * s[3]);
+                cj[i] += x + y;
             }
             k += 4;
         }
         for k in k..kdim {
             let s = alpha * bj[k];
             for (ci, ai) in cj.iter_mut().zip(&a_s[k * m..(k + 1) * m]) {
-                *ci += ai * s;
+                *ci = madd::<FUSED>(*ai, s, *ci);
             }
         }
     }
-}
 }
 
 wide_fn! {

@@ -120,10 +120,12 @@ pub fn semidefinite_solve_columns(l: &DMatrix<f64>, dropped: &[bool], b: &mut DM
             }
             continue;
         }
-        let d = s[k * n + k];
+        // One division per row, not per column (a product by the reciprocal differs from the
+        // quotient by at most an ulp).
+        let inv = 1.0 / s[k * n + k];
         let lk = &s[k * n + k + 1..(k + 1) * n];
         for bc in bs.chunks_exact_mut(n) {
-            let bk = bc[k] / d;
+            let bk = bc[k] * inv;
             bc[k] = bk;
             for (bi, lik) in bc[k + 1..].iter_mut().zip(lk) {
                 *bi -= bk * lik;
@@ -132,12 +134,12 @@ pub fn semidefinite_solve_columns(l: &DMatrix<f64>, dropped: &[bool], b: &mut DM
     }
     for i in (0..n).rev() {
         let li = &s[i * n + i + 1..(i + 1) * n];
-        let d = s[i * n + i];
+        let inv = 1.0 / s[i * n + i];
         for bc in bs.chunks_exact_mut(n) {
             bc[i] = if dropped[i] {
                 0.0
             } else {
-                (bc[i] - super::dot_unrolled(li, &bc[i + 1..])) / d
+                (bc[i] - super::dot_unrolled(li, &bc[i + 1..])) * inv
             };
         }
     }
