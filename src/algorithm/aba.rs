@@ -50,9 +50,9 @@ pub fn aba<'a>(
     for i in 1..nb {
         let b = &model.bodies[i];
         let j = &b.joint;
-        let li = b
-            .placement
-            .compose(&j.kind.transform(&q[j.idx_q..j.idx_q + j.kind.nq()]));
+        let li = j
+            .kind
+            .placed(&b.placement, &q[j.idx_q..j.idx_q + j.kind.nq()]);
         data.li_m_i[i] = li;
         data.o_m_i[i] = data.o_m_i[b.parent].compose(&li);
         let mut vj = Motion::zero();

@@ -10,9 +10,9 @@ pub fn forward_kinematics_pos(model: &Model, data: &mut Data, q: &[f64]) {
     for i in 1..model.nbodies() {
         let b = &model.bodies[i];
         let j = &b.joint;
-        data.li_m_i[i] = b
-            .placement
-            .compose(&j.kind.transform(&q[j.idx_q..j.idx_q + j.kind.nq()]));
+        data.li_m_i[i] = j
+            .kind
+            .placed(&b.placement, &q[j.idx_q..j.idx_q + j.kind.nq()]);
         data.o_m_i[i] = data.o_m_i[b.parent].compose(&data.li_m_i[i]);
     }
 }
@@ -23,9 +23,9 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], 
     for i in 1..model.nbodies() {
         let b = &model.bodies[i];
         let j = &b.joint;
-        data.li_m_i[i] = b
-            .placement
-            .compose(&j.kind.transform(&q[j.idx_q..j.idx_q + j.kind.nq()]));
+        data.li_m_i[i] = j
+            .kind
+            .placed(&b.placement, &q[j.idx_q..j.idx_q + j.kind.nq()]);
         data.o_m_i[i] = data.o_m_i[b.parent].compose(&data.li_m_i[i]);
         let (vj, aj) = joint_motion(j, v, a);
         let vi = data.li_m_i[i].act_inv_motion(&data.v[b.parent]) + vj;

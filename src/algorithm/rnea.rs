@@ -37,9 +37,9 @@ fn rnea_impl<'a>(
     for i in 1..model.nbodies() {
         let b = &model.bodies[i];
         let j = &b.joint;
-        let li = b
-            .placement
-            .compose(&j.kind.transform(&q[j.idx_q..j.idx_q + j.kind.nq()]));
+        let li = j
+            .kind
+            .placed(&b.placement, &q[j.idx_q..j.idx_q + j.kind.nq()]);
         data.li_m_i[i] = li;
         data.o_m_i[i] = data.o_m_i[b.parent].compose(&li);
         let mut vj = Motion::zero();

@@ -127,9 +127,9 @@ pub fn pivot_ratios(model: &Model, q: &[f64]) -> Vec<(usize, f64, f64)> {
     for i in 1..nb {
         let b = &model.bodies[i];
         let j = &b.joint;
-        let li = b
-            .placement
-            .compose(&j.kind.transform(&q[j.idx_q..j.idx_q + j.kind.nq()]));
+        let li = j
+            .kind
+            .placed(&b.placement, &q[j.idx_q..j.idx_q + j.kind.nq()]);
         o_m_i[i] = o_m_i[b.parent].compose(&li);
     }
     let rigid: Vec<Matrix6<f64>> = (0..nb)
