@@ -67,30 +67,8 @@ pub(crate) fn solve_kkt_derivatives(cd: &ConstraintData, dd: &mut DerivativeData
     }
     null_space_of_schur(j, dd);
 
-    // q: R₁ = −∂(RNEA − Jᵀλ)/∂q, R₂ = −rows_dq.
-    if dd.rho == 0.0 {
-        gemm_into(&mut dd.rhs_v, -1.0, &dd.minv, &dd.dtau_dq, 0.0);
-    } else {
-        dd.r1.copy_from(&dd.dtau_dq);
-        dd.r1.neg_mut();
-        gemm_tr_into(&mut dd.r1, -dd.rho, j, &dd.rows_dq, 1.0);
-        gemm_into(&mut dd.rhs_v, 1.0, &dd.minv, &dd.r1, 0.0);
-    }
-    gemm_into(&mut dd.rhs_c, -1.0, j, &dd.rhs_v, 0.0);
-    dd.rhs_c -= &dd.rows_dq;
-    solve_columns(dd, Input::Q);
-    // v
-    if dd.rho == 0.0 {
-        gemm_into(&mut dd.rhs_v, -1.0, &dd.minv, &dd.dtau_dv, 0.0);
-    } else {
-        dd.r1.copy_from(&dd.dtau_dv);
-        dd.r1.neg_mut();
-        gemm_tr_into(&mut dd.r1, -dd.rho, j, &dd.rows_dv, 1.0);
-        gemm_into(&mut dd.rhs_v, 1.0, &dd.minv, &dd.r1, 0.0);
-    }
-    gemm_into(&mut dd.rhs_c, -1.0, j, &dd.rhs_v, 0.0);
-    dd.rhs_c -= &dd.rows_dv;
-    solve_columns(dd, Input::V);
+    solve_state_input(j, dd, Input::Q);
+    solve_state_input(j, dd, Input::V);
     // τ: R₁ = 1, R₂ = 0.
     if !dd.with_tau {
         return;
@@ -103,6 +81,38 @@ pub(crate) fn solve_kkt_derivatives(cd: &ConstraintData, dd: &mut DerivativeData
         }
     }
     solve_columns(dd, Input::Tau);
+}
+
+/// Input q or v: R₁ = −∂(RNEA − Jᵀλ)/∂x, R₂ = −rows_dx; rhs_v = M⁻¹ R₁ (augmented: R₁ + ρ JᵀR₂),
+/// rhs_c = R₂ − J rhs_v, then the solve.
+fn solve_state_input(j: &nalgebra::DMatrix<f64>, dd: &mut DerivativeData, input: Input) {
+    let DerivativeData {
+        dtau_dq,
+        dtau_dv,
+        rows_dq,
+        rows_dv,
+        r1,
+        rhs_v,
+        rhs_c,
+        minv,
+        rho,
+        ..
+    } = dd;
+    let (dtau, rows) = match input {
+        Input::Q => (&*dtau_dq, &*rows_dq),
+        _ => (&*dtau_dv, &*rows_dv),
+    };
+    if *rho == 0.0 {
+        gemm_into(rhs_v, -1.0, minv, dtau, 0.0);
+    } else {
+        r1.copy_from(dtau);
+        r1.neg_mut();
+        gemm_tr_into(r1, -*rho, j, rows, 1.0);
+        gemm_into(rhs_v, 1.0, minv, r1, 0.0);
+    }
+    gemm_into(rhs_c, -1.0, j, rhs_v, 0.0);
+    *rhs_c -= rows;
+    solve_columns(dd, input);
 }
 
 #[derive(Clone, Copy)]
