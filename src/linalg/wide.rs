@@ -3,6 +3,9 @@
 //! the x86-64 baseline (SSE2, what a portable build may assume) and for AVX2, and chosen at run
 //! time. The body is plain safe code: no intrinsics, no change of arithmetic (no FMA
 //! contraction), so both versions give the same numbers; AVX2 only does four lanes at once.
+//! The one exception is the product `gemm_columns` (dense.rs), which has its own AVX2 + FMA
+//! build with fused multiply-adds: its results differ in the last bits between CPUs with and
+//! without FMA (never between runs on one machine).
 
 /// `fn name(args) -> ret { body }`, run through an AVX2 build of `body` when the CPU has AVX2.
 macro_rules! wide_fn {
