@@ -56,11 +56,8 @@ pub(super) fn inertia_defect(mass: f64, inertia_com: &Matrix3<f64>) -> Option<St
 /// moment, or the triangle-inequality excess c − a − b (sorted a ≤ b ≤ c), whichever is larger;
 /// ≤ 0 when it is physical.
 fn unphysical_amount(inertia_com: &Matrix3<f64>) -> f64 {
-    let mut ev: Vec<f64> = SymmetricEigen::new(*inertia_com)
-        .eigenvalues
-        .iter()
-        .copied()
-        .collect();
+    let e = SymmetricEigen::new(*inertia_com).eigenvalues;
+    let mut ev = [e[0], e[1], e[2]];
     ev.sort_by(f64::total_cmp);
     (-ev[0]).max(ev[2] - ev[0] - ev[1])
 }
