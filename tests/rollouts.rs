@@ -103,3 +103,36 @@ fn rollouts_refuse_a_bad_step() {
         assert!(e.is_err(), "step {step} accepted");
     }
 }
+
+/// The batch's work is bounded as a whole, before running: RK4's work (12 evaluation costs per
+/// step, the error-estimate companion counted) over 4 rollouts of 10 steps = 480 evaluation
+/// costs of the model; max_work set to fit 2 rollouts refuses 4 and runs 2.
+#[test]
+fn rollouts_bound_the_batch_work() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let scene = Scene::load(root.join("params/suite_diff_drive.yaml")).unwrap();
+    let mut predictor = Predictor::from_scene(&scene).unwrap();
+    predictor.settings.method = constraint_dynamics::predict::Method::Rk4;
+    predictor.settings.dt = 0.005;
+    predictor.actuators.control_period = 0.005;
+    let cost = constraint_dynamics::limits::evaluation_cost(&predictor.sys.model);
+    // One rollout: 2 commands × 0.025 s = 10 steps × 12 = 120 costs; 2 rollouts 240.
+    predictor.settings.max_work = 250.0 * cost;
+    let opts = RolloutOptions {
+        step: 0.025,
+        threads: 1,
+        ..Default::default()
+    };
+    let e = predictor
+        .rollouts(&scene.q0, &scene.v0, &sequences(4, 2), opts)
+        .unwrap_err();
+    assert!(
+        matches!(e, constraint_dynamics::Error::WorkLimit { .. }),
+        "{e}"
+    );
+    let two = predictor
+        .rollouts(&scene.q0, &scene.v0, &sequences(2, 2), opts)
+        .unwrap();
+    assert_eq!(two.len(), 2);
+    assert_eq!(two[0].steps, 10);
+}

@@ -1,13 +1,13 @@
 //! Fuzzing every ROS request type without DDS (issue 15): the pure handlers the ROS plumbing
-//! calls — `get_constraint_forces`, `project_velocity`, `filter_command`, `predict` — and the
-//! predictor's inputs (joint states, odometry, twist commands, `/robot_description` text), fed
-//! hostile floats (NaN, ±∞, ±1e308, 1e-300, −0), wrong-length arrays (0, n−1, n+1, 10 000),
+//! calls — `get_constraint_forces`, `project_velocity`, `filter_command`, `predict`, `rollouts` —
+//! and the predictor's inputs (joint states, odometry, twist commands, `/robot_description`
+//! text), fed hostile floats (NaN, ±∞, ±1e308, 1e-300, −0), wrong-length arrays (0, n−1, n+1, 10 000),
 //! unknown / duplicated / empty / unicode joint names, big command lists and odd timestamps.
 //!
 //! Property per call: no panic; the response is `success = false` with a non-empty message, or
 //! every float in it is finite (a message serialised to JSON turns NaN and ±∞ into `null`, so
 //! "no `null` anywhere" is "every float finite"); and each call takes less than [`BOUND`] of
-//! CPU time.
+//! its thread's CPU time (`rollouts`: [`ROLLOUTS_BOUND`] of the process's).
 //!
 //! No DDS participant is opened: the nodes are built as `nodes/src/predictor/tests.rs` builds
 //! one (`Robot::load` + `NodeLogic::new`). 512 cases per target by default with a fixed seed
@@ -16,7 +16,7 @@
 use constraint_dynamics_nodes::forces::{ForcesNode, ForcesParams};
 use constraint_dynamics_nodes::msg::builtin_interfaces::Time;
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::{
-    GetConstraintForcesRequest, PredictRequest, ProjectVelocityRequest,
+    GetConstraintForcesRequest, PredictRequest, ProjectVelocityRequest, RolloutsRequest,
 };
 use constraint_dynamics_nodes::msg::geometry_msgs::{Twist, Vector3};
 use constraint_dynamics_nodes::msg::nav_msgs::Odometry;
@@ -40,15 +40,19 @@ use std::time::{Duration, Instant};
 /// test's own parallel targets would otherwise stretch.
 const BOUND: Duration = Duration::from_secs(2);
 
-/// CPU time used by the calling thread so far.
-fn thread_cpu_time() -> Duration {
+/// The bound on one `~/rollouts` call, whose work runs on its own worker threads: CPU time of
+/// the whole process, which also counts the other targets running beside it (an over-count).
+const ROLLOUTS_BOUND: Duration = Duration::from_secs(8);
+
+/// CPU time used so far by the calling thread (`CLOCK_THREAD_CPUTIME_ID`) or the process.
+fn cpu_time(clock: libc::clockid_t) -> Duration {
     let mut ts = libc::timespec {
         tv_sec: 0,
         tv_nsec: 0,
     };
-    // SAFETY: `ts` is a valid, writable timespec; CLOCK_THREAD_CPUTIME_ID needs nothing else.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    assert_eq!(rc, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID) failed");
+    // SAFETY: `ts` is a valid, writable timespec; the clock ids need nothing else.
+    let rc = unsafe { libc::clock_gettime(clock, &mut ts) };
+    assert_eq!(rc, 0, "clock_gettime({clock}) failed");
     Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32)
 }
 
@@ -208,12 +212,16 @@ fn judge(what: &str, success: bool, message: &str, resp: &impl Serialize) -> Res
 }
 
 fn timed<T>(what: &str, f: impl FnOnce() -> T) -> T {
-    let (cpu0, wall0) = (thread_cpu_time(), Instant::now());
+    timed_on(libc::CLOCK_THREAD_CPUTIME_ID, BOUND, what, f)
+}
+
+fn timed_on<T>(clock: libc::clockid_t, bound: Duration, what: &str, f: impl FnOnce() -> T) -> T {
+    let (cpu0, wall0) = (cpu_time(clock), Instant::now());
     let out = f();
-    let cpu = thread_cpu_time() - cpu0;
+    let cpu = cpu_time(clock) - cpu0;
     assert!(
-        cpu < BOUND,
-        "{what} took {cpu:?} of CPU ({:?} of wall time; bound {BOUND:?})",
+        cpu < bound,
+        "{what} took {cpu:?} of CPU ({:?} of wall time; bound {bound:?})",
         wall0.elapsed()
     );
     out
@@ -374,6 +382,45 @@ proptest! {
         };
         let r = timed("predict", || n.predict(&req, now));
         judge("predict", r.success, &r.message, &r).map_err(TestCaseError::fail)?;
+    }
+
+    /// `~/rollouts` under limits that keep a case small (8 sequences of at most 0.5 s).
+    #[test]
+    fn rollouts_hostile(
+        use_latest_state in any::<bool>(),
+        q in floats(9),
+        v in floats(9),
+        commands in prop_oneof![
+            8 => prop::collection::vec(twist(), 0..24),
+            1 => prop::collection::vec(twist(), 10_000),
+        ],
+        sequence_length in prop_oneof![4 => 1..6u32, 1 => Just(0u32), 1 => any::<u32>()],
+        step in prop_oneof![4 => 0.01..0.2f64, 1 => hostile(), 1 => Just(1e-300), 1 => Just(-1.0)],
+        with_forces in any::<bool>(),
+        js in prop::collection::vec(joint_state(), 0..2),
+        od in prop::collection::vec(odometry(), 0..2),
+        now in stamp(),
+    ) {
+        let params = PredictionParams {
+            max_rollouts: 8,
+            max_horizon: 0.5,
+            rollout_threads: 2,
+            ..Default::default()
+        };
+        let mut n: PredictionNode = node(params);
+        feed(n.robot_mut(), &js, &od);
+        let req = RolloutsRequest {
+            use_latest_state, q, v, commands, sequence_length, step, with_forces,
+        };
+        let clock = libc::CLOCK_PROCESS_CPUTIME_ID;
+        let r = timed_on(clock, ROLLOUTS_BOUND, "rollouts", || n.rollouts(&req, now));
+        judge("rollouts", r.success, &r.message, &r).map_err(TestCaseError::fail)?;
+        if r.success {
+            let len = req.sequence_length as usize;
+            prop_assert_eq!(r.poses.len(), req.commands.len());
+            prop_assert_eq!(r.twists.len(), req.commands.len());
+            prop_assert!(len > 0 && req.commands.len().is_multiple_of(len));
+        }
     }
 
     /// The predictor: commands (plain twists) and state messages in, a tick out.

@@ -18,7 +18,7 @@ use constraint_dynamics::algorithm::{forward_kinematics_pos, frame_placement};
 use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::constraints::ConstraintForce as CoreForce;
 use constraint_dynamics::dynamics::Formulation;
-use constraint_dynamics::predict::{Predictor, drift};
+use constraint_dynamics::predict::{PredictOptions, Predictor, drift};
 use constraint_dynamics::projection::{
     PerCoordinate, ProjectionRequest, Status, VelocityProjector, project_system,
 };
@@ -26,7 +26,7 @@ use constraint_dynamics::{Scene, System};
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::ConstraintForces;
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::{
     GetConstraintForces, GetConstraintForcesRequest, Predict, PredictRequest, ProjectVelocity,
-    ProjectVelocityRequest,
+    ProjectVelocityRequest, Rollouts, RolloutsRequest,
 };
 use constraint_dynamics_nodes::msg::geometry_msgs::{Point, Pose, Quaternion};
 use constraint_dynamics_nodes::msg::nav_msgs::{Odometry, Path};
@@ -524,6 +524,72 @@ fn suite_matches_the_core_library() {
     println!(
         "{TEST}: predict ({} samples) = core; {}",
         r.times.len(),
+        r.message
+    );
+
+    // ---- ~/rollouts: each rollout is the core's single prediction of that sequence -----------
+    let rollouts = t.client::<Rollouts>("/cd_prediction/rollouts");
+    let sequences = [
+        [(0.4, 0.3), (0.2, -0.5)],
+        [(0.0, 0.0), (-0.3, 0.8)],
+        [(0.5, 0.0), (0.5, 0.0)],
+    ];
+    let (len, step) = (2, 0.25);
+    let r = call(
+        &rollouts,
+        RolloutsRequest {
+            use_latest_state: false,
+            q: state.q.clone(),
+            v: state.v.clone(),
+            commands: sequences
+                .iter()
+                .flatten()
+                .map(|&(v, w)| twist(v, w))
+                .collect(),
+            sequence_length: len as u32,
+            step,
+            with_forces: true,
+        },
+    );
+    assert!(r.success, "{}", r.message);
+    assert_eq!(r.header.frame_id, "odom");
+    assert_eq!((r.poses.len(), r.twists.len(), r.forces.len()), (6, 6, 6));
+    for (j, seq) in sequences.iter().enumerate() {
+        let cmds: Vec<(f64, Command)> = seq
+            .iter()
+            .enumerate()
+            .map(|(k, &(v, w))| (step * k as f64, core.command([v, w], &state.q)))
+            .collect();
+        let mut single = Predictor::from_scene(&scene).unwrap();
+        single.settings.sample_period = step;
+        single.settings.error_estimate = false;
+        let forces = PredictOptions { forces: true };
+        let traj = single
+            .predict_with(&state.q, &state.v, &cmds, len as f64 * step, forces)
+            .unwrap();
+        assert_eq!(traj.samples.len(), len + 1);
+        for (k, s) in traj.samples[1..].iter().enumerate() {
+            let i = j * len + k;
+            let what = format!("rollout {j} step {k}");
+            assert_close(&what, &pose_of(&r.poses[i]), &s.q[..3], TOL);
+            let tw = &r.twists[i];
+            let expected = scene.model.base_twist(&s.v);
+            assert_close(
+                &what,
+                &[tw.linear.x, tw.linear.y, tw.angular.z],
+                &[expected.linear[0], expected.linear[1], expected.angular[2]],
+                TOL,
+            );
+            let lam: Vec<f64> = r.forces[i]
+                .constraints
+                .iter()
+                .flat_map(|c| c.multipliers.clone())
+                .collect();
+            assert_close(&what, &lam, s.lambda.as_ref().unwrap(), 1e-8);
+        }
+    }
+    println!(
+        "{TEST}: rollouts (3 × 2 steps) = core single predictions; {}",
         r.message
     );
 

@@ -7,6 +7,7 @@
 //! [`Predictor::predict_with`] call (commands started at 0, step, 2·step, …, horizon
 //! len · step, a sample after every step): its result equals that single prediction bit for bit.
 
+use super::guard::check_work;
 use super::run::Predictor;
 use super::trajectory::{PredictOptions, Trajectory};
 use crate::actuators::Command;
@@ -41,7 +42,8 @@ impl Predictor {
     /// sequence k holds `sequences[k][i]` over [i·step, (i+1)·step). The scene's integration
     /// settings apply except the sample period, which is `step` — set `error_estimate: false`
     /// for planners: the estimate's companion run doubles each rollout's work. Fails with the
-    /// first failing rollout's error.
+    /// first failing rollout's error. The whole batch's work is bounded by the scene's
+    /// `max_work`, checked before running for the fixed-step methods.
     pub fn rollouts(
         &self,
         q0: &[f64],
@@ -55,6 +57,17 @@ impl Predictor {
                 opts.step
             )));
         }
+        // The batch is bounded as a whole: its work (fixed-step methods: counted before running)
+        // must fit `max_work` as one prediction over n × the longest horizon would, and each
+        // rollout gets max_work / n of it (adaptive methods count while running).
+        let n = sequences.len().max(1) as f64;
+        let longest = sequences.iter().map(Vec::len).max().unwrap_or(0) as f64 * opts.step;
+        let mut batch = self.settings.clone();
+        batch.sample_period = opts.step;
+        batch.max_steps *= n;
+        batch.max_samples *= n;
+        let control = (!self.actuators.is_empty()).then_some(self.actuators.control_period);
+        check_work(&batch, &self.model, control, longest * n)?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(opts.threads)
             .build()
@@ -76,6 +89,7 @@ impl Predictor {
                     let p = slot.get_or_insert_with(|| {
                         let mut p = self.clone();
                         p.settings.sample_period = opts.step;
+                        p.settings.max_work /= n;
                         p
                     });
                     let timed: Vec<(f64, Command)> = seq

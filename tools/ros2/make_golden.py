@@ -44,7 +44,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from nav_msgs.msg import Odometry, Path
 from constraint_dynamics_msgs.msg import ConstraintForce, ConstraintForces
-from constraint_dynamics_msgs.srv import GetConstraintForces, Predict, ProjectVelocity
+from constraint_dynamics_msgs.srv import GetConstraintForces, Predict, ProjectVelocity, Rollouts
 
 
 def to_plain(value):
@@ -317,6 +317,27 @@ def cases():
     resp.covariances = [0.01, -0.0, 0.0, 0.0025, 0.0125, 0.001, 0.001, 0.003,
                         0.02, 0.002, 0.002, 0.004]
     out["constraint_dynamics_msgs__Predict_Response"] = resp
+
+    req = Rollouts.Request()
+    req.use_latest_state = True
+    req.q = []
+    req.v = [0.1, -0.0]
+    req.commands = [twist(0.2, 0.0, 0.0, 0.0, 0.0, 0.1), twist(0.25, 0.0, 0.0, 0.0, 0.0, -0.1),
+                    twist(-0.5, 0.0, 0.0, 0.0, 0.0, 1.0), twist(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)]
+    req.sequence_length = 2  # uint32 after a sequence, before a float64: padding
+    req.step = 0.05
+    req.with_forces = True
+    out["constraint_dynamics_msgs__Rollouts_Request"] = req
+
+    resp = Rollouts.Response()
+    resp.success = True
+    resp.message = "2 rollouts × 2 steps"
+    resp.header = header("odom")
+    resp.poses = [pose(0.01, 0.0, 0.0, 0.0, 0.0, 0.0025, 1.0), pose(0.02, 1e-4, 0.0, 0.0, 0.0, 0.005, 1.0),
+                  pose(-0.025, 0.0, 0.0, 0.0, 0.0, 0.025, 0.9996875), pose(-0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)]
+    resp.twists = [twist(0.2, 0.0, 0.0, 0.0, 0.0, 0.1), twist(0.25, 0.0, 0.0, 0.0, 0.0, -0.1)]
+    resp.forces = [constraint_forces(1, sec=1_700_000_500)]
+    out["constraint_dynamics_msgs__Rollouts_Response"] = resp
 
     out["geometry_msgs__WrenchStamped"] = WrenchStamped(
         header=header("left_wheel"), wrench=Wrench(force=vec3(0.0, -3.0, 50.0),

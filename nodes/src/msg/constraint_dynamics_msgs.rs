@@ -62,8 +62,9 @@ pub mod srv {
 
     use super::ConstraintForces;
     use crate::msg::RosService;
-    use crate::msg::geometry_msgs::Twist;
+    use crate::msg::geometry_msgs::{Pose, Twist};
     use crate::msg::nav_msgs::Path;
+    use crate::msg::std_msgs::Header;
 
     /// Implements [`RosService`] for a marker type and [`ros2_client::Message`]
     /// for its request and response.
@@ -193,4 +194,35 @@ pub mod srv {
     }
 
     ros_service!(Predict, PredictRequest, PredictResponse);
+
+    /// Request of `Rollouts`.
+    #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct RolloutsRequest {
+        pub use_latest_state: bool,
+        pub q: Vec<f64>,
+        pub v: Vec<f64>,
+        /// N sequences of `sequence_length` base twists, concatenated.
+        pub commands: Vec<Twist>,
+        pub sequence_length: u32,
+        /// How long each command is held; the sampling period [s].
+        pub step: f64,
+        pub with_forces: bool,
+    }
+
+    /// Response of `Rollouts`.
+    #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct RolloutsResponse {
+        pub success: bool,
+        pub message: String,
+        /// The odom frame and the start time.
+        pub header: Header,
+        /// Base pose after each step, N × sequence_length, sequence after sequence.
+        pub poses: Vec<Pose>,
+        /// Base twist in the base frame after each step, as `poses`.
+        pub twists: Vec<Twist>,
+        /// Constraint forces after each step, as `poses` (with `with_forces`).
+        pub forces: Vec<ConstraintForces>,
+    }
+
+    ros_service!(Rollouts, RolloutsRequest, RolloutsResponse);
 }

@@ -4,7 +4,8 @@
 //!
 //! Two layers, both refusing with the parameter and its range named:
 //! - static ranges, checked with every other value ([`super::KindParams::validate`]): `rate`,
-//!   `horizon`, `max_horizon`, `max_commands`, `diagnostics.period`, the footprint's size;
+//!   `horizon`, `max_horizon`, `max_commands`, `max_rollouts`, `max_rollout_samples`,
+//!   `rollout_threads`, `diagnostics.period`, the footprint's size;
 //! - the scene's work limits ([`WorkBudget`], checked when the node is configured and on every
 //!   run-time set): a prediction's steps (horizon / dt for the fixed-step methods, horizon /
 //!   `actuators.control_period`) within `integration.max_steps` and its samples (horizon /
@@ -27,10 +28,27 @@ pub const RATE: (f64, f64) = (0.01, 1000.0);
 pub const MAX_HORIZON: f64 = 3600.0;
 /// The prediction service's `max_commands`.
 pub const MAX_COMMANDS: u32 = 1_000_000;
+/// The prediction service's `max_rollouts` (Nav2 MPPI's `batch_size` is 2000 by default).
+pub const MAX_ROLLOUTS: u32 = 100_000;
+/// The prediction service's `max_rollout_samples`: 1e7 poses, twists and stamps ≈ 1 GB of reply.
+pub const MAX_ROLLOUT_SAMPLES: u32 = 10_000_000;
+/// The prediction service's `rollout_threads`.
+pub const MAX_THREADS: u32 = 1024;
 /// `diagnostics.period` [s]: a status at most every 10 ms.
 pub const DIAGNOSTICS_PERIOD: (f64, f64) = (0.01, 3600.0);
 /// Vertices of `markers.footprint` (each is drawn at every outline of every prediction).
 pub const MAX_FOOTPRINT_VERTICES: usize = 256;
+
+/// A count within [lo, hi], or an error naming `name`, the value and the range.
+pub(crate) fn count_in_range(name: &str, n: u32, (lo, hi): (u32, u32)) -> Result<(), ParamsError> {
+    if (lo..=hi).contains(&n) {
+        return Ok(());
+    }
+    Err(ParamsError::invalid(
+        name,
+        format!("= {n} is outside its range [{lo}, {hi}]"),
+    ))
+}
 
 /// `x` finite and within [lo, hi], or an error naming `name`, the value and the range.
 pub(crate) fn in_range(

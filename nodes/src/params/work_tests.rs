@@ -57,6 +57,14 @@ fn absurd_values_are_refused_with_their_range() {
         ("max_horizon: 1.0e9", "max_horizon", "[0.001, 3600] s"),
         ("max_horizon: 0.0", "max_horizon", "[0.001, 3600] s"),
         ("max_commands: 4000000000", "max_commands", "[1, 1000000]"),
+        ("max_rollouts: 0", "max_rollouts", "[1, 100000]"),
+        ("max_rollouts: 1000000", "max_rollouts", "[1, 100000]"),
+        (
+            "max_rollout_samples: 4000000000",
+            "max_rollout_samples",
+            "[1, 10000000]",
+        ),
+        ("rollout_threads: 5000", "rollout_threads", "[0, 1024]"),
     ];
     for (body, name, range) in prediction {
         let yaml = format!(

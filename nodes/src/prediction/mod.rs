@@ -1,8 +1,10 @@
 //! `cd_prediction`: a prediction on request (`~/predict`): from the latest state (or one the
 //! request gives), under a sequence of base commands, over a horizon, with the constraint forces
-//! at every sample if asked, and the propagated covariance at every sample if asked.
+//! at every sample if asked, and the propagated covariance at every sample if asked; and
+//! rollouts for sampling planners (`~/rollouts`): N command sequences, N trajectories.
 
 pub mod params;
+mod rollouts;
 pub mod ros;
 
 use constraint_dynamics::predict::{PredictOptions, Predictor};
@@ -11,7 +13,9 @@ use nalgebra::DMatrix;
 use crate::convert::{path_msg, time_plus};
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
-use crate::msg::constraint_dynamics_msgs::srv::{PredictRequest, PredictResponse};
+use crate::msg::constraint_dynamics_msgs::srv::{
+    PredictRequest, PredictResponse, RolloutsRequest, RolloutsResponse,
+};
 use crate::node::worker::{NodeLogic, Reply};
 use crate::params::NodeParams;
 use crate::robot::Robot;
@@ -23,6 +27,8 @@ pub use params::PredictionParams;
 pub enum PredictionInput {
     /// `~/predict`.
     Predict(PredictRequest, Reply<PredictResponse>),
+    /// `~/rollouts`.
+    Rollouts(RolloutsRequest, Reply<RolloutsResponse>),
 }
 
 /// The prediction node's logic: a robot and its predictor.
@@ -70,8 +76,14 @@ impl NodeLogic for PredictionNode {
         self.params = params;
     }
     fn handle(&mut self, input: PredictionInput, now: Time, _out: &mut dyn FnMut(())) {
-        let PredictionInput::Predict(req, reply) = input;
-        let _ = reply.try_send(self.predict(&req, now));
+        match input {
+            PredictionInput::Predict(req, reply) => {
+                let _ = reply.try_send(self.predict(&req, now));
+            }
+            PredictionInput::Rollouts(req, reply) => {
+                let _ = reply.try_send(self.rollouts(&req, now));
+            }
+        }
     }
 }
 

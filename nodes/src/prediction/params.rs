@@ -2,7 +2,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::params::work::{MAX_COMMANDS, MAX_HORIZON, in_range};
+use crate::params::work::{
+    MAX_COMMANDS, MAX_HORIZON, MAX_ROLLOUT_SAMPLES, MAX_ROLLOUTS, MAX_THREADS, count_in_range,
+    in_range,
+};
 use crate::params::{CommandParams, KindParams, ParamsError, WorkBudget};
 
 /// The prediction service (`cd_prediction`).
@@ -14,8 +17,14 @@ pub struct PredictionParams {
     pub command: CommandParams,
     /// Longest horizon a request may ask for [s].
     pub max_horizon: f64,
-    /// Most commands a request may carry.
+    /// Most commands a `~/predict` request may carry.
     pub max_commands: u32,
+    /// Most sequences a `~/rollouts` request may carry.
+    pub max_rollouts: u32,
+    /// Most samples (sequences × sequence length) a `~/rollouts` reply may carry.
+    pub max_rollout_samples: u32,
+    /// Worker threads of `~/rollouts`; 0: one per core.
+    pub rollout_threads: u32,
 }
 
 impl Default for PredictionParams {
@@ -24,6 +33,9 @@ impl Default for PredictionParams {
             command: CommandParams::default(),
             max_horizon: 10.0,
             max_commands: 10_000,
+            max_rollouts: 2000,
+            max_rollout_samples: 200_000,
+            rollout_threads: 0,
         }
     }
 }
@@ -34,16 +46,14 @@ impl KindParams for PredictionParams {
     fn validate(&self) -> Result<(), ParamsError> {
         in_range("max_horizon", self.max_horizon, (1e-3, MAX_HORIZON), "s")?;
         self.command.validate()?;
-        if self.max_commands == 0 || self.max_commands > MAX_COMMANDS {
-            return Err(ParamsError::invalid(
-                "max_commands",
-                format!(
-                    "= {} is outside its range [1, {MAX_COMMANDS}]",
-                    self.max_commands
-                ),
-            ));
-        }
-        Ok(())
+        count_in_range("max_commands", self.max_commands, (1, MAX_COMMANDS))?;
+        count_in_range("max_rollouts", self.max_rollouts, (1, MAX_ROLLOUTS))?;
+        count_in_range(
+            "max_rollout_samples",
+            self.max_rollout_samples,
+            (1, MAX_ROLLOUT_SAMPLES),
+        )?;
+        count_in_range("rollout_threads", self.rollout_threads, (0, MAX_THREADS))
     }
 
     /// A request of `max_horizon` within the scene's limits.

@@ -402,7 +402,8 @@ pub mod qos {
     /// The history depth of service `name`'s request (server) and response (client) readers.
     pub fn service_depth(name: &str) -> usize {
         match name {
-            "Predict" => 10, // never pipelined faster than the executor takes it
+            // Replies of up to megabytes, never pipelined faster than the executor takes them.
+            "Predict" | "Rollouts" => 10,
             _ => SERVER_REQUEST_DEPTH,
         }
     }
