@@ -27,7 +27,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from constraint_dynamics_msgs.msg import ConstraintForces
-from constraint_dynamics_msgs.srv import GetConstraintForces, Predict, ProjectVelocity
+from constraint_dynamics_msgs.srv import GetConstraintForces, Predict, ProjectVelocity, Rollouts
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry, Path
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
@@ -205,6 +205,7 @@ def phase_twist(user):
     want_srv = {"/cd_forces/get_constraint_forces": "constraint_dynamics_msgs/srv/GetConstraintForces",
                 "/cd_projection/project_velocity": "constraint_dynamics_msgs/srv/ProjectVelocity",
                 "/cd_prediction/predict": "constraint_dynamics_msgs/srv/Predict",
+                "/cd_prediction/rollouts": "constraint_dynamics_msgs/srv/Rollouts",
                 "/cd_predictor/get_parameters": "rcl_interfaces/srv/GetParameters",
                 "/cd_predictor/set_parameters": "rcl_interfaces/srv/SetParameters"}
     deadline = time.monotonic() + 10
@@ -299,6 +300,26 @@ def phase_twist(user):
         ok = err < 3e-3
     check("service predict: the returned path ends on the closed-form arc (3 mm)", ok,
           None if resp is None else resp.message)
+
+    # Rollouts: sequence 0 holds the start twist (the closed-form arc), sequence 1 turns the
+    # other way after 1 s, sequence 2 repeats sequence 0 (computed on another thread or not:
+    # the same numbers).
+    other = Twist(); other.linear.x, other.angular.z = 0.5, -0.4
+    req = Rollouts.Request(use_latest_state=False, q=q, v=v, commands=[cmd] * 4 + [cmd] * 2 + [other] * 2 + [cmd] * 4,
+                           sequence_length=4, step=0.5)
+    resp = user.call(Rollouts, "/cd_prediction/rollouts", req)
+    ok = resp is not None and resp.success and len(resp.poses) == len(resp.twists) == 12 \
+        and resp.header.frame_id == "odom"
+    detail = None if resp is None else resp.message
+    if ok:
+        p = resp.poses[3]
+        x, y, th = arc(0.0, 0.0, 0.0, 0.5, 0.4, 2.0)
+        err = max(abs(p.position.x - x), abs(p.position.y - y), abs(wrap(yaw_of(p.orientation) - th)))
+        same = all(resp.poses[k] == resp.poses[8 + k] for k in range(4))
+        turned = yaw_of(resp.poses[7].orientation) < yaw_of(resp.poses[3].orientation) - 0.5
+        ok = err < 3e-3 and same and turned
+        detail = f"{resp.message}; arc error {err:.1e}, repeat equal {same}, second turned back {turned}"
+    check("service rollouts: 3 sequences, the first on the closed-form arc (3 mm), a repeat equal", ok, detail)
 
     # Forces along the prediction, over a short horizon (keeps the run short; replies of
     # hundreds of kB are checked by nodes/tests/large_replies.rs).
