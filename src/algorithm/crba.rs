@@ -1,7 +1,6 @@
 //! Composite rigid-body algorithm: the joint-space inertia matrix M(q).
 
 use super::Data;
-use crate::linalg::NO_PARENT;
 use crate::model::{JointKind, Model};
 use crate::spatial::{Motion, OriginInertia};
 use nalgebra::DMatrix;
@@ -11,13 +10,16 @@ use nalgebra::DMatrix;
 /// Everything in world axes, so no force is carried from frame to frame: with `ᵒS_c` the world
 /// subspace column of velocity coordinate c and `ᵒY_i` the composite inertia of the subtree of
 /// body i (c's body),
-///   `M[r, c] = ᵒS_rᵀ (ᵒY_i ᵒS_c)` for every coordinate r on the path from c to the root,
+///   `M[c, r] = ᵒS_rᵀ F_c`, `F_c = ᵒY_i ᵒS_c`, for every coordinate c that r moves,
 /// and `ᵒY_λ(i) += ᵒY_i` on the way back to the root. The composite inertias are kept about the
-/// world origin ([`OriginInertia`]), where summing them is plain addition; the path is walked
-/// through `Model::v_parent`, one flat array. A free-flyer base's six rows of a column are its
-/// force ᵒY_i ᵒS_c expressed in the base frame (its S is the identity there): one transform
-/// instead of six dot products, on every column of a floating robot.
+/// world origin ([`OriginInertia`]), where summing them is plain addition. Coordinates are
+/// numbered depth-first, so the coordinates r moves are one range (`Model::v_subtree_end`),
+/// whose forces are computed when r's body is reached: each row is a run of dot products over
+/// contiguous memory, no walk up the tree. A free-flyer base's six rows of a column are its
+/// force F_c expressed in the base frame (its S is the identity there): one transform instead
+/// of six dot products, on every column of a floating robot.
 pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a DMatrix<f64> {
+    // (One loop for the kinematics and the forward sweep measured 15–25 % slower.)
     super::forward_kinematics_pos(model, data, q);
     crba_after_kinematics(model, data)
 }
@@ -25,21 +27,35 @@ pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a DMatrix<f64
 /// CRBA reusing the placements `o_m_i` of a kinematics pass at the same q.
 pub(crate) fn crba_after_kinematics<'a>(model: &Model, data: &'a mut Data) -> &'a DMatrix<f64> {
     for i in 1..model.nbodies() {
-        let b = &model.bodies[i];
-        let j = &b.joint;
-        let o_m_i = &data.o_m_i[i];
-        data.ycrb[i] = OriginInertia::transformed(&b.inertia, o_m_i);
-        if let JointKind::Revolute { axis, .. } = &j.kind {
-            // A pure rotation: ᵒS = (t × R a, R a), without `act_motion`'s product of R with
-            // the zero linear part.
-            let ang = o_m_i.rotation * axis;
-            data.o_s[j.idx_v] = Motion::new(o_m_i.translation.cross(&ang), ang);
-        } else {
-            for k in 0..j.kind.nv() {
-                data.o_s[j.idx_v + k] = o_m_i.act_motion(&j.subspace[k]);
-            }
+        forward(model, data, i);
+    }
+    backward(model, data)
+}
+
+/// Body i's inertia and subspace columns in world axes.
+#[inline(always)]
+fn forward(model: &Model, data: &mut Data, i: usize) {
+    let b = &model.bodies[i];
+    let j = &b.joint;
+    let o_m_i = &data.o_m_i[i];
+    data.ycrb[i] = OriginInertia::transformed(&b.inertia, o_m_i);
+    if let JointKind::Revolute { axis, aligned, .. } = &j.kind {
+        // A pure rotation: ᵒS = (t × R a, R a), without `act_motion`'s product of R with
+        // the zero linear part; R a is a column of R when a is a frame axis.
+        let ang = match aligned {
+            Some((k, sign)) => o_m_i.rotation.column(*k) * *sign,
+            None => o_m_i.rotation * axis,
+        };
+        data.o_s[j.idx_v] = Motion::new(o_m_i.translation.cross(&ang), ang);
+    } else {
+        for k in 0..j.kind.nv() {
+            data.o_s[j.idx_v + k] = o_m_i.act_motion(&j.subspace[k]);
         }
     }
+}
+
+/// The composite inertias from the leaves to the root, and M.
+fn backward<'a>(model: &Model, data: &'a mut Data) -> &'a DMatrix<f64> {
     let nv = model.nv;
     // Velocity coordinates 0..6 of a free-flyer base (body 1), or none.
     let base_nv = match model.bodies.get(1).map(|b| &b.joint) {
@@ -47,32 +63,40 @@ pub(crate) fn crba_after_kinematics<'a>(model: &Model, data: &'a mut Data) -> &'
         _ => 0,
     };
     let m = data.mass_matrix.as_mut_slice();
-    let (o_s, parent) = (&data.o_s, &model.v_parent);
+    let (o_s, f_crb) = (&data.o_s, &mut data.f_crb);
     for i in (1..model.nbodies()).rev() {
         let b = &model.bodies[i];
         let ji = &b.joint;
         let y = data.ycrb[i];
-        for c in ji.idx_v..ji.idx_v + ji.kind.nv() {
-            let f = y.mul_motion(&o_s[c]);
-            // Column-major: (r, c) at c·nv + r (upper triangle, r ≤ c) and (c, r) at r·nv + c.
-            let mut r = c;
-            while r != NO_PARENT && r >= base_nv {
-                let x = o_s[r].dot(&f);
-                m[c * nv + r] = x;
+        let cols = ji.idx_v..ji.idx_v + ji.kind.nv();
+        for c in cols.clone() {
+            f_crb[c] = y.mul_motion(&o_s[c]);
+        }
+        // Row r against every column r moves (its subtree, one contiguous range of forces
+        // already computed): the lower triangle's column r, contiguous in memory.
+        for r in cols.start.max(base_nv)..cols.end {
+            let s_r = o_s[r];
+            let end = model.v_subtree_end[r];
+            for (c, f) in (r..end).zip(&f_crb[r..end]) {
+                let x = s_r.dot(f);
                 m[r * nv + c] = x;
-                r = parent[r];
-            }
-            if base_nv > 0 {
-                let fb = data.o_m_i[1].act_inv_force(&f);
-                let rows = [fb.lin.x, fb.lin.y, fb.lin.z, fb.ang.x, fb.ang.y, fb.ang.z];
-                for (r, x) in rows.into_iter().enumerate() {
-                    m[c * nv + r] = x;
-                    m[r * nv + c] = x;
-                }
+                m[c * nv + r] = x;
             }
         }
         if b.parent != 0 {
             data.ycrb[b.parent] += y;
+        }
+    }
+    if base_nv > 0 {
+        // Column c's base rows: its force in the base frame (the lower triangle's rows 0..6).
+        let o_m_b = &data.o_m_i[1];
+        for (c, f) in f_crb.iter().enumerate() {
+            let fb = o_m_b.act_inv_force(f);
+            let rows = [fb.lin.x, fb.lin.y, fb.lin.z, fb.ang.x, fb.ang.y, fb.ang.z];
+            for (r, x) in rows.into_iter().enumerate() {
+                m[r * nv + c] = x;
+                m[c * nv + r] = x;
+            }
         }
     }
     &data.mass_matrix

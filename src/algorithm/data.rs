@@ -23,6 +23,8 @@ pub struct Data {
     pub o_s: Vec<Motion>,
     /// Composite inertias (CRBA), world axes.
     pub ycrb: Vec<OriginInertia>,
+    /// Per velocity coordinate c, ᵒY_i ᵒS_c with i its body (CRBA), world axes, nv.
+    pub f_crb: Vec<Force>,
     /// Joint-space inertia matrix M(q), nv × nv, symmetric.
     pub mass_matrix: DMatrix<f64>,
     /// RNEA output τ (or bias h = C v + g when called with q̈ = 0), nv.
@@ -54,6 +56,7 @@ impl Data {
             f: vec![Force::zero(); nb],
             o_s: vec![Motion::zero(); nv],
             ycrb: vec![OriginInertia::default(); nb],
+            f_crb: vec![Force::zero(); nv],
             mass_matrix: DMatrix::zeros(nv, nv),
             tau: DVector::zeros(nv),
             qdd: DVector::zeros(nv),

@@ -118,6 +118,9 @@ pub struct Model {
     /// Per velocity coordinate, the previous coordinate on the path to the root
     /// (`usize::MAX` for none): the sparsity pattern of M's LTL factor.
     pub v_parent: Vec<usize>,
+    /// Per velocity coordinate c, the end (exclusive) of the coordinates that c moves: c and its
+    /// descendants are c..v_subtree_end[c] (coordinates are numbered depth-first).
+    pub v_subtree_end: Vec<usize>,
     /// What the loader accepted but a user should know, one sentence each naming the file and
     /// link (e.g. a non-physical inertia on a link welded to a sound body, which is ignored).
     pub warnings: Vec<String>,
