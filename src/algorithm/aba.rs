@@ -50,11 +50,8 @@ pub fn aba<'a>(
     for i in 1..nb {
         let b = &model.bodies[i];
         let j = &b.joint;
-        let li = j
-            .kind
-            .placed(&b.placement, &q[j.idx_q..j.idx_q + j.kind.nq()]);
-        data.li_m_i[i] = li;
-        data.o_m_i[i] = data.o_m_i[b.parent].compose(&li);
+        super::kinematics::place(model, data, i, q);
+        let li = data.li_m_i[i];
         let mut vj = Motion::zero();
         for k in 0..j.kind.nv() {
             vj += j.subspace[k] * v[j.idx_v + k];

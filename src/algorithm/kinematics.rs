@@ -5,15 +5,24 @@ use crate::model::Model;
 use crate::spatial::{Motion, SE3};
 use nalgebra::Vector3;
 
+/// Body i's placements at q: `li_m_i = placement · X_J(q)`, `o_m_i = o_m_parent · li_m_i`.
+#[inline(always)]
+pub(crate) fn place(model: &Model, data: &mut Data, i: usize, q: &[f64]) {
+    let b = &model.bodies[i];
+    let j = &b.joint;
+    let qi = &q[j.idx_q..j.idx_q + j.kind.nq()];
+    if let Some(o) = b.placed_in_world(qi, &data.o_m_i[b.parent], &mut data.li_m_i[i]) {
+        data.o_m_i[i] = o;
+    } else {
+        data.li_m_i[i] = j.kind.placed(&b.placement, qi);
+        data.o_m_i[i] = data.o_m_i[b.parent].compose(&data.li_m_i[i]);
+    }
+}
+
 /// Joint placements: `li_m_i = placement · X_J(q)`, `o_m_i = o_m_parent · li_m_i`.
 pub fn forward_kinematics_pos(model: &Model, data: &mut Data, q: &[f64]) {
     for i in 1..model.nbodies() {
-        let b = &model.bodies[i];
-        let j = &b.joint;
-        data.li_m_i[i] = j
-            .kind
-            .placed(&b.placement, &q[j.idx_q..j.idx_q + j.kind.nq()]);
-        data.o_m_i[i] = data.o_m_i[b.parent].compose(&data.li_m_i[i]);
+        place(model, data, i, q);
     }
 }
 
@@ -23,10 +32,7 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], 
     for i in 1..model.nbodies() {
         let b = &model.bodies[i];
         let j = &b.joint;
-        data.li_m_i[i] = j
-            .kind
-            .placed(&b.placement, &q[j.idx_q..j.idx_q + j.kind.nq()]);
-        data.o_m_i[i] = data.o_m_i[b.parent].compose(&data.li_m_i[i]);
+        place(model, data, i, q);
         let (vj, aj) = joint_motion(j, v, a);
         let vi = data.li_m_i[i].act_inv_motion(&data.v[b.parent]) + vj;
         data.a[i] = data.li_m_i[i].act_inv_motion(&data.a[b.parent]) + aj + vi.cross_motion(&vj);

@@ -37,11 +37,8 @@ fn rnea_impl<'a>(
     for i in 1..model.nbodies() {
         let b = &model.bodies[i];
         let j = &b.joint;
-        let li = j
-            .kind
-            .placed(&b.placement, &q[j.idx_q..j.idx_q + j.kind.nq()]);
-        data.li_m_i[i] = li;
-        data.o_m_i[i] = data.o_m_i[b.parent].compose(&li);
+        super::kinematics::place(model, data, i, q);
+        let li = data.li_m_i[i];
         let mut vj = Motion::zero();
         let mut aj = Motion::zero();
         for k in 0..j.kind.nv() {

@@ -4,7 +4,6 @@
 use super::check;
 use super::{Body, Frame, Joint, JointKind, Limits, Mimic, Model};
 use crate::error::{Error, Result};
-use crate::linalg::NO_PARENT;
 use crate::spatial::{Inertia, SE3, rotation_from_rpy};
 use nalgebra::{Matrix3, Vector3};
 use serde::Deserialize;
@@ -201,6 +200,7 @@ impl<'a> Builder<'a> {
                 },
                 placement: SE3::identity(),
                 inertia: Inertia::zero(),
+                placement_rotates: false,
             }],
             frames: vec![Frame {
                 name: "world".into(),
@@ -256,7 +256,7 @@ impl<'a> Builder<'a> {
         };
         self.visit(&root, root_body)?;
         self.check_unreachable()?;
-        self.model.v_subtree_end = subtree_ends(&self.model.v_parent);
+        self.model.v_subtree_end = super::subtree_ends(&self.model.v_parent);
         for j in &self.robot.joints {
             if let Some(m) = &j.mimic {
                 self.model.mimics.push(Mimic {
@@ -487,6 +487,7 @@ impl<'a> Builder<'a> {
                 idx_v,
                 subspace,
             },
+            placement_rotates: placement.rotation != Matrix3::identity(),
             placement,
             inertia: Inertia::zero(),
         });
@@ -522,31 +523,4 @@ fn validate_inertial(i: &urdf_rs::Inertial) -> std::result::Result<Option<String
         return Err("<inertia>: entry not finite".into());
     }
     Ok(check::inertia_defect(m, &ic))
-}
-
-/// [`Model::v_subtree_end`] from the parents: a coordinate's range ends past its last
-/// descendant. Depth-first numbering makes every subtree one contiguous range (checked).
-fn subtree_ends(v_parent: &[usize]) -> Vec<usize> {
-    let mut end: Vec<usize> = (1..=v_parent.len()).collect();
-    for c in (0..v_parent.len()).rev() {
-        let p = v_parent[c];
-        if p != NO_PARENT {
-            end[p] = end[p].max(end[c]);
-        }
-    }
-    // Preorder: walking the coordinates in order, each one's parent is the innermost range
-    // still open.
-    let mut open: Vec<usize> = Vec::new();
-    for (d, &p) in v_parent.iter().enumerate() {
-        while open.last().is_some_and(|&a| end[a] <= d) {
-            open.pop();
-        }
-        debug_assert_eq!(
-            open.last().copied().unwrap_or(NO_PARENT),
-            p,
-            "coordinate {d}"
-        );
-        open.push(d);
-    }
-    end
 }

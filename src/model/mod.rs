@@ -18,8 +18,9 @@ pub use joint::JointKind;
 pub use urdf_text::MAX_URDF_MAGNITUDE;
 
 use crate::error::{Error, Result};
+use crate::linalg::NO_PARENT;
 use crate::spatial::{Inertia, Motion, SE3};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// A movable joint between a body and its parent.
 #[derive(Clone, Debug)]
@@ -49,6 +50,43 @@ pub struct Body {
     pub placement: SE3,
     /// Spatial inertia in the body frame (merged links included).
     pub inertia: Inertia,
+    /// Whether `placement` rotates (false: a pure translation, `rpy="0 0 0"`).
+    pub placement_rotates: bool,
+}
+
+impl Body {
+    /// `world_m_body` at q for an aligned revolute joint whose placement does not rotate (most
+    /// URDF joints: `rpy="0 0 0"`), with `parent_m_body` into `li`: two columns of the parent's
+    /// rotation mixed instead of a 3 × 3 product — the same numbers, the product's other terms
+    /// being exact zeros. `None` for every other body (compose [`JointKind::placed`]).
+    #[inline(always)]
+    pub fn placed_in_world(&self, q: &[f64], o_m_parent: &SE3, li: &mut SE3) -> Option<SE3> {
+        let JointKind::Revolute {
+            aligned: Some((i, sign)),
+            ..
+        } = &self.joint.kind
+        else {
+            return None;
+        };
+        if self.placement_rotates {
+            return None;
+        }
+        let (sn, cs) = q[0].sin_cos();
+        let (j, k) = ((*i + 1) % 3, (*i + 2) % 3);
+        let s = sign * sn;
+        let mut r = Matrix3::identity();
+        r[(j, j)] = cs;
+        r[(k, j)] = s;
+        r[(j, k)] = -s;
+        r[(k, k)] = cs;
+        *li = SE3::new(r, self.placement.translation);
+        let (pj, pk) = (o_m_parent.rotation.column(j), o_m_parent.rotation.column(k));
+        let mut o = o_m_parent.rotation;
+        o.set_column(j, &(pj * cs + pk * s));
+        o.set_column(k, &(pk * cs - pj * s));
+        let t = o_m_parent.rotation * self.placement.translation + o_m_parent.translation;
+        Some(SE3::new(o, t))
+    }
 }
 
 /// A named frame rigidly attached to a body (every URDF link is one).
@@ -281,4 +319,31 @@ impl Model {
             ))
         })
     }
+}
+
+/// [`Model::v_subtree_end`] from the parents: a coordinate's range ends past its last
+/// descendant. Depth-first numbering makes every subtree one contiguous range (checked).
+pub(crate) fn subtree_ends(v_parent: &[usize]) -> Vec<usize> {
+    let mut end: Vec<usize> = (1..=v_parent.len()).collect();
+    for c in (0..v_parent.len()).rev() {
+        let p = v_parent[c];
+        if p != NO_PARENT {
+            end[p] = end[p].max(end[c]);
+        }
+    }
+    // Preorder: walking the coordinates in order, each one's parent is the innermost range
+    // still open.
+    let mut open: Vec<usize> = Vec::new();
+    for (d, &p) in v_parent.iter().enumerate() {
+        while open.last().is_some_and(|&a| end[a] <= d) {
+            open.pop();
+        }
+        debug_assert_eq!(
+            open.last().copied().unwrap_or(NO_PARENT),
+            p,
+            "coordinate {d}"
+        );
+        open.push(d);
+    }
+    end
 }
