@@ -50,8 +50,12 @@ pub fn aba<'a>(
     for i in 1..nb {
         let b = &model.bodies[i];
         let j = &b.joint;
-        super::kinematics::place(model, data, i, q);
-        let li = data.li_m_i[i];
+        // (Not `kinematics::place`: its fast path measured 3–6 % slower inside this loop.)
+        let li = j
+            .kind
+            .placed(&b.placement, &q[j.idx_q..j.idx_q + j.kind.nq()]);
+        data.li_m_i[i] = li;
+        data.o_m_i[i] = data.o_m_i[b.parent].compose(&li);
         let mut vj = Motion::zero();
         for k in 0..j.kind.nv() {
             vj += j.subspace[k] * v[j.idx_v + k];
