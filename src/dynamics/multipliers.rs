@@ -33,6 +33,8 @@ const RANK_TOL_PIVOT: f64 = 1e-12;
 pub struct KktWorkspace {
     /// LTL factor of M (or dense Cholesky factor of M + ρ JᵀJ when `augmented`).
     pub l: DMatrix<f64>,
+    /// Reciprocals of the LTL factor's diagonal (nv).
+    pub l_inv_diag: DVector<f64>,
     y: DMatrix<f64>,
     /// First and one-past-last non-zero row of each column of Y.
     support: Vec<(usize, usize)>,
@@ -69,6 +71,7 @@ impl KktWorkspace {
         let (nv, nc) = (model.nv, set.nrows);
         Self {
             l: DMatrix::zeros(nv, nv),
+            l_inv_diag: DVector::zeros(nv),
             y: DMatrix::zeros(nv, nc),
             support: vec![(0, 0); nc],
             s: DMatrix::zeros(nc, nc),
@@ -148,7 +151,14 @@ fn factor_mass(
     let pivots_ok = |l: &DMatrix<f64>, diag: &dyn Fn(usize) -> f64| {
         (0..model.nv).find(|&k| l[(k, k)] * l[(k, k)] < MIN_PIVOT_RATIO * diag(k))
     };
-    if ltl_factor(&mut ws.l, &model.v_parent, 1e-14).is_ok()
+    if ltl_factor(
+        &mut ws.l,
+        &model.v_parent,
+        &model.v_subtree_end,
+        1e-14,
+        ws.l_inv_diag.as_mut_slice(),
+    )
+    .is_ok()
         && pivots_ok(&ws.l, &|k| m[(k, k)]).is_none()
     {
         return Ok(());
@@ -185,18 +195,30 @@ fn factor_mass(
 
 /// `x ← W⁻ᵀ x` and `x ← W⁻¹ x` for the factor W with M = W Wᵀ (W = Lᵀ of the LTL factor,
 /// or the dense Cholesky factor when augmented).
-fn half_solve(model: &Model, ws_l: &DMatrix<f64>, augmented: bool, x: &mut [f64]) {
+fn half_solve(
+    model: &Model,
+    ws_l: &DMatrix<f64>,
+    inv: &DVector<f64>,
+    augmented: bool,
+    x: &mut [f64],
+) {
     if augmented {
         solve_lower(ws_l, x.len(), x)
     } else {
-        ltl_solve_lt(ws_l, &model.v_parent, x)
+        ltl_solve_lt(ws_l, inv.as_slice(), &model.v_parent, x)
     }
 }
-fn half_solve_t(model: &Model, ws_l: &DMatrix<f64>, augmented: bool, x: &mut [f64]) {
+fn half_solve_t(
+    model: &Model,
+    ws_l: &DMatrix<f64>,
+    inv: &DVector<f64>,
+    augmented: bool,
+    x: &mut [f64],
+) {
     if augmented {
         solve_lower_transpose(ws_l, x.len(), x)
     } else {
-        ltl_solve_l(ws_l, &model.v_parent, x)
+        ltl_solve_l(ws_l, inv.as_slice(), &model.v_parent, x)
     }
 }
 
@@ -209,8 +231,20 @@ fn solve_kkt(
     let (nv, nc) = (ws.qdd.len(), set.nrows);
     // q̈_free = M⁻¹ (τ − h) = W⁻ᵀ W⁻¹ (τ − h)
     ws.qdd.copy_from(&ws.rhs);
-    half_solve(model, &ws.l, ws.augmented, ws.qdd.as_mut_slice());
-    half_solve_t(model, &ws.l, ws.augmented, ws.qdd.as_mut_slice());
+    half_solve(
+        model,
+        &ws.l,
+        &ws.l_inv_diag,
+        ws.augmented,
+        ws.qdd.as_mut_slice(),
+    );
+    half_solve_t(
+        model,
+        &ws.l,
+        &ws.l_inv_diag,
+        ws.augmented,
+        ws.qdd.as_mut_slice(),
+    );
     ws.lambda.fill(0.0);
     ws.rank_deficiency = 0;
     ws.inconsistency = 0.0;
@@ -225,7 +259,13 @@ fn solve_kkt(
             ws.y[(i, k)] = cd.j[(k, i)];
         }
         let mut col = ws.y.column_mut(k);
-        half_solve(model, &ws.l, ws.augmented, col.as_mut_slice());
+        half_solve(
+            model,
+            &ws.l,
+            &ws.l_inv_diag,
+            ws.augmented,
+            col.as_mut_slice(),
+        );
         let first = col.iter().position(|&x| x != 0.0).unwrap_or(0);
         let last = col.iter().rposition(|&x| x != 0.0).map_or(0, |i| i + 1);
         ws.support[k] = (first, last.max(first));
@@ -244,7 +284,13 @@ fn solve_kkt(
     }
     // q̈ = q̈_free + L⁻ᵀ (Y λ), generalized force Jᵀλ.
     mat_vec(&ws.y, ws.lambda.as_slice(), ws.tmp.as_mut_slice());
-    half_solve_t(model, &ws.l, ws.augmented, ws.tmp.as_mut_slice());
+    half_solve_t(
+        model,
+        &ws.l,
+        &ws.l_inv_diag,
+        ws.augmented,
+        ws.tmp.as_mut_slice(),
+    );
     ws.qdd += &ws.tmp;
     mat_tr_vec(
         &cd.j,

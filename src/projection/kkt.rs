@@ -62,6 +62,8 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 #[derive(Clone, Debug)]
 struct MassFactor {
     l: DMatrix<f64>,
+    /// Reciprocals of the LTL factor's diagonal.
+    inv_diag: Vec<f64>,
     augmented: bool,
     rho: f64,
 }
@@ -72,7 +74,7 @@ impl MassFactor {
         if self.augmented {
             solve_lower(&self.l, x.len(), x)
         } else {
-            ltl_solve_lt(&self.l, parent, x)
+            ltl_solve_lt(&self.l, &self.inv_diag, parent, x)
         }
     }
     /// `x ← W⁻ᵀ x`.
@@ -80,7 +82,7 @@ impl MassFactor {
         if self.augmented {
             solve_lower_transpose(&self.l, x.len(), x)
         } else {
-            ltl_solve_l(&self.l, parent, x)
+            ltl_solve_l(&self.l, &self.inv_diag, parent, x)
         }
     }
 }
@@ -123,6 +125,7 @@ impl EqualityWorkspace {
             cap,
             factor: MassFactor {
                 l: DMatrix::zeros(nv, nv),
+                inv_diag: vec![0.0; nv],
                 augmented: false,
                 rho: 0.0,
             },
@@ -166,7 +169,15 @@ impl EqualityWorkspace {
         f.l.copy_from(m);
         f.augmented = false;
         f.rho = 0.0;
-        if ltl_factor(&mut f.l, &model.v_parent, 1e-14).is_ok() {
+        if ltl_factor(
+            &mut f.l,
+            &model.v_parent,
+            &model.v_subtree_end,
+            1e-14,
+            &mut f.inv_diag,
+        )
+        .is_ok()
+        {
             return Ok(());
         }
         let rho = (0..model.nv)
