@@ -4,8 +4,9 @@
 use super::{DerivativeData, rnea::rnea_derivatives_with_point_forces};
 use crate::algorithm::{Data, crba, rnea};
 use crate::error::{Error, Result};
-use crate::linalg::{dot_unrolled, gemm_into, spd_inverse};
+use crate::linalg::{dot_unrolled, gemm_into, ltl_factor, ltl_inverse, spd_inverse};
 use crate::model::Model;
+use nalgebra::DMatrix;
 
 /// q̈ = M⁻¹(τ − h) (the forward dynamics ABA computes) into `dd.qdd` and `data.qdd`, and its
 /// derivatives into `dd.dqdd_dq`, `dd.dqdd_dv`, `dd.dqdd_dtau` = `dd.minv` = M⁻¹; `dd.dtau_dq`,
@@ -51,20 +52,48 @@ pub fn aba_derivatives(
     Ok(())
 }
 
-/// M⁻¹ into `dd.minv` from the mass matrix in `data` (after `crba` at the same q), by a
-/// Cholesky factor; fails when M is not positive definite.
+/// M⁻¹ into `dd.minv` from the mass matrix in `data` (after `crba` at the same q), by its
+/// tree-sparse LTL factor ([`ltl_inverse`]); fails when M is not positive definite.
 pub fn inverse_mass_matrix(model: &Model, data: &Data, dd: &mut DerivativeData) -> Result<()> {
-    let nv = model.nv;
-    dd.chol
-        .view_mut((0, 0), (nv, nv))
-        .copy_from(&data.mass_matrix);
-    invert_factor(nv, dd).map_err(|i| Error::SingularMass {
+    invert_mass(model, &data.mass_matrix, dd).map_err(|i| Error::SingularMass {
         message: format!(
             "M is not positive definite at coordinate '{}' (its inverse is needed for the \
              derivatives)",
             model.v_names[i]
         ),
     })
+}
+
+/// M⁻¹ into `dd.minv` through M's LTL factor (`dd.chol` holds L⁻¹) when the tree branches, else
+/// (a single chain: no sparsity to use; the dense path measured 7–9 % faster on ur5 and panda)
+/// by a dense Cholesky factor; Err(pivot) when M is not positive definite.
+pub(crate) fn invert_mass(
+    model: &Model,
+    m: &DMatrix<f64>,
+    dd: &mut DerivativeData,
+) -> std::result::Result<(), usize> {
+    let nv = model.nv;
+    if model
+        .v_parent
+        .iter()
+        .enumerate()
+        .all(|(k, &p)| p == k.wrapping_sub(1))
+    {
+        dd.chol.view_mut((0, 0), (nv, nv)).copy_from(m);
+        return invert_factor(nv, dd);
+    }
+    dd.ltl.copy_from(m);
+    let (parent, ends) = (&model.v_parent, &model.v_subtree_end);
+    ltl_factor(&mut dd.ltl, parent, ends, 1e-14, &mut dd.ltl_inv_diag)?;
+    ltl_inverse(
+        &dd.ltl,
+        &dd.ltl_inv_diag,
+        parent,
+        ends,
+        &mut dd.chol,
+        &mut dd.minv,
+    );
+    Ok(())
 }
 
 /// Factors the symmetric positive-definite leading nv × nv block of `dd.chol` and writes its

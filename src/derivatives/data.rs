@@ -76,6 +76,9 @@ pub struct DerivativeData {
     pub(crate) ext_pdotf: Vec<f64>,
     // Dense scratch of the constrained solve.
     pub(crate) chol: DMatrix<f64>,
+    /// M's LTL factor and its diagonal's reciprocals (for M⁻¹).
+    pub(crate) ltl: DMatrix<f64>,
+    pub(crate) ltl_inv_diag: Vec<f64>,
     /// τ − h of the unconstrained forward dynamics (nv).
     pub(crate) col_scratch: DVector<f64>,
     pub(crate) rows_dq: DMatrix<f64>,
@@ -155,6 +158,8 @@ impl DerivativeData {
             ext_pf: vec![Matrix3::zeros(); nb],
             ext_pdotf: vec![0.0; nb],
             chol: z(nv.max(nc), nv.max(nc)),
+            ltl: z(nv, nv),
+            ltl_inv_diag: vec![0.0; nv],
             col_scratch: DVector::zeros(nv),
             rows_dq: z(nc, nv),
             rows_dv: z(nc, nv),

@@ -2,7 +2,7 @@
 //! augmented M + ρJᵀJ) and the Schur complement K = J M⁻¹ Jᵀ.
 
 use super::DerivativeData;
-use super::aba::invert_factor;
+use super::aba::{invert_factor, invert_mass};
 use crate::algorithm::Data;
 use crate::constraints::ConstraintData;
 use crate::error::{Error, Result};
@@ -31,8 +31,7 @@ pub(crate) fn invert_mass_or_augmented(
     let nv = model.nv;
     let m = &data.mass_matrix;
     dd.rho = 0.0;
-    dd.chol.view_mut((0, 0), (nv, nv)).copy_from(m);
-    if invert_factor(nv, dd).is_ok() {
+    if invert_mass(model, m, dd).is_ok() {
         return Ok(());
     }
     dd.rho = (0..nv).map(|i| m[(i, i)]).fold(1.0, f64::max);

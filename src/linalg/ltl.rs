@@ -92,3 +92,57 @@ pub fn ltl_solve_l(l: &DMatrix<f64>, inv_diag: &[f64], parent: &[usize], y: &mut
         y[k] = s * inv_diag[k];
     }
 }
+
+/// M⁻¹ into the leading n × n block of `out` (both triangles) from M's LTL factor (`l`,
+/// `inv_diag`), through W = L⁻¹ in the leading block of `w`: M⁻¹ = L⁻¹ L⁻ᵀ = Σ_i w_i w_iᵀ over
+/// W's columns. L⁻¹ keeps L's tree sparsity, so column i of W lives on i's subtree — one
+/// contiguous range — and each term is a rank-1 update of that range's block: on
+/// talos_reduced ≈ 5 000 multiply-adds, against n³/2 ≈ 27 000 for a dense factor, inverse and
+/// product.
+pub fn ltl_inverse(
+    l: &DMatrix<f64>,
+    inv_diag: &[f64],
+    parent: &[usize],
+    subtree_end: &[usize],
+    w: &mut DMatrix<f64>,
+    out: &mut DMatrix<f64>,
+) {
+    let n = l.nrows();
+    let (la, ldw, ldo) = (l.as_slice(), w.nrows(), out.nrows());
+    let wa = w.as_mut_slice();
+    // Column i of W solves L w = e_i, root first: for k below i,
+    // W[k,i] = −W[k,k] Σ_{d ancestor of k, d ≥ i} L[k,d] W[d,i].
+    for i in 0..n {
+        let col = &mut wa[i * ldw..i * ldw + n];
+        col[i] = inv_diag[i];
+        for k in i + 1..subtree_end[i] {
+            let mut s = 0.0;
+            let mut d = parent[k];
+            while d != NO_PARENT && d >= i {
+                s += la[d * n + k] * col[d];
+                d = parent[d];
+            }
+            col[k] = -inv_diag[k] * s;
+        }
+    }
+    let oa = out.as_mut_slice();
+    for c in 0..n {
+        oa[c * ldo + c..c * ldo + n].fill(0.0);
+    }
+    // The lower triangle, one rank-1 update per column of W.
+    for i in 0..n {
+        let seg = &wa[i * ldw + i..i * ldw + subtree_end[i]];
+        for (c, &x) in seg.iter().enumerate() {
+            let col = i + c;
+            let dst = &mut oa[col * ldo + col..col * ldo + subtree_end[i]];
+            for (o, &y) in dst.iter_mut().zip(&seg[c..]) {
+                *o += x * y;
+            }
+        }
+    }
+    for c in 1..n {
+        for r in 0..c {
+            oa[c * ldo + r] = oa[r * ldo + c];
+        }
+    }
+}

@@ -16,7 +16,7 @@ pub use dense::{
     gemm_tr_into, inverse_from_cholesky, mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
     spd_inverse,
 };
-pub use ltl::{NO_PARENT, ltl_factor, ltl_solve_l, ltl_solve_lt};
+pub use ltl::{NO_PARENT, ltl_factor, ltl_inverse, ltl_solve_l, ltl_solve_lt};
 pub use lu::{lu_in_place, lu_solve};
 pub use min_norm::MinNormSolver;
 pub use pivot::ColumnPivotedQr;
