@@ -402,8 +402,7 @@ pub mod qos {
     /// The history depth of service `name`'s request (server) and response (client) readers.
     pub fn service_depth(name: &str) -> usize {
         match name {
-            // Replies of up to megabytes, never pipelined faster than the executor takes them.
-            "Predict" | "Rollouts" => 10,
+            "Predict" | "Rollouts" => 10, // MB replies, never pipelined faster than taken
             _ => SERVER_REQUEST_DEPTH,
         }
     }
