@@ -57,6 +57,9 @@ fn absurd_parameters_are_refused_and_sigint_stops_a_busy_suite() {
         "absurd_params",
     );
     take_until(&paths, WAIT, |_| Ok(())).expect("no predicted_path from the suite");
+    // Paths queued while the suite started (a CI run counted 25 Hz in the first window) are not
+    // the rate: drain them first.
+    while let Some(Ok(_)) = block_on_timeout(Duration::from_millis(5), paths.async_take()) {}
     let predictor = t.client::<SetParameters>("/cd_predictor/set_parameters");
     let prediction = t.client::<SetParameters>("/cd_prediction/set_parameters");
     let before = count_paths(&paths, Duration::from_secs(3));
@@ -120,8 +123,9 @@ fn absurd_parameters_are_refused_and_sigint_stops_a_busy_suite() {
     println!(
         "{TEST}: predictions {before:.1} Hz before the refusals, {after:.1} Hz after, each 1 s"
     );
+    // params/default.yaml asks the predictor for 10 Hz.
     assert!(
-        after >= 0.7 * before && after > 1.0,
+        after >= 0.7 * before.min(10.0) && after > 1.0,
         "predictions stopped or slowed after the refusals: {after:.1} Hz (before {before:.1} Hz)"
     );
 
