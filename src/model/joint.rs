@@ -104,15 +104,7 @@ impl JointKind {
             } => {
                 let (sn, cs) = q[0].sin_cos();
                 let r = match aligned {
-                    Some((i, sign)) => {
-                        let (j, k) = (NEXT_AXIS[*i], NEXT_AXIS[NEXT_AXIS[*i]]);
-                        let mut r = Matrix3::identity();
-                        r[(j, j)] = cs;
-                        r[(k, k)] = cs;
-                        r[(k, j)] = sign * sn;
-                        r[(j, k)] = -sign * sn;
-                        r
-                    }
+                    Some((i, sign)) => axis_rotation(*i, sign * sn, cs),
                     None => Matrix3::identity() + skew * sn + skew2 * (1.0 - cs),
                 };
                 SE3::new(r, Vector3::zeros())
@@ -135,12 +127,7 @@ impl JointKind {
         } = self
         {
             let (sn, cs) = q[0].sin_cos();
-            let (j, k) = (NEXT_AXIS[*i], NEXT_AXIS[NEXT_AXIS[*i]]);
-            let (pj, pk) = (placement.rotation.column(j), placement.rotation.column(k));
-            let s = sign * sn;
-            let mut r = placement.rotation;
-            r.set_column(j, &(pj * cs + pk * s));
-            r.set_column(k, &(pk * cs - pj * s));
+            let r = turned(&placement.rotation, *i, sign * sn, cs);
             return SE3::new(r, placement.translation);
         }
         placement.compose(&self.transform(q))
@@ -266,6 +253,30 @@ fn write_free_flyer(m: &SE3, q: &mut [f64]) {
     q[4] = quat.j;
     q[5] = quat.k;
     q[6] = quat.w;
+}
+
+/// The rotation by θ about frame axis e_i, from (sin θ, cos θ).
+#[inline(always)]
+pub(crate) fn axis_rotation(i: usize, sn: f64, cs: f64) -> Matrix3<f64> {
+    let (j, k) = (NEXT_AXIS[i], NEXT_AXIS[NEXT_AXIS[i]]);
+    let mut r = Matrix3::identity();
+    r[(j, j)] = cs;
+    r[(k, k)] = cs;
+    r[(k, j)] = sn;
+    r[(j, k)] = -sn;
+    r
+}
+
+/// `r · axis_rotation(i, sn, cs)`: the two columns other than i mixed (12 products instead of a
+/// 3×3 product's 27; the product's other terms are exact zeros, so the numbers are the same).
+#[inline(always)]
+pub(crate) fn turned(r: &Matrix3<f64>, i: usize, sn: f64, cs: f64) -> Matrix3<f64> {
+    let (j, k) = (NEXT_AXIS[i], NEXT_AXIS[NEXT_AXIS[i]]);
+    let (pj, pk) = (r.column(j), r.column(k));
+    let mut out = *r;
+    out.set_column(j, &(pj * cs + pk * sn));
+    out.set_column(k, &(pk * cs - pj * sn));
+    out
 }
 
 /// The axis after axis i in cyclic order (x → y → z → x), a table rather than `(i + 1) % 3`:

@@ -20,7 +20,7 @@ pub use urdf_text::MAX_URDF_MAGNITUDE;
 use crate::error::{Error, Result};
 use crate::linalg::NO_PARENT;
 use crate::spatial::{Inertia, Motion, SE3};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 
 /// A movable joint between a body and its parent.
 #[derive(Clone, Debug)]
@@ -56,9 +56,9 @@ pub struct Body {
 
 impl Body {
     /// `world_m_body` at q for an aligned revolute joint whose placement does not rotate (most
-    /// URDF joints: `rpy="0 0 0"`), with `parent_m_body` into `li`: two columns of the parent's
-    /// rotation mixed instead of a 3 × 3 product — the same numbers, the product's other terms
-    /// being exact zeros. `None` for every other body (compose [`JointKind::placed`]).
+    /// URDF joints: `rpy="0 0 0"`), with `parent_m_body` into `li`: the parent's rotation
+    /// turned by the joint (`joint::turned`) instead of composed with a 3 × 3 product — the
+    /// same numbers. `None` for every other body (compose [`JointKind::placed`]).
     #[inline(always)]
     pub fn placed_in_world(&self, q: &[f64], o_m_parent: &SE3, li: &mut SE3) -> Option<SE3> {
         let JointKind::Revolute {
@@ -72,20 +72,10 @@ impl Body {
             return None;
         }
         let (sn, cs) = q[0].sin_cos();
-        let (j, k) = ((*i + 1) % 3, (*i + 2) % 3);
         let s = sign * sn;
-        let mut r = Matrix3::identity();
-        r[(j, j)] = cs;
-        r[(k, j)] = s;
-        r[(j, k)] = -s;
-        r[(k, k)] = cs;
-        *li = SE3::new(r, self.placement.translation);
-        let (pj, pk) = (o_m_parent.rotation.column(j), o_m_parent.rotation.column(k));
-        let mut o = o_m_parent.rotation;
-        o.set_column(j, &(pj * cs + pk * s));
-        o.set_column(k, &(pk * cs - pj * s));
+        *li = SE3::new(joint::axis_rotation(*i, s, cs), self.placement.translation);
         let t = o_m_parent.rotation * self.placement.translation + o_m_parent.translation;
-        Some(SE3::new(o, t))
+        Some(SE3::new(joint::turned(&o_m_parent.rotation, *i, s, cs), t))
     }
 }
 
