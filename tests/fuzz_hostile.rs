@@ -204,9 +204,12 @@ proptest! {
             sc[*i] = v;
         }
         let result = run(&fill(URDF, &u), &fill(SCENE, &sc));
-        CASES.fetch_add(1, Ordering::Relaxed);
+        let cases = CASES.fetch_add(1, Ordering::Relaxed) + 1;
         if result.is_err() {
             REFUSED.fetch_add(1, Ordering::Relaxed);
+        }
+        if cases == config().cases as usize {
+            report_and_check(cases);
         }
     }
 }
@@ -220,12 +223,17 @@ fn the_fuzz_template_itself_runs() {
     run(&fill(URDF, &u), &fill(SCENE, &s)).unwrap();
 }
 
-/// Printed last (test names run in order within one thread): how many cases were refused.
-#[test]
-fn zz_report() {
-    println!(
-        "fuzz: {} cases so far in this process, {} refused with a typed error",
-        CASES.load(Ordering::Relaxed),
-        REFUSED.load(Ordering::Relaxed)
+/// The least share of the cases that must run through, and be refused: a fuzz whose cases were
+/// all refused would test no computation, one with none refused no check.
+const MIN_SHARE: f64 = 0.05;
+
+/// After the run's last case (shrinking after a failure counts more cases: no check then).
+fn report_and_check(cases: usize) {
+    let refused = REFUSED.load(Ordering::Relaxed);
+    let ran = cases - refused;
+    println!("fuzz: {ran} ran through, {refused} refused with a typed error, of {cases} cases");
+    assert!(
+        ran as f64 >= MIN_SHARE * cases as f64 && refused as f64 >= MIN_SHARE * cases as f64,
+        "{ran} ran and {refused} refused of {cases}: the strategies no longer reach both outcomes"
     );
 }

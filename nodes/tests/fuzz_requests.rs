@@ -11,7 +11,9 @@
 //!
 //! No DDS participant is opened: the nodes are built as `nodes/src/predictor/tests.rs` builds
 //! one (`Robot::load` + `NodeLogic::new`). 512 cases per target by default with a fixed seed
-//! (`PROPTEST_CASES`, `PROPTEST_RNG_SEED` override; tools/fuzz_long.sh runs more).
+//! (`PROPTEST_CASES`, `PROPTEST_RNG_SEED` override; tools/fuzz_long.sh runs more). Each target
+//! counts its answered and refused cases and needs both (`Tally`); `FUZZ_WHY=1` prints every
+//! refusal's message, to see what the strategies hit.
 
 use constraint_dynamics_nodes::forces::{ForcesNode, ForcesParams};
 use constraint_dynamics_nodes::msg::builtin_interfaces::Time;
@@ -32,6 +34,7 @@ use constraint_dynamics_nodes::ros::logging::NodeLog;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed};
 use serde::Serialize;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 /// The most CPU time one handler call may take (release build). CPU time of the calling
@@ -67,6 +70,18 @@ const Q_NAMES: [&str; 9] = [
     "root_joint:x",
     "root_joint:y",
     "root_joint:yaw",
+    "left_wheel_joint",
+    "right_wheel_joint",
+    "arm_shoulder_yaw",
+    "arm_shoulder_pitch",
+    "arm_elbow",
+    "arm_wrist",
+];
+/// Its velocity coordinates (the planar base's are in the base frame).
+const V_NAMES: [&str; 9] = [
+    "root_joint:vx_local",
+    "root_joint:vy_local",
+    "root_joint:wz",
     "left_wheel_joint",
     "right_wheel_joint",
     "arm_shoulder_yaw",
@@ -132,8 +147,57 @@ fn length(n: usize) -> impl Strategy<Value = usize> {
     ]
 }
 
+/// n floats: all plausible, or one or two of them hostile, or all drawn from [`hostile`]. (Each
+/// entry drawn from `hostile` alone made 9 plausible floats a 1-in-2 000 event: 0 of 512
+/// `project_velocity` cases and 4 % of the `predict` cases reached the computation.)
+fn fixed(n: usize) -> impl Strategy<Value = Vec<f64>> {
+    let plausible = prop::collection::vec(-3.0..3.0f64, n);
+    prop_oneof![
+        6 => plausible.clone(),
+        2 => (plausible, prop::collection::vec((0..n, hostile()), 1..3)).prop_map(|(mut v, bad)| {
+            for (i, x) in bad {
+                v[i] = x;
+            }
+            v
+        }),
+        1 => prop::collection::vec(hostile(), n),
+    ]
+}
+
+/// `v` made a valid array of n: entries that are not plausible become 0.1.
+fn sanitized(v: &[f64], n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|i| {
+            v.get(i)
+                .copied()
+                .filter(|x| x.is_finite() && x.abs() < 3.0)
+                .unwrap_or(0.1)
+        })
+        .collect()
+}
+
+/// A velocity the wheels' rolling rows allow: the base and wheels at rest (a random one makes
+/// the redundant lateral rows disagree: refused as inconsistent), the arm's drawn.
+fn rolling_velocity(v: &[f64]) -> Vec<f64> {
+    let mut v = sanitized(v, 9);
+    v[..5].fill(0.0);
+    v
+}
+
+/// The twist a differential drive follows: `t`'s linear.x and angular.z (sanitized), the rest 0.
+fn planar(t: &Twist) -> Twist {
+    let s = sanitized(&[t.linear.x, t.angular.z], 2);
+    let mut out = Twist::default();
+    (out.linear.x, out.angular.z) = (s[0], s[1]);
+    out
+}
+
+/// Floats for an array of n: [`fixed`] mostly, else of a wrong length ([`length`]).
 fn floats(n: usize) -> impl Strategy<Value = Vec<f64>> {
-    length(n).prop_flat_map(|len| prop::collection::vec(hostile(), len))
+    prop_oneof![
+        3 => fixed(n),
+        1 => length(n).prop_flat_map(|len| prop::collection::vec(hostile(), len)),
+    ]
 }
 
 /// A joint name: a real one mostly, else unknown, empty or random unicode.
@@ -156,8 +220,20 @@ fn names(real: &'static [&'static str]) -> impl Strategy<Value = Vec<String>> {
     ]
 }
 
+/// A twist: mostly one a differential drive follows (linear.x, angular.z), else [`fixed`].
 fn twist() -> impl Strategy<Value = Twist> {
-    prop::array::uniform6(hostile()).prop_map(|a| Twist {
+    prop_oneof![
+        2 => (-1.0..1.0f64, -2.0..2.0f64).prop_map(|(vx, wz)| {
+            let mut t = Twist::default();
+            (t.linear.x, t.angular.z) = (vx, wz);
+            t
+        }),
+        1 => any_twist(),
+    ]
+}
+
+fn any_twist() -> impl Strategy<Value = Twist> {
+    fixed(6).prop_map(|a| Twist {
         linear: Vector3 {
             x: a[0],
             y: a[1],
@@ -194,9 +270,73 @@ fn all_finite(v: &impl Serialize) -> bool {
     walk(&serde_json::to_value(v).unwrap())
 }
 
+/// Refused and answered cases of one target, printed when its last case is judged: a target
+/// whose cases were all refused would test no computation, one with none refused no check.
+struct Tally {
+    target: &'static str,
+    refused: AtomicUsize,
+    answered: AtomicUsize,
+}
+
+impl Tally {
+    const fn new(target: &'static str) -> Self {
+        Self {
+            target,
+            refused: AtomicUsize::new(0),
+            answered: AtomicUsize::new(0),
+        }
+    }
+
+    /// Count one case; after the run's last case, print the counts and require both outcomes
+    /// at least [`MIN_SHARE`] of the cases (shrinking after a failure counts more: no check).
+    fn count(&self, success: bool) {
+        let c = if success {
+            &self.answered
+        } else {
+            &self.refused
+        };
+        c.fetch_add(1, Ordering::Relaxed);
+        let (a, r) = (
+            self.answered.load(Ordering::Relaxed),
+            self.refused.load(Ordering::Relaxed),
+        );
+        let cases = config().cases as usize;
+        if a + r == cases {
+            println!(
+                "{}: {a} answered, {r} refused of {cases} cases",
+                self.target
+            );
+            assert!(
+                a as f64 >= MIN_SHARE * cases as f64 && r as f64 >= MIN_SHARE * cases as f64,
+                "{}: {a} answered and {r} refused of {cases}: the strategies no longer reach \
+                 both outcomes",
+                self.target
+            );
+        }
+    }
+}
+
+/// The least share of a target's cases that must be answered, and refused.
+const MIN_SHARE: f64 = 0.05;
+
+/// The share of cases whose drawn request is made valid before the call (`sanitized`): the
+/// computation behind the checks is fuzzed too, with plausible but random states and commands.
+const CLEAN: f64 = 0.3;
+
+static GET_CONSTRAINT_FORCES: Tally = Tally::new("get_constraint_forces");
+static PROJECT_VELOCITY: Tally = Tally::new("project_velocity");
+static FILTER_COMMAND: Tally = Tally::new("filter_command (a case: its first command answered)");
+static PREDICT: Tally = Tally::new("predict");
+static ROLLOUTS: Tally = Tally::new("rollouts");
+static PREDICTOR_TICK: Tally = Tally::new("predictor tick (answered: odometry published)");
+static ROBOT_DESCRIPTION: Tally = Tally::new("robot_description (answered: robot replaced)");
+
 /// Refused with a reason, or every float finite.
 fn judge(what: &str, success: bool, message: &str, resp: &impl Serialize) -> Result<(), String> {
     if !success {
+        if std::env::var_os("FUZZ_WHY").is_some() {
+            eprintln!("WHY {what}: {message}");
+        }
         if message.is_empty() {
             return Err(format!("{what}: refused without a message"));
         }
@@ -250,29 +390,26 @@ fn joint_state() -> impl Strategy<Value = JointState> {
 
 /// A hostile `/odom` message.
 fn odometry() -> impl Strategy<Value = Odometry> {
-    (
-        stamp(),
-        prop::array::uniform7(hostile()),
-        twist(),
-        prop::array::uniform6(hostile()),
-    )
-        .prop_map(|(stamp, p, t, c)| {
-            let mut od = Odometry::default();
-            od.header.stamp = stamp;
-            od.pose.pose.position.x = p[0];
-            od.pose.pose.position.y = p[1];
-            od.pose.pose.position.z = p[2];
-            od.pose.pose.orientation.x = p[3];
-            od.pose.pose.orientation.y = p[4];
-            od.pose.pose.orientation.z = p[5];
-            od.pose.pose.orientation.w = p[6];
-            od.twist.twist = t;
-            for (i, x) in c.iter().enumerate() {
-                od.pose.covariance[7 * i] = *x;
-                od.twist.covariance[7 * i] = *x;
-            }
-            od
-        })
+    (stamp(), fixed(7), twist(), fixed(6)).prop_map(|(stamp, p, t, c)| {
+        let mut od = Odometry::default();
+        od.header.stamp = stamp;
+        od.pose.pose.position.x = p[0];
+        od.pose.pose.position.y = p[1];
+        od.pose.pose.position.z = p[2];
+        od.pose.pose.orientation.x = p[3];
+        od.pose.pose.orientation.y = p[4];
+        od.pose.pose.orientation.z = p[5];
+        od.pose.pose.orientation.w = p[6];
+        od.twist.twist = t;
+        // Variances: a plausible draw made non-negative (a negative one half the time made
+        // the message's every field valid once in 64); the hostile draws kept as they are.
+        for (i, x) in c.iter().enumerate() {
+            let x = if x.abs() < 3.0 { x.abs() } else { *x };
+            od.pose.covariance[7 * i] = x;
+            od.twist.covariance[7 * i] = x;
+        }
+        od
+    })
 }
 
 /// Feeds the robot's state estimate (joint states, odometry): each either applied or refused.
@@ -305,32 +442,49 @@ proptest! {
         let req = GetConstraintForcesRequest { use_latest_state, q_names, q, v_names, v, tau };
         let r = timed("get_constraint_forces", || n.get_constraint_forces(&req, now));
         judge("get_constraint_forces", r.success, &r.message, &r).map_err(TestCaseError::fail)?;
+        GET_CONSTRAINT_FORCES.count(r.success);
     }
 
     #[test]
     fn project_velocity_hostile(
         use_latest_state in any::<bool>(),
         q in floats(9),
-        v_names in names(&Q_NAMES),
+        v_names in names(&V_NAMES),
         v_des in floats(9),
         use_twist in any::<bool>(),
         base_twist in twist(),
         joint_names in names(&JOINTS),
         joint_velocities in floats(6),
-        bound_names in names(&Q_NAMES),
+        bound_names in names(&V_NAMES),
         lower in floats(9),
         upper in floats(9),
         accel_limit_dt in hostile(),
         od in prop::collection::vec(odometry(), 0..2),
+        clean in prop::bool::weighted(CLEAN),
     ) {
         let mut n: ProjectionNode = node(ProjectionParams::default());
         feed(n.robot_mut(), &[], &od);
+        // A clean case: the drawn values made valid (mismatched lengths were most refusals).
+        let (use_latest_state, q, v_names, v_des, base_twist, bound_names, lower, upper) = if clean {
+            let bounds = |x: &[f64], s: f64| sanitized(x, 9).iter().map(|b| s * (b.abs() + 0.5)).collect();
+            (false, sanitized(&q, 9), vec![], sanitized(&v_des, 9), planar(&base_twist),
+             V_NAMES.iter().map(|s| s.to_string()).collect(), bounds(&lower, -1.0), bounds(&upper, 1.0))
+        } else {
+            (use_latest_state, q, v_names, v_des, base_twist, bound_names, lower, upper)
+        };
+        let (joint_names, joint_velocities, accel_limit_dt) = if clean {
+            (JOINTS.iter().map(|s| s.to_string()).collect(), sanitized(&joint_velocities, 6),
+             sanitized(&[accel_limit_dt], 1)[0].abs())
+        } else {
+            (joint_names, joint_velocities, accel_limit_dt)
+        };
         let req = ProjectVelocityRequest {
             use_latest_state, q, v_names, v_des, use_twist, base_twist, joint_names,
             joint_velocities, bound_names, lower, upper, accel_limit_dt,
         };
         let r = timed("project_velocity", || n.project_velocity(&req));
         judge("project_velocity", r.success, &r.message, &r).map_err(TestCaseError::fail)?;
+        PROJECT_VELOCITY.count(r.success);
     }
 
     #[test]
@@ -341,16 +495,22 @@ proptest! {
     ) {
         let mut n: ProjectionNode = node(ProjectionParams::default());
         feed(n.robot_mut(), &js, &od);
+        let mut first_answered = None;
         for c in &cmds {
             match timed("filter_command", || n.filter_command(c)) {
                 Ok((t, resp)) => {
                     judge("filter_command", resp.success, &resp.message, &resp)
                         .map_err(TestCaseError::fail)?;
                     prop_assert!(all_finite(&t), "filtered twist not finite: {t:?}");
+                    first_answered.get_or_insert(resp.success);
                 }
-                Err(e) => prop_assert!(!e.to_string().is_empty()),
+                Err(e) => {
+                    prop_assert!(!e.to_string().is_empty());
+                    first_answered.get_or_insert(false);
+                }
             }
         }
+        FILTER_COMMAND.count(first_answered == Some(true));
     }
 
     #[test]
@@ -373,15 +533,24 @@ proptest! {
         js in prop::collection::vec(joint_state(), 0..2),
         od in prop::collection::vec(odometry(), 0..2),
         now in stamp(),
+        clean in prop::bool::weighted(CLEAN),
     ) {
         let mut n: PredictionNode = node(PredictionParams::default());
         feed(n.robot_mut(), &js, &od);
+        let (use_latest_state, q, v, commands, command_period, horizon, start_covariance) = if clean {
+            let horizon = if horizon > 0.0 && horizon <= 0.6 { horizon } else { 0.3 };
+            (false, sanitized(&q, 9), rolling_velocity(&v), commands.iter().take(6).map(planar).collect(),
+             0.1, horizon, vec![])
+        } else {
+            (use_latest_state, q, v, commands, command_period, horizon, start_covariance)
+        };
         let req = PredictRequest {
             use_latest_state, q, v, commands, command_period, horizon, with_forces,
             with_covariance, start_covariance,
         };
         let r = timed("predict", || n.predict(&req, now));
         judge("predict", r.success, &r.message, &r).map_err(TestCaseError::fail)?;
+        PREDICT.count(r.success);
     }
 
     /// `~/rollouts` under limits that keep a case small (8 sequences of at most 0.5 s).
@@ -400,7 +569,20 @@ proptest! {
         js in prop::collection::vec(joint_state(), 0..2),
         od in prop::collection::vec(odometry(), 0..2),
         now in stamp(),
+        clean in prop::bool::weighted(CLEAN),
     ) {
+        // A clean case: 1–8 sequences of 1–5 plausible commands, each held ≤ 0.1 s.
+        let (use_latest_state, q, v, commands, sequence_length, step) = if clean {
+            let len = if (1..=5).contains(&sequence_length) { sequence_length } else { 2 };
+            let n = (commands.len() / len as usize).clamp(1, 8) * len as usize;
+            let commands = (0..n)
+                .map(|i| commands.get(i).map(planar).unwrap_or_default())
+                .collect();
+            let step = if step > 0.01 && step <= 0.1 { step } else { 0.05 };
+            (false, sanitized(&q, 9), rolling_velocity(&v), commands, len, step)
+        } else {
+            (use_latest_state, q, v, commands, sequence_length, step)
+        };
         let params = PredictionParams {
             max_rollouts: 8,
             max_horizon: 0.5,
@@ -415,6 +597,7 @@ proptest! {
         let clock = libc::CLOCK_PROCESS_CPUTIME_ID;
         let r = timed_on(clock, ROLLOUTS_BOUND, "rollouts", || n.rollouts(&req, now));
         judge("rollouts", r.success, &r.message, &r).map_err(TestCaseError::fail)?;
+        ROLLOUTS.count(r.success);
         if r.success {
             let len = req.sequence_length as usize;
             prop_assert_eq!(r.poses.len(), req.commands.len());
@@ -439,6 +622,7 @@ proptest! {
         }
         let mut out = None;
         let r = timed("tick", || n.tick(now, &mut |o| out = Some(o)));
+        let published = out.is_some();
         match r {
             Err(e) => prop_assert!(!e.to_string().is_empty()),
             Ok(()) => {
@@ -449,13 +633,15 @@ proptest! {
                 }
             }
         }
+        PREDICTOR_TICK.count(published);
     }
 
     /// `/robot_description`: truncated or byte-mutated bundled URDF, or random text. The new
     /// robot is refused with a typed error, or is used for one prediction.
     #[test]
     fn robot_description_hostile(
-        kind in 0..4u8,
+        kind in 0..6u8,
+        mass in hostile(),
         cut in 0.0..1.0f64,
         junk in prop::collection::vec(any::<u8>(), 0..64),
         text in any::<String>(),
@@ -473,12 +659,16 @@ proptest! {
                 String::from_utf8_lossy(&b).into_owned()
             }
             2 => text,
-            _ => String::from_utf8_lossy(&junk).into_owned(),
+            3 => String::from_utf8_lossy(&junk).into_owned(),
+            // The bundled URDF whole, its base's mass a drawn number (a plausible one loads).
+            _ => URDF.replacen(r#"<mass value="8.0"/>"#, &format!(r#"<mass value="{mass}"/>"#), 1),
         };
         let p = PredictorParams { horizon: 0.3, ..Default::default() };
         let n: PredictorNode = node(p);
         let common = n.params().common.clone();
-        match timed("with_urdf", || n.robot().with_urdf(&urdf, &common)) {
+        let loaded = timed("with_urdf", || n.robot().with_urdf(&urdf, &common));
+        ROBOT_DESCRIPTION.count(loaded.is_ok());
+        match loaded {
             Err(e) => prop_assert!(!e.to_string().is_empty()),
             Ok(robot) => {
                 let params = n.params().clone();
