@@ -90,6 +90,7 @@ fn evaluation(c: &mut Criterion) {
             let opts = DynamicsOptions {
                 formulation,
                 allow_inconsistent: true,
+                ..Default::default()
             };
             sys.forward_dynamics_with(&scene.q0, &scene.v0, &tau, opts)
                 .expect("dynamics");

@@ -24,6 +24,11 @@ pub struct DynamicsOptions {
     /// disagree by drift, at or next to a singular configuration) with the least-squares
     /// λ = S⁺ r, instead of an error. The predictor's stages ask for it.
     pub allow_inconsistent: bool,
+    /// Multiplier form: the kinematics in `data` and the rows in `cdata` are those of this
+    /// (q, v) at `cdata.t` — `ConstraintSet::evaluate` ran there and nothing has written them
+    /// since — so that pass is skipped. The predictor sets it for a step's first stage when its
+    /// drift projection evaluated the rows at that state and left it unchanged. Default false.
+    pub rows_evaluated: bool,
 }
 
 impl Default for DynamicsOptions {
@@ -31,6 +36,7 @@ impl Default for DynamicsOptions {
         DynamicsOptions {
             formulation: Formulation::Multipliers,
             allow_inconsistent: false,
+            rows_evaluated: false,
         }
     }
 }
@@ -150,6 +156,7 @@ impl System {
         };
         if use_multipliers {
             self.kkt.allow_inconsistent = opts.allow_inconsistent;
+            self.kkt.rows_evaluated = opts.rows_evaluated;
             constrained_forward_dynamics(
                 &self.model,
                 &mut self.data,

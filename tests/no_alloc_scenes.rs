@@ -42,6 +42,7 @@ fn dynamics_allocate_nothing_on_every_bundled_scene() {
             let opts = DynamicsOptions {
                 formulation,
                 allow_inconsistent: false,
+                ..Default::default()
             };
             // Warm up once (first touch of lazily sized buffers), then count.
             sys.forward_dynamics_with(&q, &v, &tau, opts)

@@ -39,6 +39,8 @@ pub struct KktWorkspace {
     /// First and one-past-last non-zero row of each column of Y.
     support: Vec<(usize, usize)>,
     s: DMatrix<f64>,
+    /// S again (both triangles) for the rank-deficient path: the plain Cholesky overwrites `s`.
+    s_gram: DMatrix<f64>,
     /// τ − h (nv).
     pub rhs: DVector<f64>,
     /// Acceleration-level right side b = −γ − K_d J v − K_p φ (nc).
@@ -59,6 +61,9 @@ pub struct KktWorkspace {
     /// instead of an error (the predictor sets it: integration stages and drift near a singular
     /// configuration make redundant rows disagree slightly). Default false.
     pub allow_inconsistent: bool,
+    /// The kinematics and rows are already those of the next call's (q, v) (see
+    /// `DynamicsOptions::rows_evaluated`); consumed by that call.
+    pub rows_evaluated: bool,
     /// Part of r outside range(S) at the last rank-deficient solve (0 when consistent).
     pub inconsistency: f64,
     /// The rank-deficient path's workspace.
@@ -75,6 +80,7 @@ impl KktWorkspace {
             y: DMatrix::zeros(nv, nc),
             support: vec![(0, 0); nc],
             s: DMatrix::zeros(nc, nc),
+            s_gram: DMatrix::zeros(nc, nc),
             rhs: DVector::zeros(nv),
             b: DVector::zeros(nc),
             r: DVector::zeros(nc),
@@ -85,6 +91,7 @@ impl KktWorkspace {
             rank_deficiency: 0,
             augmented: false,
             allow_inconsistent: false,
+            rows_evaluated: false,
             inconsistency: 0.0,
             min_norm: MinNormSolver::new(nc),
         }
@@ -120,7 +127,9 @@ pub fn constrained_forward_dynamics(
         });
     }
     // One kinematics pass at (q, v, q̈ = 0) serves the constraints, M and h.
-    set.evaluate(model, data, cd, q, v);
+    if !std::mem::take(&mut ws.rows_evaluated) {
+        set.evaluate(model, data, cd, q, v);
+    }
     set.check_finite(cd)?;
     crba_after_kinematics(model, data);
     bias_forces_after_kinematics(model, data);
@@ -271,6 +280,7 @@ fn solve_kkt(
         ws.support[k] = (first, last.max(first));
     }
     schur_lower(ws, nv, nc);
+    ws.s_gram.copy_from(&ws.s);
     // r = b − J q̈_free
     mat_vec(&cd.j, ws.qdd.as_slice(), ws.r.as_mut_slice());
     for k in 0..nc {
@@ -326,10 +336,14 @@ fn schur_lower(ws: &mut KktWorkspace, nv: usize, nc: usize) {
 /// independent set was picked. Allocation-free (only the error message allocates).
 fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
     let nc = set.nrows;
-    // S was overwritten by the failed Cholesky.
-    ws.y.tr_mul_to(&ws.y, &mut ws.s);
+    // S's copy from before the failed Cholesky, its upper triangle mirrored.
+    for a in 0..nc {
+        for b in a + 1..nc {
+            ws.s_gram[(a, b)] = ws.s_gram[(b, a)];
+        }
+    }
     let rank = ws.min_norm.solve(
-        &ws.s,
+        &ws.s_gram,
         ws.r.as_slice(),
         RANK_TOL_PIVOT,
         ws.lambda.as_mut_slice(),

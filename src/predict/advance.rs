@@ -60,8 +60,31 @@ struct Rhs<'a> {
     zero: &'a [f64],
     ls: &'a mut Projector,
     jw: &'a mut JacobianWork,
+    rows: RowsAt<'a>,
     evaluations: usize,
     least_squares: usize,
+}
+
+/// Where the system's kinematics and constraint rows were last evaluated by the drift
+/// projection, when it left the state there: the next step's first stage, at that same
+/// (t, q, v), reuses them (`DynamicsOptions::rows_evaluated`) instead of a second pass.
+struct RowsAt<'a> {
+    t: Option<f64>,
+    q: &'a mut [f64],
+    v: &'a mut [f64],
+}
+
+impl RowsAt<'_> {
+    fn mark(&mut self, t: f64, q: &[f64], v: &[f64]) {
+        self.t = Some(t);
+        self.q.copy_from_slice(q);
+        self.v.copy_from_slice(v);
+    }
+
+    /// True once, for the marked state (bitwise the same q and v: anything else evaluates).
+    fn take(&mut self, t: f64, q: &[f64], v: &[f64]) -> bool {
+        self.t.take() == Some(t) && *self.q == *q && *self.v == *v
+    }
 }
 
 impl Rhs<'_> {
@@ -83,6 +106,7 @@ impl Rhs<'_> {
 impl Accel for Rhs<'_> {
     fn accel(&mut self, t: f64, q: &[f64], v: &[f64], qdd: &mut [f64]) -> Result<()> {
         self.evaluations += 1;
+        let rows_evaluated = self.rows.take(t, q, v);
         self.apply(t, q, v);
         // `formulation: auto` takes the multiplier form here: the same q̈ as the embedded form
         // (tests/propagation_formulations.rs), 1.08–1.7× faster on every bundled scene
@@ -95,6 +119,7 @@ impl Accel for Rhs<'_> {
                 _ => Formulation::Multipliers,
             },
             allow_inconsistent: true,
+            rows_evaluated,
         };
         let result = self
             .sys
@@ -131,6 +156,8 @@ impl Accel for Rhs<'_> {
         scratch: &mut JacobianScratch,
     ) -> Result<bool> {
         let nv = v.len();
+        // The derivatives (or differences) evaluate at other states: nothing to reuse after.
+        self.rows.t = None;
         self.apply(t, q, v);
         let Some(dd) = self.jw.dd.as_mut() else {
             accel_jacobian_fd(self, model, (t, q, v), qdd, jac, scratch)?;
@@ -217,6 +244,11 @@ impl Predictor {
             zero: &ws.zero,
             ls: &mut ws.ls,
             jw: &mut ws.jw,
+            rows: RowsAt {
+                t: None,
+                q: &mut ws.rows_q,
+                v: &mut ws.rows_v,
+            },
             evaluations: 0,
             least_squares: 0,
         };
@@ -345,6 +377,10 @@ impl Predictor {
                 if s.drift == DriftControl::Projection {
                     rhs.sys.cdata.t = t;
                     proj.project(rhs.sys, q, v, true)?;
+                    // The covariance's linearization below evaluates elsewhere.
+                    if proj.rows_current && cov.is_none() {
+                        rhs.rows.mark(t, q, v);
+                    }
                 }
                 if let Some(c) = cov.as_mut() {
                     let start = (&ws.qn[..], &ws.vn[..]);

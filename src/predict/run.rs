@@ -39,6 +39,9 @@ pub(super) struct Workspace {
     pub(super) qn: Vec<f64>,
     pub(super) vn: Vec<f64>,
     pub(super) tau_n: Vec<f64>,
+    /// The state the drift projection left with its rows evaluated (advance.rs, `RowsAt`).
+    pub(super) rows_q: Vec<f64>,
+    pub(super) rows_v: Vec<f64>,
     /// The implicit methods' Jacobian (advance.rs).
     pub(super) jw: JacobianWork,
     /// Work units of one dynamics evaluation (`limits::evaluation_cost`).
@@ -101,6 +104,8 @@ impl Predictor {
             qn: vec![0.0; nq],
             vn: vec![0.0; nv],
             tau_n: vec![0.0; nv],
+            rows_q: vec![0.0; nq],
+            rows_v: vec![0.0; nv],
             cost: crate::limits::evaluation_cost(&model),
             jw: JacobianWork::new(&sys),
         };
