@@ -65,38 +65,22 @@ const SCENE: &str = concat!(
 );
 const URDF: &str = include_str!("../../urdf/mobile_manipulator.urdf");
 
+/// An array of the given base coordinates followed by the scene's joints.
+macro_rules! with_joints {
+    ($($base:literal),*) => {
+        [$($base,)* "left_wheel_joint", "right_wheel_joint", "arm_shoulder_yaw",
+         "arm_shoulder_pitch", "arm_elbow", "arm_wrist"]
+    };
+}
 /// The scene's coordinates (nq = nv = 9, planar base).
-const Q_NAMES: [&str; 9] = [
-    "root_joint:x",
-    "root_joint:y",
-    "root_joint:yaw",
-    "left_wheel_joint",
-    "right_wheel_joint",
-    "arm_shoulder_yaw",
-    "arm_shoulder_pitch",
-    "arm_elbow",
-    "arm_wrist",
-];
+const Q_NAMES: [&str; 9] = with_joints!("root_joint:x", "root_joint:y", "root_joint:yaw");
 /// Its velocity coordinates (the planar base's are in the base frame).
-const V_NAMES: [&str; 9] = [
+const V_NAMES: [&str; 9] = with_joints!(
     "root_joint:vx_local",
     "root_joint:vy_local",
-    "root_joint:wz",
-    "left_wheel_joint",
-    "right_wheel_joint",
-    "arm_shoulder_yaw",
-    "arm_shoulder_pitch",
-    "arm_elbow",
-    "arm_wrist",
-];
-const JOINTS: [&str; 6] = [
-    "left_wheel_joint",
-    "right_wheel_joint",
-    "arm_shoulder_yaw",
-    "arm_shoulder_pitch",
-    "arm_elbow",
-    "arm_wrist",
-];
+    "root_joint:wz"
+);
+const JOINTS: [&str; 6] = with_joints!();
 
 fn config() -> Config {
     let mut c = Config::default();

@@ -12,6 +12,7 @@
 use super::{ConstraintRows, RowSink};
 use crate::algorithm::{Data, frame_placement, point_classical_acceleration, point_jacobian};
 use crate::model::Model;
+use crate::spatial::SE3;
 use nalgebra::{Matrix3, Vector3};
 
 /// A wheel rolling without slipping on the plane n·x = h.
@@ -61,7 +62,11 @@ impl RollingConstraint {
 
     /// Contact point, centre and world axis (after a kinematics pass).
     pub fn contact(&self, model: &Model, data: &Data) -> Contact {
-        let o_m_w = frame_placement(model, data, self.wheel);
+        self.contact_at(&frame_placement(model, data, self.wheel))
+    }
+
+    /// Contact point, centre and world axis for the wheel frame's world placement `o_m_w`.
+    fn contact_at(&self, o_m_w: &SE3) -> Contact {
         let a = o_m_w.rotation * self.axis;
         let n = self.normal();
         let w = n - a * n.dot(&a);
@@ -80,13 +85,13 @@ impl ConstraintRows for RollingConstraint {
     }
 
     fn fill(&self, model: &Model, data: &Data, out: &mut RowSink) {
+        let o_m_w = frame_placement(model, data, self.wheel);
         let Contact {
             point: pc,
             centre: c,
             axis: a,
-        } = self.contact(model, data);
+        } = self.contact_at(&o_m_w);
         let f = &model.frames[self.wheel];
-        let o_m_w = frame_placement(model, data, self.wheel);
         let p_local = o_m_w.act_inv_point(&pc);
         point_jacobian(model, data, self.wheel, &p_local, out.j3, 0);
         // Body twist in world axes at the centre.
