@@ -105,6 +105,15 @@ fn suite_in_a_namespace_on_sim_time_reports_diagnostics() {
         .node
         .spawn(stamped_commands(cmd_pub, sim_now.clone(), 0.3));
 
+    // The predictor at 5 Hz instead of the file's 10: a 1 s dopri5 prediction with its error
+    // estimate and covariance kept a test build at 7.2 Hz on a 2-core VM (WARN below 9 Hz, and
+    // the OK status this test waits for never came); the rate's own WARN is not what is tested.
+    let rate_file = std::env::temp_dir().join(format!("cd_stack_rate_{}.yaml", std::process::id()));
+    std::fs::write(
+        &rate_file,
+        "/robot1/cd_predictor:\n  ros__parameters:\n    rate: 5.0\n",
+    )
+    .expect("rate override file");
     let mut suite = SuiteProcess::spawn(
         env!("CARGO_BIN_EXE_constraint_dynamics_suite"),
         &[
@@ -113,6 +122,8 @@ fn suite_in_a_namespace_on_sim_time_reports_diagnostics() {
             "__ns:=/robot1",
             "--params-file",
             "params/namespaced.yaml",
+            "--params-file",
+            rate_file.to_str().unwrap(),
             "-p",
             "use_sim_time:=true",
         ],
