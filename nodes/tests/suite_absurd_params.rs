@@ -41,7 +41,8 @@ fn wall_ns() -> i64 {
 /// the scene's 1 s horizon. Counting arrivals instead counted what the DDS layer delivered late
 /// (a CI run: 17.7 Hz "before" with 10 Hz asked and no catch-up ticks, then 6.7 Hz).
 fn prediction_rate(paths: &ros2_client::Subscription<Path>, window: Duration) -> f64 {
-    let (from, to) = (wall_ns(), wall_ns() + window.as_nanos() as i64);
+    let from = wall_ns();
+    let to = from + window.as_nanos() as i64;
     let end = Instant::now() + window + GRACE;
     let mut stamps = BTreeSet::new();
     while let Some(left) = end.checked_duration_since(Instant::now()) {
