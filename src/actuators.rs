@@ -90,11 +90,14 @@ pub struct Command {
 
 #[derive(Clone, Debug)]
 struct Pi {
+    iq: usize,
     iv: usize,
     kp: f64,
     ki: f64,
     effort: f64,
     integral: f64,
+    /// Linear feedback (k, d) at the last tick ([`Actuators::feedback`]).
+    gain: (f64, f64),
     name: String,
 }
 
@@ -105,7 +108,30 @@ struct Pd {
     kp: f64,
     kd: f64,
     effort: f64,
+    /// Linear feedback (k, d) at the last tick ([`Actuators::feedback`]).
+    gain: (f64, f64),
     name: String,
+}
+
+/// One controller's linear feedback at a tick, as a joint spring-damper on the state: its
+/// torque moves by `−k δq − d δv` (q index `iq`, v index `iv`). A position controller is
+/// (kp, kd). A velocity controller's integral is `∫(target − q̇) dt = target·t − (q − q(0))`,
+/// so it acts as (ki, kp + ki·dt) with the joint's position as its state (`integral`) — the
+/// position measured from where the prediction started: a perturbation of that start position
+/// does not reach the controller (the covariance carries it apart, covariance_integral.rs). A
+/// controller without a target, or saturated, has no feedback (0, 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Feedback {
+    /// The joint's q index.
+    pub iq: usize,
+    /// The joint's v index (where its torque acts).
+    pub iv: usize,
+    /// [N·m/rad or N/m]
+    pub k: f64,
+    /// [N·m·s/rad or N·s/m]
+    pub d: f64,
+    /// A velocity controller's integral (k = ki).
+    pub integral: bool,
 }
 
 /// Validated actuators with their controller state.
@@ -152,13 +178,15 @@ impl Actuators {
         };
         for s in &spec.velocity {
             gains(&s.joint, &[s.kp, s.ki])?;
-            let (_, iv, effort) = joint(&s.joint)?;
+            let (iq, iv, effort) = joint(&s.joint)?;
             a.velocity.push(Pi {
+                iq,
                 iv,
                 kp: s.kp,
                 ki: s.ki,
                 effort,
                 integral: 0.0,
+                gain: (0.0, 0.0),
                 name: s.joint.clone(),
             });
         }
@@ -171,6 +199,7 @@ impl Actuators {
                 kp: s.kp,
                 kd: s.kd,
                 effort,
+                gain: (0.0, 0.0),
                 name: s.joint.clone(),
             });
         }
@@ -184,13 +213,15 @@ impl Actuators {
             }
             let mut idx = [0; 2];
             for (k, name) in [&d.left_joint, &d.right_joint].into_iter().enumerate() {
-                let (_, iv, effort) = joint(name)?;
+                let (iq, iv, effort) = joint(name)?;
                 a.velocity.push(Pi {
+                    iq,
                     iv,
                     kp: d.kp,
                     ki: d.ki,
                     effort,
                     integral: 0.0,
+                    gain: (0.0, 0.0),
                     name: name.clone(),
                 });
                 idx[k] = a.velocity.len() - 1;
@@ -207,7 +238,31 @@ impl Actuators {
 
     /// Reset the controllers' integral states.
     pub fn reset(&mut self) {
-        self.velocity.iter_mut().for_each(|c| c.integral = 0.0);
+        self.velocity.iter_mut().for_each(|c| {
+            c.integral = 0.0;
+            c.gain = (0.0, 0.0);
+        });
+        self.position.iter_mut().for_each(|c| c.gain = (0.0, 0.0));
+    }
+
+    /// The controllers' linear feedback at their last tick, velocity controllers first, in a
+    /// fixed order (module doc of [`Feedback`]).
+    pub fn feedback(&self) -> impl Iterator<Item = Feedback> + '_ {
+        let pi = self.velocity.iter().map(|c| Feedback {
+            iq: c.iq,
+            iv: c.iv,
+            k: c.gain.0,
+            d: c.gain.1,
+            integral: true,
+        });
+        let pd = self.position.iter().map(|c| Feedback {
+            iq: c.iq,
+            iv: c.iv,
+            k: c.gain.0,
+            d: c.gain.1,
+            integral: false,
+        });
+        pi.chain(pd)
     }
 
     /// Check that a command names only joints that have controllers.
@@ -260,19 +315,30 @@ impl Actuators {
                 }
                 _ => cmd.joint_velocity.get(&c.name).copied(),
             };
-            let Some(target) = target else { continue };
+            let Some(target) = target else {
+                c.gain = (0.0, 0.0);
+                continue;
+            };
             let e = target - v[c.iv];
             let raw = c.kp * e + c.ki * (c.integral + e * dt);
+            c.gain = (0.0, 0.0);
             if raw.abs() <= c.effort {
                 c.integral += e * dt; // anti-windup: integrate only when not saturated
+                c.gain = (c.ki, c.kp + c.ki * dt);
             }
             tau[c.iv] += raw.clamp(-c.effort, c.effort);
         }
-        for c in &self.position {
+        for c in &mut self.position {
             let Some(&target) = cmd.joint_position.get(&c.name) else {
+                c.gain = (0.0, 0.0);
                 continue;
             };
-            tau[c.iv] += (c.kp * (target - q[c.iq]) - c.kd * v[c.iv]).clamp(-c.effort, c.effort);
+            let raw = c.kp * (target - q[c.iq]) - c.kd * v[c.iv];
+            c.gain = match raw.abs() <= c.effort {
+                true => (c.kp, c.kd),
+                false => (0.0, 0.0),
+            };
+            tau[c.iv] += raw.clamp(-c.effort, c.effort);
         }
     }
 }

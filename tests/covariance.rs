@@ -4,16 +4,19 @@
 //! covariance (relative Frobenius). And the constraints: the diff drive's lateral body velocity
 //! has no variance; the closed form of a pose uncertainty carried by a rigid motion.
 //!
-//! Scenes (no actuators: the covariance holds the generalized force of each step, module doc of
-//! src/predict/covariance.rs):
+//! Scenes:
 //! - the diff drive coasting on an arc: v = 0.5 m/s, ω = 0.5 rad/s, wheels rolling
 //!   (r = 0.05 m, track 0.34 m; params/diff_drive.yaml);
 //! - the mobile manipulator driving at 0.2 m/s while its arm swings under gravity from a
 //!   leaning pose with joint rates of 0.5–1 rad/s (params/mobile_manipulator.yaml);
-//! - the floating-base rolling disk, tilted and spinning (params/report/rolling_disk.yaml).
+//! - the floating-base rolling disk, tilted and spinning (params/report/rolling_disk.yaml);
+//! - the suite's mobile manipulator under its controllers (diff-drive PI wheel velocity
+//!   controllers, arm PD position controllers), turning while it holds the arm
+//!   (params/suite_mobile_manipulator.yaml, DOPRI5).
 
 mod common;
 use common::*;
+use constraint_dynamics::actuators::Command;
 use constraint_dynamics::predict::Predictor;
 use constraint_dynamics::{Model, Scene};
 use nalgebra::{DMatrix, DVector, Matrix3};
@@ -53,13 +56,25 @@ fn monte_carlo(
     horizon: f64,
     n: usize,
 ) -> (DMatrix<f64>, DMatrix<f64>) {
+    monte_carlo_under(pred, (q0, v0), &[], p0, horizon, n)
+}
+
+/// [`monte_carlo`] under `commands` (each run's controllers close their loops on its state).
+fn monte_carlo_under(
+    pred: &Predictor,
+    (q0, v0): (&[f64], &[f64]),
+    commands: &[(f64, Command)],
+    p0: DMatrix<f64>,
+    horizon: f64,
+    n: usize,
+) -> (DMatrix<f64>, DMatrix<f64>) {
     let mut pred = pred.clone();
     // The covariance is under test, not the error estimate: thousands of runs without it.
     pred.settings.error_estimate = false;
     let model = pred.sys.model.clone();
     let nv = model.nv;
     pred.start_covariance = Some(p0);
-    let traj = pred.predict(q0, v0, &[], horizon).unwrap();
+    let traj = pred.predict(q0, v0, commands, horizon).unwrap();
     let first = rows_to_matrix(traj.samples[0].covariance.as_ref().unwrap());
     let last_sample = traj.samples.last().unwrap();
     let p_t = rows_to_matrix(last_sample.covariance.as_ref().unwrap());
@@ -81,7 +96,7 @@ fn monte_carlo(
                 let mut q = vec![0.0; model.nq];
                 model.integrate(q0, dx.rows(0, nv).as_slice(), 1.0, &mut q);
                 let v: Vec<f64> = (0..nv).map(|i| v0[i] + dx[nv + i]).collect();
-                let t = pred.predict(&q, &v, &[], horizon).unwrap();
+                let t = pred.predict(&q, &v, commands, horizon).unwrap();
                 let s = t.samples.last().unwrap();
                 tangent(&model, &q_ref, &v_ref, &s.q, &s.v)
             })
@@ -257,6 +272,37 @@ fn rolling_disk_covariance_matches_monte_carlo() {
     let p0 = DMatrix::identity(2 * nv, 2 * nv) * (sigma * sigma);
     let (p_t, mc) = monte_carlo(&pred, &scene.q0, &scene.v0, p0, 0.5, N_SLOW);
     let rel = relative_difference("rolling disk", &p_t, &mc, N_SLOW);
+    assert!(
+        rel <= TOL,
+        "covariance differs from Monte Carlo by {rel:.3}"
+    );
+}
+
+/// Under controllers the spread closes with the loops: the arm's PD pulls its joints back and
+/// the wheels' PI their rates (a covariance holding each step's torque was 10³ off, and larger
+/// than the spread by orders of magnitude).
+#[test]
+fn controlled_mobile_manipulator_covariance_matches_monte_carlo() {
+    let scene = Scene::load(repo_dir().join("params/suite_mobile_manipulator.yaml")).unwrap();
+    let pred = Predictor::from_scene(&scene).unwrap();
+    let nv = pred.sys.model.nv;
+    let mut cmd = Command {
+        base_twist: Some([0.2, 0.3]),
+        ..Default::default()
+    };
+    for (joint, q) in [
+        ("arm_shoulder_yaw", 0.0),
+        ("arm_shoulder_pitch", 0.5),
+        ("arm_elbow", 1.0),
+        ("arm_wrist", 0.5),
+    ] {
+        cmd.joint_position.insert(joint.into(), q);
+    }
+    let sigma = 1e-3;
+    let p0 = DMatrix::identity(2 * nv, 2 * nv) * (sigma * sigma);
+    let start = (&scene.q0[..], &scene.v0[..]);
+    let (p_t, mc) = monte_carlo_under(&pred, start, &[(0.0, cmd)], p0, 0.5, N_SLOW);
+    let rel = relative_difference("controlled mobile manipulator", &p_t, &mc, N_SLOW);
     assert!(
         rel <= TOL,
         "covariance differs from Monte Carlo by {rel:.3}"

@@ -230,6 +230,7 @@ impl Predictor {
         let (t0, t1) = span;
         let cost = self.ws.cost;
         let model = &self.model;
+        let actuators = &self.actuators;
         let ws = &mut self.ws;
         let mut rhs = Rhs {
             sys: &mut self.sys,
@@ -384,7 +385,8 @@ impl Predictor {
                 }
                 if let Some(c) = cov.as_mut() {
                     let start = (&ws.qn[..], &ws.vn[..]);
-                    c.record_step(rhs.sys, s.method, start, &ws.tau_n, dt, (q, v))?;
+                    let feedback = actuators.feedback();
+                    c.record_step(rhs.sys, s.method, start, &ws.tau_n, feedback, dt, (q, v))?;
                 }
                 if let Some(bad) = q
                     .iter()

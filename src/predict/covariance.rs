@@ -7,7 +7,10 @@
 //! `P ← T P Tᵀ`
 //!
 //! - A = ∂x⁺/∂x of one step of the prediction's method ([`linearize_step`](super::linearize::linearize_step), under the
-//!   generalized force held over it) that may span several of the prediction's steps: the
+//!   generalized force held over it, with the joint spring-dampers and the controllers'
+//!   feedback moving with the state — `Actuators::feedback`; without it P missed the suite's
+//!   closed-loop sensitivity by 10³, tests/covariance_sensitivity.rs) that may span several
+//!   of the prediction's steps: the
 //!   sensitivity of the flow, not of the step size, is what the covariance needs, and one
 //!   linearization per 2–32 steps is what makes the covariance cheap (covariance_chunks.rs,
 //!   with the check that keeps it honest);
@@ -27,7 +30,9 @@
 //!   first.
 
 use super::covariance_chunks::StepHistory;
+use super::covariance_integral::IntegralOffsets;
 use super::linearize::Linearization;
+use crate::actuators::Feedback;
 use crate::algorithm::crba;
 use crate::error::{Error, Result, check_finite};
 use crate::forces::ForceElements;
@@ -73,6 +78,9 @@ pub struct CovariancePropagator {
     /// Holonomic rows (for T_q) and all rows (for T_v), built at the first projection (the
     /// rows' kinds are known once the constraints were evaluated).
     blocks: Option<[RowProjector; 2]>,
+    /// The velocity controllers' start offsets, where P0 gives them a variance
+    /// (covariance_integral.rs).
+    integral: Option<IntegralOffsets>,
 }
 
 /// `P ← A P Aᵀ` for a symmetric P, as `A (A P)ᵀ`: two column-major products and an in-place
@@ -199,14 +207,17 @@ impl CovariancePropagator {
             q_pert: vec![0.0; sys.model.nq],
             e_k: vec![0.0; nv],
             blocks: None,
+            integral: None,
         })
     }
 
     /// A propagator for a prediction from (q, v): sized for `sys`, started at `p0` kept on the
-    /// constraints.
+    /// constraints, with the controllers of `feedback` (`Actuators::feedback`).
+    #[allow(clippy::too_many_arguments)]
     pub fn start(
         sys: &mut System,
         forces: &ForceElements,
+        feedback: &[Feedback],
         spec: &UncertaintySpec,
         p0: &DMatrix<f64>,
         q: &[f64],
@@ -215,6 +226,8 @@ impl CovariancePropagator {
         let mut c = Self::new(sys, forces, spec)?;
         c.reset(p0)?;
         c.project(sys, q, v)?;
+        c.integral = IntegralOffsets::start(&c.p, feedback);
+        c.lin.inputs = c.integral.is_some();
         Ok(c)
     }
 
@@ -248,10 +261,17 @@ impl CovariancePropagator {
         Ok(())
     }
 
-    /// `P ← A P Aᵀ + Q_h` with A = `self.lin.a` of a step of size h [s].
-    pub(super) fn apply_linearization(&mut self, h: f64) {
+    /// `P ← A P Aᵀ + Q_h` with A = `self.lin.a` of a step of size h [s] under the controllers'
+    /// `feedback` (and the integrals' start offsets, covariance_integral.rs).
+    pub(super) fn apply_linearization(&mut self, h: f64, feedback: &[Feedback]) {
         let nv = self.noise.len();
+        if let Some(o) = self.integral.as_mut() {
+            o.step(&self.lin.a, &self.lin.b, feedback);
+        }
         congruence(&mut self.p, &self.lin.a, &mut self.tmp);
+        if let Some(o) = self.integral.as_mut() {
+            o.add_cross_terms(&mut self.p);
+        }
         for i in 0..nv {
             let s2 = self.noise[i];
             if s2 > 0.0 {
@@ -311,6 +331,9 @@ impl CovariancePropagator {
         }
         blocks[1].apply_coupling(&self.n_tq, &mut self.proj, nv);
         congruence(&mut self.p, &self.proj, &mut self.tmp);
+        if let Some(o) = self.integral.as_mut() {
+            o.project(&self.proj);
+        }
         let n = 2 * nv;
         // Exactly symmetric (rounding).
         for i in 0..n {

@@ -40,6 +40,7 @@
 use super::covariance::CovariancePropagator;
 use super::integrator::Method;
 use super::linearize::{Linearization, linearize_step};
+use crate::actuators::Feedback;
 use crate::error::Result;
 use crate::model::Model;
 use crate::system::System;
@@ -65,12 +66,18 @@ pub(crate) struct StepHistory {
     v: Vec<Vec<f64>>,
     /// Generalized force held over each recorded step [N, N·m] (CHUNK_CAPACITY).
     tau: Vec<Vec<f64>>,
+    /// The controllers' feedback over each recorded step (`Actuators::feedback`).
+    feedback: Vec<Vec<Feedback>>,
     /// Time of each recorded state since the first [s].
     t: Vec<f64>,
     /// Recorded steps.
     len: usize,
     /// Recorded steps per linearized step to try next.
     chunk: usize,
+    /// Longest span [s] the last linearization's stiffness allows a chunk
+    /// ([`CHUNK_STABILITY`] / ρ): a longer chunk is cut before it is linearized, not refused
+    /// after.
+    stable_span: f64,
     diff: Vec<f64>,
 }
 
@@ -81,9 +88,11 @@ impl StepHistory {
             q: vec![vec![0.0; nq]; CHUNK_CAPACITY + 1],
             v: vec![vec![0.0; nv]; CHUNK_CAPACITY + 1],
             tau: vec![vec![0.0; nv]; CHUNK_CAPACITY],
+            feedback: vec![vec![]; CHUNK_CAPACITY],
             t: vec![0.0; CHUNK_CAPACITY + 1],
             len: 0,
             chunk: CHUNK_CAPACITY,
+            stable_span: f64::INFINITY,
             diff: vec![0.0; nv],
         }
     }
@@ -107,6 +116,17 @@ impl StepHistory {
     }
 }
 
+/// The method of the linearized steps: the prediction's own, but RK4 for the embedded pairs
+/// (DOPRI5, DOP853). Their steps are set by a tolerance on the nominal trajectory; Φ of one
+/// chunk needs 4 stages to reach the chunk check's accuracy where DOPRI5 spends 6 and DOP853
+/// 12, and the check below still holds every chunk of several steps to the recorded motion.
+fn chunk_method(method: Method) -> Method {
+    match method {
+        Method::Dopri5 | Method::Dop853 => Method::Rk4,
+        m => m,
+    }
+}
+
 /// Steps of the next chunk after one of `m` steps missed by `ratio` (mismatch): the local
 /// error of a p-th order step grows as H^(p+1), so H scales by ratio^(−1/(p+1)), with the
 /// usual safety factor 0.9 and at most doubling.
@@ -117,8 +137,9 @@ fn next_chunk(m: usize, ratio: f64, order: f64) -> usize {
 
 impl CovariancePropagator {
     /// Record one step of the prediction: from (q0, v0) under the held generalized force τ
-    /// [N, N·m] for h [s] to (q1, v1) (after drift control). P catches up at [`Self::flush`],
-    /// which this calls when the record is full.
+    /// [N, N·m] and the controllers' `feedback` (`Actuators::feedback`) for h [s] to (q1, v1)
+    /// (after drift control). P catches up at [`Self::flush`], which this calls when the record
+    /// is full.
     #[allow(clippy::too_many_arguments)]
     pub fn record_step(
         &mut self,
@@ -126,6 +147,7 @@ impl CovariancePropagator {
         method: Method,
         (q0, v0): (&[f64], &[f64]),
         tau: &[f64],
+        feedback: impl Iterator<Item = Feedback>,
         h: f64,
         (q1, v1): (&[f64], &[f64]),
     ) -> Result<()> {
@@ -137,6 +159,8 @@ impl CovariancePropagator {
             hst.t[0] = 0.0;
         }
         hst.tau[k].copy_from_slice(tau);
+        hst.feedback[k].clear();
+        hst.feedback[k].extend(feedback);
         hst.t[k + 1] = hst.t[k] + h;
         hst.q[k + 1].copy_from_slice(q1);
         hst.v[k + 1].copy_from_slice(v1);
@@ -169,13 +193,17 @@ impl CovariancePropagator {
             // The rest in equal pieces of at most `chunk` steps: no short leftover chunk.
             let rest = n - lo;
             let pieces = rest.div_ceil(hst.chunk);
-            let m = rest.div_ceil(pieces);
+            let mut m = rest.div_ceil(pieces);
+            while m > 1 && hst.t[lo + m] - hst.t[lo] > hst.stable_span {
+                m -= 1;
+            }
             let hi = lo + m;
             let h = hst.t[hi] - hst.t[lo];
+            self.lin.set_feedback(&hst.feedback[lo]);
             linearize_step(
                 sys,
                 &mut self.lin,
-                method,
+                chunk_method(method),
                 &hst.q[lo],
                 &hst.v[lo],
                 &hst.tau[lo],
@@ -183,13 +211,14 @@ impl CovariancePropagator {
             )?;
             // Steps of the chunk the stability bound allows (at least one).
             let per_step = h / m as f64;
-            let stable = (CHUNK_STABILITY / (self.lin.stiffness() * per_step)).floor();
+            hst.stable_span = CHUNK_STABILITY / self.lin.stiffness();
+            let stable = (hst.stable_span / per_step).floor();
             let stable = if stable.is_finite() {
                 (stable as usize).clamp(1, CHUNK_CAPACITY)
             } else {
                 CHUNK_CAPACITY
             };
-            let order = match method {
+            let order = match chunk_method(method) {
                 Method::SemiImplicitEuler => 1.0,
                 Method::Sdirk2 => 2.0,
                 Method::Rk4 => 4.0,
@@ -205,7 +234,7 @@ impl CovariancePropagator {
                 hst.chunk = next_chunk(m, ratio, order).min(m - 1).min(stable);
                 continue;
             }
-            self.apply_linearization(h);
+            self.apply_linearization(h, &hst.feedback[lo]);
             // P is read only where the flush ends (a sample, or a full record), so it is
             // brought onto the constraints there; between chunks the linearized flow keeps it
             // on them to the chunk's accuracy.

@@ -13,6 +13,7 @@
 
 use super::integrator::{DOP853, DOPRI5, Method, RK4, Tableau};
 use super::lie::{StageMaps, dexp_inv, right_jacobian, transport};
+use crate::actuators::Feedback;
 use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
 use crate::error::{Error, Result};
 use crate::linalg::gemm_columns;
@@ -31,8 +32,11 @@ pub struct Linearization {
     pub inputs: bool,
     /// Joint spring-dampers (q index, v index, k, d, rest) recomputed at every stage instead of
     /// held in τ, so that A carries their stiffness and damping
-    /// ([`Linearization::with_joint_springs`]).
+    /// ([`Linearization::with_joint_springs`]), then the controllers' feedback of the step
+    /// ([`Linearization::set_feedback`]).
     joint_springs: Vec<(usize, usize, f64, f64, f64)>,
+    /// How many of `joint_springs` are the force elements' (the rest is feedback).
+    fixed_springs: usize,
     /// τ of the current stage.
     tau_stage: Vec<f64>,
     /// q⁺ (nq) and v⁺ (nv) of the step.
@@ -114,7 +118,18 @@ impl Linearization {
     /// stage replaces that share by its own.
     pub fn with_joint_springs(mut self, springs: &[(usize, usize, f64, f64, f64)]) -> Self {
         self.joint_springs = springs.to_vec();
+        self.fixed_springs = springs.len();
         self
+    }
+
+    /// The controllers' feedback over the next step (`Actuators::feedback`), linearized as
+    /// joint spring-dampers beside the force elements' (replacing the previous step's;
+    /// allocates only when the list grows).
+    pub fn set_feedback(&mut self, feedback: &[Feedback]) {
+        self.joint_springs.truncate(self.fixed_springs);
+        let active = feedback.iter().filter(|f| f.k != 0.0 || f.d != 0.0);
+        self.joint_springs
+            .extend(active.map(|f| (f.iq, f.iv, f.k, f.d, 0.0)));
     }
 
     /// Size for a system (its model and constraint rows).
@@ -127,6 +142,7 @@ impl Linearization {
             b: DMatrix::zeros(2 * nv, nv),
             inputs: true,
             joint_springs: vec![],
+            fixed_springs: 0,
             tau_stage: vec![0.0; nv],
             q_next: vec![0.0; nq],
             v_next: vec![0.0; nv],
@@ -339,7 +355,10 @@ fn explicit(
 ) -> Result<()> {
     let nv = v.len();
     let cols = lin.columns();
-    let stages = tab.b.len();
+    // Trailing stages of weight zero (DOPRI5's seventh, there for its error estimate) do not
+    // enter the step.
+    let stages = tab.b.iter().rposition(|&b| b != 0.0).map_or(0, |i| i + 1);
+    let b = &tab.b[..stages];
     for st in 0..stages {
         // Θ_i, V_i and their variations from the earlier stages.
         for i in 0..nv {
@@ -398,7 +417,7 @@ fn explicit(
     // Final combination.
     for i in 0..nv {
         let (mut th, mut ve) = (0.0, v[i]);
-        for (j, &bj) in tab.b.iter().enumerate() {
+        for (j, &bj) in b.iter().enumerate() {
             th += dt * bj * lin.kth[j][i];
             ve += dt * bj * lin.kv[j][i];
         }
@@ -406,7 +425,7 @@ fn explicit(
         lin.v_next[i] = ve;
     }
     sys.model.integrate(q, &lin.theta_end, 1.0, &mut lin.q_next);
-    combine_variations(lin, tab.b, dt);
+    combine_variations(lin, b, dt);
     lin.maps.build(&sys.model, &lin.theta_end, None);
     tangent_variation(lin, cols, false);
     for c in 0..cols {

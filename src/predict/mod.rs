@@ -10,6 +10,7 @@
 mod advance;
 mod covariance;
 mod covariance_chunks;
+mod covariance_integral;
 pub mod drift;
 mod estimate;
 mod guard;

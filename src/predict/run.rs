@@ -242,6 +242,7 @@ impl Predictor {
             Some(p0) => Some(CovariancePropagator::start(
                 &mut self.sys,
                 &self.forces,
+                &self.actuators.feedback().collect::<Vec<_>>(),
                 &self.uncertainty,
                 p0,
                 &lanes[0].q,
