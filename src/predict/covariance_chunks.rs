@@ -14,7 +14,8 @@
 //! end state to [`CHUNK_RTOL`] of the chunk's motion (tangent-space max norm, q and v apart).
 //! Where it does not (a force element that varies within the chunk, a fast transient), the
 //! chunk is shortened as a step-size controller would (×0.9·ratio^(−1/(p+1)), at most
-//! doubling), down to the single recorded step, which is the exact per-step linearization.
+//! doubling), down to the single recorded step, which is the exact per-step linearization
+//! (for DOPRI5 and DOP853 that step's by RK4, `chunk_method`: within RK4's local error).
 //! That check cannot see a stiff mode the nominal does not excite (a stiff spring at rest: the
 //! long step reproduces the state, but its Φ amplifies perturbations along that mode), so a
 //! chunk must also stay inside the method's stability region: H · ρ ≤ [`CHUNK_STABILITY`],
