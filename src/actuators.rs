@@ -248,20 +248,21 @@ impl Actuators {
     /// The controllers' linear feedback at their last tick, velocity controllers first, in a
     /// fixed order (module doc of [`Feedback`]).
     pub fn feedback(&self) -> impl Iterator<Item = Feedback> + '_ {
-        let pi = self.velocity.iter().map(|c| Feedback {
-            iq: c.iq,
-            iv: c.iv,
-            k: c.gain.0,
-            d: c.gain.1,
-            integral: true,
-        });
-        let pd = self.position.iter().map(|c| Feedback {
-            iq: c.iq,
-            iv: c.iv,
-            k: c.gain.0,
-            d: c.gain.1,
-            integral: false,
-        });
+        let of = |(iq, iv), (k, d), integral| Feedback {
+            iq,
+            iv,
+            k,
+            d,
+            integral,
+        };
+        let pi = self
+            .velocity
+            .iter()
+            .map(move |c| of((c.iq, c.iv), c.gain, true));
+        let pd = self
+            .position
+            .iter()
+            .map(move |c| of((c.iq, c.iv), c.gain, false));
         pi.chain(pd)
     }
 

@@ -279,25 +279,14 @@ fn rolling_disk_covariance_matches_monte_carlo() {
 }
 
 /// Under controllers the spread closes with the loops: the arm's PD pulls its joints back and
-/// the wheels' PI their rates (a covariance holding each step's torque was 10³ off, and larger
-/// than the spread by orders of magnitude).
+/// the wheels' PI their rates (a covariance holding each step's torque missed the closed loop's
+/// sensitivity by 10³, tests/covariance_sensitivity.rs).
 #[test]
 fn controlled_mobile_manipulator_covariance_matches_monte_carlo() {
     let scene = Scene::load(repo_dir().join("params/suite_mobile_manipulator.yaml")).unwrap();
     let pred = Predictor::from_scene(&scene).unwrap();
     let nv = pred.sys.model.nv;
-    let mut cmd = Command {
-        base_twist: Some([0.2, 0.3]),
-        ..Default::default()
-    };
-    for (joint, q) in [
-        ("arm_shoulder_yaw", 0.0),
-        ("arm_shoulder_pitch", 0.5),
-        ("arm_elbow", 1.0),
-        ("arm_wrist", 0.5),
-    ] {
-        cmd.joint_position.insert(joint.into(), q);
-    }
+    let cmd = turning_with_arm_held();
     let sigma = 1e-3;
     let p0 = DMatrix::identity(2 * nv, 2 * nv) * (sigma * sigma);
     let start = (&scene.q0[..], &scene.v0[..]);

@@ -156,18 +156,7 @@ fn covariance_with_springs_is_refused() {
 #[test]
 fn controllers_enter_the_covariance() {
     let file = "params/suite_mobile_manipulator.yaml";
-    let mut cmd = Command {
-        base_twist: Some([0.2, 0.3]),
-        ..Default::default()
-    };
-    for (joint, q) in [
-        ("arm_shoulder_yaw", 0.0),
-        ("arm_shoulder_pitch", 0.5),
-        ("arm_elbow", 1.0),
-        ("arm_wrist", 0.5),
-    ] {
-        cmd.joint_position.insert(joint.into(), q);
-    }
+    let cmd = turning_with_arm_held();
     let commands = [(0.0, cmd)];
     let at_period = |period: f64| {
         let mut scene = Scene::load(repo_dir().join(file)).unwrap();

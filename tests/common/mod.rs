@@ -185,3 +185,22 @@ pub fn tangent(model: &Model, q_ref: &[f64], v_ref: &[f64], q: &[f64], v: &[f64]
     }
     x
 }
+
+/// The command of the tests under controllers: the suite's mobile manipulator
+/// (params/suite_mobile_manipulator.yaml) turning at (0.2 m/s, 0.3 rad/s) with its arm held
+/// where the scene starts it.
+pub fn turning_with_arm_held() -> constraint_dynamics::actuators::Command {
+    let mut cmd = constraint_dynamics::actuators::Command {
+        base_twist: Some([0.2, 0.3]),
+        ..Default::default()
+    };
+    for (joint, q) in [
+        ("arm_shoulder_yaw", 0.0),
+        ("arm_shoulder_pitch", 0.5),
+        ("arm_elbow", 1.0),
+        ("arm_wrist", 0.5),
+    ] {
+        cmd.joint_position.insert(joint.into(), q);
+    }
+    cmd
+}
