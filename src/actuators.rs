@@ -322,11 +322,15 @@ impl Actuators {
             };
             let e = target - v[c.iv];
             let raw = c.kp * e + c.ki * (c.integral + e * dt);
-            c.gain = (0.0, 0.0);
-            if raw.abs() <= c.effort {
+            let unsaturated = raw.abs() <= c.effort;
+            if unsaturated {
                 c.integral += e * dt; // anti-windup: integrate only when not saturated
-                c.gain = (c.ki, c.kp + c.ki * dt);
             }
+            c.gain = if unsaturated {
+                (c.ki, c.kp + c.ki * dt)
+            } else {
+                (0.0, 0.0)
+            };
             tau[c.iv] += raw.clamp(-c.effort, c.effort);
         }
         for c in &mut self.position {
@@ -335,9 +339,10 @@ impl Actuators {
                 continue;
             };
             let raw = c.kp * (target - q[c.iq]) - c.kd * v[c.iv];
-            c.gain = match raw.abs() <= c.effort {
-                true => (c.kp, c.kd),
-                false => (0.0, 0.0),
+            c.gain = if raw.abs() <= c.effort {
+                (c.kp, c.kd)
+            } else {
+                (0.0, 0.0)
             };
             tau[c.iv] += raw.clamp(-c.effort, c.effort);
         }

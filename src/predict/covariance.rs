@@ -213,7 +213,6 @@ impl CovariancePropagator {
 
     /// A propagator for a prediction from (q, v): sized for `sys`, started at `p0` kept on the
     /// constraints, with the controllers of `feedback` (`Actuators::feedback`).
-    #[allow(clippy::too_many_arguments)]
     pub fn start(
         sys: &mut System,
         forces: &ForceElements,
