@@ -1147,6 +1147,13 @@ impl Drop for DomainParticipantDisc {
 
     debug!("Waiting for Discovery join.");
     if let Ok(handle) = self.discovery_join_handle.try_recv() {
+      // The discovery thread itself may hold the last reference (it upgrades a weak
+      // one while it works): joining itself fails with EDEADLK, which std turns into a
+      // panic. It has been told to stop and returns after this drop: let it go.
+      if handle.thread().id() == std::thread::current().id() {
+        debug!("Discovery dropped its own participant; not joining itself.");
+        return;
+      }
       handle
         .join()
         .unwrap_or_else(|e| warn!("Failed to join discovery thread: {e:?}"));
