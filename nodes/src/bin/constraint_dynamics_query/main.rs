@@ -26,7 +26,6 @@
 use std::process::ExitCode;
 use std::time::Duration;
 
-use constraint_dynamics_nodes::msg::RosService;
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::ConstraintForces;
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::{
     GetConstraintForces, GetConstraintForcesRequest, Predict, PredictRequest, PredictResponse,
@@ -38,17 +37,17 @@ use constraint_dynamics_nodes::msg::rcl_interfaces::{
     GetParameters, ListParameters, SetParameters,
 };
 use constraint_dynamics_nodes::ros::args::yaml_to_param;
-use constraint_dynamics_nodes::ros::context::{
-    NetworkConfig, RosNode, call_with_retry, in_loopback_only_namespace, qos,
-};
+use constraint_dynamics_nodes::ros::context::{NetworkConfig, RosNode, in_loopback_only_namespace};
 use constraint_dynamics_nodes::ros::network_guard::{ALLOW_EXTERNAL_ENV, network_guard};
+use query::{Query, print};
 use ros2_client::dds::rustdds::no_key::SerializerAdapter;
 use ros2_client::dds::rustdds::serialization::CDRSerializerAdapter;
 use ros2_client::rcl_interfaces::{
     GetParametersRequest, ListParametersRequest, SetParametersRequest,
 };
 use ros2_client::{NodeOptions, ParameterValue};
-use serde::Serialize;
+
+mod query;
 
 const USAGE: &str = "usage: constraint_dynamics_query [--ns /NS] [--timeout S] [--try S] COMMAND
   forces [--q a,b,..] [--v a,b,..] [--tau a,b,..]
@@ -109,108 +108,12 @@ fn named(s: &str) -> Result<(String, f64), QueryError> {
     Ok((n.trim().to_string(), v))
 }
 
-fn print<T: Serialize>(v: &T) {
-    println!(
-        "{}",
-        serde_json::to_string_pretty(v).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))
-    );
-}
-
-struct Query {
-    node: RosNode,
-    ns: String,
-    timeout: Duration,
-    per_try: Duration,
-}
-
-impl Query {
-    fn name(&self, node: &str, leaf: &str) -> String {
-        let node = node.trim_start_matches('/');
-        format!("{}/{node}/{leaf}", self.ns.trim_end_matches('/'))
-    }
-
-    fn call<S: RosService>(
-        &mut self,
-        name: &str,
-        req: S::Request,
-    ) -> Result<S::Response, QueryError> {
-        let mut out = None;
-        self.call_n::<S>(name, req, 1, |_, r| out = Some(r))?;
-        out.ok_or_else(|| "no response".into())
-    }
-
-    /// Calls `name` `n` times with one client, handing each response to `each`. The first
-    /// call is retried while discovery settles; the later ones are sent once and may take up
-    /// to `--timeout` each.
-    fn call_n<S: RosService>(
-        &mut self,
-        name: &str,
-        req: S::Request,
-        n: u32,
-        mut each: impl FnMut(u32, S::Response),
-    ) -> Result<(), QueryError> {
-        let client = self.node.client::<S>(name).map_err(|e| e.to_string())?;
-        let found = smol::block_on(smol::future::or(
-            async {
-                client.wait_for_service(&self.node.node).await;
-                true
-            },
-            async {
-                smol::Timer::after(self.timeout).await;
-                false
-            },
-        ));
-        if !found {
-            return Err(format!("service {name} not found within {:?}", self.timeout).into());
-        }
-        let tries = (self.timeout.as_secs_f64() / self.per_try.as_secs_f64())
-            .ceil()
-            .max(1.0) as u32;
-        let (first, _) = smol::block_on(call_with_retry(&client, req.clone(), self.per_try, tries))
-            .map_err(|e| QueryError::Usage(e.to_string()))?;
-        each(0, first);
-        for i in 1..n {
-            let r = smol::block_on(smol::future::or(
-                async { Some(client.async_call_service(req.clone()).await) },
-                async {
-                    smol::Timer::after(self.timeout).await;
-                    None
-                },
-            ))
-            .ok_or_else(|| {
-                format!(
-                    "call {} of {n}: no response within {:?}",
-                    i + 1,
-                    self.timeout
-                )
-            })?
-            .map_err(|e| format!("call {} of {n}: {e:?}", i + 1))?;
-            each(i, r);
-        }
-        Ok(())
-    }
-
-    fn echo<M>(&mut self, topic: &str, count: usize) -> Result<(), QueryError>
-    where
-        M: constraint_dynamics_nodes::msg::RosMessage + Serialize + 'static,
-    {
-        let sub = self
-            .node
-            .subscription::<M>(topic, &qos::reliable(10))
-            .map_err(|e| e.to_string())?;
-        for _ in 0..count {
-            let m = smol::block_on(smol::future::or(
-                async { Some(sub.async_take().await) },
-                async {
-                    smol::Timer::after(self.timeout).await;
-                    None
-                },
-            ))
-            .ok_or_else(|| format!("no message on {topic} within {:?}", self.timeout))?
-            .map_err(|e| format!("{e:?}"))?;
-            print(&m.0);
-        }
-        Ok(())
+/// A duration option's value: positive, finite seconds, at most a day.
+fn seconds(option: &str, value: Option<String>) -> Result<Duration, QueryError> {
+    let v = value.ok_or_else(|| format!("{option} needs a value in seconds"))?;
+    match v.trim().parse::<f64>() {
+        Ok(s) if s > 0.0 && s <= 86_400.0 => Ok(Duration::from_secs_f64(s)),
+        _ => Err(format!("{option} {v:?}: expected seconds in (0, 86400]").into()),
     }
 }
 
@@ -477,21 +380,14 @@ fn main() -> ExitCode {
     while let Some(a) = args.next() {
         match a.as_str() {
             "--ns" => opts.ns = args.next().unwrap_or_else(|| "/".into()),
-            "--timeout" => {
-                opts.timeout = args
-                    .next()
-                    .and_then(|s| s.parse::<f64>().ok())
-                    .map(Duration::from_secs_f64)
-                    .unwrap_or(opts.timeout)
-            }
-            "--try" => {
-                opts.per_try = args
-                    .next()
-                    .and_then(|s| s.parse::<f64>().ok())
-                    .filter(|s| *s > 0.0)
-                    .map(Duration::from_secs_f64)
-                    .unwrap_or(opts.per_try)
-            }
+            "--timeout" | "--try" => match seconds(&a, args.next()) {
+                Ok(d) if a == "--timeout" => opts.timeout = d,
+                Ok(d) => opts.per_try = d,
+                Err(e) => {
+                    eprintln!("error: {e}\n\n{USAGE}");
+                    return ExitCode::from(2);
+                }
+            },
             _ => {
                 opts.rest.push(a);
                 opts.rest.extend(args.by_ref());
