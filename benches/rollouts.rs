@@ -2,7 +2,7 @@
 //! of 50 ms (Nav2 MPPI's defaults: batch_size 2000, time_steps 56, model_dt 0.05) on the
 //! differential drive with its wheel-speed controllers (params/suite_diff_drive.yaml) at planner
 //! settings: RK4 with projection, dt = control period = 5 ms (the wheel loop's time constant is
-//! ≈ 10 ms; the scene's own dopri5 at rtol 1e-8 with 1 ms control ticks costs ≈ 8× more), on 1
+//! ≈ 10 ms; the scene's own rk4 at 1 ms control ticks costs 5× the steps), on 1
 //! worker thread and on every core: sequences per second per core and the parallel efficiency
 //! T₁ / (n T_n). `ROLLOUTS=N` sets another N.
 

@@ -12,7 +12,7 @@
 //! - the floating-base rolling disk, tilted and spinning (params/report/rolling_disk.yaml);
 //! - the suite's mobile manipulator under its controllers (diff-drive PI wheel velocity
 //!   controllers, arm PD position controllers), turning while it holds the arm
-//!   (params/suite_mobile_manipulator.yaml, DOPRI5).
+//!   (params/suite_mobile_manipulator.yaml, RK4 at the 1 ms control period).
 
 mod common;
 use common::*;

@@ -105,7 +105,7 @@ fn suite_in_a_namespace_on_sim_time_reports_diagnostics() {
         .node
         .spawn(stamped_commands(cmd_pub, sim_now.clone(), 0.3));
 
-    // The predictor at 5 Hz instead of the file's 10: a 1 s dopri5 prediction with its error
+    // The predictor at 5 Hz instead of the file's 10: a 1 s prediction (dopri5 then) with its error
     // estimate and covariance kept a test build at 7.2 Hz on a 2-core VM (WARN below 9 Hz, and
     // the OK status this test waits for never came); the rate's own WARN is not what is tested.
     let rate_file = std::env::temp_dir().join(format!("cd_stack_rate_{}.yaml", std::process::id()));

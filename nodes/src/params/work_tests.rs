@@ -88,7 +88,7 @@ fn absurd_values_are_refused_with_their_range() {
 
 #[test]
 fn the_scene_limits_the_horizon() {
-    // The suite's scene: dopri5, control period 1 ms, samples every 20 ms, default limits
+    // The suite's scene: rk4 at dt = control period = 1 ms, samples every 20 ms, default limits
     // (1e6 steps, 1e5 samples): one prediction may cover 1e6 × 1 ms = 1000 s; at 10 Hz,
     // 10 × horizon / 1 ms ≤ 1e6 steps per second gives 100 s.
     let b = scene_budget();
@@ -103,7 +103,8 @@ fn the_scene_limits_the_horizon() {
     assert!(
         e.starts_with("horizon = 100.5 s is beyond its limit of 100 s on this scene")
             && e.contains(
-                "integration.max_steps = 1e6 steps (horizon / actuators.control_period 0.001 s)"
+                "integration.max_steps = 1e6 steps (horizon / integration.dt 0.001 s, \
+                 actuators.control_period 0.001 s)"
             )
             && e.contains("at rate 10 Hz"),
         "{e}"
