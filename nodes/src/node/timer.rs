@@ -66,13 +66,18 @@ impl RosTimer {
 /// prediction for a core (on two cores it did: see docs/nodes.md, "Load and churn").
 pub(crate) const PERIODIC_NICE: i32 = 10;
 
-/// Lowers the calling thread's scheduling priority to [`PERIODIC_NICE`] (Linux: niceness is
-/// per thread). A failure only costs latency, so it is ignored.
+/// Lowers the calling thread's scheduling priority (Linux: both are per thread): the batch
+/// policy, so that its wake-up at every tick does not preempt a thread serving a request (a
+/// niced thread may still preempt one on waking; the kernel never preempts on behalf of a
+/// waking batch thread), and [`PERIODIC_NICE`], its share of a busy core. Not `SCHED_IDLE`: under a steady request
+/// load that starves the predictor. A failure only costs latency, so it is ignored.
 pub(crate) fn lower_priority() {
-    // SAFETY: gettid has no preconditions; setpriority on our own thread id only changes
-    // this thread's niceness.
+    // SAFETY: gettid has no preconditions; sched_setscheduler and setpriority on our own
+    // thread id only change this thread's policy and niceness.
     unsafe {
-        let tid = libc::syscall(libc::SYS_gettid) as libc::id_t;
-        libc::setpriority(libc::PRIO_PROCESS, tid, PERIODIC_NICE);
+        let tid = libc::syscall(libc::SYS_gettid) as libc::pid_t;
+        let param = libc::sched_param { sched_priority: 0 };
+        libc::sched_setscheduler(tid, libc::SCHED_BATCH, &param);
+        libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, PERIODIC_NICE);
     }
 }
