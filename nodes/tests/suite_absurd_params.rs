@@ -149,14 +149,17 @@ fn absurd_parameters_are_refused_and_sigint_stops_a_busy_suite() {
 
     // ---- SIGINT while both workers compute ---------------------------------------------------
     // The largest horizon the predictor's rate allows (100 s: seconds per prediction), and a
-    // 10 s ~/predict with forces on the prediction node.
+    // 100 s ~/predict with forces on the prediction node (its `max_horizon` raised from 10 s:
+    // with the suite scenes on RK4 a 10 s one took under the 0.6 s waited below).
     let (ok, reason) = set_param(&predictor, "horizon", ParameterValue::Double(100.0));
     assert!(ok, "horizon = 100 s refused: {reason}");
+    let (ok, reason) = set_param(&prediction, "max_horizon", ParameterValue::Double(100.0));
+    assert!(ok, "max_horizon = 100 s refused: {reason}");
     let predict = t.client::<Predict>("/cd_prediction/predict");
     let request = PredictRequest {
         use_latest_state: true,
         commands: vec![twist(0.3, 0.2)],
-        horizon: 10.0,
+        horizon: 100.0,
         with_forces: true,
         ..Default::default()
     };
