@@ -322,11 +322,8 @@ impl Actuators {
             };
             let e = target - v[c.iv];
             let raw = c.kp * e + c.ki * (c.integral + e * dt);
-            let unsaturated = raw.abs() <= c.effort;
-            if unsaturated {
+            c.gain = if raw.abs() <= c.effort {
                 c.integral += e * dt; // anti-windup: integrate only when not saturated
-            }
-            c.gain = if unsaturated {
                 (c.ki, c.kp + c.ki * dt)
             } else {
                 (0.0, 0.0)
