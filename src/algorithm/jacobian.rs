@@ -25,7 +25,7 @@ pub fn frame_jacobian(
     rf: ReferenceFrame,
     j: &mut DMatrix<f64>,
 ) {
-    j.fill(0.0);
+    j.as_mut_slice().fill(0.0);
     let f = &model.frames[frame];
     let o_m_f = data.o_m_i[f.body].compose(&f.placement);
     let mut i = f.body;

@@ -26,7 +26,7 @@ pub fn aba_derivatives(
     dd.clear_point_forces();
     // Moved out and back (no copy, no allocation) so RNEA can read them while writing `dd`.
     let mut qdd = std::mem::take(&mut dd.qdd);
-    qdd.fill(0.0);
+    qdd.as_mut_slice().fill(0.0);
     rnea(model, data, q, v, qdd.as_slice());
     for (r, (t, h)) in dd
         .col_scratch

@@ -199,6 +199,6 @@ fn solve_columns(dd: &mut DerivativeData, input: Input) {
         dlambda.copy_from(&dd.rhs_c);
     } else {
         // λ is not unique (dependent rows): it has no derivative; zero, as documented.
-        dlambda.fill(0.0);
+        dlambda.as_mut_slice().fill(0.0);
     }
 }

@@ -160,9 +160,9 @@ fn applied_force_variation(dd: &DerivativeData, k: usize) -> Matrix6<f64> {
 #[inline(always)]
 fn backward_pass(model: &Model, data: &mut Data, dd: &mut DerivativeData) {
     let m = &mut data.mass_matrix;
-    dd.dtau_dq.fill(0.0);
-    dd.dtau_dv.fill(0.0);
-    m.fill(0.0);
+    dd.dtau_dq.as_mut_slice().fill(0.0);
+    dd.dtau_dv.as_mut_slice().fill(0.0);
+    m.as_mut_slice().fill(0.0);
     for k in (1..model.nbodies()).rev() {
         let b = &model.bodies[k];
         let (y, dy, g) = (dd.ycrb[k], dd.dycrb[k], dd.gext[k]);

@@ -242,8 +242,8 @@ pub(crate) fn row_derivatives(
     dd: &mut DerivativeData,
     stab: Baumgarte,
 ) {
-    dd.rows_dq.fill(0.0);
-    dd.rows_dv.fill(0.0);
+    dd.rows_dq.as_mut_slice().fill(0.0);
+    dd.rows_dv.as_mut_slice().fill(0.0);
     let (kp, kd) = (stab.kp, stab.kd);
     for (k, c) in set.items.iter().enumerate() {
         let r0 = set.ranges[k].start;

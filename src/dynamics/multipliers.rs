@@ -254,11 +254,11 @@ fn solve_kkt(
         ws.augmented,
         ws.qdd.as_mut_slice(),
     );
-    ws.lambda.fill(0.0);
+    ws.lambda.as_mut_slice().fill(0.0);
     ws.rank_deficiency = 0;
     ws.inconsistency = 0.0;
     if nc == 0 {
-        ws.generalized_force.fill(0.0);
+        ws.generalized_force.as_mut_slice().fill(0.0);
         return Ok(());
     }
     // Y = L⁻¹ Jᵀ with each column's non-zero rows: a row of J on one branch (a foot) keeps its

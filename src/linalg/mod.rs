@@ -5,6 +5,8 @@
 mod wide;
 pub(crate) use wide_fn;
 mod dense;
+#[cfg(target_arch = "x86_64")]
+mod gemm_avx2;
 mod ltl;
 mod lu;
 mod min_norm;

@@ -307,7 +307,7 @@ impl CovariancePropagator {
                 self.minv[(r, c)] = self.col[r];
             }
         }
-        self.proj.fill(0.0);
+        self.proj.as_mut_slice().fill(0.0);
         for i in 0..2 * nv {
             self.proj[(i, i)] = 1.0;
         }

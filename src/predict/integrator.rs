@@ -342,7 +342,7 @@ fn sdirk2_jacobian<F: Accel>(
     ws: &mut StepWorkspace,
 ) -> Result<()> {
     let nv = v.len();
-    ws.jac.fill(0.0);
+    ws.jac.as_mut_slice().fill(0.0);
     for i in 0..nv {
         ws.jac[(i, nv + i)] = 1.0; // ∂(stage velocity)/∂v
     }

@@ -171,11 +171,11 @@ impl StageMaps {
     /// The maps at Θ, and with `vel` = Some(V) also the two dexp⁻¹ maps (the end of a step
     /// needs only the first two).
     pub fn build(&mut self, model: &Model, theta: &[f64], vel: Option<&[f64]>) {
-        self.transport.fill(0.0);
-        self.right_jacobian.fill(0.0);
+        self.transport.as_mut_slice().fill(0.0);
+        self.right_jacobian.as_mut_slice().fill(0.0);
         if vel.is_some() {
-            self.dexp_inv_dtheta.fill(0.0);
-            self.dexp_inv.fill(0.0);
+            self.dexp_inv_dtheta.as_mut_slice().fill(0.0);
+            self.dexp_inv.as_mut_slice().fill(0.0);
         }
         for b in model.bodies.iter().skip(1) {
             let j = &b.joint;

@@ -477,7 +477,7 @@ fn combine_variations(lin: &mut Linearization, weights: &[f64], dt: f64) {
 fn tangent_variation(lin: &mut Linearization, cols: usize, d_theta_zero: bool) {
     let nv = lin.v_next.len();
     if d_theta_zero {
-        lin.moved_cols.columns_mut(0, cols).fill(0.0);
+        lin.moved_cols.as_mut_slice()[..nv * cols].fill(0.0);
     } else {
         gemm_columns(
             &mut lin.moved_cols,

@@ -286,7 +286,7 @@ fn jacobian<F: Accel>(
     ws: &mut RadauWorkspace,
 ) -> Result<()> {
     let nv = v.len();
-    ws.jac.fill(0.0);
+    ws.jac.as_mut_slice().fill(0.0);
     for i in 0..nv {
         ws.jac[(i, nv + i)] = 1.0;
     }

@@ -187,7 +187,7 @@ impl VelocityProjector {
         self.conflicts.clear();
         self.active.clear();
         self.working.clear();
-        self.nu.fill(0.0);
+        self.nu.as_mut_slice().fill(0.0);
         if self.eta.len() != p.b.len() {
             self.eta = vec![0.0; p.b.len()];
         }
@@ -265,8 +265,8 @@ impl VelocityProjector {
         self.conflicts.clear();
         self.active.clear();
         self.working.clear();
-        self.lambda.fill(0.0);
-        self.nu.fill(0.0);
+        self.lambda.as_mut_slice().fill(0.0);
+        self.nu.as_mut_slice().fill(0.0);
         self.eta = vec![0.0; p.b.len()];
         inequality_rows(&self.bounds, p.a.nrows(), &mut self.ineq);
         let v = self.v.as_slice();
