@@ -2,6 +2,7 @@
 //! merging of fixed (and locked) joints, and the scene's choice of base.
 
 use super::check;
+use super::inertial::{link_inertia, validate_inertial};
 use super::{Body, Frame, Joint, JointKind, Limits, Mimic, Model};
 use crate::error::{Error, Result};
 use crate::spatial::{Inertia, SE3, rotation_from_rpy};
@@ -493,34 +494,4 @@ impl<'a> Builder<'a> {
         });
         m.bodies.len() - 1
     }
-}
-
-fn link_inertia(i: &urdf_rs::Inertial) -> Inertia {
-    let t = &i.inertia;
-    let ic = Matrix3::new(
-        t.ixx, t.ixy, t.ixz, t.ixy, t.iyy, t.iyz, t.ixz, t.iyz, t.izz,
-    );
-    let r = rotation_from_rpy(&i.origin.rpy.0);
-    Inertia::new(
-        i.mass.value,
-        Vector3::from(i.origin.xyz.0),
-        r * ic * r.transpose(),
-    )
-}
-
-/// Mass ≥ 0 and finite entries (errors); whether the rotational inertia is physical is
-/// returned apart, to be judged on the merged body (`check_bodies`).
-fn validate_inertial(i: &urdf_rs::Inertial) -> std::result::Result<Option<String>, String> {
-    let m = i.mass.value;
-    if !m.is_finite() || m < 0.0 {
-        return Err(format!("<inertial>: mass {m} kg is negative or not finite"));
-    }
-    let t = &i.inertia;
-    let ic = Matrix3::new(
-        t.ixx, t.ixy, t.ixz, t.ixy, t.iyy, t.iyz, t.ixz, t.iyz, t.izz,
-    );
-    if ic.iter().any(|x| !x.is_finite()) {
-        return Err("<inertia>: entry not finite".into());
-    }
-    Ok(check::inertia_defect(m, &ic))
 }

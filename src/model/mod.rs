@@ -8,6 +8,7 @@
 mod base;
 mod build;
 mod check;
+mod inertial;
 mod joint;
 mod urdf_text;
 

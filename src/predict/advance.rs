@@ -8,11 +8,12 @@ use super::drift::Projector;
 use super::estimate::Lane;
 use super::integrator::{
     Accel, DOP853, DOPRI5, JacobianScratch, Method, RK4, accel_jacobian_fd, dop853_error_norm,
-    dopri5_error_norm, explicit_step, sdirk2_step, semi_implicit_euler_step, stage,
+    dopri5_error_norm, explicit_step, semi_implicit_euler_step, stage,
 };
 use super::linearize::dynamics_derivatives;
 use super::radau::radau5_step;
 use super::run::Predictor;
+use super::sdirk2::sdirk2_step;
 use crate::applied::applied_generalized_force;
 use crate::derivatives::DerivativeData;
 use crate::dynamics::Formulation;

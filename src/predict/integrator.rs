@@ -5,8 +5,7 @@
 
 use super::lie::dexp_inv;
 pub use super::tableaus::{DOP853, DOPRI5, ErrorWeights, MAX_STAGES, RK4, Tableau};
-use crate::error::{Error, Result};
-use crate::linalg::{lu_in_place, lu_solve};
+use crate::error::Result;
 use crate::model::Model;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
@@ -146,12 +145,12 @@ pub fn accel_jacobian_fd<F: Accel + ?Sized>(
 #[derive(Clone, Debug, Default)]
 pub struct StepWorkspace {
     /// Stage derivatives k_i (2nv each), up to 12 stages (DOP853).
-    ks: Vec<Vec<f64>>,
-    qs: Vec<f64>,
-    vs: Vec<f64>,
-    dx: Vec<f64>,
-    q0: Vec<f64>,
-    v0: Vec<f64>,
+    pub(super) ks: Vec<Vec<f64>>,
+    pub(super) qs: Vec<f64>,
+    pub(super) vs: Vec<f64>,
+    pub(super) dx: Vec<f64>,
+    pub(super) q0: Vec<f64>,
+    pub(super) v0: Vec<f64>,
     /// Embedded error vector (Θ, Δv) of the last DOPRI5 step, DOP853's 5th-order one (2nv).
     pub err: Vec<f64>,
     /// DOP853's 3rd-order error vector (2nv).
@@ -159,18 +158,18 @@ pub struct StepWorkspace {
     /// SDIRK2: ∂k/∂(Θ, v) (analytic, or finite differences), its LU (I − dt γ ∂k/∂x), pivots, residual.
     /// `jac` is kept across steps while Newton converges (`jac_valid`); `newton` is refactored
     /// from it when dt moves by more than rounding (`newton_dt`).
-    jac: DMatrix<f64>,
-    newton: DMatrix<f64>,
-    piv: Vec<usize>,
-    resid: Vec<f64>,
-    a0: Vec<f64>,
-    scratch: JacobianScratch,
+    pub(super) jac: DMatrix<f64>,
+    pub(super) newton: DMatrix<f64>,
+    pub(super) piv: Vec<usize>,
+    pub(super) resid: Vec<f64>,
+    pub(super) a0: Vec<f64>,
+    pub(super) scratch: JacobianScratch,
     /// dt of the factor in `newton`.
-    newton_dt: f64,
+    pub(super) newton_dt: f64,
     /// `jac` may be used (false: recompute it at the next step).
-    jac_valid: bool,
+    pub(super) jac_valid: bool,
     /// `jac` was computed at this step's start state (a Newton failure is then final).
-    jac_fresh: bool,
+    pub(super) jac_fresh: bool,
 }
 
 impl StepWorkspace {
@@ -329,164 +328,6 @@ pub fn semi_implicit_euler_step<F: Accel>(
     ws.q0.copy_from_slice(q);
     model.integrate(&ws.q0, v, dt, q);
     Ok(())
-}
-
-/// ∂k/∂(Θ, v) at (q_n, v_n) into `ws.jac` (`ws.a0` = q̈(q_n, v_n)): [[0, 1], [∂q̈/∂q, ∂q̈/∂v]],
-/// analytic where the right-hand side has derivatives.
-fn sdirk2_jacobian<F: Accel>(
-    f: &mut F,
-    model: &Model,
-    t: f64,
-    q: &[f64],
-    v: &[f64],
-    ws: &mut StepWorkspace,
-) -> Result<()> {
-    let nv = v.len();
-    ws.jac.as_mut_slice().fill(0.0);
-    for i in 0..nv {
-        ws.jac[(i, nv + i)] = 1.0; // ∂(stage velocity)/∂v
-    }
-    f.accel_jacobian(model, (t, q, v), &ws.a0, &mut ws.jac, &mut ws.scratch)?;
-    ws.jac_fresh = true;
-    ws.jac_valid = true;
-    Ok(())
-}
-
-/// Alexander's L-stable SDIRK2 (γ = 1 − 1/√2) with a simplified Newton iteration on
-/// `(I − dt γ ∂k/∂x) δ = k(x) − k`. The Jacobian (analytic, or finite differences of q̈) is
-/// kept from step to step while Newton converges in ≤ 6 iterations and recomputed at the step's
-/// start state when Newton fails or slows down; a dt that differs by more than rounding
-/// (relative 1e-6: sample spans of slightly different length) only refactors the matrix, which
-/// costs no evaluation. Issue 13: comparing dt bit for bit refreshed the Jacobian at most steps.
-pub fn sdirk2_step<F: Accel>(
-    f: &mut F,
-    model: &Model,
-    t: f64,
-    dt: f64,
-    q: &mut [f64],
-    v: &mut [f64],
-    ws: &mut StepWorkspace,
-) -> Result<()> {
-    let g = 1.0 - std::f64::consts::FRAC_1_SQRT_2;
-    f.accel(t, q, v, &mut ws.a0)?;
-    ws.jac_fresh = false;
-    if !ws.jac_valid {
-        sdirk2_jacobian(f, model, t, q, v, ws)?;
-        factor_newton(ws, dt * g)?;
-        ws.newton_dt = dt;
-    } else if (dt - ws.newton_dt).abs() > 1e-6 * ws.newton_dt {
-        factor_newton(ws, dt * g)?;
-        ws.newton_dt = dt;
-    }
-    loop {
-        match sdirk2_stages(f, model, t, dt, q, v, ws) {
-            Ok(iterations) => {
-                // Slow convergence: a fresh Jacobian next step.
-                ws.jac_valid = iterations <= 6;
-                break;
-            }
-            Err(e) if ws.jac_fresh => return Err(e),
-            Err(_) => {
-                // A stale Jacobian: refresh it at this state and try once more.
-                sdirk2_jacobian(f, model, t, q, v, ws)?;
-                factor_newton(ws, dt * g)?;
-                ws.newton_dt = dt;
-            }
-        }
-    }
-    for i in 0..ws.dx.len() {
-        ws.dx[i] = dt * ((1.0 - g) * ws.ks[0][i] + g * ws.ks[1][i]);
-    }
-    ws.save(q, v);
-    stage(model, &ws.q0, &ws.v0, &ws.dx, q, v);
-    Ok(())
-}
-
-fn factor_newton(ws: &mut StepWorkspace, dtg: f64) -> Result<()> {
-    let n = ws.jac.nrows();
-    for c in 0..n {
-        for r in 0..n {
-            ws.newton[(r, c)] = if r == c { 1.0 } else { 0.0 } - dtg * ws.jac[(r, c)];
-        }
-    }
-    if !lu_in_place(&mut ws.newton, &mut ws.piv) {
-        return Err(Error::StepTooLarge {
-            message: "SDIRK2 Newton matrix is singular".into(),
-        });
-    }
-    Ok(())
-}
-
-/// The two implicit stages k_i = k(q_n ⊕ dt Σ_j a_ij k_j) into ks[0], ks[1]; returns the
-/// largest number of Newton iterations a stage needed.
-fn sdirk2_stages<F: Accel>(
-    f: &mut F,
-    model: &Model,
-    t: f64,
-    dt: f64,
-    q: &[f64],
-    v: &[f64],
-    ws: &mut StepWorkspace,
-) -> Result<usize> {
-    let g = 1.0 - std::f64::consts::FRAC_1_SQRT_2;
-    let (a, c) = ([[g, 0.0], [1.0 - g, g]], [g, 1.0]);
-    let nv = v.len();
-    let n = 2 * nv;
-    ws.ks[0][..nv].copy_from_slice(v);
-    ws.ks[0][nv..n].copy_from_slice(&ws.a0);
-    let mut most = 0;
-    for i in 0..2 {
-        if i == 1 {
-            let (k0, k1) = ws.ks.split_at_mut(1);
-            k1[0].copy_from_slice(&k0[0]);
-        }
-        let mut converged = false;
-        for it in 1..=20 {
-            most = most.max(it);
-            for idx in 0..n {
-                ws.dx[idx] = dt * (0..=i).map(|j| a[i][j] * ws.ks[j][idx]).sum::<f64>();
-            }
-            stage(model, q, v, &ws.dx, &mut ws.qs, &mut ws.vs);
-            if !ws.qs.iter().chain(&ws.vs).all(|x| x.is_finite()) {
-                break; // the iteration diverged: not converged, StepTooLarge below
-            }
-            // k(x) into the error buffer (unused by SDIRK2), then the residual k(x) − k_i.
-            derivative(
-                f,
-                model,
-                t + c[i] * dt,
-                &ws.dx[..nv],
-                &ws.qs,
-                &ws.vs,
-                &mut ws.err,
-            )?;
-            for r in 0..n {
-                ws.resid[r] = ws.err[r] - ws.ks[i][r];
-            }
-            lu_solve(&ws.newton, &ws.piv, &mut ws.resid);
-            let scale = ws.ks[i].iter().fold(1.0f64, |m, x| m.max(x.abs()));
-            let mut step = 0.0f64;
-            for r in 0..n {
-                ws.ks[i][r] += ws.resid[r];
-                step = step.max(ws.resid[r].abs());
-            }
-            if !step.is_finite() {
-                break;
-            }
-            if step <= 1e-10 * scale {
-                converged = true;
-                break;
-            }
-        }
-        if !converged {
-            return Err(Error::StepTooLarge {
-                message: format!(
-                    "SDIRK2 Newton iteration did not converge at t = {t} s with dt = {dt} s"
-                ),
-            });
-        }
-    }
-    Ok(most)
 }
 
 /// RMS of the DOPRI5 error scaled by atol + rtol·|x| (1 for configuration rows, |v| for velocity).

@@ -22,6 +22,7 @@ mod radau_tableau;
 mod rollout;
 mod run;
 mod sampling;
+mod sdirk2;
 mod tableaus;
 mod trajectory;
 
