@@ -145,8 +145,27 @@ pub fn dot_unrolled(a: &[f64], b: &[f64]) -> f64 {
 
 /// `out = A x` without allocation.
 pub fn mat_vec(a: &DMatrix<f64>, x: &[f64], out: &mut [f64]) {
-    for (i, o) in out.iter_mut().enumerate() {
-        *o = (0..a.ncols()).map(|k| a[(i, k)] * x[k]).sum();
+    mat_vec_add(a, x, 0.0, out);
+}
+
+/// `out = A x + β out` over A's first `out.len()` rows, without allocation: as sums of A's
+/// columns (contiguous; the loop vectorizes, where a dot product per row strides through memory).
+/// Each entry's sum runs over k in increasing order.
+pub fn mat_vec_add(a: &DMatrix<f64>, x: &[f64], beta: f64, out: &mut [f64]) {
+    let (m, n) = (a.nrows(), out.len());
+    assert!(n <= m && x.len() >= a.ncols());
+    if beta == 0.0 {
+        out.fill(0.0);
+    } else if beta != 1.0 {
+        out.iter_mut().for_each(|o| *o *= beta);
+    }
+    if m == 0 {
+        return;
+    }
+    for (col, &xk) in a.as_slice().chunks_exact(m).zip(x) {
+        for (o, aik) in out.iter_mut().zip(&col[..n]) {
+            *o += aik * xk;
+        }
     }
 }
 

@@ -15,8 +15,8 @@ mod rank;
 
 pub use dense::{
     cholesky_in_place, cholesky_solve, dot_unrolled, gemm_columns, gemm_into, gemm_nt_into,
-    gemm_tr_into, inverse_from_cholesky, mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
-    spd_inverse,
+    gemm_tr_into, inverse_from_cholesky, mat_tr_vec, mat_vec, mat_vec_add, solve_lower,
+    solve_lower_transpose, spd_inverse,
 };
 pub use ltl::{NO_PARENT, ltl_factor, ltl_inverse, ltl_solve_l, ltl_solve_lt};
 pub use lu::{lu_in_place, lu_solve};

@@ -16,7 +16,7 @@ use super::lie::{StageMaps, dexp_inv, right_jacobian, transport};
 use crate::actuators::Feedback;
 use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
 use crate::error::{Error, Result};
-use crate::linalg::gemm_columns;
+use crate::linalg::{gemm_columns, mat_vec_add};
 use crate::system::System;
 use nalgebra::DMatrix;
 
@@ -93,12 +93,11 @@ impl Linearization {
         let mut log_growth = 0.0;
         for it in 0..WARM + COUNT {
             let norm_x = x.iter().map(|a| a * a).sum::<f64>().sqrt();
-            for i in 0..nv {
-                y[i] = x[nv + i];
-                y[nv + i] = (0..nv)
-                    .map(|k| self.dd.dqdd_dq[(i, k)] * x[k] + self.dd.dqdd_dv[(i, k)] * x[nv + k])
-                    .sum();
-            }
+            let (xq, xv) = x.split_at(nv);
+            let (yq, yv) = y.split_at_mut(nv);
+            yq.copy_from_slice(xv);
+            mat_vec_add(&self.dd.dqdd_dq, xq, 0.0, yv);
+            mat_vec_add(&self.dd.dqdd_dv, xv, 1.0, yv);
             let norm_y = y.iter().map(|a| a * a).sum::<f64>().sqrt();
             if !(norm_y > 0.0 && norm_y.is_finite()) {
                 return if norm_y == 0.0 { 0.0 } else { f64::INFINITY };
