@@ -1,5 +1,5 @@
 use std::{
-  collections::BTreeMap,
+  collections::{BTreeMap, VecDeque},
   sync::{Arc, RwLock, RwLockReadGuard, RwLockWriteGuard},
   time::Instant,
 };
@@ -69,6 +69,13 @@ pub(crate) struct DiscoveryDB {
   // was lost due to time-out. If we have a
   external_topic_readers_attic: BTreeMap<GUID, DiscoveredReaderData>,
   external_topic_writers_attic: BTreeMap<GUID, DiscoveredWriterData>,
+  // The participants whose endpoints are in the attic, oldest loss first: the attic keeps
+  // only the last ATTIC_PARTICIPANTS of them. Unbounded, it grew by every participant that
+  // ever left without a disposal (a killed or crashed process, or one whose disposal was
+  // lost), ~3 kB each for a ros2-client node — without end on a robot whose tools come and
+  // go. A participant that returns after its endpoints left the attic re-announces them
+  // (SEDP is transient-local), so dropping them loses nothing but the shortcut.
+  attic_order: VecDeque<GuidPrefix>,
 
   // Database of topic updates:
   // Outer level key is topic name
@@ -89,6 +96,9 @@ pub(crate) enum DiscoveredVia {
   Subscription, // we discovered a reader on this topic
   SelfDefined,  // not discovered, but defined by the local DomainParticipant
 }
+
+/// Participants lost by lease expiry whose endpoints the attic keeps for a rediscovery.
+const ATTIC_PARTICIPANTS: usize = 64;
 
 fn move_by_guid_prefix<D>(
   guid_prefix: GuidPrefix,
@@ -137,6 +147,7 @@ impl DiscoveryDB {
       external_topic_writers: BTreeMap::new(),
       external_topic_readers_attic: BTreeMap::new(),
       external_topic_writers_attic: BTreeMap::new(),
+      attic_order: VecDeque::new(),
       topics: BTreeMap::new(),
       topic_updated_sender,
       participant_status_sender,
@@ -194,6 +205,7 @@ impl DiscoveryDB {
         &mut self.external_topic_writers_attic,
         &mut self.external_topic_writers,
       );
+      self.attic_order.retain(|p| *p != guid.prefix);
     }
 
     // In any case:
@@ -251,6 +263,28 @@ impl DiscoveryDB {
         &mut self.external_topic_writers,
         &mut self.external_topic_writers_attic,
       );
+      self.attic_order.retain(|p| *p != guid_prefix);
+      self.attic_order.push_back(guid_prefix);
+      while self.attic_order.len() > ATTIC_PARTICIPANTS {
+        if let Some(oldest) = self.attic_order.pop_front() {
+          let readers: Vec<GUID> = self
+            .external_topic_readers_attic
+            .range(oldest.range())
+            .map(|(g, _)| *g)
+            .collect();
+          for g in readers {
+            self.external_topic_readers_attic.remove(&g);
+          }
+          let writers: Vec<GUID> = self
+            .external_topic_writers_attic
+            .range(oldest.range())
+            .map(|(g, _)| *g)
+            .collect();
+          for g in writers {
+            self.external_topic_writers_attic.remove(&g);
+          }
+        }
+      }
     }
   }
 
@@ -898,6 +932,52 @@ mod tests {
     assert!(discoverydb.participant_proxies.is_empty());
 
     // TODO: more operations tests
+  }
+
+  #[test]
+  fn discdb_attic_keeps_only_the_last_lost_participants() {
+    // Participants lost by lease expiry (not disposed) leave their endpoints in the attic for a
+    // rediscovery; it keeps the last ATTIC_PARTICIPANTS of them, not every one that ever left.
+    let (discovery_db_event_sender, _discovery_db_event_receiver) =
+      std::sync::mpsc::sync_channel::<()>(4);
+    let (status_sender, _status_receiver) = sync_status_channel(16).unwrap();
+    let mut db = DiscoveryDB::new(
+      GUID::new_participant_guid(),
+      discovery_db_event_sender,
+      status_sender,
+    );
+    let prefix = |i: usize| {
+      let mut b = [0u8; 12];
+      b[..8].copy_from_slice(&(i as u64 + 1).to_le_bytes());
+      GuidPrefix::new(&b)
+    };
+    let endpoints = |i: usize| {
+      (0..3u8).map(move |k| {
+        GUID::new(
+          prefix(i),
+          EntityId::new([k, 0, 1], EntityKind::READER_WITH_KEY_USER_DEFINED),
+        )
+      })
+    };
+    let lost = ATTIC_PARTICIPANTS + 40;
+    for i in 0..lost {
+      for g in endpoints(i) {
+        let mut r = DiscoveredReaderData::default("t".to_string(), "T".to_string());
+        r.reader_proxy.remote_reader_guid = g;
+        db.external_topic_readers.insert(g, r);
+      }
+      db.remove_participant(prefix(i), false);
+    }
+    assert!(db.external_topic_readers.is_empty());
+    assert_eq!(db.external_topic_readers_attic.len(), 3 * ATTIC_PARTICIPANTS);
+    assert_eq!(db.attic_order.len(), ATTIC_PARTICIPANTS);
+    // The oldest are gone, the most recent kept.
+    assert!(endpoints(0).all(|g| !db.external_topic_readers_attic.contains_key(&g)));
+    assert!(endpoints(lost - 1).all(|g| db.external_topic_readers_attic.contains_key(&g)));
+    // A participant lost again counts once, at its latest loss.
+    db.remove_participant(prefix(lost - ATTIC_PARTICIPANTS), false);
+    assert_eq!(db.attic_order.len(), ATTIC_PARTICIPANTS);
+    assert_eq!(db.attic_order.back(), Some(&prefix(lost - ATTIC_PARTICIPANTS)));
   }
 
   #[test]
