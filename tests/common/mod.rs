@@ -204,3 +204,10 @@ pub fn turning_with_arm_held() -> constraint_dynamics::actuators::Command {
     }
     cmd
 }
+
+/// A bundled scene (`params/<name>`) and its system.
+pub fn scene_system(name: &str) -> (constraint_dynamics::Scene, constraint_dynamics::System) {
+    let scene = constraint_dynamics::Scene::load(repo_dir().join("params").join(name)).unwrap();
+    let sys = constraint_dynamics::System::from_scene(&scene).unwrap();
+    (scene, sys)
+}
