@@ -111,6 +111,15 @@ fn move_by_guid_prefix<D>(
   }
 }
 
+/// Drops every entry of `map` whose GUID has `guid_prefix` (one participant's endpoints).
+fn remove_by_guid_prefix<D>(guid_prefix: GuidPrefix, map: &mut BTreeMap<GUID, D>) {
+  // TODO: BTreeMap::extract_if once it is stable.
+  let to_remove: Vec<GUID> = map.range(guid_prefix.range()).map(|(g, _)| *g).collect();
+  for guid in to_remove {
+    map.remove(&guid);
+  }
+}
+
 pub(crate) fn discovery_db_read(
   discovery_db: &Arc<RwLock<DiscoveryDB>>,
 ) -> RwLockReadGuard<'_, DiscoveryDB> {
@@ -267,22 +276,8 @@ impl DiscoveryDB {
       self.attic_order.push_back(guid_prefix);
       while self.attic_order.len() > ATTIC_PARTICIPANTS {
         if let Some(oldest) = self.attic_order.pop_front() {
-          let readers: Vec<GUID> = self
-            .external_topic_readers_attic
-            .range(oldest.range())
-            .map(|(g, _)| *g)
-            .collect();
-          for g in readers {
-            self.external_topic_readers_attic.remove(&g);
-          }
-          let writers: Vec<GUID> = self
-            .external_topic_writers_attic
-            .range(oldest.range())
-            .map(|(g, _)| *g)
-            .collect();
-          for g in writers {
-            self.external_topic_writers_attic.remove(&g);
-          }
+          remove_by_guid_prefix(oldest, &mut self.external_topic_readers_attic);
+          remove_by_guid_prefix(oldest, &mut self.external_topic_writers_attic);
         }
       }
     }
@@ -296,16 +291,7 @@ impl DiscoveryDB {
   }
 
   fn remove_topic_reader_with_prefix(&mut self, guid_prefix: GuidPrefix) {
-    // TODO: Implement this using .drain_filter() in BTreeMap once it lands in
-    // stable.
-    let to_remove: Vec<GUID> = self
-      .external_topic_readers
-      .range(guid_prefix.range())
-      .map(|(g, _)| *g)
-      .collect();
-    for guid in to_remove {
-      self.external_topic_readers.remove(&guid);
-    }
+    remove_by_guid_prefix(guid_prefix, &mut self.external_topic_readers);
   }
 
   pub fn remove_topic_reader(&mut self, guid: GUID) {
@@ -334,16 +320,7 @@ impl DiscoveryDB {
   }
 
   fn remove_topic_writer_with_prefix(&mut self, guid_prefix: GuidPrefix) {
-    // TODO: Implement this using .drain_filter() in BTreeMap once it lands in
-    // stable.
-    let to_remove: Vec<GUID> = self
-      .external_topic_writers
-      .range(guid_prefix.range())
-      .map(|(g, _)| *g)
-      .collect();
-    for guid in to_remove {
-      self.external_topic_writers.remove(&guid);
-    }
+    remove_by_guid_prefix(guid_prefix, &mut self.external_topic_writers);
   }
 
   pub fn remove_topic_writer(&mut self, guid: GUID) {
