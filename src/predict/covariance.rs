@@ -64,6 +64,9 @@ pub struct CovariancePropagator {
     pub(super) lin: Linearization,
     /// The prediction's steps not yet in `p` (covariance_chunks.rs).
     pub(super) history: StepHistory,
+    /// Linearized steps so far, tried ones included, and the wall time of the flushes [s].
+    pub(super) linearizations: usize,
+    pub(super) time_s: f64,
     tmp: DMatrix<f64>,
     proj: DMatrix<f64>,
     minv: DMatrix<f64>,
@@ -196,6 +199,8 @@ impl CovariancePropagator {
                 lin
             },
             history: StepHistory::new(sys),
+            linearizations: 0,
+            time_s: 0.0,
             tmp: DMatrix::zeros(2 * nv, 2 * nv),
             proj: DMatrix::identity(2 * nv, 2 * nv),
             minv: DMatrix::zeros(nv, nv),

@@ -267,6 +267,8 @@ impl Predictor {
             least_squares_evaluations: 0,
             jacobians: 0,
             estimate_evaluations: 0,
+            covariance_linearizations: 0,
+            covariance_time_s: 0.0,
             refinements: 0,
             run_time_s: 0.0,
         };
@@ -369,6 +371,10 @@ impl Predictor {
         traj.least_squares_evaluations = a.least_squares;
         traj.jacobians = a.radau.jacobians;
         traj.estimate_evaluations = c.evaluations;
+        if let Some(cov) = &self.covariance {
+            (traj.covariance_linearizations, traj.covariance_time_s) =
+                (cov.linearizations, cov.time_s);
+        }
         result.map(|()| traj)
     }
 

@@ -40,6 +40,9 @@ pub struct StatusContext<'a> {
     pub extra: Vec<KeyValue>,
     /// Kind-specific reasons for a WARN (the predictor's stale inputs).
     pub warnings: Vec<String>,
+    /// The kind's reason for a rate below the requested one, if it knows one (the predictor's
+    /// tick longer than its period), appended to the rate warning.
+    pub rate_shortfall: Option<String>,
 }
 
 /// What a worker records of its node's work.
@@ -112,7 +115,11 @@ impl Health {
                 Some(r) => {
                     values.push(kv("achieved rate [Hz]", &format!("{r:.3}")));
                     if r < ctx.params.min_rate_fraction * requested {
-                        warnings.push(format!("rate {r:.2} Hz < requested {requested} Hz"));
+                        let why = match &ctx.rate_shortfall {
+                            Some(why) => format!(": {why}"),
+                            None => String::new(),
+                        };
+                        warnings.push(format!("rate {r:.2} Hz < requested {requested} Hz{why}"));
                     }
                 }
                 None => values.push(kv("achieved rate [Hz]", "-")),
@@ -194,6 +201,7 @@ mod tests {
             params,
             extra: vec![],
             warnings: vec![],
+            rate_shortfall: None,
         }
     }
 
@@ -271,5 +279,27 @@ mod tests {
             .find(|v| v.key == "compute p50 [ms]")
             .unwrap();
         assert_eq!(p50.value, "150.000");
+    }
+
+    /// The kind's reason for a low rate joins the rate warning, and only when the rate is low.
+    #[test]
+    fn a_low_rate_carries_the_kinds_reason() {
+        let p = DiagnosticsParams::default();
+        let why = "a tick takes 150 ms ≥ the 100 ms period".to_string();
+        let mut slow = Health::default();
+        let mut on_time = Health::default();
+        for k in 0..5 {
+            slow.tick(at(0.2 * k as f64), 0.15, None);
+            on_time.tick(at(0.1 * k as f64), 0.15, None);
+        }
+        let mut c = ctx(&p, &[]);
+        c.rate_shortfall = Some(why.clone());
+        let s = slow.status(at(0.8), c);
+        assert_eq!(s.level, DiagnosticStatus::WARN);
+        assert_eq!(s.message, format!("rate 5.00 Hz < requested 10 Hz: {why}"));
+        let mut c = ctx(&p, &[]);
+        c.rate_shortfall = Some(why);
+        let s = on_time.status(at(0.4), c);
+        assert_eq!(s.level, DiagnosticStatus::OK, "{}", s.message);
     }
 }

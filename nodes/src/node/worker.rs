@@ -66,6 +66,11 @@ pub trait NodeLogic: Sized + Send + 'static {
     fn warnings(&self) -> Vec<String> {
         Vec::new()
     }
+    /// Why the tick rate may fall short of the requested one (the last tick's work against the
+    /// period), added to the status' rate warning when the achieved rate is low.
+    fn rate_shortfall(&self) -> Option<String> {
+        None
+    }
 }
 
 /// Everything a worker reacts to.
@@ -348,6 +353,7 @@ impl<N: NodeLogic> Worker<N> {
             params: &params.common.diagnostics,
             extra: self.logic.diagnostics(),
             warnings: self.logic.warnings(),
+            rate_shortfall: self.logic.rate_shortfall(),
         };
         let kind_warns = !ctx.warnings.is_empty();
         let status = self.health.status(now, ctx);

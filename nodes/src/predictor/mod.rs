@@ -10,6 +10,7 @@
 pub mod markers;
 pub mod params;
 pub mod ros;
+mod work;
 
 use std::time::{Duration, Instant};
 
@@ -78,6 +79,8 @@ pub struct PredictorNode {
     start_covariance: StartCovariance,
     /// The stale inputs at the last tick ("odom 0.62 s"), empty when fresh.
     stale: Vec<String>,
+    /// The last periodic prediction's work (for `/diagnostics`).
+    work: Option<work::PredictionWork>,
 }
 
 impl NodeLogic for PredictorNode {
@@ -111,6 +114,7 @@ impl NodeLogic for PredictorNode {
             position_residual: 0.0,
             start_covariance,
             stale: Vec::new(),
+            work: None,
         })
     }
     fn robot(&self) -> &Robot {
@@ -173,14 +177,19 @@ impl NodeLogic for PredictorNode {
             true => "fresh".to_string(),
             false => self.stale_message(&self.stale),
         };
-        vec![
+        let mut values = vec![
             kv("state inputs", &inputs),
             kv("slipping contacts", &self.slipping.join(", ")),
             kv(
                 "max position residual [m or rad]",
                 &format!("{:.3e}", self.position_residual),
             ),
-        ]
+        ];
+        values.extend(self.work.iter().flat_map(|w| w.key_values()));
+        values
+    }
+    fn rate_shortfall(&self) -> Option<String> {
+        self.work.as_ref()?.overrun(1.0 / self.params.node.rate)
     }
 }
 
@@ -283,13 +292,15 @@ impl PredictorNode {
             .collect();
         self.position_residual = traj.samples.last().map_or(0.0, |s| s.position_residual);
         let (markers, wrenches) = self.markers(&at.forces, &path, now);
+        let compute_s = t0.elapsed().as_secs_f64();
+        self.work = Some(work::PredictionWork::of(&traj, compute_s));
         Ok(PeriodicOutput {
             odom,
             path,
             forces,
             markers,
             wrenches,
-            compute_s: t0.elapsed().as_secs_f64(),
+            compute_s,
         })
     }
 

@@ -201,8 +201,41 @@ fn predicted_pose_covariance_is_the_unicycle_closed_form() {
         got[0],
         out.compute_s * 1e3
     );
+    // `/diagnostics` carries the tick's work — the covariance's linearized steps: the PI wheel
+    // controllers, whose torque changes at every 1 ms control tick, refuse every chunk longer
+    // than one step, so about one per step over the 1 s horizon; refused tries of longer
+    // chunks back off (covariance_chunks.rs): achieved 1 021, 1 951 before — and the reason
+    // when a tick does not fit the period.
+    let work = |n: &PredictorNode| {
+        let d = n.diagnostics();
+        d.iter()
+            .find(|v| v.key == "last prediction work")
+            .map(|v| v.value.clone())
+            .expect("work in /diagnostics")
+    };
+    let with = work(&n);
+    let count = |w: &str, what: &str| -> usize {
+        let before = w.split(what).next().unwrap().trim_end();
+        before.rsplit(' ').next().unwrap().parse().unwrap()
+    };
+    let (steps, lin) = (count(&with, " steps"), count(&with, " covariance"));
+    assert!(steps == 1000 && (1000..=1030).contains(&lin), "{with}");
+    n.params.node.rate = 0.01;
+    assert_eq!(n.rate_shortfall(), None, "a 100 s period: {with}");
+    n.params.node.rate = 1e3;
+    let why = n.rate_shortfall().expect("a 1 ms period is overrun");
+    assert!(
+        why.starts_with("a tick takes") && why.contains("≥ the 1 ms period"),
+        "{why}"
+    );
+    n.params.node.rate = 10.0;
     n.params.node.covariance.propagate = false;
     let plain = tick(&mut n, t0);
+    assert!(
+        work(&n).ends_with(" 0 covariance linearizations"),
+        "{}",
+        work(&n)
+    );
     println!(
         "the same prediction without covariance: {:.1} ms",
         plain.compute_s * 1e3
