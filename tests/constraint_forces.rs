@@ -1,42 +1,24 @@
-//! Constraint forces in physical terms (`constraints/forces.rs`: `constraint_forces`, the
-//! generalized-force units, row names) against closed forms written here from Newton's laws on
+//! Constraint forces in physical terms (`constraints/forces.rs`: `constraint_forces`, a velocity
+//! constraint's generalized force; units, row stacking and the scene defaults are in
+//! constraint_conventions.rs) against closed forms written here from Newton's laws on
 //! the reference disk (`../shared/reference/urdf/disk.urdf`: m = 1 kg, COM at the origin,
 //! I = diag(0.0025, 0.005, 0.0025) kg m²) and on two sliders written inline.
 
 mod common;
 use common::*;
 use constraint_dynamics::constraints::generalized_force_unit;
-use constraint_dynamics::constraints::{
-    Constraint, ConstraintKind, ConstraintSet, ConstraintSpec, Row,
-};
-use constraint_dynamics::dynamics::{Baumgarte, Formulation};
-use constraint_dynamics::{BaseType, Model, ModelOptions, System};
+use constraint_dynamics::constraints::{Constraint, ConstraintKind, ConstraintSpec, Row};
+use constraint_dynamics::{BaseType, Model, ModelOptions};
 use std::collections::BTreeMap;
 
 const M: f64 = 1.0;
 const IZZ: f64 = 0.0025;
 
-fn disk(base: BaseType) -> Model {
-    Model::from_urdf_file(
-        reference_dir().join("urdf/disk.urdf"),
-        &ModelOptions {
-            base,
-            ..Default::default()
-        },
-    )
-    .unwrap()
-}
-
-fn system(model: Model, specs: &[ConstraintSpec], q: &[f64]) -> System {
-    let set = ConstraintSet::new(&model, specs, q).unwrap();
-    System::new(model, set, Baumgarte::default(), Formulation::Multipliers)
-}
-
 /// The disk hangs from a world point 0.1 m above its centre, held on rows x and z only: at rest
 /// the pin carries the weight, (0, 0, m g) on the disk at the pin, no torque.
 #[test]
 fn point_constraint_force_is_the_weight_at_the_pin() {
-    let model = disk(BaseType::Floating);
+    let model = reference_disk(BaseType::Floating);
     let spec = ConstraintSpec::Point {
         name: "pin".into(),
         frame_a: "disk".into(),
@@ -46,7 +28,7 @@ fn point_constraint_force_is_the_weight_at_the_pin() {
         rows: vec![Row::X, Row::Z],
     };
     let q = [0.3, -0.2, 1.0, 0.0, 0.0, 0.0, 1.0];
-    let mut sys = system(model, &[spec], &q);
+    let mut sys = multiplier_system(model, &[spec], &q);
     sys.forward_dynamics(&q, &[0.0; 6], &[0.0; 6], true)
         .unwrap();
     assert_eq!(sys.constraints.row_names(), ["pin/x", "pin/z"]);
@@ -75,7 +57,7 @@ fn point_constraint_force_is_the_weight_at_the_pin() {
 /// m u ω (−sin θ, cos θ, 0).
 #[test]
 fn knife_edge_force_is_centripetal() {
-    let model = disk(BaseType::Planar);
+    let model = reference_disk(BaseType::Planar);
     let spec = ConstraintSpec::NoSideSlip {
         name: "edge".into(),
         frame: "disk".into(),
@@ -83,7 +65,7 @@ fn knife_edge_force_is_centripetal() {
     };
     let (theta, u, w) = (0.6_f64, 1.5, -0.8);
     let q = [0.4, 0.1, theta];
-    let mut sys = system(model, &[spec], &q);
+    let mut sys = multiplier_system(model, &[spec], &q);
     let qdd = sys
         .forward_dynamics(&q, &[u, 0.0, w], &[0.0; 3], true)
         .unwrap()
@@ -130,7 +112,7 @@ fn coupling_force_is_the_share_of_the_second_slider() {
         c: 0.1,
     };
     let q = [0.3, 0.2];
-    let mut sys = system(model, &[spec], &q);
+    let mut sys = multiplier_system(model, &[spec], &q);
     let force = 5.0;
     let qdd = sys
         .forward_dynamics(&q, &[0.4, 0.4], &[force, 0.0], true)
@@ -150,7 +132,7 @@ fn coupling_force_is_the_share_of_the_second_slider() {
 /// ẇ = F / (0.5 m + 2 I) and λ = −2 I ẇ; the forces are λ [N] on vx and −0.5 λ [N·m] on wz.
 #[test]
 fn velocity_constraint_generalized_force_has_units_per_coordinate() {
-    let model = disk(BaseType::Planar);
+    let model = reference_disk(BaseType::Planar);
     assert_eq!(
         (0..3)
             .map(|i| generalized_force_unit(&model, i))
@@ -171,7 +153,7 @@ fn velocity_constraint_generalized_force_has_units_per_coordinate() {
         reference_velocity: BTreeMap::new(),
     };
     let q = [0.0, 0.0, 0.2];
-    let mut sys = system(model, &[spec], &q);
+    let mut sys = multiplier_system(model, &[spec], &q);
     let force = 0.6;
     let qdd = sys
         .forward_dynamics(&q, &[0.0; 3], &[force, 0.0, 0.0], true)
@@ -211,15 +193,6 @@ fn velocity_constraint_generalized_force_has_units_per_coordinate() {
     assert_close("(∂f/∂v)ᵀλ", &values, &[lambda, -0.5 * lambda], 1e-14); // achieved 0
 }
 
-/// The free-flyer's linear velocities are dual to forces, its angular ones to torques, and
-/// an index past the last coordinate reads as a torque.
-#[test]
-fn free_flyer_units_are_n_then_n_m() {
-    let model = disk(BaseType::Floating);
-    let units: Vec<&str> = (0..7).map(|i| generalized_force_unit(&model, i)).collect();
-    assert_eq!(units, ["N", "N", "N", "N·m", "N·m", "N·m", "N·m"]);
-}
-
 /// The reference disk (r = 0.1 m, I_axis = ½ m r²) rolling straight down a plane of slope α
 /// (normal n = (sin α, 0, cos α), height h = 0.2 m), its axis (body y) along the slope's level
 /// line: the centre accelerates at a = g sin α / (1 + I/(m r²)) = ⅔ g sin α down the slope
@@ -242,7 +215,7 @@ fn disk_rolls_down_an_incline_at_two_thirds_g_sin_alpha() {
         };
         let c: Vec<f64> = n.iter().map(|x| (h + r) * x).collect();
         let q = [c[0], c[1], c[2], 0.0, 0.0, 0.0, 1.0];
-        let mut sys = system(disk(BaseType::Floating), &[spec], &q);
+        let mut sys = multiplier_system(reference_disk(BaseType::Floating), &[spec], &q);
         assert_eq!(
             sys.constraints.row_names(),
             ["contact/t1", "contact/t2", "contact/n"]
@@ -314,44 +287,6 @@ fn disk_rolls_down_an_incline_at_two_thirds_g_sin_alpha() {
     }
 }
 
-/// A set of two declarations stacks their rows in order: the pin's 2 rows, then the contact's 3
-/// (a free-flyer can move the contact along n, so the normal row is kept); names find them.
-#[test]
-fn constraint_set_stacks_rows_in_declaration_order() {
-    let model = disk(BaseType::Floating);
-    let specs = [
-        ConstraintSpec::Point {
-            name: "pin".into(),
-            frame_a: "disk".into(),
-            point_a: [0.0, 0.0, 0.1],
-            frame_b: "world".into(),
-            point_b: [0.0, 0.0, 0.2],
-            rows: vec![Row::X, Row::Z],
-        },
-        ConstraintSpec::Rolling {
-            name: "contact".into(),
-            wheel: "disk".into(),
-            axis: [0.0, 1.0, 0.0],
-            radius: 0.1,
-            plane_normal: [0.0, 0.0, 1.0],
-            plane_height: 0.0,
-        },
-    ];
-    let q = [0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0];
-    let set = ConstraintSet::new(&model, &specs, &q).unwrap();
-    assert_eq!(set.nrows, 5);
-    assert_eq!(set.ranges, [0..2, 2..5]);
-    assert_eq!(
-        (set.index("pin"), set.index("contact"), set.index("x")),
-        (Some(0), Some(1), None)
-    );
-    assert_eq!(
-        set.row_names(),
-        ["pin/x", "pin/z", "contact/t1", "contact/t2", "contact/n"]
-    );
-    assert!(!set.is_empty());
-}
-
 /// A distance constraint of L = 0.4 m (not 1: the unit vector d/|d| differs from d·|d| only
 /// when |d| ≠ 1) between the disk's centre and the world point (0, 0, 1), at angle β from the
 /// vertical, moving at speed u along the circle: the centre accelerates at −g sin β along the
@@ -360,7 +295,7 @@ fn constraint_set_stacks_rows_in_declaration_order() {
 #[test]
 fn distance_pendulum_off_the_vertical() {
     let (l, g) = (0.4, 9.81);
-    let model = disk(BaseType::Floating);
+    let model = reference_disk(BaseType::Floating);
     let spec = ConstraintSpec::Distance {
         name: "rod".into(),
         frame_a: "disk".into(),
@@ -375,7 +310,7 @@ fn distance_pendulum_off_the_vertical() {
             [beta.cos(), 0.0, beta.sin()],
         );
         let q = [l * n[0], 0.0, 1.0 + l * n[2], 0.0, 0.0, 0.0, 1.0];
-        let mut sys = system(model.clone(), std::slice::from_ref(&spec), &q);
+        let mut sys = multiplier_system(model.clone(), std::slice::from_ref(&spec), &q);
         let v = [u * t[0], 0.0, u * t[2], 0.0, 0.0, 0.0];
         let qdd = sys
             .forward_dynamics(&q, &v, &[0.0; 6], true)
@@ -424,74 +359,6 @@ fn distance_pendulum_off_the_vertical() {
     }
 }
 
-/// Units of joints that do not start at velocity index 0: a revolute arm (N·m) carrying a body
-/// on a floating joint (3 forces, 3 torques) or a puck on a planar joint (2 forces, 1 torque).
-#[test]
-fn units_of_multi_dof_joints_after_the_first_coordinate() {
-    let robot = |joint: &str| {
-        let urdf = format!(
-            r#"<robot name="arm"><link name="base"/>
-  <link name="arm"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
-  <link name="body"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
-  <joint name="spin" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 0 1"/>
-    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
-  <joint name="carry" type="{joint}"><parent link="arm"/><child link="body"/><axis xyz="0 0 1"/></joint>
-</robot>"#
-        );
-        Model::from_urdf_str(&urdf, "arm.urdf", &ModelOptions::default()).unwrap()
-    };
-    let units =
-        |m: &Model| -> Vec<&str> { (0..m.nv).map(|i| generalized_force_unit(m, i)).collect() };
-    assert_eq!(
-        units(&robot("floating")),
-        ["N·m", "N", "N", "N", "N·m", "N·m", "N·m"]
-    );
-    assert_eq!(units(&robot("planar")), ["N·m", "N", "N", "N·m"]);
-}
-
-/// The scene format's documented defaults (`constraints/spec.rs`): a point constraint holds all
-/// three world axes against the world's origin, a weld all six rows in world axes, a rolling
-/// contact runs on the plane z = 0.
-#[test]
-fn omitted_fields_take_the_documented_defaults() {
-    use constraint_dynamics::constraints::Axes;
-    let spec = |yaml: &str| serde_yaml::from_str::<ConstraintSpec>(yaml).unwrap();
-    assert_eq!(
-        spec("{name: p, kind: point, frame_a: disk}"),
-        ConstraintSpec::Point {
-            name: "p".into(),
-            frame_a: "disk".into(),
-            point_a: [0.0; 3],
-            frame_b: "world".into(),
-            point_b: [0.0; 3],
-            rows: vec![Row::X, Row::Y, Row::Z],
-        }
-    );
-    assert_eq!(
-        spec("{name: w, kind: weld, frame_a: disk}"),
-        ConstraintSpec::Weld {
-            name: "w".into(),
-            frame_a: "disk".into(),
-            frame_b: "world".into(),
-            axes: Axes::World,
-            rows: vec![Row::X, Row::Y, Row::Z, Row::Rx, Row::Ry, Row::Rz],
-            relative_xyz: [0.0; 3],
-            relative_rpy: [0.0; 3],
-        }
-    );
-    assert_eq!(
-        spec("{name: c, kind: rolling, wheel: disk, axis: [0, 1, 0], radius: 0.1}"),
-        ConstraintSpec::Rolling {
-            name: "c".into(),
-            wheel: "disk".into(),
-            axis: [0.0, 1.0, 0.0],
-            radius: 0.1,
-            plane_normal: [0.0, 0.0, 1.0],
-            plane_height: 0.0,
-        }
-    );
-}
-
 /// A body welded to a moving base (both free: a floating base and a floating joint 0.5 m out)
 /// falls with it: at rest the pair is in free fall, q̈ = g on the base and 0 in the joint, and
 /// the weld carries nothing (λ = 0).
@@ -523,7 +390,7 @@ fn body_welded_to_a_falling_base_falls_with_it() {
     // Base at identity 1 m up, the joint at its zero pose (b where the weld wants it).
     let mut q = vec![0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
     q.extend([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
-    let mut sys = system(model, &[spec], &q);
+    let mut sys = multiplier_system(model, &[spec], &q);
     let qdd = sys
         .forward_dynamics(&q, &[0.0; 12], &[0.0; 12], true)
         .unwrap()

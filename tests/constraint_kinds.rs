@@ -9,18 +9,6 @@ use constraint_dynamics::dynamics::{Baumgarte, Formulation};
 use constraint_dynamics::{BaseType, Model, ModelOptions, System};
 use nalgebra::{DMatrix, DVector, UnitQuaternion, Vector3};
 
-/// The reference thin disk (m = 1 kg, COM at the body origin) on a free-flyer base.
-fn disk() -> Model {
-    Model::from_urdf_file(
-        reference_dir().join("urdf/disk.urdf"),
-        &ModelOptions {
-            base: BaseType::Floating,
-            ..Default::default()
-        },
-    )
-    .unwrap()
-}
-
 fn q_at(p: [f64; 3], rot: &UnitQuaternion<f64>) -> Vec<f64> {
     vec![p[0], p[1], p[2], rot.i, rot.j, rot.k, rot.w]
 }
@@ -39,7 +27,7 @@ fn weld(rpy: [f64; 3], xyz: [f64; 3]) -> ConstraintSpec {
 
 #[test]
 fn welded_body_carries_its_weight_and_baumgarte_pulls_it_back() {
-    let model = disk();
+    let model = reference_disk(BaseType::Floating);
     let (rpy, xyz) = ([0.3, -0.2, 1.1], [0.5, -0.4, 1.2]);
     let target = UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]);
     let q = q_at(xyz, &target);
@@ -90,7 +78,7 @@ fn welded_body_carries_its_weight_and_baumgarte_pulls_it_back() {
 /// torque row lands on its own axis.
 #[test]
 fn welded_body_holds_an_applied_wrench() {
-    let model = disk();
+    let model = reference_disk(BaseType::Floating);
     let (rpy, xyz) = ([0.3, -0.2, 1.1], [0.5, -0.4, 1.2]);
     let target = UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]);
     let q = q_at(xyz, &target);
@@ -146,7 +134,7 @@ fn axes_and_normals_of_any_length_act_as_unit_vectors() {
         plane_height: 0.0,
     };
     let q = q_at([0.0, 0.0, 0.1], &UnitQuaternion::identity());
-    let model = disk();
+    let model = reference_disk(BaseType::Floating);
     let set = ConstraintSet::new(&model, &[contact], &q).unwrap();
     let mut sys = System::new(model, set, Baumgarte::default(), Formulation::Multipliers);
     let qdd = sys
@@ -165,7 +153,7 @@ fn distance_pendulum_tension_is_m_g_plus_m_u2_over_l() {
     // hanging at the bottom with horizontal speed u, the rod pulls with m (g + u²/L) and the
     // centre accelerates upward by u²/L. λ is the force along n = (p_a − p_b)/|p_a − p_b| = −z,
     // so λ = −m (g + u²/L).
-    let model = disk();
+    let model = reference_disk(BaseType::Floating);
     let spec = ConstraintSpec::Distance {
         name: "rod".into(),
         frame_a: "disk".into(),

@@ -211,3 +211,27 @@ pub fn scene_system(name: &str) -> (constraint_dynamics::Scene, constraint_dynam
     let sys = constraint_dynamics::System::from_scene(&scene).unwrap();
     (scene, sys)
 }
+
+/// The reference thin disk (`../shared/reference/urdf/disk.urdf`: m = 1 kg, COM at the body
+/// origin, I = diag(0.0025, 0.005, 0.0025) kg m², r = 0.1 m) on a `base` of that type.
+pub fn reference_disk(base: BaseType) -> Model {
+    Model::from_urdf_file(
+        reference_dir().join("urdf/disk.urdf"),
+        &ModelOptions {
+            base,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
+/// The multiplier form's system of `model` with the constraints `specs` (validated at q).
+pub fn multiplier_system(
+    model: Model,
+    specs: &[constraint_dynamics::constraints::ConstraintSpec],
+    q: &[f64],
+) -> constraint_dynamics::System {
+    use constraint_dynamics::dynamics::{Baumgarte, Formulation};
+    let set = constraint_dynamics::constraints::ConstraintSet::new(&model, specs, q).unwrap();
+    constraint_dynamics::System::new(model, set, Baumgarte::default(), Formulation::Multipliers)
+}
