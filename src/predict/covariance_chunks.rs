@@ -32,7 +32,7 @@
 //! their torque at every step (the suite's PI wheel controllers at a 1 ms control period)
 //! refuse every chunk of two steps; growing back to two after each accepted step cost one
 //! refused linearization per step — half of the covariance's work on the suite's diff drive
-//! (1 951 linearizations for 1 000 steps, 1 001 with the backoff).
+//! (1 951 linearizations for 1 000 steps over a 1 s tick, 1 021 with the backoff).
 //!
 //! The acceptance tolerance trades P's accuracy against finite differences of the whole
 //! prediction (tests/covariance_sensitivity.rs, mobile manipulator) for linearizations per
