@@ -189,8 +189,12 @@ fn participant_churn_keeps_the_suite_bounded() {
     // of every participant whose lease expired (~1 kB each; heaptrack's ~1 kB per participant
     // with no single owner above 0.4 kB), now only the last 64. Since: +0.61, +1.58, +0.70 and
     // +1.24 MB over the second 500 (3.54–4.16 MB in all, was 4.37–4.75), and over 2 000
-    // participants +1.91 MB for the second 1 000 (was 3.02): less, but the rest (~2 kB per participant of RSS, not live heap) still grows. The bar, 2.5 MB,
-    // catches a regression beyond what was measured before the fix (docs/nodes.md).
+    // participants +1.91 MB for the second 1 000 (was 3.02): less, but the rest still grows.
+    // Session 14: the suite's four Nodes each took part of the participant's status events,
+    // so matched-endpoint and ros_discovery_info records of departed participants were kept
+    // (~0.6 kB each, heaptrack); shared per Context and swept (patches/ros2-client): growth
+    // 3.04, 3.53, 3.87 MB (4.23 before, same session). The bar, 2.5 MB, catches a regression
+    // beyond what was measured before the attic fix (docs/nodes.md).
     let half = half.expect("the churn passed its half");
     let second_half_mb = (settled as f64 - half.1 as f64) / 1024.0;
     println!(

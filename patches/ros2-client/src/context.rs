@@ -1,5 +1,5 @@
 use std::{
-  collections::HashMap,
+  collections::{BTreeMap, BTreeSet, HashMap},
   sync::{Arc, Mutex},
 };
 //use futures::{pin_mut, StreamExt};
@@ -205,6 +205,12 @@ impl Context {
     self.inner.lock().unwrap().ros_rosout_topic.clone()
   }
 
+  /// The discovery bookkeeping that every Node of this Context shares (patched,
+  /// constraint_dynamics issue 15).
+  pub(crate) fn shared_graph(&self) -> SharedGraph {
+    self.inner.lock().unwrap().shared_graph.clone()
+  }
+
   /// Get the contained DDS [`DomainParticipant`].
   ///
   /// The return value is owned, but it is just a cloned smart pointer.
@@ -323,8 +329,24 @@ impl Context {
   }
 }
 
+/// Remote endpoints matched with our readers and writers, and the remote ROS nodes
+/// (`ros_discovery_info`), shared by every Node of a Context (patched, constraint_dynamics
+/// issue 15). The participant has one status channel, and each Node's Spinner takes events
+/// from it: an event reaches one Spinner, not all. With a map per Node, a match was recorded
+/// in whichever Node's map took it and a loss pruned only that Node's map — four Nodes on one
+/// participant kept ~0.55 kB per departed client participant (heaptrack), and a Node's
+/// `wait_for_*` could miss a match another Node's Spinner had taken. Shared, every event
+/// updates the one record whichever Spinner takes it.
+#[derive(Clone, Default)]
+pub(crate) struct SharedGraph {
+  pub(crate) readers_to_remote_writers: Arc<Mutex<BTreeMap<GUID, BTreeSet<GUID>>>>,
+  pub(crate) writers_to_remote_readers: Arc<Mutex<BTreeMap<GUID, BTreeSet<GUID>>>>,
+  pub(crate) external_nodes: Arc<Mutex<BTreeMap<Gid, Vec<NodeEntitiesInfo>>>>,
+}
+
 struct ContextInner {
   local_nodes: HashMap<String, NodeEntitiesInfo>,
+  shared_graph: SharedGraph,
 
   // ROS Discovery: topic, reader and writer
   ros_discovery_topic: Topic,
@@ -380,6 +402,7 @@ impl ContextInner {
 
     Ok(ContextInner {
       local_nodes: HashMap::new(),
+      shared_graph: SharedGraph::default(),
       node_writer,
 
       domain_participant,

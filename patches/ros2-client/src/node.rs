@@ -140,6 +140,46 @@ pub struct Spinner {
   fully_qualified_node_name: String,
 }
 
+/// The last [`RECENTLY_LOST`] participants lost, by GUID prefix (patched, constraint_dynamics
+/// issue 15): records of theirs that arrive after the loss are swept at the next one. Generic
+/// because rustdds does not export the prefix's type.
+struct RecentlyLost<P> {
+  order: std::collections::VecDeque<P>,
+  set: BTreeSet<P>,
+}
+
+const RECENTLY_LOST: usize = 256;
+
+impl<P: Ord + Copy> RecentlyLost<P> {
+  fn new() -> Self {
+    Self {
+      order: std::collections::VecDeque::new(),
+      set: BTreeSet::new(),
+    }
+  }
+
+  fn insert(&mut self, id: P) {
+    if self.set.insert(id) {
+      self.order.push_back(id);
+      if self.order.len() > RECENTLY_LOST {
+        if let Some(old) = self.order.pop_front() {
+          self.set.remove(&old);
+        }
+      }
+    }
+  }
+
+  fn remove(&mut self, id: &P) {
+    if self.set.remove(id) {
+      self.order.retain(|x| x != id);
+    }
+  }
+
+  fn contains(&self, id: &P) -> bool {
+    self.set.contains(id)
+  }
+}
+
 async fn next_if_some<S>(s: &mut Option<S>) -> S::Item
 where
   S: Stream + Unpin + FusedStream,
@@ -153,6 +193,7 @@ where
 impl Spinner {
   pub async fn spin(self) -> CreateResult<()> {
     info!("Starting Spinner for {}", self.fully_qualified_node_name);
+    let mut lost = RecentlyLost::new();
     let dds_status_listener = self.ros_context.domain_participant().status_listener();
     let dds_status_stream = dds_status_listener.as_async_status_stream();
     pin_mut!(dds_status_stream);
@@ -383,9 +424,28 @@ impl Spinner {
             // Patched (constraint_dynamics, issue 15): a departed participant's
             // ros_discovery_info record was kept forever (~0.85 kB per short-lived
             // client participant, the largest per-participant owner in a churn test).
+            // Likewise its readers and writers matched with ours (rustdds reports a lost
+            // participant, not each of its endpoints). Records can also arrive after the
+            // loss — a match reported by the event loop thread, a ros_discovery_info sample
+            // on its own stream, while discovery reported the loss at once: a short-lived
+            // client's left ~0.6 kB behind half the time (heaptrack of the churn test,
+            // session 14). So every loss sweeps out the records of all recently lost
+            // participants, not only this one's.
             DomainParticipantStatusEvent::ParticipantLost { id, .. } => {
+              lost.insert(id);
+              let gone = |prefix| lost.contains(&prefix);
               self.external_nodes.lock().unwrap()
-                .retain(|gid, _| rustdds::GUID::from(*gid).prefix != id);
+                .retain(|gid, _| !gone(rustdds::GUID::from(*gid).prefix));
+              for remote in [&self.writers_to_remote_readers, &self.readers_to_remote_writers] {
+                for guids in remote.lock().unwrap().values_mut() {
+                  guids.retain(|g| !gone(g.prefix));
+                }
+              }
+              None
+            }
+            // A participant back (after a network outage) is no longer swept.
+            DomainParticipantStatusEvent::ParticipantDiscovered { ref dpd } => {
+              lost.remove(&dpd.guid.prefix);
               None
             }
 
@@ -583,15 +643,17 @@ impl Node {
     )
     .map_err(NodeCreateError::BadParameter)?;
 
+    // Shared by the Context's Nodes (patched): see `context::SharedGraph`.
+    let graph = ros_context.shared_graph();
     let mut node = Node {
       node_name,
       options,
       ros_context,
       readers: BTreeSet::new(),
       writers: BTreeSet::new(),
-      readers_to_remote_writers: Arc::new(Mutex::new(BTreeMap::new())),
-      writers_to_remote_readers: Arc::new(Mutex::new(BTreeMap::new())),
-      external_nodes: Arc::new(Mutex::new(BTreeMap::new())),
+      readers_to_remote_writers: graph.readers_to_remote_writers,
+      writers_to_remote_readers: graph.writers_to_remote_readers,
+      external_nodes: graph.external_nodes,
       suppress_node_info_updates: false,
       stop_spin_sender: None,
       status_event_senders: Arc::new(Mutex::new(Vec::new())),
@@ -1484,6 +1546,17 @@ impl Drop for Node {
     self
       .ros_context
       .remove_node(self.fully_qualified_name().as_str());
+    // Patched: the match records live in the Context (`context::SharedGraph`), so this Node's
+    // readers' and writers' go with it, as its own maps did.
+    let mine = |g: &Gid| GUID::from(*g);
+    let mut r2w = self.readers_to_remote_writers.lock().unwrap();
+    for g in &self.readers {
+      r2w.remove(&mine(g));
+    }
+    let mut w2r = self.writers_to_remote_readers.lock().unwrap();
+    for g in &self.writers {
+      w2r.remove(&mine(g));
+    }
   }
 }
 
@@ -1769,5 +1842,23 @@ mod tests {
 
     fn requires_send_sync<T: Send + Sync>(_t: T) {}
     requires_send_sync(node);
+  }
+
+  /// Patched (constraint_dynamics): the ring of recently lost participants keeps the last
+  /// `RECENTLY_LOST`, each once, and forgets one that returns.
+  #[test]
+  fn recently_lost_keeps_the_last_participants() {
+    use super::{RECENTLY_LOST, RecentlyLost};
+    let mut lost = RecentlyLost::new();
+    for id in 0..RECENTLY_LOST + 10 {
+      lost.insert(id);
+      lost.insert(id); // a repeated loss counts once
+    }
+    assert!((0..10).all(|id| !lost.contains(&id)), "the oldest are dropped");
+    assert!((10..RECENTLY_LOST + 10).all(|id| lost.contains(&id)));
+    assert_eq!(lost.order.len(), RECENTLY_LOST);
+    lost.remove(&20); // rediscovered
+    assert!(!lost.contains(&20));
+    assert_eq!(lost.order.len(), RECENTLY_LOST - 1);
   }
 }
