@@ -166,9 +166,15 @@ fn participant_churn_keeps_the_suite_bounded() {
     );
     println!("{TEST}: RSS [participants, kB]: {samples:?}");
     let log = suite.log();
-    let db_errors = log.matches("DB does not have it").count();
-    println!(
-        "{TEST}: \"Participant was updated, but DB does not have it\" logged {db_errors} times"
+    // Participants come and go: nothing in that is an error. (rustdds logged "Participant was
+    // updated, but DB does not have it" as one, 25–59 times per 1 000, for an update queued
+    // before its participant left; patches/rustdds logs it at debug level.)
+    let errors: Vec<&str> = log.lines().filter(|l| l.contains("[ERROR]")).collect();
+    assert!(
+        errors.is_empty(),
+        "{} errors logged during the churn: {:?}",
+        errors.len(),
+        &errors[..errors.len().min(5)]
     );
     assert!(
         failed.is_empty(),
@@ -193,7 +199,8 @@ fn participant_churn_keeps_the_suite_bounded() {
     // Session 14: the suite's four Nodes each took part of the participant's status events,
     // so matched-endpoint and ros_discovery_info records of departed participants were kept
     // (~0.6 kB each, heaptrack); shared per Context and swept (patches/ros2-client): growth
-    // 3.04, 3.53, 3.87 MB (4.23 before, same session); over 2 000, +0.94 MB for the second
+    // 3.04, 3.53, 3.87, 4.49 MB (4.23 before, same session: RSS spreads, the live heap fell
+    // 3.01 → 2.02 MB); over 2 000, +0.94 MB for the second
     // 1 000 (was 1.91). The bar, 2.5 MB, catches a regression
     // beyond what was measured before the attic fix (docs/nodes.md).
     let half = half.expect("the churn passed its half");
