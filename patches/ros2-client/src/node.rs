@@ -140,46 +140,6 @@ pub struct Spinner {
   fully_qualified_node_name: String,
 }
 
-/// The last [`RECENTLY_LOST`] participants lost, by GUID prefix (patched, constraint_dynamics
-/// issue 15): records of theirs that arrive after the loss are swept at the next one. Generic
-/// because rustdds does not export the prefix's type.
-struct RecentlyLost<P> {
-  order: std::collections::VecDeque<P>,
-  set: BTreeSet<P>,
-}
-
-const RECENTLY_LOST: usize = 256;
-
-impl<P: Ord + Copy> RecentlyLost<P> {
-  fn new() -> Self {
-    Self {
-      order: std::collections::VecDeque::new(),
-      set: BTreeSet::new(),
-    }
-  }
-
-  fn insert(&mut self, id: P) {
-    if self.set.insert(id) {
-      self.order.push_back(id);
-      if self.order.len() > RECENTLY_LOST {
-        if let Some(old) = self.order.pop_front() {
-          self.set.remove(&old);
-        }
-      }
-    }
-  }
-
-  fn remove(&mut self, id: &P) {
-    if self.set.remove(id) {
-      self.order.retain(|x| x != id);
-    }
-  }
-
-  fn contains(&self, id: &P) -> bool {
-    self.set.contains(id)
-  }
-}
-
 async fn next_if_some<S>(s: &mut Option<S>) -> S::Item
 where
   S: Stream + Unpin + FusedStream,
@@ -193,7 +153,6 @@ where
 impl Spinner {
   pub async fn spin(self) -> CreateResult<()> {
     info!("Starting Spinner for {}", self.fully_qualified_node_name);
-    let mut lost = RecentlyLost::new();
     let dds_status_listener = self.ros_context.domain_participant().status_listener();
     let dds_status_stream = dds_status_listener.as_async_status_stream();
     pin_mut!(dds_status_stream);
@@ -424,28 +383,17 @@ impl Spinner {
             // Patched (constraint_dynamics, issue 15): a departed participant's
             // ros_discovery_info record was kept forever (~0.85 kB per short-lived
             // client participant, the largest per-participant owner in a churn test).
-            // Likewise its readers and writers matched with ours (rustdds reports a lost
-            // participant, not each of its endpoints). Records can also arrive after the
-            // loss — a match reported by the event loop thread, a ros_discovery_info sample
-            // on its own stream, while discovery reported the loss at once: a short-lived
-            // client's left ~0.6 kB behind half the time (heaptrack of the churn test,
-            // session 14). So every loss sweeps out the records of all recently lost
-            // participants, not only this one's.
+            // Likewise its readers and writers matched with ours: rustdds reports a lost
+            // participant, not each of its endpoints, so their GUIDs stayed in these sets
+            // (with the maps per Context, `context::SharedGraph`; heaptrack, session 14).
             DomainParticipantStatusEvent::ParticipantLost { id, .. } => {
-              lost.insert(id);
-              let gone = |prefix| lost.contains(&prefix);
               self.external_nodes.lock().unwrap()
-                .retain(|gid, _| !gone(rustdds::GUID::from(*gid).prefix));
+                .retain(|gid, _| rustdds::GUID::from(*gid).prefix != id);
               for remote in [&self.writers_to_remote_readers, &self.readers_to_remote_writers] {
                 for guids in remote.lock().unwrap().values_mut() {
-                  guids.retain(|g| !gone(g.prefix));
+                  guids.retain(|g| g.prefix != id);
                 }
               }
-              None
-            }
-            // A participant back (after a network outage) is no longer swept.
-            DomainParticipantStatusEvent::ParticipantDiscovered { ref dpd } => {
-              lost.remove(&dpd.guid.prefix);
               None
             }
 
@@ -1842,23 +1790,5 @@ mod tests {
 
     fn requires_send_sync<T: Send + Sync>(_t: T) {}
     requires_send_sync(node);
-  }
-
-  /// Patched (constraint_dynamics): the ring of recently lost participants keeps the last
-  /// `RECENTLY_LOST`, each once, and forgets one that returns.
-  #[test]
-  fn recently_lost_keeps_the_last_participants() {
-    use super::{RECENTLY_LOST, RecentlyLost};
-    let mut lost = RecentlyLost::new();
-    for id in 0..RECENTLY_LOST + 10 {
-      lost.insert(id);
-      lost.insert(id); // a repeated loss counts once
-    }
-    assert!((0..10).all(|id| !lost.contains(&id)), "the oldest are dropped");
-    assert!((10..RECENTLY_LOST + 10).all(|id| lost.contains(&id)));
-    assert_eq!(lost.order.len(), RECENTLY_LOST);
-    lost.remove(&20); // rediscovered
-    assert!(!lost.contains(&20));
-    assert_eq!(lost.order.len(), RECENTLY_LOST - 1);
   }
 }
