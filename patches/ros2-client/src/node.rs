@@ -1596,33 +1596,32 @@ impl Future for ReaderWait<'_> {
         debug!("wait_for_reader: Waiting for a reader.");
         loop {
           match status_event_stream.poll_next_unpin(cx) {
-            // A GraphEvent carries only the *remote* entity (see `crate::graph`
-            // docs), not which local writer it matched, so we cannot filter by
-            // identity here as the old `NodeEvent::DDS` match did. Instead,
-            // treat any newly-declared Subscription as a cue to re-check the
-            // (unchanged) `writers_to_remote_readers` map, which the Spinner
-            // updates from the raw DDS event before it is mapped to a
-            // GraphEvent.
-            Poll::Ready(Some(NodeEvent::Graph(GraphEvent::EntityDeclared(entity))))
-              if entity.kind == EntityKind::Subscription =>
-            {
+            // Patched (constraint_dynamics, issue 15): the map is re-checked on every event,
+            // not only on a newly declared Subscription. The Spinner updates the map before it
+            // sends the event, but it sends with `try_send` into a channel of 8: when more
+            // events come before this future is polled, the cue for our match can be
+            // dropped, and a quiet graph then sends no other (`ros_smoke` waited out its 15 s
+            // once, right after a test whose participants were still leaving). Any event
+            // polled after the insertion sees it.
+            Poll::Ready(Some(_event)) => {
               if writers_to_remote_readers
                 .lock()
                 .unwrap()
                 .get(&this_writer)
-                .map(|readers| !readers.is_empty())
+                .map(|matched| !matched.is_empty())
                 .unwrap_or(false)
               {
                 debug!("wait_for_reader: Matched remote reader.");
                 return Poll::Ready(());
               }
-              // Not (yet) for this_writer; keep polling.
+              // Not (yet) for us; keep polling.
             }
 
-            Poll::Ready(_) => {
-              // Received something else, such as other event or error
-              debug!("wait_for_reader: other event. Continue polling.");
-              // So we do nothing but go to the next iteration.
+            // The Node's event channel is closed (the Node is gone): nothing will signal a
+            // match any more, and polling a closed stream again would spin.
+            Poll::Ready(None) => {
+              debug!("wait_for_reader: event stream closed; resolving.");
+              return Poll::Ready(());
             }
 
             Poll::Pending => return Poll::Pending,
@@ -1667,37 +1666,33 @@ impl Future for WriterWait<'_> {
       } => {
         debug!("wait_for_writer: Waiting for a writer.");
         loop {
-          // We loop to pump events out of the stream until we get the desired
-          // event or "Pending". If we stop at the first event, then
-          // there is no waker installed and we are stuck.
           match status_event_stream.poll_next_unpin(cx) {
-            // A GraphEvent carries only the *remote* entity (see `crate::graph`
-            // docs), not which local reader it matched, so we cannot filter by
-            // identity here as the old `NodeEvent::DDS` match did. Instead,
-            // treat any newly-declared Publisher as a cue to re-check the
-            // (unchanged) `readers_to_remote_writers` map, which the Spinner
-            // updates from the raw DDS event before it is mapped to a
-            // GraphEvent.
-            Poll::Ready(Some(NodeEvent::Graph(GraphEvent::EntityDeclared(entity))))
-              if entity.kind == EntityKind::Publisher =>
-            {
+            // Patched (constraint_dynamics, issue 15): the map is re-checked on every event,
+            // not only on a newly declared Publisher. The Spinner updates the map before it
+            // sends the event, but it sends with `try_send` into a channel of 8: when more
+            // events come before this future is polled, the cue for our match can be
+            // dropped, and a quiet graph then sends no other (`ros_smoke` waited out its 15 s
+            // once, right after a test whose participants were still leaving). Any event
+            // polled after the insertion sees it.
+            Poll::Ready(Some(_event)) => {
               if readers_to_remote_writers
                 .lock()
                 .unwrap()
                 .get(&this_reader)
-                .map(|writers| !writers.is_empty())
+                .map(|matched| !matched.is_empty())
                 .unwrap_or(false)
               {
                 debug!("wait_for_writer: Matched remote writer.");
                 return Poll::Ready(());
               }
-              // Not (yet) for this_reader; keep polling.
+              // Not (yet) for us; keep polling.
             }
 
-            Poll::Ready(_) => {
-              // Received something else, such as other event or error
-              trace!("=== other writer. Continue polling.");
-              // No return, go to next iteration.
+            // The Node's event channel is closed (the Node is gone): nothing will signal a
+            // match any more, and polling a closed stream again would spin.
+            Poll::Ready(None) => {
+              debug!("wait_for_writer: event stream closed; resolving.");
+              return Poll::Ready(());
             }
 
             Poll::Pending => return Poll::Pending,
