@@ -17,10 +17,7 @@ use constraint_dynamics_nodes::msg::rcl_interfaces::{
     GetParameters, ListParameters, SetParameters,
 };
 use ros2_client::ParameterValue;
-use ros2_client::parameters::raw;
-use ros2_client::rcl_interfaces::{
-    GetParametersRequest, ListParametersRequest, SetParametersRequest,
-};
+use ros2_client::rcl_interfaces::{GetParametersRequest, ListParametersRequest};
 use suite_fixture::*;
 
 const TEST: &str = "suite_topics_match_the_core_library";
@@ -157,52 +154,29 @@ fn suite_topics_match_the_core_library() {
         vec![ParameterValue::Double(10.0), ParameterValue::Double(0.8)]
     );
     let set = t.client::<SetParameters>("/cd_predictor/set_parameters");
-    let results = call(
+    let (ok, reason) = set_param(&set, "rate", ParameterValue::Double(50.0));
+    assert!(!ok);
+    assert!(reason.contains("cannot change"), "{}", reason);
+    let (ok, reason) = set_param(
         &set,
-        SetParametersRequest {
-            parameter: vec![raw::Parameter {
-                name: "rate".into(),
-                value: raw_value(ParameterValue::Double(50.0)),
-            }],
-        },
-    )
-    .results;
-    assert!(!results[0].successful);
-    assert!(
-        results[0].reason.contains("cannot change"),
-        "{}",
-        results[0].reason
+        "slip.friction_coefficient",
+        ParameterValue::Double(-1.0),
     );
-    let results = call(
-        &set,
-        SetParametersRequest {
-            parameter: vec![raw::Parameter {
-                name: "slip.friction_coefficient".into(),
-                value: raw_value(ParameterValue::Double(-1.0)),
-            }],
-        },
-    )
-    .results;
-    assert!(!results[0].successful && results[0].reason.contains("friction_coefficient"));
+    assert!(!ok && reason.contains("friction_coefficient"));
     println!(
         "{TEST}: parameters: {} listed; set rate refused (cannot change while the node runs); \
          μ = -1 refused ({})",
         names.len(),
-        results[0].reason
+        reason
     );
 
     // ---- slip: μ → 1e-4 makes the turning contacts slip: flag + /rosout warning ----------------
-    let results = call(
+    let (ok, reason) = set_param(
         &set,
-        SetParametersRequest {
-            parameter: vec![raw::Parameter {
-                name: "slip.friction_coefficient".into(),
-                value: raw_value(ParameterValue::Double(1e-4)),
-            }],
-        },
-    )
-    .results;
-    assert!(results[0].successful, "{}", results[0].reason);
+        "slip.friction_coefficient",
+        ParameterValue::Double(1e-4),
+    );
+    assert!(ok, "{}", reason);
     take_until(&forces_sub, WAIT, |m: &ConstraintForces| {
         if m.constraints.iter().all(|c| c.slipping) {
             Ok(())

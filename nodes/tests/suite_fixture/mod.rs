@@ -18,8 +18,6 @@ use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::ConstraintForces;
 use constraint_dynamics_nodes::msg::geometry_msgs::{Point, Pose, Quaternion};
 use constraint_dynamics_nodes::msg::nav_msgs::Odometry;
 use constraint_dynamics_nodes::msg::sensor_msgs::JointState;
-use ros2_client::ParameterValue;
-use ros2_client::parameters::raw;
 
 /// Numbers of the suite against the core's: the same computation in two processes.
 pub const TOL: f64 = 1e-9;
@@ -324,8 +322,4 @@ pub fn yaw(q: &Quaternion) -> f64 {
 
 pub fn pose_of(p: &Pose) -> [f64; 3] {
     [p.position.x, p.position.y, yaw(&p.orientation)]
-}
-
-pub fn raw_value(v: ParameterValue) -> raw::ParameterValue {
-    v.into()
 }
