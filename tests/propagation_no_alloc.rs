@@ -104,13 +104,21 @@ fn stepping_allocates_nothing_per_step_on_rolling_scenes() {
 
 /// Closed-loop actuators (a control tick every 1 ms: the diff drive's PI wheel controllers and
 /// the arm's PD joints following a command) and a propagated covariance (its linearized steps and
-/// constraint projection): 4× the ticks and steps, the same allocations.
+/// constraint projection): 4× the ticks and steps, the same allocations — inline and on the
+/// covariance's worker thread (its records handed over every 32 steps and at samples).
 #[test]
 fn actuated_prediction_with_covariance_allocates_nothing_per_step() {
+    for parallel in [false, true] {
+        actuated_with_covariance(parallel);
+    }
+}
+
+fn actuated_with_covariance(parallel: bool) {
     use constraint_dynamics::actuators::Command;
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let sc = Scene::load(root.join("params/suite_mobile_manipulator.yaml")).unwrap();
     let mut p = Predictor::from_scene(&sc).unwrap();
+    p.parallel_covariance = parallel;
     p.settings.method = Method::Rk4;
     p.settings.dt = 1e-3;
     p.settings.drift = DriftControl::Projection;
@@ -135,7 +143,8 @@ fn actuated_prediction_with_covariance_allocates_nothing_per_step() {
     run(h); // warm-up
     let (short, long) = (run(h), run(4.0 * h));
     println!(
-        "actuated mobile manipulator with covariance: {short} allocations over {h} s, {long} over {} s",
+        "actuated mobile manipulator with covariance (worker: {parallel}): {short} allocations \
+         over {h} s, {long} over {} s",
         4.0 * h
     );
     assert_eq!(short, long, "the control ticks or the covariance allocate");

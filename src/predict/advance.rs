@@ -4,6 +4,7 @@
 
 use super::DriftControl;
 use super::IntegrationSettings;
+use super::covariance_worker::CovarianceFeed;
 use super::drift::Projector;
 use super::estimate::Lane;
 use super::integrator::{
@@ -267,7 +268,8 @@ impl Predictor {
         } = lane;
         let (q, v) = (&mut q[..], &mut v[..]);
         let mut cov = match cap {
-            None => self.covariance.as_mut(),
+            None => (self.covariance.as_mut().map(CovarianceFeed::Inline))
+                .or_else(|| ws.pipe.get_mut().map(CovarianceFeed::Worker)),
             Some(_) => None,
         };
         let cap = cap.unwrap_or(f64::INFINITY);
@@ -387,7 +389,15 @@ impl Predictor {
                 if let Some(c) = cov.as_mut() {
                     let start = (&ws.qn[..], &ws.vn[..]);
                     let feedback = actuators.feedback();
-                    c.record_step(rhs.sys, s.method, start, &ws.tau_n, feedback, dt, (q, v))?;
+                    c.record_step(
+                        rhs.sys,
+                        s.method,
+                        start,
+                        &ws.tau_n,
+                        feedback,
+                        dt,
+                        (t, (q, v)),
+                    )?;
                 }
                 if let Some(bad) = q
                     .iter()

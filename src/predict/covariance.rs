@@ -29,7 +29,7 @@
 //!   where J does not depend on q in the body frame (the diff drive). Dependent rows are dropped
 //!   first.
 
-use super::covariance_chunks::StepHistory;
+use super::covariance_chunks::{ChunkControl, StepRecord};
 use super::covariance_integral::IntegralOffsets;
 use super::linearize::Linearization;
 use crate::actuators::Feedback;
@@ -62,8 +62,10 @@ pub struct CovariancePropagator {
     /// σ_i² per velocity coordinate.
     noise: Vec<f64>,
     pub(super) lin: Linearization,
-    /// The prediction's steps not yet in `p` (covariance_chunks.rs).
-    pub(super) history: StepHistory,
+    /// The prediction's steps not yet in `p`, and how they are cut into chunks
+    /// (covariance_chunks.rs).
+    pub(super) record: StepRecord,
+    pub(super) chunks: ChunkControl,
     /// Linearized steps so far, tried ones included, and the wall time of the flushes [s].
     pub(super) linearizations: usize,
     pub(super) time_s: f64,
@@ -198,7 +200,8 @@ impl CovariancePropagator {
                 lin.inputs = false;
                 lin
             },
-            history: StepHistory::new(sys),
+            record: StepRecord::new(sys, 0),
+            chunks: ChunkControl::new(sys),
             linearizations: 0,
             time_s: 0.0,
             tmp: DMatrix::zeros(2 * nv, 2 * nv),
@@ -228,6 +231,7 @@ impl CovariancePropagator {
         v: &[f64],
     ) -> Result<Self> {
         let mut c = Self::new(sys, forces, spec)?;
+        c.record = StepRecord::new(sys, feedback.len());
         c.reset(p0)?;
         c.project(sys, q, v)?;
         c.integral = IntegralOffsets::start(&c.p, feedback);

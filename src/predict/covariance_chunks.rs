@@ -69,9 +69,10 @@ pub(crate) const MAX_PATIENCE: usize = 64;
 /// mode, and far closer on the others).
 pub(crate) const CHUNK_STABILITY: f64 = 0.5;
 
-/// The prediction's steps since P was last updated (buffers sized once).
+/// The prediction's steps since P was last updated (buffers sized once): what
+/// [`CovariancePropagator::flush_record`] covers with linearized chunks.
 #[derive(Clone, Debug, Default)]
-pub(crate) struct StepHistory {
+pub(crate) struct StepRecord {
     /// States at the recorded steps' starts and the last one's end (CHUNK_CAPACITY + 1).
     q: Vec<Vec<f64>>,
     v: Vec<Vec<f64>>,
@@ -82,7 +83,63 @@ pub(crate) struct StepHistory {
     /// Time of each recorded state since the first [s].
     t: Vec<f64>,
     /// Recorded steps.
-    len: usize,
+    pub(crate) len: usize,
+}
+
+impl StepRecord {
+    /// An empty record of the same size (feedback capacity included: a step allocates nothing).
+    pub(crate) fn like(&self, sys: &System) -> Self {
+        Self::new(sys, self.feedback.first().map_or(0, Vec::capacity))
+    }
+}
+
+impl StepRecord {
+    /// Sized for `sys` and `controllers` feedback controllers (`Actuators::feedback`).
+    pub(crate) fn new(sys: &System, controllers: usize) -> Self {
+        let (nq, nv) = (sys.model.nq, sys.model.nv);
+        Self {
+            q: vec![vec![0.0; nq]; CHUNK_CAPACITY + 1],
+            v: vec![vec![0.0; nv]; CHUNK_CAPACITY + 1],
+            tau: vec![vec![0.0; nv]; CHUNK_CAPACITY],
+            feedback: (0..CHUNK_CAPACITY)
+                .map(|_| Vec::with_capacity(controllers))
+                .collect(),
+            t: vec![0.0; CHUNK_CAPACITY + 1],
+            len: 0,
+        }
+    }
+
+    /// Append one step of the prediction: from (q0, v0) under the held generalized force τ
+    /// [N, N·m] and the controllers' `feedback` for h [s] to (q1, v1). Returns true when the
+    /// record is full (P must catch up before the next step).
+    pub(crate) fn push(
+        &mut self,
+        (q0, v0): (&[f64], &[f64]),
+        tau: &[f64],
+        feedback: impl Iterator<Item = Feedback>,
+        h: f64,
+        (q1, v1): (&[f64], &[f64]),
+    ) -> bool {
+        let k = self.len;
+        if k == 0 {
+            self.q[0].copy_from_slice(q0);
+            self.v[0].copy_from_slice(v0);
+            self.t[0] = 0.0;
+        }
+        self.tau[k].copy_from_slice(tau);
+        self.feedback[k].clear();
+        self.feedback[k].extend(feedback);
+        self.t[k + 1] = self.t[k] + h;
+        self.q[k + 1].copy_from_slice(q1);
+        self.v[k + 1].copy_from_slice(v1);
+        self.len += 1;
+        self.len == CHUNK_CAPACITY
+    }
+}
+
+/// How the chunks' length is chosen (module doc), carried from one flush to the next.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct ChunkControl {
     /// Recorded steps per linearized step to try next.
     chunk: usize,
     /// Longest span [s] the last linearization's stiffness allows a chunk
@@ -97,39 +154,38 @@ pub(crate) struct StepHistory {
     diff: Vec<f64>,
 }
 
-impl StepHistory {
+impl ChunkControl {
     pub(crate) fn new(sys: &System) -> Self {
-        let (nq, nv) = (sys.model.nq, sys.model.nv);
         Self {
-            q: vec![vec![0.0; nq]; CHUNK_CAPACITY + 1],
-            v: vec![vec![0.0; nv]; CHUNK_CAPACITY + 1],
-            tau: vec![vec![0.0; nv]; CHUNK_CAPACITY],
-            feedback: vec![vec![]; CHUNK_CAPACITY],
-            t: vec![0.0; CHUNK_CAPACITY + 1],
-            len: 0,
             chunk: CHUNK_CAPACITY,
             stable_span: f64::INFINITY,
             refused: 0,
             wait: 0,
             patience: 0,
-            diff: vec![0.0; nv],
+            diff: vec![0.0; sys.model.nv],
         }
     }
 
     /// How far the linearized step `lin` from state `lo` misses the recorded state `hi`, as a
     /// fraction of what is accepted (≤ 1: reproduced).
-    fn mismatch(&mut self, model: &Model, lin: &Linearization, lo: usize, hi: usize) -> f64 {
+    fn mismatch(
+        &mut self,
+        model: &Model,
+        rec: &StepRecord,
+        lin: &Linearization,
+        (lo, hi): (usize, usize),
+    ) -> f64 {
         let max_abs = |x: &[f64]| x.iter().fold(0.0f64, |m, y| m.max(y.abs()));
-        model.difference(&self.q[hi], &lin.q_next, &mut self.diff);
+        model.difference(&rec.q[hi], &lin.q_next, &mut self.diff);
         let err_q = max_abs(&self.diff);
-        model.difference(&self.q[lo], &self.q[hi], &mut self.diff);
+        model.difference(&rec.q[lo], &rec.q[hi], &mut self.diff);
         let motion_q = max_abs(&self.diff);
         let (mut err_v, mut motion_v) = (0.0f64, 0.0f64);
         for i in 0..self.diff.len() {
-            err_v = err_v.max((lin.v_next[i] - self.v[hi][i]).abs());
-            motion_v = motion_v.max((self.v[hi][i] - self.v[lo][i]).abs());
+            err_v = err_v.max((lin.v_next[i] - rec.v[hi][i]).abs());
+            motion_v = motion_v.max((rec.v[hi][i] - rec.v[lo][i]).abs());
         }
-        let speed = max_abs(&self.v[hi]);
+        let speed = max_abs(&rec.v[hi]);
         (err_q / (CHUNK_RTOL * motion_q + CHUNK_ATOL))
             .max(err_v / (CHUNK_RTOL * motion_v + CHUNK_ATOL * (1.0 + speed)))
     }
@@ -155,36 +211,20 @@ fn next_chunk(m: usize, ratio: f64, order: f64) -> usize {
 }
 
 impl CovariancePropagator {
-    /// Record one step of the prediction: from (q0, v0) under the held generalized force τ
-    /// [N, N·m] and the controllers' `feedback` (`Actuators::feedback`) for h [s] to (q1, v1)
-    /// (after drift control). P catches up at [`Self::flush`], which this calls when the record
-    /// is full.
+    /// Record one step of the prediction (see [`StepRecord::push`]); P catches up at
+    /// [`Self::flush`], which this calls when the record is full.
     #[allow(clippy::too_many_arguments)]
     pub fn record_step(
         &mut self,
         sys: &mut System,
         method: Method,
-        (q0, v0): (&[f64], &[f64]),
+        start: (&[f64], &[f64]),
         tau: &[f64],
         feedback: impl Iterator<Item = Feedback>,
         h: f64,
-        (q1, v1): (&[f64], &[f64]),
+        end: (&[f64], &[f64]),
     ) -> Result<()> {
-        let hst = &mut self.history;
-        let k = hst.len;
-        if k == 0 {
-            hst.q[0].copy_from_slice(q0);
-            hst.v[0].copy_from_slice(v0);
-            hst.t[0] = 0.0;
-        }
-        hst.tau[k].copy_from_slice(tau);
-        hst.feedback[k].clear();
-        hst.feedback[k].extend(feedback);
-        hst.t[k + 1] = hst.t[k] + h;
-        hst.q[k + 1].copy_from_slice(q1);
-        hst.v[k + 1].copy_from_slice(v1);
-        hst.len += 1;
-        if hst.len == CHUNK_CAPACITY {
+        if self.record.push(start, tau, feedback, h, end) {
             self.flush(sys, method)?;
         }
         Ok(())
@@ -193,41 +233,56 @@ impl CovariancePropagator {
     /// Bring P up to the last recorded state (module doc), kept on the constraints there.
     pub fn flush(&mut self, sys: &mut System, method: Method) -> Result<()> {
         // The record leaves `self` while P is updated from it (disjoint borrows; no allocation).
+        let mut rec = std::mem::take(&mut self.record);
+        let result = self.flush_record(sys, method, &mut rec);
+        self.record = rec;
+        result
+    }
+
+    /// [`Self::flush`] from a record kept elsewhere (a worker thread's, covariance_worker.rs),
+    /// emptied after.
+    pub(crate) fn flush_record(
+        &mut self,
+        sys: &mut System,
+        method: Method,
+        rec: &mut StepRecord,
+    ) -> Result<()> {
         let start = std::time::Instant::now();
-        let mut hst = std::mem::take(&mut self.history);
-        let result = self.flush_from(sys, method, &mut hst);
-        hst.len = 0;
-        self.history = hst;
+        let mut ctl = std::mem::take(&mut self.chunks);
+        let result = self.flush_chunks(sys, method, rec, &mut ctl);
+        self.chunks = ctl;
+        rec.len = 0;
         self.time_s += start.elapsed().as_secs_f64();
         result
     }
 
-    fn flush_from(
+    fn flush_chunks(
         &mut self,
         sys: &mut System,
         method: Method,
-        hst: &mut StepHistory,
+        rec: &StepRecord,
+        hst: &mut ChunkControl,
     ) -> Result<()> {
-        let n = hst.len;
+        let n = rec.len;
         let mut lo = 0;
         while lo < n {
             // The rest in equal pieces of at most `chunk` steps: no short leftover chunk.
             let rest = n - lo;
             let pieces = rest.div_ceil(hst.chunk);
             let mut m = rest.div_ceil(pieces);
-            while m > 1 && hst.t[lo + m] - hst.t[lo] > hst.stable_span {
+            while m > 1 && rec.t[lo + m] - rec.t[lo] > hst.stable_span {
                 m -= 1;
             }
             let hi = lo + m;
-            let h = hst.t[hi] - hst.t[lo];
-            self.lin.set_feedback(&hst.feedback[lo]);
+            let h = rec.t[hi] - rec.t[lo];
+            self.lin.set_feedback(&rec.feedback[lo]);
             linearize_step(
                 sys,
                 &mut self.lin,
                 chunk_method(method),
-                &hst.q[lo],
-                &hst.v[lo],
-                &hst.tau[lo],
+                &rec.q[lo],
+                &rec.v[lo],
+                &rec.tau[lo],
                 h,
             )?;
             self.linearizations += 1;
@@ -248,7 +303,7 @@ impl CovariancePropagator {
                 Method::Dop853 => 8.0,
             };
             let ratio = if m > 1 {
-                hst.mismatch(&sys.model, &self.lin, lo, hi)
+                hst.mismatch(&sys.model, rec, &self.lin, (lo, hi))
             } else {
                 0.0
             };
@@ -261,12 +316,12 @@ impl CovariancePropagator {
                 hst.chunk = next_chunk(m, ratio, order).min(m - 1).min(stable);
                 continue;
             }
-            self.apply_linearization(h, &hst.feedback[lo]);
+            self.apply_linearization(h, &rec.feedback[lo]);
             // P is read only where the flush ends (a sample, or a full record), so it is
             // brought onto the constraints there; between chunks the linearized flow keeps it
             // on them to the chunk's accuracy.
             if hi == n {
-                self.project(sys, &hst.q[hi], &hst.v[hi])?;
+                self.project(sys, &rec.q[hi], &rec.v[hi])?;
             }
             // An accepted chunk never shrinks the next: a piece shorter than `chunk` (the
             // rest before a sample) says nothing against the longer one.

@@ -11,6 +11,7 @@ mod advance;
 mod covariance;
 mod covariance_chunks;
 mod covariance_integral;
+mod covariance_worker;
 pub mod drift;
 mod estimate;
 mod guard;

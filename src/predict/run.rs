@@ -2,6 +2,7 @@
 
 use super::advance::{JacobianWork, companion_error};
 use super::covariance::{CovariancePropagator, UncertaintySpec};
+use super::covariance_worker::{PipeSlot, with_worker};
 use super::drift::Projector;
 use super::estimate::{self, Lane, MAX_REFINEMENTS};
 use super::guard::{EnergyGuard, check_work};
@@ -46,6 +47,22 @@ pub(super) struct Workspace {
     pub(super) jw: JacobianWork,
     /// Work units of one dynamics evaluation (`limits::evaluation_cost`).
     pub(super) cost: f64,
+    /// The covariance worker's pipe while a run has one.
+    pub(super) pipe: PipeSlot,
+}
+
+/// What a run's loop follows (`Predictor::step_loop`).
+struct Plan<'a> {
+    commands: &'a [(f64, Command)],
+    horizon: f64,
+    /// Control period (or sample period without actuators) [s].
+    period: f64,
+    s: &'a IntegrationSettings,
+    /// The error estimate companion's settings and Richardson factor (estimate.rs).
+    companion: &'a IntegrationSettings,
+    factor: f64,
+    /// Record forces in the samples.
+    forces: bool,
 }
 
 /// Scene-configured predictor (model, constraints, force elements, actuators, integration).
@@ -66,6 +83,10 @@ pub struct Predictor {
     pub uncertainty: UncertaintySpec,
     /// Start covariance of the next predictions (2nv × 2nv, [δq; δv]); None: no covariance.
     pub start_covariance: Option<DMatrix<f64>>,
+    /// Propagate the covariance on a second thread, one sample behind the prediction, when the
+    /// machine has more than one core (covariance_worker.rs; the same P to the bit). Default
+    /// true.
+    pub parallel_covariance: bool,
     pub(super) covariance: Option<CovariancePropagator>,
     pub(super) model: Model,
     pub(super) ws: Workspace,
@@ -108,6 +129,7 @@ impl Predictor {
             rows_v: vec![0.0; nv],
             cost: crate::limits::evaluation_cost(&model),
             jw: JacobianWork::new(&sys),
+            pipe: PipeSlot::default(),
         };
         Ok(Self {
             sys,
@@ -117,6 +139,7 @@ impl Predictor {
             want_forces: false,
             uncertainty: UncertaintySpec::default(),
             start_covariance: None,
+            parallel_covariance: true,
             covariance: None,
             model,
             ws,
@@ -269,6 +292,7 @@ impl Predictor {
             estimate_evaluations: 0,
             covariance_linearizations: 0,
             covariance_time_s: 0.0,
+            covariance_on_worker: false,
             refinements: 0,
             run_time_s: 0.0,
         };
@@ -307,64 +331,41 @@ impl Predictor {
             .potential_energy(&self.sys.model, &self.sys.data, &lanes[0].q);
         let mut guard = EnergyGuard::new(&first, springs, self.energy_guard_applies(s));
         traj.samples.push(first);
-        let (mut t, mut k) = (0.0, 0usize);
-        let mut next_sample = s.sample_period;
-        let result = (|| -> Result<()> {
-            while t < horizon - 1e-12 {
-                k += 1;
-                let t_end = (k as f64 * period).min(horizon);
-                if !self.actuators.is_empty() && k > 1 {
-                    let [a, c] = &*lanes;
-                    let cmd = command_at(t);
-                    self.actuators
-                        .update(cmd, &a.q, &a.v, t_end - t, &mut self.ws.tau_act);
-                    if s.error_estimate {
-                        let ws = &mut self.ws;
-                        ws.companion_actuators.update(
-                            cmd,
-                            &c.q,
-                            &c.v,
-                            t_end - t,
-                            &mut ws.tau_companion,
-                        );
-                    }
+        let plan = Plan {
+            commands,
+            horizon,
+            period,
+            s,
+            companion,
+            factor,
+            forces: opts.forces,
+        };
+        let parallel = self.parallel_covariance
+            && std::thread::available_parallelism().is_ok_and(|n| n.get() > 1);
+        let result = match self.covariance.take() {
+            Some(cov) if parallel => {
+                traj.covariance_on_worker = true;
+                let worker_sys = self.sys.clone();
+                let (result, done) = with_worker(cov, worker_sys, s.method, |pipe| {
+                    self.ws.pipe.set(Some(pipe));
+                    let result = self.step_loop(lanes, &plan, &mut traj, &mut guard);
+                    self.ws.pipe.set(None);
+                    result
+                });
+                self.covariance = Some(done.propagator);
+                for (k, rows) in done.snapshots {
+                    traj.samples[k].covariance = Some(rows);
                 }
-                let (answer, comp) = lanes.split_at_mut(1);
-                let work = comp[0].evaluations;
-                let largest = self.advance(&mut answer[0], None, work, (t, t_end), s)?;
-                if s.error_estimate {
-                    let work = answer[0].evaluations;
-                    let cap = Some(0.5 * largest);
-                    self.advance(&mut comp[0], cap, work, (t, t_end), companion)
-                        .map_err(companion_error)?;
-                }
-                t = t_end;
-                if t >= next_sample - 1e-9 || t >= horizon - 1e-12 {
-                    // P is read here: the recorded steps are linearized now (a chunk may span
-                    // control ticks; covariance_chunks.rs checks that it reproduces them).
-                    if let Some(cov) = self.covariance.as_mut() {
-                        cov.flush(&mut self.sys, s.method)?;
-                    }
-                    let [a, c] = &*lanes;
-                    let e = s.error_estimate.then(|| {
-                        estimate::estimate(&self.model, &a.q, &c.q, factor, &mut self.ws.diff)
-                    });
-                    let sample = self.sample(t, &a.q, &a.v, e, opts.forces)?;
-                    let springs =
-                        self.forces
-                            .potential_energy(&self.sys.model, &self.sys.data, &a.q);
-                    guard.check(&sample, springs, a.steps, s)?;
-                    traj.samples.push(sample);
-                    if let Some(e) = e.filter(|&e| e > s.max_error) {
-                        return Err(estimate::exceeded(s, e, t, horizon));
-                    }
-                    while next_sample <= t + 1e-9 {
-                        next_sample += s.sample_period;
-                    }
+                match done.error {
+                    Some(e) => Err(e),
+                    None => result,
                 }
             }
-            Ok(())
-        })();
+            cov => {
+                self.covariance = cov;
+                self.step_loop(lanes, &plan, &mut traj, &mut guard)
+            }
+        };
         let [a, c] = &*lanes;
         traj.steps = a.steps;
         traj.evaluations = a.evaluations;
@@ -376,6 +377,93 @@ impl Predictor {
                 (cov.linearizations, cov.time_s);
         }
         result.map(|()| traj)
+    }
+
+    /// The control ticks and samples of a run after its first sample (`Plan`), the answer in
+    /// `lanes[0]`, the companion in `lanes[1]`; samples into `traj`.
+    fn step_loop(
+        &mut self,
+        lanes: &mut [Lane; 2],
+        plan: &Plan,
+        traj: &mut Trajectory,
+        guard: &mut EnergyGuard,
+    ) -> Result<()> {
+        let Plan {
+            commands,
+            horizon,
+            period,
+            s,
+            companion,
+            factor,
+            forces,
+        } = *plan;
+        let idle = Command::default();
+        let command_at = |t: f64| -> &Command {
+            commands
+                .iter()
+                .rev()
+                .find(|(ts, _)| *ts <= t + 1e-12)
+                .map_or(&idle, |(_, c)| c)
+        };
+        let (mut t, mut k) = (0.0, 0usize);
+        let mut next_sample = s.sample_period;
+        while t < horizon - 1e-12 {
+            k += 1;
+            let t_end = (k as f64 * period).min(horizon);
+            if !self.actuators.is_empty() && k > 1 {
+                let [a, c] = &*lanes;
+                let cmd = command_at(t);
+                self.actuators
+                    .update(cmd, &a.q, &a.v, t_end - t, &mut self.ws.tau_act);
+                if s.error_estimate {
+                    let ws = &mut self.ws;
+                    ws.companion_actuators.update(
+                        cmd,
+                        &c.q,
+                        &c.v,
+                        t_end - t,
+                        &mut ws.tau_companion,
+                    );
+                }
+            }
+            let (answer, comp) = lanes.split_at_mut(1);
+            let work = comp[0].evaluations;
+            let largest = self.advance(&mut answer[0], None, work, (t, t_end), s)?;
+            if s.error_estimate {
+                let work = answer[0].evaluations;
+                let cap = Some(0.5 * largest);
+                self.advance(&mut comp[0], cap, work, (t, t_end), companion)
+                    .map_err(companion_error)?;
+            }
+            t = t_end;
+            if t >= next_sample - 1e-9 || t >= horizon - 1e-12 {
+                // P is read here: the recorded steps are linearized now (a chunk may span
+                // control ticks; covariance_chunks.rs checks that it reproduces them).
+                if let Some(cov) = self.covariance.as_mut() {
+                    self.sys.cdata.t = t;
+                    cov.flush(&mut self.sys, s.method)?;
+                } else if let Some(pipe) = self.ws.pipe.get_mut() {
+                    pipe.handoff(t, Some(traj.samples.len()))?;
+                }
+                let [a, c] = &*lanes;
+                let e = s.error_estimate.then(|| {
+                    estimate::estimate(&self.model, &a.q, &c.q, factor, &mut self.ws.diff)
+                });
+                let sample = self.sample(t, &a.q, &a.v, e, forces)?;
+                let springs = self
+                    .forces
+                    .potential_energy(&self.sys.model, &self.sys.data, &a.q);
+                guard.check(&sample, springs, a.steps, s)?;
+                traj.samples.push(sample);
+                if let Some(e) = e.filter(|&e| e > s.max_error) {
+                    return Err(estimate::exceeded(s, e, t, horizon));
+                }
+                while next_sample <= t + 1e-9 {
+                    next_sample += s.sample_period;
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The energy check runs for passive, conservative scenes stepped by a fixed explicit method.

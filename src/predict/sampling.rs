@@ -1,6 +1,7 @@
 //! A prediction's output sample at one state: residuals, energies, forces on request, the
 //! propagated covariance when there is one.
 
+use super::covariance_worker::covariance_rows;
 use super::run::Predictor;
 use super::trajectory::Sample;
 use crate::algorithm::{kinetic_energy, potential_energy};
@@ -69,13 +70,11 @@ impl Predictor {
                 "the state overflows the arithmetic; see the input ranges in README.md",
             )?;
         }
-        if let Some(c) = &self.covariance {
-            crate::error::check_output(
-                &format!("sample at t = {t} s: covariance"),
-                c.p.as_slice(),
-                "the propagated covariance overflowed; reduce the start covariance or the horizon",
-            )?;
-        }
+        // (With the covariance on its worker, the rows are attached when the run ends.)
+        let covariance = match &self.covariance {
+            Some(c) => Some(covariance_rows(&c.p, t)?),
+            None => None,
+        };
         Ok(Sample {
             t,
             q: q.to_vec(),
@@ -90,11 +89,7 @@ impl Predictor {
             kinetic_energy: ke,
             potential_energy: pe,
             error_estimate: err,
-            covariance: self.covariance.as_ref().map(|c| {
-                (0..c.p.nrows())
-                    .map(|i| c.p.row(i).iter().copied().collect())
-                    .collect()
-            }),
+            covariance,
         })
     }
 }

@@ -12,8 +12,10 @@ use crate::node::health::kv;
 pub struct PredictionWork {
     /// The whole tick: prediction, forces, messages [s].
     pub tick_s: f64,
-    /// Of which the covariance's propagation [s].
+    /// Of which the covariance's propagation [s] (beside the prediction, not part of it, when
+    /// `covariance_parallel`).
     pub covariance_s: f64,
+    pub covariance_parallel: bool,
     /// Accepted steps, and right-hand-side evaluations (the error estimate's included).
     pub steps: usize,
     pub evaluations: usize,
@@ -27,6 +29,7 @@ impl PredictionWork {
         PredictionWork {
             tick_s,
             covariance_s: traj.covariance_time_s,
+            covariance_parallel: traj.covariance_on_worker,
             steps: traj.steps,
             evaluations: traj.evaluations + traj.estimate_evaluations,
             covariance_linearizations: traj.covariance_linearizations,
@@ -58,9 +61,15 @@ impl PredictionWork {
             return None;
         }
         let cov = self.covariance_s;
+        // On its own thread the covariance overlaps the prediction: the tick waits for the
+        // longer of the two.
+        let (beside, prediction_s) = match self.covariance_parallel {
+            true => (" on its own thread", self.tick_s),
+            false => ("", self.tick_s - cov),
+        };
         let remedy = if cov >= 0.5 * self.tick_s {
             format!(
-                "the covariance takes {:.0} ms ({} linearized steps for {} steps of the \
+                "the covariance takes {:.0} ms{beside} ({} linearized steps for {} steps of the \
                  prediction); lower `rate` or `horizon`, or set `covariance.propagate` false",
                 cov * 1e3,
                 self.covariance_linearizations,
@@ -70,7 +79,7 @@ impl PredictionWork {
             format!(
                 "the prediction takes {:.0} ms ({} steps, {} evaluations); lower `rate` or \
                  `horizon`",
-                (self.tick_s - cov) * 1e3,
+                prediction_s * 1e3,
                 self.steps,
                 self.evaluations
             )
@@ -91,6 +100,7 @@ mod tests {
         PredictionWork {
             tick_s,
             covariance_s,
+            covariance_parallel: false,
             steps: 1000,
             evaluations: 8000,
             covariance_linearizations: 1001,
@@ -115,6 +125,16 @@ mod tests {
             "{w}"
         );
         assert!(w.contains("`covariance.propagate` false"), "{w}");
+        // On its own thread: the 90 ms it took are beside the prediction's.
+        let w = PredictionWork {
+            covariance_parallel: true,
+            ..work(0.105, 0.09)
+        };
+        let w = w.overrun(0.1).expect("overrun");
+        assert!(
+            w.contains("covariance takes 90 ms on its own thread"),
+            "{w}"
+        );
     }
 
     #[test]
@@ -125,6 +145,13 @@ mod tests {
             "{w}"
         );
         assert!(!w.contains("covariance.propagate"), "{w}");
+        // With the covariance beside it, the prediction is the whole tick.
+        let w = PredictionWork {
+            covariance_parallel: true,
+            ..work(0.25, 0.05)
+        };
+        let w = w.overrun(0.2).expect("overrun");
+        assert!(w.contains("the prediction takes 250 ms"), "{w}");
         let kvs = work(0.25, 0.05).key_values();
         assert_eq!(kvs[0].value, "250.0 (50.0)");
         assert_eq!(
