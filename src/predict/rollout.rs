@@ -90,6 +90,9 @@ impl Predictor {
                         let mut p = self.clone();
                         p.settings.sample_period = opts.step;
                         p.settings.max_work /= n;
+                        // The pool already fills the cores: a covariance stays on its rollout's
+                        // thread (the same P either way, covariance_worker.rs).
+                        p.parallel_covariance = false;
                         p
                     });
                     let timed: Vec<(f64, Command)> = seq
