@@ -132,8 +132,8 @@ pub(super) enum CovarianceFeed<'a> {
 
 impl CovarianceFeed<'_> {
     /// Record one step (`StepRecord::push`) ending at time `t` [s]; P catches up when the
-    /// record is full. Err(`WorkerFailed`) when the worker has failed: its own error is the
-    /// run's.
+    /// record is full (inline, or on the worker). An error when the worker has failed: a
+    /// placeholder, the run returns the worker's own.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn record_step(
         &mut self,

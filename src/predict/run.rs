@@ -51,6 +51,16 @@ pub(super) struct Workspace {
     pub(super) pipe: PipeSlot,
 }
 
+/// The command in force at t [s] (the last one started; `idle` before the first), borrowed: a
+/// clone per control tick allocated its maps.
+fn command_at<'a>(commands: &'a [(f64, Command)], idle: &'a Command, t: f64) -> &'a Command {
+    commands
+        .iter()
+        .rev()
+        .find(|(ts, _)| *ts <= t + 1e-12)
+        .map_or(idle, |(_, c)| c)
+}
+
 /// What a run's loop follows (`Predictor::step_loop`).
 struct Plan<'a> {
     commands: &'a [(f64, Command)],
@@ -298,15 +308,8 @@ impl Predictor {
         };
         // The first control tick comes before the first sample, so that every sample's forces
         // include the actuator torque held over the interval that ends (or, at t = 0, starts) there.
-        // The command in force at t, borrowed (a clone per control tick allocated its maps).
         let idle = Command::default();
-        let command_at = |t: f64| -> &Command {
-            commands
-                .iter()
-                .rev()
-                .find(|(ts, _)| *ts <= t + 1e-12)
-                .map_or(&idle, |(_, c)| c)
-        };
+        let command_at = |t: f64| command_at(commands, &idle, t);
         if !self.actuators.is_empty() && horizon > 0.0 {
             let [a, c] = &*lanes;
             let cmd = command_at(0.0);
@@ -398,13 +401,7 @@ impl Predictor {
             forces,
         } = *plan;
         let idle = Command::default();
-        let command_at = |t: f64| -> &Command {
-            commands
-                .iter()
-                .rev()
-                .find(|(ts, _)| *ts <= t + 1e-12)
-                .map_or(&idle, |(_, c)| c)
-        };
+        let command_at = |t: f64| command_at(commands, &idle, t);
         let (mut t, mut k) = (0.0, 0usize);
         let mut next_sample = s.sample_period;
         while t < horizon - 1e-12 {
