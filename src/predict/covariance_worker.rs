@@ -69,17 +69,20 @@ impl Exchange {
     }
 }
 
-/// The prediction's end of the pipe; dropping it tells the worker to finish.
+/// The prediction's end of the pipe.
 #[derive(Debug)]
 pub(super) struct CovariancePipe {
     exchange: Arc<Exchange>,
     current: StepRecord,
 }
 
-impl Drop for CovariancePipe {
+/// Closes the exchange however the prediction's side leaves it.
+struct Closing<'a>(&'a Exchange);
+
+impl Drop for Closing<'_> {
     fn drop(&mut self) {
-        self.exchange.slots().closed = true;
-        self.exchange.changed.notify_all();
+        self.0.slots().closed = true;
+        self.0.changed.notify_all();
     }
 }
 
@@ -257,11 +260,45 @@ pub(super) fn with_worker<R>(
                 ex.changed.notify_all();
             }
         });
-        // The body's pipe is dropped when it returns: the worker's loop ends there.
+        // The worker's loop ends when the body is done, even if it panics with the pipe still
+        // stored somewhere (the scope would otherwise wait for the worker forever).
+        let closing = Closing(ex);
         let result = body(pipe);
+        drop(closing);
         let done = worker
             .join()
             .unwrap_or_else(|e| std::panic::resume_unwind(e));
         (result, done)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Scene;
+    use crate::forces::ForceElements;
+
+    /// A prediction side that panics with the pipe still stored elsewhere does not leave the
+    /// worker, and with it the scope, waiting forever: the panic comes through.
+    #[test]
+    fn a_panicking_prediction_does_not_hang_the_worker() {
+        let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+        let scene = Scene::load(root.join("params/diff_drive.yaml")).unwrap();
+        let mut sys = System::from_scene(&scene).unwrap();
+        let forces = ForceElements::new(&sys.model, &scene.file.forces).unwrap();
+        let n = 2 * sys.model.nv;
+        let p0 = DMatrix::identity(n, n) * 1e-6;
+        let (q, v) = (&scene.q0, &scene.v0);
+        let spec = Default::default();
+        let prop = CovariancePropagator::start(&mut sys, &forces, &[], &spec, &p0, q, v).unwrap();
+        let kept = Mutex::new(None);
+        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            with_worker(prop, sys.clone(), Method::Rk4, |pipe| {
+                *kept.lock().unwrap() = Some(pipe);
+                panic!("the prediction failed");
+            })
+        }));
+        assert!(outcome.is_err());
+        assert!(kept.lock().unwrap_or_else(|e| e.into_inner()).is_some());
+    }
 }
