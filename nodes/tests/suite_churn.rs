@@ -200,9 +200,9 @@ fn participant_churn_keeps_the_suite_bounded() {
     // so matched-endpoint and ros_discovery_info records of departed participants were kept
     // (~0.6 kB each, heaptrack); shared per Context and pruned (patches/ros2-client): growth
     // 3.04, 3.53, 3.87, 4.49 MB (4.23 before, same session: RSS spreads, the live heap fell
-    // 3.01 → 2.04 MB); over 2 000, +0.94 MB for the second
-    // 1 000 (was 1.91). The bar, 2.5 MB, catches a regression
-    // beyond what was measured before the attic fix (docs/nodes.md).
+    // 3.01 → 2.04 MB); over 2 000, +0.94 MB for the second 1 000 (was 1.91). The bar, 2.5 MB,
+    // catches a regression beyond what was measured before the first of these fixes
+    // (docs/nodes.md).
     let half = half.expect("the churn passed its half");
     let second_half_mb = (settled as f64 - half.1 as f64) / 1024.0;
     println!(

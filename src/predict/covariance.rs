@@ -200,7 +200,7 @@ impl CovariancePropagator {
                 lin.inputs = false;
                 lin
             },
-            record: StepRecord::new(sys, 0),
+            record: StepRecord::new(sys),
             chunks: ChunkControl::new(sys),
             linearizations: 0,
             time_s: 0.0,
@@ -231,7 +231,7 @@ impl CovariancePropagator {
         v: &[f64],
     ) -> Result<Self> {
         let mut c = Self::new(sys, forces, spec)?;
-        c.record = StepRecord::new(sys, feedback.len());
+        c.record.reserve_feedback(feedback.len());
         c.reset(p0)?;
         c.project(sys, q, v)?;
         c.integral = IntegralOffsets::start(&c.p, feedback);

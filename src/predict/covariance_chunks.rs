@@ -83,30 +83,40 @@ pub(crate) struct StepRecord {
     /// Time of each recorded state since the first [s].
     t: Vec<f64>,
     /// Recorded steps.
-    pub(crate) len: usize,
+    len: usize,
 }
 
 impl StepRecord {
-    /// An empty record of the same size (feedback capacity included: a step allocates nothing).
-    pub(crate) fn like(&self, sys: &System) -> Self {
-        Self::new(sys, self.feedback.first().map_or(0, Vec::capacity))
-    }
-}
-
-impl StepRecord {
-    /// Sized for `sys` and `controllers` feedback controllers (`Actuators::feedback`).
-    pub(crate) fn new(sys: &System, controllers: usize) -> Self {
+    pub(crate) fn new(sys: &System) -> Self {
         let (nq, nv) = (sys.model.nq, sys.model.nv);
         Self {
             q: vec![vec![0.0; nq]; CHUNK_CAPACITY + 1],
             v: vec![vec![0.0; nv]; CHUNK_CAPACITY + 1],
             tau: vec![vec![0.0; nv]; CHUNK_CAPACITY],
-            feedback: (0..CHUNK_CAPACITY)
-                .map(|_| Vec::with_capacity(controllers))
-                .collect(),
+            feedback: vec![vec![]; CHUNK_CAPACITY],
             t: vec![0.0; CHUNK_CAPACITY + 1],
             len: 0,
         }
+    }
+
+    /// Room for `controllers` feedback controllers (`Actuators::feedback`) in every step, so
+    /// that recording one allocates nothing.
+    pub(crate) fn reserve_feedback(&mut self, controllers: usize) {
+        for f in &mut self.feedback {
+            f.reserve(controllers);
+        }
+    }
+
+    /// Forget the recorded steps.
+    pub(crate) fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    /// An empty record of the same size, feedback room included.
+    pub(crate) fn like(&self, sys: &System) -> Self {
+        let mut r = Self::new(sys);
+        r.reserve_feedback(self.feedback.first().map_or(0, Vec::capacity));
+        r
     }
 
     /// Append one step of the prediction: from (q0, v0) under the held generalized force τ
@@ -211,25 +221,6 @@ fn next_chunk(m: usize, ratio: f64, order: f64) -> usize {
 }
 
 impl CovariancePropagator {
-    /// Record one step of the prediction (see [`StepRecord::push`]); P catches up at
-    /// [`Self::flush`], which this calls when the record is full.
-    #[allow(clippy::too_many_arguments)]
-    pub fn record_step(
-        &mut self,
-        sys: &mut System,
-        method: Method,
-        start: (&[f64], &[f64]),
-        tau: &[f64],
-        feedback: impl Iterator<Item = Feedback>,
-        h: f64,
-        end: (&[f64], &[f64]),
-    ) -> Result<()> {
-        if self.record.push(start, tau, feedback, h, end) {
-            self.flush(sys, method)?;
-        }
-        Ok(())
-    }
-
     /// Bring P up to the last recorded state (module doc), kept on the constraints there.
     pub fn flush(&mut self, sys: &mut System, method: Method) -> Result<()> {
         // The record leaves `self` while P is updated from it (disjoint borrows; no allocation).
@@ -251,7 +242,7 @@ impl CovariancePropagator {
         let mut ctl = std::mem::take(&mut self.chunks);
         let result = self.flush_chunks(sys, method, rec, &mut ctl);
         self.chunks = ctl;
-        rec.len = 0;
+        rec.clear();
         self.time_s += start.elapsed().as_secs_f64();
         result
     }

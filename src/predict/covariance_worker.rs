@@ -25,6 +25,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 
 /// A full record for the worker: P is brought up to its end, at time `t` [s], and read there
 /// for sample `sample` (None: the record was full between samples).
+#[derive(Debug)]
 struct Job {
     record: StepRecord,
     t: f64,
@@ -97,12 +98,6 @@ impl Drop for Leaving<'_> {
     }
 }
 
-impl std::fmt::Debug for Job {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "Job(t = {}, sample = {:?})", self.t, self.sample)
-    }
-}
-
 /// The pipe's slot in a predictor: empty outside a run, and in a clone. (A `Mutex` only to
 /// keep the predictor `Sync` for the rollouts' workers; it is reached through `&mut`, never
 /// locked.)
@@ -134,9 +129,11 @@ pub(super) enum CovarianceFeed<'a> {
 }
 
 impl CovarianceFeed<'_> {
-    /// Record one step (`StepRecord::push`) ending at time `t` [s]; P catches up when the
-    /// record is full (inline, or on the worker). An error when the worker has failed: a
-    /// placeholder, the run returns the worker's own.
+    /// Record one step of the prediction (`StepRecord::push`: from `start` under the held
+    /// generalized force τ and the controllers' `feedback` for h [s] to `end`, at time `t`
+    /// [s], after drift control); when the record is full P catches up, inline or on the
+    /// worker. An error when the worker has failed: a placeholder, the run returns the
+    /// worker's own.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn record_step(
         &mut self,
@@ -148,17 +145,19 @@ impl CovarianceFeed<'_> {
         h: f64,
         (t, end): (f64, (&[f64], &[f64])),
     ) -> Result<()> {
+        let record = match self {
+            Self::Inline(c) => &mut c.record,
+            Self::Worker(p) => &mut p.current,
+        };
+        if !record.push(start, tau, feedback, h, end) {
+            return Ok(());
+        }
         match self {
             Self::Inline(c) => {
                 sys.cdata.t = t;
-                c.record_step(sys, method, start, tau, feedback, h, end)
+                c.flush(sys, method)
             }
-            Self::Worker(p) => {
-                if p.current.push(start, tau, feedback, h, end) {
-                    p.handoff(t, None)?;
-                }
-                Ok(())
-            }
+            Self::Worker(p) => p.handoff(t, None),
         }
     }
 }
@@ -254,8 +253,10 @@ pub(super) fn with_worker<R>(
                             Ok(())
                         });
                     done.error = flushed.err();
+                } else {
+                    // After a failure the records only circulate until the prediction stops.
+                    record.clear();
                 }
-                record.len = 0;
                 ex.slots().back = Some((record, done.error.is_none()));
                 ex.changed.notify_all();
             }
