@@ -180,8 +180,46 @@ impl SuiteProcess {
     }
 }
 
+impl SuiteProcess {
+    /// Every thread's stack of the running suite (gdb, bounded to 30 s), for a test that failed
+    /// while the suite may be stuck: a hang seen once in CI (patches/README.md, "discovery DB
+    /// guard held across a blocking send") left only a log that stopped.
+    fn thread_stacks(&mut self) -> String {
+        if !self.alive() {
+            return "(the suite had exited)".into();
+        }
+        let pid = self.child.id().to_string();
+        match Command::new("timeout")
+            .args([
+                "30",
+                "gdb",
+                "-p",
+                &pid,
+                "-batch",
+                "-ex",
+                "thread apply all bt",
+            ])
+            .stdin(Stdio::null())
+            .output()
+        {
+            Ok(o) => String::from_utf8_lossy(&o.stdout)
+                .lines()
+                .filter(|l| l.starts_with('#') || l.starts_with("Thread "))
+                .collect::<Vec<_>>()
+                .join("\n"),
+            Err(e) => format!("(no stacks: gdb could not run: {e})"),
+        }
+    }
+}
+
 impl Drop for SuiteProcess {
     fn drop(&mut self) {
+        if std::thread::panicking() {
+            eprintln!(
+                "---- suite threads at the failure ----\n{}",
+                self.thread_stacks()
+            );
+        }
         self.stop();
         if std::thread::panicking() {
             eprintln!(

@@ -1830,49 +1830,63 @@ impl Discovery {
   }
 
   fn add_local_writer(&self, guid: GUID) {
-    // Get writer data from db
-    let db = discovery_db_read(&self.discovery_db);
-    let writer_data = match db.get_local_topic_writer(guid) {
-      Some(d) => d,
-      None => {
+    // Patched (constraint_dynamics, issue 15): copied out of the DB and the guard released
+    // before publishing and notifying. `send_discovery_notification` blocks while its queue
+    // (32) is full, and the DP event loop that drains it takes the DB for reading
+    // (`update_participant`): with the guard held here and a thread waiting to write the DB
+    // (an endpoint being created: std's RwLock then blocks new readers), the three waited
+    // on each other for good — a suite starting while client participants joined stopped
+    // half-way, its discovery silent (seen once in CI, patches/README.md).
+    let (writer_data, existing_readers) = {
+      let db = discovery_db_read(&self.discovery_db);
+      let Some(writer_data) = db.get_local_topic_writer(guid).cloned() else {
         warn!("Did not find a local writer {guid:?}");
         return;
-      }
+      };
+      let readers: Vec<DiscoveredReaderData> = db
+        .readers_on_topic(writer_data.publication_topic_data.topic_name())
+        .into_iter()
+        .cloned()
+        .collect();
+      (writer_data, readers)
     };
 
     // Publish it to SEDP (if needed)
-    self.sedp_publish_single_user_writer(writer_data);
+    self.sedp_publish_single_user_writer(&writer_data);
 
     // Send the ReaderUpdated notification on any existing readers on the writer's
     // topic This will result in matching the endpoints if possible
-    let existing_readers = db.readers_on_topic(writer_data.publication_topic_data.topic_name());
-    for reader in existing_readers {
+    for discovered_reader_data in existing_readers {
       self.send_discovery_notification(DiscoveryNotificationType::ReaderUpdated {
-        discovered_reader_data: reader.clone(),
+        discovered_reader_data,
       });
     }
   }
 
   fn add_local_reader(&self, guid: GUID) {
-    // Get reader data from db
-    let db = discovery_db_read(&self.discovery_db);
-    let reader_data = match db.get_local_topic_reader(guid) {
-      Some(d) => d,
-      None => {
+    // Patched: the guard released before publishing and notifying, see `add_local_writer`.
+    let (reader_data, existing_writers) = {
+      let db = discovery_db_read(&self.discovery_db);
+      let Some(reader_data) = db.get_local_topic_reader(guid).cloned() else {
         warn!("Did not find a local reader {guid:?}");
         return;
-      }
+      };
+      let writers: Vec<DiscoveredWriterData> = db
+        .writers_on_topic(reader_data.subscription_topic_data.topic_name())
+        .into_iter()
+        .cloned()
+        .collect();
+      (reader_data, writers)
     };
 
     // Publish it to SEDP (if needed)
-    self.sedp_publish_single_user_reader(reader_data);
+    self.sedp_publish_single_user_reader(&reader_data);
 
     // Send the WriterUpdated notification on any existing writers on the readers's
     // topic This will result in matching the endpoints if possible
-    let existing_writers = db.writers_on_topic(reader_data.subscription_topic_data.topic_name());
-    for writer in existing_writers {
+    for discovered_writer_data in existing_writers {
       self.send_discovery_notification(DiscoveryNotificationType::WriterUpdated {
-        discovered_writer_data: writer.clone(),
+        discovered_writer_data,
       });
     }
   }
