@@ -87,6 +87,36 @@ impl<T> WakeSender<T> {
       Err(e) => Err(e),
     }
   }
+
+  /// Retry a full bounded send for a short time. Wakes the poll on success.
+  pub(crate) fn try_send_timeout(
+    &self,
+    value: T,
+    timeout: Duration,
+  ) -> Result<(), mpsc::TrySendError<T>> {
+    let mut value = value;
+    match self.try_send(value) {
+      Ok(()) => Ok(()),
+      Err(mpsc::TrySendError::Disconnected(v)) => Err(mpsc::TrySendError::Disconnected(v)),
+      Err(mpsc::TrySendError::Full(v)) => {
+        value = v;
+        let start = Instant::now();
+        let mut delay = Duration::from_micros(1);
+        while start.elapsed() < timeout {
+          std::thread::sleep(delay);
+          match self.try_send(value) {
+            Ok(()) => return Ok(()),
+            Err(mpsc::TrySendError::Full(v)) => {
+              value = v;
+              delay = (delay * 2).min(Duration::from_millis(2));
+            }
+            Err(other) => return Err(other),
+          }
+        }
+        Err(mpsc::TrySendError::Full(value))
+      }
+    }
+  }
 }
 
 pub(crate) struct WakeReceiver<T> {

@@ -1171,7 +1171,7 @@ pub(crate) struct DomainParticipantInner {
 
   // Adding Readers
   sender_add_reader: WakeSender<ReaderIngredients>,
-  sender_remove_reader: WakeUnboundedSender<GUID>,
+  sender_remove_reader: WakeSender<GUID>,
   /// Reader-command ready queue. A send records the reader entity id.
   reader_ready: ReadySender<EntityId>,
   /// Built-in discovery readers enqueue their poll token here.
@@ -1184,7 +1184,7 @@ pub(crate) struct DomainParticipantInner {
 
   // Writers
   add_writer_sender: WakeSender<WriterIngredients>,
-  remove_writer_sender: WakeUnboundedSender<GUID>,
+  remove_writer_sender: WakeSender<GUID>,
   /// Writer doorbell ready queue. Ringing records the writer entity id.
   writer_ready: ReadySender<EntityId>,
 
@@ -1349,15 +1349,11 @@ impl DomainParticipantInner {
     // Adding readers. Capacities match the previous mio-extras channels.
     let (sender_add_reader, receiver_add_reader) =
       wake_channel::<ReaderIngredients>(100, &dp_waker);
-    // Removals are unbounded: a bounded queue (4 deep, 20 ms to wait) dropped the command
-    // when many endpoints went at once (a node's shutdown or lifecycle cleanup) and left the
-    // reader or writer registered in the event loop for the participant's life. A removal is
-    // one GUID per endpoint that exists, so the queue is bounded by the endpoints anyway.
-    let (sender_remove_reader, receiver_remove_reader) = wake_channel_unbounded::<GUID>(&dp_waker);
+    let (sender_remove_reader, receiver_remove_reader) = wake_channel::<GUID>(4, &dp_waker);
 
     // Writers
     let (add_writer_sender, add_writer_receiver) = wake_channel::<WriterIngredients>(10, &dp_waker);
-    let (remove_writer_sender, remove_writer_receiver) = wake_channel_unbounded::<GUID>(&dp_waker);
+    let (remove_writer_sender, remove_writer_receiver) = wake_channel::<GUID>(4, &dp_waker);
     let (reader_ready, reader_ready_rx) = ready_channel(&dp_waker);
     let (writer_ready, writer_ready_rx) = ready_channel(&dp_waker);
 
