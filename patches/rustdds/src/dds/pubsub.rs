@@ -55,6 +55,13 @@ use crate::{
 #[cfg(not(feature = "security"))]
 use crate::no_security::{security_plugins::SecurityPluginsHandle, EndpointSecurityInfo};
 
+/// How long a dropped endpoint waits for room in its participant's 4-deep removal queue.
+/// Patched (constraint_dynamics, issue 15): was 20 ms, and a suite's shutdown (its nodes'
+/// endpoints dropped at once while the event loop was busy with departed clients) logged
+/// `Cannot remove Reader … Full` once in CI. The wait stays bounded: an unbounded queue that
+/// never waits was tried and broke departures (patches/README.md).
+const ENDPOINT_REMOVAL_WAIT: std::time::Duration = std::time::Duration::from_millis(250);
+
 // -------------------------------------------------------------------
 
 /// DDS Publisher
@@ -762,7 +769,7 @@ impl InnerPublisher {
   pub(crate) fn remove_writer(&self, guid: GUID) {
     self
       .remove_writer_sender
-      .try_send_timeout(guid, std::time::Duration::from_millis(20))
+      .try_send_timeout(guid, ENDPOINT_REMOVAL_WAIT)
       .unwrap_or_else(|e| error!("Cannot remove Writer {guid:?} : {e:?}"));
   }
 
@@ -1412,7 +1419,7 @@ impl InnerSubscriber {
   pub(crate) fn remove_reader(&self, guid: GUID) {
     self
       .sender_remove_reader
-      .try_send_timeout(guid, std::time::Duration::from_millis(20))
+      .try_send_timeout(guid, ENDPOINT_REMOVAL_WAIT)
       .unwrap_or_else(|e| error!("Cannot remove Reader {guid:?} : {e:?}"));
   }
 
