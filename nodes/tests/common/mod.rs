@@ -178,9 +178,7 @@ impl SuiteProcess {
         let _ = self.child.wait();
         false
     }
-}
 
-impl SuiteProcess {
     /// Every thread's stack of the running suite (gdb, bounded to 30 s), for a test that failed
     /// while the suite may be stuck: a hang seen once in CI (patches/README.md, "discovery DB
     /// guard held across a blocking send") left only a log that stopped.
