@@ -148,6 +148,41 @@ impl OriginInertia {
         }
     }
 
+    /// The same inertia about the origin of frame b and in b's axes, given `a_m_b` (this
+    /// inertia being about a's origin, in a's axes): the inverse of [`Self::transformed`]'s
+    /// placement. Moving the reference point to b's origin p (a's axes) keeps m, makes the first
+    /// moment h − m p and the rotational inertia
+    ///   `I_p = I_O − (2 h·p − m |p|²) 1 + h pᵀ + p hᵀ − m p pᵀ`
+    /// (a point mass m at c: `m (|c − p|² 1 − (c − p)(c − p)ᵀ)`, expanded); then both are
+    /// turned into b's axes, `Rᵀ (h − m p)` and `Rᵀ I_p R`.
+    #[inline]
+    pub fn expressed_in(&self, a_m_b: &SE3) -> Self {
+        let (r, p) = (&a_m_b.rotation, &a_m_b.translation);
+        let m = self.mass;
+        let [xx, yy, zz, xy, xz, yz] = self.i_o;
+        let d = m * p.norm_squared() - 2.0 * self.h.dot(p);
+        let mp = p * m;
+        // Entry (i, j) of h pᵀ + p hᵀ − m p pᵀ.
+        let t = |i: usize, j: usize| self.h[i] * p[j] + p[i] * self.h[j] - mp[i] * p[j];
+        let (a_xy, a_xz, a_yz) = (xy + t(0, 1), xz + t(0, 2), yz + t(1, 2));
+        #[rustfmt::skip]
+        let i_p = Matrix3::new(
+            xx + d + t(0, 0), a_xy, a_xz,
+            a_xy, yy + d + t(1, 1), a_yz,
+            a_xz, a_yz, zz + d + t(2, 2),
+        );
+        // Rᵀ I_p R: B = I_p R, then only the six distinct entries of Rᵀ B.
+        let b = i_p * r;
+        let e = |i: usize, j: usize| {
+            r[(0, i)] * b[(0, j)] + r[(1, i)] * b[(1, j)] + r[(2, i)] * b[(2, j)]
+        };
+        Self {
+            mass: m,
+            h: r.tr_mul(&(self.h - mp)),
+            i_o: [e(0, 0), e(1, 1), e(2, 2), e(0, 1), e(0, 2), e(1, 2)],
+        }
+    }
+
     /// `f = I v`: `f = m v_O − h × ω`, `n_O = I_O ω + h × v_O`.
     #[inline]
     pub fn mul_motion(&self, v: &Motion) -> Force {
@@ -172,6 +207,36 @@ impl std::ops::AddAssign for OriginInertia {
         self.h += o.h;
         for (a, b) in self.i_o.iter_mut().zip(o.i_o) {
             *a += b;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Rotation3;
+
+    fn pose(rpy: [f64; 3], t: [f64; 3]) -> SE3 {
+        let r = Rotation3::from_euler_angles(rpy[0], rpy[1], rpy[2]);
+        SE3::new(*r.matrix(), Vector3::from(t))
+    }
+
+    /// A body's inertia placed in frame a and then expressed in frame b is the body placed
+    /// in b directly (`b_m_f = a_m_b⁻¹ a_m_f`), both frames turned and the COM 2.65 m from b's
+    /// origin: |h| = 9.8 kg·m, I_O's entries up to 25 kg·m²; measured differences 0 and
+    /// 3.6e-15 (a few ulps).
+    #[test]
+    fn expressed_in_undoes_a_placement() {
+        let i_c = Matrix3::new(0.31, 0.02, -0.05, 0.02, 0.27, 0.01, -0.05, 0.01, 0.12);
+        let body = Inertia::new(3.7, Vector3::new(0.11, -0.23, 0.05), i_c);
+        let a_m_f = pose([0.3, -1.1, 2.0], [1.2, -0.4, 0.9]);
+        let a_m_b = pose([-0.7, 0.4, -2.5], [-0.6, 1.5, 1.1]);
+        let via_a = OriginInertia::transformed(&body, &a_m_f).expressed_in(&a_m_b);
+        let direct = OriginInertia::transformed(&body, &a_m_b.inverse().compose(&a_m_f));
+        assert_eq!(via_a.mass, direct.mass);
+        assert!((via_a.h - direct.h).norm() < 2e-15, "{via_a:?} {direct:?}");
+        for (x, y) in via_a.i_o.iter().zip(direct.i_o) {
+            assert!((x - y).abs() < 8e-15, "{via_a:?} {direct:?}");
         }
     }
 }
