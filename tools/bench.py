@@ -16,7 +16,7 @@
 Only ratios from one session mean anything on a shared machine: both sides see the same load.
 Standard library only; opens no network connection besides the venv's pip (first run).
 """
-import argparse, datetime, json, os, pathlib, platform, re, subprocess, sys
+import argparse, datetime, json, os, pathlib, platform, re, subprocess, sys, time
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 CPP = ROOT.parent / "shared" / "tools" / "anchors" / "cpp"
@@ -123,7 +123,7 @@ def table(pin, ours, version, loads, rounds, pin_text, rustc):
     ]
     if loaded:
         lines += [f"Measured on a loaded {ncpu}-core machine (load average "
-                  f"{min(loads):.1f}–{max(loads):.1f}: other builds ran at the same time), so "
+                  f"{min(loads):.1f}–{max(loads):.1f}: other work ran at the same time), so "
                   "the absolute times are noisy; the ratios are what this run supports.", ""]
     lines += ["## Ratios", "", "| robot | " + " | ".join(a for a, _, _ in ALGOS) + " |",
               "|---|" + "---|" * len(ALGOS)]
@@ -168,6 +168,13 @@ def main():
     robots = robots_dir()
     bin_path = build_pin()
     env = dict(os.environ, CD_ROBOTS_DIR=str(robots))
+    # Build first, and let the build's load fade (the 1-minute load average, at most 3 minutes),
+    # so that the load figure reported is the machine's, not our own compiler's.
+    run(["cargo", "bench", "--bench", "dynamics", "--no-run"], cwd=ROOT, env=env)
+    for _ in range(36):
+        if os.getloadavg()[0] <= 1.0:
+            break
+        time.sleep(5)
     pin, ours, loads, version, pin_text = {}, {}, [os.getloadavg()[0]], "?", ""
     for _ in range(args.rounds):
         pin_text = run([bin_path, str(robots.parent)], stdout=subprocess.PIPE, text=True).stdout

@@ -121,8 +121,9 @@ pub struct OriginInertia {
 }
 
 impl OriginInertia {
-    /// `inertia` (given in frame F) expressed in frame a, given `a_m_f`.
-    #[inline]
+    /// `inertia` (given in frame F) expressed in frame a, given `a_m_f`. Always inlined: CRBA
+    /// calls it once per body, and an out-of-line call measured +1.4 % instructions on panda.
+    #[inline(always)]
     pub fn transformed(inertia: &Inertia, a_m_f: &SE3) -> Self {
         let r = &a_m_f.rotation;
         let m = inertia.mass;
