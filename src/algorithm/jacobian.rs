@@ -80,3 +80,34 @@ pub fn point_jacobian(
         i = model.bodies[i].parent;
     }
 }
+
+/// Rows `row0 + r` of `j` := `dirs[r]ᵀ J_p`, J_p the 3 × nv world-axes linear-velocity Jacobian
+/// of the material point of `body` at the world position `pw` [m] (other columns of those
+/// rows set to zero): `dirᵀ (ᵒS.lin + ᵒS.ang × pw)` per supporting column. What a constraint on
+/// a point's velocity along given directions needs, without the 3 × nv intermediate and a
+/// product by it (the rolling rows: one pass instead of three).
+pub fn point_jacobian_rows(
+    model: &Model,
+    data: &Data,
+    body: usize,
+    pw: &Vector3<f64>,
+    dirs: &[Vector3<f64>],
+    j: &mut DMatrix<f64>,
+    row0: usize,
+) {
+    for r in 0..dirs.len() {
+        j.row_mut(row0 + r).fill(0.0);
+    }
+    let mut i = body;
+    while i != 0 {
+        let jt = &model.bodies[i].joint;
+        for k in 0..jt.kind.nv() {
+            let col = data.o_m_i[i].act_motion(&jt.subspace[k]);
+            let lin = col.lin + col.ang.cross(pw);
+            for (r, d) in dirs.iter().enumerate() {
+                j[(row0 + r, jt.idx_v + k)] = d.dot(&lin);
+            }
+        }
+        i = model.bodies[i].parent;
+    }
+}

@@ -16,7 +16,7 @@ pub use crba::crba;
 pub(crate) use crba::crba_after_kinematics;
 pub use data::Data;
 pub use energy::{center_of_mass, kinetic_energy, potential_energy};
-pub use jacobian::{ReferenceFrame, frame_jacobian, point_jacobian};
+pub use jacobian::{ReferenceFrame, frame_jacobian, point_jacobian, point_jacobian_rows};
 pub use kinematics::{
     forward_kinematics, forward_kinematics_pos, frame_placement, frame_velocity,
     point_classical_acceleration, point_position, point_velocity,

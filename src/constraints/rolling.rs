@@ -10,7 +10,7 @@
 //! λ: contact force by the ground on the wheel at p_c [N] on (t₁, t₂, n).
 
 use super::{ConstraintRows, RowSink};
-use crate::algorithm::{Data, frame_placement, point_classical_acceleration, point_jacobian};
+use crate::algorithm::{Data, frame_placement, point_classical_acceleration, point_jacobian_rows};
 use crate::model::Model;
 use crate::spatial::SE3;
 use nalgebra::{Matrix3, Vector3};
@@ -92,8 +92,12 @@ impl ConstraintRows for RollingConstraint {
             axis: a,
         } = self.contact_at(&o_m_w);
         let f = &model.frames[self.wheel];
-        let p_local = o_m_w.act_inv_point(&pc);
-        point_jacobian(model, data, self.wheel, &p_local, out.j3, 0);
+        let mut dirs = [Vector3::zeros(); 3];
+        for (d, &row) in dirs.iter_mut().zip(&self.rows) {
+            *d = self.basis.column(row).into();
+        }
+        let dirs = &dirs[..self.rows.len()];
+        point_jacobian_rows(model, data, f.body, &pc, dirs, out.j, out.row0);
         // Body twist in world axes at the centre.
         let rb = data.o_m_i[f.body].rotation;
         let omega = rb * data.v[f.body].ang;
@@ -107,17 +111,17 @@ impl ConstraintRows for RollingConstraint {
         let wn = w.norm().max(f64::MIN_POSITIVE);
         let udot = -(wdot / wn - w * (w.dot(&wdot) / (wn * wn * wn)));
         let pc_dot = v_c + udot * self.radius;
+        let p_local = o_m_w.act_inv_point(&pc);
         let a_mat = point_classical_acceleration(model, data, self.wheel, &p_local);
         let gamma_w = a_mat + omega.cross(&(pc_dot - v_mat));
         let phi_n = n.dot(&pc) - self.height;
-        for (k, &row) in self.rows.iter().enumerate() {
-            let dir: Vector3<f64> = self.basis.column(row).into();
+        for (k, (&row, dir)) in self.rows.iter().zip(dirs).enumerate() {
             let (phi, hol) = if row == 2 {
                 (phi_n, true)
             } else {
                 (0.0, false)
             };
-            out.set_row_dir(k, &dir, phi, dir.dot(&gamma_w), hol);
+            out.finish(out.row0 + k, phi, dir.dot(&gamma_w), hol);
         }
     }
 }

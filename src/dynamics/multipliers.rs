@@ -3,8 +3,9 @@
 //! With M = W Wᵀ (W = Lᵀ of Featherstone's sparse LTL factor), Y = W⁻¹ Jᵀ (nv × nc) and
 //! S = Yᵀ Y = J M⁻¹ Jᵀ (nc × nc):
 //!   q̈_free = M⁻¹ (τ − h),  S λ = b − J q̈_free,  q̈ = q̈_free + W⁻ᵀ Y λ,
-//! where b = −γ − K_d J v − K_p φ. Redundant or singular constraint sets (S singular) are solved
-//! with the minimum-norm λ = S⁺ r (`linalg::MinNormSolver`) and the rank deficiency is reported; a right
+//! where b = −γ − K_d J v − K_p φ. λ is the minimum-norm λ = S⁺ r (`linalg::MinNormSolver`, a
+//! pivoted Cholesky of S: S⁻¹ r when S is regular), so redundant or singular constraint sets
+//! are solved too and their rank deficiency is reported; a right
 //! side outside range(S) means the constraints have no solution, an error. When M itself is only
 //! positive semi-definite (a massless link whose motion the constraints fix, like the seed's rod)
 //! the augmented matrix M + ρ JᵀJ replaces M and ρ Jᵀb joins the right side: same q̈ and λ.
@@ -14,16 +15,14 @@ use crate::algorithm::{Data, bias_forces_after_kinematics, crba_after_kinematics
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
 use crate::linalg::{
-    MinNormSolver, cholesky_in_place, cholesky_solve, dot_unrolled, ltl_factor, ltl_solve_l,
-    ltl_solve_lt, mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
+    MinNormSolver, cholesky_in_place, dot_unrolled, ltl_factor, ltl_solve_l, ltl_solve_lt,
+    mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
 };
 use crate::model::MIN_PIVOT_RATIO;
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 
-/// Relative threshold below which a Cholesky pivot of S counts as zero.
-const RANK_TOL: f64 = 1e-12;
-/// The rank-deficient path's threshold on the pivots of S = YᵀY relative to max diag(S): a row
+/// The threshold on the pivots of S = YᵀY relative to max diag(S): a row
 /// whose part outside the span of the others is below 1e-6 of the longest column of Y is
 /// dependent (singular values of Y are square roots of S's eigenvalues).
 const RANK_TOL_PIVOT: f64 = 1e-12;
@@ -38,9 +37,8 @@ pub struct KktWorkspace {
     y: DMatrix<f64>,
     /// First and one-past-last non-zero row of each column of Y.
     support: Vec<(usize, usize)>,
+    /// S's lower triangle.
     s: DMatrix<f64>,
-    /// S again (both triangles) for the rank-deficient path: the plain Cholesky overwrites `s`.
-    s_gram: DMatrix<f64>,
     /// τ − h (nv).
     pub rhs: DVector<f64>,
     /// Acceleration-level right side b = −γ − K_d J v − K_p φ (nc).
@@ -64,9 +62,9 @@ pub struct KktWorkspace {
     /// The kinematics and rows are already those of the next call's (q, v) (see
     /// `DynamicsOptions::rows_evaluated`); consumed by that call.
     pub rows_evaluated: bool,
-    /// Part of r outside range(S) at the last rank-deficient solve (0 when consistent).
+    /// Part of r outside range(S) at the last solve (0 when consistent).
     pub inconsistency: f64,
-    /// The rank-deficient path's workspace.
+    /// The pivoted factor of S and its solves.
     min_norm: MinNormSolver,
 }
 
@@ -80,7 +78,6 @@ impl KktWorkspace {
             y: DMatrix::zeros(nv, nc),
             support: vec![(0, 0); nc],
             s: DMatrix::zeros(nc, nc),
-            s_gram: DMatrix::zeros(nc, nc),
             rhs: DVector::zeros(nv),
             b: DVector::zeros(nc),
             r: DVector::zeros(nc),
@@ -280,18 +277,12 @@ fn solve_kkt(
         ws.support[k] = (first, last.max(first));
     }
     schur_lower(ws, nv, nc);
-    ws.s_gram.copy_from(&ws.s);
     // r = b − J q̈_free
     mat_vec(&cd.j, ws.qdd.as_slice(), ws.r.as_mut_slice());
     for k in 0..nc {
         ws.r[k] = ws.b[k] - ws.r[k];
     }
-    ws.lambda.copy_from(&ws.r);
-    if cholesky_in_place(&mut ws.s, nc, RANK_TOL).is_ok() {
-        cholesky_solve(&ws.s, nc, ws.lambda.as_mut_slice());
-    } else {
-        min_norm_solve(set, ws)?;
-    }
+    min_norm_solve(set, ws)?;
     // q̈ = q̈_free + L⁻ᵀ (Y λ), generalized force Jᵀλ.
     mat_vec(&ws.y, ws.lambda.as_slice(), ws.tmp.as_mut_slice());
     half_solve_t(
@@ -329,21 +320,17 @@ fn schur_lower(ws: &mut KktWorkspace, nv: usize, nc: usize) {
     }
 }
 
-/// Minimum-norm λ = S⁺ r of the singular S λ = r (`linalg::MinNormSolver`: pivoted Cholesky
-/// of S, rows whose pivot is above `RANK_TOL_PIVOT` relative are independent). The part of r
+/// Minimum-norm λ = S⁺ r of S λ = r (`linalg::MinNormSolver`: pivoted Cholesky of S, rows
+/// whose pivot is above `RANK_TOL_PIVOT` relative are independent; S⁻¹ r when all are). Always
+/// this path rather than a plain Cholesky first: on a rank-deficient set (every wheeled scene)
+/// the plain factor failed at its last pivot and its work was thrown away. The part of r
 /// outside range(S) is the rows' inconsistency: an error above 1e-7 relative (unless
 /// `allow_inconsistent`), rounding below. λ = S⁺ r varies smoothly with the state whichever
 /// independent set was picked. Allocation-free (only the error message allocates).
 fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
     let nc = set.nrows;
-    // S's copy from before the failed Cholesky, its upper triangle mirrored.
-    for a in 0..nc {
-        for b in a + 1..nc {
-            ws.s_gram[(a, b)] = ws.s_gram[(b, a)];
-        }
-    }
     let rank = ws.min_norm.solve(
-        &ws.s_gram,
+        &ws.s,
         ws.r.as_slice(),
         RANK_TOL_PIVOT,
         ws.lambda.as_mut_slice(),
