@@ -3,9 +3,9 @@
 //! With M = W Wᵀ (W = Lᵀ of Featherstone's sparse LTL factor), Y = W⁻¹ Jᵀ (nv × nc) and
 //! S = Yᵀ Y = J M⁻¹ Jᵀ (nc × nc):
 //!   q̈_free = M⁻¹ (τ − h),  S λ = b − J q̈_free,  q̈ = q̈_free + W⁻ᵀ Y λ,
-//! where b = −γ − K_d J v − K_p φ. λ is the minimum-norm λ = S⁺ r (`linalg::MinNormSolver`, a
-//! pivoted Cholesky of S: S⁻¹ r when S is regular), so redundant or singular constraint sets
-//! are solved too and their rank deficiency is reported; a right
+//! where b = −γ − K_d J v − K_p φ. λ = S⁺ r, the minimum-norm solution (`linalg::MinNormSolver`:
+//! S⁻¹ r when S is regular), so redundant or singular constraint sets are solved too and their
+//! rank deficiency is reported; a right
 //! side outside range(S) means the constraints have no solution, an error. When M itself is only
 //! positive semi-definite (a massless link whose motion the constraints fix, like the seed's rod)
 //! the augmented matrix M + ρ JᵀJ replaces M and ρ Jᵀb joins the right side: same q̈ and λ.
@@ -64,7 +64,7 @@ pub struct KktWorkspace {
     pub rows_evaluated: bool,
     /// Part of r outside range(S) at the last solve (0 when consistent).
     pub inconsistency: f64,
-    /// The pivoted factor of S and its solves.
+    /// The factor of S and its solves.
     min_norm: MinNormSolver,
 }
 
@@ -320,10 +320,8 @@ fn schur_lower(ws: &mut KktWorkspace, nv: usize, nc: usize) {
     }
 }
 
-/// Minimum-norm λ = S⁺ r of S λ = r (`linalg::MinNormSolver`: pivoted Cholesky of S, rows
-/// whose pivot is above `RANK_TOL_PIVOT` relative are independent; S⁻¹ r when all are). Always
-/// this path rather than a plain Cholesky first: on a rank-deficient set (every wheeled scene)
-/// the plain factor failed at its last pivot and its work was thrown away. The part of r
+/// Minimum-norm λ = S⁺ r of S λ = r (`linalg::MinNormSolver`: a Cholesky factor of S pivoted
+/// where a row's pivot is not above `RANK_TOL_PIVOT` relative; S⁻¹ r when none is). The part of r
 /// outside range(S) is the rows' inconsistency: an error above 1e-7 relative (unless
 /// `allow_inconsistent`), rounding below. λ = S⁺ r varies smoothly with the state whichever
 /// independent set was picked. Allocation-free (only the error message allocates).
@@ -335,6 +333,10 @@ fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
         RANK_TOL_PIVOT,
         ws.lambda.as_mut_slice(),
     );
+    if rank == nc {
+        // Regular S: every right side is met (inconsistency and deficiency stay 0).
+        return Ok(());
+    }
     let (mut worst, mut inconsistency) = (0, 0.0);
     for k in 0..nc {
         let d = (ws.r[k] - ws.min_norm.r_hat[k]).abs();
