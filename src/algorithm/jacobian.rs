@@ -95,17 +95,27 @@ pub fn point_jacobian_rows(
     j: &mut DMatrix<f64>,
     row0: usize,
 ) {
-    for r in 0..dirs.len() {
-        j.row_mut(row0 + r).fill(0.0);
+    // Column-major storage, entry (r, c) at c·nrows + r: the rows' entries of one column are
+    // adjacent.
+    let nr = j.nrows();
+    let s = j.as_mut_slice();
+    for c in 0..model.nv {
+        s[c * nr + row0..c * nr + row0 + dirs.len()].fill(0.0);
     }
     let mut i = body;
     while i != 0 {
         let jt = &model.bodies[i].joint;
+        let o = &data.o_m_i[i];
+        // ᵒS.lin + ᵒS.ang × pw = R S.lin + ω × (pw − t), with ω = R S.ang.
+        let arm = pw - o.translation;
         for k in 0..jt.kind.nv() {
-            let col = data.o_m_i[i].act_motion(&jt.subspace[k]);
-            let lin = col.lin + col.ang.cross(pw);
+            let sk = &jt.subspace[k];
+            let ang = o.rotation * sk.ang;
+            let lin = o.rotation * sk.lin + ang.cross(&arm);
+            let col = (jt.idx_v + k) * nr + row0;
             for (r, d) in dirs.iter().enumerate() {
-                j[(row0 + r, jt.idx_v + k)] = d.dot(&lin);
+                // Written out: nalgebra's generic `dot` left a loop here.
+                s[col + r] = d.x * lin.x + d.y * lin.y + d.z * lin.z;
             }
         }
         i = model.bodies[i].parent;
