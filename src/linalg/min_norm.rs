@@ -132,6 +132,7 @@ impl MinNormSolver {
         if k == n { n } else { self.factor(s, tol, true) }
     }
 
+    /// One attempt: S's lower triangle copied into `l`, `perm` reset, then [`factor_pivoted`].
     fn factor(&mut self, s: &DMatrix<f64>, tol: f64, largest_first: bool) -> usize {
         let n = self.n;
         let (src, lds) = (s.as_slice(), s.nrows());
