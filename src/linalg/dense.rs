@@ -16,15 +16,7 @@ pub fn cholesky_in_place(a: &mut DMatrix<f64>, n: usize, rel_tol: f64) -> Result
     let ld = a.nrows();
     let s = a.as_mut_slice();
     for j in 0..n {
-        let (done, rest) = s.split_at_mut(j * ld);
-        let col = &mut rest[j..n];
-        for k in 0..j {
-            let lk = &done[k * ld + j..k * ld + n];
-            let f = lk[0];
-            for (c, l) in col.iter_mut().zip(lk) {
-                *c -= f * l;
-            }
-        }
+        let col = subtract_earlier_columns(s, ld, n, j);
         let d = col[0];
         if d.is_nan() || d <= rel_tol * scale {
             return Err(j);
@@ -37,6 +29,24 @@ pub fn cholesky_in_place(a: &mut DMatrix<f64>, n: usize, rel_tol: f64) -> Result
     }
     Ok(())
 }
+}
+
+/// The left-looking step of a Cholesky factor in the column-major `s` (leading dimension `ld`):
+/// column j's rows j..n less Σ_k L[j,k] L[j.., k] over the finished columns k < j, each a
+/// contiguous segment, k increasing. Returns that segment (its first entry is the pivot).
+/// Inlined into its callers' AVX2 builds.
+#[inline(always)]
+pub(crate) fn subtract_earlier_columns(s: &mut [f64], ld: usize, n: usize, j: usize) -> &mut [f64] {
+    let (done, rest) = s.split_at_mut(j * ld);
+    let col = &mut rest[j..n];
+    for k in 0..j {
+        let lk = &done[k * ld + j..k * ld + n];
+        let f = lk[0];
+        for (c, l) in col.iter_mut().zip(lk) {
+            *c -= f * l;
+        }
+    }
+    col
 }
 
 wide_fn! {

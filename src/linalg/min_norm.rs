@@ -24,6 +24,7 @@
 //! The matrices are a few rows wide (one per constraint row), so they live in flat column-major
 //! buffers indexed directly: nalgebra's indexing and row swaps cost more than the arithmetic.
 
+use super::dense::subtract_earlier_columns;
 use nalgebra::DMatrix;
 
 /// Workspace of [`MinNormSolver::solve`] for n × n systems.
@@ -185,15 +186,7 @@ fn factor_pivoted(
             perm.swap(p, j);
             pivots.swap(p, j);
         }
-        let (done, rest) = l.split_at_mut(j * n);
-        let col = &mut rest[j..n];
-        for k in 0..j {
-            let lk = &done[k * n + j..k * n + n];
-            let f = lk[0];
-            for (c, x) in col.iter_mut().zip(lk) {
-                *c -= f * x;
-            }
-        }
+        let col = subtract_earlier_columns(l, n, n, j);
         // col[0] is the pivot again, by the same subtractions in the same order.
         let d = col[0].sqrt();
         col[0] = d;
