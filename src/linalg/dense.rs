@@ -105,23 +105,33 @@ pub fn inverse_from_cholesky(a: &mut DMatrix<f64>, n: usize, out: &mut DMatrix<f
 
 /// Solve `L x = b` in place with the leading n × n lower triangle of `l`.
 pub fn solve_lower(l: &DMatrix<f64>, n: usize, b: &mut [f64]) {
-    for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= l[(i, k)] * b[k];
-        }
-        b[i] = s / l[(i, i)];
-    }
+    solve_lower_in(l.as_slice(), l.nrows(), n, b)
 }
 
 /// Solve `Lᵀ x = b` in place with the leading n × n lower triangle of `l`.
 pub fn solve_lower_transpose(l: &DMatrix<f64>, n: usize, b: &mut [f64]) {
+    solve_lower_transpose_in(l.as_slice(), l.nrows(), n, b)
+}
+
+/// [`solve_lower`] on column-major storage `l` of leading dimension `ld`.
+pub(crate) fn solve_lower_in(l: &[f64], ld: usize, n: usize, b: &mut [f64]) {
+    for i in 0..n {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= l[k * ld + i] * b[k];
+        }
+        b[i] = s / l[i * ld + i];
+    }
+}
+
+/// [`solve_lower_transpose`] on column-major storage `l` of leading dimension `ld`.
+pub(crate) fn solve_lower_transpose_in(l: &[f64], ld: usize, n: usize, b: &mut [f64]) {
     for i in (0..n).rev() {
         let mut s = b[i];
         for k in i + 1..n {
-            s -= l[(k, i)] * b[k];
+            s -= l[i * ld + k] * b[k];
         }
-        b[i] = s / l[(i, i)];
+        b[i] = s / l[i * ld + i];
     }
 }
 

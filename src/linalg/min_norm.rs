@@ -24,7 +24,7 @@
 //! The matrices are a few rows wide (one per constraint row), so they live in flat column-major
 //! buffers indexed directly: nalgebra's indexing and row swaps cost more than the arithmetic.
 
-use super::dense::subtract_earlier_columns;
+use super::dense::{solve_lower_in, solve_lower_transpose_in, subtract_earlier_columns};
 use nalgebra::DMatrix;
 
 /// Workspace of [`MinNormSolver::solve`] for n × n systems.
@@ -78,8 +78,8 @@ impl MinNormSolver {
         if k == n {
             // Full rank: λ = S⁻¹ r, and all of r is in range(S).
             self.r_hat.copy_from_slice(r);
-            forward(&self.l, n, k, w);
-            backward(&self.l, n, k, w);
+            solve_lower_in(&self.l, n, k, w);
+            solve_lower_transpose_in(&self.l, n, k, w);
             for (a, &i) in ind.iter().enumerate() {
                 lambda[i] = w[a];
             }
@@ -98,7 +98,7 @@ impl MinNormSolver {
             for (a, x) in col.iter_mut().enumerate() {
                 *x = l[a * n + k + e];
             }
-            backward(l, n, k, col);
+            solve_lower_transpose_in(l, n, k, col);
         }
         // G = I + C Cᵀ (positive definite whatever C is), factored in place.
         for b in 0..k {
@@ -112,14 +112,14 @@ impl MinNormSolver {
         for (a, wa) in w.iter_mut().enumerate() {
             *wa += (0..nd).map(|e| c[e * k + a] * r[dep[e]]).sum::<f64>();
         }
-        forward(g, k, k, w);
-        backward(g, k, k, w);
+        solve_lower_in(g, k, k, w);
+        solve_lower_transpose_in(g, k, k, w);
         scatter(ind, dep, c, w, &mut self.r_hat);
         // λ = Eᵀ G⁻¹ S_II⁻¹ w.
-        forward(l, n, k, w);
-        backward(l, n, k, w);
-        forward(g, k, k, w);
-        backward(g, k, k, w);
+        solve_lower_in(l, n, k, w);
+        solve_lower_transpose_in(l, n, k, w);
+        solve_lower_in(g, k, k, w);
+        solve_lower_transpose_in(g, k, k, w);
         scatter(ind, dep, c, w, lambda);
         k
     }
@@ -216,43 +216,15 @@ fn symmetric_swap(l: &mut [f64], n: usize, j: usize, p: usize) {
     }
 }
 
-/// Solve `L x = b` in place, L the leading k × k lower triangle of the column-major `l`
-/// (leading dimension `ld`).
-fn forward(l: &[f64], ld: usize, k: usize, x: &mut [f64]) {
-    for i in 0..k {
-        let mut s = x[i];
-        for m in 0..i {
-            s -= l[m * ld + i] * x[m];
-        }
-        x[i] = s / l[i * ld + i];
-    }
-}
-
-/// Solve `Lᵀ x = b` in place (as [`forward`]).
-fn backward(l: &[f64], ld: usize, k: usize, x: &mut [f64]) {
-    for i in (0..k).rev() {
-        let mut s = x[i];
-        for m in i + 1..k {
-            s -= l[i * ld + m] * x[m];
-        }
-        x[i] = s / l[i * ld + i];
-    }
-}
-
 /// In-place Cholesky of a positive-definite k × k lower triangle (leading dimension k).
 fn cholesky_lower(g: &mut [f64], k: usize) {
     for j in 0..k {
-        for m in 0..j {
-            let f = g[m * k + j];
-            for i in j..k {
-                g[j * k + i] -= g[m * k + i] * f;
-            }
-        }
-        let d = g[j * k + j].sqrt();
+        let col = subtract_earlier_columns(g, k, k, j);
+        let d = col[0].sqrt();
         debug_assert!(d > 0.0, "I + C Cᵀ is positive definite");
-        g[j * k + j] = d;
-        for i in j + 1..k {
-            g[j * k + i] /= d;
+        col[0] = d;
+        for x in &mut col[1..] {
+            *x /= d;
         }
     }
 }
