@@ -2,7 +2,6 @@
 
 use super::Data;
 use crate::model::Model;
-use crate::spatial::skew;
 use nalgebra::{DMatrix, Vector3};
 
 /// Where a Jacobian's twist is expressed.
@@ -66,19 +65,11 @@ pub fn point_jacobian(
     }
     let f = &model.frames[frame];
     let pw = data.o_m_i[f.body].act_point(&f.placement.act_point(p));
-    let s = skew(&pw);
-    let mut i = f.body;
-    while i != 0 {
-        let jt = &model.bodies[i].joint;
-        for k in 0..jt.kind.nv() {
-            let col = data.o_m_i[i].act_motion(&jt.subspace[k]);
-            let lin = col.lin - s * col.ang;
-            for r in 0..3 {
-                j[(row + r, jt.idx_v + k)] = lin[r];
-            }
+    for_each_point_column(model, data, f.body, &pw, |c, lin| {
+        for r in 0..3 {
+            j[(row + r, c)] = lin[r];
         }
-        i = model.bodies[i].parent;
-    }
+    });
 }
 
 /// Rows `row0 + r` of `j` := `dirs[r]ᵀ J_p`, J_p the 3 × nv world-axes linear-velocity Jacobian
@@ -102,6 +93,27 @@ pub fn point_jacobian_rows(
     for c in 0..model.nv {
         s[c * nr + row0..c * nr + row0 + dirs.len()].fill(0.0);
     }
+    for_each_point_column(model, data, body, pw, |c, lin| {
+        let col = c * nr + row0;
+        for (r, d) in dirs.iter().enumerate() {
+            // Written out: nalgebra's generic `dot` left a loop here.
+            s[col + r] = d.x * lin.x + d.y * lin.y + d.z * lin.z;
+        }
+    });
+}
+
+/// Calls `f(c, v)` for each velocity coordinate c of the joints that support `body`, v the
+/// world-axes linear velocity [m/s per unit of v_c] of the material point of `body` at the
+/// world position `pw` [m]: column c of its point Jacobian (the other columns are zero). The one
+/// walk of the chain behind [`point_jacobian`] and [`point_jacobian_rows`].
+#[inline(always)]
+fn for_each_point_column(
+    model: &Model,
+    data: &Data,
+    body: usize,
+    pw: &Vector3<f64>,
+    mut f: impl FnMut(usize, &Vector3<f64>),
+) {
     let mut i = body;
     while i != 0 {
         let jt = &model.bodies[i].joint;
@@ -112,11 +124,7 @@ pub fn point_jacobian_rows(
             let sk = &jt.subspace[k];
             let ang = o.rotation * sk.ang;
             let lin = o.rotation * sk.lin + ang.cross(&arm);
-            let col = (jt.idx_v + k) * nr + row0;
-            for (r, d) in dirs.iter().enumerate() {
-                // Written out: nalgebra's generic `dot` left a loop here.
-                s[col + r] = d.x * lin.x + d.y * lin.y + d.z * lin.z;
-            }
+            f(jt.idx_v + k, &lin);
         }
         i = model.bodies[i].parent;
     }
