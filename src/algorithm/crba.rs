@@ -135,13 +135,24 @@ fn base_rows(model: &Model, data: &mut Data) {
     for (c, col) in block.iter().enumerate() {
         m[c * nv..c * nv + 6].copy_from_slice(col);
     }
-    // Column c's base rows: its force in the base frame (the lower triangle's rows 0..6).
-    for (c, f) in data.f_crb.iter().enumerate().skip(6) {
-        let fb = o_m_b.act_inv_force(f);
-        let rows = [fb.lin.x, fb.lin.y, fb.lin.z, fb.ang.x, fb.ang.y, fb.ang.z];
-        for (r, x) in rows.into_iter().enumerate() {
-            m[r * nv + c] = x;
-            m[c * nv + r] = x;
+    // Column c's base rows: its force in the base frame, transformed in place, then written
+    // as contiguous runs: rows 0..6 of column c, and row c of the first six columns (one
+    // strided, bounds-checked store per entry cost ≈ 750 of solo12's 8 400 instructions).
+    for f in data.f_crb.iter_mut().skip(6) {
+        *f = o_m_b.act_inv_force(f);
+    }
+    let forces = &data.f_crb[6..];
+    let (base_cols, other_cols) = m.split_at_mut(6 * nv);
+    for (col, fb) in other_cols.chunks_exact_mut(nv).zip(forces) {
+        col[..3].copy_from_slice(fb.lin.as_slice());
+        col[3..6].copy_from_slice(fb.ang.as_slice());
+    }
+    for (r, col) in base_cols.chunks_exact_mut(nv).enumerate() {
+        let row = col[6..].iter_mut().zip(forces);
+        if r < 3 {
+            row.for_each(|(x, fb)| *x = fb.lin[r]);
+        } else {
+            row.for_each(|(x, fb)| *x = fb.ang[r - 3]);
         }
     }
 }

@@ -23,7 +23,8 @@ pub struct Data {
     pub o_s: Vec<Motion>,
     /// Composite inertias (CRBA), world axes.
     pub ycrb: Vec<OriginInertia>,
-    /// Per velocity coordinate c, ᵒY_i ᵒS_c with i its body (CRBA), world axes, nv.
+    /// Per velocity coordinate c, ᵒY_i ᵒS_c with i its body (CRBA), world axes, nv (a
+    /// free-flyer robot's, but for the base's own six, in the base frame after CRBA).
     pub f_crb: Vec<Force>,
     /// Joint-space inertia matrix M(q), nv × nv, symmetric.
     pub mass_matrix: DMatrix<f64>,
