@@ -1,9 +1,8 @@
 //! Load (issue 15): two clients, each its own DDS participant (as two processes would be), call
 //! `~/get_constraint_forces` and `~/project_velocity` alternately at 1 kHz each for
 //! `CD_LOAD_SECONDS` (default 60 s) while the predictor predicts at 10 Hz. Asserted: every call
-//! answered (a call without a reply within 2 s counts as lost); p99 latency under 2.5 ms (the
-//! issue's 2 ms with a margin for the other builds on the two cores) or, on a machine whose own
-//! scheduling tail is larger, under `latency_bar_ms` of it (a probe thread measures it beside
+//! answered (a call without a reply within 2 s counts as lost); p99 latency under the issue's
+//! 2 ms or, on a machine whose own scheduling tail is larger, under `latency_bar_ms` of it (a probe thread measures it beside
 //! the load); the suite's RSS growth from 20 s on under 5 %; the prediction rate under load held
 //! (0.65 of the lower of the rates before and after the clients) or its drop reported on
 //! `/diagnostics`, and never starved; then SIGINT under 1 s.
@@ -146,9 +145,11 @@ fn predictor_statuses(stop: Arc<AtomicBool>, t0: Instant) -> Vec<(f64, u8, Strin
 /// threads in all), so its p99 cannot be below ~2 × the probe's. Measured (p99 of the calls
 /// against the probe's): 1.75 ms at 0.45 ms (idle VM), 3.0 at 1.0, 4.1 at 2.2 (session 10),
 /// 9.2 at 5.6 (a CI run). A call that waits behind a prediction (tens of ms) fails it on any
-/// of these machines.
+/// of these machines. Below the machine's tail, the issue's 2 ms: since the predictor's worker
+/// asks for the shortest time slice (`node::timer::lower_priority`), 0.92–1.06 ms at 0.25–0.27
+/// ms (5 runs on an idle VM; 1.39 ms at 0.30–0.33 ms without the slice, alternated with them).
 fn latency_bar_ms(noise99_ms: f64) -> f64 {
-    2.5f64.max(1.5 + 2.0 * noise99_ms)
+    2.0f64.max(1.5 + 2.0 * noise99_ms)
 }
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
@@ -236,11 +237,13 @@ fn two_clients_at_1khz_every_call_answered() {
     let errors: Vec<_> = stats.iter().flat_map(|s| s.errors.clone()).collect();
     let calls = lat.len() + lost.len() + errors.len();
     // The suite returns freed heap every `heap::PERIOD` (nodes/src/ros/heap.rs), so its RSS is
-    // a sawtooth sampled once a second, and a leak raises its peaks: growth compares the peak
-    // over the first half of the span from `RSS_FROM` with the peak over the second half (20 s,
-    // four trim periods each, in a 60 s run; at least two). With two trim periods per end a
-    // tooth sampled before its top decided the figure: +5.27 % in a run whose peaks from
-    // 20 s on were 35.0–36.9 MB, flat.
+    // a sawtooth sampled once a second, and a leak raises its peaks: growth compares the first
+    // half of the span from `RSS_FROM` with the second half (20 s, four trim periods each, in a
+    // 60 s run; at least two), each by the upper median of its trim periods' peaks. A leak
+    // raises every later peak; one tooth that reaches higher does not: with each half's single
+    // highest sample, one tooth at 39.4 MB among peaks of 37.1–37.2 MB failed a run (session
+    // 18, +6.16 %). With two trim periods per end a tooth sampled before its top decided the
+    // figure: +5.27 % in a run whose peaks from 20 s on were 35.0–36.9 MB, flat.
     let from = RSS_FROM.as_secs_f64();
     let end = rss[rss.len() - 1].0;
     let window =
@@ -251,8 +254,18 @@ fn two_clients_at_1khz_every_call_answered() {
             .map(|r| r.1)
             .max()
     };
-    let base = peak_in(from, from + window).unwrap_or(rss[0].1);
-    let last = peak_in(end - window, end).unwrap_or(rss[rss.len() - 1].1);
+    let period = constraint_dynamics_nodes::ros::heap::PERIOD.as_secs_f64();
+    let median_peak = |lo: f64, hi: f64| {
+        let mut peaks: Vec<_> = (0..)
+            .map(|k| lo + k as f64 * period)
+            .take_while(|&s| s < hi)
+            .filter_map(|s| peak_in(s, (s + period).min(hi)))
+            .collect();
+        peaks.sort_unstable();
+        peaks.get(peaks.len() / 2).copied()
+    };
+    let base = median_peak(from, from + window).unwrap_or(rss[0].1);
+    let last = median_peak(end - window, end).unwrap_or(rss[rss.len() - 1].1);
     let peak = rss.iter().map(|r| r.1).max().unwrap_or(0);
     let growth = (last as f64 - base as f64) / base as f64;
     let rate = predictions.iter().sum::<usize>() as f64 / predictions.len() as f64;
@@ -281,8 +294,8 @@ fn two_clients_at_1khz_every_call_answered() {
         noise[noise.len() - 1]
     );
     println!(
-        "{TEST}: suite RSS {base} kB at {RSS_FROM:?} → {last} kB at the end (peak {peak} kB, \
-         growth {:+.2} %); predictions {reference:.2} Hz before, {rate:.2} Hz under load (worst \
+        "{TEST}: suite RSS {base} kB at {RSS_FROM:?} → {last} kB at the end (peak {peak} kB; \
+         halves' median trim-period peaks: growth {:+.2} %); predictions {reference:.2} Hz before, {rate:.2} Hz under load (worst \
          5 s window {worst5:.1} Hz), {after:.2} Hz after; SIGINT → exit in {:?}",
         100.0 * growth,
         stopped
@@ -309,11 +322,11 @@ fn two_clients_at_1khz_every_call_answered() {
         calls as f64 >= 0.6 * 2000.0 * measured_s,
         "only {calls} calls in {measured_s} s"
     );
-    // The issue's bar is 2 ms; the test allows 2.5 ms on a machine that can hold it, and the
-    // machine's own tail beyond (`latency_bar_ms`). Before the predictor's worker ran at a
-    // lower priority (`node::timer::PERIODIC_NICE`) a call waited behind a prediction for a
-    // core and p99 was 2.8–4.7 ms at load average 9–13; since, 1.3 and 2.0 ms there. The
-    // figure is printed and reported (docs/nodes.md).
+    // The issue's bar is 2 ms, and the machine's own tail beyond (`latency_bar_ms`). Before
+    // the predictor's worker ran at a lower priority (`node::timer::PERIODIC_NICE`) a call
+    // waited behind a prediction for a core and p99 was 2.8–4.7 ms at load average 9–13; since,
+    // 1.3 and 2.0 ms there; with its short slice, 0.92–1.06 ms on an idle VM. The figure is
+    // printed and reported (docs/nodes.md).
     let bar = latency_bar_ms(noise99);
     assert!(
         p99 < bar,
