@@ -136,8 +136,9 @@ fn base_rows(model: &Model, data: &mut Data) {
         m[c * nv..c * nv + 6].copy_from_slice(col);
     }
     // Column c's base rows: its force in the base frame, transformed in place, then written
-    // as contiguous runs: rows 0..6 of column c, and row c of the first six columns (one
-    // strided, bounds-checked store per entry cost ≈ 750 of solo12's 8 400 instructions).
+    // as contiguous runs: rows 0..6 of column c, and row c of the first six columns (storing
+    // each entry twice, strided and bounds-checked, cost ≈ 750 of solo12's 8 400 instructions
+    // after the kinematics).
     for f in data.f_crb.iter_mut().skip(6) {
         *f = o_m_b.act_inv_force(f);
     }

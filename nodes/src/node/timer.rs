@@ -72,8 +72,8 @@ pub(crate) const PERIODIC_NICE: i32 = 10;
 /// class may preempt it (EEVDF's run-to-parity), so a request woken on the predictor's core
 /// waited up to the default slice (0.7 ms × (1 + log₂ cores)) behind a prediction. Measured
 /// (nodes/tests/suite_load.rs, idle 2-core VM, alternated runs): p99 of the service calls 1.39
-/// ms with the default 1.4 ms slice, 0.92–1.06 ms with this one; calls over 2 ms 829–868 → 363–542
-/// of ~109 000; the predictor's rate the same (10 Hz).
+/// ms with the default 1.4 ms slice, 0.87–1.06 ms with this one; calls over 2 ms 829–868 →
+/// 363–542 of ~109 000; the predictor's rate the same (10 Hz).
 const PERIODIC_SLICE_NS: u64 = 100_000;
 
 /// `struct sched_attr` of sched_setattr(2), its first version (48 bytes).
