@@ -3,18 +3,22 @@
 
 use nalgebra::DMatrix;
 
-wide_fn! {
 /// Dense in-place Cholesky `A = L Lᵀ` of the leading n × n block (lower triangle). Fails with the
 /// first pivot ≤ `rel_tol · max diag`. Left-looking by columns: column j of L is A's column j
 /// minus L's earlier columns, each a contiguous slice of the column-major storage (the loops
 /// vectorize); each entry's sum runs over k in increasing order, as the textbook form does.
 pub fn cholesky_in_place(a: &mut DMatrix<f64>, n: usize, rel_tol: f64) -> Result<(), usize> {
+    let ld = a.nrows();
+    cholesky_in(a.as_mut_slice(), ld, n, rel_tol)
+}
+
+wide_fn! {
+/// [`cholesky_in_place`] on column-major storage `s` of leading dimension `ld`.
+pub(crate) fn cholesky_in(s: &mut [f64], ld: usize, n: usize, rel_tol: f64) -> Result<(), usize> {
     let scale = (0..n)
-        .map(|i| a[(i, i)].abs())
+        .map(|i| s[i * ld + i].abs())
         .fold(0.0, f64::max)
         .max(f64::MIN_POSITIVE);
-    let ld = a.nrows();
-    let s = a.as_mut_slice();
     for j in 0..n {
         let col = subtract_earlier_columns(s, ld, n, j);
         let d = col[0];

@@ -24,7 +24,9 @@
 //! The matrices are a few rows wide (one per constraint row), so they live in flat column-major
 //! buffers indexed directly: nalgebra's indexing and row swaps cost more than the arithmetic.
 
-use super::dense::{solve_lower_in, solve_lower_transpose_in, subtract_earlier_columns};
+use super::dense::{
+    cholesky_in, solve_lower_in, solve_lower_transpose_in, subtract_earlier_columns,
+};
 use nalgebra::DMatrix;
 
 /// Workspace of [`MinNormSolver::solve`] for n × n systems.
@@ -107,7 +109,8 @@ impl MinNormSolver {
                 g[b * k + a] = cc + if a == b { 1.0 } else { 0.0 };
             }
         }
-        cholesky_lower(g, k);
+        let factored = cholesky_in(g, k, k, 0.0);
+        debug_assert!(factored.is_ok(), "I + C Cᵀ is positive definite");
         // w = G⁻¹ E r;  r̂ = Eᵀ w.
         for (a, wa) in w.iter_mut().enumerate() {
             *wa += (0..nd).map(|e| c[e * k + a] * r[dep[e]]).sum::<f64>();
@@ -213,19 +216,6 @@ fn symmetric_swap(l: &mut [f64], n: usize, j: usize, p: usize) {
     }
     for i in p + 1..n {
         l.swap(at(i, j), at(i, p));
-    }
-}
-
-/// In-place Cholesky of a positive-definite k × k lower triangle (leading dimension k).
-fn cholesky_lower(g: &mut [f64], k: usize) {
-    for j in 0..k {
-        let col = subtract_earlier_columns(g, k, k, j);
-        let d = col[0].sqrt();
-        debug_assert!(d > 0.0, "I + C Cᵀ is positive definite");
-        col[0] = d;
-        for x in &mut col[1..] {
-            *x /= d;
-        }
     }
 }
 
