@@ -3,6 +3,9 @@
 //! - `horizon/mobile_manipulator/<formulation>`: a 2 s horizon at 1 ms, RK4 with projection
 //!   (params/mobile_manipulator.yaml: two rolling wheels, rank-deficient rows; samples every
 //!   10 ms), in the multiplier and in the embedded form.
+//! - `horizon/mobile_manipulator/unconstrained`: the same horizon with the scene's constraints
+//!   removed (so no projection either): a floor under the two above, and the figure to set
+//!   beside compiled Pinocchio's same horizon (`tools/peers/horizon_floor.sh`, issue 16).
 //! - `horizon/mobile_manipulator/covariance`: the same (multipliers) with a propagated
 //!   covariance (σ = 1 mm, 1 mrad, 1 mm/s, 1 mrad/s on every coordinate): its cost is read as
 //!   the ratio to `horizon/mobile_manipulator/multipliers` of the same run (issue 14: ≤ 2×).
@@ -47,6 +50,22 @@ fn horizon(c: &mut Criterion) {
             })
         });
     }
+    let mut free = scene.clone();
+    free.file.constraints.clear();
+    let mut p = Predictor::from_scene(&free).expect("predictor");
+    p.settings.method = Method::Rk4;
+    p.settings.dt = 1e-3;
+    p.settings.error_estimate = false;
+    p.settings.sample_period = 0.01;
+    assert!(p.sys.constraints.is_empty());
+    let t = p.predict(&scene.q0, &scene.v0, &[], 2.0).expect("predict");
+    assert_eq!((t.steps, t.evaluations), (2000, 8000));
+    c.bench_function("horizon/mobile_manipulator/unconstrained", |b| {
+        b.iter(|| {
+            p.predict(black_box(&scene.q0), black_box(&scene.v0), &[], 2.0)
+                .unwrap()
+        })
+    });
     let mut p = Predictor::from_scene(&scene).expect("predictor");
     p.settings.method = Method::Rk4;
     p.settings.dt = 1e-3;
