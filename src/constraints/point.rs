@@ -6,7 +6,8 @@
 
 use super::{ConstraintRows, RowSink};
 use crate::algorithm::{
-    Data, point_classical_acceleration, point_jacobian, point_position, point_velocity,
+    Data, point_classical_acceleration, point_jacobian, point_jacobian_rows, point_position,
+    point_velocity,
 };
 use crate::model::Model;
 use nalgebra::{DMatrix, Vector3};
@@ -65,6 +66,26 @@ impl ConstraintRows for PointConstraint {
     }
 
     fn fill(&self, model: &Model, data: &Data, out: &mut RowSink) {
+        if model.frames[self.frame_b].body == 0 {
+            // B fixed in the world (a foot, a held tool): the selected rows of A's point
+            // Jacobian straight into J (the rolling rows' one pass, with unit directions), no
+            // 3 × nv scratch to fill and copy row by row. The same numbers: eₐₓᵀ J_p is J_p's
+            // row ax exactly (the zero products add nothing).
+            let pa = point_position(model, data, self.frame_a, &self.point_a);
+            let d = pa - point_position(model, data, self.frame_b, &self.point_b);
+            let acc = point_classical_acceleration(model, data, self.frame_a, &self.point_a);
+            let mut dirs = [Vector3::zeros(); 3];
+            for (dir, &ax) in dirs.iter_mut().zip(&self.axes) {
+                dir[ax] = 1.0;
+            }
+            let body = model.frames[self.frame_a].body;
+            let dirs = &dirs[..self.axes.len()];
+            point_jacobian_rows(model, data, body, &pa, dirs, out.j, out.row0);
+            for (k, &ax) in self.axes.iter().enumerate() {
+                out.finish(out.row0 + k, d[ax], acc[ax], true);
+            }
+            return;
+        }
         let [d, _, acc] = relative_point(
             model,
             data,

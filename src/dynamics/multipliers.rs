@@ -16,7 +16,7 @@ use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
 use crate::linalg::{
     MinNormSolver, cholesky_in_place, dot_unrolled, ltl_factor, ltl_solve_l, ltl_solve_lt,
-    mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
+    ltl_solve_lt_rows, mat_tr_vec, mat_vec, solve_lower, solve_lower_transpose,
 };
 use crate::model::MIN_PIVOT_RATIO;
 use crate::model::Model;
@@ -35,6 +35,8 @@ pub struct KktWorkspace {
     /// Reciprocals of the LTL factor's diagonal (nv).
     pub l_inv_diag: DVector<f64>,
     y: DMatrix<f64>,
+    /// Yᵀ by rows while it is solved for (nv × nc, row i at `i·nc`).
+    y_rows: Vec<f64>,
     /// First and one-past-last non-zero row of each column of Y.
     support: Vec<(usize, usize)>,
     /// S's lower triangle.
@@ -76,6 +78,7 @@ impl KktWorkspace {
             l: DMatrix::zeros(nv, nv),
             l_inv_diag: DVector::zeros(nv),
             y: DMatrix::zeros(nv, nc),
+            y_rows: vec![0.0; nv * nc],
             support: vec![(0, 0); nc],
             s: DMatrix::zeros(nc, nc),
             rhs: DVector::zeros(nv),
@@ -260,18 +263,31 @@ fn solve_kkt(
     }
     // Y = L⁻¹ Jᵀ with each column's non-zero rows: a row of J on one branch (a foot) keeps its
     // column of Y on that branch and its ancestors (the LTL factor's sparsity).
-    for k in 0..nc {
-        for i in 0..nv {
-            ws.y[(i, k)] = cd.j[(k, i)];
+    if ws.augmented {
+        for k in 0..nc {
+            for i in 0..nv {
+                ws.y[(i, k)] = cd.j[(k, i)];
+            }
+            solve_lower(&ws.l, nv, ws.y.column_mut(k).as_mut_slice());
         }
-        let mut col = ws.y.column_mut(k);
-        half_solve(
-            model,
+    } else {
+        // All nc columns in one walk of the tree: Jᵀ by rows is J's column-major storage.
+        ws.y_rows.copy_from_slice(cd.j.as_slice());
+        ltl_solve_lt_rows(
             &ws.l,
-            &ws.l_inv_diag,
-            ws.augmented,
-            col.as_mut_slice(),
+            ws.l_inv_diag.as_slice(),
+            &model.v_parent,
+            &mut ws.y_rows,
+            nc,
         );
+        for (i, row) in ws.y_rows.chunks_exact(nc).enumerate() {
+            for (k, &x) in row.iter().enumerate() {
+                ws.y[(i, k)] = x;
+            }
+        }
+    }
+    for k in 0..nc {
+        let col = ws.y.column(k);
         let first = col.iter().position(|&x| x != 0.0).unwrap_or(0);
         let last = col.iter().rposition(|&x| x != 0.0).map_or(0, |i| i + 1);
         ws.support[k] = (first, last.max(first));

@@ -18,7 +18,7 @@ pub use dense::{
     gemm_tr_into, inverse_from_cholesky, mat_tr_vec, mat_vec, mat_vec_add, solve_lower,
     solve_lower_transpose, spd_inverse,
 };
-pub use ltl::{NO_PARENT, ltl_factor, ltl_inverse, ltl_solve_l, ltl_solve_lt};
+pub use ltl::{NO_PARENT, ltl_factor, ltl_inverse, ltl_solve_l, ltl_solve_lt, ltl_solve_lt_rows};
 pub use lu::{lu_in_place, lu_solve};
 pub use min_norm::MinNormSolver;
 pub use pivot::ColumnPivotedQr;
