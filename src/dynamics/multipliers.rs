@@ -237,7 +237,7 @@ fn solve_kkt(
     cd: &ConstraintData,
     ws: &mut KktWorkspace,
 ) -> Result<()> {
-    let (nv, nc) = (ws.qdd.len(), set.nrows);
+    let nc = set.nrows;
     // With M = W Wᵀ and Y = W⁻¹ Jᵀ: q̈ = M⁻¹ (τ − h + Jᵀλ) = W⁻ᵀ (u + Y λ), u = W⁻¹ (τ − h),
     // and J q̈_free = J W⁻ᵀ u = Yᵀ u. One solve with Wᵀ at the end instead of one for q̈_free
     // and one for M⁻¹ Jᵀ λ (the sparse solves walk the tree: 5.4 k instructions each on
@@ -255,17 +255,29 @@ fn solve_kkt(
     ws.inconsistency = 0.0;
     if nc == 0 {
         ws.generalized_force.as_mut_slice().fill(0.0);
-        half_solve_t(
-            model,
-            &ws.l,
-            &ws.l_inv_diag,
-            ws.augmented,
-            ws.qdd.as_mut_slice(),
-        );
-        return Ok(());
+    } else {
+        add_constraint_forces(model, set, cd, ws)?;
     }
-    // Y = L⁻¹ Jᵀ with each column's non-zero rows: a row of J on one branch (a foot) keeps its
-    // column of Y on that branch and its ancestors (the LTL factor's sparsity).
+    half_solve_t(
+        model,
+        &ws.l,
+        &ws.l_inv_diag,
+        ws.augmented,
+        ws.qdd.as_mut_slice(),
+    );
+    Ok(())
+}
+
+/// λ from S λ = r, `ws.qdd` (u) += Y λ and the generalized force Jᵀλ, for nc > 0 rows.
+fn add_constraint_forces(
+    model: &Model,
+    set: &ConstraintSet,
+    cd: &ConstraintData,
+    ws: &mut KktWorkspace,
+) -> Result<()> {
+    let (nv, nc) = (ws.qdd.len(), set.nrows);
+    // Y = W⁻¹ Jᵀ (L⁻ᵀ Jᵀ for the LTL factor) with each column's non-zero rows: a row of J on
+    // one branch (a foot) keeps its column of Y on that branch and its ancestors.
     if ws.augmented {
         for k in 0..nc {
             for i in 0..nv {
@@ -302,16 +314,9 @@ fn solve_kkt(
         ws.r[k] = ws.b[k] - dot_unrolled(&y[k * nv + lo..k * nv + hi], &u[lo..hi]);
     }
     min_norm_solve(set, ws)?;
-    // q̈ = W⁻ᵀ (u + Y λ), generalized force Jᵀλ.
+    // u + Y λ (q̈ once the caller's solve with Wᵀ is done), generalized force Jᵀλ.
     mat_vec(&ws.y, ws.lambda.as_slice(), ws.tmp.as_mut_slice());
     ws.qdd += &ws.tmp;
-    half_solve_t(
-        model,
-        &ws.l,
-        &ws.l_inv_diag,
-        ws.augmented,
-        ws.qdd.as_mut_slice(),
-    );
     mat_tr_vec(
         &cd.j,
         ws.lambda.as_slice(),
