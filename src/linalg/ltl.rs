@@ -184,3 +184,86 @@ pub fn ltl_inverse(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A branched tree in depth-first order: 0 ← 1 ← 2, then two branches under 2 (3 ← 4 and
+    /// 5 ← 6 ← 7) and one under the root (8).
+    const PARENT: [usize; 9] = [NO_PARENT, 0, 1, 2, 3, 2, 5, 6, 0];
+
+    fn is_ancestor_or_self(i: usize, mut k: usize) -> bool {
+        while k != NO_PARENT {
+            if k == i {
+                return true;
+            }
+            k = PARENT[k];
+        }
+        false
+    }
+
+    /// A fixed pseudo-random sequence in [−1, 1).
+    fn uniform(state: &mut u64) -> f64 {
+        *state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (*state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    }
+
+    /// L₀ with the tree's sparsity and a positive diagonal, M = L₀ᵀ L₀: the factor must give
+    /// L₀ back, and the many-column solve must give each column of the one-column solve to
+    /// the bit and meet Lᵀ Y = X, with rows of X that are zero (coordinates no row reaches).
+    #[test]
+    fn many_column_solve_equals_the_single_solves_and_inverts_lt() {
+        let n = PARENT.len();
+        let mut seed = 7;
+        let mut l0 = DMatrix::<f64>::zeros(n, n);
+        for k in 0..n {
+            for i in 0..=k {
+                if is_ancestor_or_self(i, k) {
+                    l0[(k, i)] = if i == k {
+                        1.5 + uniform(&mut seed)
+                    } else {
+                        uniform(&mut seed)
+                    };
+                }
+            }
+        }
+        let subtree_end: Vec<usize> = (0..n)
+            .map(|k| {
+                (k + 1..n)
+                    .find(|&j| !is_ancestor_or_self(k, j))
+                    .unwrap_or(n)
+            })
+            .collect();
+        let mut l = l0.transpose() * &l0;
+        let mut inv_diag = vec![0.0; n];
+        ltl_factor(&mut l, &PARENT, &subtree_end, 1e-14, &mut inv_diag).expect("SPD");
+        for k in 0..n {
+            for i in 0..=k {
+                // Achieved 5.6e-16.
+                assert!((l[(k, i)] - l0[(k, i)]).abs() < 2e-15, "L[{k},{i}]");
+            }
+        }
+        let w = 5;
+        let mut x: Vec<f64> = (0..n * w).map(|_| uniform(&mut seed)).collect();
+        x[4 * w..5 * w].fill(0.0);
+        x[8 * w..9 * w].fill(0.0);
+        let mut y = x.clone();
+        ltl_solve_lt_rows(&l, &inv_diag, &PARENT, &mut y, w);
+        for c in 0..w {
+            let mut col: Vec<f64> = (0..n).map(|k| x[k * w + c]).collect();
+            ltl_solve_lt(&l, &inv_diag, &PARENT, &mut col);
+            for k in 0..n {
+                assert_eq!(y[k * w + c].to_bits(), col[k].to_bits(), "Y[{k},{c}]");
+            }
+            // Lᵀ y = x with the L₀ the factor came from.
+            for i in 0..n {
+                let lty: f64 = (i..n).map(|k| l0[(k, i)] * y[k * w + c]).sum();
+                // Achieved 2.1e-15 (|Y| up to a few units).
+                assert!((lty - x[i * w + c]).abs() < 5e-15, "(Lᵀ Y)[{i},{c}]: {lty}");
+            }
+        }
+    }
+}
