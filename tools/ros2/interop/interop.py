@@ -130,6 +130,20 @@ class User(Node):
             time.sleep(0.02)
         return None
 
+    def wait_following(self, v, w, after, timeout=10.0):
+        """The arrival time of the first predicted odometry after `after` whose twist is the fed
+        (v, w): the feed has reached the predictor. Right after start-up, matching the feed's
+        publishers can take longer than the 0.3 s allowed before (a CI run predicted from rest)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with self.lock:
+                for t, m in self.odom:
+                    tw = m.twist.twist
+                    if t > after and abs(tw.linear.x - v) < 1e-3 and abs(tw.angular.z - w) < 1e-3:
+                        return t
+            time.sleep(0.02)
+        return after
+
     def call(self, srv_type, name, request, timeout=10.0):
         client = self.create_client(srv_type, name)
         if not client.wait_for_service(timeout_sec=timeout):
@@ -226,14 +240,15 @@ def phase_twist(user):
     start = (0.3, -0.2, 0.4, 0.5, 0.4)
     t0 = time.monotonic()
     user.set_feed(*start)
-    odom = user.wait_new(user.odom, t0 + 0.3, settle=2)
+    t_fed = user.wait_following(start[3], start[4], t0 + 0.3)
+    odom = user.wait_new(user.odom, t_fed, settle=2)
     check_odom_arc("predictor: predicted odometry at the 2 s horizon is the closed-form arc", odom, start, 2.0)
     if odom is not None:
         tw = odom.twist.twist
         check("predictor: predicted twist is (v, 0, w) in base_footprint",
               odom.child_frame_id == "base_footprint" and abs(tw.linear.x - 0.5) < 1e-3 and abs(tw.angular.z - 0.4) < 1e-3,
               (odom.child_frame_id, tw.linear.x, tw.angular.z))
-    path = user.wait_new(user.path, t0 + 0.3, settle=2)
+    path = user.wait_new(user.path, t_fed, settle=2)
     ok = path is not None and len(path.poses) > 2 and path.header.frame_id == "odom"
     if ok and odom is not None:
         first, last = path.poses[0].pose.position, path.poses[-1].pose.position
@@ -247,7 +262,7 @@ def phase_twist(user):
     # force elements (the URDF wheel damping −d ω) as the node does.
     q, v = [0.3, -0.2, 0.4, 0.0, 0.0], [0.5, 0.0, 0.4, (0.5 - C * 0.4) / R, (0.5 + C * 0.4) / R]
     no_torque = [0.0] * 5
-    forces = user.wait_new(user.forces, t0 + 0.3, settle=2)
+    forces = user.wait_new(user.forces, t_fed, settle=2)
     ok = forces is not None and sorted(c.name for c in forces.constraints) == ["left_wheel_contact", "right_wheel_contact"]
     detail = None if forces is None else [c.name for c in forces.constraints]
     if ok:
