@@ -30,59 +30,50 @@ const FORMS: [(&str, Formulation); 2] = [
     ("embedded", Formulation::Embedded),
 ];
 
+/// The scene's predictor at the horizons' settings: RK4 at 1 ms, a sample every 10 ms, the
+/// prediction alone (the error estimate's companion doubles the work; estimate.rs).
+fn rk4_predictor(scene: &Scene) -> Predictor {
+    let mut p = Predictor::from_scene(scene).expect("predictor");
+    p.settings.method = Method::Rk4;
+    p.settings.dt = 1e-3;
+    p.settings.error_estimate = false;
+    p.settings.sample_period = 0.01;
+    p
+}
+
+/// `horizon/mobile_manipulator/<label>`: 2 s from the scene's initial state (2000 steps, 8000
+/// evaluations, checked once before timing).
+fn bench_horizon(c: &mut Criterion, label: &str, p: &mut Predictor, scene: &Scene) {
+    let t = p.predict(&scene.q0, &scene.v0, &[], 2.0).expect("predict");
+    assert_eq!((t.steps, t.evaluations), (2000, 8000));
+    c.bench_function(&format!("horizon/mobile_manipulator/{label}"), |b| {
+        b.iter(|| {
+            p.predict(black_box(&scene.q0), black_box(&scene.v0), &[], 2.0)
+                .unwrap()
+        })
+    });
+}
+
 fn horizon(c: &mut Criterion) {
     let scene = Scene::load(root().join("params/mobile_manipulator.yaml")).expect("scene");
     for (label, form) in FORMS {
-        let mut p = Predictor::from_scene(&scene).expect("predictor");
+        let mut p = rk4_predictor(&scene);
         p.sys.formulation = form;
-        p.settings.method = Method::Rk4;
-        p.settings.dt = 1e-3;
         p.settings.drift = DriftControl::Projection;
-        // The prediction alone (the error estimate's companion doubles the work; estimate.rs).
-        p.settings.error_estimate = false;
-        p.settings.sample_period = 0.01;
-        let t = p.predict(&scene.q0, &scene.v0, &[], 2.0).expect("predict");
-        assert_eq!((t.steps, t.evaluations), (2000, 8000));
-        c.bench_function(&format!("horizon/mobile_manipulator/{label}"), |b| {
-            b.iter(|| {
-                p.predict(black_box(&scene.q0), black_box(&scene.v0), &[], 2.0)
-                    .unwrap()
-            })
-        });
+        bench_horizon(c, label, &mut p, &scene);
     }
     let mut free = scene.clone();
     free.file.constraints.clear();
-    let mut p = Predictor::from_scene(&free).expect("predictor");
-    p.settings.method = Method::Rk4;
-    p.settings.dt = 1e-3;
-    p.settings.error_estimate = false;
-    p.settings.sample_period = 0.01;
+    let mut p = rk4_predictor(&free);
     assert!(p.sys.constraints.is_empty());
-    let t = p.predict(&scene.q0, &scene.v0, &[], 2.0).expect("predict");
-    assert_eq!((t.steps, t.evaluations), (2000, 8000));
-    c.bench_function("horizon/mobile_manipulator/unconstrained", |b| {
-        b.iter(|| {
-            p.predict(black_box(&scene.q0), black_box(&scene.v0), &[], 2.0)
-                .unwrap()
-        })
-    });
-    let mut p = Predictor::from_scene(&scene).expect("predictor");
-    p.settings.method = Method::Rk4;
-    p.settings.dt = 1e-3;
+    bench_horizon(c, "unconstrained", &mut p, &scene);
+    let mut p = rk4_predictor(&scene);
     p.settings.drift = DriftControl::Projection;
-    p.settings.error_estimate = false;
-    p.settings.sample_period = 0.01;
     let n = 2 * p.sys.model.nv;
     p.start_covariance = Some(nalgebra::DMatrix::identity(n, n) * 1e-6);
     let t = p.predict(&scene.q0, &scene.v0, &[], 2.0).expect("predict");
-    assert_eq!((t.steps, t.evaluations), (2000, 8000));
     assert!(t.samples.last().unwrap().covariance.is_some());
-    c.bench_function("horizon/mobile_manipulator/covariance", |b| {
-        b.iter(|| {
-            p.predict(black_box(&scene.q0), black_box(&scene.v0), &[], 2.0)
-                .unwrap()
-        })
-    });
+    bench_horizon(c, "covariance", &mut p, &scene);
 }
 
 fn evaluation(c: &mut Criterion) {
