@@ -14,7 +14,7 @@ mod common;
 use constraint_dynamics::algorithm::Data;
 use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
 use constraint_dynamics::dynamics::{Baumgarte, KktWorkspace, constrained_forward_dynamics};
-use constraint_dynamics::projection::{Method, ProjectionProblem, VelocityProjector};
+use constraint_dynamics::projection::{SolvePath, ProjectionProblem, VelocityProjector};
 use constraint_dynamics::{BaseType, Model, ModelOptions, Scene};
 use criterion::{Criterion, criterion_group, criterion_main};
 use serde_json::Value;
@@ -138,13 +138,13 @@ fn bench(c: &mut Criterion) {
         let mut cd = ConstraintData::new(m, &k.set);
         let mut proj = VelocityProjector::new(m, &k.set);
         for (label, p, want) in [
-            ("equality_only", &k.equality_only, Method::Kkt),
+            ("equality_only", &k.equality_only, SolvePath::Kkt),
             (
                 "bounds_inactive",
                 &k.bounds_inactive,
-                Method::KktBoundsInactive,
+                SolvePath::KktBoundsInactive,
             ),
-            ("bounded", &k.bounded, Method::ClarabelPolished),
+            ("bounded", &k.bounded, SolvePath::ClarabelPolished),
         ] {
             let o = proj.project(m, &mut d, &k.set, &mut cd, &k.q, p).unwrap();
             assert_eq!(o.method, want, "{}/{label}", k.name);

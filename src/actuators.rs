@@ -23,9 +23,25 @@ pub struct ActuatorsSpec {
     /// `diff_drive:` differential drive over two wheel joints (default none).
     #[serde(default)]
     pub diff_drive: Option<DiffDriveSpec>,
-    /// Control period [s]; default 0.001.
+    /// Control period [s]; default [`DEFAULT_CONTROL_PERIOD`].
     #[serde(default)]
     pub control_period: Option<f64>,
+}
+
+/// The control period of a scene's controllers when `actuators.control_period` is not given [s].
+pub const DEFAULT_CONTROL_PERIOD: f64 = 0.001;
+
+impl ActuatorsSpec {
+    /// True when the scene declares a controller.
+    pub fn is_empty(&self) -> bool {
+        self.velocity.is_empty() && self.position.is_empty() && self.diff_drive.is_none()
+    }
+
+    /// The period [s] at which the controllers' torques are recomputed and held, None without
+    /// controllers (a prediction then has no control ticks).
+    pub fn control_period_s(&self) -> Option<f64> {
+        (!self.is_empty()).then(|| self.control_period.unwrap_or(DEFAULT_CONTROL_PERIOD))
+    }
 }
 
 /// τ = kp (v* − v) + ki ∫(v* − v) dt, clamped to ±effort (no integration while clamped).
@@ -148,7 +164,7 @@ pub struct Actuators {
 impl Actuators {
     /// Validate `actuators:` against the model (1-DOF joints, gains finite and ≥ 0).
     pub fn new(model: &Model, spec: &ActuatorsSpec) -> Result<Self> {
-        let period = spec.control_period.unwrap_or(0.001);
+        let period = spec.control_period.unwrap_or(DEFAULT_CONTROL_PERIOD);
         if !(period.is_finite() && period > 0.0) {
             return Err(Error::Invalid(format!(
                 "actuators.control_period = {period} s must be positive"

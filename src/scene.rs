@@ -7,7 +7,11 @@ use crate::dynamics::{Baumgarte, Formulation};
 use crate::error::{Error, Result};
 use crate::forces::ForcesSpec;
 use crate::model::{BaseType, InertiaPolicy, Model, ModelOptions};
-use crate::predict::IntegrationSettings;
+use crate::actuators::Actuators;
+use crate::constraints::ConstraintSet;
+use crate::forces::ForceElements;
+use crate::predict::{IntegrationSettings, PredictionBudget, Predictor};
+use crate::system::{DynamicsOptions, System};
 use nalgebra::Vector3;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -204,5 +208,54 @@ impl Scene {
             q0,
             v0,
         })
+    }
+}
+
+/// The scene builds what it declares: the system (model and constraints) and the predictor
+/// (with its force elements, controllers, `integration:` and `uncertainty:`).
+impl System {
+    /// Build from a loaded scene (constraints validated at the scene's initial configuration).
+    pub fn from_scene(scene: &Scene) -> Result<Self> {
+        let set = ConstraintSet::new(&scene.model, &scene.file.constraints, &scene.q0)?;
+        let (b, f) = scene.file.dynamics.settings()?;
+        let mut sys = Self::new(scene.model.clone(), set, b, f);
+        if let Some(singular) = &scene.model.singular {
+            // M is singular: only constraints can give that joint its dynamics (a massless rod
+            // pinned by a loop closure). Refused at load unless the KKT form factors at q0.
+            let zero = vec![0.0; sys.model.nv];
+            if sys.constraints.is_empty()
+                || matches!(
+                    sys.forward_dynamics_with(&scene.q0, &zero, &zero, DynamicsOptions::default()),
+                    Err(crate::Error::SingularMass { .. })
+                )
+            {
+                return Err(singular.error());
+            }
+        }
+        Ok(sys)
+    }
+
+}
+
+impl Predictor {
+    /// Build from a loaded scene: system, `forces:`, `actuators:`, `integration:` and
+    /// `uncertainty:`.
+    pub fn from_scene(scene: &Scene) -> Result<Self> {
+        let sys = System::from_scene(scene)?;
+        let forces = ForceElements::new(&sys.model, &scene.file.forces)?;
+        let actuators = Actuators::new(&sys.model, &scene.file.actuators)?;
+        Ok(Self::new(sys, forces, actuators, scene.file.integration.clone())?
+            .with_uncertainty(scene.file.uncertainty.clone()))
+    }
+}
+
+impl Scene {
+    /// The work budget of this scene's predictions: `integration:` and the controllers'
+    /// period, before a model is built (the ROS nodes check their parameters against it).
+    pub fn prediction_budget(&self) -> Result<PredictionBudget> {
+        PredictionBudget::new(
+            self.file.integration.clone(),
+            self.file.actuators.control_period_s(),
+        )
     }
 }

@@ -11,7 +11,6 @@ use crate::dynamics::{
 };
 use crate::error::{Result, check_len};
 use crate::model::Model;
-use crate::scene::Scene;
 use nalgebra::DVector;
 
 /// How one dynamics evaluation is done (passed in, never toggled on the system around a call).
@@ -87,27 +86,6 @@ impl System {
             embedded,
             last_formulation: Formulation::Multipliers,
         }
-    }
-
-    /// Build from a loaded scene (constraints validated at the scene's initial configuration).
-    pub fn from_scene(scene: &Scene) -> Result<Self> {
-        let set = ConstraintSet::new(&scene.model, &scene.file.constraints, &scene.q0)?;
-        let (b, f) = scene.file.dynamics.settings()?;
-        let mut sys = Self::new(scene.model.clone(), set, b, f);
-        if let Some(singular) = &scene.model.singular {
-            // M is singular: only constraints can give that joint its dynamics (a massless rod
-            // pinned by a loop closure). Refused at load unless the KKT form factors at q0.
-            let zero = vec![0.0; sys.model.nv];
-            if sys.constraints.is_empty()
-                || matches!(
-                    sys.forward_dynamics_with(&scene.q0, &zero, &zero, DynamicsOptions::default()),
-                    Err(crate::Error::SingularMass { .. })
-                )
-            {
-                return Err(singular.error());
-            }
-        }
-        Ok(sys)
     }
 
     /// Constrained forward dynamics at (q, v, τ); `want_forces` forces the multiplier form under

@@ -81,7 +81,7 @@ fn check_reference(name: &str) -> (usize, usize) {
         p.velocity_limits = false;
         p.v_des = vecf(&vp["v_des"]);
         let o = fx.project(&q, &p).unwrap();
-        assert_eq!(o.method, Method::Kkt, "{tag}");
+        assert_eq!(o.method, SolvePath::Kkt, "{tag}");
         assert_eq!(o.rank_deficiency, 0, "{tag}");
         let eq = &vp["equality_only"];
         eprintln!(
@@ -117,9 +117,9 @@ fn check_reference(name: &str) -> (usize, usize) {
             .map(|x| x.as_u64().unwrap() as usize)
             .collect();
         if active_ref.is_empty() {
-            assert_eq!(o.method, Method::KktBoundsInactive, "{tag}");
+            assert_eq!(o.method, SolvePath::KktBoundsInactive, "{tag}");
         } else {
-            assert_eq!(o.method, Method::ClarabelPolished, "{tag}");
+            assert_eq!(o.method, SolvePath::ClarabelPolished, "{tag}");
         }
         assert_close(
             &format!("{tag} bounded v"),
@@ -267,7 +267,7 @@ fn scaled_requests_give_scaled_answers() {
                 .map(|x| alpha * x)
                 .collect();
             let o = fx.project(&q, &p).unwrap();
-            assert_eq!(o.method, Method::ClarabelPolished, "{name} α = {alpha}");
+            assert_eq!(o.method, SolvePath::ClarabelPolished, "{name} α = {alpha}");
             let v: Vec<f64> = fx.proj.v.iter().map(|x| x / alpha).collect();
             // Achieved ≤ 1.9e-13 (Solo12), as the unscaled bounded problems.
             assert_close(&format!("{name} α = {alpha}"), &v, &v_ref, BOUNDED_V_TOL);

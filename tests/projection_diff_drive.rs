@@ -105,7 +105,7 @@ fn diff_drive_sideways_twist_projects_to_the_closed_form() {
     assert_eq!(out.status, Status::Optimal);
     assert_eq!(
         out.method,
-        Method::KktBoundsInactive,
+        SolvePath::KktBoundsInactive,
         "the URDF limits do not bind"
     );
     let dd = diff_drive_numbers(-0.05, -0.15);
@@ -183,7 +183,7 @@ fn diff_drive_wheel_limits_give_the_closed_form_twist() {
 
     let out = project_named(&mut sys, &q, &v0, req(w_half)).unwrap();
     assert_eq!(out.status, Status::Optimal);
-    assert_eq!(out.method, Method::ClarabelPolished);
+    assert_eq!(out.method, SolvePath::ClarabelPolished);
     let v = out.v.clone().unwrap();
     let expect = [r * w_half, 0.0, 0.0, w_half, w_half];
     // achieved 2.8e-15
@@ -274,7 +274,7 @@ fn diff_drive_twist_requests_drop_sideways_motion_and_scale_to_wheel_limits() {
     let out = project_named(&mut sys, &q, &v0, json!({"base_twist": [0.0, 0.8, 0.0]})).unwrap();
     assert_eq!(
         (out.status, out.method),
-        (Status::Optimal, Method::TwistScaled)
+        (Status::Optimal, SolvePath::TwistScaled)
     );
     // achieved 7.2e-15
     assert_close("sideways → zero", &out.v.clone().unwrap(), &[0.0; 5], 2e-13);
@@ -286,7 +286,7 @@ fn diff_drive_twist_requests_drop_sideways_motion_and_scale_to_wheel_limits() {
     let out = project_named(&mut sys, &q, &v0, req).unwrap();
     assert_eq!(
         (out.status, out.method),
-        (Status::Optimal, Method::TwistScaled)
+        (Status::Optimal, SolvePath::TwistScaled)
     );
     let (vx, wz) = (vx_d / 2.0, wz_d / 2.0);
     // achieved 3.3e-16
@@ -353,7 +353,7 @@ fn infeasible_request_names_the_conflict() {
     let out = project_named(&mut sys, &q, &v0, req).unwrap();
     assert_eq!(
         (out.status, out.method),
-        (Status::Infeasible, Method::BoundCheck)
+        (Status::Infeasible, SolvePath::BoundCheck)
     );
     let labels: Vec<&str> = out.conflicts.iter().map(|c| c.label.as_str()).collect();
     assert_eq!(

@@ -167,7 +167,7 @@ fn mobile_manipulator_mixed_bounds_satisfy_kkt_and_reuse_the_qp() {
             )
             .unwrap();
         assert_eq!(o.status, Status::Optimal);
-        assert_eq!(o.method, Method::ClarabelPolished, "request {k}");
+        assert_eq!(o.method, SolvePath::ClarabelPolished, "request {k}");
         let r = kkt_residuals(&sys, &proj, &p);
         worst = worst.max(r);
         assert_kkt(&format!("request {k}"), r, KKT_TOL);
@@ -300,7 +300,7 @@ fn random_bounded_projections_satisfy_kkt() {
             }
             assert_ne!(
                 o.method,
-                Method::Clarabel,
+                SolvePath::Clarabel,
                 "{name}[{trial}]: polish not accepted {o:?}"
             );
             *methods

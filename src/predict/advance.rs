@@ -4,17 +4,17 @@
 
 use super::DriftControl;
 use super::IntegrationSettings;
-use super::covariance_worker::CovarianceFeed;
-use super::drift::Projector;
+use crate::predict::covariance::worker::CovarianceFeed;
+use super::drift::DriftProjector;
 use super::estimate::Lane;
-use super::integrator::{
+use crate::predict::integrators::{
     Accel, DOP853, DOPRI5, JacobianScratch, Method, RK4, accel_jacobian_fd, dop853_error_norm,
     dopri5_error_norm, explicit_step, semi_implicit_euler_step, stage,
 };
-use super::linearize::dynamics_derivatives;
-use super::radau::radau5_step;
-use super::run::Predictor;
-use super::sdirk2::sdirk2_step;
+use crate::predict::covariance::linearize::dynamics_derivatives;
+use crate::predict::integrators::radau::radau5_step;
+use super::predictor::Predictor;
+use crate::predict::integrators::sdirk2::sdirk2_step;
 use crate::applied::applied_generalized_force;
 use crate::derivatives::DerivativeData;
 use crate::dynamics::Formulation;
@@ -60,7 +60,7 @@ struct Rhs<'a> {
     tau_act: &'a [f64],
     tau: &'a mut [f64],
     zero: &'a [f64],
-    ls: &'a mut Projector,
+    ls: &'a mut DriftProjector,
     jw: &'a mut JacobianWork,
     rows: RowsAt<'a>,
     evaluations: usize,

@@ -6,7 +6,7 @@
 //! YᵀY singular, and a semi-definite Cholesky that drops them gives the same correction as the
 //! pseudo-inverse (Y μ is unique). A massless link fixed only by the constraints (M semi-definite)
 //! uses the metric M + ρ AᵀA instead: the projected point is the same on the constraint's range.
-//! Everything lives in a [`Projector`] sized once: a projection allocates nothing.
+//! Everything lives in a [`DriftProjector`] sized once: a projection allocates nothing.
 
 use crate::algorithm::{bias_forces_after_kinematics, crba_after_kinematics};
 use crate::error::{Error, Result};
@@ -32,7 +32,7 @@ const NEWTON_ITERATIONS: usize = 8;
 
 /// Workspace of the projection (one per predictor).
 #[derive(Clone, Debug, Default)]
-pub struct Projector {
+pub struct DriftProjector {
     /// Holonomic rows of the constraint set.
     rows_h: Vec<usize>,
     /// Metric factor L (nv × nv).
@@ -52,7 +52,7 @@ pub struct Projector {
     pub rows_current: bool,
 }
 
-impl Projector {
+impl DriftProjector {
     /// Size the workspace for the system's model and constraint set.
     pub fn new(sys: &System) -> Self {
         let (nv, nc, nq) = (sys.model.nv, sys.constraints.nrows, sys.model.nq);
@@ -291,7 +291,7 @@ impl Projector {
 
 /// Project (q, v) onto the constraint manifold in place (convenience: a fresh workspace).
 pub fn project(sys: &mut System, q: &mut [f64], v: &mut [f64], positions: bool) -> Result<()> {
-    Projector::new(sys)
+    DriftProjector::new(sys)
         .project(sys, q, v, positions)
         .map(|_| ())
 }

@@ -25,9 +25,9 @@
 //! difference of q [m or rad].
 
 use super::IntegrationSettings;
-use super::drift::Projector;
-use super::integrator::{Method, StepWorkspace};
-use super::radau::RadauWorkspace;
+use super::drift::DriftProjector;
+use crate::predict::integrators::{ErrorEstimator, Method, StepWorkspace};
+use crate::predict::integrators::radau::RadauWorkspace;
 use crate::error::Error;
 use crate::model::Model;
 use crate::system::System;
@@ -53,7 +53,7 @@ pub(super) struct Lane {
     pub v: Vec<f64>,
     pub step: StepWorkspace,
     pub radau: RadauWorkspace,
-    pub proj: Projector,
+    pub proj: DriftProjector,
     /// DOPRI5's next step [s].
     pub h: f64,
     pub steps: usize,
@@ -69,7 +69,7 @@ impl Lane {
             v: vec![0.0; nv],
             step: StepWorkspace::new(nq, nv),
             radau: RadauWorkspace::new(nq, nv),
-            proj: Projector::new(sys),
+            proj: DriftProjector::new(sys),
             h: 0.0,
             steps: 0,
             evaluations: 0,
@@ -94,12 +94,12 @@ impl Lane {
 /// step count may reach twice the answer's (fixed) or more (DOPRI5, still bounded by max_work).
 pub(super) fn companion_settings(s: &IntegrationSettings) -> IntegrationSettings {
     let mut c = s.clone();
-    match s.method {
-        m if m.is_adaptive() => {
-            c.rtol = s.rtol / tightening(m);
-            c.atol = s.atol / tightening(m);
+    match s.method.integrator().error_estimator() {
+        ErrorEstimator::TightenedTolerances => {
+            c.rtol = s.rtol / tightening(s.method);
+            c.atol = s.atol / tightening(s.method);
         }
-        _ => c.dt = s.dt / 2.0,
+        ErrorEstimator::HalvedStep => c.dt = s.dt / 2.0,
     }
     c.max_steps = 4.0 * s.max_steps;
     c

@@ -1,278 +1,39 @@
-//! Prediction: scene + initial state + commands over time + horizon → samples of q, v, λ (when
-//! asked), constraint residuals (position and velocity), energy and a global error estimate of q
-//! (`estimate.rs`: Richardson against a companion run, every method).
+//! Prediction: a scene's predictor, asked a [`PredictRequest`] — start state, horizon, commands
+//! over time, what to record — returns a [`Trajectory`]: samples of q, v, the actuator torques,
+//! λ and the constraint forces when asked, constraint residuals (position and velocity),
+//! energies, a global error estimate of q (estimate.rs: Richardson against a companion run,
+//! every method) and, from a start covariance, the propagated covariance (covariance/).
 //!
-//! The integrators ([`Method`]) step on the configuration Lie group; drift is controlled per scene
-//! by Baumgarte terms (in the dynamics) or by projecting q and v back onto the constraints after
-//! every step ([`drift`]). Force elements and actuators come from the scene. [`Predictor::rollouts`]
-//! runs N command sequences from one state over the cores (sampling planners).
+//! - [`Predictor`] (predictor.rs): an immutable configuration built from the scene (model,
+//!   constraints, force elements, controllers, `integration:`, `uncertainty:`) and the
+//!   workspace its runs reuse; [`Predictor::predict`] is the one entry point,
+//!   [`Predictor::rollouts`] runs N command sequences from one state over the cores.
+//! - request.rs: the request, its per-call integration overrides, and [`PredictionBudget`], the
+//!   one place a request's horizon and work are resolved and bounded.
+//! - run.rs and advance.rs: the loop over control ticks and samples, and the integration spans
+//!   between them with drift control ([`drift`]) after every step.
+//! - integrators/: the methods on the configuration Lie group, one file per family, each
+//!   described by the [`Integrator`] trait.
+//! - covariance/: the covariance carried through the integrator's own step linearization.
 
 mod advance;
 mod covariance;
-mod covariance_chunks;
-mod covariance_integral;
-mod covariance_worker;
 pub mod drift;
 mod estimate;
-mod guard;
-mod integrator;
-mod lie;
-mod linearize;
-mod radau;
-mod radau_tableau;
+mod integrators;
+mod predictor;
+mod request;
 mod rollout;
 mod run;
-mod sampling;
-mod sdirk2;
-mod tableaus;
+mod settings;
 mod trajectory;
 
+pub use covariance::linearize::{Linearization, linearize_step};
 pub use covariance::{CovariancePropagator, UncertaintySpec};
-pub use drift::Projector;
-pub use integrator::Method;
-pub use linearize::{Linearization, linearize_step};
+pub use drift::DriftProjector;
+pub use integrators::{ErrorEstimator, Integrator, Method};
+pub use predictor::{Predictor, PredictorConfig};
+pub use request::{IntegrationOverrides, PredictRequest, PredictionBudget, PredictionWork};
 pub use rollout::RolloutOptions;
-pub use run::Predictor;
-pub use trajectory::{PredictOptions, Sample, Trajectory};
-
-use serde::{Deserialize, Serialize};
-
-/// How drift from the constraints is controlled.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum DriftControl {
-    /// Nothing: the residuals grow as the integration error makes them.
-    None,
-    /// Baumgarte terms in the constraint accelerations (gains from `dynamics:` or from
-    /// `baumgarte_steps` × dt).
-    Baumgarte,
-    /// Mass-weighted projection of q (Newton) and v after every step.
-    #[default]
-    Projection,
-}
-
-/// `integration:` in a scene. Defaults: RK4, dt = 1 ms, projection, horizon 1 s, max_error 1e-3
-/// on the global error estimate, samples every 10 ms — accurate to ~1e-10 on the bundled scenes at a few µs per step.
-#[derive(Clone, Debug, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct IntegrationSettings {
-    /// `method:` semi_implicit_euler | rk4 | dopri5 | dop853 | sdirk2 | radau5 (default `rk4`).
-    #[serde(default)]
-    pub method: Method,
-    /// Step [s] (fixed-step methods; first step of the adaptive ones).
-    #[serde(default = "default_dt")]
-    pub dt: f64,
-    /// Relative and absolute tolerances of the adaptive methods (dopri5, dop853, radau5).
-    #[serde(default = "default_rtol")]
-    pub rtol: f64,
-    /// `atol:` absolute tolerance of dopri5 [m, rad, m/s or rad/s per entry] (default 1e-10).
-    #[serde(default = "default_atol")]
-    pub atol: f64,
-    /// `drift:` none | baumgarte | projection (default `projection`).
-    #[serde(default)]
-    pub drift: DriftControl,
-    /// With `drift: baumgarte` and no gains under `dynamics:`, the time constant is this many steps.
-    #[serde(default = "default_baumgarte_steps")]
-    pub baumgarte_steps: f64,
-    /// Default horizon [s].
-    #[serde(default = "default_horizon")]
-    pub horizon: f64,
-    /// Sample period of the output [s].
-    #[serde(default = "default_sample")]
-    pub sample_period: f64,
-    /// Semi-implicit Euler and RK4 on a passive, conservative scene: stop with `Diverged` when
-    /// the energy moves by more than this fraction of the energy in motion (`.inf` turns the check
-    /// off).
-    #[serde(default = "default_max_energy_error")]
-    pub max_energy_error: f64,
-    /// Integration steps (and control ticks) one prediction may take (default 1e6): checked
-    /// before running (horizon / dt, horizon / control period) and while running (dopri5).
-    #[serde(default = "default_max_steps")]
-    pub max_steps: f64,
-    /// Output samples one prediction may hold (default 1e5): horizon / sample_period.
-    #[serde(default = "default_max_samples")]
-    pub max_samples: f64,
-    /// Work units one prediction may cost (default 1e10, ≈ 10–60 s of CPU): dynamics
-    /// evaluations × (bodies + Σ depth² of the coordinates), see `limits::evaluation_cost`.
-    #[serde(default = "default_max_work")]
-    pub max_work: f64,
-    /// `max_error:` bound on the global error estimate of q [m or rad] (every sample's
-    /// `error_estimate`, see `estimate.rs`; default 1e-3, `.inf` turns the check off): a run
-    /// over it stops with `Error::ErrorEstimateExceeded` naming a step or tolerance that meets it.
-    #[serde(default = "default_max_error")]
-    pub max_error: f64,
-    /// `adapt:` when the estimate exceeds `max_error`, refine dt (fixed-step methods) or the
-    /// tolerances (dopri5) from the method's order and rerun, at most 4 times (default false).
-    #[serde(default)]
-    pub adapt: bool,
-    /// `error_estimate:` run the error estimate's companion (default true; estimate.rs). It
-    /// costs about 2× more evaluations; `false` is for callers that bound the error otherwise
-    /// (planner rollouts, a step already validated on the scene): samples then carry no
-    /// `error_estimate` and `max_error` / `adapt` cannot act.
-    #[serde(default = "default_true")]
-    pub error_estimate: bool,
-}
-
-fn default_true() -> bool {
-    true
-}
-
-fn default_max_error() -> f64 {
-    1e-3
-}
-
-fn default_max_steps() -> f64 {
-    crate::limits::DEFAULT_MAX_STEPS
-}
-fn default_max_samples() -> f64 {
-    crate::limits::DEFAULT_MAX_SAMPLES
-}
-fn default_max_work() -> f64 {
-    crate::limits::DEFAULT_MAX_WORK
-}
-
-fn default_dt() -> f64 {
-    1e-3
-}
-fn default_rtol() -> f64 {
-    1e-8
-}
-fn default_atol() -> f64 {
-    1e-10
-}
-fn default_baumgarte_steps() -> f64 {
-    10.0
-}
-fn default_horizon() -> f64 {
-    1.0
-}
-fn default_sample() -> f64 {
-    0.01
-}
-fn default_max_energy_error() -> f64 {
-    0.2
-}
-
-impl Default for IntegrationSettings {
-    fn default() -> Self {
-        Self {
-            method: Method::default(),
-            dt: default_dt(),
-            rtol: default_rtol(),
-            atol: default_atol(),
-            drift: DriftControl::default(),
-            baumgarte_steps: default_baumgarte_steps(),
-            horizon: default_horizon(),
-            sample_period: default_sample(),
-            max_energy_error: default_max_energy_error(),
-            max_steps: default_max_steps(),
-            max_samples: default_max_samples(),
-            max_work: default_max_work(),
-            max_error: default_max_error(),
-            adapt: false,
-            error_estimate: true,
-        }
-    }
-}
-
-impl IntegrationSettings {
-    /// Refuse settings that cannot work, naming the field.
-    pub fn validate(&self) -> crate::Result<()> {
-        let pos = |name: &str, x: f64| {
-            if x.is_finite() && x > 0.0 {
-                Ok(())
-            } else {
-                Err(crate::Error::Invalid(format!(
-                    "integration.{name} = {x} must be positive and finite"
-                )))
-            }
-        };
-        pos("dt", self.dt)?;
-        pos("rtol", self.rtol)?;
-        pos("atol", self.atol)?;
-        pos("baumgarte_steps", self.baumgarte_steps)?;
-        pos("sample_period", self.sample_period)?;
-        pos("max_steps", self.max_steps)?;
-        pos("max_samples", self.max_samples)?;
-        pos("max_work", self.max_work)?;
-        if self.max_energy_error.is_nan() || self.max_energy_error <= 0.0 {
-            return Err(crate::Error::Invalid(format!(
-                "integration.max_energy_error = {} must be positive (.inf: no check)",
-                self.max_energy_error
-            )));
-        }
-        if self.max_error.is_nan() || self.max_error <= 0.0 {
-            return Err(crate::Error::Invalid(format!(
-                "integration.max_error = {} must be positive (.inf: no check)",
-                self.max_error
-            )));
-        }
-        if self.adapt && !self.error_estimate {
-            return Err(crate::Error::Invalid(
-                "integration.adapt needs integration.error_estimate: true (it acts on the estimate)"
-                    .into(),
-            ));
-        }
-        if !(self.horizon.is_finite() && self.horizon >= 0.0) {
-            return Err(crate::Error::Invalid(format!(
-                "integration.horizon = {} must be ≥ 0",
-                self.horizon
-            )));
-        }
-        self.check_counts(self.horizon, None)
-    }
-
-    /// Refuse, before running, a request over its work limits: steps (horizon / dt and
-    /// horizon / control period), samples (horizon / sample period). `control_period` [s] of the
-    /// scene's actuators if any.
-    pub fn check_counts(&self, horizon: f64, control_period: Option<f64>) -> crate::Result<()> {
-        let limit = |what: &str, n: f64, max: f64, hint: &str| {
-            if n <= max {
-                Ok(())
-            } else {
-                Err(crate::Error::WorkLimit {
-                    what: what.to_string(),
-                    estimate: n,
-                    limit: max,
-                    hint: hint.to_string(),
-                })
-            }
-        };
-        // dopri5's dt is only its first step (it adapts): its steps are counted while running.
-        let fixed = !self.method.is_adaptive();
-        let steps = if fixed { horizon / self.dt } else { 0.0 };
-        limit(
-            &format!(
-                "integration steps (horizon {} s / dt {} s)",
-                crate::limits::show(horizon),
-                crate::limits::show(self.dt)
-            ),
-            steps,
-            self.max_steps,
-            "shorten the horizon, raise dt, or raise integration.max_steps",
-        )?;
-        if let Some(p) = control_period {
-            limit(
-                &format!(
-                    "control ticks (horizon {} s / control_period {} s)",
-                    crate::limits::show(horizon),
-                    crate::limits::show(p)
-                ),
-                horizon / p,
-                self.max_steps,
-                "shorten the horizon, raise actuators.control_period, or raise \
-                 integration.max_steps",
-            )?;
-        }
-        limit(
-            &format!(
-                "output samples (horizon {} s / sample_period {} s)",
-                crate::limits::show(horizon),
-                crate::limits::show(self.sample_period)
-            ),
-            horizon / self.sample_period,
-            self.max_samples,
-            "shorten the horizon, raise sample_period, or raise integration.max_samples",
-        )
-    }
-}
+pub use settings::{DriftControl, IntegrationSettings};
+pub use trajectory::{Sample, Trajectory};

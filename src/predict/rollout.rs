@@ -4,25 +4,23 @@
 //! Each worker thread owns one clone of the predictor (model, `Data` and every workspace), made
 //! at its first rollout and reused for the next ones, so the stepping loop stays allocation-free
 //! and nothing is shared between threads but the read-only request. A rollout is exactly one
-//! [`Predictor::predict_with`] call (commands started at 0, step, 2·step, …, horizon
+//! [`Predictor::predict`] call (commands started at 0, step, 2·step, …, horizon
 //! len · step, a sample after every step): its result equals that single prediction bit for bit.
 
-use super::guard::check_work;
-use super::run::Predictor;
-use super::trajectory::{PredictOptions, Trajectory};
+use super::predictor::Predictor;
+use super::request::{PredictRequest, PredictionBudget};
+use super::trajectory::Trajectory;
 use crate::actuators::Command;
 use crate::error::{Error, Result};
 use rayon::prelude::*;
 use std::sync::Mutex;
 
-/// How a batch of rollouts runs.
+/// How a batch of rollouts is cut and spread.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RolloutOptions {
     /// Each command of a sequence is held for this long, and a sample is taken after each [s]
     /// (Nav2 MPPI's `model_dt`: 0.05).
     pub step: f64,
-    /// λ and the constraint forces in every sample.
-    pub forces: bool,
     /// Worker threads; 0: one per core.
     pub threads: usize,
 }
@@ -31,26 +29,33 @@ impl Default for RolloutOptions {
     fn default() -> Self {
         Self {
             step: 0.05,
-            forces: false,
             threads: 0,
         }
     }
 }
 
 impl Predictor {
-    /// One trajectory per command sequence, all from (q0, v0), in the order of `sequences`:
-    /// sequence k holds `sequences[k][i]` over [i·step, (i+1)·step). The scene's integration
-    /// settings apply except the sample period, which is `step` — set `error_estimate: false`
-    /// for planners: the estimate's companion run doubles each rollout's work. Fails with the
-    /// first failing rollout's error. The whole batch's work is bounded by the scene's
-    /// `max_work`, checked before running for the fixed-step methods.
+    /// One trajectory per command sequence, all from the request's start state and under its
+    /// integration overrides, forces and covariance, in the order of `sequences`: sequence k
+    /// holds `sequences[k][i]` over [i·step, (i+1)·step), a sample after each step (the sample
+    /// period is `step`). The request's own commands and horizon must be unset: each sequence
+    /// gives its own. Planners turn the error estimate off (`error_estimate: Some(false)`): its
+    /// companion run doubles each rollout's work. Fails with the first failing rollout's error.
+    /// The whole batch's work is bounded by the scene's `max_work`, checked before running for
+    /// the fixed-step methods.
     pub fn rollouts(
         &self,
-        q0: &[f64],
-        v0: &[f64],
+        req: &PredictRequest,
         sequences: &[Vec<Command>],
         opts: RolloutOptions,
     ) -> Result<Vec<Trajectory>> {
+        if !req.commands.is_empty() || req.horizon.is_some() {
+            return Err(Error::Invalid(
+                "rollouts: each command sequence sets its own commands and horizon; leave the \
+                 request's unset"
+                    .into(),
+            ));
+        }
         if !(opts.step.is_finite() && opts.step > 0.0) {
             return Err(Error::Invalid(format!(
                 "rollout step = {} s must be positive and finite",
@@ -62,12 +67,15 @@ impl Predictor {
         // rollout gets max_work / n of it (adaptive methods count while running).
         let n = sequences.len().max(1) as f64;
         let longest = sequences.iter().map(Vec::len).max().unwrap_or(0) as f64 * opts.step;
-        let mut batch = self.settings.clone();
-        batch.sample_period = opts.step;
+        let mut overrides = req.integration;
+        overrides.sample_period = Some(opts.step);
+        let single = self.budget(&overrides)?;
+        let mut batch = single.settings().clone();
         batch.max_steps *= n;
         batch.max_samples *= n;
-        let control = (!self.actuators.is_empty()).then_some(self.actuators.control_period);
-        check_work(&batch, &self.model, control, longest * n)?;
+        PredictionBudget::new(batch, single.control_period())?
+            .with_model(self.model())
+            .check(longest * n)?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(opts.threads)
             .build()
@@ -77,22 +85,17 @@ impl Predictor {
         let workers: Vec<Mutex<Option<Predictor>>> = (0..pool.current_num_threads())
             .map(|_| Mutex::new(None))
             .collect();
-        let predict = PredictOptions {
-            forces: opts.forces,
-        };
         pool.install(|| {
             sequences
                 .par_iter()
                 .map(|seq| {
                     let i = rayon::current_thread_index().unwrap_or(0);
                     let mut slot = workers[i].lock().unwrap_or_else(|e| e.into_inner());
+                    // The pool already fills the cores: a covariance stays on its rollout's
+                    // thread (the same P either way, covariance/worker.rs).
                     let p = slot.get_or_insert_with(|| {
-                        let mut p = self.clone();
-                        p.settings.sample_period = opts.step;
-                        p.settings.max_work /= n;
-                        // The pool already fills the cores: a covariance stays on its rollout's
-                        // thread (the same P either way, covariance_worker.rs).
-                        p.parallel_covariance = false;
+                        let mut p = self.clone().with_parallel_covariance(false);
+                        p.config.settings.max_work /= n;
                         p
                     });
                     let timed: Vec<(f64, Command)> = seq
@@ -101,7 +104,13 @@ impl Predictor {
                         .map(|(k, c)| (k as f64 * opts.step, c.clone()))
                         .collect();
                     let horizon = seq.len() as f64 * opts.step;
-                    p.predict_with(q0, v0, &timed, horizon, predict)
+                    let one = PredictRequest {
+                        commands: &timed,
+                        horizon: Some(horizon),
+                        integration: overrides,
+                        ..*req
+                    };
+                    p.predict(&one)
                 })
                 .collect()
         })

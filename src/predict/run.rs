@@ -1,55 +1,17 @@
-//! The prediction loop: control ticks, integration steps, drift control, samples.
+//! The prediction loop of one run: control ticks, integration spans of the answer and its error
+//! estimate's companion, drift control, the covariance beside them, samples, and the energy
+//! check of fixed explicit steps on passive, conservative scenes.
 
-use super::advance::{JacobianWork, companion_error};
-use super::covariance::{CovariancePropagator, UncertaintySpec};
-use super::covariance_worker::{PipeSlot, with_worker};
-use super::drift::Projector;
-use super::estimate::{self, Lane, MAX_REFINEMENTS};
-use super::guard::{EnergyGuard, check_work};
-use super::integrator::Method;
-use super::trajectory::{PredictOptions, Trajectory};
-use super::{DriftControl, IntegrationSettings};
-use crate::actuators::{Actuators, Command};
-use crate::dynamics::Baumgarte;
+use super::advance::companion_error;
+use super::covariance::CovariancePropagator;
+use super::covariance::worker::with_worker;
+use super::estimate::{self, Lane};
+use super::predictor::Predictor;
+use super::request::PredictRequest;
+use super::settings::IntegrationSettings;
+use super::trajectory::{Sample, Trajectory};
+use crate::actuators::Command;
 use crate::error::{Error, Result};
-use crate::forces::ForceElements;
-use crate::model::Model;
-use crate::scene::Scene;
-use crate::system::System;
-use nalgebra::DMatrix;
-use std::time::Instant;
-
-/// Buffers of a run, sized once per model (the stepping loop allocates nothing).
-#[derive(Clone, Debug, Default)]
-pub(super) struct Workspace {
-    /// The answer (0) and the error estimate's companion (1) (estimate.rs).
-    pub(super) lanes: [Lane; 2],
-    /// Tangent-space difference of the two lanes' q (nv).
-    pub(super) diff: Vec<f64>,
-    /// Least-squares constrained accelerations at singular configurations.
-    pub(super) ls: Projector,
-    pub(super) tau: Vec<f64>,
-    pub(super) tau_act: Vec<f64>,
-    /// The companion's own controllers and their torque: feedback acts on the state it is
-    /// computed from, so each lane closes its own loop (with the answer's torques the companion
-    /// would run open-loop and drift away along any unstable mode — an arm held up by its PD).
-    pub(super) companion_actuators: Actuators,
-    pub(super) tau_companion: Vec<f64>,
-    pub(super) zero: Vec<f64>,
-    /// The state and applied force at the start of a step (covariance propagation).
-    pub(super) qn: Vec<f64>,
-    pub(super) vn: Vec<f64>,
-    pub(super) tau_n: Vec<f64>,
-    /// The state the drift projection left with its rows evaluated (advance.rs, `RowsAt`).
-    pub(super) rows_q: Vec<f64>,
-    pub(super) rows_v: Vec<f64>,
-    /// The implicit methods' Jacobian (advance.rs).
-    pub(super) jw: JacobianWork,
-    /// Work units of one dynamics evaluation (`limits::evaluation_cost`).
-    pub(super) cost: f64,
-    /// The covariance worker's pipe while a run has one.
-    pub(super) pipe: PipeSlot,
-}
 
 /// The command in force at t [s] (the last one started; `idle` before the first), borrowed: a
 /// clone per control tick allocated its maps.
@@ -75,164 +37,25 @@ struct Plan<'a> {
     forces: bool,
 }
 
-/// Scene-configured predictor (model, constraints, force elements, actuators, integration).
-#[derive(Clone, Debug)]
-pub struct Predictor {
-    /// Model, constraints and dynamics workspaces.
-    pub sys: System,
-    /// The scene's force elements.
-    pub forces: ForceElements,
-    /// The scene's actuators with their controller state.
-    pub actuators: Actuators,
-    /// Integration settings (`integration:` of the scene).
-    pub settings: IntegrationSettings,
-    /// Record λ and the constraint forces in every sample of [`Predictor::predict`] (a setting
-    /// of the predictor; [`Predictor::predict_with`] takes it per call instead).
-    pub want_forces: bool,
-    /// `uncertainty:` of the scene (process noise of the covariance).
-    pub uncertainty: UncertaintySpec,
-    /// Start covariance of the next predictions (2nv × 2nv, [δq; δv]); None: no covariance.
-    pub start_covariance: Option<DMatrix<f64>>,
-    /// Propagate the covariance on a second thread, one sample behind the prediction, when the
-    /// machine has more than one core (covariance_worker.rs; the same P to the bit). Default
-    /// true.
-    pub parallel_covariance: bool,
-    pub(super) covariance: Option<CovariancePropagator>,
-    pub(super) model: Model,
-    pub(super) ws: Workspace,
-}
-
 impl Predictor {
-    /// Build from a loaded scene: system, `forces:`, `actuators:` and `integration:`.
-    pub fn from_scene(scene: &Scene) -> Result<Self> {
-        let sys = System::from_scene(scene)?;
-        let forces = ForceElements::new(&sys.model, &scene.file.forces)?;
-        let actuators = Actuators::new(&sys.model, &scene.file.actuators)?;
-        let mut p = Self::new(sys, forces, actuators, scene.file.integration.clone())?;
-        p.uncertainty = scene.file.uncertainty.clone();
-        Ok(p)
-    }
-
-    /// Build from its parts, validating the integration settings.
-    pub fn new(
-        sys: System,
-        forces: ForceElements,
-        actuators: Actuators,
-        settings: IntegrationSettings,
-    ) -> Result<Self> {
-        settings.validate()?;
-        let model = sys.model.clone();
-        let (nq, nv) = (model.nq, model.nv);
-        let ws = Workspace {
-            lanes: [Lane::new(&sys), Lane::new(&sys)],
-            diff: vec![0.0; nv],
-            ls: Projector::new(&sys),
-            tau: vec![0.0; nv],
-            tau_act: vec![0.0; nv],
-            companion_actuators: Actuators::default(),
-            tau_companion: vec![0.0; nv],
-            zero: vec![0.0; nv],
-            qn: vec![0.0; nq],
-            vn: vec![0.0; nv],
-            tau_n: vec![0.0; nv],
-            rows_q: vec![0.0; nq],
-            rows_v: vec![0.0; nv],
-            cost: crate::limits::evaluation_cost(&model),
-            jw: JacobianWork::new(&sys),
-            pipe: PipeSlot::default(),
-        };
-        Ok(Self {
-            sys,
-            forces,
-            actuators,
-            settings,
-            want_forces: false,
-            uncertainty: UncertaintySpec::default(),
-            start_covariance: None,
-            parallel_covariance: true,
-            covariance: None,
-            model,
-            ws,
-        })
-    }
-
-    /// Propagate from (q0, v0) over `horizon` [s] following `commands` ((start time [s], command),
-    /// sorted; the last one started is active), with forces in the samples if `want_forces`.
-    pub fn predict(
+    /// One run of `req` over `horizon` [s] under the resolved settings `s`, the controllers
+    /// ticking every `control` [s].
+    pub(super) fn run(
         &mut self,
-        q0: &[f64],
-        v0: &[f64],
-        commands: &[(f64, Command)],
-        horizon: f64,
-    ) -> Result<Trajectory> {
-        let opts = PredictOptions {
-            forces: self.want_forces,
-        };
-        self.predict_with(q0, v0, commands, horizon, opts)
-    }
-
-    /// [`Predictor::predict`] with the options of this one call.
-    pub fn predict_with(
-        &mut self,
-        q0: &[f64],
-        v0: &[f64],
-        commands: &[(f64, Command)],
-        horizon: f64,
-        opts: PredictOptions,
-    ) -> Result<Trajectory> {
-        let start = Instant::now();
-        crate::limits::check_input_state(&self.model, q0, v0, &self.ws.zero)?;
-        if !(horizon.is_finite() && horizon >= 0.0) {
-            return Err(Error::Invalid(format!(
-                "horizon = {horizon} s must be finite and ≥ 0"
-            )));
-        }
-        let control = (!self.actuators.is_empty()).then_some(self.actuators.control_period);
-        check_work(&self.settings, &self.model, control, horizon)?;
-        for (t, c) in commands {
-            crate::error::check_finite("command time", &[*t])?;
-            self.actuators.check_command(c)?;
-        }
-        let mut s = self.settings.clone();
-        let mut refinements = 0;
-        let result = loop {
-            let saved_gains = self.sys.baumgarte;
-            if s.drift == DriftControl::Baumgarte && self.sys.baumgarte == Baumgarte::default() {
-                self.sys.baumgarte = Baumgarte::from_time_constant(s.baumgarte_steps * s.dt);
-            }
-            let result = self.run(q0, v0, commands, horizon, &s, opts);
-            self.sys.baumgarte = saved_gains;
-            match result {
-                // `adapt`: rerun with the step or tolerance the estimate asks for, bounded.
-                Err(Error::ErrorEstimateExceeded { t, estimate, .. })
-                    if s.adapt && refinements < MAX_REFINEMENTS =>
-                {
-                    s = estimate::refined(&s, estimate, t, horizon);
-                    check_work(&s, &self.model, control, horizon)?;
-                    refinements += 1;
-                }
-                r => break r,
-            }
-        };
-        let mut traj = result?;
-        traj.refinements = refinements;
-        traj.run_time_s = start.elapsed().as_secs_f64();
-        Ok(traj)
-    }
-
-    fn run(
-        &mut self,
-        q0: &[f64],
-        v0: &[f64],
-        commands: &[(f64, Command)],
+        req: &PredictRequest,
         horizon: f64,
         s: &IntegrationSettings,
-        opts: PredictOptions,
+        control: Option<f64>,
     ) -> Result<Trajectory> {
+        let (q0, v0) = (req.q0, req.v0);
         let mut q = q0.to_vec();
         self.model.normalize(&mut q);
         self.check_step_size(&q, v0, s)?;
-        self.actuators.reset();
+        // The run's controllers start from the configuration's, at rest.
+        self.actuators.clone_from(&self.config.actuators);
+        if let Some(p) = control {
+            self.actuators.control_period = p;
+        }
         self.ws.tau_act.iter_mut().for_each(|x| *x = 0.0);
         self.ws.companion_actuators.clone_from(&self.actuators);
         self.ws.tau_companion.iter_mut().for_each(|x| *x = 0.0);
@@ -242,7 +65,7 @@ impl Predictor {
         let mut lanes = std::mem::take(&mut self.ws.lanes);
         lanes[0].start(&q, v0, s.dt);
         lanes[1].start(&q, v0, companion.dt);
-        let result = self.run_lanes(&mut lanes, commands, horizon, (s, &companion), factor, opts);
+        let result = self.run_lanes(&mut lanes, req, horizon, (s, &companion), factor);
         self.ws.lanes = lanes;
         result
     }
@@ -252,14 +75,14 @@ impl Predictor {
     fn run_lanes(
         &mut self,
         lanes: &mut [Lane; 2],
-        commands: &[(f64, Command)],
+        req: &PredictRequest,
         horizon: f64,
         s: (&IntegrationSettings, &IntegrationSettings),
         factor: f64,
-        opts: PredictOptions,
     ) -> Result<Trajectory> {
         let (s, companion) = s;
-        if self.start_covariance.is_some() && self.forces.has_point_springs() {
+        let commands = req.commands;
+        if req.start_covariance.is_some() && self.forces.has_point_springs() {
             // Each step's linearization holds the applied generalized force apart from joint
             // spring-dampers: a point spring's stiffness would be missing from Φ and the
             // covariance silently wrong.
@@ -271,12 +94,12 @@ impl Predictor {
                     .into(),
             });
         }
-        self.covariance = match &self.start_covariance {
+        self.covariance = match req.start_covariance {
             Some(p0) => Some(CovariancePropagator::start(
                 &mut self.sys,
                 &self.forces,
                 &self.actuators.feedback().collect::<Vec<_>>(),
-                &self.uncertainty,
+                &self.config.uncertainty,
                 p0,
                 &lanes[0].q,
                 &lanes[0].v,
@@ -327,7 +150,7 @@ impl Predictor {
             &lanes[0].q,
             &lanes[0].v,
             s.error_estimate.then_some(0.0),
-            opts.forces,
+            req.forces,
         )?;
         let springs = self
             .forces
@@ -341,9 +164,9 @@ impl Predictor {
             s,
             companion,
             factor,
-            forces: opts.forces,
+            forces: req.forces,
         };
-        let parallel = self.parallel_covariance
+        let parallel = self.config.parallel_covariance
             && std::thread::available_parallelism().is_ok_and(|n| n.get() > 1);
         let result = match self.covariance.take() {
             Some(cov) if parallel => {
@@ -465,9 +288,75 @@ impl Predictor {
 
     /// The energy check runs for passive, conservative scenes stepped by a fixed explicit method.
     fn energy_guard_applies(&self, s: &IntegrationSettings) -> bool {
-        matches!(s.method, Method::SemiImplicitEuler | Method::Rk4)
+        !s.method.integrator().is_implicit()
+            && !s.method.is_adaptive()
             && self.actuators.is_empty()
             && self.forces.is_conservative()
             && s.max_energy_error.is_finite()
+    }
+}
+
+/// `max_energy_error`: for a passive, conservative scene stepped by a fixed explicit method, the
+/// energy may not move by more than this fraction of the energy in motion (the largest kinetic
+/// plus spring energy, or gravity energy exchanged, seen so far), checked at every sample from the
+/// 16th step on: past it the step is too large and the answer would be wrong, so the prediction stops with
+/// `Error::Diverged` instead.
+struct EnergyGuard {
+    on: bool,
+    e0: f64,
+    pe0: f64,
+    scale: f64,
+}
+
+impl EnergyGuard {
+    /// Over the first steps from rest a first-order method's relative energy error is O(1) by
+    /// nature (semi-implicit Euler's first step loses half the kinetic energy it creates).
+    const MIN_STEPS: usize = 16;
+
+    /// `springs`: the spring part of the sample's potential energy (≥ 0, zero at rest length).
+    fn new(first: &Sample, springs: f64, on: bool) -> Self {
+        Self {
+            on,
+            e0: first.kinetic_energy + first.potential_energy,
+            pe0: first.potential_energy - springs,
+            scale: first.kinetic_energy + springs,
+        }
+    }
+
+    fn check(
+        &mut self,
+        x: &Sample,
+        springs: f64,
+        steps: usize,
+        s: &IntegrationSettings,
+    ) -> Result<()> {
+        if !self.on {
+            return Ok(());
+        }
+        self.scale = self
+            .scale
+            .max(x.kinetic_energy + springs)
+            .max((x.potential_energy - springs - self.pe0).abs());
+        if steps < Self::MIN_STEPS {
+            return Ok(());
+        }
+        let de = x.kinetic_energy + x.potential_energy - self.e0;
+        let floor = 1e-9 * (1.0 + self.e0.abs());
+        if de.is_finite() && (de.abs() <= s.max_energy_error * self.scale || de.abs() <= floor) {
+            return Ok(());
+        }
+        Err(Error::Diverged {
+            t: x.t,
+            message: format!(
+                "the energy of this passive scene changed by {de:.3e} J ({:.0} % of the {:.3e} J in \
+                 motion, more than max_energy_error = {}): dt = {} s is too large for {:?}; reduce dt \
+                 or use dopri5",
+                100.0 * de.abs() / self.scale.max(f64::MIN_POSITIVE),
+                self.scale,
+                s.max_energy_error,
+                s.dt,
+                s.method
+            ),
+        })
     }
 }

@@ -12,7 +12,7 @@
 
 use super::diagnose::diagnose;
 use super::problem::{Bounds, ProjectionProblem, Side};
-use super::projector::{Method, Outcome, VelocityProjector};
+use super::projector::{SolvePath, Outcome, VelocityProjector};
 use super::qp::{IneqRow, QpCache, QpData};
 use crate::error::{Error, Result};
 use crate::model::Model;
@@ -114,7 +114,7 @@ impl VelocityProjector {
         match status {
             SolverStatus::PrimalInfeasible | SolverStatus::AlmostPrimalInfeasible => {
                 self.conflicts = diagnose(&data, qp, &self.ineq);
-                return Ok(self.finish_infeasible(Method::ClarabelCertificate));
+                return Ok(self.finish_infeasible(SolvePath::ClarabelCertificate));
             }
             SolverStatus::Solved
             | SolverStatus::AlmostSolved
@@ -249,10 +249,10 @@ impl VelocityProjector {
         }
         if accepted {
             self.v.copy_from(&self.eq.v);
-            self.outcome.method = Method::ClarabelPolished;
+            self.outcome.method = SolvePath::ClarabelPolished;
         } else if solved {
             self.v.copy_from_slice(&self.v_qp);
-            self.outcome.method = Method::Clarabel;
+            self.outcome.method = SolvePath::Clarabel;
         } else {
             return Err(Error::Invalid(format!(
                 "velocity projection: the QP solver stopped with status {status:?} and the \

@@ -4,11 +4,11 @@
 //! 2. Effective bounds (URDF limit, request, acceleration limit; tightest per side). A coordinate
 //!    whose lower bound exceeds its upper bound is infeasible at once, both bounds named.
 //! 3. Equality-only KKT solve (`kkt.rs`). Without finite bounds or rows of A this is the answer
-//!    (`Method::Kkt`); if it already satisfies every inequality it is also the bounded optimum
-//!    (`Method::KktBoundsInactive`: the problem is convex, so the KKT point of the equality
+//!    (`SolvePath::Kkt`); if it already satisfies every inequality it is also the bounded optimum
+//!    (`SolvePath::KktBoundsInactive`: the problem is convex, so the KKT point of the equality
 //!    problem that is feasible is optimal).
 //! 4. Otherwise Clarabel (`qp.rs`) finds the active set; a KKT re-solve with the active rows held
-//!    as equalities polishes v, λ, ν to machine precision (`Method::ClarabelPolished`), after a
+//!    as equalities polishes v, λ, ν to machine precision (`SolvePath::ClarabelPolished`), after a
 //!    few primal–dual active-set corrections if Clarabel's set was not exactly right.
 //! 5. A primal-infeasible QP is diagnosed (`diagnose.rs`): the infeasibility certificate's
 //!    support, reduced by a deletion filter to a minimal conflicting set, named.
@@ -38,7 +38,7 @@ pub enum Status {
 /// How the result was obtained.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
-pub enum Method {
+pub enum SolvePath {
     /// Equality constraints only: one KKT solve.
     Kkt,
     /// Bounds or inequalities present, none binding at the equality-only solution.
@@ -61,7 +61,7 @@ pub struct Outcome {
     /// Optimal or infeasible.
     pub status: Status,
     /// How the result was obtained.
-    pub method: Method,
+    pub method: SolvePath,
     /// Constraint rows dependent on the others (nc − rank J M⁻¹ Jᵀ).
     pub rank_deficiency: usize,
     /// λ and ν are unique ([Jᵀ, active rows] has full column rank).
@@ -132,7 +132,7 @@ impl VelocityProjector {
             conflicts: vec![],
             outcome: Outcome {
                 status: Status::Optimal,
-                method: Method::Kkt,
+                method: SolvePath::Kkt,
                 rank_deficiency: 0,
                 multipliers_unique: true,
                 multipliers_exact: true,
@@ -202,7 +202,7 @@ impl VelocityProjector {
                 index: i,
                 side: Side::Upper,
             });
-            return Ok(self.finish_infeasible(Method::BoundCheck));
+            return Ok(self.finish_infeasible(SolvePath::BoundCheck));
         }
         // Equality-only KKT.
         self.eq.factor_mass(model, m, j)?;
@@ -215,7 +215,7 @@ impl VelocityProjector {
         self.outcome.multipliers_unique = self.eq.dependent_constraint_rows == 0;
         self.outcome.multipliers_exact = true;
         if !self.bounds.any() && p.a.nrows() == 0 {
-            self.outcome.method = Method::Kkt;
+            self.outcome.method = SolvePath::Kkt;
             return Ok(self.outcome);
         }
         inequality_rows(&self.bounds, p.a.nrows(), &mut self.ineq);
@@ -234,7 +234,7 @@ impl VelocityProjector {
                 self.vscale,
                 &mut self.active,
             );
-            self.outcome.method = Method::KktBoundsInactive;
+            self.outcome.method = SolvePath::KktBoundsInactive;
             return Ok(self.outcome);
         }
         self.solve_qp(model, m, j, p)
@@ -281,7 +281,7 @@ impl VelocityProjector {
         );
         self.outcome = Outcome {
             status: Status::Optimal,
-            method: Method::TwistScaled,
+            method: SolvePath::TwistScaled,
             rank_deficiency: 0,
             multipliers_unique: false,
             multipliers_exact: false,
@@ -290,7 +290,7 @@ impl VelocityProjector {
         Ok(Some(self.outcome))
     }
 
-    pub(super) fn finish_infeasible(&mut self, method: Method) -> Outcome {
+    pub(super) fn finish_infeasible(&mut self, method: SolvePath) -> Outcome {
         self.v.fill(f64::NAN);
         self.lambda.fill(f64::NAN);
         self.nu.fill(f64::NAN);

@@ -3,7 +3,7 @@
 
 use super::diagnose::Conflict;
 use super::problem::{BoundSource, ProjectionProblem, Side};
-use super::projector::{Method, Status, VelocityProjector};
+use super::projector::{SolvePath, Status, VelocityProjector};
 use super::request::{ProjectionRequest, base_dofs};
 use crate::algorithm::{Data, crba_after_kinematics};
 use crate::constraints::{ConstraintData, ConstraintSet, constraint_forces};
@@ -80,7 +80,7 @@ pub struct Projection {
     /// Optimal or infeasible.
     pub status: Status,
     /// How the result was obtained.
-    pub method: Method,
+    pub method: SolvePath,
     /// `optimal (method)`, or `infeasible: ...` listing the conflicting set.
     pub message: String,
     /// Names of the nv velocity coordinates, in order.

@@ -23,7 +23,7 @@ use nalgebra::DMatrix;
 
 /// cov(δx, c) and cov(c) of the start offsets of the velocity-controlled joints (module doc).
 #[derive(Clone, Debug)]
-pub(super) struct IntegralOffsets {
+pub(in crate::predict) struct IntegralOffsets {
     /// Per offset: its joint's v index and its index in the feedback list.
     joints: Vec<(usize, usize)>,
     p_xc: DMatrix<f64>,
@@ -36,7 +36,7 @@ pub(super) struct IntegralOffsets {
 impl IntegralOffsets {
     /// The offsets of the velocity controllers in `feedback` whose start position has a
     /// variance in `p` (2nv × 2nv, already on the constraints); None when none has.
-    pub(super) fn start(p: &DMatrix<f64>, feedback: &[Feedback]) -> Option<Self> {
+    pub(in crate::predict) fn start(p: &DMatrix<f64>, feedback: &[Feedback]) -> Option<Self> {
         let joints: Vec<(usize, usize)> = feedback
             .iter()
             .enumerate()
@@ -61,7 +61,7 @@ impl IntegralOffsets {
 
     /// One linearized step (A, B) under `feedback`: P and P_xc forward (module doc). Before
     /// `p ← A p Aᵀ`, since Y needs A only.
-    pub(super) fn step(&mut self, a: &DMatrix<f64>, b: &DMatrix<f64>, feedback: &[Feedback]) {
+    pub(in crate::predict) fn step(&mut self, a: &DMatrix<f64>, b: &DMatrix<f64>, feedback: &[Feedback]) {
         for (c, &(iv, i)) in self.joints.iter().enumerate() {
             let k = feedback.get(i).map_or(0.0, |f| f.k);
             for r in 0..a.nrows() {
@@ -75,7 +75,7 @@ impl IntegralOffsets {
     }
 
     /// Adds `Y B̃ᵀ + B̃ Yᵀ + Z B̃ᵀ` to P (after `p ← A p Aᵀ`), with Z = P_xc − Y.
-    pub(super) fn add_cross_terms(&mut self, p: &mut DMatrix<f64>) {
+    pub(in crate::predict) fn add_cross_terms(&mut self, p: &mut DMatrix<f64>) {
         // Y B̃ᵀ + B̃ Yᵀ + (P_xc − Y) B̃ᵀ = P_xc B̃ᵀ + B̃ Yᵀ.
         let (n, m) = self.p_xc.shape();
         for s in 0..n {
@@ -91,7 +91,7 @@ impl IntegralOffsets {
     }
 
     /// `P_xc ← T P_xc` (the constraint projection of P).
-    pub(super) fn project(&mut self, t: &DMatrix<f64>) {
+    pub(in crate::predict) fn project(&mut self, t: &DMatrix<f64>) {
         self.tmp.gemm(1.0, t, &self.p_xc, 0.0);
         std::mem::swap(&mut self.tmp, &mut self.p_xc);
     }

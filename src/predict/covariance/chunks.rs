@@ -46,9 +46,9 @@
 //! read, or a full record — not after every chunk: the linearized flow keeps it on them to
 //! the chunk's accuracy, and the projection costs about a linearization's stage.
 
-use super::covariance::CovariancePropagator;
-use super::integrator::Method;
-use super::linearize::{Linearization, linearize_step};
+use super::CovariancePropagator;
+use crate::predict::integrators::Method;
+use crate::predict::covariance::linearize::{Linearization, linearize_step};
 use crate::actuators::Feedback;
 use crate::error::Result;
 use crate::model::Model;
@@ -201,15 +201,10 @@ impl ChunkControl {
     }
 }
 
-/// The method of the linearized steps: the prediction's own, but RK4 for the embedded pairs
-/// (DOPRI5, DOP853). Their steps are set by a tolerance on the nominal trajectory; Φ of one
-/// chunk needs 4 stages to reach the chunk check's accuracy where DOPRI5 spends 6 and DOP853
-/// 12, and the check below still holds every chunk of several steps to the recorded motion.
+/// The method of the linearized steps (`Integrator::linearized_as`: the prediction's own, RK4
+/// for the embedded pairs); an implicit method's own, which `linearize_step` then refuses.
 fn chunk_method(method: Method) -> Method {
-    match method {
-        Method::Dopri5 | Method::Dop853 => Method::Rk4,
-        m => m,
-    }
+    method.integrator().linearized_as().unwrap_or(method)
 }
 
 /// Steps of the next chunk after one of `m` steps missed by `ratio` (mismatch): the local
@@ -286,13 +281,7 @@ impl CovariancePropagator {
             } else {
                 CHUNK_CAPACITY
             };
-            let order = match chunk_method(method) {
-                Method::SemiImplicitEuler => 1.0,
-                Method::Sdirk2 => 2.0,
-                Method::Rk4 => 4.0,
-                Method::Dopri5 | Method::Radau5 => 5.0,
-                Method::Dop853 => 8.0,
-            };
+            let order = f64::from(chunk_method(method).order());
             let ratio = if m > 1 {
                 hst.mismatch(&sys.model, rec, &self.lin, (lo, hi))
             } else {

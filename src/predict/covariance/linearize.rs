@@ -11,8 +11,8 @@
 //! series. Semi-implicit Euler likewise. The result equals finite differences of the step
 //! (tests).
 
-use super::integrator::{DOP853, DOPRI5, Method, RK4, Tableau};
-use super::lie::{StageMaps, dexp_inv, right_jacobian, transport};
+use crate::predict::integrators::{DOP853, DOPRI5, Method, RK4, Tableau};
+use crate::predict::integrators::lie::{StageMaps, dexp_inv, right_jacobian, transport};
 use crate::actuators::Feedback;
 use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
 use crate::error::{Error, Result};
@@ -135,7 +135,7 @@ impl Linearization {
     pub fn new(sys: &System) -> Self {
         let (nq, nv) = (sys.model.nq, sys.model.nv);
         let cols = 3 * nv;
-        let stages = super::integrator::MAX_STAGES;
+        let stages = crate::predict::integrators::MAX_STAGES;
         Self {
             a: DMatrix::zeros(2 * nv, 2 * nv),
             b: DMatrix::zeros(2 * nv, nv),
@@ -202,7 +202,7 @@ fn dynamics(
 
 /// q̈ and ∂q̈/∂(q, v, τ) at (q, v, τ) into `dd`: the multiplier form's (its Baumgarte gains
 /// included) with constraints, ABA's without.
-pub(super) fn dynamics_derivatives(
+pub(in crate::predict) fn dynamics_derivatives(
     sys: &mut System,
     dd: &mut DerivativeData,
     q: &[f64],

@@ -6,7 +6,7 @@
 //!
 //! `P ← T P Tᵀ`
 //!
-//! - A = ∂x⁺/∂x of one step of the prediction's method ([`linearize_step`](super::linearize::linearize_step), under the
+//! - A = ∂x⁺/∂x of one step of the prediction's method ([`linearize_step`](crate::predict::covariance::linearize::linearize_step), under the
 //!   generalized force held over it, with the joint spring-dampers and the controllers'
 //!   feedback moving with the state — `Actuators::feedback`; without it P missed the suite's
 //!   closed-loop sensitivity by 10³, tests/covariance_sensitivity.rs) that may span several
@@ -29,9 +29,15 @@
 //!   where J does not depend on q in the body frame (the diff drive). Dependent rows are dropped
 //!   first.
 
-use super::covariance_chunks::{ChunkControl, StepRecord};
-use super::covariance_integral::IntegralOffsets;
-use super::linearize::Linearization;
+
+mod chunks;
+mod integral;
+pub(in crate::predict) mod linearize;
+pub(in crate::predict) mod worker;
+
+use crate::predict::covariance::chunks::{ChunkControl, StepRecord};
+use crate::predict::covariance::integral::IntegralOffsets;
+use crate::predict::covariance::linearize::Linearization;
 use crate::actuators::Feedback;
 use crate::algorithm::crba;
 use crate::error::{Error, Result, check_finite};
@@ -61,14 +67,14 @@ pub struct CovariancePropagator {
     pub p: DMatrix<f64>,
     /// σ_i² per velocity coordinate.
     noise: Vec<f64>,
-    pub(super) lin: Linearization,
+    pub(in crate::predict) lin: Linearization,
     /// The prediction's steps not yet in `p`, and how they are cut into chunks
     /// (covariance_chunks.rs).
-    pub(super) record: StepRecord,
-    pub(super) chunks: ChunkControl,
+    pub(in crate::predict) record: StepRecord,
+    pub(in crate::predict) chunks: ChunkControl,
     /// Linearized steps so far, tried ones included, and the wall time of the flushes [s].
-    pub(super) linearizations: usize,
-    pub(super) time_s: f64,
+    pub(in crate::predict) linearizations: usize,
+    pub(in crate::predict) time_s: f64,
     tmp: DMatrix<f64>,
     proj: DMatrix<f64>,
     minv: DMatrix<f64>,
@@ -271,7 +277,7 @@ impl CovariancePropagator {
 
     /// `P ← A P Aᵀ + Q_h` with A = `self.lin.a` of a step of size h [s] under the controllers'
     /// `feedback` (and the integrals' start offsets, covariance_integral.rs).
-    pub(super) fn apply_linearization(&mut self, h: f64, feedback: &[Feedback]) {
+    pub(in crate::predict) fn apply_linearization(&mut self, h: f64, feedback: &[Feedback]) {
         let nv = self.noise.len();
         if let Some(o) = self.integral.as_mut() {
             o.step(&self.lin.a, &self.lin.b, feedback);

@@ -14,9 +14,9 @@
 //! when the run ends; a worker's error is the run's error (it concerns an earlier time than
 //! anything the prediction met after it).
 
-use super::covariance::CovariancePropagator;
-use super::covariance_chunks::StepRecord;
-use super::integrator::Method;
+use super::CovariancePropagator;
+use crate::predict::covariance::chunks::StepRecord;
+use crate::predict::integrators::Method;
 use crate::actuators::Feedback;
 use crate::error::{Error, Result};
 use crate::system::System;
@@ -33,7 +33,7 @@ struct Job {
 }
 
 /// What the worker hands back when the prediction is done with it.
-pub(super) struct Finished {
+pub(in crate::predict) struct Finished {
     pub propagator: CovariancePropagator,
     /// (sample index, P row-major) per sample.
     pub snapshots: Vec<(usize, Vec<Vec<f64>>)>,
@@ -72,7 +72,7 @@ impl Exchange {
 
 /// The prediction's end of the pipe.
 #[derive(Debug)]
-pub(super) struct CovariancePipe {
+pub(in crate::predict) struct CovariancePipe {
     exchange: Arc<Exchange>,
     current: StepRecord,
 }
@@ -102,7 +102,7 @@ impl Drop for Leaving<'_> {
 /// keep the predictor `Sync` for the rollouts' workers; it is reached through `&mut`, never
 /// locked.)
 #[derive(Debug, Default)]
-pub(super) struct PipeSlot(Mutex<Option<CovariancePipe>>);
+pub(in crate::predict) struct PipeSlot(Mutex<Option<CovariancePipe>>);
 
 impl Clone for PipeSlot {
     fn clone(&self) -> Self {
@@ -111,10 +111,10 @@ impl Clone for PipeSlot {
 }
 
 impl PipeSlot {
-    pub(super) fn get_mut(&mut self) -> Option<&mut CovariancePipe> {
+    pub(in crate::predict) fn get_mut(&mut self) -> Option<&mut CovariancePipe> {
         self.slot().as_mut()
     }
-    pub(super) fn set(&mut self, pipe: Option<CovariancePipe>) {
+    pub(in crate::predict) fn set(&mut self, pipe: Option<CovariancePipe>) {
         *self.slot() = pipe;
     }
     fn slot(&mut self) -> &mut Option<CovariancePipe> {
@@ -123,7 +123,7 @@ impl PipeSlot {
 }
 
 /// Where the answer's steps go: the propagator itself, or the worker's pipe.
-pub(super) enum CovarianceFeed<'a> {
+pub(in crate::predict) enum CovarianceFeed<'a> {
     Inline(&'a mut CovariancePropagator),
     Worker(&'a mut CovariancePipe),
 }
@@ -135,7 +135,7 @@ impl CovarianceFeed<'_> {
     /// worker. An error when the worker has failed: a placeholder, the run returns the
     /// worker's own.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn record_step(
+    pub(in crate::predict) fn record_step(
         &mut self,
         sys: &mut System,
         method: Method,
@@ -170,7 +170,7 @@ fn worker_failed() -> Error {
 impl CovariancePipe {
     /// Send the current record (P up to time `t`, read for `sample`) and continue in the
     /// other one.
-    pub(super) fn handoff(&mut self, t: f64, sample: Option<usize>) -> Result<()> {
+    pub(in crate::predict) fn handoff(&mut self, t: f64, sample: Option<usize>) -> Result<()> {
         let ex = &*self.exchange;
         let mut g = ex.slots();
         let (next, ok) = loop {
@@ -191,7 +191,7 @@ impl CovariancePipe {
 }
 
 /// P's rows for a sample at time t [s], refused if it overflowed.
-pub(super) fn covariance_rows(p: &DMatrix<f64>, t: f64) -> Result<Vec<Vec<f64>>> {
+pub(in crate::predict) fn covariance_rows(p: &DMatrix<f64>, t: f64) -> Result<Vec<Vec<f64>>> {
     crate::error::check_output(
         &format!("sample at t = {t} s: covariance"),
         p.as_slice(),
@@ -204,7 +204,7 @@ pub(super) fn covariance_rows(p: &DMatrix<f64>, t: f64) -> Result<Vec<Vec<f64>>>
 
 /// Run `body` with the propagator on a worker thread fed through the pipe it is given; returns
 /// body's result and what the worker finished with.
-pub(super) fn with_worker<R>(
+pub(in crate::predict) fn with_worker<R>(
     propagator: CovariancePropagator,
     mut worker_sys: System,
     method: Method,

@@ -17,7 +17,7 @@
 //! (with the predictive Gustafsson variant), and the Jacobian is kept while Newton converges
 //! fast (θ ≤ 1e-3) and the factorization while the step changes by less than 20 %.
 
-use super::integrator::{Accel, JacobianScratch, derivative, stage};
+use crate::predict::integrators::{Accel, JacobianScratch, derivative, stage};
 use super::radau_tableau::RadauCoefficients;
 use crate::error::{Error, Result};
 use crate::linalg::{lu_in_place, lu_solve};
@@ -487,4 +487,31 @@ fn accept(model: &Model, q: &mut [f64], v: &mut [f64], ws: &mut RadauWorkspace, 
     ws.qs.copy_from_slice(q);
     ws.vs.copy_from_slice(v);
     stage(model, &ws.qs, &ws.vs, &ws.z[2], q, v);
+}
+
+/// Radau IIA of order 5 with its embedded error estimate.
+pub struct Radau5;
+
+impl super::Integrator for Radau5 {
+    fn method(&self) -> super::Method {
+        super::Method::Radau5
+    }
+    fn order(&self) -> u32 {
+        5
+    }
+    fn evaluations_per_step(&self) -> Option<f64> {
+        None
+    }
+    fn is_adaptive(&self) -> bool {
+        true
+    }
+    fn is_implicit(&self) -> bool {
+        true
+    }
+    fn stability_limit(&self) -> Option<f64> {
+        None
+    }
+    fn linearized_as(&self) -> Option<super::Method> {
+        None
+    }
 }

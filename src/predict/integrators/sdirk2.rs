@@ -2,7 +2,7 @@
 //! step would have to be tiny: the stages solved by a simplified Newton iteration on the
 //! configuration Lie group, with the buffers of the shared [`StepWorkspace`] (integrator.rs).
 
-use super::integrator::{Accel, StepWorkspace, derivative, stage};
+use crate::predict::integrators::{Accel, StepWorkspace, derivative, stage};
 use crate::error::{Error, Result};
 use crate::linalg::{lu_in_place, lu_solve};
 use crate::model::Model;
@@ -163,4 +163,32 @@ fn sdirk2_stages<F: Accel>(
         }
     }
     Ok(most)
+}
+
+/// Alexander's two-stage L-stable SDIRK.
+pub struct Sdirk2;
+
+impl super::Integrator for Sdirk2 {
+    fn method(&self) -> super::Method {
+        super::Method::Sdirk2
+    }
+    fn order(&self) -> u32 {
+        2
+    }
+    /// Newton iterations per stage vary: counted while running.
+    fn evaluations_per_step(&self) -> Option<f64> {
+        None
+    }
+    fn is_adaptive(&self) -> bool {
+        false
+    }
+    fn is_implicit(&self) -> bool {
+        true
+    }
+    fn stability_limit(&self) -> Option<f64> {
+        None
+    }
+    fn linearized_as(&self) -> Option<super::Method> {
+        None
+    }
 }

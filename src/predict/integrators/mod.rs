@@ -3,8 +3,18 @@
 //! and a stage derivative is `k = (dexp⁻¹_{−Θ}(v), q̈)` ∈ R^{2nv}. Every buffer lives in a
 //! [`StepWorkspace`] sized once per model: a step allocates nothing.
 
-use super::lie::dexp_inv;
-pub use super::tableaus::{DOP853, DOPRI5, ErrorWeights, MAX_STAGES, RK4, Tableau};
+mod explicit;
+pub(in crate::predict) mod lie;
+pub(in crate::predict) mod radau;
+mod radau_tableau;
+pub(in crate::predict) mod sdirk2;
+
+use lie::dexp_inv;
+pub use explicit::{
+    DOP853, DOPRI5, MAX_STAGES, RK4, Tableau, explicit_step,
+    semi_implicit_euler_step,
+};
+pub(in crate::predict) use explicit::{dop853_error_norm, dopri5_error_norm};
 use crate::error::Result;
 use crate::model::Model;
 use nalgebra::DMatrix;
@@ -32,17 +42,22 @@ pub enum Method {
 }
 
 impl Method {
-    /// Order of the global error (error ∝ dt^p for fixed steps); DOPRI5's is that of its
-    /// propagated solution.
-    pub fn order(self) -> u32 {
+    /// What the rest of the prediction needs to know of this method.
+    pub fn integrator(self) -> &'static dyn Integrator {
         match self {
-            Method::SemiImplicitEuler => 1,
-            Method::Rk4 => 4,
-            Method::Dopri5 => 5,
-            Method::Dop853 => 8,
-            Method::Sdirk2 => 2,
-            Method::Radau5 => 5,
+            Method::SemiImplicitEuler => &explicit::SemiImplicitEuler,
+            Method::Rk4 => &explicit::Rk4,
+            Method::Dopri5 => &explicit::Dopri5,
+            Method::Dop853 => &explicit::Dop853,
+            Method::Sdirk2 => &sdirk2::Sdirk2,
+            Method::Radau5 => &radau::Radau5,
         }
+    }
+
+    /// Order of the global error (error ∝ dt^p for fixed steps); an embedded pair's is that of
+    /// its propagated solution.
+    pub fn order(self) -> u32 {
+        self.integrator().order()
     }
 
     /// The name a scene or the CLI uses.
@@ -59,17 +74,52 @@ impl Method {
 
     /// The step adapts to rtol/atol (`dt` is only the first step).
     pub fn is_adaptive(self) -> bool {
-        matches!(self, Method::Dopri5 | Method::Dop853 | Method::Radau5)
+        self.integrator().is_adaptive()
     }
 
     /// Explicit methods' stability limit of dt·|λ| on the imaginary axis (oscillators).
     pub fn explicit_stability_limit(self) -> Option<f64> {
-        match self {
-            Method::SemiImplicitEuler => Some(2.0),
-            Method::Rk4 => Some(2.8),
-            Method::Dopri5 | Method::Dop853 | Method::Sdirk2 | Method::Radau5 => None,
+        self.integrator().stability_limit()
+    }
+}
+
+/// How the error estimate's companion run is made finer than the answer (estimate.rs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ErrorEstimator {
+    /// Two companion steps of dt/2 per step: the error divides by 2^p.
+    HalvedStep,
+    /// The companion's rtol and atol divided by 2^p (the adaptive methods).
+    TightenedTolerances,
+}
+
+/// What the prediction loop, its work bound, its error estimate and its covariance know of an
+/// integration method; the steps themselves are the family's functions, generic over the
+/// right-hand side ([`Accel`]) so that a dynamics evaluation is inlined into its stages.
+pub trait Integrator: Sync {
+    /// The method a scene names.
+    fn method(&self) -> Method;
+    /// Order p of the global error (∝ dt^p).
+    fn order(&self) -> u32;
+    /// Right-hand-side evaluations per step of a fixed-step method, counted before running;
+    /// None where the step adapts or iterates (counted while running).
+    fn evaluations_per_step(&self) -> Option<f64>;
+    /// The step adapts to rtol/atol (`dt` is only the first step).
+    fn is_adaptive(&self) -> bool;
+    /// The stages are implicit (a Newton iteration on the step's Jacobian).
+    fn is_implicit(&self) -> bool;
+    /// The stability region's extent along the imaginary axis, dt·|λ| (undamped oscillators), for
+    /// the explicit methods; None for the L-stable implicit ones.
+    fn stability_limit(&self) -> Option<f64>;
+    /// How the error estimate's companion is refined.
+    fn error_estimator(&self) -> ErrorEstimator {
+        match self.is_adaptive() {
+            true => ErrorEstimator::TightenedTolerances,
+            false => ErrorEstimator::HalvedStep,
         }
     }
+    /// The method whose step the covariance linearizes over chunks of this method's steps
+    /// (covariance/chunks.rs); None where the step's sensitivity is not implemented.
+    fn linearized_as(&self) -> Option<Method>;
 }
 
 /// q̈ = f(t, q, v), and its Jacobian for the implicit methods.
@@ -145,12 +195,12 @@ pub fn accel_jacobian_fd<F: Accel + ?Sized>(
 #[derive(Clone, Debug, Default)]
 pub struct StepWorkspace {
     /// Stage derivatives k_i (2nv each), up to 12 stages (DOP853).
-    pub(super) ks: Vec<Vec<f64>>,
-    pub(super) qs: Vec<f64>,
-    pub(super) vs: Vec<f64>,
-    pub(super) dx: Vec<f64>,
-    pub(super) q0: Vec<f64>,
-    pub(super) v0: Vec<f64>,
+    pub(in crate::predict) ks: Vec<Vec<f64>>,
+    pub(in crate::predict) qs: Vec<f64>,
+    pub(in crate::predict) vs: Vec<f64>,
+    pub(in crate::predict) dx: Vec<f64>,
+    pub(in crate::predict) q0: Vec<f64>,
+    pub(in crate::predict) v0: Vec<f64>,
     /// Embedded error vector (Θ, Δv) of the last DOPRI5 step, DOP853's 5th-order one (2nv).
     pub err: Vec<f64>,
     /// DOP853's 3rd-order error vector (2nv).
@@ -158,18 +208,18 @@ pub struct StepWorkspace {
     /// SDIRK2: ∂k/∂(Θ, v) (analytic, or finite differences), its LU (I − dt γ ∂k/∂x), pivots, residual.
     /// `jac` is kept across steps while Newton converges (`jac_valid`); `newton` is refactored
     /// from it when dt moves by more than rounding (`newton_dt`).
-    pub(super) jac: DMatrix<f64>,
-    pub(super) newton: DMatrix<f64>,
-    pub(super) piv: Vec<usize>,
-    pub(super) resid: Vec<f64>,
-    pub(super) a0: Vec<f64>,
-    pub(super) scratch: JacobianScratch,
+    pub(in crate::predict) jac: DMatrix<f64>,
+    pub(in crate::predict) newton: DMatrix<f64>,
+    pub(in crate::predict) piv: Vec<usize>,
+    pub(in crate::predict) resid: Vec<f64>,
+    pub(in crate::predict) a0: Vec<f64>,
+    pub(in crate::predict) scratch: JacobianScratch,
     /// dt of the factor in `newton`.
-    pub(super) newton_dt: f64,
+    pub(in crate::predict) newton_dt: f64,
     /// `jac` may be used (false: recompute it at the next step).
-    pub(super) jac_valid: bool,
+    pub(in crate::predict) jac_valid: bool,
     /// `jac` was computed at this step's start state (a Newton failure is then final).
-    pub(super) jac_fresh: bool,
+    pub(in crate::predict) jac_fresh: bool,
 }
 
 impl StepWorkspace {
@@ -221,7 +271,7 @@ impl StepWorkspace {
 }
 
 /// Stage state from the increment `dx = (Θ, Δv)`: q = q_n ⊕ Θ, v = v_n + Δv.
-pub(super) fn stage(
+pub(in crate::predict) fn stage(
     model: &Model,
     q: &[f64],
     v: &[f64],
@@ -237,7 +287,7 @@ pub(super) fn stage(
 }
 
 /// Stage derivative k = (dexp⁻¹_{−Θ}(v_s), q̈(q_s, v_s)).
-pub(super) fn derivative<F: Accel>(
+pub(in crate::predict) fn derivative<F: Accel>(
     f: &mut F,
     model: &Model,
     t: f64,
@@ -249,133 +299,4 @@ pub(super) fn derivative<F: Accel>(
     let nv = vs.len();
     dexp_inv(model, theta, vs, &mut k[..nv]);
     f.accel(t, qs, vs, &mut k[nv..])
-}
-
-/// `dx = dt Σ_j w_j k_j`.
-fn combine(dx: &mut [f64], ks: &[Vec<f64>], w: &[f64], dt: f64) {
-    dx.iter_mut().for_each(|x| *x = 0.0);
-    for (k, &a) in ks.iter().zip(w) {
-        if a != 0.0 {
-            for (d, kk) in dx.iter_mut().zip(k) {
-                *d += dt * a * kk;
-            }
-        }
-    }
-}
-
-/// One explicit RK step in place; with an embedded pair the error vector lands in `ws.err`.
-#[allow(clippy::too_many_arguments)]
-pub fn explicit_step<F: Accel>(
-    f: &mut F,
-    model: &Model,
-    tab: &Tableau,
-    t: f64,
-    dt: f64,
-    q: &mut [f64],
-    v: &mut [f64],
-    ws: &mut StepWorkspace,
-) -> Result<()> {
-    let s = tab.b.len();
-    for i in 0..s {
-        let (done, rest) = ws.ks.split_at_mut(i);
-        combine(&mut ws.dx, done, tab.a[i], dt);
-        stage(model, q, v, &ws.dx, &mut ws.qs, &mut ws.vs);
-        derivative(
-            f,
-            model,
-            t + tab.c[i] * dt,
-            &ws.dx[..v.len()],
-            &ws.qs,
-            &ws.vs,
-            &mut rest[0],
-        )?;
-    }
-    match tab.error {
-        ErrorWeights::None => {}
-        ErrorWeights::Embedded(bh) => {
-            ws.err.iter_mut().for_each(|x| *x = 0.0);
-            for (k, (&b, &b2)) in ws.ks.iter().zip(tab.b.iter().zip(bh)) {
-                for (e, kk) in ws.err.iter_mut().zip(k) {
-                    *e += dt * (b - b2) * kk;
-                }
-            }
-        }
-        ErrorWeights::Dop853 { e5, e3 } => {
-            combine(&mut ws.err, &ws.ks[..s], e5, dt);
-            combine(&mut ws.err3, &ws.ks[..s], e3, dt);
-        }
-    }
-    combine(&mut ws.dx, &ws.ks[..s], tab.b, dt);
-    ws.save(q, v);
-    stage(model, &ws.q0, &ws.v0, &ws.dx, q, v);
-    Ok(())
-}
-
-/// Semi-implicit Euler step in place: v⁺ = v + dt q̈(q, v), q⁺ = q ⊕ dt v⁺.
-pub fn semi_implicit_euler_step<F: Accel>(
-    f: &mut F,
-    model: &Model,
-    t: f64,
-    dt: f64,
-    q: &mut [f64],
-    v: &mut [f64],
-    ws: &mut StepWorkspace,
-) -> Result<()> {
-    f.accel(t, q, v, &mut ws.a0)?;
-    for i in 0..v.len() {
-        v[i] += dt * ws.a0[i];
-    }
-    ws.q0.copy_from_slice(q);
-    model.integrate(&ws.q0, v, dt, q);
-    Ok(())
-}
-
-/// RMS of the DOPRI5 error scaled by atol + rtol·|x| (1 for configuration rows, |v| for velocity).
-pub(super) fn dopri5_error_norm(
-    step: &StepWorkspace,
-    v: &[f64],
-    s: &super::IntegrationSettings,
-) -> f64 {
-    let nv = v.len();
-    let (v_old, e) = (step.saved_v(), &step.err);
-    let sum: f64 = e
-        .iter()
-        .enumerate()
-        .map(|(i, ei)| {
-            let x = if i < nv {
-                1.0
-            } else {
-                v_old[i - nv].abs().max(v[i - nv].abs())
-            };
-            (ei / (s.atol + s.rtol * x)).powi(2)
-        })
-        .sum();
-    (sum / e.len().max(1) as f64).sqrt()
-}
-
-/// DOP853's error norm (Hairer's dop853.f): with e5, e3 the RMS-free sums of (err/scale)² of the
-/// 5th- and 3rd-order estimates, `e5 / √((e5 + 0.01 e3) · n)`: the 5th-order estimate, damped
-/// where the two disagree; scale as DOPRI5's.
-pub(super) fn dop853_error_norm(
-    step: &StepWorkspace,
-    v: &[f64],
-    s: &super::IntegrationSettings,
-) -> f64 {
-    let nv = v.len();
-    let v_old = step.saved_v();
-    let (mut e5, mut e3) = (0.0, 0.0);
-    for i in 0..2 * nv {
-        let x = if i < nv {
-            1.0
-        } else {
-            v_old[i - nv].abs().max(v[i - nv].abs())
-        };
-        let sc = s.atol + s.rtol * x;
-        e5 += (step.err[i] / sc).powi(2);
-        e3 += (step.err3[i] / sc).powi(2);
-    }
-    if e5 == 0.0 && e3 == 0.0 {
-        return 0.0;
-    }
-    e5 / ((e5 + 0.01 * e3) * (2 * nv) as f64).sqrt()
 }

@@ -1,9 +1,14 @@
-//! Butcher tableaus of the explicit methods: RK4, Dormand–Prince 5(4) and Dormand–Prince 8(5,3)
-//! ("DOP853": Hairer, Nørsett & Wanner, Solving ODEs I, II.10; the coefficients of Hairer's
-//! dop853.f). Checked against their order conditions in the tests below.
+//! The explicit methods: semi-implicit Euler, and Runge–Kutta by Butcher tableau — RK4,
+//! Dormand–Prince 5(4) and Dormand–Prince 8(5,3) ("DOP853": Hairer, Nørsett & Wanner, Solving
+//! ODEs I, II.10; the coefficients of Hairer's dop853.f), their tableaus checked against the
+//! order conditions in the tests below — with the embedded pairs' error norms.
 
 // DOP853's coefficients are written as published (30 digits), beyond f64's 17.
 #![allow(clippy::excessive_precision)]
+
+use super::{Accel, Integrator, Method, StepWorkspace, derivative, stage};
+use crate::error::Result;
+use crate::model::Model;
 
 /// How a tableau estimates its local error.
 #[derive(Clone, Copy, Debug)]
@@ -239,6 +244,243 @@ pub const DOP853: Tableau = Tableau {
         1.0,
     ],
 };
+
+/// `dx = dt Σ_j w_j k_j`.
+fn combine(dx: &mut [f64], ks: &[Vec<f64>], w: &[f64], dt: f64) {
+    dx.iter_mut().for_each(|x| *x = 0.0);
+    for (k, &a) in ks.iter().zip(w) {
+        if a != 0.0 {
+            for (d, kk) in dx.iter_mut().zip(k) {
+                *d += dt * a * kk;
+            }
+        }
+    }
+}
+
+/// One explicit RK step in place; with an embedded pair the error vector lands in `ws.err`.
+#[allow(clippy::too_many_arguments)]
+pub fn explicit_step<F: Accel>(
+    f: &mut F,
+    model: &Model,
+    tab: &Tableau,
+    t: f64,
+    dt: f64,
+    q: &mut [f64],
+    v: &mut [f64],
+    ws: &mut StepWorkspace,
+) -> Result<()> {
+    let s = tab.b.len();
+    for i in 0..s {
+        let (done, rest) = ws.ks.split_at_mut(i);
+        combine(&mut ws.dx, done, tab.a[i], dt);
+        stage(model, q, v, &ws.dx, &mut ws.qs, &mut ws.vs);
+        derivative(
+            f,
+            model,
+            t + tab.c[i] * dt,
+            &ws.dx[..v.len()],
+            &ws.qs,
+            &ws.vs,
+            &mut rest[0],
+        )?;
+    }
+    match tab.error {
+        ErrorWeights::None => {}
+        ErrorWeights::Embedded(bh) => {
+            ws.err.iter_mut().for_each(|x| *x = 0.0);
+            for (k, (&b, &b2)) in ws.ks.iter().zip(tab.b.iter().zip(bh)) {
+                for (e, kk) in ws.err.iter_mut().zip(k) {
+                    *e += dt * (b - b2) * kk;
+                }
+            }
+        }
+        ErrorWeights::Dop853 { e5, e3 } => {
+            combine(&mut ws.err, &ws.ks[..s], e5, dt);
+            combine(&mut ws.err3, &ws.ks[..s], e3, dt);
+        }
+    }
+    combine(&mut ws.dx, &ws.ks[..s], tab.b, dt);
+    ws.save(q, v);
+    stage(model, &ws.q0, &ws.v0, &ws.dx, q, v);
+    Ok(())
+}
+
+/// Semi-implicit Euler step in place: v⁺ = v + dt q̈(q, v), q⁺ = q ⊕ dt v⁺.
+pub fn semi_implicit_euler_step<F: Accel>(
+    f: &mut F,
+    model: &Model,
+    t: f64,
+    dt: f64,
+    q: &mut [f64],
+    v: &mut [f64],
+    ws: &mut StepWorkspace,
+) -> Result<()> {
+    f.accel(t, q, v, &mut ws.a0)?;
+    for i in 0..v.len() {
+        v[i] += dt * ws.a0[i];
+    }
+    ws.q0.copy_from_slice(q);
+    model.integrate(&ws.q0, v, dt, q);
+    Ok(())
+}
+
+/// RMS of the DOPRI5 error scaled by atol + rtol·|x| (1 for configuration rows, |v| for velocity).
+pub(in crate::predict) fn dopri5_error_norm(
+    step: &StepWorkspace,
+    v: &[f64],
+    s: &crate::predict::IntegrationSettings,
+) -> f64 {
+    let nv = v.len();
+    let (v_old, e) = (step.saved_v(), &step.err);
+    let sum: f64 = e
+        .iter()
+        .enumerate()
+        .map(|(i, ei)| {
+            let x = if i < nv {
+                1.0
+            } else {
+                v_old[i - nv].abs().max(v[i - nv].abs())
+            };
+            (ei / (s.atol + s.rtol * x)).powi(2)
+        })
+        .sum();
+    (sum / e.len().max(1) as f64).sqrt()
+}
+
+/// DOP853's error norm (Hairer's dop853.f): with e5, e3 the RMS-free sums of (err/scale)² of the
+/// 5th- and 3rd-order estimates, `e5 / √((e5 + 0.01 e3) · n)`: the 5th-order estimate, damped
+/// where the two disagree; scale as DOPRI5's.
+pub(in crate::predict) fn dop853_error_norm(
+    step: &StepWorkspace,
+    v: &[f64],
+    s: &crate::predict::IntegrationSettings,
+) -> f64 {
+    let nv = v.len();
+    let v_old = step.saved_v();
+    let (mut e5, mut e3) = (0.0, 0.0);
+    for i in 0..2 * nv {
+        let x = if i < nv {
+            1.0
+        } else {
+            v_old[i - nv].abs().max(v[i - nv].abs())
+        };
+        let sc = s.atol + s.rtol * x;
+        e5 += (step.err[i] / sc).powi(2);
+        e3 += (step.err3[i] / sc).powi(2);
+    }
+    if e5 == 0.0 && e3 == 0.0 {
+        return 0.0;
+    }
+    e5 / ((e5 + 0.01 * e3) * (2 * nv) as f64).sqrt()
+}
+
+/// Semi-implicit (symplectic) Euler.
+pub struct SemiImplicitEuler;
+/// Classical Runge–Kutta of order 4.
+pub struct Rk4;
+/// Dormand–Prince 5(4).
+pub struct Dopri5;
+/// Dormand–Prince 8(5,3).
+pub struct Dop853;
+
+impl Integrator for SemiImplicitEuler {
+    fn method(&self) -> Method {
+        Method::SemiImplicitEuler
+    }
+    fn order(&self) -> u32 {
+        1
+    }
+    fn evaluations_per_step(&self) -> Option<f64> {
+        Some(1.0)
+    }
+    fn is_adaptive(&self) -> bool {
+        false
+    }
+    fn is_implicit(&self) -> bool {
+        false
+    }
+    fn stability_limit(&self) -> Option<f64> {
+        Some(2.0)
+    }
+    fn linearized_as(&self) -> Option<Method> {
+        Some(Method::SemiImplicitEuler)
+    }
+}
+
+impl Integrator for Rk4 {
+    fn method(&self) -> Method {
+        Method::Rk4
+    }
+    fn order(&self) -> u32 {
+        4
+    }
+    fn evaluations_per_step(&self) -> Option<f64> {
+        Some(4.0)
+    }
+    fn is_adaptive(&self) -> bool {
+        false
+    }
+    fn is_implicit(&self) -> bool {
+        false
+    }
+    fn stability_limit(&self) -> Option<f64> {
+        Some(2.8)
+    }
+    fn linearized_as(&self) -> Option<Method> {
+        Some(Method::Rk4)
+    }
+}
+
+/// The embedded pairs' steps are set by a tolerance on the nominal trajectory; Φ of one
+/// covariance chunk needs the 4 stages of RK4 to reach the chunk check's accuracy where DOPRI5
+/// spends 6 and DOP853 12, and the check still holds every chunk to the recorded motion.
+impl Integrator for Dopri5 {
+    fn method(&self) -> Method {
+        Method::Dopri5
+    }
+    fn order(&self) -> u32 {
+        5
+    }
+    fn evaluations_per_step(&self) -> Option<f64> {
+        None
+    }
+    fn is_adaptive(&self) -> bool {
+        true
+    }
+    fn is_implicit(&self) -> bool {
+        false
+    }
+    fn stability_limit(&self) -> Option<f64> {
+        None
+    }
+    fn linearized_as(&self) -> Option<Method> {
+        Some(Method::Rk4)
+    }
+}
+
+impl Integrator for Dop853 {
+    fn method(&self) -> Method {
+        Method::Dop853
+    }
+    fn order(&self) -> u32 {
+        8
+    }
+    fn evaluations_per_step(&self) -> Option<f64> {
+        None
+    }
+    fn is_adaptive(&self) -> bool {
+        true
+    }
+    fn is_implicit(&self) -> bool {
+        false
+    }
+    fn stability_limit(&self) -> Option<f64> {
+        None
+    }
+    fn linearized_as(&self) -> Option<Method> {
+        Some(Method::Rk4)
+    }
+}
 
 #[cfg(test)]
 mod tests {

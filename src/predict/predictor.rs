@@ -1,0 +1,278 @@
+//! The predictor: a configuration built once from a scene, the workspace its runs reuse, and
+//! one entry point that takes a [`PredictRequest`] and returns a [`Trajectory`].
+//!
+//! The configuration ([`PredictorConfig`]: integration settings, process noise, the scene's
+//! controllers at rest and drift gains) never changes after it is built; what would change it
+//! builds a new predictor. A run owns its own state: the controllers' integrators start from the
+//! configuration's at every call, and the drift gains a run uses are resolved from the
+//! configuration, never saved and restored around it.
+
+use super::advance::JacobianWork;
+use super::covariance::UncertaintySpec;
+use super::covariance::worker::PipeSlot;
+use super::drift::DriftProjector;
+use super::estimate::{self, Lane, MAX_REFINEMENTS};
+use super::request::{IntegrationOverrides, PredictRequest, PredictionBudget};
+use super::settings::{DriftControl, IntegrationSettings};
+use super::trajectory::Trajectory;
+use crate::actuators::Actuators;
+use crate::algorithm::{crba, forward_kinematics};
+use crate::dynamics::Baumgarte;
+use crate::error::{Error, Result};
+use crate::forces::ForceElements;
+use crate::model::Model;
+use crate::system::System;
+use std::time::Instant;
+
+/// What a predictor is configured with, fixed once built.
+#[derive(Clone, Debug)]
+pub struct PredictorConfig {
+    /// `integration:` of the scene (validated).
+    pub(super) settings: IntegrationSettings,
+    /// `uncertainty:` of the scene (process noise of the covariance).
+    pub(super) uncertainty: UncertaintySpec,
+    /// The scene's controllers at rest: every run starts its own copy from these.
+    pub(super) actuators: Actuators,
+    /// The scene's own Baumgarte gains (`dynamics:`); zero gains under `drift: baumgarte` take
+    /// the time constant `baumgarte_steps` × dt of each run's step.
+    pub(super) gains: Baumgarte,
+    /// Propagate the covariance on a second thread when the machine has more than one core
+    /// (covariance/worker.rs; the same P to the bit).
+    pub(super) parallel_covariance: bool,
+}
+
+impl PredictorConfig {
+    /// The integration settings.
+    pub fn settings(&self) -> &IntegrationSettings {
+        &self.settings
+    }
+
+    /// The process noise of the covariance.
+    pub fn uncertainty(&self) -> &UncertaintySpec {
+        &self.uncertainty
+    }
+
+    /// The controllers' period [s], None without controllers.
+    pub fn control_period(&self) -> Option<f64> {
+        (!self.actuators.is_empty()).then_some(self.actuators.control_period)
+    }
+}
+
+/// Buffers of a run, sized once per model (the stepping loop allocates nothing).
+#[derive(Clone, Debug, Default)]
+pub(super) struct Workspace {
+    /// The answer (0) and the error estimate's companion (1) (estimate.rs).
+    pub(super) lanes: [Lane; 2],
+    /// Tangent-space difference of the two lanes' q (nv).
+    pub(super) diff: Vec<f64>,
+    /// Least-squares constrained accelerations at singular configurations.
+    pub(super) ls: DriftProjector,
+    pub(super) tau: Vec<f64>,
+    pub(super) tau_act: Vec<f64>,
+    /// The companion's own controllers and their torque: feedback acts on the state it is
+    /// computed from, so each lane closes its own loop (with the answer's torques the companion
+    /// would run open-loop and drift away along any unstable mode — an arm held up by its PD).
+    pub(super) companion_actuators: Actuators,
+    pub(super) tau_companion: Vec<f64>,
+    pub(super) zero: Vec<f64>,
+    /// The state and applied force at the start of a step (covariance propagation).
+    pub(super) qn: Vec<f64>,
+    pub(super) vn: Vec<f64>,
+    pub(super) tau_n: Vec<f64>,
+    /// The state the drift projection left with its rows evaluated (advance.rs, `RowsAt`).
+    pub(super) rows_q: Vec<f64>,
+    pub(super) rows_v: Vec<f64>,
+    /// The implicit methods' Jacobian (advance.rs).
+    pub(super) jw: JacobianWork,
+    /// Work units of one dynamics evaluation (`limits::evaluation_cost`).
+    pub(super) cost: f64,
+    /// The covariance worker's pipe while a run has one.
+    pub(super) pipe: PipeSlot,
+}
+
+/// A scene's predictor: an immutable [`PredictorConfig`] and the workspace of its runs.
+#[derive(Clone, Debug)]
+pub struct Predictor {
+    pub(super) config: PredictorConfig,
+    /// Model, constraints and the dynamics' workspaces.
+    pub(super) sys: System,
+    /// The scene's force elements (with their Jacobian scratch).
+    pub(super) forces: ForceElements,
+    /// The run's controllers: a copy of the configuration's, started afresh by every run.
+    pub(super) actuators: Actuators,
+    pub(super) covariance: Option<super::covariance::CovariancePropagator>,
+    pub(super) model: Model,
+    pub(super) ws: Workspace,
+}
+
+impl Predictor {
+    /// Build from its parts, validating the integration settings; no process noise (see
+    /// [`Predictor::with_uncertainty`]).
+    pub fn new(
+        sys: System,
+        forces: ForceElements,
+        actuators: Actuators,
+        settings: IntegrationSettings,
+    ) -> Result<Self> {
+        settings.validate()?;
+        let model = sys.model.clone();
+        let (nq, nv) = (model.nq, model.nv);
+        let ws = Workspace {
+            lanes: [Lane::new(&sys), Lane::new(&sys)],
+            diff: vec![0.0; nv],
+            ls: DriftProjector::new(&sys),
+            tau: vec![0.0; nv],
+            tau_act: vec![0.0; nv],
+            companion_actuators: Actuators::default(),
+            tau_companion: vec![0.0; nv],
+            zero: vec![0.0; nv],
+            qn: vec![0.0; nq],
+            vn: vec![0.0; nv],
+            tau_n: vec![0.0; nv],
+            rows_q: vec![0.0; nq],
+            rows_v: vec![0.0; nv],
+            cost: crate::limits::evaluation_cost(&model),
+            jw: JacobianWork::new(&sys),
+            pipe: PipeSlot::default(),
+        };
+        let config = PredictorConfig {
+            settings,
+            uncertainty: UncertaintySpec::default(),
+            actuators: actuators.clone(),
+            gains: sys.baumgarte,
+            parallel_covariance: true,
+        };
+        Ok(Self {
+            config,
+            sys,
+            forces,
+            actuators,
+            covariance: None,
+            model,
+            ws,
+        })
+    }
+
+    /// The same predictor configured with the integration settings `edit` makes of these
+    /// (validated, naming the field).
+    pub fn with_settings(mut self, edit: impl FnOnce(&mut IntegrationSettings)) -> Result<Self> {
+        edit(&mut self.config.settings);
+        self.config.settings.validate()?;
+        Ok(self)
+    }
+
+    /// The same predictor with the covariance's process noise `uncertainty`.
+    pub fn with_uncertainty(mut self, uncertainty: UncertaintySpec) -> Self {
+        self.config.uncertainty = uncertainty;
+        self
+    }
+
+    /// The same predictor propagating the covariance beside the prediction on a second thread
+    /// (`true`, the default, where the machine has more than one core) or inline (`false`).
+    pub fn with_parallel_covariance(mut self, parallel: bool) -> Self {
+        self.config.parallel_covariance = parallel;
+        self
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &PredictorConfig {
+        &self.config
+    }
+
+    /// The robot model.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// The work budget of a request with these overrides: its settings (validated) and limits.
+    pub fn budget(&self, overrides: &IntegrationOverrides) -> Result<PredictionBudget> {
+        let control = match (self.config.control_period(), overrides.control_period) {
+            (Some(_), Some(p)) => Some(p),
+            (c, _) => c,
+        };
+        Ok(PredictionBudget::new(overrides.apply(&self.config.settings), control)?
+            .with_model(&self.model))
+    }
+
+    /// Propagate the request's start state over its horizon under its commands: samples of q,
+    /// v, the held actuator torques, residuals, energies, the error estimate, and on request
+    /// the constraint forces and the covariance. Checked before running: the state, the
+    /// commands and the work ([`PredictionBudget::check`]).
+    pub fn predict(&mut self, req: &PredictRequest) -> Result<Trajectory> {
+        let start = Instant::now();
+        crate::limits::check_input_state(&self.model, req.q0, req.v0, &self.ws.zero)?;
+        let budget = self.budget(&req.integration)?;
+        let horizon = budget.horizon(req.horizon);
+        budget.check(horizon)?;
+        for (t, c) in req.commands {
+            crate::error::check_finite("command time", &[*t])?;
+            self.actuators.check_command(c)?;
+        }
+        let control = budget.control_period();
+        let mut s = budget.settings().clone();
+        let mut refinements = 0;
+        let result = loop {
+            self.sys.baumgarte = self.drift_gains(&s);
+            match self.run(req, horizon, &s, control) {
+                // `adapt`: rerun with the step or tolerance the estimate asks for, bounded.
+                Err(Error::ErrorEstimateExceeded { t, estimate, .. })
+                    if s.adapt && refinements < MAX_REFINEMENTS =>
+                {
+                    s = estimate::refined(&s, estimate, t, horizon);
+                    PredictionBudget::new(s.clone(), control)?
+                        .with_model(&self.model)
+                        .check(horizon)?;
+                    refinements += 1;
+                }
+                r => break r,
+            }
+        };
+        let mut traj = result?;
+        traj.refinements = refinements;
+        traj.run_time_s = start.elapsed().as_secs_f64();
+        Ok(traj)
+    }
+
+    /// The Baumgarte gains of a run under `s`: the scene's, or under `drift: baumgarte` without
+    /// gains of its own, the time constant `baumgarte_steps` × dt.
+    fn drift_gains(&self, s: &IntegrationSettings) -> Baumgarte {
+        let scene = self.config.gains;
+        match s.drift == DriftControl::Baumgarte && scene == Baumgarte::default() {
+            true => Baumgarte::from_time_constant(s.baumgarte_steps * s.dt),
+            false => scene,
+        }
+    }
+
+    /// Refuse, before running, a fixed explicit step beyond the method's stability limit for the
+    /// stiffest spring or damper: dt·max(ω, d/m) from k (M⁻¹)_ii, d (M⁻¹)_ii per joint element.
+    pub(super) fn check_step_size(
+        &mut self,
+        q: &[f64],
+        v: &[f64],
+        s: &IntegrationSettings,
+    ) -> Result<()> {
+        let Some(limit) = s.method.integrator().stability_limit() else {
+            return Ok(());
+        };
+        let zero = vec![0.0; v.len()];
+        forward_kinematics(&self.sys.model, &mut self.sys.data, q, v, &zero);
+        let m = crba(&self.sys.model, &mut self.sys.data, q).clone();
+        let reg = m.diagonal().amax().max(1e-12) * 1e-12;
+        let minv = (m + nalgebra::DMatrix::identity(v.len(), v.len()) * reg)
+            .try_inverse()
+            .unwrap_or_default();
+        let rate = self.forces.max_rate(&self.sys.model, &self.sys.data, &minv);
+        if s.dt * rate > limit {
+            return Err(Error::StepTooLarge {
+                message: format!(
+                    "dt = {} s exceeds the {:?} stability limit {:.3e} s for the stiffest force element \
+                     (rate {rate:.3e} 1/s); use a smaller dt or method sdirk2",
+                    s.dt,
+                    s.method,
+                    limit / rate
+                ),
+            });
+        }
+        Ok(())
+    }
+}
