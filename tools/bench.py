@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
-"""Time this project beside compiled Pinocchio in one session and write docs/bench.md.
+"""Time this project beside compiled Pinocchio in one run and write docs/bench.md and README's table.
 
-    python3 tools/bench.py [--rounds N] [--out docs/bench.md]
+    python3 tools/bench.py [--rounds N] [--out docs/bench.md] [--readme README.md] [--no-readme]
+    python3 tools/bench.py --readme-only [--out docs/bench.md] [--readme README.md]
 
 1. the pinned venv of tools/robots/setup_venv.sh (Pinocchio 4.1.0 and example-robot-data from
    PyPI; reused when its stamp matches; $CD_ANCHORS_VENV, else .venv-anchors);
@@ -11,9 +12,14 @@
    `cargo bench --bench dynamics` (criterion) on the same robots, models and constraint sets
    (benches/robots.rs);
 4. the table: for each figure the best over the rounds, our criterion figure being its fastest
-   sample (a sample is a window of many calls, like bench_pin's), and ours / Pinocchio.
+   sample (a sample is a window of many calls, like bench_pin's), and ours / Pinocchio;
+5. README.md's short figures table, between the lines `<!-- bench:begin -->` and
+   `<!-- bench:end -->`, with the date and the machine (CPU model, cores) of the run.
 
-Only ratios from one session mean anything on a shared machine: both sides see the same load.
+`--readme-only` runs nothing: it parses the figures already in docs/bench.md (date, machine,
+rounds, Pinocchio version, the ratios table) and rewrites README.md's table from them.
+
+Only ratios from one run mean anything on a shared machine: both sides see the same load.
 Standard library only; opens no network connection besides the venv's pip (first run).
 """
 import argparse, datetime, json, os, pathlib, platform, re, subprocess, sys, time
@@ -37,6 +43,24 @@ ALGOS = [
      "constraintDynamics + computeConstraintDynamicsDerivatives"),
 ]
 PIN_NAMES = {"panda7": "panda"}
+README = ROOT / "README.md"
+BEGIN, END = "<!-- bench:begin -->", "<!-- bench:end -->"
+# README's short table: what each robot holds, and the figures it shows (our criterion ids).
+ROBOT_LABELS = {
+    "ur5": "ur5 (tool0 held)",
+    "panda": "panda (fingers locked, TCP held)",
+    "solo12": "solo12 (four point feet)",
+    "talos_reduced": "talos_reduced (two welded soles)",
+}
+README_COLS = [
+    ("fk", ["fk"]),
+    ("rnea", ["rnea"]),
+    ("crba", ["crba"]),
+    ("aba", ["aba"]),
+    ("constrained dynamics", ["constrained_dynamics"]),
+    ("rnea / aba / constrained derivatives",
+     ["rnea_derivatives", "aba_derivatives", "constrained_derivatives"]),
+]
 
 
 def run(cmd, **kw):
@@ -114,7 +138,7 @@ def table(pin, ours, version, loads, rounds, pin_text, rustc):
         "(PyPI `pin` wheel, its compiled `libpinocchio_default`, called from C++ by "
         "`../shared/tools/anchors/cpp/bench_pin.cpp`).",
         "",
-        f"Both sides in the same session ({rounds} round(s) of Pinocchio then ours; best per "
+        f"Both sides in the same run ({rounds} round(s) of Pinocchio then ours; best per "
         "figure over the rounds). Pinocchio: best of 100 windows of ~5 ms. Ours: criterion's "
         "fastest sample (each a window of many calls); the median is in the last column. "
         "Same URDFs, locked joints and constraint sets; random states drawn from the same "
@@ -160,11 +184,79 @@ def table(pin, ours, version, loads, rounds, pin_text, rustc):
     return "\n".join(lines)
 
 
+def parse_bench(text):
+    """The figures README's table needs, from a docs/bench.md that table() wrote."""
+    head = re.search(r"Written by `python3 tools/bench.py` on (\d{4}-\d\d-\d\d \d\d:\d\d UTC): "
+                     r"(.+?), (\d+) cores, ([^;]+); [^;]+; Pinocchio (\S+) ", text)
+    rounds = re.search(r"\((\d+) round\(s\)", text)
+    if not head or not rounds:
+        sys.exit("bench.md: no 'Written by ... on DATE: CPU, N cores, OS; rustc; Pinocchio V' "
+                 "line or no round count; regenerate it with python3 tools/bench.py")
+    date, cpu, cores, system, version = head.groups()
+    ratios, header = {}, None
+    for line in text.split("## Ratios", 1)[-1].splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if line.startswith("## "):
+            break
+        if cells[0] == "robot":
+            header = cells[1:]
+        elif header and cells[0] in ROBOTS:
+            ratios[cells[0]] = dict(zip(header, cells[1:]))
+    missing = [f"{r}/{a}" for r in ROBOTS for _, ids in README_COLS for a in ids
+               if a not in ratios.get(r, {})]
+    if missing:
+        sys.exit(f"bench.md: its ratios table lacks {', '.join(missing)}")
+    loaded = "Measured on a loaded" in text
+    return dict(date=date, cpu=cpu, cores=int(cores), system=system, version=version,
+                rounds=int(rounds.group(1)), ratios=ratios, loaded=loaded)
+
+
+def readme_table(fig):
+    """README's figures table (Markdown lines) from parse_bench's figures."""
+    load = " under load (other work ran: noisy)" if fig["loaded"] else ""
+    lines = [
+        "<!-- written by python3 tools/bench.py from docs/bench.md: do not edit -->",
+        f"Measured {fig['date']} on {fig['cpu']}, {fig['cores']} cores ({fig['system']}){load}; "
+        f"compiled Pinocchio {fig['version']}; best per figure over {fig['rounds']} round(s). "
+        "Times and medians: [docs/bench.md](docs/bench.md).",
+        "",
+        "| robot | " + " | ".join(name for name, _ in README_COLS) + " |",
+        "|---|" + "---|" * len(README_COLS),
+    ]
+    for r in ROBOTS:
+        cells = [" / ".join(fig["ratios"][r][a] for a in ids) for _, ids in README_COLS]
+        lines.append(f"| {ROBOT_LABELS[r]} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def write_readme(path, bench_text):
+    """Replace what lies between README's two bench markers; returns the new table."""
+    path = pathlib.Path(path)
+    text = path.read_text()
+    if text.count(BEGIN) != 1 or text.count(END) != 1 or text.index(BEGIN) > text.index(END):
+        sys.exit(f"{path}: needs one line {BEGIN} followed by one line {END}")
+    lines = readme_table(parse_bench(bench_text))
+    before, rest = text.split(BEGIN, 1)
+    after = rest.split(END, 1)[1]
+    path.write_text(before + BEGIN + "\n" + "\n".join(lines) + "\n" + END + after)
+    return "\n".join(lines)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--out", default=str(ROOT / "docs" / "bench.md"))
+    ap.add_argument("--out", default=str(ROOT / "docs" / "bench.md"),
+                    help="the full report (read, not written, with --readme-only)")
     ap.add_argument("--rounds", type=int, default=1)
+    ap.add_argument("--readme", default=str(README),
+                    help="the file whose table between the bench markers is rewritten")
+    ap.add_argument("--no-readme", action="store_true",
+                    help="write --out only, leave the README as it is")
+    ap.add_argument("--readme-only", action="store_true",
+                    help="run no benchmark: rewrite the README table from the figures in --out")
     args = ap.parse_args()
+    if args.readme_only:
+        print(write_readme(args.readme, pathlib.Path(args.out).read_text()))
+        return
     robots = robots_dir()
     bin_path = build_pin()
     env = dict(os.environ, CD_ROBOTS_DIR=str(robots))
@@ -196,6 +288,8 @@ def main():
     text = table(pin, ours, version, loads, args.rounds, pin_text, rustc)
     pathlib.Path(args.out).write_text(text)
     print(text)
+    if not args.no_readme:
+        write_readme(args.readme, text)
 
 
 if __name__ == "__main__":

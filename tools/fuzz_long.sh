@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Long fuzzing run (issue 15): every proptest fuzz target -- the core's tests/fuzz_hostile.rs and
+# Long fuzzing run: every proptest fuzz target -- the core's tests/fuzz_hostile.rs and
 # the nodes' nodes/tests/fuzz_requests.rs (handlers without DDS; no participant is opened) and the
 # CLI's file parsers (cli/src/fuzz_tests.rs) -- in a
 # loop with a new seed per round and PROPTEST_CASES large, at nice 19, until MINUTES are up.

@@ -115,7 +115,7 @@ fn backward(model: &Model, data: &mut Data, base_nv: usize) {
 
 /// A free-flyer base's six rows: its own block, the whole robot's composite inertia in the base
 /// frame `[[m 1, −[h]×], [[h]×, I]]` about the base origin, and each other column's force in
-/// the base frame. Out of line: the fixed-base robots' sweeps compile as they did without it.
+/// the base frame. Out of line, so that the fixed-base robots' sweeps compile without it.
 #[inline(never)]
 fn base_rows(model: &Model, data: &mut Data) {
     let nv = model.nv;
@@ -137,7 +137,7 @@ fn base_rows(model: &Model, data: &mut Data) {
     }
     // Column c's base rows: its force in the base frame, transformed in place, then written
     // as contiguous runs: rows 0..6 of column c, and row c of the first six columns (storing
-    // each entry twice, strided and bounds-checked, cost ≈ 750 of solo12's 8 400 instructions
+    // each entry twice, strided and bounds-checked, costs ≈ 750 of solo12's 8 400 instructions
     // after the kinematics).
     for f in data.f_crb.iter_mut().skip(6) {
         *f = o_m_b.act_inv_force(f);

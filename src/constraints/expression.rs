@@ -7,9 +7,9 @@
 //! model's `q_names` / `v_names`, e.g. `v:root_joint:vx_local`), read the usual mathematical
 //! way: `-x^2` is −(x²), `2^3^2` is 2⁹, `a/b*c` is (a/b)·c.
 //!
-//! We do not use exmex (0.21.0, used here before): it evaluated `sqrt(vx^2 + vy^2 + 1)` as
-//! `vx^2 + sqrt(vy^2 + 1)` (likewise `exp(a + b^2 + 2)`), with derivatives matching the misread
-//! f, so the difference checks could not see it. A grammar of five rules is small enough to own
+//! Not exmex: its 0.21.0 evaluates `sqrt(vx^2 + vy^2 + 1)` as `vx^2 + sqrt(vy^2 + 1)`
+//! (likewise `exp(a + b^2 + 2)`), with derivatives matching the misread f, so difference checks
+//! cannot see it. A grammar of five rules is small enough to own
 //! and test against closed forms, and it gives every syntax error a column.
 
 use super::expression_syntax::compile;

@@ -36,8 +36,8 @@ fn assert_rel(what: &str, got: &[f64], want: &[f64], tol: f64) {
     }
 }
 
-/// exmex 0.21.0 read this as `vx^2 + sqrt(vy^2 + 1)` (1.652 here instead of 1.591), and its
-/// derivatives were those of the misread f.
+/// exmex 0.21.0 reads this as `vx^2 + sqrt(vy^2 + 1)` (1.652 here instead of 1.591), with the
+/// derivatives of the misread f: the expression parser must not.
 #[test]
 fn sqrt_of_a_sum_with_powers_is_not_misparsed() {
     let (vx, vy) = (0.3f64, -1.2f64);
@@ -101,8 +101,8 @@ fn abs_has_the_sign_as_derivative_and_zero_at_the_kink() {
         let (f, g) = run("abs(x)", &["x"], &[x]);
         assert_eq!((f, g[0]), (a, d), "abs at {x}");
     }
-    // Inside a product: d/dvx (abs(vx - 0.2)*3) at the kink is 0, not NaN (the old
-    // `sqrt((X)^2)` rewrite gave NaN there).
+    // Inside a product: d/dvx (abs(vx - 0.2)*3) at the kink is 0, not NaN (as a
+    // `sqrt((X)^2)` rewrite of abs would give).
     let (f, g) = run("abs(vx - 0.2)*3", &["vx"], &[0.2]);
     assert_eq!((f, g[0]), (0.0, 0.0));
 }

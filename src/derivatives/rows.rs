@@ -145,7 +145,8 @@ pub(crate) fn register_constraint_forces(
             }
             Constraint::Weld(w) => WeldState::new(model, data, dd, w).register(dd, w, lam),
             Constraint::Coupling(_) => {}
-            // Refused by `supported` before any derivative is formed (issue 17 has none yet).
+            // Refused by `supported` before any derivative is formed (velocity-expression rows
+            // have no analytic derivatives).
             Constraint::Velocity(_) => {}
         }
     }
@@ -331,7 +332,8 @@ pub(crate) fn row_derivatives(
                     }
                 }
             }
-            // Refused by `supported` before any derivative is formed (issue 17 has none yet).
+            // Refused by `supported` before any derivative is formed (velocity-expression rows
+            // have no analytic derivatives).
             Constraint::Velocity(_) => {}
             // Constant rows: γ = 0 and J v, φ linear, so only K_p φ and K_d J v vary.
             Constraint::Coupling(_) => {

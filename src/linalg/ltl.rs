@@ -20,7 +20,7 @@ pub const NO_PARENT: usize = usize::MAX;
 ///   `L[k,k]² = M[k,k] − Σ_{d∈desc(k)} L[d,k]²`,
 ///   `L[k,i] = (M[k,i] − Σ_{d∈desc(k)} L[d,k] L[d,i]) / L[k,k]` for i an ancestor of k:
 /// every sum a dot product of two contiguous column segments, the tree walked only over the
-/// ancestors (the right-looking form walked it in its inner loop: 25 instructions per
+/// ancestors (a right-looking form walks it in its inner loop: 25 instructions per
 /// multiply-add on talos_reduced).
 pub fn ltl_factor(
     m: &mut DMatrix<f64>,

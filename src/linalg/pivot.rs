@@ -26,8 +26,8 @@ impl ColumnPivotedQr {
     /// whose entries are `entry(i, j)`, in pivot order, written to `out`.
     ///
     /// The pivot of each step is the column holding the largest |entry| of the remaining block
-    /// (the first in column-major order on ties: nalgebra's `col_piv_qr`, which this replaced, so
-    /// the partitions chosen are the same); a column counts while |r_kk| > `tol` · max |r_kk|.
+    /// (the first in column-major order on ties, as nalgebra's `col_piv_qr` picks, so the
+    /// partitions chosen are the same as with it); a column counts while |r_kk| > `tol` · max |r_kk|.
     /// Allocates only when the matrix is larger than the workspace.
     pub fn independent_columns(
         &mut self,

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# The floor under the 2 s horizon of the mobile manipulator (issue 16), in compiled Pinocchio:
+# The floor under the 2 s horizon of the mobile manipulator (its 10 ms budget), in compiled Pinocchio:
 # RK4 at 1 ms over 2 s with no constraints at all (tools/peers/horizon_pin.cpp).
 #   tools/peers/horizon_floor.sh [RUNS]
 # Uses the pinned venv of tools/robots/setup_venv.sh ($CD_ANCHORS_VENV, else .venv-anchors) and
 # ../shared/tools/anchors/cpp/build.sh's compiler flags; the binary is cached in target/anchors.
-# Compare with `cargo bench --bench horizon -- horizon/mobile_manipulator` in the same session.
+# Compare with `cargo bench --bench horizon -- horizon/mobile_manipulator` run right after, on the
+# same otherwise idle machine (docs/performance.md, "The 2 s horizon of the mobile manipulator").
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 venv=${CD_ANCHORS_VENV:-$root/.venv-anchors}

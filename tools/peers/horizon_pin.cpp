@@ -1,4 +1,4 @@
-// The floor under issue 16's horizon target, timed in compiled Pinocchio: the bundled mobile
+// The floor under the 2 s horizon's 10 ms budget, timed in compiled Pinocchio: the bundled mobile
 // manipulator (urdf/mobile_manipulator.urdf on a planar root joint, nq 10, nv 9) integrated over
 // 2 s at 1 ms by RK4 (2000 steps, 8000 evaluations), with NO constraints and no projection —
 // strictly less work than the constrained horizon of benches/horizon.rs. The right-hand side is

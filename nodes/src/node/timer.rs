@@ -63,17 +63,17 @@ impl RosTimer {
 
 /// Niceness of a periodic worker's thread: the predictor's predictions (tens of ms of CPU
 /// each) yield to the threads that serve requests, so a service call does not wait behind a
-/// prediction for a core (on two cores it did: see docs/nodes.md, "Load and churn").
+/// prediction for a core (on two cores it otherwise does: see docs/nodes.md, "Load and churn").
 pub(crate) const PERIODIC_NICE: i32 = 10;
 
 /// Time slice [ns] asked for a periodic worker's thread: the scheduler's minimum (Linux ≥ 6.12
 /// takes a fair thread's slice from `sched_attr.sched_runtime`, clamped to 0.1–100 ms; older
 /// kernels ignore it). Once picked, a thread runs its slice before a waking thread of the same
 /// class may preempt it (EEVDF's run-to-parity), so a request woken on the predictor's core
-/// waited up to the default slice (0.7 ms × (1 + log₂ cores)) behind a prediction. Measured
-/// (nodes/tests/suite_load.rs, idle 2-core VM, alternated runs): p99 of the service calls 1.39
-/// ms with the default 1.4 ms slice, 0.87–1.06 ms with this one; calls over 2 ms 829–868 →
-/// 363–542 of ~109 000; the predictor's rate the same (10 Hz).
+/// waits up to the slice behind a prediction: by default 0.7 ms × (1 + log₂ cores). Measured
+/// (nodes/tests/suite_load.rs, idle 2-core VM, alternated runs): p99 of the service calls
+/// 0.87–1.06 ms with this slice against 1.39 ms with the default 1.4 ms, calls over 2 ms 363–542
+/// against 829–868 of ~109 000, the predictor's rate 10 Hz with either.
 const PERIODIC_SLICE_NS: u64 = 100_000;
 
 /// `struct sched_attr` of sched_setattr(2), its first version (48 bytes).
@@ -95,7 +95,8 @@ struct SchedAttr {
 /// waking batch thread), [`PERIODIC_NICE`], its share of a busy core, and
 /// [`PERIODIC_SLICE_NS`], how long it holds a core against a waking request. Not `SCHED_IDLE`:
 /// under a steady request load that starves the predictor. A failure only costs latency, so it
-/// is ignored (without sched_setattr, the policy and niceness are set the older way).
+/// is ignored (without sched_setattr, sched_setscheduler and setpriority set the policy and
+/// niceness, and the slice stays the kernel's).
 pub(crate) fn lower_priority() {
     let attr = SchedAttr {
         size: std::mem::size_of::<SchedAttr>() as u32,

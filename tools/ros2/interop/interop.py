@@ -133,7 +133,7 @@ class User(Node):
     def wait_following(self, v, w, after, timeout=10.0):
         """The arrival time of the first predicted odometry after `after` whose twist is the fed
         (v, w): the feed has reached the predictor. Right after start-up, matching the feed's
-        publishers can take longer than the 0.3 s allowed before (a CI run predicted from rest)."""
+        publishers can take more than 0.3 s, and the predictions until then start from rest."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             with self.lock:
