@@ -6,19 +6,16 @@
 //! `adapt: true` meets the bound by itself.
 //! The table printed here (`--nocapture`) is the one in docs/propagation.md.
 
-#[path = "propagation_closed_forms.rs"]
+#[path = "common/closed_forms.rs"]
 mod closed_forms;
+mod common;
 
 use closed_forms::{a01_state, linear_modes, relative_chain_mass};
+use common::scene;
 use constraint_dynamics::forces::{ForceElements, ForcesSpec, JointSpringSpec};
 use constraint_dynamics::predict::{DriftControl, Method, Predictor, Trajectory};
 use constraint_dynamics::{Error, Scene};
 use nalgebra::{DMatrix, DVector};
-use std::path::PathBuf;
-
-fn scene(rel: &str) -> Scene {
-    Scene::load(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel)).unwrap()
-}
 
 /// `x` is dt for fixed-step methods, rtol = atol for dopri5; `max_error` off (the sweep
 /// measures the estimate wherever it lands).

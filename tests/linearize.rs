@@ -27,12 +27,6 @@ fn step_for(scene: &Scene) -> f64 {
     DT.min(10.0 * Predictor::from_scene(scene).unwrap().settings.dt)
 }
 
-fn perturbed(model: &Model, q: &[f64], dir: &[f64], h: f64) -> Vec<f64> {
-    let mut out = vec![0.0; q.len()];
-    model.integrate(q, dir, h, &mut out);
-    out
-}
-
 /// x⁺ of the step as a tangent vector at the unperturbed x⁺: (q⁺ ⊖ q⁺_ref, v⁺).
 fn step_out(
     sys: &mut System,

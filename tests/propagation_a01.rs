@@ -4,7 +4,7 @@
 //! test asserts 1e-4 m (2.5× the achieved error): a regression that loses most of the
 //! accuracy fails here long before it would fail the benchmark's bar.
 
-#[path = "propagation_closed_forms.rs"]
+#[path = "common/closed_forms.rs"]
 mod closed_forms;
 
 use closed_forms::a01_position;

@@ -18,25 +18,6 @@ fn load(rel: &str) -> Scene {
     Scene::load(repo_dir().join(rel)).unwrap_or_else(|e| panic!("{rel}: {e}"))
 }
 
-/// A scene from YAML text (the URDF path made absolute), loaded through a temporary file.
-fn scene_from(urdf: &str, base: &str, constraints: &str) -> Result<System, Error> {
-    let urdf = repo_dir().join("urdf").join(urdf);
-    let yaml = format!(
-        "urdf: {:?}\nbase: {base}\nconstraints:\n{constraints}",
-        urdf.display().to_string()
-    );
-    static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let path = std::env::temp_dir().join(format!(
-        "velocity_constraints_{}_{}.yaml",
-        std::process::id(),
-        N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
-    ));
-    std::fs::write(&path, yaml).unwrap();
-    let scene = Scene::load(&path);
-    let _ = std::fs::remove_file(&path);
-    System::from_scene(&scene?)
-}
-
 // ---------------------------------------------------------------------------------------------
 // Appell–Hamel: ż = a √(ẋ² + ẏ²), a point mass under gravity.
 // ---------------------------------------------------------------------------------------------

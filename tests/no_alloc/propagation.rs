@@ -12,8 +12,7 @@ use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::predict::{DriftControl, Method, Predictor};
 use std::path::PathBuf;
 
-#[path = "common/counting_alloc.rs"]
-mod counting_alloc;
+use crate::counting_alloc;
 use counting_alloc::allocations;
 
 /// Allocations of one prediction over `horizon` with two samples (t = 0 and the end).

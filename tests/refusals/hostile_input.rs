@@ -1,7 +1,8 @@
 //! Hostile numbers at the boundary (issue 15): every one is a typed error naming the input, or
 //! the results are finite — never NaN or ∞ out, never unbounded work.
 
-mod common;
+use crate::common;
+use common::assert_has;
 use constraint_dynamics::predict::{Method, Predictor};
 use constraint_dynamics::{Error, Scene, System};
 
@@ -26,12 +27,6 @@ fn system_err(name: &str, body: &str) -> String {
     match Scene::load(&p) {
         Err(e) => e.to_string(),
         Ok(s) => System::from_scene(&s).unwrap_err().to_string(),
-    }
-}
-
-fn assert_has(msg: &str, parts: &[&str]) {
-    for p in parts {
-        assert!(msg.contains(p), "error {msg:?} should mention {p:?}");
     }
 }
 
