@@ -244,7 +244,7 @@ fn check_constrained_scene(name: &str, scene: &Scene, rng: &mut Rng) -> (f64, Ve
         if s.constraints.nrows == 0 {
             return (0.0, vec![]);
         }
-        // Expression constraints (issue 17) have no analytic derivatives yet (Unsupported).
+        // Expression constraints have no analytic derivatives (Unsupported).
         if s.constraints
             .items
             .iter()

@@ -57,7 +57,7 @@ fn step_linearization_matches_finite_differences_on_every_bundled_scene() {
         let name = p.file_name().unwrap().to_string_lossy().to_string();
         let mut sys = System::from_scene(&scene).unwrap();
         let dt = step_for(&scene);
-        // Expression constraints (issue 17) have no analytic derivatives yet (Unsupported).
+        // Expression constraints have no analytic derivatives (Unsupported).
         if sys
             .constraints
             .items
@@ -176,7 +176,7 @@ fn linearized_step_is_the_predictors_step() {
             continue; // the predictor adds force elements and actuator torques to τ
         }
         let mut sys = System::from_scene(&scene).unwrap();
-        // Expression constraints (issue 17) have no analytic derivatives yet (Unsupported).
+        // Expression constraints have no analytic derivatives (Unsupported).
         if sys
             .constraints
             .items

@@ -295,7 +295,7 @@ fn a_horizon_of_1e5_steps_keeps_the_drift_bounded_with_projection() {
         assert_eq!(t.steps, 100_000);
         if drift == DriftControl::Projection {
             // Achieved |φ| 1.0e-12 m, |J v| 2.1e-14 m/s, |ΔE| 3.0e-10 J (|J v| 8.9e-16 when
-            // every step projected; a J v within 16 ε max(1, |v|) is now left as it is).
+            // every step is projected; a J v within 16 ε max(1, |v|) is left as it is).
             assert!(phi <= 5e-11, "|φ| {phi:e}");
             assert!(jv <= 5e-14, "|J v| {jv:e}");
             assert!(de <= 2e-8, "|ΔE| {de:e}");

@@ -1,4 +1,4 @@
-//! `kind: velocity` — f(q, v, t) = 0 written as an expression (issue 17), against independent
+//! `kind: velocity` — f(q, v, t) = 0 written as an expression, against independent
 //! sources: Appell–Hamel's closed form, the built-in rolling constraint (the seed's disk written
 //! as its eqs. (31), (32)), finite differences of the expression, and the error messages.
 //! Tolerances: the achieved figure (printed by `assert_close`, `-- --nocapture`) with a margin.

@@ -1,4 +1,4 @@
-//! The binary on hostile input (issue 15): absurd steps and horizons, an overflowing state, a
+//! The binary on hostile input: absurd steps and horizons, an overflowing state, a
 //! bad URDF number — each a one-line error on stderr and a failure exit, quickly, never a
 //! `null` in the JSON or a run that does not end.
 

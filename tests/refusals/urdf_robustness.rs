@@ -1,4 +1,4 @@
-//! The loader on real-robot habits and hostile values (issue 15): visual-only elements never
+//! The loader on real-robot habits and hostile values: visual-only elements never
 //! fail a load, inertia is judged on what moves, every bad number is located, an empty robot and
 //! a massless moving subtree say so, and a 5 000-link chain loads without recursion.
 
