@@ -13,7 +13,7 @@ use constraint_dynamics::constraints::ConstraintKind;
 use constraint_dynamics::predict::{
     DriftControl, Linearization, Method, Predictor, linearize_step,
 };
-use constraint_dynamics::{Model, Scene, System};
+use constraint_dynamics::{Scene, System};
 use nalgebra::{DMatrix, DVector};
 
 /// Achieved ≤ 1.4e-10 (the differences' own error), 7e-10 for B on Andrews' gram-scale bodies;

@@ -8,7 +8,7 @@ use common::*;
 use constraint_dynamics::constraints::ConstraintKind;
 use constraint_dynamics::dynamics::{Baumgarte, Formulation};
 use constraint_dynamics::predict::{DriftControl, Method, Predictor};
-use constraint_dynamics::{Error, Scene, System};
+use constraint_dynamics::{Scene, System};
 
 #[path = "common/counting_alloc.rs"]
 mod counting_alloc;
