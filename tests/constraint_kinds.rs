@@ -9,10 +9,6 @@ use constraint_dynamics::dynamics::{Baumgarte, Formulation};
 use constraint_dynamics::{BaseType, Model, ModelOptions, System};
 use nalgebra::{DMatrix, DVector, UnitQuaternion, Vector3};
 
-fn q_at(p: [f64; 3], rot: &UnitQuaternion<f64>) -> Vec<f64> {
-    vec![p[0], p[1], p[2], rot.i, rot.j, rot.k, rot.w]
-}
-
 fn weld(rpy: [f64; 3], xyz: [f64; 3]) -> ConstraintSpec {
     ConstraintSpec::Weld {
         name: "w".into(),

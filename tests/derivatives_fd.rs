@@ -38,12 +38,6 @@ impl Rng {
     }
 }
 
-fn perturbed(model: &Model, q: &[f64], dir: &[f64], h: f64) -> Vec<f64> {
-    let mut out = vec![0.0; q.len()];
-    model.integrate(q, dir, h, &mut out);
-    out
-}
-
 /// Richardson-extrapolated central differences of `f` along each unit direction of the input
 /// `x` (q when `on_q`, else a vector space), columns of the returned matrix.
 fn fd(
@@ -250,7 +244,7 @@ fn check_constrained_scene(name: &str, scene: &Scene, rng: &mut Rng) -> (f64, Ve
         if s.constraints.nrows == 0 {
             return (0.0, vec![]);
         }
-        // Expression constraints (issue 17) have no analytic derivatives yet (Unsupported).
+        // Expression constraints have no analytic derivatives (Unsupported).
         if s.constraints
             .items
             .iter()

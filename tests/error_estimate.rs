@@ -6,19 +6,16 @@
 //! `adapt: true` meets the bound by itself.
 //! The table printed here (`--nocapture`) is the one in docs/propagation.md.
 
-#[path = "propagation_closed_forms.rs"]
+#[path = "common/closed_forms.rs"]
 mod closed_forms;
+mod common;
 
 use closed_forms::{a01_state, linear_modes, relative_chain_mass};
+use common::scene;
 use constraint_dynamics::forces::{ForceElements, ForcesSpec, JointSpringSpec};
 use constraint_dynamics::predict::{DriftControl, Method, Predictor, Trajectory};
 use constraint_dynamics::{Error, Scene};
 use nalgebra::{DMatrix, DVector};
-use std::path::PathBuf;
-
-fn scene(rel: &str) -> Scene {
-    Scene::load(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel)).unwrap()
-}
 
 /// `x` is dt for fixed-step methods, rtol = atol for dopri5; `max_error` off (the sweep
 /// measures the estimate wherever it lands).
@@ -262,11 +259,10 @@ fn without_the_estimate_the_answer_is_unchanged_and_cheaper() {
 
 /// Closed-loop actuators: the companion closes its own controllers' loop. The mobile manipulator
 /// driving at 0.2 m/s with its arm held up by PD controllers against gravity (open loop it falls:
-/// an unstable mode). Under the answer's torques the companion drifted away along that mode and
-/// the estimate grew ×10 every 0.5 s, to 48 rad at 14.7 s, while runs at rtol 1e-8 and 1e-10 agree
-/// to 1e-13; with each lane's own controllers it stays at 3.7e-11 with DOPRI5 at rtol 1e-8, and
-/// at 2.2e-11 with the scene's method since session 12, RK4 at the 1 ms control period (asserted
-/// ≤ 1e-10).
+/// an unstable mode). Under the answer's torques the companion would drift away along that mode
+/// and the estimate grow ×10 every 0.5 s (48 rad at 14.7 s, while runs at rtol 1e-8 and 1e-10
+/// agree to 1e-13); with each lane's own controllers it stays at 3.7e-11 with DOPRI5 at rtol 1e-8,
+/// and at 2.2e-11 with the scene's method, RK4 at the 1 ms control period (asserted ≤ 1e-10).
 #[test]
 fn closed_loop_actuators_estimate_stays_small() {
     use constraint_dynamics::actuators::Command;

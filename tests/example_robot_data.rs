@@ -282,9 +282,9 @@ fn every_example_robot_loads_and_matches_pinocchio() {
 }
 
 /// icub's head is a point mass on a 3-axis neck: at q = 0 M is singular to working precision
-/// (pivot 1.4e-11 of its diagonal entry). Before the per-pivot check a fixed base returned
-/// q̈ = −2.8e9 rad/s² there; now both bases refuse that state, naming a coordinate, and a
-/// generic state evaluates to finite accelerations.
+/// (pivot 1.4e-11 of its diagonal entry): without a per-pivot check a fixed base would return
+/// q̈ = −2.8e9 rad/s² there. Both bases refuse that state, naming a coordinate, and a generic
+/// state evaluates to finite accelerations.
 #[test]
 #[ignore = "needs the anchors venv (pin, example-robot-data): run by tools/test.sh"]
 fn icub_point_mass_head_is_refused_where_m_is_singular() {

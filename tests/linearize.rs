@@ -13,7 +13,7 @@ use constraint_dynamics::constraints::ConstraintKind;
 use constraint_dynamics::predict::{
     DriftControl, Linearization, Method, Predictor, linearize_step,
 };
-use constraint_dynamics::{Model, Scene, System};
+use constraint_dynamics::{Scene, System};
 use nalgebra::{DMatrix, DVector};
 
 /// Achieved ≤ 1.4e-10 (the differences' own error), 7e-10 for B on Andrews' gram-scale bodies;
@@ -25,12 +25,6 @@ const DT: f64 = 0.01;
 
 fn step_for(scene: &Scene) -> f64 {
     DT.min(10.0 * Predictor::from_scene(scene).unwrap().settings.dt)
-}
-
-fn perturbed(model: &Model, q: &[f64], dir: &[f64], h: f64) -> Vec<f64> {
-    let mut out = vec![0.0; q.len()];
-    model.integrate(q, dir, h, &mut out);
-    out
 }
 
 /// x⁺ of the step as a tangent vector at the unperturbed x⁺: (q⁺ ⊖ q⁺_ref, v⁺).
@@ -63,7 +57,7 @@ fn step_linearization_matches_finite_differences_on_every_bundled_scene() {
         let name = p.file_name().unwrap().to_string_lossy().to_string();
         let mut sys = System::from_scene(&scene).unwrap();
         let dt = step_for(&scene);
-        // Expression constraints (issue 17) have no analytic derivatives yet (Unsupported).
+        // Expression constraints have no analytic derivatives (Unsupported).
         if sys
             .constraints
             .items
@@ -182,7 +176,7 @@ fn linearized_step_is_the_predictors_step() {
             continue; // the predictor adds force elements and actuator torques to τ
         }
         let mut sys = System::from_scene(&scene).unwrap();
-        // Expression constraints (issue 17) have no analytic derivatives yet (Unsupported).
+        // Expression constraints have no analytic derivatives (Unsupported).
         if sys
             .constraints
             .items

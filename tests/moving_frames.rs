@@ -9,10 +9,6 @@ use constraint_dynamics::dynamics::{Baumgarte, Formulation};
 use constraint_dynamics::{BaseType, Model, ModelOptions, System};
 use nalgebra::{DVector, UnitQuaternion};
 
-fn q_at(p: [f64; 3], rot: &UnitQuaternion<f64>) -> Vec<f64> {
-    vec![p[0], p[1], p[2], rot.i, rot.j, rot.k, rot.w]
-}
-
 /// Two free bodies: a on a floating base (m = 1 kg, I = diag(0.1, 0.2, 0.15)), b on a floating
 /// joint 0.5 m out along x (m = 2 kg, I = diag(0.3, 0.2, 0.25)), COMs at the link origins.
 fn pair() -> Model {

@@ -1,10 +1,10 @@
 //! IFToMM A01 high-precision bar: the simple pendulum (1 kg point mass, massless 1 m link, released
-//! horizontal) over 2000 s against the closed form (Jacobi's sn, `propagation_closed_forms.rs`) at
+//! horizontal) over 2000 s against the closed form (Jacobi's sn, `common/closed_forms.rs`) at
 //! every sample. The benchmark's bar is 1e-3 m; dopri5 at rtol 1e-11 reaches 3.94e-5 m, so the
 //! test asserts 1e-4 m (2.5× the achieved error): a regression that loses most of the
 //! accuracy fails here long before it would fail the benchmark's bar.
 
-#[path = "propagation_closed_forms.rs"]
+#[path = "common/closed_forms.rs"]
 mod closed_forms;
 
 use closed_forms::a01_position;

@@ -37,8 +37,8 @@ fn embedded_and_multiplier_propagations_agree_on_every_bundled_scene() {
         ("params/vertical_disk.yaml", 1.0, 5e-13), // 3.2e-18
         ("params/fourbar.yaml", 1.0, 2e-12),       // 3.3e-14
         ("params/slider_crank.yaml", 1.0, 2e-12),  // 3.2e-14
-        // 2.6e-13 since a velocity already on J v = 0 to rounding is not projected again (6.2e-15
-        // when every step's projection pulled both forms onto the same point).
+        // 2.6e-13: a velocity already on J v = 0 to rounding is not projected again (6.2e-15
+        // when every step's projection pulls both forms onto the same point).
         ("params/double_fourbar.yaml", 1.0, 5e-13),
         ("params/diff_drive.yaml", 1.0, 1e-15),         // 0
         ("params/mobile_manipulator.yaml", 1.0, 2e-11), // 4.0e-13

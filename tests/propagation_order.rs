@@ -4,18 +4,16 @@
 //! closure), a torque-free asymmetric rigid body on a free-flyer base (energy and world angular
 //! momentum, the Lie-group stepping on SE(3)), and DOPRI5 against its tolerance.
 
-#[path = "propagation_closed_forms.rs"]
+#[path = "common/closed_forms.rs"]
 mod closed_forms;
+mod common;
 
 use closed_forms::a01_position;
+use common::scene;
 use constraint_dynamics::Scene;
 use constraint_dynamics::predict::{DriftControl, Method, Predictor, Trajectory};
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 use std::path::PathBuf;
-
-fn scene(rel: &str) -> Scene {
-    Scene::load(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel)).unwrap()
-}
 
 fn run(
     sc: &Scene,

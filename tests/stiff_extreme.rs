@@ -2,20 +2,18 @@
 //! tolerance or returns the typed error it names — never NaN, never a panic, never a silent wrong
 //! answer. The measured numbers are printed (`--nocapture`) and tabled in docs/propagation.md.
 
-#[path = "propagation_closed_forms.rs"]
+#[path = "common/closed_forms.rs"]
 mod closed_forms;
+mod common;
 
 use closed_forms::{linear_modes, relative_chain_mass};
+use common::{scene, very_stiff_chain};
 use constraint_dynamics::constraints::ConstraintSpec;
-use constraint_dynamics::forces::{ForceElements, ForcesSpec, JointSpringSpec};
+use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::predict::{DriftControl, Method, Predictor, Trajectory};
 use constraint_dynamics::{Error, Scene};
 use nalgebra::{DMatrix, DVector};
 use std::path::PathBuf;
-
-fn scene(rel: &str) -> Scene {
-    Scene::load(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel)).unwrap()
-}
 
 fn predictor(sc: &Scene, method: Method, dt: f64, drift: DriftControl) -> Predictor {
     let mut p = Predictor::from_scene(sc).unwrap();
@@ -41,21 +39,6 @@ fn max_residuals(t: &Trajectory) -> (f64, f64) {
 
 fn energy(s: &constraint_dynamics::predict::Sample) -> f64 {
     s.kinetic_energy + s.potential_energy
-}
-
-/// The five-slider chain with springs 1e6, 1e7, 1e8, 1e7, 1e6 N/m on 0.1 kg masses.
-fn very_stiff_chain() -> (Scene, ForcesSpec) {
-    let sc = scene("params/report/spring_chain_stiff.yaml");
-    let mut spec = ForcesSpec::default();
-    for (i, k) in [1e6, 1e7, 1e8, 1e7, 1e6].into_iter().enumerate() {
-        spec.joint_springs.push(JointSpringSpec {
-            joint: format!("slider{}", i + 1),
-            stiffness: k,
-            damping: 0.0,
-            rest: 0.0,
-        });
-    }
-    (sc, spec)
 }
 
 /// Expected: springs of 1e6–1e8 N/m on 0.1 kg (fastest mode ≈ 4.5e4 rad/s) with an explicit
@@ -312,7 +295,7 @@ fn a_horizon_of_1e5_steps_keeps_the_drift_bounded_with_projection() {
         assert_eq!(t.steps, 100_000);
         if drift == DriftControl::Projection {
             // Achieved |φ| 1.0e-12 m, |J v| 2.1e-14 m/s, |ΔE| 3.0e-10 J (|J v| 8.9e-16 when
-            // every step projected; a J v within 16 ε max(1, |v|) is now left as it is).
+            // every step is projected; a J v within 16 ε max(1, |v|) is left as it is).
             assert!(phi <= 5e-11, "|φ| {phi:e}");
             assert!(jv <= 5e-14, "|J v| {jv:e}");
             assert!(de <= 2e-8, "|ΔE| {de:e}");

@@ -1,4 +1,4 @@
-//! `kind: velocity` — f(q, v, t) = 0 written as an expression (issue 17), against independent
+//! `kind: velocity` — f(q, v, t) = 0 written as an expression, against independent
 //! sources: Appell–Hamel's closed form, the built-in rolling constraint (the seed's disk written
 //! as its eqs. (31), (32)), finite differences of the expression, and the error messages.
 //! Tolerances: the achieved figure (printed by `assert_close`, `-- --nocapture`) with a margin.
@@ -8,7 +8,7 @@ use common::*;
 use constraint_dynamics::constraints::ConstraintKind;
 use constraint_dynamics::dynamics::{Baumgarte, Formulation};
 use constraint_dynamics::predict::{DriftControl, Method, Predictor};
-use constraint_dynamics::{Error, Scene, System};
+use constraint_dynamics::{Scene, System};
 
 #[path = "common/counting_alloc.rs"]
 mod counting_alloc;
@@ -16,25 +16,6 @@ use counting_alloc::allocations;
 
 fn load(rel: &str) -> Scene {
     Scene::load(repo_dir().join(rel)).unwrap_or_else(|e| panic!("{rel}: {e}"))
-}
-
-/// A scene from YAML text (the URDF path made absolute), loaded through a temporary file.
-fn scene_from(urdf: &str, base: &str, constraints: &str) -> Result<System, Error> {
-    let urdf = repo_dir().join("urdf").join(urdf);
-    let yaml = format!(
-        "urdf: {:?}\nbase: {base}\nconstraints:\n{constraints}",
-        urdf.display().to_string()
-    );
-    static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let path = std::env::temp_dir().join(format!(
-        "velocity_constraints_{}_{}.yaml",
-        std::process::id(),
-        N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
-    ));
-    std::fs::write(&path, yaml).unwrap();
-    let scene = Scene::load(&path);
-    let _ = std::fs::remove_file(&path);
-    System::from_scene(&scene?)
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-//! Fuzzing the CLI's input files (issue 15): the `--state` file (`eval`, `predict`), the
+//! Fuzzing the CLI's input files: the `--state` file (`eval`, `predict`), the
 //! `--commands` file and the `--covariance` file of `predict`, as mutated valid JSON (wrong
 //! types, numbers as strings, 1e308 and out-of-range numbers, null, missing and extra keys, deep
 //! nesting, wrong and huge lengths) through the parsers the commands call. Property: no panic,

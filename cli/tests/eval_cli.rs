@@ -147,7 +147,7 @@ fn eval_reports_bad_input_with_a_message_and_exit_code() {
     assert!(!ok && err.contains("q: expected 3 values, got 2"), "{err}");
 }
 
-/// `kind: velocity` through the binary (issue 17): λ of Appell–Hamel's ż = a √(ẋ² + ẏ²) at
+/// `kind: velocity` through the binary: λ of Appell–Hamel's ż = a √(ẋ² + ẏ²) at
 /// the scene's state is m g/(1 + a²) (closed form, docs/nonholonomic.md), and the generalized
 /// force (∂f/∂v)ᵀλ = λ (−a ẋ/s, −a ẏ/s, 1) on (vx_local, vy_local, vz_local), in N.
 #[test]

@@ -1,20 +1,16 @@
-//! The binary on hostile input (issue 15): absurd steps and horizons, an overflowing state, a
+//! The binary on hostile input: absurd steps and horizons, an overflowing state, a
 //! bad URDF number — each a one-line error on stderr and a failure exit, quickly, never a
 //! `null` in the JSON or a run that does not end.
 
-use std::process::Command;
+#[path = "../../tests/common/mod.rs"]
+mod common;
+use common::cli;
 use std::time::Instant;
-
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_constraint_dynamics"));
-    c.current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
-    c
-}
 
 /// Runs the binary, expects a failure whose stderr has every `part`, in under 2 s.
 fn refused(args: &[&str], parts: &[&str]) {
     let t = Instant::now();
-    let out = bin().args(args).output().unwrap();
+    let out = cli().args(args).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     println!("{args:?}: {err}");
     assert!(!out.status.success(), "accepted: {args:?}");

@@ -1,15 +1,10 @@
 //! The `predict` and `report --quick` subcommands end to end (the binary, JSON on stdout, files).
 
+#[path = "../../tests/common/mod.rs"]
+mod common;
+use common::cli;
 use serde_json::Value;
 use std::path::PathBuf;
-use std::process::Command;
-
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_constraint_dynamics"));
-    // Scene paths in the tests are relative to the repository root.
-    c.current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
-    c
-}
 
 #[test]
 fn predict_prints_the_trajectory_with_forces() {
@@ -17,7 +12,7 @@ fn predict_prints_the_trajectory_with_forces() {
     std::fs::create_dir_all(&dir).unwrap();
     let commands = dir.join("commands.json");
     std::fs::write(&commands, r#"[{"t": 0.0}, {"t": 0.05}]"#).unwrap();
-    let out = bin()
+    let out = cli()
         .args([
             "predict",
             "--scene",
@@ -43,7 +38,7 @@ fn predict_prints_the_trajectory_with_forces() {
     assert_eq!(samples[2]["rank_deficiency"], 0);
     assert!(samples[2]["position_residual"].as_f64().unwrap() < 1e-10);
 
-    let bad = bin()
+    let bad = cli()
         .args([
             "predict",
             "--scene",
@@ -64,7 +59,7 @@ fn predict_prints_the_trajectory_with_forces() {
 #[test]
 fn quick_report_writes_csv_png_and_summary() {
     let out_dir: PathBuf = std::env::temp_dir().join(format!("cd_report_{}", std::process::id()));
-    let out = bin()
+    let out = cli()
         .args(["report", "--quick", "--out"])
         .arg(&out_dir)
         .output()
@@ -129,7 +124,7 @@ fn every_bundled_scene_predicts_within_the_default_max_error() {
     scenes.sort();
     assert!(scenes.len() >= 15, "{scenes:?}");
     for scene in &scenes {
-        let mut cmd = bin();
+        let mut cmd = cli();
         cmd.args(["predict", "--scene", scene]);
         if scene.contains("spring_chain_stiff") {
             // A report scene without `integration:`: RK4's default 1 ms is refused before
@@ -173,14 +168,14 @@ fn predict_max_error_stops_or_adapts() {
         "--max-error",
         "1e-4",
     ];
-    let out = bin().args(args).output().unwrap();
+    let out = cli().args(args).output().unwrap();
     assert!(!out.status.success());
     let msg = String::from_utf8_lossy(&out.stderr);
     assert!(
         msg.contains("error estimate") && msg.contains("at t = ") && msg.contains("dt = "),
         "{msg}"
     );
-    let out = bin().args(args).arg("--adapt").output().unwrap();
+    let out = cli().args(args).arg("--adapt").output().unwrap();
     assert!(
         out.status.success(),
         "{}",

@@ -1,4 +1,4 @@
-//! Fuzzing every ROS request type without DDS (issue 15): the pure handlers the ROS plumbing
+//! Fuzzing every ROS request type without DDS: the pure handlers the ROS plumbing
 //! calls — `get_constraint_forces`, `project_velocity`, `filter_command`, `predict`, `rollouts` —
 //! and the predictor's inputs (joint states, odometry, twist commands, `/robot_description`
 //! text), fed hostile floats (NaN, ±∞, ±1e308, 1e-300, −0), wrong-length arrays (0, n−1, n+1, 10 000),

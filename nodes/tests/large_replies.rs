@@ -1,7 +1,7 @@
-//! Issue 12: service replies larger than one UDP datagram were never delivered (rustdds wrote a
-//! DATAFRAG with inline QoS — every fragmented reply carries a related sample identity — with a
-//! stray byte, and sent a reply just under the fragmentation threshold as one DATA larger than a
-//! datagram; patches/README.md). These tests run the suite and ask it for large `~/predict`
+//! Service replies larger than one UDP datagram arrive. Unpatched, rustdds delivers none: it
+//! writes a DATAFRAG with inline QoS — every fragmented reply carries a related sample identity —
+//! with a stray byte, and sends a reply just under the fragmentation threshold as one DATA larger
+//! than a datagram (patches/README.md). These tests run the suite and ask it for large `~/predict`
 //! replies, at loopback MTU 1 500 and 65 536, through
 //! - `constraint_dynamics_query` (ros2-client): replies around the datagram limits, then 20
 //!   consecutive ~420 kB replies (10 s horizon with forces) to one client;
@@ -99,7 +99,7 @@ fn summaries(out: &Output) -> Vec<Value> {
 /// Horizons around the datagram limits: without forces a reply is ~108 + 88 n bytes for n
 /// samples (every 20 ms), so 0.20–0.34 s straddles the fragmentation threshold at MTU 1 500 and
 /// 14.70–14.90 s the one at MTU 65 536; with forces (~840 B per sample) 1.50/1.54/1.60 s are
-/// the sizes of issue 12.
+/// sizes an unpatched rustdds does not deliver.
 /// Both tests set the namespace's loopback MTU and start a suite with the same node names: in
 /// one namespace (tools/test.sh runs every test inside one) they must not overlap, or each
 /// test's client is answered by the other's suite at the other's MTU (seen: "no response" at

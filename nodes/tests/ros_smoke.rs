@@ -24,6 +24,8 @@
 //! by `tools/test.sh` (`--include-ignored`). A missing prerequisite fails it,
 //! before any DDS participant is opened; nothing is skipped.
 
+mod common;
+
 use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -38,62 +40,23 @@ use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::{
 use constraint_dynamics_nodes::msg::geometry_msgs::{Point, Pose, Quaternion, Twist, Vector3};
 use constraint_dynamics_nodes::msg::nav_msgs::Odometry;
 use constraint_dynamics_nodes::msg::std_srvs::{Trigger, TriggerRequest, TriggerResponse};
-use constraint_dynamics_nodes::ros::context::{
-    NetworkConfig, RosNode, call_with_retry, in_loopback_only_namespace, qos,
-};
+use constraint_dynamics_nodes::ros::context::{NetworkConfig, RosNode, call_with_retry, qos};
 use ros2_client::NodeOptions;
 use serde_json::Value;
+
+use common::{block_on_timeout, in_namespace_or_reexec, peer_python, repo_root};
 
 const TEST_NAME: &str = "ros_smoke";
 const NODE: &str = "cd_smoke";
 const WAIT: Duration = Duration::from_secs(15);
 
-fn repo_root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
 #[test]
 #[ignore = "needs root and the peer venv: run by tools/test.sh"]
 fn ros_smoke() {
-    peer_python();
-    if in_loopback_only_namespace() {
+    peer_python(TEST_NAME);
+    if in_namespace_or_reexec(TEST_NAME) {
         run_smoke();
-        return;
     }
-    if std::env::var("CD_NETNS").as_deref() == Ok("1") {
-        panic!(
-            "CD_NETNS=1 but interfaces other than lo are visible: refusing to open a DDS participant"
-        );
-    }
-    // Not in a namespace: run this very test again inside a fresh one.
-    let can_unshare = Command::new("unshare")
-        .args(["-n", "true"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    assert!(
-        can_unshare,
-        "{TEST_NAME}: cannot create a network namespace (`unshare -n` needs root); no DDS \
-         participant was opened. Run it as root, e.g. through tools/test.sh."
-    );
-    let exe = std::env::current_exe().expect("test binary path");
-    let status = Command::new(repo_root().join("tools/ros2/netns_run.sh"))
-        .arg(exe)
-        // The test is #[ignore]d: the inner run must include it.
-        .args([
-            TEST_NAME,
-            "--exact",
-            "--include-ignored",
-            "--nocapture",
-            "--test-threads=1",
-        ])
-        .status()
-        .expect("run tools/ros2/netns_run.sh");
-    assert!(
-        status.success(),
-        "{TEST_NAME} inside the network namespace failed: {status}"
-    );
 }
 
 /// Publishes Odometry at 50 Hz and remembers what it sent.
@@ -181,14 +144,6 @@ fn echo(req: &GetConstraintForcesRequest) -> GetConstraintForcesResponse {
     c.wrench.force.x = req.v.iter().sum();
     resp.forces.constraints.push(c);
     resp
-}
-
-/// Runs `fut` on this thread with a time limit.
-fn block_on_timeout<T>(limit: Duration, fut: impl Future<Output = T>) -> Option<T> {
-    smol::block_on(smol::future::or(async { Some(fut.await) }, async {
-        smol::Timer::after(limit).await;
-        None
-    }))
 }
 
 fn median(xs: &mut [f64]) -> f64 {
@@ -346,7 +301,7 @@ fn run_smoke() {
     drop(peer);
 
     // ---- (b) rclpy and (c) Cyclone DDS ----------------------------------------------
-    let python = peer_python();
+    let python = peer_python(TEST_NAME);
     {
         let out = run_python(&python, "tools/ros2/peer_check.py", &[]);
         assert_eq!(out["ok"], true, "(b) peer_check.py: {out}");
@@ -398,22 +353,6 @@ fn run_smoke() {
 
     log.stop.store(true, Ordering::Relaxed);
     drop(node);
-}
-
-/// The peer venv's python (`CD_ROS2_VENV`, default `<repo>/.venv-ros2`); panics naming the
-/// fix when it is missing.
-fn peer_python() -> PathBuf {
-    let venv = std::env::var_os("CD_ROS2_VENV")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| repo_root().join(".venv-ros2"));
-    let python = venv.join("bin/python");
-    assert!(
-        python.exists(),
-        "{TEST_NAME}: no peer venv at {} (make it with tools/ros2/setup_peer_venv.sh, or run \
-         tools/test.sh, which does)",
-        venv.display()
-    );
-    python
 }
 
 /// Runs a peer script with the venv's python, with a time limit; returns the

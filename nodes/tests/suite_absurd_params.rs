@@ -1,4 +1,4 @@
-//! Absurd parameters at run time (issue 15): `horizon 1e9` on the predictor and `max_horizon
+//! Absurd parameters at run time: `horizon 1e9` on the predictor and `max_horizon
 //! 1e9` on the prediction service, set through the standard parameter services as
 //! `ros2 param set` does, are refused with the parameter and its range named; a horizon within
 //! the static range but beyond the scene's work limits is refused naming those limits; the
@@ -136,7 +136,7 @@ fn absurd_parameters_are_refused_and_sigint_stops_a_busy_suite() {
     // rate of the same order as a window before them (10 Hz asked; the CPU sets the rate:
     // compared, not assumed). An absurd horizon accepted would stop the paths (0 Hz); the
     // predictor's own rate at these defaults swings between 4.7 and 8.3 Hz on a 2-core VM
-    // (session 10: one run measured 8.3 Hz before, 4.7 after, 0.57), so the bar is 0.4.
+    // (one run measured 8.3 Hz before the refusals and 4.7 after, 0.57), so the bar is 0.4.
     let after = prediction_rate(&paths, Duration::from_secs(3));
     println!(
         "{TEST}: predictions {before:.1} Hz before the refusals, {after:.1} Hz after, each 1 s"

@@ -1,4 +1,4 @@
-//! Participant churn (issue 15): `CD_CHURN_PARTICIPANTS` (default 1 000) short-lived clients,
+//! Participant churn: `CD_CHURN_PARTICIPANTS` (default 1 000) short-lived clients,
 //! each its own DDS participant with one node — created, one `~/get_constraint_forces` call
 //! (sent again after 1.5 s without a reply, as a client should while discovery settles),
 //! dropped — four at a time. Asserted: every call answered; the suite's RSS growth from its RSS
@@ -6,10 +6,10 @@
 //! leak shows there), each reading after the suite's heap trim (nodes/src/ros/heap.rs); the suite
 //! still serves and stops on SIGINT in under 1 s.
 //!
-//! The leaks this found were in rustdds, fixed in `patches/rustdds` (patches/README.md): topic
-//! records, instances and key hashes of departed endpoints kept forever, SEDP caches of 4096
-//! samples per topic, and (session 13) the "attic" of endpoints of every participant that ever
-//! left without a disposal.
+//! The leaks it guards against are rustdds's, patched in `patches/rustdds` (patches/README.md):
+//! topic records, instances and key hashes of departed endpoints kept forever, SEDP caches of
+//! 4096 samples per topic, and the "attic" of endpoints of every participant that ever left
+//! without a disposal.
 
 mod common;
 
@@ -183,26 +183,16 @@ fn participant_churn_keeps_the_suite_bounded() {
         &failed[..failed.len().min(5)]
     );
     last.unwrap_or_else(|e| panic!("after the churn: {e}"));
-    // The issue asks for < 5 MB over 1 000. Without the heap trim: 7.2–10.1 MB, memory that
-    // glibc's arenas kept after DDS freed it (no owner above 0.2 kB in the heap, see
-    // docs/nodes.md); with it: 3.25–3.60 MB. Before the rustdds fixes (patches/README.md):
-    // 24 MB, 6.5 MB over the second 500. The second half — where a per-participant leak shows —
-    // is checked on its own. Until session 12 its first reading was taken before the departed
-    // participants' leases ended (−0.55 to +1.42 MB, biased low); read like the last one, it is
-    // +1.83 and +2.27 MB (3.7–4.7 kB per participant), and over 2 000 participants 2.93 MB for
-    // the first 1 000 and 3.02 MB for the next: a linear ~3 kB per participant of RSS, not
-    // bounded. Session 13 found the owner of its live share: rustdds's attic kept the endpoints
-    // of every participant whose lease expired (~1 kB each; heaptrack's ~1 kB per participant
-    // with no single owner above 0.4 kB), now only the last 64. Since: +0.61, +1.58, +0.70 and
-    // +1.24 MB over the second 500 (3.54–4.16 MB in all, was 4.37–4.75), and over 2 000
-    // participants +1.91 MB for the second 1 000 (was 3.02): less, but the rest still grows.
-    // Session 14: the suite's four Nodes each took part of the participant's status events,
-    // so matched-endpoint and ros_discovery_info records of departed participants were kept
-    // (~0.6 kB each, heaptrack); shared per Context and pruned (patches/ros2-client): growth
-    // 3.04, 3.53, 3.87, 4.49 MB (4.23 before, same session: RSS spreads, the live heap fell
-    // 3.01 → 2.04 MB); over 2 000, +0.94 MB for the second 1 000 (was 1.91). The bar, 2.5 MB,
-    // catches a regression beyond what was measured before the first of these fixes
-    // (docs/nodes.md).
+    // The bars. Over 1 000 participants, < 5 MB: measured 3.0–4.5 MB (RSS spreads from run to
+    // run); without the heap trim 7.2–10.1 MB, memory glibc's arenas keep after DDS frees it (no
+    // owner above 0.2 kB in the heap, see docs/nodes.md); without the rustdds fixes
+    // (patches/README.md) 24 MB. The second half — where a per-participant leak shows — is
+    // checked on its own, its first reading taken like the last, after the departed
+    // participants' leases end (read earlier it is biased low): measured +0.6 to +1.6 MB over
+    // the second 500, and +0.94 MB for the second 1 000 of 2 000 participants; without the
+    // rustdds fixes 6.5 MB, and ~3 kB per participant without the attic's bound (rustdds kept
+    // the endpoints of every participant whose lease expired) or the per-Context status events
+    // (patches/ros2-client). The bar, 2.5 MB, sits between the two (docs/nodes.md).
     let half = half.expect("the churn passed its half");
     let second_half_mb = (settled as f64 - half.1 as f64) / 1024.0;
     println!(

@@ -48,10 +48,6 @@ const SETTLE: f64 = 0.25;
 const WINDOW: f64 = 1.0;
 const MIN_CHECKED: usize = 10;
 
-fn yaw(q: &Quaternion) -> f64 {
-    (2.0 * (q.w * q.z + q.x * q.y)).atan2(1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-}
-
 fn wrap(a: f64) -> f64 {
     (a + std::f64::consts::PI).rem_euclid(2.0 * std::f64::consts::PI) - std::f64::consts::PI
 }

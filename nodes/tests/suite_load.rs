@@ -1,4 +1,4 @@
-//! Load (issue 15): two clients, each its own DDS participant (as two processes would be), call
+//! Load: two clients, each its own DDS participant (as two processes would be), call
 //! `~/get_constraint_forces` and `~/project_velocity` alternately at 1 kHz each for
 //! `CD_LOAD_SECONDS` (default 60 s) while the predictor predicts at 10 Hz. Asserted: every call
 //! answered (a call without a reply within 2 s counts as lost); p99 latency under the issue's
@@ -143,11 +143,11 @@ fn predictor_statuses(stop: Arc<AtomicBool>, t0: Instant) -> Vec<(f64, u8, Strin
 /// A call's critical path crosses at least two wake-ups that the machine can delay by its own
 /// tail (the server's executor woken by its DDS reader, the client woken by the reply; four
 /// threads in all), so its p99 cannot be below ~2 × the probe's. Measured (p99 of the calls
-/// against the probe's): 1.75 ms at 0.45 ms (idle VM), 3.0 at 1.0, 4.1 at 2.2 (session 10),
+/// against the probe's): 1.75 ms at 0.45 ms (idle VM), 3.0 at 1.0, 4.1 at 2.2,
 /// 9.2 at 5.6 (a CI run). A call that waits behind a prediction (tens of ms) fails it on any
-/// of these machines. Below the machine's tail, the issue's 2 ms: since the predictor's worker
-/// asks for the shortest time slice (`node::timer::lower_priority`), 0.87–1.06 ms at 0.25–0.27
-/// ms (6 runs on an idle VM; 1.39 ms at 0.30–0.33 ms without the slice, alternated with them).
+/// of these machines. Below the machine's tail the bar is 2 ms: with the predictor's worker on
+/// the shortest time slice (`node::timer::lower_priority`), 0.87–1.06 ms at 0.25–0.27 ms (6 runs
+/// on an idle VM; 1.39 ms at 0.30–0.33 ms without the slice, alternated with them).
 fn latency_bar_ms(noise99_ms: f64) -> f64 {
     2.0f64.max(1.5 + 2.0 * noise99_ms)
 }
@@ -323,10 +323,10 @@ fn two_clients_at_1khz_every_call_answered() {
         calls as f64 >= 0.6 * 2000.0 * measured_s,
         "only {calls} calls in {measured_s} s"
     );
-    // The issue's bar is 2 ms, and the machine's own tail beyond (`latency_bar_ms`). Before
-    // the predictor's worker ran at a lower priority (`node::timer::PERIODIC_NICE`) a call
-    // waited behind a prediction for a core and p99 was 2.8–4.7 ms at load average 9–13; since,
-    // 1.3 and 2.0 ms there; with its short slice, 0.87–1.06 ms on an idle VM. The figure is
+    // The bar is 2 ms, and the machine's own tail beyond (`latency_bar_ms`). With the
+    // predictor's worker at a lower priority (`node::timer::PERIODIC_NICE`) p99 is 1.3 and
+    // 2.0 ms at load average 9–13 (2.8–4.7 ms at equal priority: a call waits behind a
+    // prediction for a core); with its short slice, 0.87–1.06 ms on an idle VM. The figure is
     // printed and reported (docs/nodes.md).
     let bar = latency_bar_ms(noise99);
     assert!(
@@ -345,7 +345,7 @@ fn two_clients_at_1khz_every_call_answered() {
     // held, or a diagnostic says why not"). Its worker yields the CPU to the service threads by
     // design (`node::timer::PERIODIC_NICE`), and 2 000 calls/s take a share of the two cores:
     // the ratio was 0.79–0.86 on idle machines, 0.61 in a CI run with the scheduling tail
-    // above. Never starved (the issue: it stopped publishing): every 5 s window keeps a
+    // above. Never starved (it must not stop publishing): every 5 s window keeps a
     // quarter of that rate.
     let without = reference.min(after);
     let during = |t: f64| t > WARM_UP.as_secs_f64() && t <= seconds as f64;

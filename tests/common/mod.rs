@@ -2,10 +2,12 @@
 //! `../shared/reference/` (Pinocchio 4.1.0 numbers; never regenerated with this project's code).
 #![allow(dead_code)]
 
-use constraint_dynamics::{BaseType, Model, ModelOptions};
-use nalgebra::{DMatrix, DVector};
+use constraint_dynamics::forces::{ForcesSpec, JointSpringSpec};
+use constraint_dynamics::{BaseType, Error, Model, ModelOptions, Scene, System};
+use nalgebra::{DMatrix, DVector, UnitQuaternion};
 use serde_json::Value;
 use std::path::PathBuf;
+use std::process::Command;
 
 pub fn reference_dir() -> PathBuf {
     repo_dir().join("../shared/reference")
@@ -234,4 +236,73 @@ pub fn multiplier_system(
     use constraint_dynamics::dynamics::{Baumgarte, Formulation};
     let set = constraint_dynamics::constraints::ConstraintSet::new(&model, specs, q).unwrap();
     constraint_dynamics::System::new(model, set, Baumgarte::default(), Formulation::Multipliers)
+}
+
+/// Asserts that an error message mentions every one of `parts`.
+pub fn assert_has(msg: &str, parts: &[&str]) {
+    for p in parts {
+        assert!(msg.contains(p), "error {msg:?} should mention {p:?}");
+    }
+}
+
+/// A scene file of the repository (`rel` from its root), loaded.
+pub fn scene(rel: &str) -> Scene {
+    Scene::load(repo_dir().join(rel)).unwrap()
+}
+
+/// A scene from YAML text (the URDF path made absolute), loaded through a temporary file.
+pub fn scene_from(urdf: &str, base: &str, constraints: &str) -> Result<System, Error> {
+    let urdf = repo_dir().join("urdf").join(urdf);
+    let yaml = format!(
+        "urdf: {:?}\nbase: {base}\nconstraints:\n{constraints}",
+        urdf.display().to_string()
+    );
+    // One file per call: the tests run in parallel threads of one process.
+    static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let path = std::env::temp_dir().join(format!(
+        "scene_from_{}_{}.yaml",
+        std::process::id(),
+        N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+    ));
+    std::fs::write(&path, yaml).unwrap();
+    let scene = Scene::load(&path);
+    let _ = std::fs::remove_file(&path);
+    System::from_scene(&scene?)
+}
+
+/// A free-flyer's configuration: position `p`, orientation `rot` (x, y, z, w).
+pub fn q_at(p: [f64; 3], rot: &UnitQuaternion<f64>) -> Vec<f64> {
+    vec![p[0], p[1], p[2], rot.i, rot.j, rot.k, rot.w]
+}
+
+/// q moved by `h` along the tangent direction `dir` (on the configuration's group).
+pub fn perturbed(model: &Model, q: &[f64], dir: &[f64], h: f64) -> Vec<f64> {
+    let mut out = vec![0.0; q.len()];
+    model.integrate(q, dir, h, &mut out);
+    out
+}
+
+/// The five-slider chain with springs 1e6, 1e7, 1e8, 1e7, 1e6 N/m on 0.1 kg masses.
+pub fn very_stiff_chain() -> (Scene, ForcesSpec) {
+    let sc = scene("params/report/spring_chain_stiff.yaml");
+    let mut spec = ForcesSpec::default();
+    for (i, k) in [1e6, 1e7, 1e8, 1e7, 1e6].into_iter().enumerate() {
+        spec.joint_springs.push(JointSpringSpec {
+            joint: format!("slider{}", i + 1),
+            stiffness: k,
+            damping: 0.0,
+            rest: 0.0,
+        });
+    }
+    (sc, spec)
+}
+
+/// The CLI (`constraint_dynamics`, built for cli/tests only) run from the repository root: the
+/// tests' scene paths are relative to it.
+pub fn cli() -> Command {
+    let exe = option_env!("CARGO_BIN_EXE_constraint_dynamics")
+        .expect("the CLI binary is built for the CLI's own tests (cli/tests) only");
+    let mut c = Command::new(exe);
+    c.current_dir(repo_dir());
+    c
 }

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use constraint_dynamics_nodes::msg::RosService;
 use constraint_dynamics_nodes::msg::builtin_interfaces::Time;
-use constraint_dynamics_nodes::msg::geometry_msgs::{Twist, Vector3};
+use constraint_dynamics_nodes::msg::geometry_msgs::{Quaternion, Twist, Vector3};
 use constraint_dynamics_nodes::msg::nav_msgs::Odometry;
 use constraint_dynamics_nodes::msg::sensor_msgs::JointState;
 use constraint_dynamics_nodes::msg::std_msgs::StringMsg;
@@ -392,6 +392,11 @@ pub fn description_publisher(node: &mut TestNode) -> Publisher<StringMsg> {
     node.node
         .publisher("/robot_description", &qos::transient_local())
         .expect("robot_description publisher")
+}
+
+/// The yaw [rad] of an orientation: its rotation about z, in [−π, π].
+pub fn yaw(q: &Quaternion) -> f64 {
+    (2.0 * (q.w * q.z + q.x * q.y)).atan2(1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 }
 
 pub fn twist(v: f64, w: f64) -> Twist {

@@ -281,10 +281,10 @@ impl Tally {
 }
 
 /// The least share of a target's cases that must be answered, and refused. The rarest outcome,
-/// the predictor tick's refusals, came at 8.0 % of 512 cases and 4.9 % of 4 096 (session 18's
-/// `tools/fuzz_long.sh 30`, seed 797349, failed a 5 % bar with no other finding): 2 % is three
-/// standard deviations below it at 512 cases and still catches strategies that stop reaching an
-/// outcome.
+/// the predictor tick's refusals, comes at 8.0 % of 512 cases and 4.9 % of 4 096
+/// (`tools/fuzz_long.sh 30`, seed 797349, where a 5 % bar failed with no other finding): 2 % is
+/// three standard deviations below it at 512 cases and still catches strategies that stop
+/// reaching an outcome.
 pub const MIN_SHARE: f64 = 0.02;
 
 /// The share of cases whose drawn request is made valid before the call (`sanitized`): the

@@ -316,10 +316,6 @@ pub fn check_forces(
     Ok(())
 }
 
-pub fn yaw(q: &Quaternion) -> f64 {
-    (2.0 * (q.w * q.z + q.x * q.y)).atan2(1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-}
-
 pub fn pose_of(p: &Pose) -> [f64; 3] {
     [p.position.x, p.position.y, yaw(&p.orientation)]
 }

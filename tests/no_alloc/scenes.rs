@@ -3,14 +3,13 @@
 //! whose rolling contacts stack dependent rows, so the multipliers take the minimum-norm path),
 //! the rolling disk and the embedded form included.
 
-mod common;
+use crate::common;
 use common::*;
 use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::system::DynamicsOptions;
 use constraint_dynamics::{Scene, System};
 
-#[path = "common/counting_alloc.rs"]
-mod counting_alloc;
+use crate::counting_alloc;
 use counting_alloc::allocations;
 
 fn all_scenes() -> Vec<std::path::PathBuf> {

@@ -1,6 +1,7 @@
 //! Bad input gets an error that names the problem (file, element, key, frame, constraint).
 
-mod common;
+use crate::common;
+use common::assert_has;
 use constraint_dynamics::constraints::{ConstraintSet, ConstraintSpec};
 use constraint_dynamics::{Model, ModelOptions, Scene, System};
 
@@ -15,12 +16,6 @@ fn err(urdf: &str) -> String {
     Model::from_urdf_str(urdf, "test.urdf", &ModelOptions::default())
         .unwrap_err()
         .to_string()
-}
-
-fn assert_has(msg: &str, parts: &[&str]) {
-    for p in parts {
-        assert!(msg.contains(p), "error {msg:?} should mention {p:?}");
-    }
 }
 
 #[test]

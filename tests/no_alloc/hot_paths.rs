@@ -1,14 +1,13 @@
 //! The hot path allocates nothing: RNEA, CRBA, ABA, the bias forces and the constrained dynamics
 //! (multiplier form, full-rank constraints) run with a counting global allocator.
 
-mod common;
+use crate::common;
 use common::*;
 use constraint_dynamics::algorithm::*;
 use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
 use constraint_dynamics::dynamics::{Baumgarte, KktWorkspace, constrained_forward_dynamics};
 
-#[path = "common/counting_alloc.rs"]
-mod counting_alloc;
+use crate::counting_alloc;
 use counting_alloc::allocations;
 
 #[test]

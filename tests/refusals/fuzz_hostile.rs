@@ -1,10 +1,10 @@
-//! Fuzzing the boundary (issue 15): hostile URDF numbers and scene fields — NaN, ±∞, 1e308,
+//! Fuzzing the boundary: hostile URDF numbers and scene fields — NaN, ±∞, 1e308,
 //! 1e-300, −0, words that are not numbers — through load, one evaluation of the constraint
 //! forces and a short prediction. Property: no panic, and either a typed error or finite
 //! outputs (q̈, λ, Jᵀλ, every sample's q, v, energies).
 //!
 //! 512 cases by default with a fixed seed (`PROPTEST_CASES`, `PROPTEST_RNG_SEED` override); the
-//! longer run is documented in docs/testing.md. Each case replaces 1–4 of the template's
+//! longer run (tools/fuzz_long.sh) is described in docs/testing.md. Each case replaces 1–4 of the template's
 //! numbers, so most cases reach the dynamics with one bad value rather than stopping at the
 //! first check.
 

@@ -2,33 +2,13 @@
 //! fault), over-long expressions are refused by name, and states where the expression has no
 //! derivative are errors, not NaN accelerations.
 
-mod common;
+use crate::common;
 use common::*;
 use constraint_dynamics::error::ExpressionProblem;
 use constraint_dynamics::{Error, Scene, System};
 
-#[path = "common/counting_alloc.rs"]
-mod counting_alloc;
+use crate::counting_alloc;
 use counting_alloc::allocations;
-
-/// A scene from YAML text (the URDF path made absolute), loaded through a temporary file.
-fn scene_from(urdf: &str, base: &str, constraints: &str) -> Result<System, Error> {
-    let urdf = repo_dir().join("urdf").join(urdf);
-    let yaml = format!(
-        "urdf: {:?}\nbase: {base}\nconstraints:\n{constraints}",
-        urdf.display().to_string()
-    );
-    static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let path = std::env::temp_dir().join(format!(
-        "velocity_bad_input_{}_{}.yaml",
-        std::process::id(),
-        N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
-    ));
-    std::fs::write(&path, yaml).unwrap();
-    let scene = Scene::load(&path);
-    let _ = std::fs::remove_file(&path);
-    System::from_scene(&scene?)
-}
 
 // ---------------------------------------------------------------------------------------------
 // Malformed declarations are named.

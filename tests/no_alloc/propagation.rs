@@ -3,17 +3,16 @@
 //! constrained scene (fourbar, full-rank loop) and with force elements (stiff chain); and RK4 with
 //! projection in both formulations on the rank-deficient and rolling scenes (diff drive, mobile
 //! manipulator, rolling disk); closed-loop actuators following a command with a propagated
-//! covariance (each control tick cloned the command's maps and built a target list: 2
-//! allocations per tick before). The error estimate's companion run (two lanes sized once) is
-//! part of every prediction, so it is covered.
+//! covariance (a control tick must not clone the command's maps or build a target list). The
+//! error estimate's companion run (two lanes sized once) is part of every prediction, so it is
+//! covered.
 
 use constraint_dynamics::Scene;
 use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::predict::{DriftControl, Method, Predictor};
 use std::path::PathBuf;
 
-#[path = "common/counting_alloc.rs"]
-mod counting_alloc;
+use crate::counting_alloc;
 use counting_alloc::allocations;
 
 /// Allocations of one prediction over `horizon` with two samples (t = 0 and the end).

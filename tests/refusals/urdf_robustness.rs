@@ -1,8 +1,9 @@
-//! The loader on real-robot habits and hostile values (issue 15): visual-only elements never
+//! The loader on real-robot habits and hostile values: visual-only elements never
 //! fail a load, inertia is judged on what moves, every bad number is located, an empty robot and
 //! a massless moving subtree say so, and a 5 000-link chain loads without recursion.
 
-mod common;
+use crate::common;
+use common::assert_has;
 use constraint_dynamics::{BaseType, Model, ModelOptions, Scene, System};
 
 const ARM: &str = r#"<robot name="r">
@@ -15,12 +16,6 @@ const ARM: &str = r#"<robot name="r">
 
 fn load(urdf: &str) -> Result<Model, String> {
     Model::from_urdf_str(urdf, "t.urdf", &ModelOptions::default()).map_err(|e| e.to_string())
-}
-
-fn assert_has(msg: &str, parts: &[&str]) {
-    for p in parts {
-        assert!(msg.contains(p), "error {msg:?} should mention {p:?}");
-    }
 }
 
 #[test]
