@@ -252,7 +252,7 @@ impl Predictor {
 impl Scene {
     /// The work budget of this scene's predictions: `integration:` and the controllers'
     /// period, before a model is built (the ROS nodes check their parameters against it).
-    pub fn prediction_budget(&self) -> Result<PredictionBudget> {
+    pub fn prediction_budget(&self) -> PredictionBudget {
         PredictionBudget::new(
             self.file.integration.clone(),
             self.file.actuators.control_period_s(),

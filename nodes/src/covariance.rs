@@ -3,7 +3,7 @@
 //!
 //! The core propagates P over x = [δq; δv] (2nv × 2nv, velocity order), δq a **right**
 //! perturbation q ⊕ δq: for the base, δq is expressed in the **base** frame
-//! (`src/predict/covariance.rs`, `src/predict/lie.rs`). ROS states it differently (REP-103,
+//! (`src/predict/covariance.rs`, `src/predict/integrators/lie.rs`). ROS states it differently (REP-103,
 //! REP-105, `nav_msgs/Odometry`):
 //! - the pose covariance is over (x, y, z, rotation about X, Y, Z) of the **odom** frame — a
 //!   small displacement of the position and a small rotation about the fixed odom axes;

@@ -190,8 +190,10 @@ impl Predictor {
             (Some(_), Some(p)) => Some(p),
             (c, _) => c,
         };
-        Ok(PredictionBudget::new(overrides.apply(&self.config.settings), control)?
-            .with_model(&self.model))
+        Ok(
+            PredictionBudget::validated(overrides.apply(&self.config.settings), control)?
+                .with_model(&self.model),
+        )
     }
 
     /// Propagate the request's start state over its horizon under its commands: samples of q,
@@ -219,7 +221,7 @@ impl Predictor {
                     if s.adapt && refinements < MAX_REFINEMENTS =>
                 {
                     s = estimate::refined(&s, estimate, t, horizon);
-                    PredictionBudget::new(s.clone(), control)?
+                    PredictionBudget::new(s.clone(), control)
                         .with_model(&self.model)
                         .check(horizon)?;
                     refinements += 1;

@@ -105,7 +105,7 @@ pub struct IntegrationOverrides {
 }
 
 impl IntegrationOverrides {
-    /// `settings` with these changes (not validated: [`PredictionBudget::new`] does).
+    /// `settings` with these changes (not validated: [`PredictionBudget::validated`] does).
     pub fn apply(&self, settings: &IntegrationSettings) -> IntegrationSettings {
         let mut s = settings.clone();
         s.method = self.method.unwrap_or(s.method);
@@ -149,9 +149,19 @@ pub struct PredictionWork {
 }
 
 impl PredictionBudget {
-    /// The budget of `settings` (their fields validated, naming the field) with controllers
-    /// ticking every `control_period` [s] (None: no controllers).
-    pub fn new(settings: IntegrationSettings, control_period: Option<f64>) -> Result<Self> {
+    /// The budget of `settings` with controllers ticking every `control_period` [s] (None: no
+    /// controllers); [`PredictionBudget::validated`] also checks the fields.
+    pub fn new(settings: IntegrationSettings, control_period: Option<f64>) -> Self {
+        Self {
+            settings,
+            control_period,
+            evaluation_cost: None,
+        }
+    }
+
+    /// [`PredictionBudget::new`] with the settings' fields and the control period validated,
+    /// naming the field.
+    pub fn validated(settings: IntegrationSettings, control_period: Option<f64>) -> Result<Self> {
         settings.validate_fields()?;
         if let Some(p) = control_period
             && !(p.is_finite() && p > 0.0)
@@ -160,11 +170,7 @@ impl PredictionBudget {
                 "actuators.control_period = {p} s must be positive"
             )));
         }
-        Ok(Self {
-            settings,
-            control_period,
-            evaluation_cost: None,
-        })
+        Ok(Self::new(settings, control_period))
     }
 
     /// The same budget, bounding also the work units of `model`'s dynamics evaluations

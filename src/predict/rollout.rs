@@ -73,7 +73,7 @@ impl Predictor {
         let mut batch = single.settings().clone();
         batch.max_steps *= n;
         batch.max_samples *= n;
-        PredictionBudget::new(batch, single.control_period())?
+        PredictionBudget::new(batch, single.control_period())
             .with_model(self.model())
             .check(longest * n)?;
         let pool = rayon::ThreadPoolBuilder::new()

@@ -258,7 +258,7 @@ impl Predictor {
             t = t_end;
             if t >= next_sample - 1e-9 || t >= horizon - 1e-12 {
                 // P is read here: the recorded steps are linearized now (a chunk may span
-                // control ticks; covariance_chunks.rs checks that it reproduces them).
+                // control ticks; covariance/chunks.rs checks that it reproduces them).
                 if let Some(cov) = self.covariance.as_mut() {
                     self.sys.cdata.t = t;
                     cov.flush(&mut self.sys, s.method)?;

@@ -146,7 +146,7 @@ impl IntegrationSettings {
     /// Refuse settings that cannot work, naming the field, and a scene horizon over the work
     /// limits ([`PredictionBudget`](super::PredictionBudget)).
     pub fn validate(&self) -> crate::Result<()> {
-        super::PredictionBudget::new(self.clone(), None)?.check(self.horizon)?;
+        super::PredictionBudget::validated(self.clone(), None)?.check(self.horizon)?;
         Ok(())
     }
 

@@ -96,7 +96,7 @@ pub struct Trajectory {
     pub estimate_evaluations: usize,
     /// Linearized steps of the covariance propagation, tried ones included (0 without a
     /// start covariance): one per step where a stiff mode keeps the chunks to a single step
-    /// (covariance_chunks.rs).
+    /// (covariance/chunks.rs).
     pub covariance_linearizations: usize,
     /// Wall time spent propagating the covariance [s], part of `run_time_s`.
     pub covariance_time_s: f64,

@@ -1,6 +1,6 @@
 //! Bounds on the parameters that size a node's work, so that no value a parameter file or
-//! `ros2 param set` gives can make one cycle's work unbounded (issue 15: `horizon 1e9` was
-//! accepted and the predictor spun a core until killed).
+//! `ros2 param set` gives can make one cycle's work unbounded (a `horizon` of 1e9 s would spin
+//! a core until killed).
 //!
 //! Two layers, both refusing with the parameter and its range named:
 //! - static ranges, checked with every other value ([`super::KindParams::validate`]): `rate`,
@@ -10,13 +10,13 @@
 //!   run-time set): a prediction's steps (horizon / dt for the fixed-step methods, horizon /
 //!   `actuators.control_period`) within `integration.max_steps` and its samples (horizon /
 //!   `integration.sample_period`) within `integration.max_samples` — the core's own limits
-//!   (`IntegrationSettings::check_counts`), so a horizon the node accepts is one the core runs —
+//!   (`PredictionBudget::check`), so a horizon the node accepts is one the core runs —
 //!   and, for the periodic predictor, `rate` × steps per prediction within
 //!   `integration.max_steps` per second.
 
 use constraint_dynamics::Scene;
 use constraint_dynamics::limits::show;
-use constraint_dynamics::predict::IntegrationSettings;
+use constraint_dynamics::predict::{IntegrationSettings, PredictionBudget};
 
 use super::ParamsError;
 
@@ -72,69 +72,37 @@ pub(crate) fn in_range(
     ))
 }
 
-/// What one prediction on a scene may cost: the scene's integration settings and work limits,
-/// and its control period (actuated scenes).
+/// What one prediction on a scene may cost: the core's budget of the scene's predictions
+/// ([`PredictionBudget`]), capped by [`MAX_HORIZON`]; the node names the parameter it refuses.
 #[derive(Clone, Debug)]
 pub struct WorkBudget {
-    integration: IntegrationSettings,
-    control_period: Option<f64>,
+    core: PredictionBudget,
 }
 
 impl WorkBudget {
     /// The budget of `scene`'s predictions.
     pub fn of(scene: &Scene) -> WorkBudget {
-        let a = &scene.file.actuators;
-        let actuated = !a.velocity.is_empty() || !a.position.is_empty() || a.diff_drive.is_some();
         WorkBudget {
-            integration: scene.file.integration.clone(),
-            control_period: actuated.then(|| a.control_period.unwrap_or(0.001)),
+            core: scene.prediction_budget(),
         }
     }
 
     /// A budget from parts (tests).
     pub fn new(integration: IntegrationSettings, control_period: Option<f64>) -> WorkBudget {
         WorkBudget {
-            integration,
-            control_period,
+            core: PredictionBudget::new(integration, control_period),
         }
     }
 
-    /// The scene's default horizon [s] (`integration.horizon`).
-    pub fn scene_horizon(&self) -> f64 {
-        self.integration.horizon
+    /// The horizon of a prediction [s]: `requested`, or the scene's `integration.horizon`.
+    pub fn horizon(&self, requested: Option<f64>) -> f64 {
+        self.core.horizon(requested)
     }
 
-    /// Steps per second of predicted time: the finest of the fixed step (semi-implicit Euler,
-    /// RK4, SDIRK2; dopri5's `dt` is only its first step), the control period and the sample
-    /// period (dopri5 lands on every sample).
-    fn steps_per_second(&self) -> f64 {
-        let s = &self.integration;
-        let mut k = 1.0 / s.sample_period;
-        if !s.method.is_adaptive() {
-            k = k.max(1.0 / s.dt);
-        }
-        if let Some(p) = self.control_period {
-            k = k.max(1.0 / p);
-        }
-        k
-    }
-
-    /// The longest horizon one prediction may run [s]: the core's step and sample limits, and
-    /// at `rate` [Hz] also `rate` × steps per prediction ≤ `integration.max_steps` per second.
+    /// The longest horizon one prediction may run [s]: [`MAX_HORIZON`] and the core's
+    /// [`PredictionBudget::max_horizon`] at `rate` [Hz].
     pub fn max_horizon(&self, rate: Option<f64>) -> f64 {
-        let s = &self.integration;
-        let per_second = self.steps_per_second();
-        let mut h = MAX_HORIZON.min(s.max_samples * s.sample_period);
-        if !s.method.is_adaptive() {
-            h = h.min(s.max_steps * s.dt);
-        }
-        if let Some(p) = self.control_period {
-            h = h.min(s.max_steps * p);
-        }
-        if let Some(r) = rate {
-            h = h.min(s.max_steps / (r * per_second));
-        }
-        h
+        MAX_HORIZON.min(self.core.max_horizon(rate))
     }
 
     /// Refuses a `horizon` [s] (parameter `name`) over [`WorkBudget::max_horizon`], naming the
@@ -146,15 +114,11 @@ impl WorkBudget {
         rate: Option<f64>,
     ) -> Result<(), ParamsError> {
         let max = self.max_horizon(rate);
-        let counts = self
-            .integration
-            .check_counts(horizon, self.control_period)
-            .map_err(|e| e.to_string());
-        if horizon.is_finite() && horizon >= 0.0 && horizon <= max && counts.is_ok() {
+        if horizon <= max && self.core.check(horizon).is_ok() {
             return Ok(());
         }
-        let s = &self.integration;
-        let step = match (!s.method.is_adaptive(), self.control_period) {
+        let s = self.core.settings();
+        let step = match (!s.method.is_adaptive(), self.core.control_period()) {
             (true, Some(p)) => format!(
                 "integration.dt {} s, actuators.control_period {} s",
                 show(s.dt),

@@ -7,7 +7,7 @@ pub mod params;
 mod rollouts;
 pub mod ros;
 
-use constraint_dynamics::predict::{PredictOptions, Predictor};
+use constraint_dynamics::predict::{PredictRequest as CorePredictRequest, Predictor};
 use nalgebra::DMatrix;
 
 use crate::convert::{path_msg, time_plus};
@@ -187,16 +187,20 @@ impl PredictionNode {
             let base = self.robot.fallback_twist(cmd.fallback()?, &v);
             commands.push((0.0, self.robot.command(base, &q, cmd.hold_joints)));
         }
-        let opts = PredictOptions {
-            forces: req.with_forces,
-        };
-        self.predictor.start_covariance = match req.with_covariance {
+        let p0 = match req.with_covariance {
             true => Some(self.request_covariance(req, &q, now)?),
             false => None,
         };
+        let request = CorePredictRequest {
+            commands: &commands,
+            horizon: Some(req.horizon),
+            start_covariance: p0.as_ref(),
+            forces: req.with_forces,
+            ..CorePredictRequest::new(&q, &v)
+        };
         let traj = self
             .predictor
-            .predict_with(&q, &v, &commands, req.horizon, opts)
+            .predict(&request)
             .map_err(NodeError::core("prediction"))?;
         let frame = &common.frames.odom_frame;
         let path = path_msg(self.robot.model(), &traj, now, frame);

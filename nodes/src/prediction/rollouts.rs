@@ -2,7 +2,7 @@
 //! node's cores (`Predictor::rollouts`) — what a sampling planner (Nav2 MPPI) scores.
 
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::predict::RolloutOptions;
+use constraint_dynamics::predict::{IntegrationOverrides, PredictRequest, RolloutOptions};
 
 use super::PredictionNode;
 use crate::convert::{pose_msg, time_plus, twist_msg};
@@ -97,22 +97,23 @@ impl PredictionNode {
         }
         let opts = RolloutOptions {
             step: req.step,
-            forces: req.with_forces,
             threads: self.params.node.rollout_threads as usize,
         };
         // A planner's rollouts: no error-estimate companion (it doubles the work and the reply
         // has no place for it) and no covariance; the node's own predictions keep both.
-        let saved = (
-            self.predictor.settings.error_estimate,
-            self.predictor.start_covariance.take(),
-        );
-        self.predictor.settings.error_estimate = false;
-        let result = self.predictor.rollouts(&q, &v, &sequences, opts);
-        (
-            self.predictor.settings.error_estimate,
-            self.predictor.start_covariance,
-        ) = saved;
-        let trajectories = result.map_err(NodeError::core("rollouts"))?;
+        let request = PredictRequest {
+            integration: IntegrationOverrides {
+                error_estimate: Some(false),
+                adapt: Some(false),
+                ..IntegrationOverrides::default()
+            },
+            forces: req.with_forces,
+            ..PredictRequest::new(&q, &v)
+        };
+        let trajectories = self
+            .predictor
+            .rollouts(&request, &sequences, opts)
+            .map_err(NodeError::core("rollouts"))?;
         let model = self.robot.model();
         let mut reply = RolloutsResponse {
             success: true,

@@ -16,7 +16,9 @@ use std::time::{Duration, Instant};
 
 use constraint_dynamics::algorithm::frame_placement;
 use constraint_dynamics::applied::constraint_forces_at;
-use constraint_dynamics::predict::{PredictOptions, Predictor, Trajectory};
+use constraint_dynamics::forces::ForceElements;
+use constraint_dynamics::predict::{PredictRequest, Predictor, Trajectory};
+use constraint_dynamics::system::System;
 
 use crate::convert::{path_msg, pose_msg, time_plus, twist_msg};
 use crate::covariance::odometry_covariance;
@@ -63,6 +65,9 @@ pub enum PredictorInput {
 pub struct PredictorNode {
     robot: Robot,
     predictor: Predictor,
+    /// The system and force elements of the constraint forces at the start state (apart from
+    /// the predictor's, whose workspace its runs own).
+    start: (System, ForceElements),
     params: NodeParams<PredictorParams>,
     log: NodeLog,
     /// Latest (v, ω) command and when it arrived (ROS time: /clock under `use_sim_time`).
@@ -95,6 +100,9 @@ impl NodeLogic for PredictorNode {
     ) -> Result<Self, NodeError> {
         let predictor =
             Predictor::from_scene(robot.scene()).map_err(NodeError::core("predictor"))?;
+        let sys = System::from_scene(robot.scene()).map_err(NodeError::core("predictor"))?;
+        let forces = ForceElements::new(&sys.model, &robot.scene().file.forces)
+            .map_err(NodeError::core("predictor"))?;
         let nc = robot.scene().file.constraints.len();
         let start_covariance = StartCovariance::new(
             robot.model(),
@@ -104,6 +112,7 @@ impl NodeLogic for PredictorNode {
         Ok(PredictorNode {
             robot,
             predictor,
+            start: (sys, forces),
             params,
             log,
             last_command: None,
@@ -194,14 +203,6 @@ impl NodeLogic for PredictorNode {
 }
 
 impl PredictorNode {
-    /// Horizon of the periodic prediction [s]: the parameter, or the scene's.
-    fn horizon(&self) -> f64 {
-        match self.params.node.horizon {
-            h if h > 0.0 => h,
-            _ => self.robot.scene().file.integration.horizon,
-        }
-    }
-
     /// "odom stale (odom 0.62 s > state.timeout 0.5 s): predictions stopped".
     fn stale_message(&self, stale: &[String]) -> String {
         let state = &self.params.common.state;
@@ -247,34 +248,38 @@ impl PredictorNode {
         let cmd_params = &self.params.node.command;
         let base = command.or_else(|| self.robot.fallback_twist(cmd_params.fallback().ok()?, &v));
         let cmd = self.robot.command(base, &q, cmd_params.hold_joints);
-        let horizon = self.horizon();
-        if !horizon.is_finite() || horizon <= 0.0 {
-            return Err(NodeError::request(
-                "horizon",
-                format!("{horizon} s: set `horizon` or the scene's integration.horizon"),
-            ));
-        }
-        self.predictor.start_covariance = match self.params.node.covariance.propagate {
+        let p0 = match self.params.node.covariance.propagate {
             true => {
                 self.start_covariance
                     .nonzero_at(self.robot.model(), &q, self.robot.state(), age)
             }
             false => None,
         };
+        if self.params.node.horizon().is_none()
+            && self.predictor.config().settings().horizon <= 0.0
+        {
+            return Err(NodeError::request(
+                "horizon",
+                "0 s: set `horizon` or the scene's integration.horizon",
+            ));
+        }
+        let commands = [(0.0, cmd)];
+        let request = PredictRequest {
+            commands: &commands,
+            horizon: self.params.node.horizon(),
+            start_covariance: p0.as_ref(),
+            ..PredictRequest::new(&q, &v)
+        };
         let traj = self
             .predictor
-            .predict_with(&q, &v, &[(0.0, cmd)], horizon, PredictOptions::default())
+            .predict(&request)
             .map_err(NodeError::core("prediction"))?;
         let odom = self.odometry_at_horizon(&traj, now)?;
         let path = path_msg(self.robot.model(), &traj, now, &common.frames.odom_frame);
         // Forces at the start state, under the torques the controllers apply in the first tick.
         let tau = &traj.samples[0].actuator_torque;
-        let at = constraint_forces_at(
-            &mut self.predictor.sys,
-            &mut self.predictor.forces,
-            (0.0, &q, &v),
-            tau,
-        )
+        let (sys, force_elements) = &mut self.start;
+        let at = constraint_forces_at(sys, force_elements, (0.0, &q, &v), tau)
         .map_err(NodeError::core("constraint forces"))?;
         let forces = self.robot.forces_msg(
             common,
@@ -314,7 +319,7 @@ impl PredictorNode {
     ) -> (Option<MarkerArray>, Vec<(String, WrenchStamped)>) {
         let p = &self.params.node.markers;
         let common = &self.params.common;
-        let sys = &self.predictor.sys;
+        let sys = &self.start.0;
         // Frame axes → world at the start state (the forces' state).
         let rotation = |frame: &str| -> Option<markers::Rotation> {
             let id = sys.model.frame_id(frame).ok()?;

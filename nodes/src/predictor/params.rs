@@ -39,6 +39,13 @@ impl Default for PredictorParams {
     }
 }
 
+impl PredictorParams {
+    /// The horizon a prediction asks for [s]: the parameter, or None (0) for the scene's.
+    pub fn horizon(&self) -> Option<f64> {
+        (self.horizon > 0.0).then_some(self.horizon)
+    }
+}
+
 impl KindParams for PredictorParams {
     const DYNAMIC: &'static [&'static str] = &[
         "slip.",
@@ -67,14 +74,11 @@ impl KindParams for PredictorParams {
 
     /// The horizon (the scene's when 0) within the scene's limits, at `rate`.
     fn check_work(&self, budget: &WorkBudget) -> Result<(), ParamsError> {
-        let (name, horizon) = match self.horizon {
-            h if h > 0.0 => ("horizon", h),
-            _ => (
-                "horizon (0: the scene's integration.horizon)",
-                budget.scene_horizon(),
-            ),
+        let name = match self.horizon() {
+            Some(_) => "horizon",
+            None => "horizon (0: the scene's integration.horizon)",
         };
-        budget.check_horizon(name, horizon, Some(self.rate))
+        budget.check_horizon(name, budget.horizon(self.horizon()), Some(self.rate))
     }
 }
 

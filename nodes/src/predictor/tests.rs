@@ -204,7 +204,7 @@ fn predicted_pose_covariance_is_the_unicycle_closed_form() {
     // `/diagnostics` carries the tick's work — the covariance's linearized steps: the PI wheel
     // controllers, whose torque changes at every 1 ms control tick, refuse every chunk longer
     // than one step, so about one per step over the 1 s horizon; refused tries of longer
-    // chunks back off (covariance_chunks.rs): achieved 1 021, 1 951 before — and the reason
+    // chunks back off (covariance/chunks.rs): achieved 1 021, 1 951 before — and the reason
     // when a tick does not fit the period.
     let work = |n: &PredictorNode| {
         let d = n.diagnostics();

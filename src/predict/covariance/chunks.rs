@@ -225,7 +225,7 @@ impl CovariancePropagator {
         result
     }
 
-    /// [`Self::flush`] from a record kept elsewhere (a worker thread's, covariance_worker.rs),
+    /// [`Self::flush`] from a record kept elsewhere (a worker thread's, covariance/worker.rs),
     /// emptied after.
     pub(crate) fn flush_record(
         &mut self,

@@ -4,7 +4,7 @@
 //! `A = ∂x⁺/∂x` (2nv × 2nv) and `B = ∂x⁺/∂u` (2nv × nv).
 //!
 //! The step's own sensitivity, not the continuous Jacobian times dt: the variations are carried
-//! through every stage of the Munthe-Kaas Runge–Kutta step (integrator.rs) — the stage
+//! through every stage of the Munthe-Kaas Runge–Kutta step (integrators/mod.rs) — the stage
 //! configuration `q ⊕ Θ_i` (a perturbation δq moves to `Ad(Exp(−Θ_i)) δq + J_r(Θ_i) δΘ_i`), the
 //! stage accelerations by the analytic derivatives of the constrained dynamics
 //! ([`crate::derivatives`]), and the increments `dexp⁻¹_{−Θ}(v)` by the derivative of the same
@@ -341,7 +341,7 @@ fn finish_column(model: &crate::model::Model, lin: &mut Linearization, c: usize)
     }
 }
 
-/// An explicit Munthe-Kaas RK step (integrator.rs) with its variations, all seed columns at
+/// An explicit Munthe-Kaas RK step (integrators/mod.rs) with its variations, all seed columns at
 /// once as matrix products (the stage's Lie maps built once, [`StageMaps`]).
 fn explicit(
     sys: &mut System,

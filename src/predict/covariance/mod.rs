@@ -2,7 +2,7 @@
 //! own step sensitivity, with process noise, kept on the constraints.
 //!
 //! State x = (q, v) in the tangent space (δq a right perturbation q ⊕ δq, then δv), P 2nv × 2nv.
-//! Per linearized step of size h, `P ← A P Aᵀ + Q_h`, and where P is read (covariance_chunks.rs)
+//! Per linearized step of size h, `P ← A P Aᵀ + Q_h`, and where P is read (covariance/chunks.rs)
 //!
 //! `P ← T P Tᵀ`
 //!
@@ -12,7 +12,7 @@
 //!   closed-loop sensitivity by 10³, tests/covariance_sensitivity.rs) that may span several
 //!   of the prediction's steps: the
 //!   sensitivity of the flow, not of the step size, is what the covariance needs, and one
-//!   linearization per 2–32 steps is what makes the covariance cheap (covariance_chunks.rs,
+//!   linearization per 2–32 steps is what makes the covariance cheap (covariance/chunks.rs,
 //!   with the check that keeps it honest);
 //! - Q_h: white acceleration noise of density σ_i per velocity coordinate (`uncertainty:` in the
 //!   scene, [(m/s²)/√Hz] or [(rad/s²)/√Hz], as robot_localization's continuous process noise)
@@ -69,7 +69,7 @@ pub struct CovariancePropagator {
     noise: Vec<f64>,
     pub(in crate::predict) lin: Linearization,
     /// The prediction's steps not yet in `p`, and how they are cut into chunks
-    /// (covariance_chunks.rs).
+    /// (covariance/chunks.rs).
     pub(in crate::predict) record: StepRecord,
     pub(in crate::predict) chunks: ChunkControl,
     /// Linearized steps so far, tried ones included, and the wall time of the flushes [s].

@@ -44,7 +44,7 @@ pub(in crate::predict) struct Finished {
 /// a record over only after the worker returned the other), the record coming back, and who
 /// has left. A mutex and a condition variable (futexes) rather than channels: blocking on
 /// them allocates nothing, and the stepping loop stays allocation-free
-/// (tests/propagation_no_alloc.rs).
+/// (tests/no_alloc/propagation.rs).
 #[derive(Debug, Default)]
 struct Exchange {
     state: Mutex<Slots>,

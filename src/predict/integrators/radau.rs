@@ -4,7 +4,7 @@
 //!
 //! Stages are increments Z_i = (Θ_i, ΔV_i) from x_n = (q_n, v_n), x_i = (q_n ⊕ Θ_i, v_n + ΔV_i),
 //! with `Z = h (A ⊗ I) F(Z)`, `F_i = k(x_i) = (dexp⁻¹_{−Θ_i}(v_i), q̈(x_i))` — the Munthe-Kaas
-//! stage map of the explicit methods (integrator.rs). c₃ = 1 and b = A's last row, so
+//! stage map of the explicit methods (integrators/mod.rs). c₃ = 1 and b = A's last row, so
 //! x_{n+1} = x₃. Drift projection follows the step like any method's (index reduction to the
 //! acceleration rows + projection; docs/propagation.md).
 //!

@@ -1,6 +1,6 @@
 //! Alexander's L-stable two-stage SDIRK (γ = 1 − 1/√2), for stiff scenes where an explicit
 //! step would have to be tiny: the stages solved by a simplified Newton iteration on the
-//! configuration Lie group, with the buffers of the shared [`StepWorkspace`] (integrator.rs).
+//! configuration Lie group, with the buffers of the shared [`StepWorkspace`] (integrators/mod.rs).
 
 use crate::predict::integrators::{Accel, StepWorkspace, derivative, stage};
 use crate::error::{Error, Result};
