@@ -24,7 +24,7 @@ use crate::node::health::{Health, Input, StatusContext};
 use crate::node::timer::RosTimer;
 use crate::params::{KindParams, NodeParams};
 use crate::robot::Robot;
-use crate::ros::logging::NodeLog;
+use crate::ros::logging::{DropLog, NodeLog};
 
 pub use crate::ros::io::Reply;
 
@@ -143,6 +143,7 @@ impl<N: NodeLogic> WorkerHandle<N> {
             last_level: None,
             sim_time: None,
             warned: Default::default(),
+            drops: DropLog::default(),
             active: false,
         };
         let thread = std::thread::Builder::new()
@@ -195,8 +196,6 @@ impl<N: NodeLogic> Drop for WorkerHandle<N> {
 /// Which "warn once" messages were logged.
 #[derive(Default)]
 struct Warned {
-    joint_state: bool,
-    odometry: bool,
     unknown_joints: bool,
 }
 
@@ -217,6 +216,8 @@ struct Worker<N: NodeLogic> {
     last_level: Option<(u8, bool)>,
     sim_time: Option<Time>,
     warned: Warned,
+    /// Rate limit of the lines about dropped joint states and odometry, per reason.
+    drops: DropLog,
     /// Lifecycle state: only an active node ticks and publishes its status.
     active: bool,
 }
@@ -409,9 +410,10 @@ impl<N: NodeLogic> Worker<N> {
                         }
                     }
                     Err(e) => {
-                        let first = !std::mem::replace(&mut self.warned.joint_state, true);
+                        let e = e.to_string();
+                        let level = self.drops.level("joint_state", &e, Instant::now());
                         self.log
-                            .log(level(first), &format!("dropped a joint state message: {e}"));
+                            .log(level, &format!("dropped a joint state message: {e}"));
                     }
                 }
             }
@@ -425,9 +427,10 @@ impl<N: NodeLogic> Worker<N> {
                         self.logic.robot_mut().state_mut().odom_at = Some(now);
                     }
                     Err(e) => {
-                        let first = !std::mem::replace(&mut self.warned.odometry, true);
+                        let e = e.to_string();
+                        let level = self.drops.level("odometry", &e, Instant::now());
                         self.log
-                            .log(level(first), &format!("dropped an odometry message: {e}"));
+                            .log(level, &format!("dropped an odometry message: {e}"));
                     }
                 }
             }

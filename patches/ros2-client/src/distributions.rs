@@ -76,14 +76,14 @@ const fn compiled_distro() -> RosDistro {
 /// Compare the `ROS_DISTRO` environment variable against the distribution this
 /// crate was compiled for, and log the outcome:
 ///
-/// * unset -> warning (we cannot tell whether the build matches the runtime),
+/// * unset -> info (no ROS environment sourced: nothing to compare with),
 /// * equal -> info (all good),
 /// * `"rolling"` -> warning (rolling tracks the newest, assume compatible),
 /// * anything else -> error (likely wire-incompatible, e.g. wrong Gid format).
 pub fn verify_ros_distro_env() {
   let built = COMPILED_ROS_DISTRO;
   match std::env::var("ROS_DISTRO") {
-    Err(_) => warn!("ROS_DISTRO is not set; ros2-client was built for '{built}'."),
+    Err(_) => info!("ROS_DISTRO is not set; ros2-client was built for '{built}'."),
     Ok(distro) if distro == built.as_str() => {
       info!("ROS_DISTRO='{distro}' matches the ros2-client build.");
     }

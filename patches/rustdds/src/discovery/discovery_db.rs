@@ -608,10 +608,21 @@ impl DiscoveryDB {
             // as could Writers.
           }
         } else {
-          error!(
-            "Inconsistent topic update from {:?}: type was: {:?} new type: {:?}",
-            updater, old_dtd.1.topic_data.type_name, dtd.topic_data.type_name,
-          );
+          if updater.prefix == self.my_guid.prefix {
+            // This participant itself has endpoints of two types on the topic (the update
+            // comes from its own topic definition or its own SEDP topic writer), e.g. a
+            // subscriber that follows whichever of two message types the topic's
+            // publishers use. That is the application's choice, not a fault.
+            debug!(
+              "Topic {:?} also defined locally with type {:?} (was {:?})",
+              topic_name, dtd.topic_data.type_name, old_dtd.1.topic_data.type_name,
+            );
+          } else {
+            error!(
+              "Inconsistent topic update from {:?}: type was: {:?} new type: {:?}",
+              updater, old_dtd.1.topic_data.type_name, dtd.topic_data.type_name,
+            );
+          }
           inconsistency_event_to_send = Some(DomainParticipantStatusEvent::InconsistentTopic {
             previous_topic_data: Box::new((&old_dtd.1.topic_data).into()),
             previous_source: updater,
