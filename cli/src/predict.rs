@@ -2,7 +2,7 @@
 //! JSON (samples of q, v, λ with `--forces`, constraint residuals, energies, error estimate).
 
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::predict::{DriftControl, Method, Predictor};
+use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor};
 use constraint_dynamics::{Error, Result};
 use serde::Deserialize;
 use serde_json::Value;
@@ -121,38 +121,35 @@ fn load_commands(path: &Path) -> Result<Vec<(f64, Command)>> {
 
 pub fn run(a: PredictArgs) -> Result<Value> {
     let scene = super::state::load_scene(&a.scene)?;
-    let mut p = Predictor::from_scene(&scene)?;
-    if let Some(m) = &a.method {
-        p.settings.method = parse_enum::<Method>(
+    let method = match &a.method {
+        Some(m) => Some(parse_enum::<Method>(
             "method",
             m,
             "semi_implicit_euler, rk4, dopri5, dop853, sdirk2, radau5",
-        )?;
-    }
-    if let Some(d) = &a.drift {
-        p.settings.drift = parse_enum::<DriftControl>("drift", d, "none, baumgarte, projection")?;
-    }
-    if let Some(dt) = a.dt {
-        p.settings.dt = dt;
-    }
-    if let Some(r) = a.rtol {
-        p.settings.rtol = r;
-    }
-    if let Some(r) = a.atol {
-        p.settings.atol = r;
-    }
-    if let Some(sp) = a.sample_period {
-        p.settings.sample_period = sp;
-    }
-    if let Some(e) = a.max_error {
-        p.settings.max_error = e;
-    }
-    p.settings.adapt |= a.adapt;
-    if a.no_error_estimate {
-        p.settings.error_estimate = false;
-    }
-    p.settings.validate()?;
-    p.want_forces = a.forces;
+        )?),
+        None => None,
+    };
+    let drift = match &a.drift {
+        Some(d) => Some(parse_enum::<DriftControl>(
+            "drift",
+            d,
+            "none, baumgarte, projection",
+        )?),
+        None => None,
+    };
+    // The flags configure this run's predictor: the scene's `integration:` with them applied,
+    // validated as a scene's would be.
+    let mut p = Predictor::from_scene(&scene)?.with_settings(|s| {
+        s.method = method.unwrap_or(s.method);
+        s.drift = drift.unwrap_or(s.drift);
+        s.dt = a.dt.unwrap_or(s.dt);
+        s.rtol = a.rtol.unwrap_or(s.rtol);
+        s.atol = a.atol.unwrap_or(s.atol);
+        s.sample_period = a.sample_period.unwrap_or(s.sample_period);
+        s.max_error = a.max_error.unwrap_or(s.max_error);
+        s.adapt |= a.adapt;
+        s.error_estimate &= !a.no_error_estimate;
+    })?;
     let (q, v, tau) = super::state::load(&scene, a.state.as_deref())?;
     if tau.iter().any(|x| *x != 0.0) {
         return Err(Error::Invalid(
@@ -165,19 +162,27 @@ pub fn run(a: PredictArgs) -> Result<Value> {
         Some(path) => load_commands(path)?,
         None => vec![],
     };
-    if let Some(path) = &a.covariance {
-        p.start_covariance = Some(super::covariance::load(&p.sys.model, path)?);
-    }
-    let horizon = a.horizon.unwrap_or(p.settings.horizon);
-    let traj = p.predict(&q, &v, &commands, horizon)?;
+    let p0 = match &a.covariance {
+        Some(path) => Some(super::covariance::load(p.model(), path)?),
+        None => None,
+    };
+    let request = PredictRequest {
+        commands: &commands,
+        horizon: a.horizon,
+        start_covariance: p0.as_ref(),
+        forces: a.forces,
+        ..PredictRequest::new(&q, &v)
+    };
+    let traj = p.predict(&request)?;
+    let configured = p.config().settings();
     let mut out = serde_json::to_value(&traj).map_err(|e| Error::Invalid(e.to_string()))?;
     out["scene"] = Value::String(a.scene.display().to_string());
     let mut settings =
-        serde_json::to_value(&p.settings).map_err(|e| Error::Invalid(e.to_string()))?;
+        serde_json::to_value(configured).map_err(|e| Error::Invalid(e.to_string()))?;
     // `.inf` turns these checks off; JSON has no infinity (serde_json would write null).
     for (key, x) in [
-        ("max_error", p.settings.max_error),
-        ("max_energy_error", p.settings.max_energy_error),
+        ("max_error", configured.max_error),
+        ("max_energy_error", configured.max_energy_error),
     ] {
         if x == f64::INFINITY {
             settings[key] = Value::String("inf".into());

@@ -3,7 +3,7 @@
 
 use super::Row;
 use super::scenes::{Bench, Line, Reference, name};
-use constraint_dynamics::predict::{DriftControl, Method, Predictor, Trajectory};
+use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor, Trajectory};
 use constraint_dynamics::{Result, Scene};
 
 /// The CPU time of this process [s] (CLOCK_PROCESS_CPUTIME_ID: all its threads, ns resolution):
@@ -35,27 +35,26 @@ pub(super) fn predict(
     x: f64,
     horizon: f64,
 ) -> Result<(Trajectory, f64)> {
-    let mut p = Predictor::from_scene(scene)?;
-    p.settings.method = method;
-    p.settings.drift = drift;
-    p.settings.sample_period = horizon / 100.0;
     // The sweeps reach coarse steps on purpose and measure the true error themselves; the time
     // is the integrator's alone, without the error estimate's companion run.
-    p.settings.max_error = f64::INFINITY;
-    p.settings.error_estimate = false;
-    p.settings.adapt = false;
-    if tolerance {
-        p.settings.rtol = x;
-        p.settings.atol = x;
-        p.settings.dt = horizon / 1e4;
-    } else {
-        p.settings.dt = x;
-    }
+    let mut p = Predictor::from_scene(scene)?.with_settings(|s| {
+        s.method = method;
+        s.drift = drift;
+        s.sample_period = horizon / 100.0;
+        s.max_error = f64::INFINITY;
+        s.error_estimate = false;
+        s.adapt = false;
+        if tolerance {
+            (s.rtol, s.atol, s.dt) = (x, x, horizon / 1e4);
+        } else {
+            s.dt = x;
+        }
+    })?;
     let mut best = f64::INFINITY;
     let mut last = None;
     for _ in 0..3 {
         let c0 = process_cpu_s();
-        let t = p.predict(&scene.q0, &scene.v0, &[], horizon)?;
+        let t = p.predict(&PredictRequest::new(&scene.q0, &scene.v0).horizon(horizon))?;
         let cpu = process_cpu_s() - c0;
         best = best.min(cpu);
         let fast = cpu < REPEAT_BELOW_S;

@@ -11,7 +11,7 @@ mod plot;
 mod scenes;
 mod tables;
 
-use constraint_dynamics::predict::{DriftControl, Method, Predictor, Trajectory};
+use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor, Trajectory};
 use constraint_dynamics::{Error, Result, Scene};
 use indicatif::{ProgressBar, ProgressStyle};
 use measure::{Refs, distance, final_distance, measure, predict, process_cpu_s};
@@ -248,11 +248,12 @@ pub fn run(a: ReportArgs) -> Result<Value> {
     let a01 = if with_a01 {
         pb.set_message("A01 high-precision bar");
         let a01 = Scene::load(repo().join("params/pendulum_a01.yaml"))?;
-        let mut p = Predictor::from_scene(&a01)?;
-        p.settings.method = Method::Dopri5;
-        (p.settings.rtol, p.settings.atol, p.settings.sample_period) = (1e-11, 1e-11, 1.0);
+        let mut p = Predictor::from_scene(&a01)?.with_settings(|s| {
+            s.method = Method::Dopri5;
+            (s.rtol, s.atol, s.sample_period) = (1e-11, 1e-11, 1.0);
+        })?;
         let c0 = process_cpu_s();
-        let mut t = p.predict(&a01.q0, &a01.v0, &[], 2000.0)?;
+        let mut t = p.predict(&PredictRequest::new(&a01.q0, &a01.v0).horizon(2000.0))?;
         t.run_time_s = process_cpu_s() - c0;
         let a01_err = t
             .samples
