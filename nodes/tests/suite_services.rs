@@ -16,7 +16,7 @@ use std::time::Duration;
 use common::*;
 use constraint_dynamics::Scene;
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::predict::{PredictOptions, Predictor};
+use constraint_dynamics::predict::{PredictRequest as CoreRequest, Predictor};
 use constraint_dynamics::projection::{
     PerCoordinate, ProjectionRequest, Status, VelocityProjector, project_system,
 };
@@ -203,12 +203,11 @@ fn suite_services_match_the_core_library() {
         .enumerate()
         .map(|(k, &(v, w))| (0.5 * k as f64, core.command([v, w], &state.q)))
         .collect();
-    core.predictor.want_forces = true;
-    let traj = core
-        .predictor
-        .predict(&state.q, &state.v, &cmds, 1.0)
-        .unwrap();
-    core.predictor.want_forces = false;
+    let req = CoreRequest::new(&state.q, &state.v)
+        .commands(&cmds)
+        .horizon(1.0)
+        .forces(true);
+    let traj = core.predictor.predict(&req).unwrap();
     let times: Vec<f64> = traj.samples.iter().map(|s| s.t).collect();
     assert_close("predict times", &r.times, &times, TOL);
     assert_eq!(r.path.poses.len(), traj.samples.len());
@@ -279,13 +278,18 @@ fn suite_services_match_the_core_library() {
             .enumerate()
             .map(|(k, &(v, w))| (step * k as f64, core.command([v, w], &state.q)))
             .collect();
-        let mut single = Predictor::from_scene(&scene).unwrap();
-        single.settings.sample_period = step;
-        single.settings.error_estimate = false;
-        let forces = PredictOptions { forces: true };
-        let traj = single
-            .predict_with(&state.q, &state.v, &cmds, len as f64 * step, forces)
+        let mut single = Predictor::from_scene(&scene)
+            .unwrap()
+            .with_settings(|s| {
+                s.sample_period = step;
+                s.error_estimate = false;
+            })
             .unwrap();
+        let req = CoreRequest::new(&state.q, &state.v)
+            .commands(&cmds)
+            .horizon(len as f64 * step)
+            .forces(true);
+        let traj = single.predict(&req).unwrap();
         assert_eq!(traj.samples.len(), len + 1);
         for (k, s) in traj.samples[1..].iter().enumerate() {
             let i = j * len + k;

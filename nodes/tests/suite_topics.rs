@@ -11,6 +11,7 @@ mod common;
 mod suite_fixture;
 
 use common::*;
+use constraint_dynamics::predict::PredictRequest;
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::ConstraintForces;
 use constraint_dynamics_nodes::msg::nav_msgs::{Odometry, Path};
 use constraint_dynamics_nodes::msg::rcl_interfaces::{
@@ -44,10 +45,9 @@ fn suite_topics_match_the_core_library() {
 
     // ---- topics of the predictor (command (0.3, 0.4) on /cmd_vel) -----------------------------
     let expected_cmd = core.command([cmd.0, cmd.1], &ql);
-    let traj = core
-        .predictor
-        .predict(&ql, &vl, &[(0.0, expected_cmd.clone())], 1.0)
-        .unwrap();
+    let commands = [(0.0, expected_cmd.clone())];
+    let req = PredictRequest::new(&ql, &vl).commands(&commands).horizon(1.0);
+    let traj = core.predictor.predict(&req).unwrap();
     let last = traj.samples.last().unwrap().clone();
     let odom = take_until(&odom_sub, WAIT, |m: &Odometry| {
         close("predicted pose", &pose_of(&m.pose.pose), &last.q[..3], TOL)?;
@@ -101,12 +101,12 @@ fn suite_topics_match_the_core_library() {
     );
 
     // Forces at the start state under the torques of the first control tick.
-    let mut act = core.predictor.actuators.clone();
+    let mut act = core.actuators.clone();
     act.reset();
     let mut tau = vec![0.0; scene.model.nv];
     let dt = act
         .control_period
-        .min(core.predictor.settings.sample_period)
+        .min(core.predictor.config().settings().sample_period)
         .min(1.0);
     act.update(&expected_cmd, &ql, &vl, dt, &mut tau);
     let (_, f, gf) = core.forces(&ql, &vl, &tau);

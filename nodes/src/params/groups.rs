@@ -59,13 +59,14 @@ pub struct StateParams {
     /// What the predictor does with stale inputs: `stop` (publish no prediction until they
     /// return) or `warn` (keep predicting from the last state with a WARN, the start covariance
     /// grown by the scene's process noise over the age).
-    pub stale_behaviour: String,
+    pub stale_behaviour: StaleBehaviour,
     /// Noise of `joint_states`, for the predictor's start covariance.
     pub joint_noise: JointNoiseParams,
 }
 
 /// What the predictor does with stale state inputs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum StaleBehaviour {
     /// Publish nothing until the inputs return.
     Stop,
@@ -74,22 +75,9 @@ pub enum StaleBehaviour {
 }
 
 impl StateParams {
-    /// `stale_behaviour` as an enum.
-    pub fn stale_behaviour(&self) -> Result<StaleBehaviour, ParamsError> {
-        match self.stale_behaviour.as_str() {
-            "stop" => Ok(StaleBehaviour::Stop),
-            "warn" => Ok(StaleBehaviour::Warn),
-            other => Err(ParamsError::invalid(
-                "state.stale_behaviour",
-                format!("{other:?}: expected stop or warn"),
-            )),
-        }
-    }
-
-    /// Checks `timeout`, `stale_behaviour` and `joint_noise`.
+    /// Checks `timeout` and `joint_noise`.
     pub fn validate(&self) -> Result<(), ParamsError> {
         positive("state.timeout", self.timeout)?;
-        self.stale_behaviour()?;
         self.joint_noise.validate()
     }
 }
@@ -146,7 +134,7 @@ impl Default for StateParams {
             project_to_constraints: true,
             use_measured_effort: true,
             timeout: 0.5,
-            stale_behaviour: "stop".into(),
+            stale_behaviour: StaleBehaviour::Stop,
             joint_noise: JointNoiseParams::default(),
         }
     }
@@ -218,7 +206,7 @@ pub struct CommandParams {
     /// `TwistStamped` the topic's publishers use (from the DDS graph; `TwistStamped`, Nav2's
     /// and ros2_control's, while nobody publishes), `twist` or `twist_stamped` force one.
     #[serde(rename = "type")]
-    pub msg_type: String,
+    pub msg_type: CommandType,
     /// Older spelling of `type: twist_stamped`: true forces `TwistStamped`; false leaves the
     /// choice to `type`.
     pub stamped: bool,
@@ -226,7 +214,7 @@ pub struct CommandParams {
     pub timeout: f64,
     /// Without a fresh command: `stop` (zero twist, as diff_drive_controller does on timeout),
     /// `hold` (keep the current base twist) or `coast` (wheel controllers off).
-    pub fallback: String,
+    pub fallback: Fallback,
     /// Command every joint that has a position controller in the scene to hold its position at
     /// the start of the prediction.
     pub hold_joints: bool,
@@ -236,10 +224,10 @@ impl Default for CommandParams {
     fn default() -> Self {
         CommandParams {
             topic: "cmd_vel".into(),
-            msg_type: "auto".into(),
+            msg_type: CommandType::Auto,
             stamped: false,
             timeout: 0.5,
-            fallback: "stop".into(),
+            fallback: Fallback::Stop,
             hold_joints: true,
         }
     }
@@ -293,8 +281,21 @@ impl CommandMsg {
     }
 }
 
+/// `command.type`: the command topic's message type.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CommandType {
+    /// Follow whichever type the topic's publishers use.
+    Auto,
+    /// `geometry_msgs/Twist`.
+    Twist,
+    /// `geometry_msgs/TwistStamped`.
+    TwistStamped,
+}
+
 /// What happens without a fresh command.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Fallback {
     /// Zero base twist.
     Stop,
@@ -305,31 +306,12 @@ pub enum Fallback {
 }
 
 impl CommandParams {
-    /// `fallback` as an enum.
-    pub fn fallback(&self) -> Result<Fallback, ParamsError> {
-        match self.fallback.as_str() {
-            "stop" => Ok(Fallback::Stop),
-            "hold" => Ok(Fallback::Hold),
-            "coast" => Ok(Fallback::Coast),
-            other => Err(ParamsError::invalid(
-                "command.fallback",
-                format!("{other:?}: expected stop, hold or coast"),
-            )),
-        }
-    }
-
     /// `type` and `stamped` together: `None` = follow the graph, else the forced type.
     pub fn forced_type(&self) -> Result<Option<CommandMsg>, ParamsError> {
-        let forced = match self.msg_type.as_str() {
-            "auto" => None,
-            "twist" => Some(CommandMsg::Twist),
-            "twist_stamped" => Some(CommandMsg::TwistStamped),
-            other => {
-                return Err(ParamsError::invalid(
-                    "command.type",
-                    format!("{other:?}: expected auto, twist or twist_stamped"),
-                ));
-            }
+        let forced = match self.msg_type {
+            CommandType::Auto => None,
+            CommandType::Twist => Some(CommandMsg::Twist),
+            CommandType::TwistStamped => Some(CommandMsg::TwistStamped),
         };
         match (self.stamped, forced) {
             (false, f) => Ok(f),
@@ -341,11 +323,10 @@ impl CommandParams {
         }
     }
 
-    /// Checks `timeout`, `fallback` and `type`.
+    /// Checks `timeout`, and `type` against `stamped`.
     pub fn validate(&self) -> Result<(), ParamsError> {
         positive("command.timeout", self.timeout)?;
-        self.forced_type()?;
-        self.fallback().map(|_| ())
+        self.forced_type().map(|_| ())
     }
 }
 

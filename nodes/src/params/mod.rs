@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 use crate::ros::args::{Parameters, RosArgsError, yaml_to_param};
 
 pub use groups::{
-    CommandMsg, CommandParams, DiagnosticsParams, Fallback, FramesParams, JointNoiseParams,
+    CommandMsg, CommandParams, CommandType, DiagnosticsParams, Fallback, FramesParams, JointNoiseParams,
     ModelParams, NetworkParams, SlipParams, StaleBehaviour, StateParams,
 };
 pub use kind::NodeKind;

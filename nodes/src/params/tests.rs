@@ -41,7 +41,7 @@ cd_forces:
     assert_eq!(pp.node.rate, 20.0);
     assert_eq!(pp.common.slip.friction_coefficient, 0.5);
     assert!(pp.node.command.stamped);
-    assert_eq!(pp.node.command.fallback().unwrap(), Fallback::Hold);
+    assert_eq!(pp.node.command.fallback, Fallback::Hold);
     assert_eq!(pp.common.model.scene_file, "s.yaml");
     assert_eq!(pp.common.state.joint_states_topic, "joint_states");
     // `rate` is not a parameter of the forces node.
@@ -169,7 +169,7 @@ fn namespaced_example_follows_rcl_key_rules() {
     let ns = parse_params_yaml(&text, "/robot1/cd_predictor").unwrap();
     let p = NodeParams::<PredictorParams>::from_parameters(&ns).unwrap();
     assert_eq!(p.node.rate, 10.0);
-    assert_eq!(p.node.command.msg_type, "auto");
+    assert_eq!(p.node.command.msg_type, CommandType::Auto);
     assert_eq!(p.node.command.forced_type().unwrap(), None);
     assert_eq!(p.common.state.odom_topic, "odom");
     assert_eq!(p.common.frames.odom_frame, "robot1/odom");
@@ -218,7 +218,7 @@ fn joint_noise_by_name() {
     let st = &pp.common.state;
     assert_eq!(st.timeout, 0.25);
     assert_eq!(
-        st.stale_behaviour().unwrap(),
+        st.stale_behaviour,
         crate::params::StaleBehaviour::Warn
     );
     assert_eq!(st.joint_noise.of("arm_elbow"), (0.002, 0.03));

@@ -184,7 +184,7 @@ impl PredictionNode {
             commands.push((at, self.robot.command(Some(base), &q, cmd.hold_joints)));
         }
         if commands.is_empty() {
-            let base = self.robot.fallback_twist(cmd.fallback()?, &v);
+            let base = self.robot.fallback_twist(cmd.fallback, &v);
             commands.push((0.0, self.robot.command(base, &q, cmd.hold_joints)));
         }
         let p0 = match req.with_covariance {

@@ -164,7 +164,7 @@ impl NodeLogic for PredictorNode {
         let state = &self.params.common.state;
         let ages = InputAges::at(self.robot.state(), state, now);
         let stale = ages.stale(state.timeout);
-        let behaviour = state.stale_behaviour()?;
+        let behaviour = state.stale_behaviour;
         self.log_stale(stale);
         if !self.stale.is_empty() && behaviour == StaleBehaviour::Stop {
             return Ok(());
@@ -206,9 +206,9 @@ impl PredictorNode {
     /// "odom stale (odom 0.62 s > state.timeout 0.5 s): predictions stopped".
     fn stale_message(&self, stale: &[String]) -> String {
         let state = &self.params.common.state;
-        let what = match state.stale_behaviour() {
-            Ok(StaleBehaviour::Warn) => "predicting from the last state, covariance grown",
-            _ => "predictions stopped",
+        let what = match state.stale_behaviour {
+            StaleBehaviour::Warn => "predicting from the last state, covariance grown",
+            StaleBehaviour::Stop => "predictions stopped",
         };
         let names: Vec<&str> = stale.iter().filter_map(|s| s.split(' ').next()).collect();
         format!(
@@ -246,7 +246,7 @@ impl PredictorNode {
             .robot
             .latest_state(common.state.project_to_constraints)?;
         let cmd_params = &self.params.node.command;
-        let base = command.or_else(|| self.robot.fallback_twist(cmd_params.fallback().ok()?, &v));
+        let base = command.or_else(|| self.robot.fallback_twist(cmd_params.fallback, &v));
         let cmd = self.robot.command(base, &q, cmd_params.hold_joints);
         let p0 = match self.params.node.covariance.propagate {
             true => {

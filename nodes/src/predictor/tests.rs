@@ -4,6 +4,7 @@ use super::*;
 use crate::params::CommonParams;
 
 fn node(fallback: &str) -> PredictorNode {
+    let fallback = serde_yaml::from_str(fallback).unwrap();
     let mut common = CommonParams::default();
     common.model.scene_file = concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -14,7 +15,7 @@ fn node(fallback: &str) -> PredictorNode {
         common,
         node: PredictorParams::default(),
     };
-    params.node.command.fallback = fallback.into();
+    params.node.command.fallback = fallback;
     params.node.command.timeout = 0.5;
     params.node.horizon = 1.0;
     let robot = Robot::load(&params.common).unwrap();
@@ -283,7 +284,7 @@ fn stale_inputs_stop_or_warn_and_recover() {
     let x = scene.model.v_names[0].clone();
     scene.file.uncertainty.acceleration_noise.insert(x, 0.5);
     let mut params = n.params.clone();
-    params.common.state.stale_behaviour = "warn".into();
+    params.common.state.stale_behaviour = crate::params::StaleBehaviour::Warn;
     let robot = Robot::from_scene(scene, &params.common).unwrap();
     let mut n = PredictorNode::new(robot, params, NodeLog::new("test")).unwrap();
     feed_state(&mut n, motion, rep103(s0), t0);

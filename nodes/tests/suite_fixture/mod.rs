@@ -7,11 +7,12 @@
 #![allow(dead_code)]
 
 use super::common::*;
-use constraint_dynamics::actuators::Command;
+use constraint_dynamics::actuators::{Actuators, Command};
 use constraint_dynamics::algorithm::{forward_kinematics_pos, frame_placement};
 use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::constraints::ConstraintForce as CoreForce;
 use constraint_dynamics::dynamics::Formulation;
+use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::predict::{Predictor, drift};
 use constraint_dynamics::{Scene, System};
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::ConstraintForces;
@@ -149,11 +150,15 @@ pub fn feed_for(scene: &Scene, s: &TestState, cmd: Option<(f64, f64)>) -> RobotF
     }
 }
 
-/// The core library's view: system (multipliers), predictor, force elements.
+/// The core library's view: system (multipliers), predictor, force elements, controllers.
 pub struct Core {
     pub scene: Scene,
     pub sys: System,
     pub predictor: Predictor,
+    /// The scene's force elements (as the predictor's).
+    pub forces: ForceElements,
+    /// The scene's controllers at rest (as the predictor's).
+    pub actuators: Actuators,
 }
 
 impl Core {
@@ -164,6 +169,8 @@ impl Core {
             scene: scene.clone(),
             sys,
             predictor: Predictor::from_scene(scene).unwrap(),
+            forces: ForceElements::new(&scene.model, &scene.file.forces).unwrap(),
+            actuators: Actuators::new(&scene.model, &scene.file.actuators).unwrap(),
         }
     }
 
@@ -183,7 +190,7 @@ impl Core {
     ) -> (Vec<f64>, Vec<CoreForce>, Vec<f64>) {
         let at = constraint_forces_at(
             &mut self.sys,
-            &mut self.predictor.forces,
+            &mut self.forces,
             (0.0, q, v),
             tau_act,
         )

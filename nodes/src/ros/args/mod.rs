@@ -93,9 +93,15 @@ pub enum RosArgsError {
         /// What is wrong.
         reason: String,
     },
-    /// The parameters do not fit the node's typed parameter struct.
-    #[error("parameters: {0}")]
-    Deserialize(#[from] serde_yaml::Error),
+    /// The parameters do not fit the node's typed parameter struct: the parameter (its dotted
+    /// path) and why.
+    #[error("parameters: {}{source}", if path == "." { String::new() } else { format!("{path}: ") })]
+    Deserialize {
+        /// The parameter, e.g. `command.fallback` (`.` when the whole set is refused).
+        path: String,
+        /// serde's reason ("unknown variant `brake`, expected one of …").
+        source: serde_yaml::Error,
+    },
 }
 
 /// One `-r [NODE:]FROM:=TO` rule.

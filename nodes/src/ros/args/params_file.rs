@@ -63,7 +63,10 @@ impl Parameters {
 
     /// A typed struct from part of [`Parameters::to_yaml`]'s mapping.
     pub fn deserialize_value<T: DeserializeOwned>(v: Value) -> Result<T, RosArgsError> {
-        Ok(serde_yaml::from_value(v)?)
+        serde_path_to_error::deserialize(v).map_err(|e| RosArgsError::Deserialize {
+            path: e.path().to_string(),
+            source: e.into_inner(),
+        })
     }
 }
 
