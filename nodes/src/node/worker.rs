@@ -483,15 +483,6 @@ impl<N: NodeLogic> Worker<N> {
     }
 }
 
-/// Warn the first time, debug afterwards (a stream of bad messages should not flood /rosout).
-pub(crate) fn level(first: bool) -> log::Level {
-    if first {
-        log::Level::Warn
-    } else {
-        log::Level::Debug
-    }
-}
-
 fn panic_message(p: &Box<dyn std::any::Any + Send>) -> String {
     if let Some(s) = p.downcast_ref::<&str>() {
         s.to_string()

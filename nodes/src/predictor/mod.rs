@@ -35,7 +35,7 @@ use crate::node::worker::NodeLogic;
 use crate::params::{NodeParams, StaleBehaviour};
 use crate::robot::Robot;
 use crate::robot::inputs::{InputAges, StartCovariance};
-use crate::ros::logging::NodeLog;
+use crate::ros::logging::{DropLog, NodeLog};
 pub use params::{CovarianceParams, MarkerParams, PredictorParams};
 
 /// What one periodic prediction publishes.
@@ -72,7 +72,8 @@ pub struct PredictorNode {
     log: NodeLog,
     /// Latest (v, ω) command and when it arrived (ROS time: /clock under `use_sim_time`).
     last_command: Option<([f64; 2], Time)>,
-    warned_command: bool,
+    /// One WARN per reason a command is only partly used, per window.
+    command_log: DropLog,
     /// Slip flags of the last prediction (to log transitions), and the last slip warning.
     last_slip: Vec<bool>,
     last_slip_log: Option<Instant>,
@@ -116,7 +117,7 @@ impl NodeLogic for PredictorNode {
             params,
             log,
             last_command: None,
-            warned_command: false,
+            command_log: DropLog::default(),
             last_slip: vec![false; nc],
             last_slip_log: None,
             slipping: Vec::new(),
@@ -142,11 +143,11 @@ impl NodeLogic for PredictorNode {
         let PredictorInput::Command(t) = input;
         let finite = t.linear.x.is_finite() && t.angular.z.is_finite();
         if let Err(e) = self.robot.twist_command(&t, "cmd_vel") {
-            let first = !std::mem::replace(&mut self.warned_command, true);
-            self.log.log(
-                crate::node::worker::level(first),
-                &format!("{e}; using linear.x and angular.z if finite"),
-            );
+            let level = self
+                .command_log
+                .level("command", &e.to_string(), Instant::now());
+            self.log
+                .log(level, &format!("{e}; using linear.x and angular.z if finite"));
         }
         self.last_command = finite.then_some(([t.linear.x, t.angular.z], now));
     }
