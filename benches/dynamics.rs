@@ -1,7 +1,7 @@
 //! Criterion benchmarks of the rigid-body, constrained and derivative algorithms on the robots
 //! that compiled Pinocchio is timed on by `../shared/tools/anchors/cpp/bench_pin.cpp` (ur5 with
 //! tool0 held, panda with its fingers locked and panda_hand_tcp held, solo12 on four point feet,
-//! talos_reduced on two 6D soles; benches/robots.rs). `tools/bench.py` runs both in one session
+//! talos_reduced on two 6D soles; benches/robots.rs). `tools/bench.py` runs both in one run
 //! and writes docs/bench.md; ids are `robot/algorithm`.
 //!
 //! Each id computes what the Pinocchio call it is compared with returns:

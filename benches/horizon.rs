@@ -5,19 +5,20 @@
 //!   10 ms), in the multiplier and in the embedded form.
 //! - `horizon/mobile_manipulator/unconstrained`: the same horizon with the scene's constraints
 //!   removed (so no projection either): a floor under the two above, and the figure to set
-//!   beside compiled Pinocchio's same horizon (`tools/peers/horizon_floor.sh`, issue 16).
+//!   beside compiled Pinocchio's same horizon (`tools/peers/horizon_floor.sh`).
 //! - `horizon/mobile_manipulator/covariance`: the same (multipliers) with a propagated
 //!   covariance (σ = 1 mm, 1 mrad, 1 mm/s, 1 mrad/s on every coordinate): its cost is read as
-//!   the ratio to `horizon/mobile_manipulator/multipliers` of the same run (issue 14: ≤ 2×).
+//!   the ratio to `horizon/mobile_manipulator/multipliers` of the same run (the bar: ≤ 2×).
 //! - `evaluation/<scene>/<formulation>`: one constrained forward-dynamics evaluation at the
 //!   scene's initial state (params/ and params/report/), multipliers vs embedded: the figures
 //!   behind the predictor's choice of formulation (docs/bench.md).
 
 use constraint_dynamics::dynamics::Formulation;
-use constraint_dynamics::predict::{DriftControl, Method, Predictor};
+use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor};
 use constraint_dynamics::system::DynamicsOptions;
 use constraint_dynamics::{Scene, System};
 use criterion::{Criterion, criterion_group, criterion_main};
+use nalgebra::DMatrix;
 use std::hint::black_box;
 use std::path::PathBuf;
 
@@ -33,22 +34,42 @@ const FORMS: [(&str, Formulation); 2] = [
 /// The scene's predictor at the horizons' settings: RK4 at 1 ms, a sample every 10 ms, the
 /// prediction alone (the error estimate's companion doubles the work; estimate.rs).
 fn rk4_predictor(scene: &Scene) -> Predictor {
-    let mut p = Predictor::from_scene(scene).expect("predictor");
-    p.settings.method = Method::Rk4;
-    p.settings.dt = 1e-3;
-    p.settings.error_estimate = false;
-    p.settings.sample_period = 0.01;
-    p
+    Predictor::from_scene(scene)
+        .expect("predictor")
+        .with_settings(|s| {
+            s.method = Method::Rk4;
+            s.dt = 1e-3;
+            s.error_estimate = false;
+            s.sample_period = 0.01;
+        })
+        .expect("settings")
+}
+
+/// [`rk4_predictor`] with projection.
+fn rk4_projected(scene: &Scene) -> Predictor {
+    rk4_predictor(scene)
+        .with_settings(|s| s.drift = DriftControl::Projection)
+        .expect("settings")
 }
 
 /// `horizon/mobile_manipulator/<label>`: 2 s from the scene's initial state (2000 steps, 8000
-/// evaluations, checked once before timing).
-fn bench_horizon(c: &mut Criterion, label: &str, p: &mut Predictor, scene: &Scene) {
-    let t = p.predict(&scene.q0, &scene.v0, &[], 2.0).expect("predict");
+/// evaluations, checked once before timing), from the start covariance `p0` if any.
+fn bench_horizon(
+    c: &mut Criterion,
+    label: &str,
+    p: &mut Predictor,
+    scene: &Scene,
+    p0: Option<&DMatrix<f64>>,
+) {
+    let request = |q0, v0| PredictRequest {
+        start_covariance: p0,
+        ..PredictRequest::new(q0, v0).horizon(2.0)
+    };
+    let t = p.predict(&request(&scene.q0, &scene.v0)).expect("predict");
     assert_eq!((t.steps, t.evaluations), (2000, 8000));
     c.bench_function(&format!("horizon/mobile_manipulator/{label}"), |b| {
         b.iter(|| {
-            p.predict(black_box(&scene.q0), black_box(&scene.v0), &[], 2.0)
+            p.predict(&request(black_box(&scene.q0), black_box(&scene.v0)))
                 .unwrap()
         })
     });
@@ -57,23 +78,23 @@ fn bench_horizon(c: &mut Criterion, label: &str, p: &mut Predictor, scene: &Scen
 fn horizon(c: &mut Criterion) {
     let scene = Scene::load(root().join("params/mobile_manipulator.yaml")).expect("scene");
     for (label, form) in FORMS {
-        let mut p = rk4_predictor(&scene);
-        p.sys.formulation = form;
-        p.settings.drift = DriftControl::Projection;
-        bench_horizon(c, label, &mut p, &scene);
+        let mut formed = scene.clone();
+        formed.file.dynamics.formulation = form;
+        let mut p = rk4_projected(&formed);
+        bench_horizon(c, label, &mut p, &scene, None);
     }
     let mut free = scene.clone();
     free.file.constraints.clear();
     let mut p = rk4_predictor(&free);
-    assert!(p.sys.constraints.is_empty());
-    bench_horizon(c, "unconstrained", &mut p, &scene);
-    let mut p = rk4_predictor(&scene);
-    p.settings.drift = DriftControl::Projection;
-    let n = 2 * p.sys.model.nv;
-    p.start_covariance = Some(nalgebra::DMatrix::identity(n, n) * 1e-6);
-    let t = p.predict(&scene.q0, &scene.v0, &[], 2.0).expect("predict");
+    assert!(System::from_scene(&free).expect("system").constraints.is_empty());
+    bench_horizon(c, "unconstrained", &mut p, &scene, None);
+    let mut p = rk4_projected(&scene);
+    let n = 2 * p.model().nv;
+    let p0 = DMatrix::identity(n, n) * 1e-6;
+    let req = PredictRequest::new(&scene.q0, &scene.v0).horizon(2.0);
+    let t = p.predict(&req.covariance(&p0)).expect("predict");
     assert!(t.samples.last().unwrap().covariance.is_some());
-    bench_horizon(c, "covariance", &mut p, &scene);
+    bench_horizon(c, "covariance", &mut p, &scene, Some(&p0));
 }
 
 fn evaluation(c: &mut Criterion) {

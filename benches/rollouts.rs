@@ -11,21 +11,26 @@ mod command_sequences;
 
 use command_sequences::sequences;
 use constraint_dynamics::Scene;
-use constraint_dynamics::predict::{DriftControl, Method, Predictor, RolloutOptions};
+use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor, RolloutOptions};
 use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 use std::path::PathBuf;
 
 fn bench(c: &mut Criterion) {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let scene = Scene::load(root.join("params/suite_diff_drive.yaml")).expect("scene");
-    let mut predictor = Predictor::from_scene(&scene).expect("predictor");
-    predictor.settings.method = Method::Rk4;
-    predictor.settings.dt = 0.005;
-    predictor.settings.drift = DriftControl::Projection;
-    // A planner scores thousands of rollouts: no error-estimate companion (2× the work).
-    predictor.settings.error_estimate = false;
-    predictor.actuators.control_period = 0.005;
+    let mut scene = Scene::load(root.join("params/suite_diff_drive.yaml")).expect("scene");
+    scene.file.actuators.control_period = Some(0.005);
+    let predictor = Predictor::from_scene(&scene)
+        .expect("predictor")
+        .with_settings(|s| {
+            s.method = Method::Rk4;
+            s.dt = 0.005;
+            s.drift = DriftControl::Projection;
+            // A planner scores thousands of rollouts: no error-estimate companion (2× the
+            // work).
+            s.error_estimate = false;
+        })
+        .expect("settings");
     let n: usize = std::env::var("ROLLOUTS")
         .ok()
         .and_then(|s| s.parse().ok())
@@ -40,14 +45,12 @@ fn bench(c: &mut Criterion) {
     for threads in [1, cores] {
         let opts = RolloutOptions {
             step: 0.05,
-            forces: false,
             threads,
         };
         group.bench_function(format!("diff_drive/{n}x56x50ms/{threads}_threads"), |b| {
             b.iter(|| {
-                predictor
-                    .rollouts(black_box(&scene.q0), &scene.v0, &seqs, opts)
-                    .unwrap()
+                let start = PredictRequest::new(black_box(&scene.q0), &scene.v0);
+                predictor.rollouts(&start, &seqs, opts).unwrap()
             })
         });
     }

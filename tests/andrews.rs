@@ -12,7 +12,7 @@
 
 use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::forces::ForceElements;
-use constraint_dynamics::predict::{Method, Predictor};
+use constraint_dynamics::predict::{Method, PredictRequest, Predictor};
 use constraint_dynamics::{Scene, System};
 use std::path::PathBuf;
 
@@ -116,15 +116,21 @@ fn dopri5_and_dop853_reach_the_test_set_reference_at_0_03_s() {
 
 fn reaches_the_reference(method: Method) -> usize {
     let scene = scene();
-    let mut p = Predictor::from_scene(&scene).unwrap();
-    p.settings.method = method;
-    p.settings.rtol = 1e-12;
-    p.settings.atol = 1e-12;
-    p.settings.error_estimate = false;
-    let traj = p.predict(&scene.q0, &scene.v0, &[], 0.03).unwrap();
+    let mut p = Predictor::from_scene(&scene)
+        .unwrap()
+        .with_settings(|s| {
+            s.method = method;
+            s.rtol = 1e-12;
+            s.atol = 1e-12;
+            s.error_estimate = false;
+        })
+        .unwrap();
+    let traj = p
+        .predict(&PredictRequest::new(&scene.q0, &scene.v0).horizon(0.03))
+        .unwrap();
     let last = traj.samples.last().unwrap();
     assert!((last.t - 0.03).abs() < 1e-15, "last sample at {}", last.t);
-    let idx = order(&p.sys.model.v_names);
+    let idx = order(&p.model().v_names);
     let (mut q_err, mut v_rel): (f64, f64) = (0.0, 0.0);
     for (k, &i) in idx.iter().enumerate() {
         q_err = q_err.max((last.q[i] - Q_REF[k]).abs());
@@ -166,18 +172,24 @@ fn error_estimate_brackets_the_reference_error() {
     let mut worst: (f64, f64) = (f64::INFINITY, 0.0);
     for (method, xs) in sweeps {
         for &x in xs {
-            let mut p = Predictor::from_scene(&scene).unwrap();
-            p.settings.method = method;
-            p.settings.max_error = f64::INFINITY;
-            if method.is_adaptive() {
-                p.settings.rtol = x;
-                p.settings.atol = x;
-            } else {
-                p.settings.dt = x;
-            }
-            let traj = p.predict(&scene.q0, &scene.v0, &[], 0.03).unwrap();
+            let mut p = Predictor::from_scene(&scene)
+                .unwrap()
+                .with_settings(|s| {
+                    s.method = method;
+                    s.max_error = f64::INFINITY;
+                    if method.is_adaptive() {
+                        s.rtol = x;
+                        s.atol = x;
+                    } else {
+                        s.dt = x;
+                    }
+                })
+                .unwrap();
+            let traj = p
+                .predict(&PredictRequest::new(&scene.q0, &scene.v0).horizon(0.03))
+                .unwrap();
             let last = traj.samples.last().unwrap();
-            let idx = order(&p.sys.model.v_names);
+            let idx = order(&p.model().v_names);
             let truth = idx
                 .iter()
                 .enumerate()

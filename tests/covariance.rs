@@ -17,7 +17,7 @@
 mod common;
 use common::*;
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::predict::Predictor;
+use constraint_dynamics::predict::{PredictRequest, Predictor};
 use constraint_dynamics::{Model, Scene};
 use nalgebra::{DMatrix, DVector, Matrix3};
 
@@ -68,13 +68,15 @@ fn monte_carlo_under(
     horizon: f64,
     n: usize,
 ) -> (DMatrix<f64>, DMatrix<f64>) {
-    let mut pred = pred.clone();
     // The covariance is under test, not the error estimate: thousands of runs without it.
-    pred.settings.error_estimate = false;
-    let model = pred.sys.model.clone();
+    let mut pred = pred
+        .clone()
+        .with_settings(|s| s.error_estimate = false)
+        .unwrap();
+    let model = pred.model().clone();
     let nv = model.nv;
-    pred.start_covariance = Some(p0);
-    let traj = pred.predict(q0, v0, commands, horizon).unwrap();
+    let req = PredictRequest::new(q0, v0).commands(commands).horizon(horizon);
+    let traj = pred.predict(&req.covariance(&p0)).unwrap();
     let first = rows_to_matrix(traj.samples[0].covariance.as_ref().unwrap());
     let last_sample = traj.samples.last().unwrap();
     let p_t = rows_to_matrix(last_sample.covariance.as_ref().unwrap());
@@ -84,7 +86,6 @@ fn monte_carlo_under(
     let eig = first.clone().symmetric_eigen();
     let root =
         &eig.eigenvectors * DMatrix::from_diagonal(&eig.eigenvalues.map(|l| l.max(0.0).sqrt()));
-    pred.start_covariance = None;
     // Two threads (this machine's cores), each with its own generator and predictor.
     let run = |seed: u64, n: usize| {
         let mut pred = pred.clone();
@@ -96,7 +97,8 @@ fn monte_carlo_under(
                 let mut q = vec![0.0; model.nq];
                 model.integrate(q0, dx.rows(0, nv).as_slice(), 1.0, &mut q);
                 let v: Vec<f64> = (0..nv).map(|i| v0[i] + dx[nv + i]).collect();
-                let t = pred.predict(&q, &v, commands, horizon).unwrap();
+                let req = PredictRequest::new(&q, &v).commands(commands).horizon(horizon);
+                let t = pred.predict(&req).unwrap();
                 let s = t.samples.last().unwrap();
                 tangent(&model, &q_ref, &v_ref, &s.q, &s.v)
             })
@@ -135,7 +137,7 @@ fn relative_difference(name: &str, p_t: &DMatrix<f64>, mc: &DMatrix<f64>, n: usi
 fn diff_drive_covariance_matches_monte_carlo_and_has_no_lateral_velocity_variance() {
     let scene = Scene::load(repo_dir().join("params/diff_drive.yaml")).unwrap();
     let pred = Predictor::from_scene(&scene).unwrap();
-    let model = pred.sys.model.clone();
+    let model = pred.model().clone();
     let nv = model.nv;
     let v0 = coasting_arc(&model);
     // σ = 1 mm / 1 mrad on q, 1 mm/s / 1 mrad/s on v: small, so the spread stays linear.
@@ -187,9 +189,11 @@ fn coasting_arc(model: &Model) -> Vec<f64> {
 #[test]
 fn rigid_motion_pose_covariance_is_the_closed_form() {
     let scene = Scene::load(repo_dir().join("params/diff_drive.yaml")).unwrap();
-    let mut pred = Predictor::from_scene(&scene).unwrap();
-    pred.settings.error_estimate = false;
-    let model = pred.sys.model.clone();
+    let mut pred = Predictor::from_scene(&scene)
+        .unwrap()
+        .with_settings(|s| s.error_estimate = false)
+        .unwrap();
+    let model = pred.model().clone();
     let nv = model.nv;
     let v0 = coasting_arc(&model);
     let base = [
@@ -215,9 +219,9 @@ fn rigid_motion_pose_covariance_is_the_closed_form() {
             p0[(base[a], base[b])] = body0[(a, b)];
         }
     }
-    pred.start_covariance = Some(p0);
     let horizon = 2.0;
-    let traj = pred.predict(&scene.q0, &v0, &[], horizon).unwrap();
+    let req = PredictRequest::new(&scene.q0, &v0).horizon(horizon);
+    let traj = pred.predict(&req.covariance(&p0)).unwrap();
     let mut worst: f64 = 0.0;
     for s in &traj.samples {
         let p = rows_to_matrix(s.covariance.as_ref().unwrap());
@@ -243,7 +247,7 @@ fn rigid_motion_pose_covariance_is_the_closed_form() {
 fn mobile_manipulator_covariance_matches_monte_carlo() {
     let scene = Scene::load(repo_dir().join("params/mobile_manipulator.yaml")).unwrap();
     let pred = Predictor::from_scene(&scene).unwrap();
-    let model = pred.sys.model.clone();
+    let model = pred.model().clone();
     let nv = model.nv;
     let mut v0 = scene.v0.clone();
     for (joint, rate) in [
@@ -267,7 +271,7 @@ fn mobile_manipulator_covariance_matches_monte_carlo() {
 fn rolling_disk_covariance_matches_monte_carlo() {
     let scene = Scene::load(repo_dir().join("params/report/rolling_disk.yaml")).unwrap();
     let pred = Predictor::from_scene(&scene).unwrap();
-    let nv = pred.sys.model.nv;
+    let nv = pred.model().nv;
     let sigma = 1e-3;
     let p0 = DMatrix::identity(2 * nv, 2 * nv) * (sigma * sigma);
     let (p_t, mc) = monte_carlo(&pred, &scene.q0, &scene.v0, p0, 0.5, N_SLOW);
@@ -285,7 +289,7 @@ fn rolling_disk_covariance_matches_monte_carlo() {
 fn controlled_mobile_manipulator_covariance_matches_monte_carlo() {
     let scene = Scene::load(repo_dir().join("params/suite_mobile_manipulator.yaml")).unwrap();
     let pred = Predictor::from_scene(&scene).unwrap();
-    let nv = pred.sys.model.nv;
+    let nv = pred.model().nv;
     let cmd = turning_with_arm_held();
     let sigma = 1e-3;
     let p0 = DMatrix::identity(2 * nv, 2 * nv) * (sigma * sigma);

@@ -13,13 +13,13 @@ mod common;
 use common::*;
 use constraint_dynamics::actuators::Command;
 use constraint_dynamics::forces::JointSpringSpec;
-use constraint_dynamics::predict::Predictor;
+use constraint_dynamics::predict::{PredictRequest, Predictor};
 use constraint_dynamics::{Error, Scene};
 use nalgebra::DMatrix;
 
 /// Achieved ≤ 8.2e-4 (the mobile manipulator at 0.5 s; 1.3e-4 on its floating twin, ≤ 3.4e-5
 /// elsewhere, 1.1e-14 on the diff drive whose Φ is exact): the covariance's linearized steps span
-/// several prediction steps (src/predict/covariance_chunks.rs, accepted at 3e-3 of the chunk's
+/// several prediction steps (src/predict/covariance/chunks.rs, accepted at 3e-3 of the chunk's
 /// motion; one linearization per step gives ≤ 4e-7) and N = ∂(Jv)/∂q is a central difference.
 const TOL: f64 = 1e-3;
 
@@ -40,18 +40,20 @@ fn relative_difference_under(
     commands: &[(f64, Command)],
     horizon: f64,
 ) -> f64 {
-    let mut pred = Predictor::from_scene(&scene).unwrap();
-    pred.settings.error_estimate = false;
-    let model = pred.sys.model.clone();
-    let nv = model.nv;
-    pred.start_covariance = Some(DMatrix::identity(2 * nv, 2 * nv) * 1e-6);
-    let traj = pred
-        .predict(&scene.q0, &scene.v0, commands, horizon)
+    let mut pred = Predictor::from_scene(&scene)
+        .unwrap()
+        .with_settings(|s| s.error_estimate = false)
         .unwrap();
+    let model = pred.model().clone();
+    let nv = model.nv;
+    let p0 = DMatrix::identity(2 * nv, 2 * nv) * 1e-6;
+    let req = PredictRequest::new(&scene.q0, &scene.v0)
+        .commands(commands)
+        .horizon(horizon);
+    let traj = pred.predict(&req.covariance(&p0)).unwrap();
     let first = rows_to_matrix(traj.samples[0].covariance.as_ref().unwrap());
     let last = traj.samples.last().unwrap();
     let p_t = rows_to_matrix(last.covariance.as_ref().unwrap());
-    pred.start_covariance = None;
     let eig = first.symmetric_eigen();
     let mut p_fd = DMatrix::zeros(2 * nv, 2 * nv);
     for k in 0..2 * nv {
@@ -66,7 +68,8 @@ fn relative_difference_under(
             let mut q = vec![0.0; model.nq];
             model.integrate(&scene.q0, dx.rows(0, nv).as_slice(), 1.0, &mut q);
             let v: Vec<f64> = (0..nv).map(|i| scene.v0[i] + dx[nv + i]).collect();
-            let t = pred.predict(&q, &v, commands, horizon).unwrap();
+            let req = PredictRequest::new(&q, &v).commands(commands).horizon(horizon);
+            let t = pred.predict(&req).unwrap();
             let s = t.samples.last().unwrap();
             ends.push(tangent(&model, &last.q, &last.v, &s.q, &s.v));
         }
@@ -132,9 +135,9 @@ fn joint_spring_dampers_enter_the_covariance() {
 fn covariance_with_springs_is_refused() {
     let scene = Scene::load(repo_dir().join("params/andrews.yaml")).unwrap();
     let mut pred = Predictor::from_scene(&scene).unwrap();
-    let n = 2 * pred.sys.model.nv;
-    pred.start_covariance = Some(DMatrix::identity(n, n) * 1e-6);
-    match pred.predict(&scene.q0, &scene.v0, &[], 0.001) {
+    let n = 2 * pred.model().nv;
+    let p0 = DMatrix::identity(n, n) * 1e-6;
+    match pred.predict(&PredictRequest::new(&scene.q0, &scene.v0).horizon(0.001).covariance(&p0)) {
         Err(Error::Unsupported { what, .. }) => {
             assert!(what.contains("point-to-point springs"), "{what}")
         }
@@ -175,7 +178,7 @@ fn controllers_enter_the_covariance() {
 }
 
 /// The covariance's work is reported and follows the stability bound of its linearized steps
-/// (H ρ ≤ 0.5, src/predict/covariance_chunks.rs): on the stiff chain, whose fastest mode ω is
+/// (H ρ ≤ 0.5, src/predict/covariance/chunks.rs): on the stiff chain, whose fastest mode ω is
 /// the closed form √λmax(M⁻¹K) (M_jk = 0.1 (6 − max(j, k)) kg, K = diag(k_i)), a horizon T
 /// needs at least T ω / 0.5 linearized steps, while the prediction's steps (dt ω = 0.1) are
 /// five times shorter than that bound and so several to a linearization. Achieved: 203
@@ -198,9 +201,10 @@ fn the_covariance_work_follows_the_stiffest_mode() {
     scene.file.integration.dt = 0.1 / omega;
     let horizon = 0.02;
     let mut pred = Predictor::from_scene(&scene).unwrap();
-    let n = 2 * pred.sys.model.nv;
-    pred.start_covariance = Some(DMatrix::identity(n, n) * 1e-6);
-    let t = pred.predict(&scene.q0, &scene.v0, &[], horizon).unwrap();
+    let n = 2 * pred.model().nv;
+    let p0 = DMatrix::identity(n, n) * 1e-6;
+    let req = PredictRequest::new(&scene.q0, &scene.v0).horizon(horizon);
+    let t = pred.predict(&req.covariance(&p0)).unwrap();
     let bound = horizon * omega / 0.5;
     let lin = t.covariance_linearizations as f64;
     eprintln!(
@@ -217,7 +221,6 @@ fn the_covariance_work_follows_the_stiffest_mode() {
     );
     assert!(0.0 < t.covariance_time_s && t.covariance_time_s < t.run_time_s);
     // Without a start covariance there is no such work.
-    pred.start_covariance = None;
-    let t = pred.predict(&scene.q0, &scene.v0, &[], horizon).unwrap();
+    let t = pred.predict(&req).unwrap();
     assert_eq!((t.covariance_linearizations, t.covariance_time_s), (0, 0.0));
 }

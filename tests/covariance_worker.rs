@@ -1,4 +1,4 @@
-//! The covariance on its worker thread (src/predict/covariance_worker.rs) is the covariance
+//! The covariance on its worker thread (src/predict/covariance/worker.rs) is the covariance
 //! propagated inline, to the bit: the same samples, the same P at every sample, the same
 //! linearizations — and the same errors, whichever side meets one. (Its accuracy against Monte
 //! Carlo is tests/covariance.rs, which runs on the worker wherever there are two cores.)
@@ -8,7 +8,7 @@ use common::{repo_dir, turning_with_arm_held};
 use constraint_dynamics::Scene;
 use constraint_dynamics::actuators::Command;
 use constraint_dynamics::error::Error;
-use constraint_dynamics::predict::{Predictor, Trajectory};
+use constraint_dynamics::predict::{IntegrationSettings, PredictRequest, Predictor, Trajectory};
 use nalgebra::DMatrix;
 
 /// The scene's prediction from its initial state with start covariance σ² I, inline and on
@@ -18,7 +18,7 @@ fn both(
     sigma: f64,
     commands: &[(f64, Command)],
     horizon: f64,
-    tune: impl Fn(&mut Predictor),
+    tune: impl Fn(&mut IntegrationSettings),
 ) -> [Result<Trajectory, Error>; 2] {
     assert!(
         std::thread::available_parallelism().is_ok_and(|n| n.get() > 1),
@@ -26,12 +26,18 @@ fn both(
     );
     let scene = Scene::load(repo_dir().join("params").join(scene)).unwrap();
     [false, true].map(|parallel| {
-        let mut p = Predictor::from_scene(&scene).unwrap();
-        tune(&mut p);
-        let nv = p.sys.model.nv;
-        p.start_covariance = Some(DMatrix::identity(2 * nv, 2 * nv) * (sigma * sigma));
-        p.parallel_covariance = parallel;
-        p.predict(&scene.q0, &scene.v0, commands, horizon)
+        let mut p = Predictor::from_scene(&scene)
+            .unwrap()
+            .with_settings(&tune)
+            .unwrap()
+            .with_parallel_covariance(parallel);
+        let nv = p.model().nv;
+        let p0 = DMatrix::identity(2 * nv, 2 * nv) * (sigma * sigma);
+        let req = PredictRequest::new(&scene.q0, &scene.v0)
+            .commands(commands)
+            .horizon(horizon)
+            .covariance(&p0);
+        p.predict(&req)
     })
 }
 
@@ -75,8 +81,8 @@ fn controlled_mobile_manipulator_worker_equals_inline() {
 /// Samples 100 ms apart: records fill up (32 steps) and go to the worker between samples.
 #[test]
 fn full_records_between_samples_worker_equals_inline() {
-    let [a, b] = both("diff_drive.yaml", 1e-3, &[], 0.5, |p| {
-        p.settings.sample_period = 0.1;
+    let [a, b] = both("diff_drive.yaml", 1e-3, &[], 0.5, |s| {
+        s.sample_period = 0.1;
     });
     let (a, b) = (a.unwrap(), b.unwrap());
     assert_same(&a, &b);
@@ -98,9 +104,9 @@ fn an_overflowing_covariance_is_the_same_error_on_the_worker() {
 /// that error, without waiting forever.
 #[test]
 fn a_prediction_error_with_the_worker_busy_is_the_predictions() {
-    let [a, b] = both("vertical_disk.yaml", 1e-3, &[], 0.5, |p| {
-        p.settings.max_error = 1e-17;
-        p.settings.adapt = false;
+    let [a, b] = both("vertical_disk.yaml", 1e-3, &[], 0.5, |s| {
+        s.max_error = 1e-17;
+        s.adapt = false;
     });
     let (a, b) = (a.unwrap_err().to_string(), b.unwrap_err().to_string());
     assert!(a.contains("error estimate"), "{a}");

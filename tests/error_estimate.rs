@@ -12,25 +12,28 @@ mod common;
 
 use closed_forms::{a01_state, linear_modes, relative_chain_mass};
 use common::scene;
-use constraint_dynamics::forces::{ForceElements, ForcesSpec, JointSpringSpec};
-use constraint_dynamics::predict::{DriftControl, Method, Predictor, Trajectory};
+use constraint_dynamics::forces::{ForcesSpec, JointSpringSpec};
+use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor, Trajectory};
 use constraint_dynamics::{Error, Scene};
 use nalgebra::{DMatrix, DVector};
 
 /// `x` is dt for fixed-step methods, rtol = atol for dopri5; `max_error` off (the sweep
 /// measures the estimate wherever it lands).
 fn predictor(sc: &Scene, method: Method, x: f64) -> Predictor {
-    let mut p = Predictor::from_scene(sc).unwrap();
-    p.settings.method = method;
-    p.settings.drift = DriftControl::None;
-    p.settings.max_error = f64::INFINITY;
-    if method.is_adaptive() {
-        p.settings.rtol = x;
-        p.settings.atol = x;
-    } else {
-        p.settings.dt = x;
-    }
-    p
+    Predictor::from_scene(sc)
+        .unwrap()
+        .with_settings(|s| {
+            s.method = method;
+            s.drift = DriftControl::None;
+            s.max_error = f64::INFINITY;
+            if method.is_adaptive() {
+                s.rtol = x;
+                s.atol = x;
+            } else {
+                s.dt = x;
+            }
+        })
+        .unwrap()
 }
 
 /// Prints a row and checks estimate / true error ∈ [0.25, 4] (achieved 0.34–1.75; the bar
@@ -66,9 +69,12 @@ fn a01_estimate_brackets_the_closed_form_error() {
     let (q_exact, _) = a01_state(A01_HORIZON);
     for (method, xs) in a01_sweeps() {
         for x in xs {
-            let mut p = predictor(&sc, method, x);
-            p.settings.sample_period = 0.1;
-            let t = p.predict(&sc.q0, &sc.v0, &[], A01_HORIZON).unwrap();
+            let mut p = predictor(&sc, method, x)
+                .with_settings(|s| s.sample_period = 0.1)
+                .unwrap();
+            let t = p
+                .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(A01_HORIZON))
+                .unwrap();
             let last = t.samples.last().unwrap();
             assert!((last.t - A01_HORIZON).abs() < 1e-12);
             let truth = (last.q[0] - q_exact).abs();
@@ -95,11 +101,15 @@ fn chain(k: [f64; 5]) -> (Scene, ForcesSpec, DMatrix<f64>, DMatrix<f64>) {
 }
 
 fn chain_run(k: [f64; 5], method: Method, x: f64, horizon: f64) -> (Trajectory, f64) {
-    let (sc, spec, m, kk) = chain(k);
-    let mut p = predictor(&sc, method, x);
-    p.forces = ForceElements::new(&p.sys.model, &spec).unwrap();
-    p.settings.sample_period = horizon / 10.0;
-    let t = p.predict(&sc.q0, &sc.v0, &[], horizon).unwrap();
+    let (mut sc, spec, m, kk) = chain(k);
+    // The scene's force elements are the chain's springs.
+    sc.file.forces = spec;
+    let mut p = predictor(&sc, method, x)
+        .with_settings(|s| s.sample_period = horizon / 10.0)
+        .unwrap();
+    let t = p
+        .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(horizon))
+        .unwrap();
     let last = t.samples.last().unwrap();
     let (q, _) = linear_modes(&m, &kk, &sc.q0, &sc.v0, last.t);
     let truth = last
@@ -154,9 +164,11 @@ fn very_stiff_chain_sdirk2_estimate_brackets_the_modal_error() {
 #[test]
 fn max_error_stops_with_a_typed_error_naming_a_step_that_meets_it() {
     let sc = scene("params/pendulum_a01.yaml");
-    let mut p = predictor(&sc, Method::SemiImplicitEuler, 4e-3);
-    p.settings.max_error = 1e-3;
-    let e = p.predict(&sc.q0, &sc.v0, &[], A01_HORIZON).unwrap_err();
+    let mut p = predictor(&sc, Method::SemiImplicitEuler, 4e-3)
+        .with_settings(|s| s.max_error = 1e-3)
+        .unwrap();
+    let req = PredictRequest::new(&sc.q0, &sc.v0).horizon(A01_HORIZON);
+    let e = p.predict(&req).unwrap_err();
     println!("{e}");
     let Error::ErrorEstimateExceeded {
         t, estimate, hint, ..
@@ -173,8 +185,7 @@ fn max_error_stops_with_a_typed_error_naming_a_step_that_meets_it() {
         .unwrap()
         .parse()
         .unwrap();
-    p.settings.dt = dt;
-    let t = p.predict(&sc.q0, &sc.v0, &[], A01_HORIZON).unwrap();
+    let t = p.with_settings(|s| s.dt = dt).unwrap().predict(&req).unwrap();
     let (q_exact, _) = a01_state(A01_HORIZON);
     let last = t.samples.last().unwrap();
     println!(
@@ -200,11 +211,16 @@ fn adapt_refines_until_the_bound_is_met() {
         (Method::Dop853, 1e-3, 1e-12),
         (Method::Radau5, 1e-4, 1e-8),
     ] {
-        let mut p = predictor(&sc, method, x);
-        p.settings.max_error = bound;
-        p.settings.adapt = true;
-        p.settings.sample_period = 0.1;
-        let t = p.predict(&sc.q0, &sc.v0, &[], A01_HORIZON).unwrap();
+        let mut p = predictor(&sc, method, x)
+            .with_settings(|s| {
+                s.max_error = bound;
+                s.adapt = true;
+                s.sample_period = 0.1;
+            })
+            .unwrap();
+        let t = p
+            .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(A01_HORIZON))
+            .unwrap();
         let last = t.samples.last().unwrap();
         let truth = (last.q[0] - q_exact).abs();
         println!(
@@ -237,12 +253,12 @@ fn without_the_estimate_the_answer_is_unchanged_and_cheaper() {
         (Method::Dop853, 1e-8),
         (Method::Radau5, 1e-8),
     ] {
-        let with = predictor(&sc, method, x)
-            .predict(&sc.q0, &sc.v0, &[], 3.0)
+        let req = PredictRequest::new(&sc.q0, &sc.v0).horizon(3.0);
+        let with = predictor(&sc, method, x).predict(&req).unwrap();
+        let mut p = predictor(&sc, method, x)
+            .with_settings(|s| s.error_estimate = false)
             .unwrap();
-        let mut p = predictor(&sc, method, x);
-        p.settings.error_estimate = false;
-        let without = p.predict(&sc.q0, &sc.v0, &[], 3.0).unwrap();
+        let without = p.predict(&req).unwrap();
         assert_eq!(with.samples.len(), without.samples.len());
         for (a, b) in with.samples.iter().zip(&without.samples) {
             assert_eq!((&a.q, &a.v), (&b.q, &b.v), "{method:?} at t = {}", a.t);
@@ -251,10 +267,10 @@ fn without_the_estimate_the_answer_is_unchanged_and_cheaper() {
         assert_eq!(with.evaluations, without.evaluations);
         assert!(with.estimate_evaluations > 0 && without.estimate_evaluations == 0);
     }
-    let mut p = predictor(&sc, Method::Rk4, 1e-2);
-    p.settings.error_estimate = false;
-    p.settings.adapt = true;
-    assert!(p.settings.validate().is_err(), "adapt needs the estimate");
+    let mut s = predictor(&sc, Method::Rk4, 1e-2).config().settings().clone();
+    s.error_estimate = false;
+    s.adapt = true;
+    assert!(s.validate().is_err(), "adapt needs the estimate");
 }
 
 /// Closed-loop actuators: the companion closes its own controllers' loop. The mobile manipulator
@@ -267,9 +283,13 @@ fn without_the_estimate_the_answer_is_unchanged_and_cheaper() {
 fn closed_loop_actuators_estimate_stays_small() {
     use constraint_dynamics::actuators::Command;
     let sc = scene("params/suite_mobile_manipulator.yaml");
-    let mut p = Predictor::from_scene(&sc).unwrap();
-    p.settings.max_error = f64::INFINITY;
-    p.settings.sample_period = 0.5;
+    let mut p = Predictor::from_scene(&sc)
+        .unwrap()
+        .with_settings(|s| {
+            s.max_error = f64::INFINITY;
+            s.sample_period = 0.5;
+        })
+        .unwrap();
     let hold = Command {
         base_twist: Some([0.2, 0.0]),
         joint_position: [
@@ -283,7 +303,11 @@ fn closed_loop_actuators_estimate_stays_small() {
         .collect(),
         ..Default::default()
     };
-    let t = p.predict(&sc.q0, &sc.v0, &[(0.0, hold)], 14.7).unwrap();
+    let commands = [(0.0, hold)];
+    let req = PredictRequest::new(&sc.q0, &sc.v0)
+        .commands(&commands)
+        .horizon(14.7);
+    let t = p.predict(&req).unwrap();
     let worst = t
         .samples
         .iter()

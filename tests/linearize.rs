@@ -8,10 +8,12 @@
 
 mod common;
 use common::*;
+use constraint_dynamics::actuators::Actuators;
 use constraint_dynamics::algorithm::crba;
+use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::constraints::ConstraintKind;
 use constraint_dynamics::predict::{
-    DriftControl, Linearization, Method, Predictor, linearize_step,
+    DriftControl, Linearization, Method, PredictRequest, Predictor, linearize_step,
 };
 use constraint_dynamics::{Scene, System};
 use nalgebra::{DMatrix, DVector};
@@ -24,7 +26,7 @@ const TOL: f64 = 1e-8;
 const DT: f64 = 0.01;
 
 fn step_for(scene: &Scene) -> f64 {
-    DT.min(10.0 * Predictor::from_scene(scene).unwrap().settings.dt)
+    DT.min(10.0 * Predictor::from_scene(scene).unwrap().config().settings().dt)
 }
 
 /// x⁺ of the step as a tangent vector at the unperturbed x⁺: (q⁺ ⊖ q⁺_ref, v⁺).
@@ -171,8 +173,9 @@ fn linearized_step_is_the_predictors_step() {
     for p in bundled_scenes() {
         let scene = Scene::load(&p).unwrap();
         let name = p.file_name().unwrap().to_string_lossy().to_string();
-        let probe = Predictor::from_scene(&scene).unwrap();
-        if !probe.forces.is_empty() || !probe.actuators.is_empty() {
+        let forces = ForceElements::new(&scene.model, &scene.file.forces).unwrap();
+        let actuators = Actuators::new(&scene.model, &scene.file.actuators).unwrap();
+        if !forces.is_empty() || !actuators.is_empty() {
             continue; // the predictor adds force elements and actuator torques to τ
         }
         let mut sys = System::from_scene(&scene).unwrap();
@@ -188,16 +191,22 @@ fn linearized_step_is_the_predictors_step() {
         let mut lin = Linearization::new(&sys);
         let nv = sys.model.nv;
         for method in [Method::SemiImplicitEuler, Method::Rk4, Method::Dopri5] {
-            let mut pred = Predictor::from_scene(&scene).unwrap();
-            pred.settings.method = method;
-            pred.settings.dt = DT;
-            pred.settings.sample_period = DT;
-            pred.settings.drift = DriftControl::None;
-            pred.settings.rtol = 1e30; // DOPRI5 takes the first step as given
-            // One step compared with its linearization, whatever its accuracy (SIE's error
-            // estimate over this step is 3.7e-3 on the mobile manipulator).
-            pred.settings.max_error = f64::INFINITY;
-            let traj = pred.predict(&scene.q0, &scene.v0, &[], DT).unwrap();
+            let mut pred = Predictor::from_scene(&scene)
+                .unwrap()
+                .with_settings(|s| {
+                    s.method = method;
+                    s.dt = DT;
+                    s.sample_period = DT;
+                    s.drift = DriftControl::None;
+                    s.rtol = 1e30; // DOPRI5 takes the first step as given
+                    // One step compared with its linearization, whatever its accuracy (SIE's
+                    // error estimate over this step is 3.7e-3 on the mobile manipulator).
+                    s.max_error = f64::INFINITY;
+                })
+                .unwrap();
+            let traj = pred
+                .predict(&PredictRequest::new(&scene.q0, &scene.v0).horizon(DT))
+                .unwrap();
             let last = traj.samples.last().unwrap();
             linearize_step(
                 &mut sys,

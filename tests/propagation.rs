@@ -9,9 +9,18 @@ use constraint_dynamics::actuators::Actuators;
 use constraint_dynamics::constraints::ConstraintSet;
 use constraint_dynamics::dynamics::{Baumgarte, Formulation};
 use constraint_dynamics::forces::ForceElements;
-use constraint_dynamics::predict::{DriftControl, IntegrationSettings, Method, Predictor};
+use constraint_dynamics::predict::{
+    DriftControl, IntegrationOverrides, IntegrationSettings, Method, PredictRequest, Predictor,
+};
 
-fn predictor_for(name: &str, k: usize, method: Method, dt: f64) -> (Predictor, Vec<f64>, Vec<f64>) {
+/// The system of reference state `k` of case `name`, integration settings by `method` at `dt`
+/// without drift control, and the state's q and v.
+fn parts_for(
+    name: &str,
+    k: usize,
+    method: Method,
+    dt: f64,
+) -> (System, IntegrationSettings, Vec<f64>, Vec<f64>) {
     let case = load_case(name);
     let model = case_model(&case);
     let st = &case["states"][k];
@@ -31,6 +40,11 @@ fn predictor_for(name: &str, k: usize, method: Method, dt: f64) -> (Predictor, V
         sample_period: dt,
         ..Default::default()
     };
+    (sys, settings, q, vecf(&st["qd"]))
+}
+
+fn predictor_for(name: &str, k: usize, method: Method, dt: f64) -> (Predictor, Vec<f64>, Vec<f64>) {
+    let (sys, settings, q, v) = parts_for(name, k, method, dt);
     let p = Predictor::new(
         sys,
         ForceElements::default(),
@@ -38,7 +52,7 @@ fn predictor_for(name: &str, k: usize, method: Method, dt: f64) -> (Predictor, V
         settings,
     )
     .unwrap();
-    (p, q, vecf(&st["qd"]))
+    (p, q, v)
 }
 
 #[test]
@@ -54,25 +68,26 @@ fn semi_implicit_euler_step_matches_reference_on_every_state() {
             let tau = vecf(&st["tau"]);
             if tau.iter().any(|t| *t != 0.0) {
                 // The reference steps use the state's τ; the predictor's τ comes from force elements.
-                let (mut p, q, v) = predictor_for(name, k, Method::SemiImplicitEuler, 1.0);
+                let (sys, settings, q, v) = parts_for(name, k, Method::SemiImplicitEuler, 1.0);
                 let mut fe_spec = constraint_dynamics::forces::ForcesSpec::default();
                 for (i, &t) in tau.iter().enumerate() {
                     if t != 0.0 {
                         fe_spec
                             .joint_torques
                             .push(constraint_dynamics::forces::JointTorqueSpec {
-                                joint: p.sys.model.v_names[i].clone(),
+                                joint: sys.model.v_names[i].clone(),
                                 value: t,
                                 profile: vec![],
                             });
                     }
                 }
-                if p.sys.model.base == constraint_dynamics::BaseType::Floating
+                if sys.model.base == constraint_dynamics::BaseType::Floating
                     && tau[..6].iter().any(|t| *t != 0.0)
                 {
                     continue; // base wrenches are not joint torques
                 }
-                p.forces = ForceElements::new(&p.sys.model, &fe_spec).unwrap();
+                let forces = ForceElements::new(&sys.model, &fe_spec).unwrap();
+                let mut p = Predictor::new(sys, forces, Actuators::default(), settings).unwrap();
                 check_step(&mut p, &q, &v, st, &format!("{name}[{k}]"));
             } else {
                 let (mut p, q, v) = predictor_for(name, k, Method::SemiImplicitEuler, 1.0);
@@ -85,9 +100,14 @@ fn semi_implicit_euler_step_matches_reference_on_every_state() {
 fn check_step(p: &mut Predictor, q: &[f64], v: &[f64], st: &serde_json::Value, tag: &str) {
     let e = &st["expected"]["semi_implicit_euler"];
     let dt = e["dt"].as_f64().unwrap();
-    p.settings.dt = dt;
-    p.settings.sample_period = dt;
-    let traj = p.predict(q, v, &[], dt).unwrap();
+    let step = IntegrationOverrides {
+        dt: Some(dt),
+        sample_period: Some(dt),
+        ..Default::default()
+    };
+    let traj = p
+        .predict(&PredictRequest::new(q, v).horizon(dt).integration(step))
+        .unwrap();
     let last = traj.samples.last().unwrap();
     assert_close(
         &format!("{tag} qd_next"),
@@ -118,17 +138,29 @@ fn rolling_disk_energy_drift_matches_the_reference_run() {
     // max |ΔE| = 0.021630386769942556 J, max |J q̇| = 0.0010381908883498713 m/s.
     let case = load_case("rolling_disk");
     let chk = &case["simulation_energy_check"];
-    let (mut p, q, v) = predictor_for("rolling_disk", 1, Method::SemiImplicitEuler, 1e-4);
-    p.sys.baumgarte = Baumgarte {
+    let (mut sys, settings, q, v) = parts_for("rolling_disk", 1, Method::SemiImplicitEuler, 1e-4);
+    sys.baumgarte = Baumgarte {
         kp: 100.0,
         kd: 20.0,
     };
-    p.settings.sample_period = 1e-4;
-    // The reference is a coarse first-order run, reproduced as it is: its global error passes
-    // the default max_error (1e-3) at t = 0.245 s, so the bound is off for this comparison.
-    p.settings.max_error = f64::INFINITY;
+    let mut p = Predictor::new(
+        sys,
+        ForceElements::default(),
+        Actuators::default(),
+        settings,
+    )
+    .unwrap()
+    .with_settings(|s| {
+        s.sample_period = 1e-4;
+        // The reference is a coarse first-order run, reproduced as it is: its global error
+        // passes the default max_error (1e-3) at t = 0.245 s, so the bound is off for this
+        // comparison.
+        s.max_error = f64::INFINITY;
+    })
+    .unwrap();
+    let horizon = chk["duration_s"].as_f64().unwrap();
     let traj = p
-        .predict(&q, &v, &[], chk["duration_s"].as_f64().unwrap())
+        .predict(&PredictRequest::new(&q, &v).horizon(horizon))
         .unwrap();
     let e0 = chk["initial_energy_J"].as_f64().unwrap();
     let s0 = &traj.samples[0];

@@ -9,7 +9,7 @@ mod closed_forms;
 
 use closed_forms::a01_position;
 use constraint_dynamics::Scene;
-use constraint_dynamics::predict::{Method, Predictor};
+use constraint_dynamics::predict::{Method, PredictRequest, Predictor};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -32,13 +32,18 @@ fn max_position_error(traj: &constraint_dynamics::predict::Trajectory) -> f64 {
 
 #[test]
 fn a01_pendulum_meets_the_high_precision_bar_over_2000_s() {
-    let (mut p, scene) = pendulum();
-    p.settings.method = Method::Dopri5;
-    p.settings.rtol = 1e-11;
-    p.settings.atol = 1e-11;
-    p.settings.sample_period = 1.0;
+    let (p, scene) = pendulum();
+    let mut p = p
+        .with_settings(|s| {
+            s.method = Method::Dopri5;
+            s.rtol = 1e-11;
+            s.atol = 1e-11;
+            s.sample_period = 1.0;
+        })
+        .unwrap();
+    let req = PredictRequest::new(&scene.q0, &scene.v0).horizon(2000.0);
     let start = Instant::now();
-    let traj = p.predict(&scene.q0, &scene.v0, &[], 2000.0).unwrap();
+    let traj = p.predict(&req).unwrap();
     let cpu = start.elapsed().as_secs_f64();
     let err = max_position_error(&traj);
     let last = traj.samples.last().unwrap();

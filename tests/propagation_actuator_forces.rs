@@ -8,21 +8,23 @@
 mod common;
 use common::*;
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::predict::Predictor;
+use constraint_dynamics::predict::{PredictRequest, Predictor};
 use constraint_dynamics::{Scene, System};
 
 #[test]
 fn first_sample_forces_include_the_saturated_wheel_torques() {
     let scene = Scene::load(repo_dir().join("params/suite_diff_drive.yaml")).unwrap();
     let mut p = Predictor::from_scene(&scene).unwrap();
-    p.want_forces = true;
     let cmd = Command {
         base_twist: Some([0.5, 0.4]),
         ..Default::default()
     };
-    let traj = p
-        .predict(&scene.q0, &scene.v0, &[(0.0, cmd)], 0.02)
-        .unwrap();
+    let commands = [(0.0, cmd)];
+    let req = PredictRequest::new(&scene.q0, &scene.v0)
+        .commands(&commands)
+        .horizon(0.02)
+        .forces(true);
+    let traj = p.predict(&req).unwrap();
     let got = traj.samples[0].lambda.clone().unwrap();
     let mut sys = System::from_scene(&scene).unwrap();
     sys.forward_dynamics(&scene.q0, &scene.v0, &[0.0, 0.0, 0.0, 5.0, 5.0], true)

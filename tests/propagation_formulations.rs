@@ -8,7 +8,7 @@
 
 use constraint_dynamics::Scene;
 use constraint_dynamics::dynamics::Formulation;
-use constraint_dynamics::predict::{DriftControl, Method, Predictor, Trajectory};
+use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor, Trajectory};
 use std::path::PathBuf;
 
 fn propagate(
@@ -17,13 +17,20 @@ fn propagate(
     horizon: f64,
     dt: f64,
 ) -> (Predictor, Trajectory) {
-    let mut p = Predictor::from_scene(sc).unwrap();
-    p.sys.formulation = formulation;
-    p.settings.method = Method::Rk4;
-    p.settings.dt = dt;
-    p.settings.drift = DriftControl::Projection;
-    p.settings.sample_period = 0.1;
-    let t = p.predict(&sc.q0, &sc.v0, &[], horizon).unwrap();
+    let mut sc = sc.clone();
+    sc.file.dynamics.formulation = formulation;
+    let mut p = Predictor::from_scene(&sc)
+        .unwrap()
+        .with_settings(|s| {
+            s.method = Method::Rk4;
+            s.dt = dt;
+            s.drift = DriftControl::Projection;
+            s.sample_period = 0.1;
+        })
+        .unwrap();
+    let t = p
+        .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(horizon))
+        .unwrap();
     (p, t)
 }
 
@@ -57,8 +64,8 @@ fn embedded_and_multiplier_propagations_agree_on_every_bundled_scene() {
         let (_, mul) = propagate(&sc, Formulation::Multipliers, horizon, dt);
         let mut worst: f64 = 0.0;
         for (a, b) in emb.samples.iter().zip(&mul.samples) {
-            let mut d = vec![0.0; p.sys.model.nv];
-            p.sys.model.difference(&a.q, &b.q, &mut d);
+            let mut d = vec![0.0; p.model().nv];
+            p.model().difference(&a.q, &b.q, &mut d);
             let dv = a.v.iter().zip(&b.v).map(|(x, y)| (x - y).abs());
             worst = d.iter().map(|x| x.abs()).chain(dv).fold(worst, f64::max);
         }

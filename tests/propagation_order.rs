@@ -11,7 +11,7 @@ mod common;
 use closed_forms::a01_position;
 use common::scene;
 use constraint_dynamics::Scene;
-use constraint_dynamics::predict::{DriftControl, Method, Predictor, Trajectory};
+use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor, Trajectory};
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 use std::path::PathBuf;
 
@@ -23,14 +23,20 @@ fn run(
     horizon: f64,
     sample: f64,
 ) -> Trajectory {
-    let mut p = Predictor::from_scene(sc).unwrap();
-    p.settings.method = method;
-    p.settings.dt = dt;
-    p.settings.drift = drift;
-    p.settings.sample_period = sample;
-    // The orders are measured down to coarse steps whose error exceeds the default max_error.
-    p.settings.max_error = f64::INFINITY;
-    p.predict(&sc.q0, &sc.v0, &[], horizon).unwrap()
+    let mut p = Predictor::from_scene(sc)
+        .unwrap()
+        .with_settings(|s| {
+            s.method = method;
+            s.dt = dt;
+            s.drift = drift;
+            s.sample_period = sample;
+            // The orders are measured down to coarse steps whose error exceeds the default
+            // max_error.
+            s.max_error = f64::INFINITY;
+        })
+        .unwrap();
+    p.predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(horizon))
+        .unwrap()
 }
 
 /// Observed orders log2(e_k / e_{k+1}) of errors at dt, dt/2, dt/4.
@@ -158,12 +164,18 @@ fn dopri5_error_decreases_with_rtol() {
     let sc = scene("params/pendulum_a01.yaml");
     let mut prev = f64::INFINITY;
     for rtol in [1e-5, 1e-7, 1e-9, 1e-11] {
-        let mut p = Predictor::from_scene(&sc).unwrap();
-        p.settings.method = Method::Dopri5;
-        p.settings.rtol = rtol;
-        p.settings.atol = rtol;
-        p.settings.sample_period = 0.1;
-        let t = p.predict(&sc.q0, &sc.v0, &[], 10.0).unwrap();
+        let mut p = Predictor::from_scene(&sc)
+            .unwrap()
+            .with_settings(|s| {
+                s.method = Method::Dopri5;
+                s.rtol = rtol;
+                s.atol = rtol;
+                s.sample_period = 0.1;
+            })
+            .unwrap();
+        let t = p
+            .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(10.0))
+            .unwrap();
         let e = a01_max_error(&t);
         println!(
             "A01 dopri5 rtol {rtol:e}: max position error {e:.3e} m, {} steps",
@@ -208,21 +220,30 @@ fn angular_momentum(q: &[f64], v: &[f64]) -> Vector3<f64> {
 
 #[test]
 fn free_rigid_body_conserves_energy_and_momentum_at_rk4_order_on_se3() {
-    let (mut p0, q0, v0) = free_body();
-    p0.settings.method = Method::Dopri5;
-    p0.settings.rtol = 1e-13;
-    p0.settings.atol = 1e-13;
-    p0.settings.sample_period = 4.0;
-    let reference = p0.predict(&q0, &v0, &[], 4.0).unwrap();
+    let (p0, q0, v0) = free_body();
+    let mut p0 = p0
+        .with_settings(|s| {
+            s.method = Method::Dopri5;
+            s.rtol = 1e-13;
+            s.atol = 1e-13;
+            s.sample_period = 4.0;
+        })
+        .unwrap();
+    let req = PredictRequest::new(&q0, &v0).horizon(4.0);
+    let reference = p0.predict(&req).unwrap();
     let q_ref = reference.samples.last().unwrap().q.clone();
     let l0 = angular_momentum(&q0, &v0);
     let (mut e_energy, mut e_momentum, mut e_state) = (vec![], vec![], vec![]);
     for dt in [0.01, 0.005, 0.0025] {
-        let (mut p, _, _) = free_body();
-        p.settings.method = Method::Rk4;
-        p.settings.dt = dt;
-        p.settings.sample_period = 0.1;
-        let t = p.predict(&q0, &v0, &[], 4.0).unwrap();
+        let (p, _, _) = free_body();
+        let mut p = p
+            .with_settings(|s| {
+                s.method = Method::Rk4;
+                s.dt = dt;
+                s.sample_period = 0.1;
+            })
+            .unwrap();
+        let t = p.predict(&req).unwrap();
         e_energy.push(energy_error(&t));
         e_momentum.push(
             t.samples
@@ -231,8 +252,7 @@ fn free_rigid_body_conserves_energy_and_momentum_at_rk4_order_on_se3() {
                 .fold(0.0, f64::max),
         );
         let mut d = vec![0.0; 6];
-        p.sys
-            .model
+        p.model()
             .difference(&q_ref, &t.samples.last().unwrap().q, &mut d);
         e_state.push(d.iter().fold(0.0f64, |m, x| m.max(x.abs())));
     }

@@ -16,10 +16,12 @@
 mod common;
 use common::*;
 
+use constraint_dynamics::actuators::Actuators;
 use constraint_dynamics::constraints::ConstraintSet;
 use constraint_dynamics::dynamics::{Baumgarte, Formulation};
+use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::model::JointKind;
-use constraint_dynamics::predict::{DriftControl, Method, Predictor};
+use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor};
 use constraint_dynamics::projection::{ProjectionProblem, Side, Status, VelocityProjector};
 use constraint_dynamics::{Scene, System};
 use nalgebra::{DMatrix, DVector};
@@ -280,8 +282,10 @@ fn passive_scenes() -> &'static Vec<Scene> {
         let file = serde_yaml::from_str("urdf: free_body.urdf\nbase: floating\ngravity: [0.0, 0.0, 0.0]\n").unwrap();
         out.push(Scene::from_parts(&PathBuf::from("free_body.yaml"), file, urdf, "free_body.urdf").unwrap());
         for sc in &out {
-            let p = Predictor::from_scene(sc).unwrap();
-            assert!(p.actuators.is_empty() && p.forces.is_conservative(), "{}", sc.path.display());
+            Predictor::from_scene(sc).unwrap();
+            let actuators = Actuators::new(&sc.model, &sc.file.actuators).unwrap();
+            let forces = ForceElements::new(&sc.model, &sc.file.forces).unwrap();
+            assert!(actuators.is_empty() && forces.is_conservative(), "{}", sc.path.display());
         }
         out
     })
@@ -318,12 +322,16 @@ proptest! {
         let v0 = &n * DVector::from_iterator(n.ncols(), (0..n.ncols()).map(|i| speed(uv[i % 8])));
         let mut errors = vec![];
         for dt in [dt0, dt0 / 2.0] {
-            let mut p = Predictor::from_scene(scene).unwrap();
-            p.settings.method = Method::Rk4;
-            p.settings.dt = dt;
-            p.settings.drift = DriftControl::None;
-            p.settings.sample_period = 0.01;
-            let t = p.predict(&scene.q0, v0.as_slice(), &[], 1.0).unwrap();
+            let mut p = Predictor::from_scene(scene)
+                .unwrap()
+                .with_settings(|s| {
+                    s.method = Method::Rk4;
+                    s.dt = dt;
+                    s.drift = DriftControl::None;
+                    s.sample_period = 0.01;
+                })
+                .unwrap();
+            let t = p.predict(&PredictRequest::new(&scene.q0, v0.as_slice()).horizon(1.0)).unwrap();
             let e0 = t.samples[0].kinetic_energy + t.samples[0].potential_energy;
             // ΔE_h(t) = h⁴ C(t) + O(h⁵) at every sample time: the sum of |ΔE| over the
             // samples (the same times for both steps) scales as h⁴ too, and unlike the

@@ -1,4 +1,4 @@
-//! Radau IIA (order 5, `method: radau5`, src/predict/radau.rs) against independent answers:
+//! Radau IIA (order 5, `method: radau5`, src/predict/integrators/radau.rs) against independent answers:
 //! - a damped stiff spring chain (springs 1e4–1e8 N/m, the stiff ones near critically damped:
 //!   eigenvalues down to −1.27e5 1/s, slow modes at 138 and 362 rad/s): linear, so the exact
 //!   state is e^{At} x₀ (nalgebra's Padé matrix exponential). Explicit methods must keep
@@ -7,8 +7,8 @@
 //!   reference at t = 0.03 s (accurate to ~1.4e-9 rad, tests/andrews.rs).
 
 use constraint_dynamics::Scene;
-use constraint_dynamics::forces::{ForceElements, ForcesSpec, JointSpringSpec};
-use constraint_dynamics::predict::{DriftControl, Method, Predictor, Trajectory};
+use constraint_dynamics::forces::{ForcesSpec, JointSpringSpec};
+use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor, Trajectory};
 use nalgebra::{DMatrix, DVector};
 use std::path::PathBuf;
 
@@ -23,7 +23,7 @@ fn root() -> PathBuf {
 
 /// The five 0.1 kg sliders of the report's chain with the springs and dampers above.
 fn damped_chain(method: Method, tol: f64) -> (Predictor, Vec<f64>) {
-    let sc = Scene::load(root().join("params/report/spring_chain_stiff.yaml")).unwrap();
+    let mut sc = Scene::load(root().join("params/report/spring_chain_stiff.yaml")).unwrap();
     let mut spec = ForcesSpec::default();
     for i in 0..5 {
         spec.joint_springs.push(JointSpringSpec {
@@ -33,15 +33,20 @@ fn damped_chain(method: Method, tol: f64) -> (Predictor, Vec<f64>) {
             rest: 0.0,
         });
     }
-    let mut p = Predictor::from_scene(&sc).unwrap();
-    p.forces = ForceElements::new(&p.sys.model, &spec).unwrap();
-    p.settings.method = method;
-    p.settings.drift = DriftControl::None;
-    p.settings.rtol = tol;
-    p.settings.atol = tol;
-    p.settings.error_estimate = false;
-    p.settings.max_error = f64::INFINITY;
-    p.settings.sample_period = HORIZON;
+    // The scene's force elements are these springs and dampers.
+    sc.file.forces = spec;
+    let p = Predictor::from_scene(&sc)
+        .unwrap()
+        .with_settings(|s| {
+            s.method = method;
+            s.drift = DriftControl::None;
+            s.rtol = tol;
+            s.atol = tol;
+            s.error_estimate = false;
+            s.max_error = f64::INFINITY;
+            s.sample_period = HORIZON;
+        })
+        .unwrap();
     (p, sc.q0.clone())
 }
 
@@ -69,9 +74,11 @@ fn chain_exact(q0: &[f64], t: f64, squarings: i32) -> Vec<f64> {
 }
 
 fn run(method: Method, tol: f64) -> (Trajectory, f64) {
-    let (mut p, q0) = damped_chain(method, tol);
-    p.settings.dt = 1e-6;
-    let t = p.predict(&q0, &[0.0; 5], &[], HORIZON).unwrap();
+    let (p, q0) = damped_chain(method, tol);
+    let mut p = p.with_settings(|s| s.dt = 1e-6).unwrap();
+    let t = p
+        .predict(&PredictRequest::new(&q0, &[0.0; 5]).horizon(HORIZON))
+        .unwrap();
     let exact = chain_exact(&q0, HORIZON, 12);
     let last = t.samples.last().unwrap();
     let err = last
@@ -146,9 +153,11 @@ fn radau5_meets_its_tolerance_on_the_damped_stiff_chain_far_cheaper_than_dopri5(
 #[test]
 fn radau5_error_estimate_brackets_the_true_error() {
     for tol in [1e-6, 1e-8, 1e-10] {
-        let (mut p, q0) = damped_chain(Method::Radau5, tol);
-        p.settings.error_estimate = true;
-        let t = p.predict(&q0, &[0.0; 5], &[], HORIZON).unwrap();
+        let (p, q0) = damped_chain(Method::Radau5, tol);
+        let mut p = p.with_settings(|s| s.error_estimate = true).unwrap();
+        let t = p
+            .predict(&PredictRequest::new(&q0, &[0.0; 5]).horizon(HORIZON))
+            .unwrap();
         let exact = chain_exact(&q0, HORIZON, 12);
         let last = t.samples.last().unwrap();
         let truth = last
@@ -172,12 +181,18 @@ fn radau5_error_estimate_brackets_the_true_error() {
 fn radau5_reaches_the_andrews_reference() {
     let sc = Scene::load(root().join("params/andrews.yaml")).unwrap();
     for tol in [1e-6, 1e-8, 1e-10] {
-        let mut p = Predictor::from_scene(&sc).unwrap();
-        p.settings.method = Method::Radau5;
-        p.settings.rtol = tol;
-        p.settings.atol = tol;
-        p.settings.error_estimate = false;
-        let t = p.predict(&sc.q0, &sc.v0, &[], 0.03).unwrap();
+        let mut p = Predictor::from_scene(&sc)
+            .unwrap()
+            .with_settings(|s| {
+                s.method = Method::Radau5;
+                s.rtol = tol;
+                s.atol = tol;
+                s.error_estimate = false;
+            })
+            .unwrap();
+        let t = p
+            .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(0.03))
+            .unwrap();
         let q = &t.samples.last().unwrap().q;
         let i = |n: &str| t.q_names.iter().position(|s| s == n).unwrap();
         let err = (q[i("beta")] - 15.81077119629904)

@@ -8,7 +8,7 @@ mod command_sequences;
 use command_sequences::sequences;
 use constraint_dynamics::Scene;
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::predict::{PredictOptions, Predictor, RolloutOptions, Trajectory};
+use constraint_dynamics::predict::{PredictRequest, Predictor, RolloutOptions, Trajectory};
 use std::path::PathBuf;
 
 fn bits(t: &Trajectory) -> Vec<u64> {
@@ -40,33 +40,26 @@ fn rollouts_equal_single_predictions_bit_for_bit() {
     let (n, steps, step) = (12, 6, 0.05);
     let seqs = sequences(n, steps);
     for (threads, forces) in [(2, false), (3, true), (1, false)] {
-        let opts = RolloutOptions {
-            step,
-            forces,
-            threads,
-        };
-        let rolled = predictor
-            .rollouts(&scene.q0, &scene.v0, &seqs, opts)
-            .unwrap();
+        let opts = RolloutOptions { step, threads };
+        let start = PredictRequest::new(&scene.q0, &scene.v0).forces(forces);
+        let rolled = predictor.rollouts(&start, &seqs, opts).unwrap();
         assert_eq!(rolled.len(), n);
         for (k, (seq, r)) in seqs.iter().zip(&rolled).enumerate() {
             // The single prediction, from a fresh predictor each time.
-            let mut single = Predictor::from_scene(&scene).unwrap();
-            single.settings.sample_period = step;
+            let mut single = Predictor::from_scene(&scene)
+                .unwrap()
+                .with_settings(|s| s.sample_period = step)
+                .unwrap();
             let timed: Vec<(f64, Command)> = seq
                 .iter()
                 .enumerate()
                 .map(|(i, c)| (i as f64 * step, c.clone()))
                 .collect();
-            let t = single
-                .predict_with(
-                    &scene.q0,
-                    &scene.v0,
-                    &timed,
-                    steps as f64 * step,
-                    PredictOptions { forces },
-                )
-                .unwrap();
+            let req = PredictRequest::new(&scene.q0, &scene.v0)
+                .commands(&timed)
+                .horizon(steps as f64 * step)
+                .forces(forces);
+            let t = single.predict(&req).unwrap();
             assert_eq!(
                 r.samples.len(),
                 steps + 1,
@@ -99,7 +92,8 @@ fn rollouts_refuse_a_bad_step() {
             step,
             ..Default::default()
         };
-        let e = predictor.rollouts(&scene.q0, &scene.v0, &sequences(2, 3), opts);
+        let start = PredictRequest::new(&scene.q0, &scene.v0);
+        let e = predictor.rollouts(&start, &sequences(2, 3), opts);
         assert!(e.is_err(), "step {step} accepted");
     }
 }
@@ -110,29 +104,31 @@ fn rollouts_refuse_a_bad_step() {
 #[test]
 fn rollouts_bound_the_batch_work() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let scene = Scene::load(root.join("params/suite_diff_drive.yaml")).unwrap();
-    let mut predictor = Predictor::from_scene(&scene).unwrap();
-    predictor.settings.method = constraint_dynamics::predict::Method::Rk4;
-    predictor.settings.dt = 0.005;
-    predictor.actuators.control_period = 0.005;
-    let cost = constraint_dynamics::limits::evaluation_cost(&predictor.sys.model);
+    let mut scene = Scene::load(root.join("params/suite_diff_drive.yaml")).unwrap();
+    scene.file.actuators.control_period = Some(0.005);
+    let cost = constraint_dynamics::limits::evaluation_cost(&scene.model);
     // One rollout: 2 commands × 0.025 s = 10 steps × 12 = 120 costs; 2 rollouts 240.
-    predictor.settings.max_work = 250.0 * cost;
+    let predictor = Predictor::from_scene(&scene)
+        .unwrap()
+        .with_settings(|s| {
+            s.method = constraint_dynamics::predict::Method::Rk4;
+            s.dt = 0.005;
+            s.max_work = 250.0 * cost;
+        })
+        .unwrap();
     let opts = RolloutOptions {
         step: 0.025,
         threads: 1,
-        ..Default::default()
     };
+    let start = PredictRequest::new(&scene.q0, &scene.v0);
     let e = predictor
-        .rollouts(&scene.q0, &scene.v0, &sequences(4, 2), opts)
+        .rollouts(&start, &sequences(4, 2), opts)
         .unwrap_err();
     assert!(
         matches!(e, constraint_dynamics::Error::WorkLimit { .. }),
         "{e}"
     );
-    let two = predictor
-        .rollouts(&scene.q0, &scene.v0, &sequences(2, 2), opts)
-        .unwrap();
+    let two = predictor.rollouts(&start, &sequences(2, 2), opts).unwrap();
     assert_eq!(two.len(), 2);
     assert_eq!(two[0].steps, 10);
 }

@@ -3,31 +3,39 @@
 //! or slow convergence), measured on the stiff spring chain (1e6–1e8 N/m on 0.1 kg).
 
 mod common;
-use constraint_dynamics::forces::ForceElements;
-use constraint_dynamics::predict::{DriftControl, Method, Predictor};
+use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor};
 
 /// SDIRK2 on the stiff spring chain (`common::very_stiff_chain`).
 fn very_stiff_chain() -> Predictor {
-    let (sc, spec) = common::very_stiff_chain();
-    let mut p = Predictor::from_scene(&sc).unwrap();
-    p.forces = ForceElements::new(&p.sys.model, &spec).unwrap();
-    p.settings.method = Method::Sdirk2;
-    p.settings.drift = DriftControl::None;
-    // At 1e-5 s (dt·ω = 0.45 for the fastest mode) SDIRK2 damps the stiff modes: its error
-    // estimate (1.4e-3 m) is over the default bound. These tests count steps and evaluations.
-    p.settings.max_error = f64::INFINITY;
-    p
+    let (mut sc, spec) = common::very_stiff_chain();
+    sc.file.forces = spec;
+    Predictor::from_scene(&sc)
+        .unwrap()
+        .with_settings(|s| {
+            s.method = Method::Sdirk2;
+            s.drift = DriftControl::None;
+            // At 1e-5 s (dt·ω = 0.45 for the fastest mode) SDIRK2 damps the stiff modes: its
+            // error estimate (1.4e-3 m) is over the default bound. These tests count steps and
+            // evaluations.
+            s.max_error = f64::INFINITY;
+        })
+        .unwrap()
 }
 
 /// 30 000 steps asked (0.3 s at 1e-5 s, one sample at the end, and 30 samples) → 30 000 taken.
 #[test]
 fn sdirk2_takes_exactly_the_steps_asked_for() {
     for sample_period in [0.3, 0.01] {
-        let mut p = very_stiff_chain();
-        p.settings.dt = 1e-5;
-        p.settings.sample_period = sample_period;
+        let mut p = very_stiff_chain()
+            .with_settings(|s| {
+                s.dt = 1e-5;
+                s.sample_period = sample_period;
+            })
+            .unwrap();
         let q0 = vec![0.002, -0.001, 0.0005, 0.0, 0.001];
-        let t = p.predict(&q0, &[0.0; 5], &[], 0.3).unwrap();
+        let t = p
+            .predict(&PredictRequest::new(&q0, &[0.0; 5]).horizon(0.3))
+            .unwrap();
         println!(
             "sdirk2 stiff chain, 0.3 s at 1e-5 s, samples every {sample_period} s: {} steps, {} \
              evaluations ({:.2} per step), {} in the error estimate's companion, {:.3} s in all",

@@ -9,18 +9,39 @@ mod common;
 use closed_forms::{linear_modes, relative_chain_mass};
 use common::{scene, very_stiff_chain};
 use constraint_dynamics::constraints::ConstraintSpec;
-use constraint_dynamics::forces::ForceElements;
-use constraint_dynamics::predict::{DriftControl, Method, Predictor, Trajectory};
+use constraint_dynamics::predict::{
+    DriftControl, IntegrationSettings, Method, PredictRequest, Predictor, Trajectory,
+};
 use constraint_dynamics::{Error, Scene};
 use nalgebra::{DMatrix, DVector};
 use std::path::PathBuf;
 
 fn predictor(sc: &Scene, method: Method, dt: f64, drift: DriftControl) -> Predictor {
-    let mut p = Predictor::from_scene(sc).unwrap();
-    p.settings.method = method;
-    p.settings.dt = dt;
-    p.settings.drift = drift;
-    p
+    predictor_with(sc, method, dt, drift, |_| {})
+}
+
+/// [`predictor`] with the other settings `edit` makes.
+fn predictor_with(
+    sc: &Scene,
+    method: Method,
+    dt: f64,
+    drift: DriftControl,
+    edit: impl FnOnce(&mut IntegrationSettings),
+) -> Predictor {
+    Predictor::from_scene(sc)
+        .unwrap()
+        .with_settings(|s| {
+            s.method = method;
+            s.dt = dt;
+            s.drift = drift;
+            edit(s);
+        })
+        .unwrap()
+}
+
+/// Over `horizon` [s] from the scene's initial state.
+fn from_start(sc: &Scene, horizon: f64) -> PredictRequest<'_> {
+    PredictRequest::new(&sc.q0, &sc.v0).horizon(horizon)
 }
 
 fn all_finite(t: &Trajectory) -> bool {
@@ -46,11 +67,11 @@ fn energy(s: &constraint_dynamics::predict::Sample) -> f64 {
 /// the limit.
 #[test]
 fn explicit_method_with_too_large_a_step_on_stiff_springs_is_refused() {
-    let (sc, spec) = very_stiff_chain();
+    let (mut sc, spec) = very_stiff_chain();
+    sc.file.forces = spec;
     for method in [Method::Rk4, Method::SemiImplicitEuler] {
         let mut p = predictor(&sc, method, 1e-4, DriftControl::None);
-        p.forces = ForceElements::new(&p.sys.model, &spec).unwrap();
-        let err = p.predict(&sc.q0, &sc.v0, &[], 0.1).unwrap_err();
+        let err = p.predict(&from_start(&sc, 0.1)).unwrap_err();
         println!("stiff 1e8 N/m, {method:?} dt 1e-4: {err}");
         assert!(matches!(err, Error::StepTooLarge { .. }), "{err}");
     }
@@ -60,14 +81,15 @@ fn explicit_method_with_too_large_a_step_on_stiff_springs_is_refused() {
 /// ½vᵀMv + ½qᵀKq never increases (to 1e-14 relative) and decays as the stiff modes are damped.
 #[test]
 fn sdirk2_stays_stable_on_stiff_springs_with_decaying_energy() {
-    let (sc, spec) = very_stiff_chain();
-    let mut p = predictor(&sc, Method::Sdirk2, 1e-4, DriftControl::None);
-    p.forces = ForceElements::new(&p.sys.model, &spec).unwrap();
-    p.settings.sample_period = 1e-3;
-    // Damping the unresolved stiff modes is the point: the answer has no correct digit in them,
-    // and its error estimate (1.4e-3 m at 4 ms) says so. This test checks stability.
-    p.settings.max_error = f64::INFINITY;
-    let t = p.predict(&sc.q0, &sc.v0, &[], 0.2).unwrap();
+    let (mut sc, spec) = very_stiff_chain();
+    sc.file.forces = spec;
+    let mut p = predictor_with(&sc, Method::Sdirk2, 1e-4, DriftControl::None, |s| {
+        s.sample_period = 1e-3;
+        // Damping the unresolved stiff modes is the point: the answer has no correct digit in
+        // them, and its error estimate (1.4e-3 m at 4 ms) says so. This test checks stability.
+        s.max_error = f64::INFINITY;
+    });
+    let t = p.predict(&from_start(&sc, 0.2)).unwrap();
     assert!(all_finite(&t));
     let e0 = energy(&t.samples[0]);
     let mut worst_rise: f64 = 0.0;
@@ -119,11 +141,12 @@ fn mass_ratio_1e6_between_neighbours_matches_the_modal_solution() {
     let m = relative_chain_mass(&[1.0, 1e-6]);
     let k = DMatrix::from_diagonal(&DVector::from_vec(vec![100.0, 0.01]));
     for (method, dt) in [(Method::Dopri5, 1e-3), (Method::Rk4, 1e-4)] {
-        let mut p = predictor(&sc, method, dt, DriftControl::None);
-        p.settings.rtol = 1e-12;
-        p.settings.atol = 1e-14;
-        p.settings.sample_period = 0.01;
-        let t = p.predict(&sc.q0, &sc.v0, &[], 2.0).unwrap();
+        let mut p = predictor_with(&sc, method, dt, DriftControl::None, |s| {
+            s.rtol = 1e-12;
+            s.atol = 1e-14;
+            s.sample_period = 0.01;
+        });
+        let t = p.predict(&from_start(&sc, 2.0)).unwrap();
         let err = t
             .samples
             .iter()
@@ -149,9 +172,10 @@ fn mass_ratio_1e6_between_neighbours_matches_the_modal_solution() {
 fn wheel_spinning_at_1e3_rad_s_keeps_its_constraints() {
     let mut sc = scene("params/vertical_disk.yaml");
     sc.v0 = vec![100.0, 0.0, 0.5, 1000.0];
-    let mut p = predictor(&sc, Method::Rk4, 1e-3, DriftControl::Projection);
-    p.settings.sample_period = 0.1;
-    let t = p.predict(&sc.q0, &sc.v0, &[], 2.0).unwrap();
+    let mut p = predictor_with(&sc, Method::Rk4, 1e-3, DriftControl::Projection, |s| {
+        s.sample_period = 0.1;
+    });
+    let t = p.predict(&from_start(&sc, 2.0)).unwrap();
     let (_, jv) = max_residuals(&t);
     let centre = t
         .samples
@@ -173,9 +197,10 @@ fn wheel_spinning_at_1e3_rad_s_keeps_its_constraints() {
     sc.q0 = vec![0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0];
     sc.v0 = vec![100.0, -0.005, 0.0, 0.05, 1000.0, 0.5];
     // Nutation runs at ≈ (I_spin / I_tilt) · 1e3 = 2e3 rad/s: dt = 2e-5 s resolves it.
-    let mut p = predictor(&sc, Method::Rk4, 2e-5, DriftControl::Projection);
-    p.settings.sample_period = 0.01;
-    let t = p.predict(&sc.q0, &sc.v0, &[], 0.5).unwrap();
+    let mut p = predictor_with(&sc, Method::Rk4, 2e-5, DriftControl::Projection, |s| {
+        s.sample_period = 0.01;
+    });
+    let t = p.predict(&from_start(&sc, 0.5)).unwrap();
     let (phi, jv) = max_residuals(&t);
     let e0 = energy(&t.samples[0]);
     let de = t
@@ -203,10 +228,10 @@ fn four_bar_at_its_toggle_position_reports_rank_deficiency() {
     let mut sc = scene("params/double_fourbar.yaml");
     sc.q0 = vec![0.0; 5];
     sc.v0 = vec![0.0; 5];
-    let mut p = predictor(&sc, Method::Rk4, 1e-3, DriftControl::Projection);
-    p.want_forces = true;
-    p.settings.sample_period = 0.05;
-    let t = p.predict(&sc.q0, &sc.v0, &[], 0.5).unwrap();
+    let mut p = predictor_with(&sc, Method::Rk4, 1e-3, DriftControl::Projection, |s| {
+        s.sample_period = 0.05;
+    });
+    let t = p.predict(&from_start(&sc, 0.5).forces(true)).unwrap();
     let s0 = &t.samples[0];
     let lambda = s0.lambda.as_ref().unwrap();
     let (phi, jv) = max_residuals(&t);
@@ -240,10 +265,10 @@ fn redundant_constraints_give_min_norm_multipliers_and_the_same_motion() {
     }
     double.file.constraints.push(dup);
     let run = |sc: &Scene| {
-        let mut p = predictor(sc, Method::Rk4, 1e-3, DriftControl::Projection);
-        p.want_forces = true;
-        p.settings.sample_period = 0.1;
-        p.predict(&sc.q0, &sc.v0, &[], 1.0).unwrap()
+        let mut p = predictor_with(sc, Method::Rk4, 1e-3, DriftControl::Projection, |s| {
+            s.sample_period = 0.1;
+        });
+        p.predict(&from_start(sc, 1.0).forces(true)).unwrap()
     };
     let (a, b) = (run(&single), run(&double));
     let mut worst_q: f64 = 0.0;
@@ -277,9 +302,8 @@ fn redundant_constraints_give_min_norm_multipliers_and_the_same_motion() {
 fn a_horizon_of_1e5_steps_keeps_the_drift_bounded_with_projection() {
     let sc = scene("params/fourbar.yaml");
     for drift in [DriftControl::Projection, DriftControl::None] {
-        let mut p = predictor(&sc, Method::Rk4, 1e-3, drift);
-        p.settings.sample_period = 0.1;
-        let t = p.predict(&sc.q0, &sc.v0, &[], 100.0).unwrap();
+        let mut p = predictor_with(&sc, Method::Rk4, 1e-3, drift, |s| s.sample_period = 0.1);
+        let t = p.predict(&from_start(&sc, 100.0)).unwrap();
         let (phi, jv) = max_residuals(&t);
         let e0 = energy(&t.samples[0]);
         let de = t
@@ -323,9 +347,10 @@ fn a_step_far_too_large_is_a_typed_error() {
     ];
     for (rel, method, dt) in cases {
         let sc = scene(rel);
-        let mut p = predictor(&sc, method, dt, DriftControl::Projection);
-        p.settings.sample_period = dt;
-        let result = p.predict(&sc.q0, &sc.v0, &[], 40.0 * dt);
+        let mut p = predictor_with(&sc, method, dt, DriftControl::Projection, |s| {
+            s.sample_period = dt;
+        });
+        let result = p.predict(&from_start(&sc, 40.0 * dt));
         match result {
             Err(
                 e @ (Error::StepTooLarge { .. }

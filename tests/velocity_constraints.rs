@@ -7,7 +7,7 @@ mod common;
 use common::*;
 use constraint_dynamics::constraints::ConstraintKind;
 use constraint_dynamics::dynamics::{Baumgarte, Formulation};
-use constraint_dynamics::predict::{DriftControl, Method, Predictor};
+use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor};
 use constraint_dynamics::{Scene, System};
 
 #[path = "common/counting_alloc.rs"]
@@ -34,14 +34,19 @@ fn appell_hamel_follows_its_closed_form() {
     let (a, g, m, s0, z0) = (0.5, 9.81, 1.0, 10.0, 1.0);
     let e = [0.8, 0.6];
     let sc = load("params/appell_hamel.yaml");
-    let mut p = Predictor::from_scene(&sc).unwrap();
-    assert_eq!(p.sys.constraints.items[0].kind(), ConstraintKind::Velocity);
-    p.settings.method = Method::Rk4;
-    p.settings.dt = 1e-3;
-    p.settings.drift = DriftControl::Projection;
-    p.settings.sample_period = 0.1;
-    p.want_forces = true;
-    let traj = p.predict(&sc.q0, &sc.v0, &[], 2.0).unwrap();
+    let sys = System::from_scene(&sc).unwrap();
+    assert_eq!(sys.constraints.items[0].kind(), ConstraintKind::Velocity);
+    let mut p = Predictor::from_scene(&sc)
+        .unwrap()
+        .with_settings(|s| {
+            s.method = Method::Rk4;
+            s.dt = 1e-3;
+            s.drift = DriftControl::Projection;
+            s.sample_period = 0.1;
+        })
+        .unwrap();
+    let req = PredictRequest::new(&sc.q0, &sc.v0).horizon(2.0).forces(true);
+    let traj = p.predict(&req).unwrap();
     assert!(traj.samples.len() >= 21);
     assert!((traj.samples.last().unwrap().t - 2.0).abs() < 1e-9);
     let sd = -g * a / (1.0 + a * a);
@@ -74,14 +79,21 @@ fn appell_hamel_follows_its_closed_form() {
 fn appell_hamel_energy_error_has_the_methods_order() {
     let sc = load("params/appell_hamel.yaml");
     let run = |dt: f64| {
-        let mut p = Predictor::from_scene(&sc).unwrap();
-        p.settings.method = Method::SemiImplicitEuler;
-        p.settings.dt = dt;
-        p.settings.drift = DriftControl::None;
-        p.settings.sample_period = 0.5;
-        // The order is measured at coarse steps whose error exceeds the default max_error.
-        p.settings.max_error = f64::INFINITY;
-        let traj = p.predict(&sc.q0, &sc.v0, &[], 1.0).unwrap();
+        let mut p = Predictor::from_scene(&sc)
+            .unwrap()
+            .with_settings(|s| {
+                s.method = Method::SemiImplicitEuler;
+                s.dt = dt;
+                s.drift = DriftControl::None;
+                s.sample_period = 0.5;
+                // The order is measured at coarse steps whose error exceeds the default
+                // max_error.
+                s.max_error = f64::INFINITY;
+            })
+            .unwrap();
+        let traj = p
+            .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(1.0))
+            .unwrap();
         let e = |s: &constraint_dynamics::predict::Sample| s.kinetic_energy + s.potential_energy;
         let e0 = e(&traj.samples[0]);
         (e(traj.samples.last().unwrap()) - e0).abs() / e0
@@ -159,14 +171,19 @@ fn seed_disk_as_expressions_gives_the_rolling_constraints_accelerations() {
 #[test]
 fn seed_disk_as_expressions_moves_like_the_rolling_constraint() {
     let run = |rel: &str, f: Formulation| {
-        let sc = load(rel);
-        let mut p = Predictor::from_scene(&sc).unwrap();
-        p.sys.formulation = f;
-        p.settings.method = Method::Rk4;
-        p.settings.dt = 1e-3;
-        p.settings.drift = DriftControl::Projection;
-        p.settings.sample_period = 0.1;
-        p.predict(&sc.q0, &sc.v0, &[], 2.0).unwrap()
+        let mut sc = load(rel);
+        sc.file.dynamics.formulation = f;
+        let mut p = Predictor::from_scene(&sc)
+            .unwrap()
+            .with_settings(|s| {
+                s.method = Method::Rk4;
+                s.dt = 1e-3;
+                s.drift = DriftControl::Projection;
+                s.sample_period = 0.1;
+            })
+            .unwrap();
+        p.predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(2.0))
+            .unwrap()
     };
     let reference = run("params/vertical_disk.yaml", Formulation::Multipliers);
     for f in [Formulation::Multipliers, Formulation::Embedded] {
@@ -418,15 +435,19 @@ fn time_dependent_expression_follows_its_schedule() {
         Default::default(),
         Default::default(),
     )
+    .unwrap()
+    .with_settings(|s| {
+        s.method = Method::Rk4;
+        s.dt = 1e-3;
+        s.drift = DriftControl::Projection;
+        s.sample_period = 0.25;
+    })
     .unwrap();
-    p.settings.method = Method::Rk4;
-    p.settings.dt = 1e-3;
-    p.settings.drift = DriftControl::Projection;
-    p.settings.sample_period = 0.25;
-    p.want_forces = true;
     let q0 = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
     let v0 = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0];
-    let traj = p.predict(&q0, &v0, &[], 2.0).unwrap();
+    let traj = p
+        .predict(&PredictRequest::new(&q0, &v0).horizon(2.0).forces(true))
+        .unwrap();
     let (mut wx, mut wl) = (0.0f64, 0.0f64);
     for s in &traj.samples {
         wx = wx.max((s.q[0] - s.t.sin()).abs());

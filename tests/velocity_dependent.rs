@@ -5,7 +5,7 @@
 mod common;
 use common::*;
 use constraint_dynamics::dynamics::Formulation;
-use constraint_dynamics::predict::{DriftControl, Method, Predictor};
+use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor};
 use constraint_dynamics::{Error, Scene, System};
 
 const A: f64 = 0.5;
@@ -116,14 +116,20 @@ fn dependent_velocities_are_solved_from_f_by_newton() {
 #[test]
 fn embedded_propagation_with_dependent_velocity_follows_the_closed_form() {
     let (g, s0, z0) = (9.81, 10.0, 1.0);
-    let sc = appell_hamel_with("vz");
-    let mut p = Predictor::from_scene(&sc).unwrap();
-    p.sys.formulation = Formulation::Embedded;
-    p.settings.method = Method::Rk4;
-    p.settings.dt = 1e-3;
-    p.settings.drift = DriftControl::Projection;
-    p.settings.sample_period = 0.1;
-    let traj = p.predict(&sc.q0, &sc.v0, &[], 2.0).unwrap();
+    let mut sc = appell_hamel_with("vz");
+    sc.file.dynamics.formulation = Formulation::Embedded;
+    let mut p = Predictor::from_scene(&sc)
+        .unwrap()
+        .with_settings(|s| {
+            s.method = Method::Rk4;
+            s.dt = 1e-3;
+            s.drift = DriftControl::Projection;
+            s.sample_period = 0.1;
+        })
+        .unwrap();
+    let traj = p
+        .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(2.0))
+        .unwrap();
     let sd = -g * A / (1.0 + A * A);
     let (mut wq, mut wv) = (0.0f64, 0.0f64);
     for smp in &traj.samples {

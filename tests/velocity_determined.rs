@@ -14,7 +14,7 @@
 mod common;
 use common::*;
 use constraint_dynamics::dynamics::Formulation;
-use constraint_dynamics::predict::{DriftControl, Method, Predictor};
+use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor};
 use constraint_dynamics::{Error, Scene, System};
 
 const A: f64 = 0.2;
@@ -140,17 +140,23 @@ fn velocity_determined_accelerations_match_the_closed_form_and_differ_from_cheta
 fn velocity_determined_motion_conserves_energy_where_chetaev_does_not() {
     let run = |vd: bool| {
         let sc = scene(vd, "");
-        let mut p = Predictor::from_scene(&sc).unwrap();
-        assert_eq!(p.sys.formulation, Formulation::Embedded);
-        p.settings.method = Method::Rk4;
-        p.settings.dt = 1e-3;
-        p.settings.drift = DriftControl::Projection;
-        p.settings.sample_period = 0.1;
-        // Chetaev's force does so much work here that the passive-scene energy guard would
-        // stop the run; the comparison wants to see it.
-        p.settings.max_energy_error = 1e3;
+        let sys = System::from_scene(&sc).unwrap();
+        assert_eq!(sys.formulation, Formulation::Embedded);
+        let mut p = Predictor::from_scene(&sc)
+            .unwrap()
+            .with_settings(|s| {
+                s.method = Method::Rk4;
+                s.dt = 1e-3;
+                s.drift = DriftControl::Projection;
+                s.sample_period = 0.1;
+                // Chetaev's force does so much work here that the passive-scene energy guard
+                // would stop the run; the comparison wants to see it.
+                s.max_energy_error = 1e3;
+            })
+            .unwrap();
         let (q, v) = state(3.0, 4.0);
-        p.predict(&q, &v, &[], 1.0).unwrap()
+        p.predict(&PredictRequest::new(&q, &v).horizon(1.0))
+            .unwrap()
     };
     let energy = |s: &constraint_dynamics::predict::Sample| s.kinetic_energy + s.potential_energy;
     let t_vd = run(true);

@@ -274,9 +274,9 @@ impl Predictor {
         };
         let cap = cap.unwrap_or(f64::INFINITY);
         let mut largest = 0.0f64;
-        // Fixed steps: the span in n equal steps of at most dt, n computed once (issue 13: a
-        // step recomputed from the remaining time came out a rounding error short and added
-        // one more step).
+        // Fixed steps: the span in n equal steps of at most dt, n computed once (a step
+        // recomputed from the remaining time can come out a rounding error short and add one
+        // more step).
         let n_fixed = ((t1 - t0) / s.dt * (1.0 - 1e-9)).ceil().max(1.0);
         let h_fixed = (t1 - t0) / n_fixed;
         let mut i = 0.0;

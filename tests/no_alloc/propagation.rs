@@ -9,7 +9,9 @@
 
 use constraint_dynamics::Scene;
 use constraint_dynamics::dynamics::Formulation;
-use constraint_dynamics::predict::{DriftControl, Method, Predictor};
+use constraint_dynamics::predict::{
+    DriftControl, IntegrationOverrides, Method, PredictRequest, Predictor,
+};
 use std::path::PathBuf;
 
 use crate::counting_alloc;
@@ -17,9 +19,11 @@ use counting_alloc::allocations;
 
 /// Allocations of one prediction over `horizon` with two samples (t = 0 and the end).
 fn prediction_allocations(p: &mut Predictor, sc: &Scene, horizon: f64) -> usize {
-    p.settings.sample_period = horizon;
+    let req = PredictRequest::new(&sc.q0, &sc.v0)
+        .horizon(horizon)
+        .integration(sample_every(horizon));
     let mut t = None;
-    let n = allocations(|| t = Some(p.predict(&sc.q0, &sc.v0, &[], horizon).unwrap()));
+    let n = allocations(|| t = Some(p.predict(&req).unwrap()));
     let t = t.unwrap();
     assert_eq!(t.samples.len(), 2);
     // The companion ran (its evaluations counted) and gave a finite estimate.
@@ -30,6 +34,14 @@ fn prediction_allocations(p: &mut Predictor, sc: &Scene, horizon: f64) -> usize 
             .all(|s| s.error_estimate.is_some_and(f64::is_finite))
     );
     n
+}
+
+/// This call's samples every `period` [s].
+fn sample_every(period: f64) -> IntegrationOverrides {
+    IntegrationOverrides {
+        sample_period: Some(period),
+        ..Default::default()
+    }
 }
 
 #[test]
@@ -49,13 +61,17 @@ fn stepping_allocates_nothing_per_step() {
             Method::Sdirk2,
             Method::Radau5,
         ] {
-            let mut p = Predictor::from_scene(&sc).unwrap();
-            p.settings.method = method;
-            p.settings.dt = dt;
-            p.settings.drift = DriftControl::Projection;
-            // SIE at 1 ms on the fourbar errs by 2.6e-3 rad over 0.1 s (its estimate says so);
-            // this test counts allocations, not digits.
-            p.settings.max_error = f64::INFINITY;
+            let mut p = Predictor::from_scene(&sc)
+                .unwrap()
+                .with_settings(|s| {
+                    s.method = method;
+                    s.dt = dt;
+                    s.drift = DriftControl::Projection;
+                    // SIE at 1 ms on the fourbar errs by 2.6e-3 rad over 0.1 s (its estimate
+                    // says so); this test counts allocations, not digits.
+                    s.max_error = f64::INFINITY;
+                })
+                .unwrap();
             let h = 100.0 * dt;
             prediction_allocations(&mut p, &sc, h); // warm-up
             let (short, long) = (
@@ -79,13 +95,17 @@ fn stepping_allocates_nothing_per_step_on_rolling_scenes() {
         "params/mobile_manipulator.yaml",
         "params/report/rolling_disk.yaml",
     ] {
-        let sc = Scene::load(root.join(rel)).unwrap();
+        let mut sc = Scene::load(root.join(rel)).unwrap();
         for formulation in [Formulation::Multipliers, Formulation::Embedded] {
-            let mut p = Predictor::from_scene(&sc).unwrap();
-            p.sys.formulation = formulation;
-            p.settings.method = Method::Rk4;
-            p.settings.dt = 1e-3;
-            p.settings.drift = DriftControl::Projection;
+            sc.file.dynamics.formulation = formulation;
+            let mut p = Predictor::from_scene(&sc)
+                .unwrap()
+                .with_settings(|s| {
+                    s.method = Method::Rk4;
+                    s.dt = 1e-3;
+                    s.drift = DriftControl::Projection;
+                })
+                .unwrap();
             let h = 0.05;
             prediction_allocations(&mut p, &sc, h); // warm-up
             let (short, long) = (
@@ -116,13 +136,17 @@ fn actuated_with_covariance(parallel: bool) {
     use constraint_dynamics::actuators::Command;
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let sc = Scene::load(root.join("params/suite_mobile_manipulator.yaml")).unwrap();
-    let mut p = Predictor::from_scene(&sc).unwrap();
-    p.parallel_covariance = parallel;
-    p.settings.method = Method::Rk4;
-    p.settings.dt = 1e-3;
-    p.settings.drift = DriftControl::Projection;
-    let n = 2 * p.sys.model.nv;
-    p.start_covariance = Some(nalgebra::DMatrix::identity(n, n) * 1e-6);
+    let mut p = Predictor::from_scene(&sc)
+        .unwrap()
+        .with_parallel_covariance(parallel)
+        .with_settings(|s| {
+            s.method = Method::Rk4;
+            s.dt = 1e-3;
+            s.drift = DriftControl::Projection;
+        })
+        .unwrap();
+    let n = 2 * p.model().nv;
+    let p0 = nalgebra::DMatrix::identity(n, n) * 1e-6;
     let mut cmd = Command {
         base_twist: Some([0.3, 0.2]),
         ..Default::default()
@@ -130,9 +154,13 @@ fn actuated_with_covariance(parallel: bool) {
     cmd.joint_position.insert("arm_elbow".into(), 0.8);
     let commands = [(0.0, cmd)];
     let mut run = |h: f64| {
-        p.settings.sample_period = h;
+        let req = PredictRequest::new(&sc.q0, &sc.v0)
+            .commands(&commands)
+            .horizon(h)
+            .covariance(&p0)
+            .integration(sample_every(h));
         let mut t = None;
-        let n = allocations(|| t = Some(p.predict(&sc.q0, &sc.v0, &commands, h).unwrap()));
+        let n = allocations(|| t = Some(p.predict(&req).unwrap()));
         let t = t.unwrap();
         assert_eq!(t.samples.len(), 2);
         assert!(t.samples.iter().all(|s| s.covariance.is_some()));

@@ -10,7 +10,7 @@
 
 use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::forces::ForceElements;
-use constraint_dynamics::predict::Predictor;
+use constraint_dynamics::predict::{PredictRequest, Predictor};
 use constraint_dynamics::scene::SceneFile;
 use constraint_dynamics::{Scene, System};
 use proptest::prelude::*;
@@ -162,10 +162,8 @@ fn run(urdf: &str, scene: &str) -> Result<(), String> {
         );
     }
     let mut p = Predictor::from_scene(&sc).map_err(|e| e.to_string())?;
-    p.want_forces = true;
-    let traj = p
-        .predict(&sc.q0, &sc.v0, &[], 0.02)
-        .map_err(|e| e.to_string())?;
+    let req = PredictRequest::new(&sc.q0, &sc.v0).horizon(0.02).forces(true);
+    let traj = p.predict(&req).map_err(|e| e.to_string())?;
     for s in &traj.samples {
         let energies = [s.kinetic_energy, s.potential_energy];
         for x in s.q.iter().chain(&s.v).chain(&energies) {

@@ -3,7 +3,7 @@
 
 use crate::common;
 use common::assert_has;
-use constraint_dynamics::predict::{Method, Predictor};
+use constraint_dynamics::predict::{IntegrationOverrides, Method, PredictRequest, Predictor};
 use constraint_dynamics::{Error, Scene, System};
 
 fn scene_file(name: &str, body: &str) -> std::path::PathBuf {
@@ -83,30 +83,60 @@ fn absurd_steps_horizons_and_states_are_refused_before_running() {
     let s = Scene::load(common::repo_dir().join("params/fourbar.yaml")).unwrap();
     let (q, v) = (s.q0.clone(), s.v0.clone());
     let t = std::time::Instant::now();
-    p.settings.dt = 1e-300;
-    let e = p.predict(&q, &v, &[], 1.0).unwrap_err();
+    // Absurd steps and sample periods are this call's (a predictor is not configured with
+    // them: `with_settings` refuses them for the scene's own horizon).
+    let req = |horizon: f64, dt: f64, sample_period: Option<f64>| {
+        let integration = IntegrationOverrides {
+            dt: Some(dt),
+            sample_period,
+            ..Default::default()
+        };
+        PredictRequest::new(&q, &v)
+            .horizon(horizon)
+            .integration(integration)
+    };
+    let e = p.predict(&req(1.0, 1e-300, None)).unwrap_err();
     assert!(matches!(e, Error::WorkLimit { .. }), "{e}");
     assert_has(
         &e.to_string(),
         &["integration steps", "integration.max_steps"],
     );
-    p.settings.dt = 1e-3;
-    p.settings.sample_period = 1e-300;
-    let e = p.predict(&q, &v, &[], 1.0).unwrap_err().to_string();
+    let e = p
+        .predict(&req(1.0, 1e-3, Some(1e-300)))
+        .unwrap_err()
+        .to_string();
     assert_has(&e, &["output samples", "max_samples"]);
-    p.settings.sample_period = 1e-2;
-    let e = p.predict(&q, &v, &[], 1e308).unwrap_err().to_string();
+    let e = p
+        .predict(&req(1e308, 1e-3, Some(1e-2)))
+        .unwrap_err()
+        .to_string();
     assert_has(&e, &["integration steps", "1e308"]);
     // dopri5 adapts its step: bounded while running.
-    p.settings.method = Method::Dopri5;
-    p.settings.max_steps = 50.0;
-    let e = p.predict(&q, &v, &[], 1e3).unwrap_err().to_string();
+    let mut p = p
+        .with_settings(|s| {
+            s.dt = 1e-3;
+            s.sample_period = 1e-2;
+            s.method = Method::Dopri5;
+            s.max_steps = 50.0;
+        })
+        .unwrap();
+    let e = p
+        .predict(&PredictRequest::new(&q, &v).horizon(1e3))
+        .unwrap_err()
+        .to_string();
     assert_has(&e, &["steps (51)", "max_steps"]);
-    p.settings.method = Method::Rk4;
-    p.settings.max_steps = 1e6;
+    let mut p = p
+        .with_settings(|s| {
+            s.method = Method::Rk4;
+            s.max_steps = 1e6;
+        })
+        .unwrap();
     let mut big = v.clone();
     big[0] = 1e308;
-    let e = p.predict(&q, &big, &[], 0.1).unwrap_err().to_string();
+    let e = p
+        .predict(&PredictRequest::new(&q, &big).horizon(0.1))
+        .unwrap_err()
+        .to_string();
     assert_has(&e, &["v: entry 0", "beyond the accepted magnitude 1e6"]);
     // All of the above refused without running: well under a second together.
     assert!(t.elapsed().as_secs_f64() < 1.0, "{:?}", t.elapsed());
@@ -132,7 +162,7 @@ fn a_1000_link_chain_is_refused_by_the_work_budget() {
     let mut pred = Predictor::from_scene(&scene).unwrap();
     let t = std::time::Instant::now();
     let e = pred
-        .predict(&scene.q0, &scene.v0, &[], 0.02)
+        .predict(&PredictRequest::new(&scene.q0, &scene.v0).horizon(0.02))
         .unwrap_err()
         .to_string();
     println!("1000-link chain, 0.02 s: {e} (in {:?})", t.elapsed());

@@ -29,18 +29,14 @@
 //! A length that was refused by the check is not tried again at once: after a refusal the
 //! length may grow only after `wait` accepted chunks, and `wait` doubles with every refusal
 //! (up to [`MAX_PATIENCE`]) until a chunk that long is accepted. Controllers that change
-//! their torque at every step (the suite's PI wheel controllers at a 1 ms control period)
-//! refuse every chunk of two steps; growing back to two after each accepted step cost one
-//! refused linearization per step — half of the covariance's work on the suite's diff drive
-//! (1 951 linearizations for 1 000 steps over a 1 s tick, 1 021 with the backoff).
+//! their torque at every step (PI wheel controllers at a 1 ms control period) refuse every
+//! chunk of two steps; without the backoff, growing back to two after each accepted step
+//! would cost one refused linearization per step.
 //!
-//! The acceptance tolerance trades P's accuracy against finite differences of the whole
-//! prediction (tests/covariance_sensitivity.rs, mobile manipulator) for linearizations per
-//! 2000 steps: 1e-4 of the motion 584 (plain doubling controller); 1e-3 2.9e-4 of P, 318
-//! (with the equal pieces above); 3e-3 8.2e-4 of P, 265 — a covariance is an uncertainty,
-//! and 0.1 % of it is far below what any Monte Carlo check resolves (√(2/N) = 3 % at
-//! N = 2000), while the 17 % fewer linearizations brought the covariance's cost to 2× the
-//! prediction's (docs/propagation.md).
+//! The acceptance tolerance [`CHUNK_RTOL`] trades P's accuracy against linearizations: at
+//! 3e-3 of the motion P stays within 8.2e-4 of finite differences of the whole prediction
+//! (tests/covariance_sensitivity.rs, mobile manipulator) — a covariance is an uncertainty, and
+//! 0.1 % of it is far below what a Monte Carlo check resolves (√(2/N) = 3 % at N = 2000).
 //!
 //! P is brought onto the constraints (`project`) where the flush ends — a sample, where P is
 //! read, or a full record — not after every chunk: the linearized flow keeps it on them to

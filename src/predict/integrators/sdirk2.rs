@@ -33,7 +33,7 @@ fn sdirk2_jacobian<F: Accel>(
 /// kept from step to step while Newton converges in ≤ 6 iterations and recomputed at the step's
 /// start state when Newton fails or slows down; a dt that differs by more than rounding
 /// (relative 1e-6: sample spans of slightly different length) only refactors the matrix, which
-/// costs no evaluation. Issue 13: comparing dt bit for bit refreshed the Jacobian at most steps.
+/// costs no evaluation (comparing dt bit for bit would refresh the Jacobian at most steps).
 pub fn sdirk2_step<F: Accel>(
     f: &mut F,
     model: &Model,
