@@ -101,7 +101,7 @@ pub struct Trajectory {
     /// Wall time spent propagating the covariance [s], part of `run_time_s`.
     pub covariance_time_s: f64,
     /// The covariance was propagated on a second thread beside the prediction
-    /// (`Predictor::parallel_covariance`): `covariance_time_s` then overlaps the prediction's
+    /// (`Predictor::with_parallel_covariance`): `covariance_time_s` then overlaps the prediction's
     /// own time instead of adding to it.
     pub covariance_on_worker: bool,
     /// CPU (wall) time of the integration [s].
