@@ -14,7 +14,7 @@
 //!   behind the predictor's choice of formulation (docs/bench.md).
 
 use constraint_dynamics::dynamics::Formulation;
-use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor};
+use constraint_dynamics::predict::{DriftControl, Method, PredictionRequest, Predictor};
 use constraint_dynamics::system::DynamicsOptions;
 use constraint_dynamics::{Scene, System};
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -61,9 +61,9 @@ fn bench_horizon(
     scene: &Scene,
     p0: Option<&DMatrix<f64>>,
 ) {
-    let request = |q0, v0| PredictRequest {
+    let request = |q0, v0| PredictionRequest {
         start_covariance: p0,
-        ..PredictRequest::new(q0, v0).horizon(2.0)
+        ..PredictionRequest::new(q0, v0).horizon(2.0)
     };
     let t = p.predict(&request(&scene.q0, &scene.v0)).expect("predict");
     assert_eq!((t.steps, t.evaluations), (2000, 8000));
@@ -86,12 +86,17 @@ fn horizon(c: &mut Criterion) {
     let mut free = scene.clone();
     free.file.constraints.clear();
     let mut p = rk4_predictor(&free);
-    assert!(System::from_scene(&free).expect("system").constraints.is_empty());
+    assert!(
+        System::from_scene(&free)
+            .expect("system")
+            .constraints
+            .is_empty()
+    );
     bench_horizon(c, "unconstrained", &mut p, &scene, None);
     let mut p = rk4_projected(&scene);
     let n = 2 * p.model().nv;
     let p0 = DMatrix::identity(n, n) * 1e-6;
-    let req = PredictRequest::new(&scene.q0, &scene.v0).horizon(2.0);
+    let req = PredictionRequest::new(&scene.q0, &scene.v0).horizon(2.0);
     let t = p.predict(&req.covariance(&p0)).expect("predict");
     assert!(t.samples.last().unwrap().covariance.is_some());
     bench_horizon(c, "covariance", &mut p, &scene, Some(&p0));

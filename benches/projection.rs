@@ -14,7 +14,7 @@ mod common;
 use constraint_dynamics::algorithm::Data;
 use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
 use constraint_dynamics::dynamics::{Baumgarte, KktWorkspace, constrained_forward_dynamics};
-use constraint_dynamics::projection::{SolvePath, ProjectionProblem, VelocityProjector};
+use constraint_dynamics::projection::{ProjectionProblem, SolvePath, VelocityProjector};
 use constraint_dynamics::{BaseType, Model, ModelOptions, Scene};
 use criterion::{Criterion, criterion_group, criterion_main};
 use serde_json::Value;

@@ -11,7 +11,9 @@ mod command_sequences;
 
 use command_sequences::sequences;
 use constraint_dynamics::Scene;
-use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor, RolloutOptions};
+use constraint_dynamics::predict::{
+    DriftControl, Method, PredictionRequest, Predictor, RolloutOptions,
+};
 use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -49,7 +51,7 @@ fn bench(c: &mut Criterion) {
         };
         group.bench_function(format!("diff_drive/{n}x56x50ms/{threads}_threads"), |b| {
             b.iter(|| {
-                let start = PredictRequest::new(black_box(&scene.q0), &scene.v0);
+                let start = PredictionRequest::new(black_box(&scene.q0), &scene.v0);
                 predictor.rollouts(&start, &seqs, opts).unwrap()
             })
         });

@@ -1,15 +1,15 @@
 //! The scene file (YAML): which URDF, the base, gravity, locked joints, the initial state and the
 //! constraints. Unknown keys are an error that names the key.
 
+use crate::actuators::Actuators;
 use crate::actuators::ActuatorsSpec;
+use crate::constraints::ConstraintSet;
 use crate::constraints::ConstraintSpec;
 use crate::dynamics::{Baumgarte, Formulation};
 use crate::error::{Error, Result};
+use crate::forces::ForceElements;
 use crate::forces::ForcesSpec;
 use crate::model::{BaseType, InertiaPolicy, Model, ModelOptions};
-use crate::actuators::Actuators;
-use crate::constraints::ConstraintSet;
-use crate::forces::ForceElements;
 use crate::predict::{IntegrationSettings, PredictionBudget, Predictor};
 use crate::system::{DynamicsOptions, System};
 use nalgebra::Vector3;
@@ -234,7 +234,6 @@ impl System {
         }
         Ok(sys)
     }
-
 }
 
 impl Predictor {
@@ -244,8 +243,10 @@ impl Predictor {
         let sys = System::from_scene(scene)?;
         let forces = ForceElements::new(&sys.model, &scene.file.forces)?;
         let actuators = Actuators::new(&sys.model, &scene.file.actuators)?;
-        Ok(Self::new(sys, forces, actuators, scene.file.integration.clone())?
-            .with_uncertainty(scene.file.uncertainty.clone()))
+        Ok(
+            Self::new(sys, forces, actuators, scene.file.integration.clone())?
+                .with_uncertainty(scene.file.uncertainty.clone()),
+        )
     }
 }
 

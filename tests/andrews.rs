@@ -12,7 +12,7 @@
 
 use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::forces::ForceElements;
-use constraint_dynamics::predict::{Method, PredictRequest, Predictor};
+use constraint_dynamics::predict::{Method, PredictionRequest, Predictor};
 use constraint_dynamics::{Scene, System};
 use std::path::PathBuf;
 
@@ -126,7 +126,7 @@ fn reaches_the_reference(method: Method) -> usize {
         })
         .unwrap();
     let traj = p
-        .predict(&PredictRequest::new(&scene.q0, &scene.v0).horizon(0.03))
+        .predict(&PredictionRequest::new(&scene.q0, &scene.v0).horizon(0.03))
         .unwrap();
     let last = traj.samples.last().unwrap();
     assert!((last.t - 0.03).abs() < 1e-15, "last sample at {}", last.t);
@@ -186,7 +186,7 @@ fn error_estimate_brackets_the_reference_error() {
                 })
                 .unwrap();
             let traj = p
-                .predict(&PredictRequest::new(&scene.q0, &scene.v0).horizon(0.03))
+                .predict(&PredictionRequest::new(&scene.q0, &scene.v0).horizon(0.03))
                 .unwrap();
             let last = traj.samples.last().unwrap();
             let idx = order(&p.model().v_names);

@@ -17,7 +17,7 @@
 mod common;
 use common::*;
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::predict::{PredictRequest, Predictor};
+use constraint_dynamics::predict::{PredictionRequest, Predictor};
 use constraint_dynamics::{Model, Scene};
 use nalgebra::{DMatrix, DVector, Matrix3};
 
@@ -75,7 +75,9 @@ fn monte_carlo_under(
         .unwrap();
     let model = pred.model().clone();
     let nv = model.nv;
-    let req = PredictRequest::new(q0, v0).commands(commands).horizon(horizon);
+    let req = PredictionRequest::new(q0, v0)
+        .commands(commands)
+        .horizon(horizon);
     let traj = pred.predict(&req.covariance(&p0)).unwrap();
     let first = rows_to_matrix(traj.samples[0].covariance.as_ref().unwrap());
     let last_sample = traj.samples.last().unwrap();
@@ -97,7 +99,9 @@ fn monte_carlo_under(
                 let mut q = vec![0.0; model.nq];
                 model.integrate(q0, dx.rows(0, nv).as_slice(), 1.0, &mut q);
                 let v: Vec<f64> = (0..nv).map(|i| v0[i] + dx[nv + i]).collect();
-                let req = PredictRequest::new(&q, &v).commands(commands).horizon(horizon);
+                let req = PredictionRequest::new(&q, &v)
+                    .commands(commands)
+                    .horizon(horizon);
                 let t = pred.predict(&req).unwrap();
                 let s = t.samples.last().unwrap();
                 tangent(&model, &q_ref, &v_ref, &s.q, &s.v)
@@ -220,7 +224,7 @@ fn rigid_motion_pose_covariance_is_the_closed_form() {
         }
     }
     let horizon = 2.0;
-    let req = PredictRequest::new(&scene.q0, &v0).horizon(horizon);
+    let req = PredictionRequest::new(&scene.q0, &v0).horizon(horizon);
     let traj = pred.predict(&req.covariance(&p0)).unwrap();
     let mut worst: f64 = 0.0;
     for s in &traj.samples {

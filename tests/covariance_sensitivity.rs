@@ -13,7 +13,7 @@ mod common;
 use common::*;
 use constraint_dynamics::actuators::Command;
 use constraint_dynamics::forces::JointSpringSpec;
-use constraint_dynamics::predict::{PredictRequest, Predictor};
+use constraint_dynamics::predict::{PredictionRequest, Predictor};
 use constraint_dynamics::{Error, Scene};
 use nalgebra::DMatrix;
 
@@ -47,7 +47,7 @@ fn relative_difference_under(
     let model = pred.model().clone();
     let nv = model.nv;
     let p0 = DMatrix::identity(2 * nv, 2 * nv) * 1e-6;
-    let req = PredictRequest::new(&scene.q0, &scene.v0)
+    let req = PredictionRequest::new(&scene.q0, &scene.v0)
         .commands(commands)
         .horizon(horizon);
     let traj = pred.predict(&req.covariance(&p0)).unwrap();
@@ -68,7 +68,9 @@ fn relative_difference_under(
             let mut q = vec![0.0; model.nq];
             model.integrate(&scene.q0, dx.rows(0, nv).as_slice(), 1.0, &mut q);
             let v: Vec<f64> = (0..nv).map(|i| scene.v0[i] + dx[nv + i]).collect();
-            let req = PredictRequest::new(&q, &v).commands(commands).horizon(horizon);
+            let req = PredictionRequest::new(&q, &v)
+                .commands(commands)
+                .horizon(horizon);
             let t = pred.predict(&req).unwrap();
             let s = t.samples.last().unwrap();
             ends.push(tangent(&model, &last.q, &last.v, &s.q, &s.v));
@@ -137,7 +139,11 @@ fn covariance_with_springs_is_refused() {
     let mut pred = Predictor::from_scene(&scene).unwrap();
     let n = 2 * pred.model().nv;
     let p0 = DMatrix::identity(n, n) * 1e-6;
-    match pred.predict(&PredictRequest::new(&scene.q0, &scene.v0).horizon(0.001).covariance(&p0)) {
+    match pred.predict(
+        &PredictionRequest::new(&scene.q0, &scene.v0)
+            .horizon(0.001)
+            .covariance(&p0),
+    ) {
         Err(Error::Unsupported { what, .. }) => {
             assert!(what.contains("point-to-point springs"), "{what}")
         }
@@ -203,7 +209,7 @@ fn the_covariance_work_follows_the_stiffest_mode() {
     let mut pred = Predictor::from_scene(&scene).unwrap();
     let n = 2 * pred.model().nv;
     let p0 = DMatrix::identity(n, n) * 1e-6;
-    let req = PredictRequest::new(&scene.q0, &scene.v0).horizon(horizon);
+    let req = PredictionRequest::new(&scene.q0, &scene.v0).horizon(horizon);
     let t = pred.predict(&req.covariance(&p0)).unwrap();
     let bound = horizon * omega / 0.5;
     let lin = t.covariance_linearizations as f64;

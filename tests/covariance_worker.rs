@@ -8,7 +8,7 @@ use common::{repo_dir, turning_with_arm_held};
 use constraint_dynamics::Scene;
 use constraint_dynamics::actuators::Command;
 use constraint_dynamics::error::Error;
-use constraint_dynamics::predict::{IntegrationSettings, PredictRequest, Predictor, Trajectory};
+use constraint_dynamics::predict::{IntegrationSettings, PredictionRequest, Predictor, Trajectory};
 use nalgebra::DMatrix;
 
 /// The scene's prediction from its initial state with start covariance σ² I, inline and on
@@ -33,7 +33,7 @@ fn both(
             .with_parallel_covariance(parallel);
         let nv = p.model().nv;
         let p0 = DMatrix::identity(2 * nv, 2 * nv) * (sigma * sigma);
-        let req = PredictRequest::new(&scene.q0, &scene.v0)
+        let req = PredictionRequest::new(&scene.q0, &scene.v0)
             .commands(commands)
             .horizon(horizon)
             .covariance(&p0);

@@ -13,7 +13,9 @@ mod common;
 use closed_forms::{a01_state, linear_modes, relative_chain_mass};
 use common::scene;
 use constraint_dynamics::forces::{ForcesSpec, JointSpringSpec};
-use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor, Trajectory};
+use constraint_dynamics::predict::{
+    DriftControl, Method, PredictionRequest, Predictor, Trajectory,
+};
 use constraint_dynamics::{Error, Scene};
 use nalgebra::{DMatrix, DVector};
 
@@ -73,7 +75,7 @@ fn a01_estimate_brackets_the_closed_form_error() {
                 .with_settings(|s| s.sample_period = 0.1)
                 .unwrap();
             let t = p
-                .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(A01_HORIZON))
+                .predict(&PredictionRequest::new(&sc.q0, &sc.v0).horizon(A01_HORIZON))
                 .unwrap();
             let last = t.samples.last().unwrap();
             assert!((last.t - A01_HORIZON).abs() < 1e-12);
@@ -108,7 +110,7 @@ fn chain_run(k: [f64; 5], method: Method, x: f64, horizon: f64) -> (Trajectory, 
         .with_settings(|s| s.sample_period = horizon / 10.0)
         .unwrap();
     let t = p
-        .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(horizon))
+        .predict(&PredictionRequest::new(&sc.q0, &sc.v0).horizon(horizon))
         .unwrap();
     let last = t.samples.last().unwrap();
     let (q, _) = linear_modes(&m, &kk, &sc.q0, &sc.v0, last.t);
@@ -167,7 +169,7 @@ fn max_error_stops_with_a_typed_error_naming_a_step_that_meets_it() {
     let mut p = predictor(&sc, Method::SemiImplicitEuler, 4e-3)
         .with_settings(|s| s.max_error = 1e-3)
         .unwrap();
-    let req = PredictRequest::new(&sc.q0, &sc.v0).horizon(A01_HORIZON);
+    let req = PredictionRequest::new(&sc.q0, &sc.v0).horizon(A01_HORIZON);
     let e = p.predict(&req).unwrap_err();
     println!("{e}");
     let Error::ErrorEstimateExceeded {
@@ -185,7 +187,11 @@ fn max_error_stops_with_a_typed_error_naming_a_step_that_meets_it() {
         .unwrap()
         .parse()
         .unwrap();
-    let t = p.with_settings(|s| s.dt = dt).unwrap().predict(&req).unwrap();
+    let t = p
+        .with_settings(|s| s.dt = dt)
+        .unwrap()
+        .predict(&req)
+        .unwrap();
     let (q_exact, _) = a01_state(A01_HORIZON);
     let last = t.samples.last().unwrap();
     println!(
@@ -219,7 +225,7 @@ fn adapt_refines_until_the_bound_is_met() {
             })
             .unwrap();
         let t = p
-            .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(A01_HORIZON))
+            .predict(&PredictionRequest::new(&sc.q0, &sc.v0).horizon(A01_HORIZON))
             .unwrap();
         let last = t.samples.last().unwrap();
         let truth = (last.q[0] - q_exact).abs();
@@ -253,7 +259,7 @@ fn without_the_estimate_the_answer_is_unchanged_and_cheaper() {
         (Method::Dop853, 1e-8),
         (Method::Radau5, 1e-8),
     ] {
-        let req = PredictRequest::new(&sc.q0, &sc.v0).horizon(3.0);
+        let req = PredictionRequest::new(&sc.q0, &sc.v0).horizon(3.0);
         let with = predictor(&sc, method, x).predict(&req).unwrap();
         let mut p = predictor(&sc, method, x)
             .with_settings(|s| s.error_estimate = false)
@@ -267,7 +273,10 @@ fn without_the_estimate_the_answer_is_unchanged_and_cheaper() {
         assert_eq!(with.evaluations, without.evaluations);
         assert!(with.estimate_evaluations > 0 && without.estimate_evaluations == 0);
     }
-    let mut s = predictor(&sc, Method::Rk4, 1e-2).config().settings().clone();
+    let mut s = predictor(&sc, Method::Rk4, 1e-2)
+        .config()
+        .settings()
+        .clone();
     s.error_estimate = false;
     s.adapt = true;
     assert!(s.validate().is_err(), "adapt needs the estimate");
@@ -304,7 +313,7 @@ fn closed_loop_actuators_estimate_stays_small() {
         ..Default::default()
     };
     let commands = [(0.0, hold)];
-    let req = PredictRequest::new(&sc.q0, &sc.v0)
+    let req = PredictionRequest::new(&sc.q0, &sc.v0)
         .commands(&commands)
         .horizon(14.7);
     let t = p.predict(&req).unwrap();

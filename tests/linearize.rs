@@ -10,10 +10,10 @@ mod common;
 use common::*;
 use constraint_dynamics::actuators::Actuators;
 use constraint_dynamics::algorithm::crba;
-use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::constraints::ConstraintKind;
+use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::predict::{
-    DriftControl, Linearization, Method, PredictRequest, Predictor, linearize_step,
+    DriftControl, Linearization, Method, PredictionRequest, Predictor, linearize_step,
 };
 use constraint_dynamics::{Scene, System};
 use nalgebra::{DMatrix, DVector};
@@ -205,7 +205,7 @@ fn linearized_step_is_the_predictors_step() {
                 })
                 .unwrap();
             let traj = pred
-                .predict(&PredictRequest::new(&scene.q0, &scene.v0).horizon(DT))
+                .predict(&PredictionRequest::new(&scene.q0, &scene.v0).horizon(DT))
                 .unwrap();
             let last = traj.samples.last().unwrap();
             linearize_step(

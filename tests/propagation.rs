@@ -10,7 +10,7 @@ use constraint_dynamics::constraints::ConstraintSet;
 use constraint_dynamics::dynamics::{Baumgarte, Formulation};
 use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::predict::{
-    DriftControl, IntegrationOverrides, IntegrationSettings, Method, PredictRequest, Predictor,
+    DriftControl, IntegrationOverrides, IntegrationSettings, Method, PredictionRequest, Predictor,
 };
 
 /// The system of reference state `k` of case `name`, integration settings by `method` at `dt`
@@ -106,7 +106,7 @@ fn check_step(p: &mut Predictor, q: &[f64], v: &[f64], st: &serde_json::Value, t
         ..Default::default()
     };
     let traj = p
-        .predict(&PredictRequest::new(q, v).horizon(dt).integration(step))
+        .predict(&PredictionRequest::new(q, v).horizon(dt).integration(step))
         .unwrap();
     let last = traj.samples.last().unwrap();
     assert_close(
@@ -160,7 +160,7 @@ fn rolling_disk_energy_drift_matches_the_reference_run() {
     .unwrap();
     let horizon = chk["duration_s"].as_f64().unwrap();
     let traj = p
-        .predict(&PredictRequest::new(&q, &v).horizon(horizon))
+        .predict(&PredictionRequest::new(&q, &v).horizon(horizon))
         .unwrap();
     let e0 = chk["initial_energy_J"].as_f64().unwrap();
     let s0 = &traj.samples[0];

@@ -9,7 +9,7 @@ mod closed_forms;
 
 use closed_forms::a01_position;
 use constraint_dynamics::Scene;
-use constraint_dynamics::predict::{Method, PredictRequest, Predictor};
+use constraint_dynamics::predict::{Method, PredictionRequest, Predictor};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -41,7 +41,7 @@ fn a01_pendulum_meets_the_high_precision_bar_over_2000_s() {
             s.sample_period = 1.0;
         })
         .unwrap();
-    let req = PredictRequest::new(&scene.q0, &scene.v0).horizon(2000.0);
+    let req = PredictionRequest::new(&scene.q0, &scene.v0).horizon(2000.0);
     let start = Instant::now();
     let traj = p.predict(&req).unwrap();
     let cpu = start.elapsed().as_secs_f64();

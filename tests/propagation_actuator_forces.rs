@@ -8,7 +8,7 @@
 mod common;
 use common::*;
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::predict::{PredictRequest, Predictor};
+use constraint_dynamics::predict::{PredictionRequest, Predictor};
 use constraint_dynamics::{Scene, System};
 
 #[test]
@@ -20,7 +20,7 @@ fn first_sample_forces_include_the_saturated_wheel_torques() {
         ..Default::default()
     };
     let commands = [(0.0, cmd)];
-    let req = PredictRequest::new(&scene.q0, &scene.v0)
+    let req = PredictionRequest::new(&scene.q0, &scene.v0)
         .commands(&commands)
         .horizon(0.02)
         .forces(true);

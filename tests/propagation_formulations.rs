@@ -8,7 +8,9 @@
 
 use constraint_dynamics::Scene;
 use constraint_dynamics::dynamics::Formulation;
-use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor, Trajectory};
+use constraint_dynamics::predict::{
+    DriftControl, Method, PredictionRequest, Predictor, Trajectory,
+};
 use std::path::PathBuf;
 
 fn propagate(
@@ -29,7 +31,7 @@ fn propagate(
         })
         .unwrap();
     let t = p
-        .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(horizon))
+        .predict(&PredictionRequest::new(&sc.q0, &sc.v0).horizon(horizon))
         .unwrap();
     (p, t)
 }

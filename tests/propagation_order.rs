@@ -11,7 +11,9 @@ mod common;
 use closed_forms::a01_position;
 use common::scene;
 use constraint_dynamics::Scene;
-use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor, Trajectory};
+use constraint_dynamics::predict::{
+    DriftControl, Method, PredictionRequest, Predictor, Trajectory,
+};
 use nalgebra::{Matrix3, Quaternion, UnitQuaternion, Vector3};
 use std::path::PathBuf;
 
@@ -35,7 +37,7 @@ fn run(
             s.max_error = f64::INFINITY;
         })
         .unwrap();
-    p.predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(horizon))
+    p.predict(&PredictionRequest::new(&sc.q0, &sc.v0).horizon(horizon))
         .unwrap()
 }
 
@@ -174,7 +176,7 @@ fn dopri5_error_decreases_with_rtol() {
             })
             .unwrap();
         let t = p
-            .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(10.0))
+            .predict(&PredictionRequest::new(&sc.q0, &sc.v0).horizon(10.0))
             .unwrap();
         let e = a01_max_error(&t);
         println!(
@@ -229,7 +231,7 @@ fn free_rigid_body_conserves_energy_and_momentum_at_rk4_order_on_se3() {
             s.sample_period = 4.0;
         })
         .unwrap();
-    let req = PredictRequest::new(&q0, &v0).horizon(4.0);
+    let req = PredictionRequest::new(&q0, &v0).horizon(4.0);
     let reference = p0.predict(&req).unwrap();
     let q_ref = reference.samples.last().unwrap().q.clone();
     let l0 = angular_momentum(&q0, &v0);

@@ -21,7 +21,7 @@ use constraint_dynamics::constraints::ConstraintSet;
 use constraint_dynamics::dynamics::{Baumgarte, Formulation};
 use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::model::JointKind;
-use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor};
+use constraint_dynamics::predict::{DriftControl, Method, PredictionRequest, Predictor};
 use constraint_dynamics::projection::{ProjectionProblem, Side, Status, VelocityProjector};
 use constraint_dynamics::{Scene, System};
 use nalgebra::{DMatrix, DVector};
@@ -331,7 +331,7 @@ proptest! {
                     s.sample_period = 0.01;
                 })
                 .unwrap();
-            let t = p.predict(&PredictRequest::new(&scene.q0, v0.as_slice()).horizon(1.0)).unwrap();
+            let t = p.predict(&PredictionRequest::new(&scene.q0, v0.as_slice()).horizon(1.0)).unwrap();
             let e0 = t.samples[0].kinetic_energy + t.samples[0].potential_energy;
             // ΔE_h(t) = h⁴ C(t) + O(h⁵) at every sample time: the sum of |ΔE| over the
             // samples (the same times for both steps) scales as h⁴ too, and unlike the

@@ -8,7 +8,9 @@
 
 use constraint_dynamics::Scene;
 use constraint_dynamics::forces::{ForcesSpec, JointSpringSpec};
-use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor, Trajectory};
+use constraint_dynamics::predict::{
+    DriftControl, Method, PredictionRequest, Predictor, Trajectory,
+};
 use nalgebra::{DMatrix, DVector};
 use std::path::PathBuf;
 
@@ -77,7 +79,7 @@ fn run(method: Method, tol: f64) -> (Trajectory, f64) {
     let (p, q0) = damped_chain(method, tol);
     let mut p = p.with_settings(|s| s.dt = 1e-6).unwrap();
     let t = p
-        .predict(&PredictRequest::new(&q0, &[0.0; 5]).horizon(HORIZON))
+        .predict(&PredictionRequest::new(&q0, &[0.0; 5]).horizon(HORIZON))
         .unwrap();
     let exact = chain_exact(&q0, HORIZON, 12);
     let last = t.samples.last().unwrap();
@@ -156,7 +158,7 @@ fn radau5_error_estimate_brackets_the_true_error() {
         let (p, q0) = damped_chain(Method::Radau5, tol);
         let mut p = p.with_settings(|s| s.error_estimate = true).unwrap();
         let t = p
-            .predict(&PredictRequest::new(&q0, &[0.0; 5]).horizon(HORIZON))
+            .predict(&PredictionRequest::new(&q0, &[0.0; 5]).horizon(HORIZON))
             .unwrap();
         let exact = chain_exact(&q0, HORIZON, 12);
         let last = t.samples.last().unwrap();
@@ -191,7 +193,7 @@ fn radau5_reaches_the_andrews_reference() {
             })
             .unwrap();
         let t = p
-            .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(0.03))
+            .predict(&PredictionRequest::new(&sc.q0, &sc.v0).horizon(0.03))
             .unwrap();
         let q = &t.samples.last().unwrap().q;
         let i = |n: &str| t.q_names.iter().position(|s| s == n).unwrap();

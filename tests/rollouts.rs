@@ -8,7 +8,7 @@ mod command_sequences;
 use command_sequences::sequences;
 use constraint_dynamics::Scene;
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::predict::{PredictRequest, Predictor, RolloutOptions, Trajectory};
+use constraint_dynamics::predict::{PredictionRequest, Predictor, RolloutOptions, Trajectory};
 use std::path::PathBuf;
 
 fn bits(t: &Trajectory) -> Vec<u64> {
@@ -41,7 +41,7 @@ fn rollouts_equal_single_predictions_bit_for_bit() {
     let seqs = sequences(n, steps);
     for (threads, forces) in [(2, false), (3, true), (1, false)] {
         let opts = RolloutOptions { step, threads };
-        let start = PredictRequest::new(&scene.q0, &scene.v0).forces(forces);
+        let start = PredictionRequest::new(&scene.q0, &scene.v0).forces(forces);
         let rolled = predictor.rollouts(&start, &seqs, opts).unwrap();
         assert_eq!(rolled.len(), n);
         for (k, (seq, r)) in seqs.iter().zip(&rolled).enumerate() {
@@ -55,7 +55,7 @@ fn rollouts_equal_single_predictions_bit_for_bit() {
                 .enumerate()
                 .map(|(i, c)| (i as f64 * step, c.clone()))
                 .collect();
-            let req = PredictRequest::new(&scene.q0, &scene.v0)
+            let req = PredictionRequest::new(&scene.q0, &scene.v0)
                 .commands(&timed)
                 .horizon(steps as f64 * step)
                 .forces(forces);
@@ -92,7 +92,7 @@ fn rollouts_refuse_a_bad_step() {
             step,
             ..Default::default()
         };
-        let start = PredictRequest::new(&scene.q0, &scene.v0);
+        let start = PredictionRequest::new(&scene.q0, &scene.v0);
         let e = predictor.rollouts(&start, &sequences(2, 3), opts);
         assert!(e.is_err(), "step {step} accepted");
     }
@@ -120,7 +120,7 @@ fn rollouts_bound_the_batch_work() {
         step: 0.025,
         threads: 1,
     };
-    let start = PredictRequest::new(&scene.q0, &scene.v0);
+    let start = PredictionRequest::new(&scene.q0, &scene.v0);
     let e = predictor
         .rollouts(&start, &sequences(4, 2), opts)
         .unwrap_err();

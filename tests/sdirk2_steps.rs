@@ -3,7 +3,7 @@
 //! or slow convergence), measured on the stiff spring chain (1e6–1e8 N/m on 0.1 kg).
 
 mod common;
-use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor};
+use constraint_dynamics::predict::{DriftControl, Method, PredictionRequest, Predictor};
 
 /// SDIRK2 on the stiff spring chain (`common::very_stiff_chain`).
 fn very_stiff_chain() -> Predictor {
@@ -34,7 +34,7 @@ fn sdirk2_takes_exactly_the_steps_asked_for() {
             .unwrap();
         let q0 = vec![0.002, -0.001, 0.0005, 0.0, 0.001];
         let t = p
-            .predict(&PredictRequest::new(&q0, &[0.0; 5]).horizon(0.3))
+            .predict(&PredictionRequest::new(&q0, &[0.0; 5]).horizon(0.3))
             .unwrap();
         println!(
             "sdirk2 stiff chain, 0.3 s at 1e-5 s, samples every {sample_period} s: {} steps, {} \

@@ -10,7 +10,7 @@ use closed_forms::{linear_modes, relative_chain_mass};
 use common::{scene, very_stiff_chain};
 use constraint_dynamics::constraints::ConstraintSpec;
 use constraint_dynamics::predict::{
-    DriftControl, IntegrationSettings, Method, PredictRequest, Predictor, Trajectory,
+    DriftControl, IntegrationSettings, Method, PredictionRequest, Predictor, Trajectory,
 };
 use constraint_dynamics::{Error, Scene};
 use nalgebra::{DMatrix, DVector};
@@ -40,8 +40,8 @@ fn predictor_with(
 }
 
 /// Over `horizon` [s] from the scene's initial state.
-fn from_start(sc: &Scene, horizon: f64) -> PredictRequest<'_> {
-    PredictRequest::new(&sc.q0, &sc.v0).horizon(horizon)
+fn from_start(sc: &Scene, horizon: f64) -> PredictionRequest<'_> {
+    PredictionRequest::new(&sc.q0, &sc.v0).horizon(horizon)
 }
 
 fn all_finite(t: &Trajectory) -> bool {

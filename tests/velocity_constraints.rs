@@ -7,7 +7,7 @@ mod common;
 use common::*;
 use constraint_dynamics::constraints::ConstraintKind;
 use constraint_dynamics::dynamics::{Baumgarte, Formulation};
-use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor};
+use constraint_dynamics::predict::{DriftControl, Method, PredictionRequest, Predictor};
 use constraint_dynamics::{Scene, System};
 
 #[path = "common/counting_alloc.rs"]
@@ -45,7 +45,9 @@ fn appell_hamel_follows_its_closed_form() {
             s.sample_period = 0.1;
         })
         .unwrap();
-    let req = PredictRequest::new(&sc.q0, &sc.v0).horizon(2.0).forces(true);
+    let req = PredictionRequest::new(&sc.q0, &sc.v0)
+        .horizon(2.0)
+        .forces(true);
     let traj = p.predict(&req).unwrap();
     assert!(traj.samples.len() >= 21);
     assert!((traj.samples.last().unwrap().t - 2.0).abs() < 1e-9);
@@ -92,7 +94,7 @@ fn appell_hamel_energy_error_has_the_methods_order() {
             })
             .unwrap();
         let traj = p
-            .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(1.0))
+            .predict(&PredictionRequest::new(&sc.q0, &sc.v0).horizon(1.0))
             .unwrap();
         let e = |s: &constraint_dynamics::predict::Sample| s.kinetic_energy + s.potential_energy;
         let e0 = e(&traj.samples[0]);
@@ -182,7 +184,7 @@ fn seed_disk_as_expressions_moves_like_the_rolling_constraint() {
                 s.sample_period = 0.1;
             })
             .unwrap();
-        p.predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(2.0))
+        p.predict(&PredictionRequest::new(&sc.q0, &sc.v0).horizon(2.0))
             .unwrap()
     };
     let reference = run("params/vertical_disk.yaml", Formulation::Multipliers);
@@ -446,7 +448,7 @@ fn time_dependent_expression_follows_its_schedule() {
     let q0 = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
     let v0 = [1.0, 0.0, 0.0, 0.0, 0.0, 0.0];
     let traj = p
-        .predict(&PredictRequest::new(&q0, &v0).horizon(2.0).forces(true))
+        .predict(&PredictionRequest::new(&q0, &v0).horizon(2.0).forces(true))
         .unwrap();
     let (mut wx, mut wl) = (0.0f64, 0.0f64);
     for s in &traj.samples {

@@ -5,7 +5,7 @@
 mod common;
 use common::*;
 use constraint_dynamics::dynamics::Formulation;
-use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor};
+use constraint_dynamics::predict::{DriftControl, Method, PredictionRequest, Predictor};
 use constraint_dynamics::{Error, Scene, System};
 
 const A: f64 = 0.5;
@@ -128,7 +128,7 @@ fn embedded_propagation_with_dependent_velocity_follows_the_closed_form() {
         })
         .unwrap();
     let traj = p
-        .predict(&PredictRequest::new(&sc.q0, &sc.v0).horizon(2.0))
+        .predict(&PredictionRequest::new(&sc.q0, &sc.v0).horizon(2.0))
         .unwrap();
     let sd = -g * A / (1.0 + A * A);
     let (mut wq, mut wv) = (0.0f64, 0.0f64);

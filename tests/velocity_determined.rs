@@ -14,7 +14,7 @@
 mod common;
 use common::*;
 use constraint_dynamics::dynamics::Formulation;
-use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor};
+use constraint_dynamics::predict::{DriftControl, Method, PredictionRequest, Predictor};
 use constraint_dynamics::{Error, Scene, System};
 
 const A: f64 = 0.2;
@@ -155,7 +155,7 @@ fn velocity_determined_motion_conserves_energy_where_chetaev_does_not() {
             })
             .unwrap();
         let (q, v) = state(3.0, 4.0);
-        p.predict(&PredictRequest::new(&q, &v).horizon(1.0))
+        p.predict(&PredictionRequest::new(&q, &v).horizon(1.0))
             .unwrap()
     };
     let energy = |s: &constraint_dynamics::predict::Sample| s.kinetic_energy + s.potential_energy;

@@ -2,7 +2,7 @@
 //! JSON (samples of q, v, λ with `--forces`, constraint residuals, energies, error estimate).
 
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor};
+use constraint_dynamics::predict::{DriftControl, Method, PredictionRequest, Predictor};
 use constraint_dynamics::{Error, Result};
 use serde::Deserialize;
 use serde_json::Value;
@@ -166,12 +166,12 @@ pub fn run(a: PredictArgs) -> Result<Value> {
         Some(path) => Some(super::covariance::load(p.model(), path)?),
         None => None,
     };
-    let request = PredictRequest {
+    let request = PredictionRequest {
         commands: &commands,
         horizon: a.horizon,
         start_covariance: p0.as_ref(),
         forces: a.forces,
-        ..PredictRequest::new(&q, &v)
+        ..PredictionRequest::new(&q, &v)
     };
     let traj = p.predict(&request)?;
     let configured = p.config().settings();

@@ -16,7 +16,7 @@ use std::time::Duration;
 use common::*;
 use constraint_dynamics::Scene;
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::predict::{PredictRequest as CoreRequest, Predictor};
+use constraint_dynamics::predict::{PredictionRequest, Predictor};
 use constraint_dynamics::projection::{
     PerCoordinate, ProjectionRequest, Status, VelocityProjector, project_system,
 };
@@ -203,7 +203,7 @@ fn suite_services_match_the_core_library() {
         .enumerate()
         .map(|(k, &(v, w))| (0.5 * k as f64, core.command([v, w], &state.q)))
         .collect();
-    let req = CoreRequest::new(&state.q, &state.v)
+    let req = PredictionRequest::new(&state.q, &state.v)
         .commands(&cmds)
         .horizon(1.0)
         .forces(true);
@@ -285,7 +285,7 @@ fn suite_services_match_the_core_library() {
                 s.error_estimate = false;
             })
             .unwrap();
-        let req = CoreRequest::new(&state.q, &state.v)
+        let req = PredictionRequest::new(&state.q, &state.v)
             .commands(&cmds)
             .horizon(len as f64 * step)
             .forces(true);

@@ -11,7 +11,7 @@ mod common;
 mod suite_fixture;
 
 use common::*;
-use constraint_dynamics::predict::PredictRequest;
+use constraint_dynamics::predict::PredictionRequest;
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::ConstraintForces;
 use constraint_dynamics_nodes::msg::nav_msgs::{Odometry, Path};
 use constraint_dynamics_nodes::msg::rcl_interfaces::{
@@ -46,7 +46,9 @@ fn suite_topics_match_the_core_library() {
     // ---- topics of the predictor (command (0.3, 0.4) on /cmd_vel) -----------------------------
     let expected_cmd = core.command([cmd.0, cmd.1], &ql);
     let commands = [(0.0, expected_cmd.clone())];
-    let req = PredictRequest::new(&ql, &vl).commands(&commands).horizon(1.0);
+    let req = PredictionRequest::new(&ql, &vl)
+        .commands(&commands)
+        .horizon(1.0);
     let traj = core.predictor.predict(&req).unwrap();
     let last = traj.samples.last().unwrap().clone();
     let odom = take_until(&odom_sub, WAIT, |m: &Odometry| {

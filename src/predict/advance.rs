@@ -4,23 +4,23 @@
 
 use super::DriftControl;
 use super::IntegrationSettings;
-use crate::predict::covariance::worker::CovarianceFeed;
 use super::drift::DriftProjector;
 use super::estimate::Lane;
-use crate::predict::integrators::{
-    Accel, DOP853, DOPRI5, JacobianScratch, Method, RK4, accel_jacobian_fd, dop853_error_norm,
-    dopri5_error_norm, explicit_step, semi_implicit_euler_step, stage,
-};
-use crate::predict::covariance::linearize::dynamics_derivatives;
-use crate::predict::integrators::radau::radau5_step;
 use super::predictor::Predictor;
-use crate::predict::integrators::sdirk2::sdirk2_step;
 use crate::applied::applied_generalized_force;
 use crate::derivatives::DerivativeData;
 use crate::dynamics::Formulation;
 use crate::error::{Error, Result};
 use crate::forces::ForceElements;
 use crate::model::Model;
+use crate::predict::covariance::linearize::dynamics_derivatives;
+use crate::predict::covariance::worker::CovarianceFeed;
+use crate::predict::integrators::radau::radau5_step;
+use crate::predict::integrators::sdirk2::sdirk2_step;
+use crate::predict::integrators::{
+    Accel, DOP853, DOPRI5, JacobianScratch, Method, RK4, accel_jacobian_fd, dop853_error_norm,
+    dopri5_error_norm, explicit_step, semi_implicit_euler_step, stage,
+};
 use crate::system::{DynamicsOptions, System};
 use nalgebra::DMatrix;
 

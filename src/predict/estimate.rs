@@ -26,10 +26,10 @@
 
 use super::IntegrationSettings;
 use super::drift::DriftProjector;
-use crate::predict::integrators::{ErrorEstimator, Method, StepWorkspace};
-use crate::predict::integrators::radau::RadauWorkspace;
 use crate::error::Error;
 use crate::model::Model;
+use crate::predict::integrators::radau::RadauWorkspace;
+use crate::predict::integrators::{ErrorEstimator, Method, StepWorkspace};
 use crate::system::System;
 
 /// An adaptive method's companion runs at rtol / K and atol / K, K = 2^p (p its order: 32 for

@@ -1,4 +1,4 @@
-//! Prediction: a scene's predictor, asked a [`PredictRequest`] — start state, horizon, commands
+//! Prediction: a scene's predictor, asked a [`PredictionRequest`] — start state, horizon, commands
 //! over time, what to record — returns a [`Trajectory`]: samples of q, v, the actuator torques,
 //! λ and the constraint forces when asked, constraint residuals (position and velocity),
 //! energies, a global error estimate of q (estimate.rs: Richardson against a companion run,
@@ -33,7 +33,7 @@ pub use covariance::{CovariancePropagator, UncertaintySpec};
 pub use drift::DriftProjector;
 pub use integrators::{ErrorEstimator, Integrator, Method};
 pub use predictor::{Predictor, PredictorConfig};
-pub use request::{IntegrationOverrides, PredictRequest, PredictionBudget, PredictionWork};
+pub use request::{IntegrationOverrides, PredictionBudget, PredictionRequest, PredictionWork};
 pub use rollout::RolloutOptions;
 pub use settings::{DriftControl, IntegrationSettings};
 pub use trajectory::{Sample, Trajectory};

@@ -1,5 +1,5 @@
 //! The predictor: a configuration built once from a scene, the workspace its runs reuse, and
-//! one entry point that takes a [`PredictRequest`] and returns a [`Trajectory`].
+//! one entry point that takes a [`PredictionRequest`] and returns a [`Trajectory`].
 //!
 //! The configuration ([`PredictorConfig`]: integration settings, process noise, the scene's
 //! controllers at rest and drift gains) never changes after it is built; what would change it
@@ -12,7 +12,7 @@ use super::covariance::UncertaintySpec;
 use super::covariance::worker::PipeSlot;
 use super::drift::DriftProjector;
 use super::estimate::{self, Lane, MAX_REFINEMENTS};
-use super::request::{IntegrationOverrides, PredictRequest, PredictionBudget};
+use super::request::{IntegrationOverrides, PredictionBudget, PredictionRequest};
 use super::settings::{DriftControl, IntegrationSettings};
 use super::trajectory::Trajectory;
 use crate::actuators::Actuators;
@@ -200,7 +200,7 @@ impl Predictor {
     /// v, the held actuator torques, residuals, energies, the error estimate, and on request
     /// the constraint forces and the covariance. Checked before running: the state, the
     /// commands and the work ([`PredictionBudget::check`]).
-    pub fn predict(&mut self, req: &PredictRequest) -> Result<Trajectory> {
+    pub fn predict(&mut self, req: &PredictionRequest) -> Result<Trajectory> {
         let start = Instant::now();
         crate::limits::check_input_state(&self.model, req.q0, req.v0, &self.ws.zero)?;
         let budget = self.budget(&req.integration)?;

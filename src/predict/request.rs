@@ -1,4 +1,4 @@
-//! What one prediction is asked for ([`PredictRequest`]), and the one place that resolves and
+//! What one prediction is asked for ([`PredictionRequest`]), and the one place that resolves and
 //! bounds its work ([`PredictionBudget`]): the horizon (none → the scene's), the step, control
 //! tick and sample counts, and the work units of the fixed-step methods, all checked before
 //! anything runs. The ROS nodes validate their parameters and requests through the same budget,
@@ -16,10 +16,10 @@ use nalgebra::DMatrix;
 /// change to the configured integration for this call only.
 ///
 /// ```text
-/// PredictRequest::new(&q0, &v0).horizon(2.0).commands(&cmds).forces(true)
+/// PredictionRequest::new(&q0, &v0).horizon(2.0).commands(&cmds).forces(true)
 /// ```
 #[derive(Clone, Copy, Debug, Default)]
-pub struct PredictRequest<'a> {
+pub struct PredictionRequest<'a> {
     /// Start configuration (nq) [m, rad, unit quaternion].
     pub q0: &'a [f64],
     /// Start velocity (nv) [m/s, rad/s].
@@ -37,7 +37,7 @@ pub struct PredictRequest<'a> {
     pub forces: bool,
 }
 
-impl<'a> PredictRequest<'a> {
+impl<'a> PredictionRequest<'a> {
     /// A request from (q0, v0) over the scene's horizon, without commands, forces or covariance.
     pub fn new(q0: &'a [f64], v0: &'a [f64]) -> Self {
         Self {
@@ -262,7 +262,10 @@ impl PredictionBudget {
         )?;
         let control_ticks = match self.control_period {
             Some(p) => limit(
-                format!("control ticks (horizon {h} s / control_period {} s)", show(p)),
+                format!(
+                    "control ticks (horizon {h} s / control_period {} s)",
+                    show(p)
+                ),
                 horizon / p,
                 s.max_steps,
                 "shorten the horizon, raise actuators.control_period, or raise \
@@ -279,7 +282,10 @@ impl PredictionBudget {
             s.max_samples,
             "shorten the horizon, raise sample_period, or raise integration.max_samples",
         )?;
-        let work = match (self.evaluation_cost, s.method.integrator().evaluations_per_step()) {
+        let work = match (
+            self.evaluation_cost,
+            s.method.integrator().evaluations_per_step(),
+        ) {
             (Some((cost, bodies)), Some(per_step)) => {
                 // The error estimate's companion takes two steps of dt/2 per step (estimate.rs):
                 // three times the answer's evaluations, counted whether or not it runs.

@@ -8,7 +8,7 @@
 //! len · step, a sample after every step): its result equals that single prediction bit for bit.
 
 use super::predictor::Predictor;
-use super::request::{PredictRequest, PredictionBudget};
+use super::request::{PredictionBudget, PredictionRequest};
 use super::trajectory::Trajectory;
 use crate::actuators::Command;
 use crate::error::{Error, Result};
@@ -45,7 +45,7 @@ impl Predictor {
     /// the fixed-step methods.
     pub fn rollouts(
         &self,
-        req: &PredictRequest,
+        req: &PredictionRequest,
         sequences: &[Vec<Command>],
         opts: RolloutOptions,
     ) -> Result<Vec<Trajectory>> {
@@ -104,7 +104,7 @@ impl Predictor {
                         .map(|(k, c)| (k as f64 * opts.step, c.clone()))
                         .collect();
                     let horizon = seq.len() as f64 * opts.step;
-                    let one = PredictRequest {
+                    let one = PredictionRequest {
                         commands: &timed,
                         horizon: Some(horizon),
                         integration: overrides,

@@ -7,7 +7,7 @@ use super::covariance::CovariancePropagator;
 use super::covariance::worker::with_worker;
 use super::estimate::{self, Lane};
 use super::predictor::Predictor;
-use super::request::PredictRequest;
+use super::request::PredictionRequest;
 use super::settings::IntegrationSettings;
 use super::trajectory::{Sample, Trajectory};
 use crate::actuators::Command;
@@ -42,7 +42,7 @@ impl Predictor {
     /// ticking every `control` [s].
     pub(super) fn run(
         &mut self,
-        req: &PredictRequest,
+        req: &PredictionRequest,
         horizon: f64,
         s: &IntegrationSettings,
         control: Option<f64>,
@@ -75,7 +75,7 @@ impl Predictor {
     fn run_lanes(
         &mut self,
         lanes: &mut [Lane; 2],
-        req: &PredictRequest,
+        req: &PredictionRequest,
         horizon: f64,
         s: (&IntegrationSettings, &IntegrationSettings),
         factor: f64,

@@ -1,13 +1,13 @@
 //! What a prediction returns: samples of the state along the horizon, with what acted on the
 //! robot and, on request, the constraint forces and the covariance; and how a sample is taken.
 
-use crate::predict::integrators::Method;
-use crate::constraints::ConstraintForce;
 use super::covariance::worker::covariance_rows;
 use super::predictor::Predictor;
 use crate::algorithm::{kinetic_energy, potential_energy};
 use crate::applied::constraint_forces_at;
+use crate::constraints::ConstraintForce;
 use crate::error::Result;
+use crate::predict::integrators::Method;
 
 use serde::Serialize;
 

@@ -44,7 +44,7 @@ mod twist;
 
 pub use diagnose::Conflict;
 pub use problem::{AccelLimit, BoundSource, ProjectionProblem, Side};
-pub use projector::{SolvePath, Outcome, Status, VelocityProjector};
+pub use projector::{Outcome, SolvePath, Status, VelocityProjector};
 pub use report::{ActiveBound, ActiveInequality, ConstraintImpulse, NamedConflict, Projection};
 pub use request::{
     AccelLimitRequest, Fill, Mode, PerCoordinate, ProjectionRequest, RowSpec, base_dofs,

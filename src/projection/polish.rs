@@ -12,7 +12,7 @@
 
 use super::diagnose::diagnose;
 use super::problem::{Bounds, ProjectionProblem, Side};
-use super::projector::{SolvePath, Outcome, VelocityProjector};
+use super::projector::{Outcome, SolvePath, VelocityProjector};
 use super::qp::{IneqRow, QpCache, QpData};
 use crate::error::{Error, Result};
 use crate::model::Model;

@@ -300,8 +300,9 @@ pub fn very_stiff_chain() -> (Scene, ForcesSpec) {
 /// The CLI (`constraint_dynamics`, built for cli/tests only) run from the repository root: the
 /// tests' scene paths are relative to it.
 pub fn cli() -> Command {
-    let exe = option_env!("CARGO_BIN_EXE_constraint_dynamics")
-        .expect("the CLI binary is built for the CLI's own tests (cli/tests) only");
+    let Some(exe) = option_env!("CARGO_BIN_EXE_constraint_dynamics") else {
+        panic!("the CLI binary is built for the CLI's own tests (cli/tests) only");
+    };
     let mut c = Command::new(exe);
     c.current_dir(repo_dir());
     c

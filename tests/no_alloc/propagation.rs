@@ -10,7 +10,7 @@
 use constraint_dynamics::Scene;
 use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::predict::{
-    DriftControl, IntegrationOverrides, Method, PredictRequest, Predictor,
+    DriftControl, IntegrationOverrides, Method, PredictionRequest, Predictor,
 };
 use std::path::PathBuf;
 
@@ -19,7 +19,7 @@ use counting_alloc::allocations;
 
 /// Allocations of one prediction over `horizon` with two samples (t = 0 and the end).
 fn prediction_allocations(p: &mut Predictor, sc: &Scene, horizon: f64) -> usize {
-    let req = PredictRequest::new(&sc.q0, &sc.v0)
+    let req = PredictionRequest::new(&sc.q0, &sc.v0)
         .horizon(horizon)
         .integration(sample_every(horizon));
     let mut t = None;
@@ -154,7 +154,7 @@ fn actuated_with_covariance(parallel: bool) {
     cmd.joint_position.insert("arm_elbow".into(), 0.8);
     let commands = [(0.0, cmd)];
     let mut run = |h: f64| {
-        let req = PredictRequest::new(&sc.q0, &sc.v0)
+        let req = PredictionRequest::new(&sc.q0, &sc.v0)
             .commands(&commands)
             .horizon(h)
             .covariance(&p0)

@@ -10,7 +10,7 @@
 
 use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::forces::ForceElements;
-use constraint_dynamics::predict::{PredictRequest, Predictor};
+use constraint_dynamics::predict::{PredictionRequest, Predictor};
 use constraint_dynamics::scene::SceneFile;
 use constraint_dynamics::{Scene, System};
 use proptest::prelude::*;
@@ -162,7 +162,9 @@ fn run(urdf: &str, scene: &str) -> Result<(), String> {
         );
     }
     let mut p = Predictor::from_scene(&sc).map_err(|e| e.to_string())?;
-    let req = PredictRequest::new(&sc.q0, &sc.v0).horizon(0.02).forces(true);
+    let req = PredictionRequest::new(&sc.q0, &sc.v0)
+        .horizon(0.02)
+        .forces(true);
     let traj = p.predict(&req).map_err(|e| e.to_string())?;
     for s in &traj.samples {
         let energies = [s.kinetic_energy, s.potential_energy];

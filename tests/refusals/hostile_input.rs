@@ -3,7 +3,7 @@
 
 use crate::common;
 use common::assert_has;
-use constraint_dynamics::predict::{IntegrationOverrides, Method, PredictRequest, Predictor};
+use constraint_dynamics::predict::{IntegrationOverrides, Method, PredictionRequest, Predictor};
 use constraint_dynamics::{Error, Scene, System};
 
 fn scene_file(name: &str, body: &str) -> std::path::PathBuf {
@@ -91,7 +91,7 @@ fn absurd_steps_horizons_and_states_are_refused_before_running() {
             sample_period,
             ..Default::default()
         };
-        PredictRequest::new(&q, &v)
+        PredictionRequest::new(&q, &v)
             .horizon(horizon)
             .integration(integration)
     };
@@ -121,7 +121,7 @@ fn absurd_steps_horizons_and_states_are_refused_before_running() {
         })
         .unwrap();
     let e = p
-        .predict(&PredictRequest::new(&q, &v).horizon(1e3))
+        .predict(&PredictionRequest::new(&q, &v).horizon(1e3))
         .unwrap_err()
         .to_string();
     assert_has(&e, &["steps (51)", "max_steps"]);
@@ -134,7 +134,7 @@ fn absurd_steps_horizons_and_states_are_refused_before_running() {
     let mut big = v.clone();
     big[0] = 1e308;
     let e = p
-        .predict(&PredictRequest::new(&q, &big).horizon(0.1))
+        .predict(&PredictionRequest::new(&q, &big).horizon(0.1))
         .unwrap_err()
         .to_string();
     assert_has(&e, &["v: entry 0", "beyond the accepted magnitude 1e6"]);
@@ -162,7 +162,7 @@ fn a_1000_link_chain_is_refused_by_the_work_budget() {
     let mut pred = Predictor::from_scene(&scene).unwrap();
     let t = std::time::Instant::now();
     let e = pred
-        .predict(&PredictRequest::new(&scene.q0, &scene.v0).horizon(0.02))
+        .predict(&PredictionRequest::new(&scene.q0, &scene.v0).horizon(0.02))
         .unwrap_err()
         .to_string();
     println!("1000-link chain, 0.02 s: {e} (in {:?})", t.elapsed());

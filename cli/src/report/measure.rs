@@ -3,7 +3,9 @@
 
 use super::Row;
 use super::scenes::{Bench, Line, Reference, name};
-use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor, Trajectory};
+use constraint_dynamics::predict::{
+    DriftControl, Method, PredictionRequest, Predictor, Trajectory,
+};
 use constraint_dynamics::{Result, Scene};
 
 /// The CPU time of this process [s] (CLOCK_PROCESS_CPUTIME_ID: all its threads, ns resolution):
@@ -54,7 +56,7 @@ pub(super) fn predict(
     let mut last = None;
     for _ in 0..3 {
         let c0 = process_cpu_s();
-        let t = p.predict(&PredictRequest::new(&scene.q0, &scene.v0).horizon(horizon))?;
+        let t = p.predict(&PredictionRequest::new(&scene.q0, &scene.v0).horizon(horizon))?;
         let cpu = process_cpu_s() - c0;
         best = best.min(cpu);
         let fast = cpu < REPEAT_BELOW_S;

@@ -11,7 +11,9 @@ mod plot;
 mod scenes;
 mod tables;
 
-use constraint_dynamics::predict::{DriftControl, Method, PredictRequest, Predictor, Trajectory};
+use constraint_dynamics::predict::{
+    DriftControl, Method, PredictionRequest, Predictor, Trajectory,
+};
 use constraint_dynamics::{Error, Result, Scene};
 use indicatif::{ProgressBar, ProgressStyle};
 use measure::{Refs, distance, final_distance, measure, predict, process_cpu_s};
@@ -253,7 +255,7 @@ pub fn run(a: ReportArgs) -> Result<Value> {
             (s.rtol, s.atol, s.sample_period) = (1e-11, 1e-11, 1.0);
         })?;
         let c0 = process_cpu_s();
-        let mut t = p.predict(&PredictRequest::new(&a01.q0, &a01.v0).horizon(2000.0))?;
+        let mut t = p.predict(&PredictionRequest::new(&a01.q0, &a01.v0).horizon(2000.0))?;
         t.run_time_s = process_cpu_s() - c0;
         let a01_err = t
             .samples

@@ -24,8 +24,8 @@ use serde::{Deserialize, Serialize};
 use crate::ros::args::{Parameters, RosArgsError, yaml_to_param};
 
 pub use groups::{
-    CommandMsg, CommandParams, CommandType, DiagnosticsParams, Fallback, FramesParams, JointNoiseParams,
-    ModelParams, NetworkParams, SlipParams, StaleBehaviour, StateParams,
+    CommandMsg, CommandParams, CommandType, DiagnosticsParams, Fallback, FramesParams,
+    JointNoiseParams, ModelParams, NetworkParams, SlipParams, StaleBehaviour, StateParams,
 };
 pub use kind::NodeKind;
 pub use work::WorkBudget;

@@ -217,10 +217,7 @@ fn joint_noise_by_name() {
     let pp = NodeParams::<PredictorParams>::from_parameters(&p).unwrap();
     let st = &pp.common.state;
     assert_eq!(st.timeout, 0.25);
-    assert_eq!(
-        st.stale_behaviour,
-        crate::params::StaleBehaviour::Warn
-    );
+    assert_eq!(st.stale_behaviour, crate::params::StaleBehaviour::Warn);
     assert_eq!(st.joint_noise.of("arm_elbow"), (0.002, 0.03));
     assert_eq!(st.joint_noise.of("arm_wrist"), (0.001, 0.0));
     let names: Vec<String> = pp.to_ros().into_iter().map(|(n, _)| n).collect();

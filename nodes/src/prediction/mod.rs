@@ -7,7 +7,7 @@ pub mod params;
 mod rollouts;
 pub mod ros;
 
-use constraint_dynamics::predict::{PredictRequest as CorePredictRequest, Predictor};
+use constraint_dynamics::predict::{PredictionRequest, Predictor};
 use nalgebra::DMatrix;
 
 use crate::convert::{path_msg, time_plus};
@@ -191,12 +191,12 @@ impl PredictionNode {
             true => Some(self.request_covariance(req, &q, now)?),
             false => None,
         };
-        let request = CorePredictRequest {
+        let request = PredictionRequest {
             commands: &commands,
             horizon: Some(req.horizon),
             start_covariance: p0.as_ref(),
             forces: req.with_forces,
-            ..CorePredictRequest::new(&q, &v)
+            ..PredictionRequest::new(&q, &v)
         };
         let traj = self
             .predictor

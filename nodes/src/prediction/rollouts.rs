@@ -2,7 +2,7 @@
 //! node's cores (`Predictor::rollouts`) — what a sampling planner (Nav2 MPPI) scores.
 
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::predict::{IntegrationOverrides, PredictRequest, RolloutOptions};
+use constraint_dynamics::predict::{IntegrationOverrides, PredictionRequest, RolloutOptions};
 
 use super::PredictionNode;
 use crate::convert::{pose_msg, time_plus, twist_msg};
@@ -101,14 +101,14 @@ impl PredictionNode {
         };
         // A planner's rollouts: no error-estimate companion (it doubles the work and the reply
         // has no place for it) and no covariance; the node's own predictions keep both.
-        let request = PredictRequest {
+        let request = PredictionRequest {
             integration: IntegrationOverrides {
                 error_estimate: Some(false),
                 adapt: Some(false),
                 ..IntegrationOverrides::default()
             },
             forces: req.with_forces,
-            ..PredictRequest::new(&q, &v)
+            ..PredictionRequest::new(&q, &v)
         };
         let trajectories = self
             .predictor

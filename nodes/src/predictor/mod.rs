@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 use constraint_dynamics::algorithm::frame_placement;
 use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::forces::ForceElements;
-use constraint_dynamics::predict::{PredictRequest, Predictor, Trajectory};
+use constraint_dynamics::predict::{PredictionRequest, Predictor, Trajectory};
 use constraint_dynamics::system::System;
 
 use crate::convert::{path_msg, pose_msg, time_plus, twist_msg};
@@ -146,8 +146,10 @@ impl NodeLogic for PredictorNode {
             let level = self
                 .command_log
                 .level("command", &e.to_string(), Instant::now());
-            self.log
-                .log(level, &format!("{e}; using linear.x and angular.z if finite"));
+            self.log.log(
+                level,
+                &format!("{e}; using linear.x and angular.z if finite"),
+            );
         }
         self.last_command = finite.then_some(([t.linear.x, t.angular.z], now));
     }
@@ -256,8 +258,7 @@ impl PredictorNode {
             }
             false => None,
         };
-        if self.params.node.horizon().is_none()
-            && self.predictor.config().settings().horizon <= 0.0
+        if self.params.node.horizon().is_none() && self.predictor.config().settings().horizon <= 0.0
         {
             return Err(NodeError::request(
                 "horizon",
@@ -265,11 +266,11 @@ impl PredictorNode {
             ));
         }
         let commands = [(0.0, cmd)];
-        let request = PredictRequest {
+        let request = PredictionRequest {
             commands: &commands,
             horizon: self.params.node.horizon(),
             start_covariance: p0.as_ref(),
-            ..PredictRequest::new(&q, &v)
+            ..PredictionRequest::new(&q, &v)
         };
         let traj = self
             .predictor
@@ -281,7 +282,7 @@ impl PredictorNode {
         let tau = &traj.samples[0].actuator_torque;
         let (sys, force_elements) = &mut self.start;
         let at = constraint_forces_at(sys, force_elements, (0.0, &q, &v), tau)
-        .map_err(NodeError::core("constraint forces"))?;
+            .map_err(NodeError::core("constraint forces"))?;
         let forces = self.robot.forces_msg(
             common,
             &at.forces,

@@ -188,13 +188,8 @@ impl Core {
         v: &[f64],
         tau_act: &[f64],
     ) -> (Vec<f64>, Vec<CoreForce>, Vec<f64>) {
-        let at = constraint_forces_at(
-            &mut self.sys,
-            &mut self.forces,
-            (0.0, q, v),
-            tau_act,
-        )
-        .unwrap();
+        let at =
+            constraint_forces_at(&mut self.sys, &mut self.forces, (0.0, q, v), tau_act).unwrap();
         (at.qdd, at.forces, at.generalized_force)
     }
 

@@ -43,11 +43,11 @@
 //! the chunk's accuracy, and the projection costs about a linearization's stage.
 
 use super::CovariancePropagator;
-use crate::predict::integrators::Method;
-use crate::predict::covariance::linearize::{Linearization, linearize_step};
 use crate::actuators::Feedback;
 use crate::error::Result;
 use crate::model::Model;
+use crate::predict::covariance::linearize::{Linearization, linearize_step};
+use crate::predict::integrators::Method;
 use crate::system::System;
 
 /// Most recorded steps per flush (and per linearized step).

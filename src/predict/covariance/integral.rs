@@ -61,7 +61,12 @@ impl IntegralOffsets {
 
     /// One linearized step (A, B) under `feedback`: P and P_xc forward (module doc). Before
     /// `p ← A p Aᵀ`, since Y needs A only.
-    pub(in crate::predict) fn step(&mut self, a: &DMatrix<f64>, b: &DMatrix<f64>, feedback: &[Feedback]) {
+    pub(in crate::predict) fn step(
+        &mut self,
+        a: &DMatrix<f64>,
+        b: &DMatrix<f64>,
+        feedback: &[Feedback],
+    ) {
         for (c, &(iv, i)) in self.joints.iter().enumerate() {
             let k = feedback.get(i).map_or(0.0, |f| f.k);
             for r in 0..a.nrows() {

@@ -11,12 +11,12 @@
 //! series. Semi-implicit Euler likewise. The result equals finite differences of the step
 //! (tests).
 
-use crate::predict::integrators::{DOP853, DOPRI5, Method, RK4, Tableau};
-use crate::predict::integrators::lie::{StageMaps, dexp_inv, right_jacobian, transport};
 use crate::actuators::Feedback;
 use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
 use crate::error::{Error, Result};
 use crate::linalg::{gemm_columns, mat_vec_add};
+use crate::predict::integrators::lie::{StageMaps, dexp_inv, right_jacobian, transport};
+use crate::predict::integrators::{DOP853, DOPRI5, Method, RK4, Tableau};
 use crate::system::System;
 use nalgebra::DMatrix;
 

@@ -29,15 +29,11 @@
 //!   where J does not depend on q in the body frame (the diff drive). Dependent rows are dropped
 //!   first.
 
-
 mod chunks;
 mod integral;
 pub(in crate::predict) mod linearize;
 pub(in crate::predict) mod worker;
 
-use crate::predict::covariance::chunks::{ChunkControl, StepRecord};
-use crate::predict::covariance::integral::IntegralOffsets;
-use crate::predict::covariance::linearize::Linearization;
 use crate::actuators::Feedback;
 use crate::algorithm::crba;
 use crate::error::{Error, Result, check_finite};
@@ -45,6 +41,9 @@ use crate::forces::ForceElements;
 use crate::linalg::{
     cholesky_in_place, cholesky_solve, gemm_into, semidefinite_cholesky, semidefinite_solve,
 };
+use crate::predict::covariance::chunks::{ChunkControl, StepRecord};
+use crate::predict::covariance::integral::IntegralOffsets;
+use crate::predict::covariance::linearize::Linearization;
 use crate::system::System;
 use nalgebra::DMatrix;
 use serde::Deserialize;

@@ -15,10 +15,10 @@
 //! anything the prediction met after it).
 
 use super::CovariancePropagator;
-use crate::predict::covariance::chunks::StepRecord;
-use crate::predict::integrators::Method;
 use crate::actuators::Feedback;
 use crate::error::{Error, Result};
+use crate::predict::covariance::chunks::StepRecord;
+use crate::predict::integrators::Method;
 use crate::system::System;
 use nalgebra::DMatrix;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};

@@ -9,14 +9,13 @@ pub(in crate::predict) mod radau;
 mod radau_tableau;
 pub(in crate::predict) mod sdirk2;
 
-use lie::dexp_inv;
-pub use explicit::{
-    DOP853, DOPRI5, MAX_STAGES, RK4, Tableau, explicit_step,
-    semi_implicit_euler_step,
-};
-pub(in crate::predict) use explicit::{dop853_error_norm, dopri5_error_norm};
 use crate::error::Result;
 use crate::model::Model;
+pub use explicit::{
+    DOP853, DOPRI5, MAX_STAGES, RK4, Tableau, explicit_step, semi_implicit_euler_step,
+};
+pub(in crate::predict) use explicit::{dop853_error_norm, dopri5_error_norm};
+use lie::dexp_inv;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 

@@ -17,11 +17,11 @@
 //! (with the predictive Gustafsson variant), and the Jacobian is kept while Newton converges
 //! fast (θ ≤ 1e-3) and the factorization while the step changes by less than 20 %.
 
-use crate::predict::integrators::{Accel, JacobianScratch, derivative, stage};
 use super::radau_tableau::RadauCoefficients;
 use crate::error::{Error, Result};
 use crate::linalg::{lu_in_place, lu_solve};
 use crate::model::Model;
+use crate::predict::integrators::{Accel, JacobianScratch, derivative, stage};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
 /// Newton iterations per step before the step is rejected (RADAU5's NIT).

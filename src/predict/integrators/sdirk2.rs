@@ -2,10 +2,10 @@
 //! step would have to be tiny: the stages solved by a simplified Newton iteration on the
 //! configuration Lie group, with the buffers of the shared [`StepWorkspace`] (integrators/mod.rs).
 
-use crate::predict::integrators::{Accel, StepWorkspace, derivative, stage};
 use crate::error::{Error, Result};
 use crate::linalg::{lu_in_place, lu_solve};
 use crate::model::Model;
+use crate::predict::integrators::{Accel, StepWorkspace, derivative, stage};
 
 /// ∂k/∂(Θ, v) at (q_n, v_n) into `ws.jac` (`ws.a0` = q̈(q_n, v_n)): [[0, 1], [∂q̈/∂q, ∂q̈/∂v]],
 /// analytic where the right-hand side has derivatives.
