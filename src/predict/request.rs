@@ -94,7 +94,7 @@ pub struct IntegrationOverrides {
     pub drift: Option<DriftControl>,
     /// Output sample period [s].
     pub sample_period: Option<f64>,
-    /// The controllers' control period [s] (scenes with actuators).
+    /// The controllers' control period [s]; a scene without controllers has none to change.
     pub control_period: Option<f64>,
     /// Bound on the global error estimate of q [m or rad] (`f64::INFINITY`: no check).
     pub max_error: Option<f64>,
