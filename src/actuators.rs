@@ -2,8 +2,14 @@
 //! torque limited by the URDF `effort`), joint position controllers (PD), and a differential
 //! drive whose commanded (v, ω) becomes wheel-speed targets for its two wheel controllers.
 //!
-//! Like a real digital controller, the actuator torques are computed at the control period and
-//! held (zero-order hold) until the next tick; the integrators never step across a tick.
+//! Two models of the controllers in time (`actuators.hold`):
+//! - `zero_order` (default): like a real digital controller, the torques are computed at the
+//!   control period and held until the next tick; the integrators never step across a tick.
+//! - `continuous`: the torques are a function of (t, q, v) evaluated at every stage, so the step
+//!   follows the accuracy asked for, not the control period. A velocity controller's integral
+//!   is then `∫(v* − q̇) dt = ∫v* dt − (q − q(0))`, exact for piecewise-constant targets; it has
+//!   no anti-windup (a saturated controller keeps integrating), so this model suits controllers
+//!   that stay inside their effort. docs/performance.md gives its distance from the held model.
 
 use crate::error::{Error, Result};
 use crate::model::Model;
@@ -26,6 +32,20 @@ pub struct ActuatorsSpec {
     /// Control period [s]; default [`DEFAULT_CONTROL_PERIOD`].
     #[serde(default)]
     pub control_period: Option<f64>,
+    /// How the torques are held between control ticks (module doc); default `zero_order`.
+    #[serde(default)]
+    pub hold: Hold,
+}
+
+/// `actuators.hold:` the controllers' model in time (module doc).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Hold {
+    /// Torques computed every control period and held (a digital controller).
+    #[default]
+    ZeroOrder,
+    /// Torques evaluated at every stage from (t, q, v): no control ticks.
+    Continuous,
 }
 
 /// The control period of a scene's controllers when `actuators.control_period` is not given [s].
@@ -38,9 +58,10 @@ impl ActuatorsSpec {
     }
 
     /// The period [s] at which the controllers' torques are recomputed and held, None without
-    /// controllers (a prediction then has no control ticks).
+    /// controllers or with continuous ones (a prediction then has no control ticks).
     pub fn control_period_s(&self) -> Option<f64> {
-        (!self.is_empty()).then(|| self.control_period.unwrap_or(DEFAULT_CONTROL_PERIOD))
+        (!self.is_empty() && self.hold == Hold::ZeroOrder)
+            .then(|| self.control_period.unwrap_or(DEFAULT_CONTROL_PERIOD))
     }
 }
 
@@ -115,6 +136,11 @@ struct Pi {
     /// Linear feedback (k, d) at the last tick ([`Actuators::feedback`]).
     gain: (f64, f64),
     name: String,
+    /// Continuous hold: the target of the current segment (NaN: none), ∫v* dt up to the
+    /// segment's start, and the joint's position at the prediction's start.
+    target: f64,
+    target_integral: f64,
+    q_start: f64,
 }
 
 #[derive(Clone, Debug)]
@@ -127,6 +153,8 @@ struct Pd {
     /// Linear feedback (k, d) at the last tick ([`Actuators::feedback`]).
     gain: (f64, f64),
     name: String,
+    /// Continuous hold: the target of the current segment (NaN: none).
+    target: f64,
 }
 
 /// One controller's linear feedback at a tick, as a joint spring-damper on the state: its
@@ -159,6 +187,10 @@ pub struct Actuators {
     diff_drive: Option<(usize, usize, f64, f64)>,
     /// Control period [s]: torques are recomputed every period and held in between.
     pub control_period: f64,
+    /// The controllers' model in time.
+    pub hold: Hold,
+    /// Continuous hold: start of the current command segment [s].
+    segment_start: f64,
 }
 
 impl Actuators {
@@ -190,6 +222,7 @@ impl Actuators {
         };
         let mut a = Actuators {
             control_period: period,
+            hold: spec.hold,
             ..Default::default()
         };
         for s in &spec.velocity {
@@ -204,6 +237,9 @@ impl Actuators {
                 integral: 0.0,
                 gain: (0.0, 0.0),
                 name: s.joint.clone(),
+                target: f64::NAN,
+                target_integral: 0.0,
+                q_start: 0.0,
             });
         }
         for s in &spec.position {
@@ -217,6 +253,7 @@ impl Actuators {
                 effort,
                 gain: (0.0, 0.0),
                 name: s.joint.clone(),
+                target: f64::NAN,
             });
         }
         if let Some(d) = &spec.diff_drive {
@@ -239,6 +276,9 @@ impl Actuators {
                     integral: 0.0,
                     gain: (0.0, 0.0),
                     name: name.clone(),
+                    target: f64::NAN,
+                    target_integral: 0.0,
+                    q_start: 0.0,
                 });
                 idx[k] = a.velocity.len() - 1;
             }
@@ -316,23 +356,9 @@ impl Actuators {
     /// One control tick at (q, v): update the integrators over `dt` and write the held torques.
     pub fn update(&mut self, cmd: &Command, q: &[f64], v: &[f64], dt: f64, tau: &mut [f64]) {
         tau.iter_mut().for_each(|x| *x = 0.0);
-        // The wheels' targets from a base twist replace their own; no buffer (a control tick
-        // runs inside the prediction's loop and allocates nothing).
-        let twist = match (self.diff_drive, cmd.base_twist) {
-            (Some(drive), Some(twist)) => Some((drive, twist)),
-            _ => None,
-        };
+        let drive = self.diff_drive;
         for (k, c) in self.velocity.iter_mut().enumerate() {
-            let target = match twist {
-                Some(((l, _, radius, b), [lin, ang])) if k == l => {
-                    Some((lin - ang * b / 2.0) / radius)
-                }
-                Some(((_, r, radius, b), [lin, ang])) if k == r => {
-                    Some((lin + ang * b / 2.0) / radius)
-                }
-                _ => cmd.joint_velocity.get(&c.name).copied(),
-            };
-            let Some(target) = target else {
+            let Some(target) = velocity_target(drive, cmd, k, &c.name) else {
                 c.gain = (0.0, 0.0);
                 continue;
             };
@@ -359,5 +385,140 @@ impl Actuators {
             };
             tau[c.iv] += raw.clamp(-c.effort, c.effort);
         }
+    }
+
+    /// The torques are a function of (t, q, v) (`hold: continuous`).
+    pub fn is_continuous(&self) -> bool {
+        self.hold == Hold::Continuous && !self.is_empty()
+    }
+
+    /// Continuous hold: a prediction starts at t = 0 from configuration `q`, with no target yet.
+    pub fn start_continuous(&mut self, q: &[f64]) {
+        self.segment_start = 0.0;
+        for c in &mut self.velocity {
+            (c.target, c.target_integral, c.q_start) = (f64::NAN, 0.0, q[c.iq]);
+            c.gain = (0.0, 0.0);
+        }
+        for c in &mut self.position {
+            c.target = f64::NAN;
+            c.gain = (0.0, 0.0);
+        }
+    }
+
+    /// Continuous hold: `cmd` is in force from t [s] on (the previous target's integral is
+    /// closed at t). The feedback of [`Actuators::feedback`] is then each controller's
+    /// unsaturated gain: (ki, kp) for a velocity controller, (kp, kd) for a position one.
+    pub fn begin_segment(&mut self, cmd: &Command, t: f64) {
+        let drive = self.diff_drive;
+        let elapsed = t - self.segment_start;
+        for (k, c) in self.velocity.iter_mut().enumerate() {
+            if c.target.is_finite() {
+                c.target_integral += c.target * elapsed;
+            }
+            c.target = velocity_target(drive, cmd, k, &c.name).unwrap_or(f64::NAN);
+            c.gain = if c.target.is_finite() {
+                (c.ki, c.kp)
+            } else {
+                (0.0, 0.0)
+            };
+        }
+        for c in &mut self.position {
+            c.target = cmd.joint_position.get(&c.name).copied().unwrap_or(f64::NAN);
+            c.gain = if c.target.is_finite() {
+                (c.kp, c.kd)
+            } else {
+                (0.0, 0.0)
+            };
+        }
+        self.segment_start = t;
+    }
+
+    /// Continuous hold: the controllers' torques at (t, q, v) into `tau` (nv), each clamped to
+    /// ±effort.
+    pub fn continuous_torque(&self, t: f64, q: &[f64], v: &[f64], tau: &mut [f64]) {
+        tau.iter_mut().for_each(|x| *x = 0.0);
+        self.continuous_each(t, q, v, |c, raw, _| {
+            tau[c.iv] += raw.clamp(-c.effort, c.effort)
+        });
+    }
+
+    /// Continuous hold: the linear feedback of the controllers inside their effort at
+    /// (t, q, v) — ∂τ/∂q = −k, ∂τ/∂v = −d on each joint (a saturated one has none).
+    pub fn continuous_feedback(&self, t: f64, q: &[f64], v: &[f64], mut f: impl FnMut(Feedback)) {
+        self.continuous_each(t, q, v, |c, raw, (k, d)| {
+            if raw.abs() <= c.effort {
+                f(Feedback {
+                    iq: c.iq,
+                    iv: c.iv,
+                    k,
+                    d,
+                    integral: false,
+                });
+            }
+        });
+    }
+
+    /// Each controller with a target: its joint, raw (unclamped) torque at (t, q, v) and gains.
+    fn continuous_each(
+        &self,
+        t: f64,
+        q: &[f64],
+        v: &[f64],
+        mut f: impl FnMut(Joint, f64, (f64, f64)),
+    ) {
+        for c in self.velocity.iter().filter(|c| c.target.is_finite()) {
+            let integral =
+                c.target_integral + c.target * (t - self.segment_start) - (q[c.iq] - c.q_start);
+            let raw = c.kp * (c.target - v[c.iv]) + c.ki * integral;
+            f(
+                Joint {
+                    iq: c.iq,
+                    iv: c.iv,
+                    effort: c.effort,
+                },
+                raw,
+                (c.ki, c.kp),
+            );
+        }
+        for c in self.position.iter().filter(|c| c.target.is_finite()) {
+            let raw = c.kp * (c.target - q[c.iq]) - c.kd * v[c.iv];
+            f(
+                Joint {
+                    iq: c.iq,
+                    iv: c.iv,
+                    effort: c.effort,
+                },
+                raw,
+                (c.kp, c.kd),
+            );
+        }
+    }
+}
+
+/// A controlled joint's indices and effort bound.
+#[derive(Clone, Copy)]
+struct Joint {
+    iq: usize,
+    iv: usize,
+    effort: f64,
+}
+
+/// The target of velocity controller `k` (named `name`) under `cmd`: a base twist gives the
+/// diff drive's wheels theirs, replacing their own (no buffer: a control tick runs inside the
+/// prediction's loop and allocates nothing).
+fn velocity_target(
+    drive: Option<(usize, usize, f64, f64)>,
+    cmd: &Command,
+    k: usize,
+    name: &str,
+) -> Option<f64> {
+    match (drive, cmd.base_twist) {
+        (Some((l, _, radius, b)), Some([lin, ang])) if k == l => {
+            Some((lin - ang * b / 2.0) / radius)
+        }
+        (Some((_, r, radius, b)), Some([lin, ang])) if k == r => {
+            Some((lin + ang * b / 2.0) / radius)
+        }
+        _ => cmd.joint_velocity.get(name).copied(),
     }
 }

@@ -245,6 +245,13 @@ impl ForceElements {
         &self.joint_springs
     }
 
+    /// True when the elements' generalized force depends on the state only through the joint
+    /// spring-dampers (joint torques depend on t alone): its Jacobian is then (−k, −d) on
+    /// those joints, with no kinematics.
+    pub fn depends_on_state_by_joints_only(&self) -> bool {
+        self.springs.is_empty() && self.frame_forces.is_empty()
+    }
+
     /// True when there are point-to-point spring-dampers (whose direction turns with q).
     pub fn has_point_springs(&self) -> bool {
         !self.springs.is_empty()

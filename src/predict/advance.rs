@@ -7,6 +7,7 @@ use super::IntegrationSettings;
 use super::drift::DriftProjector;
 use super::estimate::Lane;
 use super::predictor::Predictor;
+use crate::actuators::Actuators;
 use crate::applied::applied_generalized_force;
 use crate::derivatives::DerivativeData;
 use crate::dynamics::Formulation;
@@ -16,6 +17,7 @@ use crate::model::Model;
 use crate::predict::covariance::linearize::dynamics_derivatives;
 use crate::predict::covariance::worker::CovarianceFeed;
 use crate::predict::integrators::radau::radau5_step;
+use crate::predict::integrators::ros2::ros2_step;
 use crate::predict::integrators::sdirk2::sdirk2_step;
 use crate::predict::integrators::{
     Accel, DOP853, DOPRI5, JacobianScratch, Method, RK4, accel_jacobian_fd, dop853_error_norm,
@@ -53,11 +55,16 @@ impl JacobianWork {
     }
 }
 
-/// The right-hand side: held actuator torques + force elements → constrained q̈.
+/// The right-hand side: actuator torques (held, or continuous controllers evaluated at the
+/// stage) + force elements → constrained q̈.
 struct Rhs<'a> {
     sys: &'a mut System,
     forces: &'a mut ForceElements,
     tau_act: &'a [f64],
+    /// Continuous controllers (`hold: continuous`), evaluated into `tau_ctl` at every stage
+    /// instead of `tau_act`.
+    control: Option<&'a Actuators>,
+    tau_ctl: &'a mut [f64],
     tau: &'a mut [f64],
     zero: &'a [f64],
     ls: &'a mut DriftProjector,
@@ -94,11 +101,18 @@ impl Rhs<'_> {
     /// (`velocity` rows may use t).
     fn apply(&mut self, t: f64, q: &[f64], v: &[f64]) {
         self.sys.cdata.t = t;
+        let tau_act: &[f64] = match self.control {
+            Some(a) => {
+                a.continuous_torque(t, q, v, self.tau_ctl);
+                self.tau_ctl
+            }
+            None => self.tau_act,
+        };
         applied_generalized_force(
             self.sys,
             self.forces,
             (t, q, v),
-            self.tau_act,
+            tau_act,
             self.zero,
             self.tau,
         );
@@ -145,7 +159,8 @@ impl Accel for Rhs<'_> {
     }
 
     /// Analytic: the derivatives of the constrained (or free) forward dynamics at the applied τ,
-    /// plus ∂q̈/∂τ · ∂τ_elements/∂(q, v) with the force elements' generalized force by central
+    /// plus ∂q̈/∂τ · ∂τ/∂(q, v) of the continuous controllers and of the force elements — their
+    /// joint spring-dampers in closed form, any other element's generalized force by central
     /// differences (kinematics only: a point spring's geometric stiffness included). Falls back to
     /// differences of the whole right-hand side where the derivatives are not available (a kind
     /// without them, or a singular configuration).
@@ -176,7 +191,25 @@ impl Accel for Rhs<'_> {
                 jac[(nv + r, nv + c)] = dd.dqdd_dv[(r, c)];
             }
         }
-        if self.forces.is_empty() {
+        if let Some(a) = self.control {
+            // Continuous controllers: ∂τ/∂q = −k, ∂τ/∂v = −d on their joints (1-DOF: the
+            // joint's tangent column is its v index).
+            a.continuous_feedback(t, q, v, |fb| {
+                for r in 0..nv {
+                    let g = dd.dqdd_dtau[(r, fb.iv)];
+                    jac[(nv + r, fb.iv)] -= g * fb.k;
+                    jac[(nv + r, nv + fb.iv)] -= g * fb.d;
+                }
+            });
+        }
+        if self.forces.depends_on_state_by_joints_only() {
+            for &(_, iv, k, d, _) in self.forces.joint_spring_dampers() {
+                for r in 0..nv {
+                    let g = dd.dqdd_dtau[(r, iv)];
+                    jac[(nv + r, iv)] -= g * k;
+                    jac[(nv + r, nv + iv)] -= g * d;
+                }
+            }
             return Ok(true);
         }
         let jw = &mut *self.jw;
@@ -192,6 +225,7 @@ impl Accel for Rhs<'_> {
                 jw.dx.iter_mut().for_each(|x| *x = 0.0);
                 jw.dx[col] = sign * eps;
                 stage(model, q, v, &jw.dx, &mut jw.qs, &mut jw.vs);
+                // The held torque: the controllers' share is in the feedback above.
                 applied_generalized_force(
                     self.sys,
                     self.forces,
@@ -243,6 +277,8 @@ impl Predictor {
             } else {
                 &ws.tau_companion
             },
+            control: actuators.is_continuous().then_some(actuators),
+            tau_ctl: &mut ws.tau_ctl,
             tau: &mut ws.tau,
             zero: &ws.zero,
             ls: &mut ws.ls,
@@ -281,6 +317,9 @@ impl Predictor {
         let h_fixed = (t1 - t0) / n_fixed;
         let mut i = 0.0;
         let mut t = t0;
+        // ROS2 keeps one F over a span (a W-method keeps its order with any F; a fresh one per
+        // span keeps the stiff modes damped).
+        step.jac_valid = false;
         let result = (|| -> Result<()> {
             while t < t1 - 1e-12 {
                 let dt = if s.method.is_adaptive() {
@@ -292,14 +331,8 @@ impl Predictor {
                     ws.qn.copy_from_slice(q);
                     ws.vn.copy_from_slice(v);
                     let (qn, vn) = (&ws.qn, &ws.vn);
-                    applied_generalized_force(
-                        rhs.sys,
-                        rhs.forces,
-                        (t, qn, vn),
-                        rhs.tau_act,
-                        rhs.zero,
-                        &mut ws.tau_n,
-                    );
+                    rhs.apply(t, qn, vn);
+                    ws.tau_n.copy_from_slice(rhs.tau);
                 }
                 // Adaptive methods: (accepted, next step); a rejected step left (q, v) as they were.
                 let adapt = match s.method {
@@ -313,6 +346,10 @@ impl Predictor {
                     }
                     Method::Sdirk2 => {
                         sdirk2_step(&mut rhs, model, t, dt, q, v, step)?;
+                        None
+                    }
+                    Method::Ros2 => {
+                        ros2_step(&mut rhs, model, t, dt, q, v, step)?;
                         None
                     }
                     Method::Dopri5 => {

@@ -82,6 +82,7 @@ impl Lane {
         self.q.copy_from_slice(q);
         self.v.copy_from_slice(v);
         self.step.invalidate();
+        self.step.jacobians = 0;
         self.radau.reset();
         self.h = h;
         self.steps = 0;

@@ -52,9 +52,10 @@ impl PredictorConfig {
         &self.uncertainty
     }
 
-    /// The controllers' period [s], None without controllers.
+    /// The controllers' period [s], None without controllers or with continuous ones.
     pub fn control_period(&self) -> Option<f64> {
-        (!self.actuators.is_empty()).then_some(self.actuators.control_period)
+        (!self.actuators.is_empty() && !self.actuators.is_continuous())
+            .then_some(self.actuators.control_period)
     }
 }
 
@@ -79,6 +80,8 @@ pub(super) struct Workspace {
     pub(super) qn: Vec<f64>,
     pub(super) vn: Vec<f64>,
     pub(super) tau_n: Vec<f64>,
+    /// The continuous controllers' torque at the current stage (nv).
+    pub(super) tau_ctl: Vec<f64>,
     /// The state the drift projection left with its rows evaluated (advance.rs, `RowsAt`).
     pub(super) rows_q: Vec<f64>,
     pub(super) rows_v: Vec<f64>,
@@ -129,6 +132,7 @@ impl Predictor {
             qn: vec![0.0; nq],
             vn: vec![0.0; nv],
             tau_n: vec![0.0; nv],
+            tau_ctl: vec![0.0; nv],
             rows_q: vec![0.0; nq],
             rows_v: vec![0.0; nv],
             cost: crate::limits::evaluation_cost(&model),

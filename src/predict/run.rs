@@ -56,6 +56,9 @@ impl Predictor {
         if let Some(p) = control {
             self.actuators.control_period = p;
         }
+        if self.actuators.is_continuous() {
+            self.actuators.start_continuous(&q);
+        }
         self.ws.tau_act.iter_mut().for_each(|x| *x = 0.0);
         self.ws.companion_actuators.clone_from(&self.actuators);
         self.ws.tau_companion.iter_mut().for_each(|x| *x = 0.0);
@@ -106,7 +109,7 @@ impl Predictor {
             )?),
             None => None,
         };
-        let period = if self.actuators.is_empty() {
+        let period = if self.actuators.is_empty() || self.actuators.is_continuous() {
             s.sample_period
         } else {
             self.actuators.control_period.min(s.sample_period)
@@ -133,7 +136,11 @@ impl Predictor {
         // include the actuator torque held over the interval that ends (or, at t = 0, starts) there.
         let idle = Command::default();
         let command_at = |t: f64| command_at(commands, &idle, t);
-        if !self.actuators.is_empty() && horizon > 0.0 {
+        if self.actuators.is_continuous() {
+            self.actuators.begin_segment(command_at(0.0), 0.0);
+            let a = &lanes[0];
+            (self.actuators).continuous_torque(0.0, &a.q, &a.v, &mut self.ws.tau_act);
+        } else if !self.actuators.is_empty() && horizon > 0.0 {
             let [a, c] = &*lanes;
             let cmd = command_at(0.0);
             let dt = period.min(horizon);
@@ -196,7 +203,7 @@ impl Predictor {
         traj.steps = a.steps;
         traj.evaluations = a.evaluations;
         traj.least_squares_evaluations = a.least_squares;
-        traj.jacobians = a.radau.jacobians;
+        traj.jacobians = a.radau.jacobians + a.step.jacobians;
         traj.estimate_evaluations = c.evaluations;
         if let Some(cov) = &self.covariance {
             (traj.covariance_linearizations, traj.covariance_time_s) =
@@ -227,10 +234,22 @@ impl Predictor {
         let command_at = |t: f64| command_at(commands, &idle, t);
         let (mut t, mut k) = (0.0, 0usize);
         let mut next_sample = s.sample_period;
+        let continuous = self.actuators.is_continuous();
         while t < horizon - 1e-12 {
             k += 1;
-            let t_end = (k as f64 * period).min(horizon);
-            if !self.actuators.is_empty() && k > 1 {
+            let mut t_end = (k as f64 * period).min(horizon);
+            if continuous {
+                // A span ends where a command starts, so that each span has one target.
+                if let Some(&(tc, _)) = commands.iter().find(|(tc, _)| *tc > t + 1e-12) {
+                    if tc < t_end - 1e-12 {
+                        t_end = tc;
+                        k -= 1;
+                    }
+                }
+                if t > 0.0 {
+                    self.actuators.begin_segment(command_at(t), t);
+                }
+            } else if !self.actuators.is_empty() && k > 1 {
                 let [a, c] = &*lanes;
                 let cmd = command_at(t);
                 self.actuators
@@ -266,6 +285,10 @@ impl Predictor {
                     pipe.handoff(t, Some(traj.samples.len()))?;
                 }
                 let [a, c] = &*lanes;
+                if continuous {
+                    // The sample's forces and torques under the controllers at its state.
+                    (self.actuators).continuous_torque(t, &a.q, &a.v, &mut self.ws.tau_act);
+                }
                 let e = s.error_estimate.then(|| {
                     estimate::estimate(&self.model, &a.q, &c.q, factor, &mut self.ws.diff)
                 });

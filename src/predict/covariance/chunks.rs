@@ -270,7 +270,11 @@ impl CovariancePropagator {
             self.linearizations += 1;
             // Steps of the chunk the stability bound allows (at least one).
             let per_step = h / m as f64;
-            hst.stable_span = CHUNK_STABILITY / self.lin.stiffness();
+            // An L-stable method (ROS2) damps the stiff modes at any chunk length.
+            hst.stable_span = match chunk_method(method).integrator().stability_limit() {
+                Some(_) => CHUNK_STABILITY / self.lin.stiffness(),
+                None => f64::INFINITY,
+            };
             let stable = (hst.stable_span / per_step).floor();
             let stable = if stable.is_finite() {
                 (stable as usize).clamp(1, CHUNK_CAPACITY)

@@ -11,6 +11,8 @@
 //! series. Semi-implicit Euler likewise. The result equals finite differences of the step
 //! (tests).
 
+mod ros2;
+
 use crate::actuators::Feedback;
 use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
 use crate::error::{Error, Result};
@@ -67,6 +69,8 @@ pub struct Linearization {
     jr: Vec<f64>,
     /// Power-iteration vectors of [`Self::stiffness`] (2nv each).
     power: [Vec<f64>; 2],
+    /// The linearized ROS2 step's matrices.
+    ros2: ros2::Ros2Buffers,
 }
 
 impl Linearization {
@@ -164,6 +168,7 @@ impl Linearization {
             moved: vec![0.0; nv],
             jr: vec![0.0; nv],
             power: [vec![0.0; 2 * nv], vec![0.0; 2 * nv]],
+            ros2: ros2::Ros2Buffers::new(nv),
         }
     }
 }
@@ -228,8 +233,8 @@ pub(in crate::predict) fn dynamics_derivatives(
 }
 
 /// One step of `method` from (q, v) under the held generalized force τ with step `dt` [s],
-/// and its linearization, into `lin`. Semi-implicit Euler, RK4 and DOPRI5 (as a fixed step);
-/// SDIRK2 is refused. Drift projection and force elements are not part of this step.
+/// and its linearization, into `lin`. Semi-implicit Euler, RK4, DOPRI5 and DOP853 (as fixed
+/// steps) and ROS2; SDIRK2 and Radau5 are refused. Drift projection and force elements are not part of this step.
 #[allow(clippy::too_many_arguments)]
 pub fn linearize_step(
     sys: &mut System,
@@ -253,6 +258,7 @@ pub fn linearize_step(
         Method::Rk4 => explicit(sys, lin, &RK4, q, v, tau, dt),
         Method::Dopri5 => explicit(sys, lin, &DOPRI5, q, v, tau, dt),
         Method::Dop853 => explicit(sys, lin, &DOP853, q, v, tau, dt),
+        Method::Ros2 => ros2::ros2(sys, lin, q, v, tau, dt),
         Method::Sdirk2 | Method::Radau5 => Err(Error::Unsupported {
             what: format!("linearize with {method:?}"),
             why: "the implicit step's sensitivity is not implemented; use rk4, dopri5 or \

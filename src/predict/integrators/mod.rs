@@ -7,9 +7,11 @@ mod explicit;
 pub(in crate::predict) mod lie;
 pub(in crate::predict) mod radau;
 mod radau_tableau;
+pub(in crate::predict) mod ros2;
 pub(in crate::predict) mod sdirk2;
 
-use crate::error::Result;
+use crate::error::{Error, Result};
+use crate::linalg::lu_in_place;
 use crate::model::Model;
 pub use explicit::{
     DOP853, DOPRI5, MAX_STAGES, RK4, Tableau, explicit_step, semi_implicit_euler_step,
@@ -38,6 +40,9 @@ pub enum Method {
     /// Radau IIA of order 5 (3 implicit stages, L-stable), adaptive with rtol/atol (radau.rs):
     /// for stiff scenes at any accuracy.
     Radau5,
+    /// ROS2, a two-stage linearly implicit W-method of order 2, L-stable (ros2.rs): stiff
+    /// controlled scenes at planning accuracy, two evaluations and one Jacobian a step.
+    Ros2,
 }
 
 impl Method {
@@ -50,6 +55,7 @@ impl Method {
             Method::Dop853 => &explicit::Dop853,
             Method::Sdirk2 => &sdirk2::Sdirk2,
             Method::Radau5 => &radau::Radau5,
+            Method::Ros2 => &ros2::Ros2,
         }
     }
 
@@ -68,6 +74,7 @@ impl Method {
             Method::Dop853 => "dop853",
             Method::Sdirk2 => "sdirk2",
             Method::Radau5 => "radau5",
+            Method::Ros2 => "ros2",
         }
     }
 
@@ -219,6 +226,8 @@ pub struct StepWorkspace {
     pub(in crate::predict) jac_valid: bool,
     /// `jac` was computed at this step's start state (a Newton failure is then final).
     pub(in crate::predict) jac_fresh: bool,
+    /// Jacobians computed since the lane started.
+    pub(in crate::predict) jacobians: usize,
 }
 
 impl StepWorkspace {
@@ -242,6 +251,7 @@ impl StepWorkspace {
             newton_dt: f64::NAN,
             jac_valid: false,
             jac_fresh: false,
+            jacobians: 0,
         }
     }
 
@@ -267,6 +277,49 @@ impl StepWorkspace {
         q.copy_from_slice(&self.q0);
         v.copy_from_slice(&self.v0);
     }
+}
+
+/// ∂k/∂(Θ, v) at (q_n, v_n) into `ws.jac` (`ws.a0` = q̈(q_n, v_n)): [[0, 1], [∂q̈/∂q, ∂q̈/∂v]],
+/// analytic where the right-hand side has derivatives. The curvature of the group (∂dexp⁻¹/∂Θ,
+/// zero at Θ = 0) is left out: the methods that use it iterate (SDIRK2) or need no exact F (ROS2).
+pub(in crate::predict) fn state_jacobian<F: Accel>(
+    f: &mut F,
+    model: &Model,
+    t: f64,
+    q: &[f64],
+    v: &[f64],
+    ws: &mut StepWorkspace,
+) -> Result<()> {
+    let nv = v.len();
+    ws.jac.as_mut_slice().fill(0.0);
+    for i in 0..nv {
+        ws.jac[(i, nv + i)] = 1.0; // ∂(stage velocity)/∂v
+    }
+    f.accel_jacobian(model, (t, q, v), &ws.a0, &mut ws.jac, &mut ws.scratch)?;
+    ws.jac_fresh = true;
+    ws.jac_valid = true;
+    ws.jacobians += 1;
+    Ok(())
+}
+
+/// `ws.newton` ← LU of (I − dtg · `ws.jac`); `method` names the step in the error.
+pub(in crate::predict) fn factor_shifted(
+    ws: &mut StepWorkspace,
+    dtg: f64,
+    method: &str,
+) -> Result<()> {
+    let n = ws.jac.nrows();
+    for c in 0..n {
+        for r in 0..n {
+            ws.newton[(r, c)] = if r == c { 1.0 } else { 0.0 } - dtg * ws.jac[(r, c)];
+        }
+    }
+    if !lu_in_place(&mut ws.newton, &mut ws.piv) {
+        return Err(Error::StepTooLarge {
+            message: format!("the {method} matrix I − γ dt F is singular"),
+        });
+    }
+    Ok(())
 }
 
 /// Stage state from the increment `dx = (Θ, Δv)`: q = q_n ⊕ Θ, v = v_n + Δv.

@@ -3,30 +3,11 @@
 //! configuration Lie group, with the buffers of the shared [`StepWorkspace`] (integrators/mod.rs).
 
 use crate::error::{Error, Result};
-use crate::linalg::{lu_in_place, lu_solve};
+use crate::linalg::lu_solve;
 use crate::model::Model;
-use crate::predict::integrators::{Accel, StepWorkspace, derivative, stage};
-
-/// ∂k/∂(Θ, v) at (q_n, v_n) into `ws.jac` (`ws.a0` = q̈(q_n, v_n)): [[0, 1], [∂q̈/∂q, ∂q̈/∂v]],
-/// analytic where the right-hand side has derivatives.
-fn sdirk2_jacobian<F: Accel>(
-    f: &mut F,
-    model: &Model,
-    t: f64,
-    q: &[f64],
-    v: &[f64],
-    ws: &mut StepWorkspace,
-) -> Result<()> {
-    let nv = v.len();
-    ws.jac.as_mut_slice().fill(0.0);
-    for i in 0..nv {
-        ws.jac[(i, nv + i)] = 1.0; // ∂(stage velocity)/∂v
-    }
-    f.accel_jacobian(model, (t, q, v), &ws.a0, &mut ws.jac, &mut ws.scratch)?;
-    ws.jac_fresh = true;
-    ws.jac_valid = true;
-    Ok(())
-}
+use crate::predict::integrators::{
+    Accel, StepWorkspace, derivative, factor_shifted, stage, state_jacobian,
+};
 
 /// Alexander's L-stable SDIRK2 (γ = 1 − 1/√2) with a simplified Newton iteration on
 /// `(I − dt γ ∂k/∂x) δ = k(x) − k`. The Jacobian (analytic, or finite differences of q̈) is
@@ -47,11 +28,11 @@ pub fn sdirk2_step<F: Accel>(
     f.accel(t, q, v, &mut ws.a0)?;
     ws.jac_fresh = false;
     if !ws.jac_valid {
-        sdirk2_jacobian(f, model, t, q, v, ws)?;
-        factor_newton(ws, dt * g)?;
+        state_jacobian(f, model, t, q, v, ws)?;
+        factor_shifted(ws, dt * g, "SDIRK2 Newton")?;
         ws.newton_dt = dt;
     } else if (dt - ws.newton_dt).abs() > 1e-6 * ws.newton_dt {
-        factor_newton(ws, dt * g)?;
+        factor_shifted(ws, dt * g, "SDIRK2 Newton")?;
         ws.newton_dt = dt;
     }
     loop {
@@ -64,8 +45,8 @@ pub fn sdirk2_step<F: Accel>(
             Err(e) if ws.jac_fresh => return Err(e),
             Err(_) => {
                 // A stale Jacobian: refresh it at this state and try once more.
-                sdirk2_jacobian(f, model, t, q, v, ws)?;
-                factor_newton(ws, dt * g)?;
+                state_jacobian(f, model, t, q, v, ws)?;
+                factor_shifted(ws, dt * g, "SDIRK2 Newton")?;
                 ws.newton_dt = dt;
             }
         }
@@ -75,21 +56,6 @@ pub fn sdirk2_step<F: Accel>(
     }
     ws.save(q, v);
     stage(model, &ws.q0, &ws.v0, &ws.dx, q, v);
-    Ok(())
-}
-
-fn factor_newton(ws: &mut StepWorkspace, dtg: f64) -> Result<()> {
-    let n = ws.jac.nrows();
-    for c in 0..n {
-        for r in 0..n {
-            ws.newton[(r, c)] = if r == c { 1.0 } else { 0.0 } - dtg * ws.jac[(r, c)];
-        }
-    }
-    if !lu_in_place(&mut ws.newton, &mut ws.piv) {
-        return Err(Error::StepTooLarge {
-            message: "SDIRK2 Newton matrix is singular".into(),
-        });
-    }
     Ok(())
 }
 

@@ -1,0 +1,174 @@
+//! The linearized ROS2 step (integrators/ros2.rs). Its sensitivity is taken with the step's own
+//! matrix F = [[0, 1], [∂q̈/∂q, ∂q̈/∂v]] at the start held through both stages, as the W-method
+//! itself holds it: with seeds E (the [δq | δv] unit columns and, for B, [0; ∂q̈/∂τ]),
+//!
+//! `δk₁ = W⁻¹ F E`, `δk₂ = W⁻¹ (F E + dt F δk₁ − 2 δk₁)`, `δ(increment) = dt (3/2 δk₁ + 1/2 δk₂)`,
+//!
+//! which is the step's exact sensitivity for a linear flow and within O(dt · ∂F) of it
+//! otherwise; the increment then moves to q⁺ as in the explicit steps (the Lie maps of
+//! linearize.rs). L-stable, so a chunk of many steps keeps the stiff modes damped.
+
+use super::{Linearization, dynamics, tangent_variation};
+use crate::error::{Error, Result};
+use crate::linalg::{gemm_columns, lu_in_place, lu_solve};
+use crate::predict::integrators::lie::dexp_inv;
+use crate::predict::integrators::ros2::GAMMA;
+use crate::system::System;
+use nalgebra::DMatrix;
+
+/// Buffers of the linearized ROS2 step (2nv = n).
+#[derive(Clone, Debug)]
+pub(super) struct Ros2Buffers {
+    /// F, then W = I − γ dt F factored in place.
+    f: DMatrix<f64>,
+    w: DMatrix<f64>,
+    piv: Vec<usize>,
+    /// F E, then δk₁, δk₂ over the seed columns (n × 3nv).
+    fe: DMatrix<f64>,
+    dk1: DMatrix<f64>,
+    dk2: DMatrix<f64>,
+    k1: Vec<f64>,
+    k2: Vec<f64>,
+}
+
+impl Ros2Buffers {
+    pub(super) fn new(nv: usize) -> Self {
+        let n = 2 * nv;
+        Self {
+            f: DMatrix::zeros(n, n),
+            w: DMatrix::zeros(n, n),
+            piv: vec![0; n],
+            fe: DMatrix::zeros(n, 3 * nv),
+            dk1: DMatrix::zeros(n, 3 * nv),
+            dk2: DMatrix::zeros(n, 3 * nv),
+            k1: vec![0.0; n],
+            k2: vec![0.0; n],
+        }
+    }
+}
+
+/// Solve W x = b for columns 0..cols of `m` in place.
+fn solve_columns(w: &DMatrix<f64>, piv: &[usize], m: &mut DMatrix<f64>, cols: usize) {
+    let n = m.nrows();
+    for c in 0..cols {
+        lu_solve(w, piv, &mut m.as_mut_slice()[c * n..(c + 1) * n]);
+    }
+}
+
+pub(super) fn ros2(
+    sys: &mut System,
+    lin: &mut Linearization,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    dt: f64,
+) -> Result<()> {
+    let nv = v.len();
+    let n = 2 * nv;
+    let cols = lin.columns();
+    let springs = &lin.joint_springs;
+    dynamics(
+        sys,
+        &mut lin.dd,
+        springs,
+        &mut lin.tau_stage,
+        (q, v),
+        q,
+        v,
+        tau,
+    )?;
+    let r = &mut lin.ros2;
+    r.f.fill(0.0);
+    for i in 0..nv {
+        r.f[(i, nv + i)] = 1.0;
+        for j in 0..nv {
+            r.f[(nv + i, j)] = lin.dd.dqdd_dq[(i, j)];
+            r.f[(nv + i, nv + j)] = lin.dd.dqdd_dv[(i, j)];
+        }
+    }
+    for c in 0..n {
+        for i in 0..n {
+            r.w[(i, c)] = f64::from(u8::from(i == c)) - dt * GAMMA * r.f[(i, c)];
+        }
+    }
+    if !lu_in_place(&mut r.w, &mut r.piv) {
+        return Err(Error::StepTooLarge {
+            message: format!("linearize: the ROS2 matrix I − γ dt F is singular at dt = {dt} s"),
+        });
+    }
+    // F E: F's columns for [δq | δv], then [0; ∂q̈/∂τ] for δτ.
+    for c in 0..cols {
+        for i in 0..n {
+            r.fe[(i, c)] = if c < n {
+                r.f[(i, c)]
+            } else if i >= nv {
+                lin.dd.dqdd_dtau[(i - nv, c - n)]
+            } else {
+                0.0
+            };
+        }
+    }
+    r.dk1.columns_mut(0, cols).copy_from(&r.fe.columns(0, cols));
+    solve_columns(&r.w, &r.piv, &mut r.dk1, cols);
+    // δk₂ = W⁻¹ (F E + dt F δk₁ − 2 δk₁)
+    r.dk2.columns_mut(0, cols).copy_from(&r.fe.columns(0, cols));
+    gemm_columns(&mut r.dk2, dt, &r.f, &r.dk1, 1.0, cols);
+    for c in 0..cols {
+        for i in 0..n {
+            r.dk2[(i, c)] -= 2.0 * r.dk1[(i, c)];
+        }
+    }
+    solve_columns(&r.w, &r.piv, &mut r.dk2, cols);
+    for c in 0..cols {
+        for i in 0..nv {
+            let d = |m: &DMatrix<f64>, row| dt * (1.5 * m[(row, c)] + 0.5 * r.dk2[(row, c)]);
+            lin.d_theta[(i, c)] = d(&r.dk1, i);
+            lin.d_vel[(i, c)] = d(&r.dk1, nv + i) + f64::from(u8::from(c == nv + i));
+        }
+    }
+    // The nominal step (after the variations: the second stage's evaluation replaces `dd`).
+    r.k1[..nv].copy_from_slice(v);
+    r.k1[nv..].copy_from_slice(lin.dd.qdd.as_slice());
+    lu_solve(&r.w, &r.piv, &mut r.k1);
+    for i in 0..nv {
+        lin.theta[0][i] = dt * r.k1[i];
+        lin.vel[0][i] = v[i] + dt * r.k1[nv + i];
+    }
+    sys.model.integrate(q, &lin.theta[0], 1.0, &mut lin.qs);
+    let stage = (&lin.qs[..], &lin.vel[0][..]);
+    dynamics(
+        sys,
+        &mut lin.dd,
+        springs,
+        &mut lin.tau_stage,
+        (q, v),
+        stage.0,
+        stage.1,
+        tau,
+    )?;
+    dexp_inv(&sys.model, &lin.theta[0], &lin.vel[0], &mut r.k2[..nv]);
+    r.k2[nv..].copy_from_slice(lin.dd.qdd.as_slice());
+    for i in 0..n {
+        r.k2[i] -= 2.0 * r.k1[i];
+    }
+    lu_solve(&r.w, &r.piv, &mut r.k2);
+    for i in 0..nv {
+        lin.theta_end[i] = dt * (1.5 * r.k1[i] + 0.5 * r.k2[i]);
+        lin.v_next[i] = v[i] + dt * (1.5 * r.k1[nv + i] + 0.5 * r.k2[nv + i]);
+    }
+    sys.model.integrate(q, &lin.theta_end, 1.0, &mut lin.q_next);
+    lin.maps.build(&sys.model, &lin.theta_end, None);
+    tangent_variation(lin, cols, false);
+    for c in 0..cols {
+        let (out, col) = if c < n {
+            (&mut lin.a, c)
+        } else {
+            (&mut lin.b, c - n)
+        };
+        for i in 0..nv {
+            out[(i, col)] = lin.moved_cols[(i, c)];
+            out[(nv + i, col)] = lin.d_vel[(i, c)];
+        }
+    }
+    Ok(())
+}
