@@ -30,6 +30,27 @@ pub struct DynamicsOptions {
     pub rows_evaluated: bool,
 }
 
+impl DynamicsOptions {
+    /// An integration stage of a prediction, and each stage of its linearization (the
+    /// covariance's, an implicit method's Jacobian): the multiplier form unless the scene asks
+    /// for the embedded one, with the least-squares λ = S⁺ r where the rows disagree
+    /// ([`crate::dynamics::disagree_beyond_rounding`]). A stage lies off the constraint manifold
+    /// by the step's own error, where redundant rows (consistent on it) disagree by as much;
+    /// the same formula on both sides of any threshold keeps q̈ and its derivatives smooth, and
+    /// a linearization that refused what its prediction took would fail where the prediction
+    /// did not.
+    pub fn stage(formulation: Formulation) -> Self {
+        DynamicsOptions {
+            formulation: match formulation {
+                Formulation::Embedded => Formulation::Embedded,
+                _ => Formulation::Multipliers,
+            },
+            allow_inconsistent: true,
+            rows_evaluated: false,
+        }
+    }
+}
+
 impl Default for DynamicsOptions {
     fn default() -> Self {
         DynamicsOptions {

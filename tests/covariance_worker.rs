@@ -78,6 +78,17 @@ fn controlled_mobile_manipulator_worker_equals_inline() {
     assert_eq!(a.samples.len(), 16);
 }
 
+/// Bricard's mechanism, whose closure has a redundant row that the linearized steps' stages
+/// make disagree: they take the least-squares multipliers on the worker's clone of the system
+/// as inline, where the prediction's own stages ran on the same system just before.
+#[test]
+fn redundant_closure_worker_equals_inline() {
+    let [a, b] = both("report/bricard_a04.yaml", 1e-3, &[], 0.3, |_| {});
+    let (a, b) = (a.unwrap(), b.unwrap());
+    assert_same(&a, &b);
+    assert_eq!(a.samples.len(), 31);
+}
+
 /// Samples 100 ms apart: records fill up (32 steps) and go to the worker between samples.
 #[test]
 fn full_records_between_samples_worker_equals_inline() {

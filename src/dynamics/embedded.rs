@@ -293,7 +293,7 @@ fn solve(
         resid = resid.max((jq - ws.b[k]).abs());
         bmax = bmax.max(ws.b[k].abs());
     }
-    if resid > 1e-7 * bmax.max(1.0) {
+    if super::disagree_beyond_rounding(resid, bmax) {
         return Err(Error::InconsistentConstraints {
             message: format!("redundant constraint rows disagree by {resid:.3e}"),
         });

@@ -20,6 +20,18 @@ pub use partition::{
 
 use serde::{Deserialize, Serialize};
 
+/// Whether constraint rows disagree by more than rounding: the largest violation
+/// `inconsistency` of `J q̈ = b` that no q̈ removes is above 1e-7 of max(1, `scale`), the size
+/// of the right side it is measured against. Redundant rows meet this on the constraint manifold
+/// (their disagreement is rounding there) and not always off it: an integration stage, a state
+/// that drifted. A plain evaluation refuses such rows (`Error::InconsistentConstraints`); the
+/// predictor's stages and their linearization take the least-squares λ
+/// (`DynamicsOptions::stage`), and the prediction counts them
+/// (`Trajectory::least_squares_evaluations`).
+pub fn disagree_beyond_rounding(inconsistency: f64, scale: f64) -> bool {
+    inconsistency > 1e-7 * scale.max(1.0)
+}
+
 /// Baumgarte stabilisation gains: `J q̈ = −γ − K_d (J v) − K_p φ`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -10,7 +10,7 @@
 //! positive semi-definite (a massless link whose motion the constraints fix, like the seed's rod)
 //! the augmented matrix M + ρ JᵀJ replaces M and ρ Jᵀb joins the right side: same q̈ and λ.
 
-use super::Baumgarte;
+use super::{Baumgarte, disagree_beyond_rounding};
 use crate::algorithm::{Data, bias_forces_after_kinematics, crba_after_kinematics};
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
@@ -346,9 +346,10 @@ fn schur_lower(ws: &mut KktWorkspace, nv: usize, nc: usize) {
 
 /// Minimum-norm λ = S⁺ r of S λ = r (`linalg::MinNormSolver`: a Cholesky factor of S pivoted
 /// where a row's pivot is not above `RANK_TOL_PIVOT` relative; S⁻¹ r when none is). The part of r
-/// outside range(S) is the rows' inconsistency: an error above 1e-7 relative (unless
-/// `allow_inconsistent`), rounding below. λ = S⁺ r varies smoothly with the state whichever
-/// independent set was picked. Allocation-free (only the error message allocates).
+/// outside range(S) is the rows' inconsistency: an error where it is more than rounding
+/// ([`disagree_beyond_rounding`] against r) unless `allow_inconsistent`. λ = S⁺ r varies
+/// smoothly with the state whichever independent set was picked. Allocation-free (only the
+/// error message allocates).
 fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
     let nc = set.nrows;
     let rank = ws.min_norm.solve(
@@ -369,8 +370,7 @@ fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
         }
     }
     ws.inconsistency = inconsistency;
-    let scale = ws.r.amax().max(1.0);
-    if inconsistency > 1e-7 * scale && !ws.allow_inconsistent {
+    if disagree_beyond_rounding(inconsistency, ws.r.amax()) && !ws.allow_inconsistent {
         let name = set
             .ranges
             .iter()

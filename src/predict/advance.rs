@@ -10,7 +10,7 @@ use super::predictor::Predictor;
 use crate::actuators::Actuators;
 use crate::applied::applied_generalized_force;
 use crate::derivatives::DerivativeData;
-use crate::dynamics::Formulation;
+use crate::dynamics::disagree_beyond_rounding;
 use crate::error::{Error, Result};
 use crate::forces::ForceElements;
 use crate::model::Model;
@@ -126,22 +126,18 @@ impl Accel for Rhs<'_> {
         self.apply(t, q, v);
         // `formulation: auto` takes the multiplier form here: the same q̈ as the embedded form
         // (tests/propagation_formulations.rs), 1.08–1.7× faster on every bundled scene
-        // (docs/performance.md).
-        // Least squares (λ = S⁺ r) where stages or drift make redundant rows disagree: the same
-        // formula on both sides of any threshold, so q̈ stays smooth for the implicit method.
+        // (docs/performance.md). Least squares (λ = S⁺ r) where stages or drift make redundant
+        // rows disagree (`DynamicsOptions::stage`).
         let opts = DynamicsOptions {
-            formulation: match self.sys.formulation {
-                Formulation::Embedded => Formulation::Embedded,
-                _ => Formulation::Multipliers,
-            },
-            allow_inconsistent: true,
             rows_evaluated,
+            ..DynamicsOptions::stage(self.sys.formulation)
         };
         let result = self
             .sys
             .forward_dynamics_with(q, v, self.tau, opts)
             .map(|a| qdd.copy_from_slice(a.as_slice()));
-        if result.is_ok() && self.sys.kkt.inconsistency > 1e-7 * self.sys.kkt.b.amax().max(1.0) {
+        let kkt = &self.sys.kkt;
+        if result.is_ok() && disagree_beyond_rounding(kkt.inconsistency, kkt.b.amax()) {
             self.least_squares += 1;
         }
         match result {

@@ -19,7 +19,7 @@ use crate::error::{Error, Result};
 use crate::linalg::{gemm_columns, mat_vec_add};
 use crate::predict::integrators::lie::{StageMaps, dexp_inv, right_jacobian, transport};
 use crate::predict::integrators::{DOP853, DOPRI5, Method, RK4, Tableau};
-use crate::system::System;
+use crate::system::{DynamicsOptions, System};
 use nalgebra::DMatrix;
 
 /// Workspace and result of [`linearize_step`], sized once for a system.
@@ -206,7 +206,9 @@ fn dynamics(
 }
 
 /// q̈ and ∂q̈/∂(q, v, τ) at (q, v, τ) into `dd`: the multiplier form's (its Baumgarte gains
-/// included) with constraints, ABA's without.
+/// included) with constraints, ABA's without. (q, v) is a stage of a step, and its rows are
+/// solved as the prediction solves a stage's (`DynamicsOptions::stage`): redundant rows that
+/// disagree there get the least-squares λ, whose derivatives `derivatives::kkt` takes.
 pub(in crate::predict) fn dynamics_derivatives(
     sys: &mut System,
     dd: &mut DerivativeData,
@@ -217,6 +219,11 @@ pub(in crate::predict) fn dynamics_derivatives(
     if sys.constraints.is_empty() {
         aba_derivatives(&sys.model, &mut sys.data, dd, q, v, tau)
     } else {
+        // Set here, not inherited: the flag stays in the workspace from the last evaluation on
+        // this system, unset after a sample's forces and on the covariance worker's clone (made
+        // before any stage ran), set after a stage of the prediction.
+        let stage = DynamicsOptions::stage(sys.formulation);
+        sys.kkt.allow_inconsistent = stage.allow_inconsistent;
         constrained_dynamics_derivatives(
             &sys.model,
             &mut sys.data,
