@@ -125,7 +125,7 @@ pub fn run(a: PredictArgs) -> Result<Value> {
         Some(m) => Some(parse_enum::<Method>(
             "method",
             m,
-            "semi_implicit_euler, rk4, dopri5, dop853, sdirk2, radau5",
+            "semi_implicit_euler, rk4, dopri5, dop853, sdirk2, radau5, ros2",
         )?),
         None => None,
     };
