@@ -240,11 +240,11 @@ impl Predictor {
             let mut t_end = (k as f64 * period).min(horizon);
             if continuous {
                 // A span ends where a command starts, so that each span has one target.
-                if let Some(&(tc, _)) = commands.iter().find(|(tc, _)| *tc > t + 1e-12) {
-                    if tc < t_end - 1e-12 {
-                        t_end = tc;
-                        k -= 1;
-                    }
+                if let Some(&(tc, _)) = commands.iter().find(|(tc, _)| *tc > t + 1e-12)
+                    && tc < t_end - 1e-12
+                {
+                    t_end = tc;
+                    k -= 1;
                 }
                 if t > 0.0 {
                     self.actuators.begin_segment(command_at(t), t);
