@@ -314,8 +314,10 @@ impl Predictor {
         let mut i = 0.0;
         let mut t = t0;
         // ROS2 keeps one F over a span (a W-method keeps its order with any F; a fresh one per
-        // span keeps the stiff modes damped).
-        step.jac_valid = false;
+        // span keeps the stiff modes damped). SDIRK2 keeps its own while Newton converges.
+        if s.method == Method::Ros2 {
+            step.jac_valid = false;
+        }
         let result = (|| -> Result<()> {
             while t < t1 - 1e-12 {
                 let dt = if s.method.is_adaptive() {
