@@ -187,24 +187,21 @@ impl Accel for Rhs<'_> {
                 jac[(nv + r, nv + c)] = dd.dqdd_dv[(r, c)];
             }
         }
+        // A joint force −k q − d v (a continuous controller, a joint spring-damper) moves q̈ by
+        // −∂q̈/∂τ_j (k, d) on its joint's columns (1-DOF: its tangent column is its v index).
+        let mut joint_feedback = |iv: usize, k: f64, d: f64| {
+            for r in 0..nv {
+                let g = dd.dqdd_dtau[(r, iv)];
+                jac[(nv + r, iv)] -= g * k;
+                jac[(nv + r, nv + iv)] -= g * d;
+            }
+        };
         if let Some(a) = self.control {
-            // Continuous controllers: ∂τ/∂q = −k, ∂τ/∂v = −d on their joints (1-DOF: the
-            // joint's tangent column is its v index).
-            a.continuous_feedback(t, q, v, |fb| {
-                for r in 0..nv {
-                    let g = dd.dqdd_dtau[(r, fb.iv)];
-                    jac[(nv + r, fb.iv)] -= g * fb.k;
-                    jac[(nv + r, nv + fb.iv)] -= g * fb.d;
-                }
-            });
+            a.continuous_feedback(t, q, v, |fb| joint_feedback(fb.iv, fb.k, fb.d));
         }
         if self.forces.depends_on_state_by_joints_only() {
             for &(_, iv, k, d, _) in self.forces.joint_spring_dampers() {
-                for r in 0..nv {
-                    let g = dd.dqdd_dtau[(r, iv)];
-                    jac[(nv + r, iv)] -= g * k;
-                    jac[(nv + r, nv + iv)] -= g * d;
-                }
+                joint_feedback(iv, k, d);
             }
             return Ok(true);
         }
