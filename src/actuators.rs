@@ -176,6 +176,9 @@ pub struct Feedback {
     pub d: f64,
     /// A velocity controller's integral (k = ki).
     pub integral: bool,
+    /// The torque's own rate at fixed (q, v) [N·m/s or N/s]: a continuous velocity controller's
+    /// ki × target (its integral of the target grows with t); 0 for a held torque.
+    pub rate: f64,
 }
 
 /// Validated actuators with their controller state.
@@ -304,21 +307,26 @@ impl Actuators {
     /// The controllers' linear feedback at their last tick, velocity controllers first, in a
     /// fixed order (module doc of [`Feedback`]).
     pub fn feedback(&self) -> impl Iterator<Item = Feedback> + '_ {
-        let of = |(iq, iv), (k, d), integral| Feedback {
+        let of = |(iq, iv), (k, d), integral, rate| Feedback {
             iq,
             iv,
             k,
             d,
             integral,
+            rate,
         };
-        let pi = self
-            .velocity
-            .iter()
-            .map(move |c| of((c.iq, c.iv), c.gain, true));
+        let continuous = self.is_continuous();
+        let pi = self.velocity.iter().map(move |c| {
+            let rate = match continuous && c.target.is_finite() {
+                true => c.gain.0 * c.target,
+                false => 0.0,
+            };
+            of((c.iq, c.iv), c.gain, true, rate)
+        });
         let pd = self
             .position
             .iter()
-            .map(move |c| of((c.iq, c.iv), c.gain, false));
+            .map(move |c| of((c.iq, c.iv), c.gain, false, 0.0));
         pi.chain(pd)
     }
 
@@ -453,6 +461,7 @@ impl Actuators {
                     k,
                     d,
                     integral: false,
+                    rate: 0.0,
                 });
             }
         });

@@ -7,7 +7,9 @@
 mod common;
 use constraint_dynamics::Scene;
 use constraint_dynamics::actuators::{Command, Hold};
-use constraint_dynamics::predict::{Method, PredictionRequest, Predictor, Trajectory};
+use constraint_dynamics::predict::{
+    CovarianceSamples, Method, PredictionRequest, Predictor, Trajectory,
+};
 
 const SCENE: &str = "params/suite_mobile_manipulator.yaml";
 
@@ -145,7 +147,8 @@ fn the_live_tick_does_bounded_work() {
         .predict(
             &PredictionRequest::new(&scene.q0, &scene.v0)
                 .commands(&cmds)
-                .covariance(&p0),
+                .covariance(&p0)
+                .covariance_samples(CovarianceSamples::Last),
         )
         .unwrap();
     println!(

@@ -301,6 +301,7 @@ impl Predictor {
                 .or_else(|| ws.pipe.get_mut().map(CovarianceFeed::Worker)),
             Some(_) => None,
         };
+        let companion = cap.is_some();
         let cap = cap.unwrap_or(f64::INFINITY);
         let mut largest = 0.0f64;
         // Fixed steps: the span in n equal steps of at most dt, n computed once (a step
@@ -311,8 +312,9 @@ impl Predictor {
         let mut i = 0.0;
         let mut t = t0;
         // ROS2 keeps one F over a span (a W-method keeps its order with any F; a fresh one per
-        // span keeps the stiff modes damped). SDIRK2 keeps its own while Newton converges.
-        if s.method == Method::Ros2 {
+        // span keeps the stiff modes damped); the companion's is the answer's (run.rs).
+        // SDIRK2 keeps its own while Newton converges.
+        if s.method == Method::Ros2 && !companion {
             step.jac_valid = false;
         }
         let result = (|| -> Result<()> {

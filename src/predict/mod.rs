@@ -33,7 +33,9 @@ pub use covariance::{CovariancePropagator, UncertaintySpec};
 pub use drift::DriftProjector;
 pub use integrators::{ErrorEstimator, Integrator, Method};
 pub use predictor::{Predictor, PredictorConfig};
-pub use request::{IntegrationOverrides, PredictionBudget, PredictionRequest, PredictionWork};
+pub use request::{
+    CovarianceSamples, IntegrationOverrides, PredictionBudget, PredictionRequest, PredictionWork,
+};
 pub use rollout::RolloutOptions;
 pub use settings::{DriftControl, IntegrationSettings};
 pub use trajectory::{Sample, Trajectory};

@@ -35,6 +35,23 @@ pub struct PredictionRequest<'a> {
     pub start_covariance: Option<&'a DMatrix<f64>>,
     /// Record λ, the constraint forces and Jᵀλ in every sample.
     pub forces: bool,
+    /// Which samples carry the propagated covariance (with a start covariance).
+    pub covariance_samples: CovarianceSamples,
+}
+
+/// Which samples of a prediction carry the propagated covariance.
+///
+/// P is brought onto the constraints and read only at those samples; between them its
+/// linearized chunks may span several samples (covariance/chunks.rs), so a caller that reads P
+/// only at the horizon (a predicted odometry) asks for [`CovarianceSamples::Last`] and pays for
+/// a few long chunks instead of one or more per sample.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CovarianceSamples {
+    /// Every sample.
+    #[default]
+    Every,
+    /// The last sample only (the horizon); the others carry none.
+    Last,
 }
 
 impl<'a> PredictionRequest<'a> {
@@ -68,6 +85,12 @@ impl<'a> PredictionRequest<'a> {
     /// Propagating the covariance from `p0` (2nv × 2nv).
     pub fn covariance(mut self, p0: &'a DMatrix<f64>) -> Self {
         self.start_covariance = Some(p0);
+        self
+    }
+
+    /// With the covariance in `which` samples.
+    pub fn covariance_samples(mut self, which: CovarianceSamples) -> Self {
+        self.covariance_samples = which;
         self
     }
 

@@ -6,8 +6,9 @@ use super::advance::companion_error;
 use super::covariance::CovariancePropagator;
 use super::covariance::worker::with_worker;
 use super::estimate::{self, Lane};
+use super::integrators::Method;
 use super::predictor::Predictor;
-use super::request::PredictionRequest;
+use super::request::{CovarianceSamples, PredictionRequest};
 use super::settings::IntegrationSettings;
 use super::trajectory::{Sample, Trajectory};
 use crate::actuators::Command;
@@ -35,6 +36,8 @@ struct Plan<'a> {
     factor: f64,
     /// Record forces in the samples.
     forces: bool,
+    /// Bring P up to every sample (else only to the horizon).
+    covariance_every_sample: bool,
 }
 
 impl Predictor {
@@ -152,12 +155,13 @@ impl Predictor {
                     .update(cmd, &c.q, &c.v, dt, &mut ws.tau_companion);
             }
         }
+        let every = req.covariance_samples == CovarianceSamples::Every;
         let first = self.sample(
             0.0,
             &lanes[0].q,
             &lanes[0].v,
             s.error_estimate.then_some(0.0),
-            req.forces,
+            (req.forces, every || horizon <= 0.0),
         )?;
         let springs = self
             .forces
@@ -172,6 +176,7 @@ impl Predictor {
             companion,
             factor,
             forces: req.forces,
+            covariance_every_sample: every,
         };
         let parallel = self.config.parallel_covariance
             && std::thread::available_parallelism().is_ok_and(|n| n.get() > 1);
@@ -229,6 +234,7 @@ impl Predictor {
             companion,
             factor,
             forces,
+            covariance_every_sample,
         } = *plan;
         let idle = Command::default();
         let command_at = |t: f64| command_at(commands, &idle, t);
@@ -269,6 +275,9 @@ impl Predictor {
             let work = comp[0].evaluations;
             let largest = self.advance(&mut answer[0], None, work, (t, t_end), s)?;
             if s.error_estimate {
+                if s.method == Method::Ros2 {
+                    comp[0].step.share_jacobian(&answer[0].step);
+                }
                 let work = answer[0].evaluations;
                 let cap = Some(0.5 * largest);
                 self.advance(&mut comp[0], cap, work, (t, t_end), companion)
@@ -276,12 +285,14 @@ impl Predictor {
             }
             t = t_end;
             if t >= next_sample - 1e-9 || t >= horizon - 1e-12 {
-                // P is read here: the recorded steps are linearized now (a chunk may span
-                // control ticks; covariance/chunks.rs checks that it reproduces them).
-                if let Some(cov) = self.covariance.as_mut() {
+                // Where P is read, the recorded steps are linearized now (a chunk may span
+                // control ticks and samples; covariance/chunks.rs checks that it reproduces
+                // them).
+                let read_p = covariance_every_sample || t >= horizon - 1e-12;
+                if let Some(cov) = self.covariance.as_mut().filter(|_| read_p) {
                     self.sys.cdata.t = t;
                     cov.flush(&mut self.sys, s.method)?;
-                } else if let Some(pipe) = self.ws.pipe.get_mut() {
+                } else if let Some(pipe) = self.ws.pipe.get_mut().filter(|_| read_p) {
                     pipe.handoff(t, Some(traj.samples.len()))?;
                 }
                 let [a, c] = &*lanes;
@@ -292,7 +303,7 @@ impl Predictor {
                 let e = s.error_estimate.then(|| {
                     estimate::estimate(&self.model, &a.q, &c.q, factor, &mut self.ws.diff)
                 });
-                let sample = self.sample(t, &a.q, &a.v, e, forces)?;
+                let sample = self.sample(t, &a.q, &a.v, e, (forces, read_p))?;
                 let springs = self
                     .forces
                     .potential_energy(&self.sys.model, &self.sys.data, &a.q);

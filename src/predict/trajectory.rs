@@ -51,7 +51,8 @@ pub struct Sample {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error_estimate: Option<f64>,
     /// Propagated covariance of (δq, δv), 2nv × 2nv row-major, tangent space (δq a right
-    /// perturbation, velocity order) [m², rad², (m/s)², …], when a start covariance was given.
+    /// perturbation, velocity order) [m², rad², (m/s)², …], when a start covariance was given
+    /// (`PredictionRequest::covariance_samples`: in every sample or in the last).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub covariance: Option<Vec<Vec<f64>>>,
 }
@@ -110,14 +111,15 @@ pub struct Trajectory {
 
 impl Predictor {
     /// The output sample at (t, q, v): residuals, energies, λ and the constraint forces when
-    /// `forces`, the covariance when one is propagated inline; `err` the error estimate.
+    /// `forces`, the covariance when one is propagated inline and `covariance`; `err` the error
+    /// estimate.
     pub(super) fn sample(
         &mut self,
         t: f64,
         q: &[f64],
         v: &[f64],
         err: Option<f64>,
-        forces: bool,
+        (forces, covariance): (bool, bool),
     ) -> Result<Sample> {
         let sys = &mut self.sys;
         let at = match forces {
@@ -174,8 +176,8 @@ impl Predictor {
         }
         // (With the covariance on its worker, the rows are attached when the run ends.)
         let covariance = match &self.covariance {
-            Some(c) => Some(covariance_rows(&c.p, t)?),
-            None => None,
+            Some(c) if covariance => Some(covariance_rows(&c.p, t)?),
+            _ => None,
         };
         Ok(Sample {
             t,

@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 use constraint_dynamics::algorithm::frame_placement;
 use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::forces::ForceElements;
-use constraint_dynamics::predict::{PredictionRequest, Predictor, Trajectory};
+use constraint_dynamics::predict::{CovarianceSamples, PredictionRequest, Predictor, Trajectory};
 use constraint_dynamics::system::System;
 
 use crate::convert::{path_msg, pose_msg, time_plus, twist_msg};
@@ -270,6 +270,8 @@ impl PredictorNode {
             commands: &commands,
             horizon: self.params.node.horizon(),
             start_covariance: p0.as_ref(),
+            // The odometry carries P at the horizon only.
+            covariance_samples: CovarianceSamples::Last,
             ..PredictionRequest::new(&q, &v)
         };
         let traj = self

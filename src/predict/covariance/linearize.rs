@@ -120,7 +120,11 @@ impl Linearization {
     /// linearize: the τ given to [`linearize_step`] includes them at the step's start, and each
     /// stage replaces that share by its own.
     pub fn with_joint_springs(mut self, springs: &[(usize, usize, f64, f64, f64)]) -> Self {
-        self.joint_springs = springs.to_vec();
+        // (iq, iv, k, d, rest) → (iq, iv, k, d, rate): a spring's torque has no rate of its own.
+        self.joint_springs = springs
+            .iter()
+            .map(|&(iq, iv, k, d, _rest)| (iq, iv, k, d, 0.0))
+            .collect();
         self.fixed_springs = springs.len();
         self
     }
@@ -130,9 +134,11 @@ impl Linearization {
     /// allocates only when the list grows).
     pub fn set_feedback(&mut self, feedback: &[Feedback]) {
         self.joint_springs.truncate(self.fixed_springs);
-        let active = feedback.iter().filter(|f| f.k != 0.0 || f.d != 0.0);
+        let active = feedback
+            .iter()
+            .filter(|f| f.k != 0.0 || f.d != 0.0 || f.rate != 0.0);
         self.joint_springs
-            .extend(active.map(|f| (f.iq, f.iv, f.k, f.d, 0.0)));
+            .extend(active.map(|f| (f.iq, f.iv, f.k, f.d, f.rate)));
     }
 
     /// Size for a system (its model and constraint rows).
@@ -184,15 +190,10 @@ fn dynamics(
     springs: &[(usize, usize, f64, f64, f64)],
     tau_stage: &mut [f64],
     (q0, v0): (&[f64], &[f64]),
-    q: &[f64],
-    v: &[f64],
+    (q, v, ds): (&[f64], &[f64], f64),
     tau: &[f64],
 ) -> Result<()> {
-    tau_stage.copy_from_slice(tau);
-    for &(iq, iv, k, d, _rest) in springs {
-        // −k (q − rest) − d v at the stage, minus the same at the start.
-        tau_stage[iv] -= k * (q[iq] - q0[iq]) + d * (v[iv] - v0[iv]);
-    }
+    stage_torque(springs, tau_stage, (q0, v0), (q, v, ds), tau);
     dynamics_derivatives(sys, dd, q, v, tau_stage)?;
     let nv = v.len();
     for &(_, iv, k, d, _) in springs {
@@ -202,6 +203,43 @@ fn dynamics(
             dd.dqdd_dv[(i, iv)] -= g * d;
         }
     }
+    Ok(())
+}
+
+/// The generalized force at a stage (q, v) `ds` [s] into the step: the step's τ, with each
+/// joint spring's and controller's share moved from the start (q0, v0) to the stage
+/// (−k Δq − d Δv) and a controller's own rate (its `Feedback::rate`) added over ds.
+fn stage_torque(
+    springs: &[(usize, usize, f64, f64, f64)],
+    tau_stage: &mut [f64],
+    (q0, v0): (&[f64], &[f64]),
+    (q, v, ds): (&[f64], &[f64], f64),
+    tau: &[f64],
+) {
+    tau_stage.copy_from_slice(tau);
+    for &(iq, iv, k, d, rate) in springs {
+        tau_stage[iv] -= k * (q[iq] - q0[iq]) + d * (v[iv] - v0[iv]);
+        if rate != 0.0 {
+            tau_stage[iv] += rate * ds;
+        }
+    }
+}
+
+/// q̈ alone at the stage (q, v) under τ and the joint springs measured from (q0, v0) (as in
+/// [`dynamics`]), into `qdd`: a plain evaluation, solved as the prediction solves a stage.
+#[allow(clippy::too_many_arguments)]
+fn stage_acceleration(
+    sys: &mut System,
+    springs: &[(usize, usize, f64, f64, f64)],
+    tau_stage: &mut [f64],
+    (q0, v0): (&[f64], &[f64]),
+    (q, v, ds): (&[f64], &[f64], f64),
+    tau: &[f64],
+    qdd: &mut [f64],
+) -> Result<()> {
+    stage_torque(springs, tau_stage, (q0, v0), (q, v, ds), tau);
+    let opts = DynamicsOptions::stage(sys.formulation);
+    qdd.copy_from_slice(sys.forward_dynamics_with(q, v, tau_stage, opts)?.as_slice());
     Ok(())
 }
 
@@ -300,8 +338,7 @@ fn semi_implicit_euler(
         springs,
         &mut lin.tau_stage,
         (q, v),
-        q,
-        v,
+        (q, v, 0.0),
         tau,
     )?;
     for i in 0..nv {
@@ -385,15 +422,16 @@ fn explicit(
         combine_variations(lin, tab.a[st], dt);
         sys.model.integrate(q, &lin.theta[st], 1.0, &mut lin.qs);
         let springs = &lin.joint_springs;
-        let stage = (&lin.qs[..], &lin.vel[st][..]);
+        // The stage's time offset c_i dt (c_i = Σ_j a_ij).
+        let ds = dt * tab.a[st].iter().sum::<f64>();
+        let stage = (&lin.qs[..], &lin.vel[st][..], ds);
         dynamics(
             sys,
             &mut lin.dd,
             springs,
             &mut lin.tau_stage,
             (q, v),
-            stage.0,
-            stage.1,
+            stage,
             tau,
         )?;
         lin.kv[st].copy_from_slice(lin.dd.qdd.as_slice());

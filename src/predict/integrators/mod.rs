@@ -261,6 +261,15 @@ impl StepWorkspace {
         self.newton_dt = f64::NAN;
     }
 
+    /// Step with `other`'s F from now on (refactored at the next step): a W-method keeps its
+    /// order with any F, and the error estimate's companion takes the answer's, computed at
+    /// nearly the same state, instead of its own.
+    pub(in crate::predict) fn share_jacobian(&mut self, other: &StepWorkspace) {
+        self.jac.copy_from(&other.jac);
+        self.jac_valid = true;
+        self.newton_dt = f64::NAN;
+    }
+
     /// Save (q, v) to restore a rejected step.
     pub fn save(&mut self, q: &[f64], v: &[f64]) {
         self.q0.copy_from_slice(q);

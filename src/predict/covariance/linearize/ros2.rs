@@ -8,7 +8,7 @@
 //! otherwise; the increment then moves to q⁺ as in the explicit steps (the Lie maps of
 //! linearize.rs). L-stable, so a chunk of many steps keeps the stiff modes damped.
 
-use super::{Linearization, dynamics, tangent_variation};
+use super::{Linearization, dynamics, stage_acceleration, tangent_variation};
 use crate::error::{Error, Result};
 use crate::linalg::{gemm_columns, lu_in_place, lu_solve};
 use crate::predict::integrators::lie::dexp_inv;
@@ -73,8 +73,7 @@ pub(super) fn ros2(
         springs,
         &mut lin.tau_stage,
         (q, v),
-        q,
-        v,
+        (q, v, 0.0),
         tau,
     )?;
     let r = &mut lin.ros2;
@@ -126,7 +125,7 @@ pub(super) fn ros2(
             lin.d_vel[(i, c)] = d(&r.dk1, nv + i) + f64::from(u8::from(c == nv + i));
         }
     }
-    // The nominal step (after the variations: the second stage's evaluation replaces `dd`).
+    // The nominal step.
     r.k1[..nv].copy_from_slice(v);
     r.k1[nv..].copy_from_slice(lin.dd.qdd.as_slice());
     lu_solve(&r.w, &r.piv, &mut r.k1);
@@ -135,19 +134,17 @@ pub(super) fn ros2(
         lin.vel[0][i] = v[i] + dt * r.k1[nv + i];
     }
     sys.model.integrate(q, &lin.theta[0], 1.0, &mut lin.qs);
-    let stage = (&lin.qs[..], &lin.vel[0][..]);
-    dynamics(
+    // The second stage's q̈ only (F is held): a plain evaluation.
+    stage_acceleration(
         sys,
-        &mut lin.dd,
         springs,
         &mut lin.tau_stage,
         (q, v),
-        stage.0,
-        stage.1,
+        (&lin.qs, &lin.vel[0], dt),
         tau,
+        &mut r.k2[nv..],
     )?;
     dexp_inv(&sys.model, &lin.theta[0], &lin.vel[0], &mut r.k2[..nv]);
-    r.k2[nv..].copy_from_slice(lin.dd.qdd.as_slice());
     for i in 0..n {
         r.k2[i] -= 2.0 * r.k1[i];
     }
