@@ -12,15 +12,16 @@
 //! - the floating-base rolling disk, tilted and spinning (params/report/rolling_disk.yaml);
 //! - the suite's mobile manipulator under its controllers (diff-drive PI wheel velocity
 //!   controllers, arm PD position controllers), turning while it holds the arm
-//!   (params/suite_mobile_manipulator.yaml, RK4 at the 1 ms control period);
+//!   (params/suite_mobile_manipulator.yaml, RK4 at the 1 ms control period), and the same
+//!   with continuous controllers stepped by ROS2 at 20 ms, the predictor node's live settings;
 //! - Bricard's mechanism (IFToMM benchmark A04, params/report/bricard_a04.yaml) falling from
 //!   rest: an over-constrained loop whose closure has a redundant row, consistent on the
 //!   constraints and not at the off-manifold stages of the linearized steps.
 
 mod common;
 use common::*;
-use constraint_dynamics::actuators::Command;
-use constraint_dynamics::predict::{PredictionRequest, Predictor};
+use constraint_dynamics::actuators::{Command, Hold};
+use constraint_dynamics::predict::{CovarianceSamples, Method, PredictionRequest, Predictor};
 use constraint_dynamics::{Model, Scene};
 use nalgebra::{DMatrix, DVector, Matrix3};
 
@@ -309,6 +310,53 @@ fn controlled_mobile_manipulator_covariance_matches_monte_carlo() {
     assert!(
         rel <= TOL,
         "covariance differs from Monte Carlo by {rel:.3}"
+    );
+}
+
+/// The predictor node's live settings (tests/live_prediction.rs): continuous controllers, ROS2
+/// at the 20 ms sample period, each step linearized with its own F; over the node's 1 s horizon,
+/// P brought onto the constraints at every sample and, as the node asks, at the horizon only.
+#[test]
+fn live_mobile_manipulator_covariance_matches_monte_carlo() {
+    let mut scene = Scene::load(repo_dir().join("params/suite_mobile_manipulator.yaml")).unwrap();
+    scene.file.actuators.hold = Hold::Continuous;
+    let pred = Predictor::from_scene(&scene)
+        .unwrap()
+        .with_settings(|s| {
+            s.method = Method::Ros2;
+            s.dt = 0.02;
+            s.sample_period = 0.02;
+        })
+        .unwrap();
+    let nv = pred.model().nv;
+    let cmds = [(0.0, turning_with_arm_held())];
+    let sigma = 1e-3;
+    let p0 = DMatrix::identity(2 * nv, 2 * nv) * (sigma * sigma);
+    let start = (&scene.q0[..], &scene.v0[..]);
+    let (p_t, mc) = monte_carlo_under(&pred, start, &cmds, p0.clone(), 1.0, N_SLOW, &|_| {});
+    let rel = relative_difference("live mobile manipulator", &p_t, &mc, N_SLOW);
+    let mut at_end = pred.with_settings(|s| s.error_estimate = false).unwrap();
+    let req = PredictionRequest::new(start.0, start.1)
+        .commands(&cmds)
+        .horizon(1.0)
+        .covariance(&p0)
+        .covariance_samples(CovarianceSamples::Last);
+    let traj = at_end.predict(&req).unwrap();
+    assert!(
+        traj.samples[..traj.samples.len() - 1]
+            .iter()
+            .all(|s| s.covariance.is_none())
+    );
+    let p_last = rows_to_matrix(traj.samples.last().unwrap().covariance.as_ref().unwrap());
+    let rel_last = relative_difference(
+        "live mobile manipulator, P at the horizon only",
+        &p_last,
+        &mc,
+        N_SLOW,
+    );
+    assert!(
+        rel <= TOL && rel_last <= TOL,
+        "covariance differs from Monte Carlo by {rel:.3} (every sample) and {rel_last:.3} (horizon only)"
     );
 }
 

@@ -423,12 +423,15 @@ impl Predictor {
                 if let Some(c) = cov.as_mut() {
                     let start = (&ws.qn[..], &ws.vn[..]);
                     let feedback = actuators.feedback();
+                    // ROS2's step brings its F and the start's q̈ (integrators/ros2.rs).
+                    let own = (s.method == Method::Ros2).then_some((&step.jac, &step.a0[..]));
                     c.record_step(
                         rhs.sys,
                         s.method,
                         start,
                         &ws.tau_n,
                         feedback,
+                        own,
                         dt,
                         (t, (q, v)),
                     )?;

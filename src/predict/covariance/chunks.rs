@@ -46,9 +46,12 @@ use super::CovariancePropagator;
 use crate::actuators::Feedback;
 use crate::error::Result;
 use crate::model::Model;
-use crate::predict::covariance::linearize::{Linearization, linearize_step};
+use crate::predict::covariance::linearize::{
+    Linearization, linearize_step, ros2_with_step_jacobian,
+};
 use crate::predict::integrators::Method;
 use crate::system::System;
+use nalgebra::DMatrix;
 
 /// Most recorded steps per flush (and per linearized step).
 pub(crate) const CHUNK_CAPACITY: usize = 32;
@@ -78,6 +81,11 @@ pub(crate) struct StepRecord {
     feedback: Vec<Vec<Feedback>>,
     /// Time of each recorded state since the first [s].
     t: Vec<f64>,
+    /// Each step's own W-method matrix F (2nv × 2nv) and q̈ at its start, where the step
+    /// gave them (ROS2): its linearization then needs no derivatives.
+    jac: Vec<DMatrix<f64>>,
+    qdd: Vec<Vec<f64>>,
+    has_jac: Vec<bool>,
     /// Recorded steps.
     len: usize,
 }
@@ -91,6 +99,9 @@ impl StepRecord {
             tau: vec![vec![0.0; nv]; CHUNK_CAPACITY],
             feedback: vec![vec![]; CHUNK_CAPACITY],
             t: vec![0.0; CHUNK_CAPACITY + 1],
+            jac: vec![DMatrix::zeros(2 * nv, 2 * nv); CHUNK_CAPACITY],
+            qdd: vec![vec![0.0; nv]; CHUNK_CAPACITY],
+            has_jac: vec![false; CHUNK_CAPACITY],
             len: 0,
         }
     }
@@ -116,13 +127,15 @@ impl StepRecord {
     }
 
     /// Append one step of the prediction: from (q0, v0) under the held generalized force τ
-    /// [N, N·m] and the controllers' `feedback` for h [s] to (q1, v1). Returns true when the
-    /// record is full (P must catch up before the next step).
+    /// [N, N·m] and the controllers' `feedback` for h [s] to (q1, v1), with the step's own F
+    /// and q̈ at its start when it has them (`step`). Returns true when the record is full (P
+    /// must catch up before the next step).
     pub(crate) fn push(
         &mut self,
         (q0, v0): (&[f64], &[f64]),
         tau: &[f64],
         feedback: impl Iterator<Item = Feedback>,
+        step: Option<(&DMatrix<f64>, &[f64])>,
         h: f64,
         (q1, v1): (&[f64], &[f64]),
     ) -> bool {
@@ -135,6 +148,11 @@ impl StepRecord {
         self.tau[k].copy_from_slice(tau);
         self.feedback[k].clear();
         self.feedback[k].extend(feedback);
+        self.has_jac[k] = step.is_some();
+        if let Some((jac, qdd)) = step {
+            self.jac[k].copy_from(jac);
+            self.qdd[k].copy_from_slice(qdd);
+        }
         self.t[k + 1] = self.t[k] + h;
         self.q[k + 1].copy_from_slice(q1);
         self.v[k + 1].copy_from_slice(v1);
@@ -247,6 +265,22 @@ impl CovariancePropagator {
     ) -> Result<()> {
         let n = rec.len;
         let mut lo = 0;
+        // Steps that bring their own F are linearized one by one with it: no derivatives,
+        // cheaper than any chunk (stiff modes the step only damps keep a longer chunk from
+        // reproducing it anyway).
+        while lo < n && rec.has_jac[lo] && !self.lin.inputs {
+            let h = rec.t[lo + 1] - rec.t[lo];
+            self.lin.set_feedback(&rec.feedback[lo]);
+            let start = (&rec.q[lo][..], &rec.v[lo][..]);
+            let step = (&rec.jac[lo], &rec.qdd[lo][..]);
+            ros2_with_step_jacobian(sys, &mut self.lin, start, &rec.tau[lo], h, step)?;
+            self.linearizations += 1;
+            self.apply_linearization(h, &rec.feedback[lo]);
+            lo += 1;
+            if lo == n {
+                self.project(sys, &rec.q[n], &rec.v[n])?;
+            }
+        }
         while lo < n {
             // The rest in equal pieces of at most `chunk` steps: no short leftover chunk.
             let rest = n - lo;

@@ -12,6 +12,7 @@
 //! (tests).
 
 mod ros2;
+pub(in crate::predict) use ros2::ros2_with_step_jacobian;
 
 use crate::actuators::Feedback;
 use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};

@@ -142,6 +142,7 @@ impl CovarianceFeed<'_> {
         start: (&[f64], &[f64]),
         tau: &[f64],
         feedback: impl Iterator<Item = Feedback>,
+        step: Option<(&DMatrix<f64>, &[f64])>,
         h: f64,
         (t, end): (f64, (&[f64], &[f64])),
     ) -> Result<()> {
@@ -149,7 +150,7 @@ impl CovarianceFeed<'_> {
             Self::Inline(c) => &mut c.record,
             Self::Worker(p) => &mut p.current,
         };
-        if !record.push(start, tau, feedback, h, end) {
+        if !record.push(start, tau, feedback, step, h, end) {
             return Ok(());
         }
         match self {

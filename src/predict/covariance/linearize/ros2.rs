@@ -64,8 +64,6 @@ pub(super) fn ros2(
     dt: f64,
 ) -> Result<()> {
     let nv = v.len();
-    let n = 2 * nv;
-    let cols = lin.columns();
     let springs = &lin.joint_springs;
     dynamics(
         sys,
@@ -85,6 +83,42 @@ pub(super) fn ros2(
             r.f[(nv + i, nv + j)] = lin.dd.dqdd_dv[(i, j)];
         }
     }
+    r.k1[nv..].copy_from_slice(lin.dd.qdd.as_slice());
+    from_f(sys, lin, q, v, tau, dt)
+}
+
+/// The linearized ROS2 step under the F the prediction's step used (`jac`, its W-method
+/// matrix, the controllers' feedback and the joint springs included) and q̈ at the step's
+/// start (`qdd`): no derivatives are computed. Only without input columns (B).
+pub(in crate::predict) fn ros2_with_step_jacobian(
+    sys: &mut System,
+    lin: &mut Linearization,
+    (q, v): (&[f64], &[f64]),
+    tau: &[f64],
+    dt: f64,
+    (jac, qdd): (&DMatrix<f64>, &[f64]),
+) -> Result<()> {
+    let nv = v.len();
+    debug_assert!(!lin.inputs);
+    lin.ros2.f.copy_from(jac);
+    lin.ros2.k1[nv..].copy_from_slice(qdd);
+    from_f(sys, lin, q, v, tau, dt)
+}
+
+/// The step's sensitivity from F (`lin.ros2.f`) and q̈ at the start (`lin.ros2.k1[nv..]`).
+fn from_f(
+    sys: &mut System,
+    lin: &mut Linearization,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    dt: f64,
+) -> Result<()> {
+    let nv = v.len();
+    let n = 2 * nv;
+    let cols = lin.columns();
+    let springs = &lin.joint_springs;
+    let r = &mut lin.ros2;
     for c in 0..n {
         for i in 0..n {
             r.w[(i, c)] = f64::from(u8::from(i == c)) - dt * GAMMA * r.f[(i, c)];
@@ -125,9 +159,8 @@ pub(super) fn ros2(
             lin.d_vel[(i, c)] = d(&r.dk1, nv + i) + f64::from(u8::from(c == nv + i));
         }
     }
-    // The nominal step.
+    // The nominal step (k1's q̈ part was set by the caller).
     r.k1[..nv].copy_from_slice(v);
-    r.k1[nv..].copy_from_slice(lin.dd.qdd.as_slice());
     lu_solve(&r.w, &r.piv, &mut r.k1);
     for i in 0..nv {
         lin.theta[0][i] = dt * r.k1[i];
