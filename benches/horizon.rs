@@ -1,12 +1,15 @@
 //! Criterion benchmarks of prediction and of the two formulations.
 //!
-//! - `horizon/mobile_manipulator/<formulation>`: a 2 s horizon at 1 ms, RK4 with projection
+//! - `horizon/mobile_manipulator/<formulation>`: a 2 s horizon, RK4 with projection
 //!   (params/mobile_manipulator.yaml: two rolling wheels, rank-deficient rows; samples every
-//!   10 ms), in the multiplier and in the embedded form.
-//! - `horizon/mobile_manipulator/unconstrained`: the same horizon with the scene's constraints
+//!   10 ms), in the multiplier and in the embedded form, at 0.5 ms: the step whose true error
+//!   meets the scene's `max_error` (1e-3; at 1 ms the falling wrist is 3.4e-3 rad off),
+//!   checked once before timing against the same run at a quarter of the step.
+//! - `horizon/mobile_manipulator/unconstrained`: 2 s at 1 ms with the scene's constraints
 //!   removed (so no projection either): a floor under the two above, and the figure to set
-//!   beside compiled Pinocchio's same horizon (`tools/peers/horizon_floor.sh`).
-//! - `horizon/mobile_manipulator/covariance`: the same (multipliers) with a propagated
+//!   beside compiled Pinocchio's same horizon (`tools/peers/horizon_floor.sh`, the same
+//!   computation: end |v| equal to 1e-9).
+//! - `horizon/mobile_manipulator/covariance`: the multiplier form's horizon with a propagated
 //!   covariance (σ = 1 mm, 1 mrad, 1 mm/s, 1 mrad/s on every coordinate): its cost is read as
 //!   the ratio to `horizon/mobile_manipulator/multipliers` of the same run (the bar: ≤ 2×).
 //! - `evaluation/<scene>/<formulation>`: one constrained forward-dynamics evaluation at the
@@ -31,14 +34,14 @@ const FORMS: [(&str, Formulation); 2] = [
     ("embedded", Formulation::Embedded),
 ];
 
-/// The scene's predictor at the horizons' settings: RK4 at 1 ms, a sample every 10 ms, the
+/// The scene's predictor at the horizons' settings: RK4 at `dt` [s], a sample every 10 ms, the
 /// prediction alone (the error estimate's companion doubles the work; estimate.rs).
-fn rk4_predictor(scene: &Scene) -> Predictor {
+fn rk4_predictor(scene: &Scene, dt: f64) -> Predictor {
     Predictor::from_scene(scene)
         .expect("predictor")
         .with_settings(|s| {
             s.method = Method::Rk4;
-            s.dt = 1e-3;
+            s.dt = dt;
             s.error_estimate = false;
             s.sample_period = 0.01;
         })
@@ -46,27 +49,53 @@ fn rk4_predictor(scene: &Scene) -> Predictor {
 }
 
 /// [`rk4_predictor`] with projection.
-fn rk4_projected(scene: &Scene) -> Predictor {
-    rk4_predictor(scene)
+fn rk4_projected(scene: &Scene, dt: f64) -> Predictor {
+    rk4_predictor(scene, dt)
         .with_settings(|s| s.drift = DriftControl::Projection)
         .expect("settings")
 }
 
-/// `horizon/mobile_manipulator/<label>`: 2 s from the scene's initial state (2000 steps, 8000
-/// evaluations, checked once before timing), from the start covariance `p0` if any.
+/// The constrained horizons' step [s]: RK4's error at 1 ms (3.4e-3 rad) over 2⁴.
+const DT: f64 = 5e-4;
+
+/// The largest tangent-space difference of q [m or rad] over the common samples of a 2 s run of
+/// `p` and the same run at a quarter of its step: RK4's true error to within 1/256.
+fn true_error(p: &Predictor, scene: &Scene) -> f64 {
+    let req = PredictionRequest::new(&scene.q0, &scene.v0).horizon(2.0);
+    let dt = p.config().settings().dt;
+    let mut fine = p
+        .clone()
+        .with_settings(|s| s.dt = dt / 4.0)
+        .expect("settings");
+    let (a, b) = (
+        p.clone().predict(&req).expect("predict"),
+        fine.predict(&req).expect("predict"),
+    );
+    let model = p.model();
+    let mut diff = vec![0.0; model.nv];
+    let mut worst = 0.0f64;
+    for (x, y) in a.samples.iter().zip(&b.samples) {
+        model.difference(&y.q, &x.q, &mut diff);
+        worst = diff.iter().fold(worst, |m, d| m.max(d.abs()));
+    }
+    worst
+}
+
+/// `horizon/mobile_manipulator/<label>`: 2 s from the scene's initial state (`steps` steps, four
+/// evaluations each, checked once before timing), from the start covariance `p0` if any.
 fn bench_horizon(
     c: &mut Criterion,
     label: &str,
     p: &mut Predictor,
     scene: &Scene,
-    p0: Option<&DMatrix<f64>>,
+    (p0, steps): (Option<&DMatrix<f64>>, usize),
 ) {
     let request = |q0, v0| PredictionRequest {
         start_covariance: p0,
         ..PredictionRequest::new(q0, v0).horizon(2.0)
     };
     let t = p.predict(&request(&scene.q0, &scene.v0)).expect("predict");
-    assert_eq!((t.steps, t.evaluations), (2000, 8000));
+    assert_eq!((t.steps, t.evaluations), (steps, 4 * steps));
     c.bench_function(&format!("horizon/mobile_manipulator/{label}"), |b| {
         b.iter(|| {
             p.predict(&request(black_box(&scene.q0), black_box(&scene.v0)))
@@ -77,29 +106,38 @@ fn bench_horizon(
 
 fn horizon(c: &mut Criterion) {
     let scene = Scene::load(root().join("params/mobile_manipulator.yaml")).expect("scene");
+    let steps = (2.0 / DT).round() as usize;
     for (label, form) in FORMS {
         let mut formed = scene.clone();
         formed.file.dynamics.formulation = form;
-        let mut p = rk4_projected(&formed);
-        bench_horizon(c, label, &mut p, &scene, None);
+        let mut p = rk4_projected(&formed, DT);
+        let (error, bound) = (true_error(&p, &formed), p.config().settings().max_error);
+        assert!(
+            error <= bound,
+            "{label}: true error {error:e} > max_error {bound:e}"
+        );
+        eprintln!(
+            "horizon/mobile_manipulator/{label}: true error {error:.2e} (max_error {bound:e})"
+        );
+        bench_horizon(c, label, &mut p, &scene, (None, steps));
     }
     let mut free = scene.clone();
     free.file.constraints.clear();
-    let mut p = rk4_predictor(&free);
+    let mut p = rk4_predictor(&free, 1e-3);
     assert!(
         System::from_scene(&free)
             .expect("system")
             .constraints
             .is_empty()
     );
-    bench_horizon(c, "unconstrained", &mut p, &scene, None);
-    let mut p = rk4_projected(&scene);
+    bench_horizon(c, "unconstrained", &mut p, &scene, (None, 2000));
+    let mut p = rk4_projected(&scene, DT);
     let n = 2 * p.model().nv;
     let p0 = DMatrix::identity(n, n) * 1e-6;
     let req = PredictionRequest::new(&scene.q0, &scene.v0).horizon(2.0);
     let t = p.predict(&req.covariance(&p0)).expect("predict");
     assert!(t.samples.last().unwrap().covariance.is_some());
-    bench_horizon(c, "covariance", &mut p, &scene, Some(&p0));
+    bench_horizon(c, "covariance", &mut p, &scene, (Some(&p0), steps));
 }
 
 fn evaluation(c: &mut Criterion) {

@@ -298,7 +298,7 @@ fn rolling_disk_covariance_matches_monte_carlo() {
 /// sensitivity by 10³, tests/covariance_sensitivity.rs).
 #[test]
 fn controlled_mobile_manipulator_covariance_matches_monte_carlo() {
-    let scene = Scene::load(repo_dir().join("params/suite_mobile_manipulator.yaml")).unwrap();
+    let scene = suite_held_scene();
     let pred = Predictor::from_scene(&scene).unwrap();
     let nv = pred.model().nv;
     let cmd = turning_with_arm_held();

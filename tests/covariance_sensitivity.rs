@@ -168,7 +168,7 @@ fn controllers_enter_the_covariance() {
     let cmd = turning_with_arm_held();
     let commands = [(0.0, cmd)];
     let at_period = |period: f64| {
-        let mut scene = Scene::load(repo_dir().join(file)).unwrap();
+        let mut scene = suite_held_scene();
         scene.file.actuators.control_period = Some(period);
         let name = format!("{file} (control period {period} s)");
         relative_difference_under(&name, scene, &commands, 0.5)

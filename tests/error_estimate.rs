@@ -291,7 +291,7 @@ fn without_the_estimate_the_answer_is_unchanged_and_cheaper() {
 #[test]
 fn closed_loop_actuators_estimate_stays_small() {
     use constraint_dynamics::actuators::Command;
-    let sc = scene("params/suite_mobile_manipulator.yaml");
+    let sc = common::suite_held_scene();
     let mut p = Predictor::from_scene(&sc)
         .unwrap()
         .with_settings(|s| {

@@ -1,7 +1,7 @@
 //! The live prediction of the suite's mobile manipulator (params/suite_mobile_manipulator.yaml)
 //! with continuous controllers stepped by ROS2 at the 20 ms sample period — against independent
 //! references: the same robot with its controllers held for 1 ms (the digital controllers'
-//! model, the scene's own) integrated by RK4 at 0.1 ms, and the continuous model integrated by
+//! model) integrated by RK4 at 0.1 ms, and the continuous model integrated by
 //! RK4 at 0.1 ms; and the work of a predictor tick under these settings, which is what its CPU
 //! share follows (docs/performance.md).
 mod common;
@@ -13,19 +13,13 @@ use constraint_dynamics::predict::{
 
 const SCENE: &str = "params/suite_mobile_manipulator.yaml";
 
-/// The scene with continuous controllers, and the live settings: ROS2 at the sample period,
+/// The suite's scene as shipped: continuous controllers, ROS2 at the 20 ms sample period,
 /// `max_error` 0.05 (its largest coordinate is a wheel angle, 1/r = 20 × the travel).
 fn live() -> (Scene, Predictor) {
-    let mut scene = common::scene(SCENE);
-    scene.file.actuators.hold = Hold::Continuous;
-    let p = Predictor::from_scene(&scene)
-        .unwrap()
-        .with_settings(|s| {
-            s.method = Method::Ros2;
-            s.dt = 0.02;
-            s.max_error = 0.05;
-        })
-        .unwrap();
+    let scene = common::scene(SCENE);
+    assert_eq!(scene.file.actuators.hold, Hold::Continuous);
+    assert_eq!(scene.file.integration.method, Method::Ros2);
+    let p = Predictor::from_scene(&scene).unwrap();
     (scene, p)
 }
 
@@ -89,9 +83,7 @@ fn base_pose_gap(a: &Trajectory, b: &Trajectory) -> (f64, f64) {
 #[test]
 fn the_live_prediction_stays_within_a_millimetre_of_the_held_controllers() {
     let (scene, mut live) = live();
-    let mut held = scene.clone();
-    held.file.actuators.hold = Hold::ZeroOrder;
-    held.file.actuators.control_period = Some(1e-3);
+    let held = common::suite_held_scene();
     for twists in TURNS {
         let cmds = commands(&scene, &live, twists);
         let reference = fine(&held, &cmds);

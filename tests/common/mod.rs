@@ -188,6 +188,21 @@ pub fn tangent(model: &Model, q_ref: &[f64], v_ref: &[f64], q: &[f64], v: &[f64]
     x
 }
 
+/// The suite's mobile manipulator (params/suite_mobile_manipulator.yaml) as its digital
+/// controllers run: torques held over the 1 ms control period, stepped by RK4 at that period,
+/// `max_error` at its default — the model the scene's live settings are measured against.
+#[allow(dead_code)]
+pub fn suite_held_scene() -> Scene {
+    let mut scene = Scene::load(repo_dir().join("params/suite_mobile_manipulator.yaml")).unwrap();
+    scene.file.actuators.hold = constraint_dynamics::actuators::Hold::ZeroOrder;
+    scene.file.actuators.control_period = Some(1e-3);
+    let s = &mut scene.file.integration;
+    s.method = constraint_dynamics::predict::Method::Rk4;
+    s.dt = 1e-3;
+    s.max_error = constraint_dynamics::predict::IntegrationSettings::default().max_error;
+    scene
+}
+
 /// The command of the tests under controllers: the suite's mobile manipulator
 /// (params/suite_mobile_manipulator.yaml) turning at (0.2 m/s, 0.3 rad/s) with its arm held
 /// where the scene starts it.
