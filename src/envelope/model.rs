@@ -142,7 +142,7 @@ impl EnvelopeModel {
         let mut held = vec![];
         for b in model.bodies.iter().skip(base_body + 1) {
             let j = &b.joint;
-            let passive = passive_joints.iter().any(|p| *p == j.name);
+            let passive = passive_joints.contains(&j.name);
             for c in j.idx_v..j.idx_v + j.kind.nv() {
                 if !drives[c] {
                     held.push(c);
