@@ -2,7 +2,7 @@
 //! the four cone programs: forward acceleration and deceleration, yaw left and right) at a
 //! scene's initial state, on the floating mobile manipulator (params/mobile_manipulator_floating.yaml:
 //! two rolling wheels without μ, a unilateral caster, the arm held: 12 coordinates, 7 rows) and
-//! on the cart with a tall mass (params/cart_tall_mass.yaml: two friction cones, a unilateral
+//! on the cart with a tall mass (tests/data/cart_tall_mass.yaml: two friction cones, a unilateral
 //! caster: 8 coordinates, 7 rows).
 
 use constraint_dynamics::envelope::{EnvelopeData, EnvelopeModel, acceleration_envelope};
@@ -13,8 +13,14 @@ use std::path::PathBuf;
 
 fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("envelope");
-    for name in ["mobile_manipulator_floating", "cart_tall_mass"] {
-        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("params/{name}.yaml"));
+    for (name, file) in [
+        (
+            "mobile_manipulator_floating",
+            "params/mobile_manipulator_floating.yaml",
+        ),
+        ("cart_tall_mass", "tests/data/cart_tall_mass.yaml"),
+    ] {
+        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(file);
         let scene = Scene::load(&path).expect("scene");
         let mut sys = System::from_scene(&scene).expect("system");
         let em = EnvelopeModel::from_scene(&scene, &sys).expect("envelope model");

@@ -1,6 +1,6 @@
 //! The acceleration envelope against closed forms derived by hand in docs/projection.md ("The
 //! acceleration envelope"), from the URDFs' numbers written out here (never from the code):
-//! the cart with a tall mass (params/cart_tall_mass.yaml, floating base, unilateral caster) and
+//! the cart with a tall mass (tests/data/cart_tall_mass.yaml, floating base, unilateral caster) and
 //! the planar differential drive (params/diff_drive.yaml).
 
 mod common;
@@ -39,7 +39,7 @@ fn rel(a: f64, b: f64) -> f64 {
 
 /// The cart's scene with the wheels' friction coefficient `mu`.
 fn cart_scene(mu: f64) -> Scene {
-    let path = repo_dir().join("params/cart_tall_mass.yaml");
+    let path = repo_dir().join("tests/data/cart_tall_mass.yaml");
     let text = std::fs::read_to_string(&path).unwrap();
     assert_eq!(text.matches("friction: 0.8").count(), 2);
     let text = text.replace("friction: 0.8", &format!("friction: {mu}"));
@@ -237,4 +237,105 @@ fn passive_wheels_unbounded_efforts_and_fixed_bases_are_reported() {
     let sys = System::from_scene(&fixed).unwrap();
     let e = EnvelopeModel::from_scene(&fixed, &sys).unwrap_err();
     assert!(e.to_string().contains("fixed-base"), "{e}");
+}
+
+#[test]
+fn braking_limit_of_the_floating_mobile_manipulator_falls_as_the_arm_leans_forward() {
+    // The arm's centre of mass moves forward with the shoulder pitch (a positive pitch leans the
+    // arm forward, urdf/mobile_manipulator.urdf); the caster behind the axle unloads, so the
+    // largest deceleration before it lifts off falls, and once the centre of mass is ahead of
+    // the axle (pitch π/2: Σ m x = −0.21 + 0.40 kg·m > 0) even standing still is out of reach.
+    let scene = Scene::load(repo_dir().join("params/mobile_manipulator_floating.yaml")).unwrap();
+    let mut sys = System::from_scene(&scene).unwrap();
+    let em = EnvelopeModel::from_scene(&scene, &sys).unwrap();
+    let mut ed = EnvelopeData::new(&em);
+    let pitch = sys.model.q_index("arm_shoulder_pitch").unwrap();
+    let zero = vec![0.0; sys.model.nv];
+    let mut last = f64::INFINITY;
+    for p in [0.0, 0.4, 0.8, 1.2, std::f64::consts::FRAC_PI_2] {
+        let mut q = scene.q0.clone();
+        q[pitch] = p;
+        acceleration_envelope(&mut sys, &em, &mut ed, &q, &scene.v0, &zero).unwrap();
+        let report = EnvelopeReport::new(&sys.model, &em, &ed.envelope);
+        let d = report.forward_deceleration.max.unwrap();
+        eprintln!("pitch {p:.3}: braking limit {d:.6} m/s²");
+        assert!(d < last, "pitch {p}: {d} after {last}");
+        assert_eq!(
+            names(&report.forward_deceleration),
+            vec![("lift_off".to_string(), "caster_contact".to_string())]
+        );
+        last = d;
+    }
+    assert!(last < 0.0, "the arm held forward: {last}");
+}
+
+#[test]
+fn scene_limits_are_validated_naming_the_constraint_and_field() {
+    let path = repo_dir().join("tests/data/cart_tall_mass.yaml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let urdf = std::fs::read_to_string(repo_dir().join("urdf/cart_tall_mass.urdf")).unwrap();
+    let load = |text: &str| -> Result<Scene, String> {
+        let file: SceneFile = serde_yaml::from_str(text).map_err(|e| e.to_string())?;
+        let scene = Scene::from_parts(&path, file, &urdf, "cart").map_err(|e| e.to_string())?;
+        System::from_scene(&scene).map_err(|e| e.to_string())?;
+        Ok(scene)
+    };
+    let cases = [
+        (
+            "friction: 0.8",
+            "friction: -0.1",
+            "left_wheel_contact",
+            "friction -0.1",
+        ),
+        (
+            "friction: 0.8",
+            "friction: .nan",
+            "left_wheel_contact",
+            "friction",
+        ),
+        (
+            "rows: [z]",
+            "rows: [x, z]",
+            "caster_contact",
+            "exactly one row",
+        ),
+        (
+            "    unilateral: true",
+            "    friction: 0.5",
+            "caster_contact",
+            "tangential row",
+        ),
+        (
+            "constraints:",
+            "passive_joints: [no_such_joint]\nconstraints:",
+            "passive_joints",
+            "no_such_joint",
+        ),
+        (
+            "constraints:",
+            "passive_joints: [root_joint]\nconstraints:",
+            "passive_joints",
+            "never actuated",
+        ),
+    ];
+    for (from, to, who, what) in cases {
+        let bad = text.replacen(from, to, 1);
+        assert_ne!(bad, text);
+        let e = load(&bad).expect_err(to);
+        assert!(e.contains(who) && e.contains(what), "{to}: {e}");
+    }
+    // A misspelt key is refused by the loader, which names the entry and the field.
+    let file = std::env::temp_dir().join(format!("cd_envelope_scene_{}.yaml", std::process::id()));
+    let misspelt = text
+        .replacen("friction: 0.8", "frictoin: 0.8", 1)
+        .replace("../../urdf/", &format!("{}/urdf/", repo_dir().display()));
+    std::fs::write(&file, misspelt).unwrap();
+    let e = Scene::load(&file).unwrap_err().to_string();
+    std::fs::remove_file(&file).ok();
+    assert!(
+        e.contains("left_wheel_contact") && e.contains("frictoin"),
+        "{e}"
+    );
+    // Defaults: without the new keys the scene loads as before.
+    assert!(load(&text).is_ok());
 }

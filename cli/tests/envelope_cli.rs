@@ -40,7 +40,7 @@ fn kinds(limit: &Value) -> Vec<String> {
 
 #[test]
 fn cli_envelope_prints_the_four_limits_and_what_binds_them() {
-    let (ok, stdout, stderr) = run(&["--scene", "params/cart_tall_mass.yaml"]);
+    let (ok, stdout, stderr) = run(&["--scene", "tests/data/cart_tall_mass.yaml"]);
     assert!(ok, "{stderr}");
     assert!(!stdout.contains("null"), "{stdout}");
     let v: Value = serde_json::from_str(&stdout).unwrap();
@@ -77,7 +77,7 @@ fn cli_envelope_prints_the_four_limits_and_what_binds_them() {
     .unwrap();
     let (ok, stdout2, stderr) = run(&[
         "--scene",
-        "params/cart_tall_mass.yaml",
+        "tests/data/cart_tall_mass.yaml",
         "--state",
         file.to_str().unwrap(),
     ]);

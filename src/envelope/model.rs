@@ -151,8 +151,9 @@ impl EnvelopeModel {
                     continue;
                 }
                 let effort = model.limits.effort[c];
-                if !effort.is_finite() && !unchecked.iter().any(|(_, n)| *n == j.name) {
-                    unchecked.push((BindingKind::Effort, j.name.clone()));
+                let listed = (BindingKind::Effort, j.name.clone());
+                if !effort.is_finite() && !unchecked.contains(&listed) {
+                    unchecked.push(listed);
                 }
                 actuators.push(Actuator {
                     joint: j.name.clone(),

@@ -41,12 +41,12 @@ fn envelope_allocates_nothing_outside_clarabels_solve_after_the_first_call() {
     let per_solve = clarabel_solve_allocations();
     println!("Clarabel's solve: {per_solve} allocations");
     for name in [
-        "cart_tall_mass",
-        "mobile_manipulator_floating",
-        "mobile_manipulator",
-        "diff_drive",
+        "tests/data/cart_tall_mass.yaml",
+        "params/mobile_manipulator_floating.yaml",
+        "params/mobile_manipulator.yaml",
+        "params/diff_drive.yaml",
     ] {
-        let scene = Scene::load(repo_dir().join(format!("params/{name}.yaml"))).unwrap();
+        let scene = Scene::load(repo_dir().join(name)).unwrap();
         let mut sys = System::from_scene(&scene).unwrap();
         let em = EnvelopeModel::from_scene(&scene, &sys).unwrap();
         let mut ed = EnvelopeData::new(&em);
