@@ -244,7 +244,8 @@ fn braking_limit_of_the_floating_mobile_manipulator_falls_as_the_arm_leans_forwa
     // The arm's centre of mass moves forward with the shoulder pitch (a positive pitch leans the
     // arm forward, urdf/mobile_manipulator.urdf); the caster behind the axle unloads, so the
     // largest deceleration before it lifts off falls, and once the centre of mass is ahead of
-    // the axle (pitch π/2: Σ m x = −0.21 + 0.40 kg·m > 0) even standing still is out of reach.
+    // the axle (Σ m x = −0.21 + 0.40 sin(pitch) kg·m > 0 from pitch 0.55 rad) even standing
+    // still is out of reach: the limit is negative.
     let scene = Scene::load(repo_dir().join("params/mobile_manipulator_floating.yaml")).unwrap();
     let mut sys = System::from_scene(&scene).unwrap();
     let em = EnvelopeModel::from_scene(&scene, &sys).unwrap();

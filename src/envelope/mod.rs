@@ -23,7 +23,7 @@
 //! other directions are left to the constraints.
 //!
 //! Each limit is signed: a negative forward deceleration means that even holding still is out
-//! of reach — the robot must accelerate to keep every contact (it would tip over backwards). An
+//! of reach — the robot must accelerate to keep every contact (it would tip over). An
 //! unbounded direction has no maximum ([`Reach::Unbounded`]); with the other direction held,
 //! an empty feasible set is [`Reach::Infeasible`]. Each limit names what binds it
 //! ([`BindingKind`]): the actuators at their effort, the contacts at their friction cone, the
@@ -64,8 +64,8 @@ pub enum BindingKind {
     Friction,
     /// A contact whose normal force vanishes: it would have to pull (named by its constraint).
     LiftOff,
-    /// A coordinate at a bound of the request (named by its coordinate); the envelope itself
-    /// bounds no coordinate.
+    /// A coordinate at a bound (named by its coordinate); the envelope bounds no coordinate,
+    /// so it never reports one.
     Bound,
 }
 
