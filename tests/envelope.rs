@@ -57,6 +57,14 @@ fn envelope_of(scene: &Scene) -> (System, EnvelopeModel, EnvelopeData, EnvelopeR
     let zero = vec![0.0; sys.model.nv];
     acceleration_envelope(&mut sys, &em, &mut ed, &scene.q0, &scene.v0, &zero).unwrap();
     let report = EnvelopeReport::new(&sys.model, &em, &ed.envelope);
+    let e = &ed.envelope;
+    eprintln!(
+        "iterations: {} {} {} {}",
+        e.forward_acceleration.iterations,
+        e.forward_deceleration.iterations,
+        e.yaw_acceleration_left.iterations,
+        e.yaw_acceleration_right.iterations
+    );
     (sys, em, ed, report)
 }
 

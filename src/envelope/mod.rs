@@ -118,6 +118,8 @@ pub struct Limit {
     pub tau: DVector<f64>,
     /// Constraint forces at the optimum (nc), the rows' convention (force on the robot).
     pub lambda: DVector<f64>,
+    /// Clarabel's interior-point iterations for this limit.
+    pub iterations: u32,
 }
 
 impl Limit {
@@ -129,6 +131,7 @@ impl Limit {
             qdd: DVector::zeros(em.nv),
             tau: DVector::zeros(em.na()),
             lambda: DVector::zeros(em.nc),
+            iterations: 0,
         }
     }
 }
@@ -222,6 +225,7 @@ pub fn acceleration_envelope<'a>(
     for (direction, coordinate, sign, limit) in cases {
         let outcome = ed.socp.solve(m, j, direction, coordinate, sign)?;
         limit.binding.clear();
+        limit.iterations = ed.socp.iterations();
         limit.max = f64::NAN;
         limit.reach = match outcome {
             Outcome::Optimal => Reach::Bounded,

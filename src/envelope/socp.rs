@@ -282,6 +282,11 @@ impl Socp {
         })
     }
 
+    /// Interior-point iterations of the last solve.
+    pub fn iterations(&self) -> u32 {
+        self.solver.as_ref().map_or(0, |s| s.solution.iterations)
+    }
+
     /// The last solution x = [a; τ; λ].
     pub fn x(&self) -> &[f64] {
         &self.solver.as_ref().expect("solve() ran").solution.x
