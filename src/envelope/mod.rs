@@ -199,7 +199,7 @@ pub fn acceleration_envelope<'a>(
         ed.rhs[i] = applied[i] - sys.data.tau[i];
     }
     let (m, j) = (&sys.data.mass_matrix, &sys.cdata.j);
-    ed.socp.load(m, j, &ed.rhs, &sys.cdata.gamma)?;
+    ed.socp.load(em, m, j, &ed.rhs, &sys.cdata.gamma)?;
     let env = &mut ed.envelope;
     let cases = [
         (

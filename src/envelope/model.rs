@@ -5,6 +5,7 @@
 use super::BindingKind;
 use crate::constraints::{Constraint, ConstraintSet};
 use crate::error::{Error, Result};
+use crate::linalg::NO_PARENT;
 use crate::model::{BaseType, Model};
 
 /// A contact: a constraint whose force is limited (a rolling wheel, a unilateral or frictional
@@ -67,6 +68,56 @@ pub struct EnvelopeModel {
     pub unchecked: Vec<(BindingKind, String)>,
     /// Force scale of the activity tests: the weight m·|g| [N] (1 N without gravity).
     pub force_scale: f64,
+    /// M's structural pattern, nv × nv row-major: coordinate i couples to c only if one moves
+    /// the other (an ancestor in the tree).
+    pub(super) mass_pattern: Vec<bool>,
+    /// J's structural pattern, nc × nv row-major: a rolling or point row reads only the
+    /// coordinates that move its frames; every other kind's row may read any coordinate.
+    pub(super) jacobian_pattern: Vec<bool>,
+}
+
+/// The coordinates that move `body` (its joint's and every ancestor's), as a mask over nv.
+fn support(model: &Model, body: usize, mask: &mut [bool]) {
+    if body == 0 {
+        return;
+    }
+    let j = &model.bodies[body].joint;
+    let mut c = j.idx_v + j.kind.nv() - 1;
+    while c != NO_PARENT {
+        mask[c] = true;
+        c = model.v_parent[c];
+    }
+}
+
+/// [`EnvelopeModel::mass_pattern`] and [`EnvelopeModel::jacobian_pattern`].
+fn patterns(model: &Model, set: &ConstraintSet) -> (Vec<bool>, Vec<bool>) {
+    let nv = model.nv;
+    let mut mass = vec![false; nv * nv];
+    for c in 0..nv {
+        let mut a = c;
+        while a != NO_PARENT {
+            mass[a * nv + c] = true;
+            mass[c * nv + a] = true;
+            a = model.v_parent[a];
+        }
+    }
+    let mut jac = vec![false; set.nrows * nv];
+    let mut mask = vec![false; nv];
+    for (k, c) in set.items.iter().enumerate() {
+        mask.fill(false);
+        match c {
+            Constraint::Rolling(rc) => support(model, model.frames[rc.wheel].body, &mut mask),
+            Constraint::Point(pc) => {
+                support(model, model.frames[pc.frame_a].body, &mut mask);
+                support(model, model.frames[pc.frame_b].body, &mut mask);
+            }
+            _ => mask.fill(true),
+        }
+        for r in set.ranges[k].clone() {
+            jac[r * nv..(r + 1) * nv].copy_from_slice(&mask);
+        }
+    }
+    (mass, jac)
 }
 
 impl EnvelopeModel {
@@ -164,6 +215,7 @@ impl EnvelopeModel {
         }
         debug_assert!(held.iter().all(|&c| c >= nb_base));
         let weight = model.total_mass() * model.gravity.norm();
+        let (mass_pattern, jacobian_pattern) = patterns(model, set);
         Ok(Self {
             nv: model.nv,
             nc: set.nrows,
@@ -174,6 +226,8 @@ impl EnvelopeModel {
             yaw,
             unchecked,
             force_scale: if weight > 0.0 { weight } else { 1.0 },
+            mass_pattern,
+            jacobian_pattern,
         })
     }
 

@@ -13,8 +13,9 @@
 //! SOC(1+nt)   (μ λ_n, λ_t) ∈ 𝒬                  each friction cone
 //! ```
 //!
-//! c = ∓ e_fwd or ∓ e_yaw picks the limit. The pattern is fixed by the envelope model (M and J
-//! stored dense, the held-direction row carries both base entries), so one solver serves the
+//! c = ∓ e_fwd or ∓ e_yaw picks the limit. The pattern is fixed by the envelope model (M's
+//! branch pattern, J's rows on the coordinates that move their frames, the held-direction row
+//! with both base entries), so one solver serves the
 //! four limits and every state: `update_A`, `update_b` and `update_q` overwrite its data
 //! (presolve and zero-dropping off keep the pattern).
 
@@ -108,7 +109,7 @@ impl Socp {
         let mut row = 0;
         // Dynamics rows.
         for i in 0..nv {
-            for c in 0..nv {
+            for c in (0..nv).filter(|&c| em.mass_pattern[i * nv + c]) {
                 cols[c].push((row, Src::Mass(i, c)));
             }
             for (k, act) in em.actuators.iter().enumerate() {
@@ -116,13 +117,13 @@ impl Socp {
                     cols[nv + k].push((row, Src::Const(-1.0)));
                 }
             }
-            for r in 0..nc {
+            for r in (0..nc).filter(|&r| em.jacobian_pattern[r * nv + i]) {
                 cols[nv + na + r].push((row, Src::JacobianT(r, i)));
             }
             row += 1;
         }
         for r in 0..nc {
-            for c in 0..nv {
+            for c in (0..nv).filter(|&c| em.jacobian_pattern[r * nv + c]) {
                 cols[c].push((row, Src::Jacobian(r, c)));
             }
             row += 1;
@@ -211,15 +212,18 @@ impl Socp {
     }
 
     /// Load one state's data: M, J, the dynamics right side Q − h (nv) and −γ (nc). Builds
-    /// the solver at the first call.
+    /// the solver at the first call. Debug builds check that M and J are zero off the pattern.
     pub fn load(
         &mut self,
+        em: &EnvelopeModel,
         m: &DMatrix<f64>,
         j: &DMatrix<f64>,
         rhs: &DVector<f64>,
         gamma: &DVector<f64>,
     ) -> Result<()> {
         let (nv, nc) = (m.nrows(), j.nrows());
+        debug_assert!((0..nv * nv).all(|k| em.mass_pattern[k] || m[(k / nv, k % nv)] == 0.0));
+        debug_assert!((0..nc * nv).all(|k| em.jacobian_pattern[k] || j[(k / nv, k % nv)] == 0.0));
         self.b[..nv].copy_from_slice(rhs.as_slice());
         for r in 0..nc {
             self.b[nv + r] = -gamma[r];
