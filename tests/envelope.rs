@@ -348,3 +348,55 @@ fn scene_limits_are_validated_naming_the_constraint_and_field() {
     // Defaults: without the new keys the scene loads as before.
     assert!(load(&text).is_ok());
 }
+
+#[test]
+fn the_floating_mobile_manipulators_envelope_model_holds_the_arm_and_drives_the_wheels() {
+    let scene = Scene::load(repo_dir().join("params/mobile_manipulator_floating.yaml")).unwrap();
+    let sys = System::from_scene(&scene).unwrap();
+    let em = EnvelopeModel::from_scene(&scene, &sys).unwrap();
+    let v = |n: &str| sys.model.v_index(n).unwrap();
+    let arm = [
+        "arm_shoulder_yaw",
+        "arm_shoulder_pitch",
+        "arm_elbow",
+        "arm_wrist",
+    ];
+    assert_eq!(em.held, arm.map(v).to_vec());
+    let actuated: Vec<(&str, f64)> = em
+        .actuators
+        .iter()
+        .map(|a| (a.joint.as_str(), a.effort))
+        .collect();
+    // URDF efforts: wheels 5 N·m, arm 20 N·m; the base is never actuated.
+    assert_eq!(
+        actuated,
+        [
+            ("left_wheel_joint", 5.0),
+            ("right_wheel_joint", 5.0),
+            ("arm_shoulder_yaw", 20.0),
+            ("arm_shoulder_pitch", 20.0),
+            ("arm_elbow", 20.0),
+            ("arm_wrist", 20.0)
+        ]
+    );
+    // Rows: each wheel t₁, t₂, n; the caster's one unilateral row.
+    let rows: Vec<(&str, Option<usize>, Vec<usize>, Option<f64>)> = em
+        .contacts
+        .iter()
+        .map(|c| (c.name.as_str(), c.normal, c.tangential.clone(), c.friction))
+        .collect();
+    assert_eq!(
+        rows,
+        [
+            ("left_wheel_contact", Some(2), vec![0, 1], None),
+            ("right_wheel_contact", Some(5), vec![3, 4], None),
+            ("caster_contact", Some(6), vec![], None)
+        ]
+    );
+    // A passive arm joint is not actuated, and still held.
+    let mut passive = scene.clone();
+    passive.file.passive_joints = vec!["arm_elbow".into()];
+    let em = EnvelopeModel::from_scene(&passive, &sys).unwrap();
+    assert!(em.actuators.iter().all(|a| a.joint != "arm_elbow"));
+    assert_eq!(em.held.len(), 4);
+}
