@@ -222,6 +222,18 @@ fn passive_wheels_unbounded_efforts_and_fixed_bases_are_reported() {
     let (_, _, _, report) = envelope_of(&scene);
     assert!(report.forward_acceleration.max.unwrap().abs() < 1e-6);
     assert!(report.forward_deceleration.max.unwrap().abs() < 1e-6);
+    // The same with the tall mass 0.5 m ahead of the axle: standing still would need the caster
+    // to pull (Σ m x = 20 × (−0.1) + 0.5 × (−0.4) + 10 × 0.5 > 0), and a = 0 is all the
+    // unpowered cart can do: no limit is feasible.
+    let urdf = std::fs::read_to_string(repo_dir().join("urdf/cart_tall_mass.urdf")).unwrap();
+    let ahead = urdf.replace(r#"xyz="-0.05 0 1.0""#, r#"xyz="0.5 0 1.0""#);
+    assert_ne!(ahead, urdf);
+    let ahead = Scene::from_parts(&scene.path, scene.file.clone(), &ahead, "cart").unwrap();
+    let (_, _, ed, report) = envelope_of(&ahead);
+    assert_eq!(ed.envelope.forward_deceleration.reach, Reach::Infeasible);
+    let json = serde_json::to_value(&report).unwrap();
+    assert_eq!(json["forward_deceleration"]["infeasible"], true);
+    assert!(json["forward_deceleration"].get("max").is_none());
     // The diff drive without `effort`: nothing bounds it (a planar base has no cones), and the
     // efforts are listed as unchecked.
     let path = repo_dir().join("params/diff_drive.yaml");
