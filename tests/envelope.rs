@@ -7,7 +7,7 @@ mod common;
 
 use common::repo_dir;
 use constraint_dynamics::envelope::{
-    EnvelopeData, EnvelopeModel, EnvelopeReport, Reach, acceleration_envelope,
+    Contact, EnvelopeData, EnvelopeModel, EnvelopeReport, Reach, acceleration_envelope,
 };
 use constraint_dynamics::scene::SceneFile;
 use constraint_dynamics::{Scene, System};
@@ -392,17 +392,18 @@ fn the_floating_mobile_manipulators_envelope_model_holds_the_arm_and_drives_the_
         ]
     );
     // Rows: each wheel t₁, t₂, n; the caster's one unilateral row.
-    let rows: Vec<(&str, Option<usize>, Vec<usize>, Option<f64>)> = em
-        .contacts
-        .iter()
-        .map(|c| (c.name.as_str(), c.normal, c.tangential.clone(), c.friction))
-        .collect();
+    let contact = |name: &str, normal: usize, tangential: Vec<usize>| Contact {
+        name: name.into(),
+        normal: Some(normal),
+        tangential,
+        friction: None,
+    };
     assert_eq!(
-        rows,
+        em.contacts,
         [
-            ("left_wheel_contact", Some(2), vec![0, 1], None),
-            ("right_wheel_contact", Some(5), vec![3, 4], None),
-            ("caster_contact", Some(6), vec![], None)
+            contact("left_wheel_contact", 2, vec![0, 1]),
+            contact("right_wheel_contact", 5, vec![3, 4]),
+            contact("caster_contact", 6, vec![])
         ]
     );
     // A passive arm joint is not actuated, and still held.
