@@ -16,6 +16,7 @@ pub mod applied;
 pub mod constraints;
 pub mod derivatives;
 pub mod dynamics;
+pub mod envelope;
 pub mod error;
 pub mod forces;
 pub mod limits;

@@ -47,6 +47,11 @@ pub struct SceneFile {
     /// `initial_state:` initial q and v by name (default: neutral q, zero v).
     #[serde(default)]
     pub initial_state: InitialState,
+    /// `passive_joints:` joints with no actuator (τ = 0 in the acceleration envelope); every
+    /// other joint is actuated within its URDF `<limit effort>` (default none; the base is
+    /// never actuated).
+    #[serde(default)]
+    pub passive_joints: Vec<String>,
     /// `constraints:` list of constraints, each with a `kind:` (default none).
     #[serde(default)]
     pub constraints: Vec<ConstraintSpec>,
@@ -201,6 +206,17 @@ impl Scene {
             v0[i] = *value;
         }
         model.normalize(&mut q0);
+        for name in &file.passive_joints {
+            match model.joint_body(name) {
+                Ok(b) if model.bodies[b].parent != 0 || model.base == BaseType::Fixed => {}
+                Ok(_) => {
+                    return Err(scene_err(format!(
+                        "passive_joints: '{name}' is the base, which is never actuated"
+                    )));
+                }
+                Err(e) => return Err(scene_err(format!("passive_joints: {e}"))),
+            }
+        }
         Ok(Scene {
             path: path.to_path_buf(),
             file,
@@ -233,6 +249,14 @@ impl System {
             }
         }
         Ok(sys)
+    }
+}
+
+impl crate::envelope::EnvelopeModel {
+    /// The envelope of a system built from `scene`: its contacts and the scene's
+    /// `passive_joints:`.
+    pub fn from_scene(scene: &Scene, sys: &System) -> Result<Self> {
+        Self::new(&sys.model, &sys.constraints, &scene.file.passive_joints)
     }
 }
 

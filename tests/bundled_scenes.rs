@@ -141,6 +141,8 @@ fn solo12_static_equilibrium_carries_its_weight() {
                     constraint_dynamics::constraints::Row::Y,
                     constraint_dynamics::constraints::Row::Z,
                 ],
+                unilateral: false,
+                friction: None,
             }
         })
         .collect::<Vec<_>>();

@@ -31,6 +31,8 @@ fn constraint_set_stacks_rows_in_declaration_order() {
             frame_b: "world".into(),
             point_b: [0.0, 0.0, 0.2],
             rows: vec![Row::X, Row::Z],
+            unilateral: false,
+            friction: None,
         },
         ConstraintSpec::Rolling {
             name: "contact".into(),
@@ -39,6 +41,7 @@ fn constraint_set_stacks_rows_in_declaration_order() {
             radius: 0.1,
             plane_normal: [0.0, 0.0, 1.0],
             plane_height: 0.0,
+            friction: None,
         },
     ];
     let q = [0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0];
@@ -97,6 +100,8 @@ fn omitted_fields_take_the_documented_defaults() {
             frame_b: "world".into(),
             point_b: [0.0; 3],
             rows: vec![Row::X, Row::Y, Row::Z],
+            unilateral: false,
+            friction: None,
         }
     );
     assert_eq!(
@@ -120,6 +125,7 @@ fn omitted_fields_take_the_documented_defaults() {
             radius: 0.1,
             plane_normal: [0.0, 0.0, 1.0],
             plane_height: 0.0,
+            friction: None,
         }
     );
 }

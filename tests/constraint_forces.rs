@@ -26,6 +26,8 @@ fn point_constraint_force_is_the_weight_at_the_pin() {
         frame_b: "world".into(),
         point_b: [0.3, -0.2, 1.1],
         rows: vec![Row::X, Row::Z],
+        unilateral: false,
+        friction: None,
     };
     let q = [0.3, -0.2, 1.0, 0.0, 0.0, 0.0, 1.0];
     let mut sys = multiplier_system(model, &[spec], &q);
@@ -212,6 +214,7 @@ fn disk_rolls_down_an_incline_at_two_thirds_g_sin_alpha() {
             radius: r,
             plane_normal: n,
             plane_height: h,
+            friction: None,
         };
         let c: Vec<f64> = n.iter().map(|x| (h + r) * x).collect();
         let q = [c[0], c[1], c[2], 0.0, 0.0, 0.0, 1.0];

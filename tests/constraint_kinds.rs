@@ -128,6 +128,7 @@ fn axes_and_normals_of_any_length_act_as_unit_vectors() {
         radius: 0.1,
         plane_normal: [0.0, 0.0, 3.0],
         plane_height: 0.0,
+        friction: None,
     };
     let q = q_at([0.0, 0.0, 0.1], &UnitQuaternion::identity());
     let model = reference_disk(BaseType::Floating);

@@ -59,6 +59,8 @@ fn gamma_is_the_rate_of_the_constraint_velocity() {
             frame_b: "a".into(),
             point_b: [0.6, 0.0, 0.0],
             rows: vec![Row::X, Row::Y, Row::Z],
+            unilateral: false,
+            friction: None,
         },
         ConstraintSpec::Distance {
             name: "d".into(),

@@ -156,6 +156,8 @@ fn load(
                     frame_b: "world".into(),
                     point_b: [t.x, t.y, t.z],
                     rows: vec![Row::X, Row::Y, Row::Z],
+                    unilateral: false,
+                    friction: None,
                 },
                 Contact::Weld => ConstraintSpec::Weld {
                     name: f.to_string(),

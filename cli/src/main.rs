@@ -1,6 +1,7 @@
 //! `constraint_dynamics`: inspect a scene from the command line (JSON on stdout).
 
 mod covariance;
+mod envelope;
 mod eval;
 #[cfg(test)]
 mod fuzz_tests;
@@ -27,6 +28,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The base's acceleration envelope at one state: forward acceleration and deceleration,
+    /// yaw acceleration left and right, each with what binds it (effort, friction, lift_off).
+    Envelope(envelope::EnvelopeArgs),
     /// Constrained forward dynamics at one state: q̈, multipliers and constraint forces.
     Eval(eval::EvalArgs),
     /// Linearize one integrator step: A = ∂x⁺/∂x, B = ∂x⁺/∂τ (x = (q, v), tangent space).
@@ -42,6 +46,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Envelope(a) => envelope::run(a),
         Command::Eval(a) => eval::run(a),
         Command::Linearize(a) => linearize::run(a),
         Command::Predict(a) => predict::run(a),

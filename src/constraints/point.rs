@@ -25,6 +25,10 @@ pub struct PointConstraint {
     pub point_b: Vector3<f64>,
     /// Selected world axes (0 = x, 1 = y, 2 = z).
     pub axes: Vec<usize>,
+    /// The one row pushes but never pulls (λ ≥ 0), for the acceleration envelope.
+    pub unilateral: bool,
+    /// Coulomb coefficient μ of a ground contact (‖λ_xy‖ ≤ μ λ_z), for the acceleration envelope.
+    pub friction: Option<f64>,
 }
 
 /// Relative position, velocity and classical acceleration (q̈ = 0) of A's point w.r.t. B's, and the

@@ -30,6 +30,8 @@ pub struct RollingConstraint {
     pub height: f64,
     /// Which of the 3 rows (t₁, t₂, n) are kept.
     pub rows: Vec<usize>,
+    /// Coulomb coefficient μ (‖λ_t‖ ≤ μ λ_n), for the acceleration envelope.
+    pub friction: Option<f64>,
 }
 
 /// Contact geometry at the current state.

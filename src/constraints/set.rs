@@ -296,6 +296,21 @@ fn coupling(model: &Model, bi: usize, bj: usize, a: f64, b: f64, c: f64) -> Cons
     })
 }
 
+/// A `friction:` coefficient: finite and positive (at most `limits::MAX_COEFFICIENT`).
+fn friction_of(name: &str, mu: Option<f64>) -> Result<Option<f64>> {
+    match mu {
+        Some(m) if !(m > 0.0 && m <= crate::limits::MAX_COEFFICIENT) => Err(Error::Constraint {
+            name: name.into(),
+            message: format!(
+                "friction {} must be positive and at most {:e}",
+                crate::limits::show(m),
+                crate::limits::MAX_COEFFICIENT
+            ),
+        }),
+        _ => Ok(mu),
+    }
+}
+
 fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Result<Constraint> {
     let name = spec.name();
     let cerr = |message: String| Error::Constraint {
@@ -329,14 +344,40 @@ fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Result<Constr
             frame_b,
             point_b,
             rows,
+            unilateral,
+            friction,
             ..
-        } => Constraint::Point(PointConstraint {
-            frame_a: frame(frame_a)?,
-            point_a: finite3(name, "point_a", *point_a)?,
-            frame_b: frame(frame_b)?,
-            point_b: finite3(name, "point_b", *point_b)?,
-            axes: rows_of(rows, 3)?,
-        }),
+        } => {
+            let axes = rows_of(rows, 3)?;
+            let friction = friction_of(name, *friction)?;
+            let frame_b = frame(frame_b)?;
+            if *unilateral && axes.len() != 1 {
+                return Err(cerr(format!(
+                    "unilateral: true needs exactly one row (it lists {})",
+                    axes.len()
+                )));
+            }
+            if friction.is_some() {
+                let on_ground = model.frames[frame_b].body == 0;
+                let tangential = axes.iter().any(|&a| a != 2);
+                if !(on_ground && axes.contains(&2) && tangential) {
+                    return Err(cerr(
+                        "friction needs a ground contact: frame_b fixed in the world, the \
+                         normal row z and a tangential row x or y"
+                            .into(),
+                    ));
+                }
+            }
+            Constraint::Point(PointConstraint {
+                frame_a: frame(frame_a)?,
+                point_a: finite3(name, "point_a", *point_a)?,
+                frame_b,
+                point_b: finite3(name, "point_b", *point_b)?,
+                axes,
+                unilateral: *unilateral,
+                friction,
+            })
+        }
         ConstraintSpec::Weld {
             frame_a,
             frame_b,
@@ -415,8 +456,10 @@ fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Result<Constr
             radius,
             plane_normal,
             plane_height,
+            friction,
             ..
         } => {
+            let friction = friction_of(name, *friction)?;
             if !(*radius > 0.0 && *radius <= crate::limits::MAX_LENGTH) {
                 return Err(cerr(format!(
                     "wheel radius {} m must be positive and at most {:e} m",
@@ -440,6 +483,7 @@ fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Result<Constr
                 basis: RollingConstraint::basis_for(&n),
                 height: *plane_height,
                 rows: vec![0, 1, 2],
+                friction,
             };
             let a_world = crate::algorithm::frame_placement(model, data, wheel).rotation * axis;
             if a_world.dot(&n).abs() > 1.0 - 1e-9 {

@@ -91,6 +91,16 @@ pub enum ConstraintSpec {
         /// `rows:` world axes held, subset of `[x, y, z]` (default: all three).
         #[serde(default = "xyz")]
         rows: Vec<Row>,
+        /// `unilateral:` the contact can push but never pull: with exactly one row, its λ (the
+        /// force on A along that world axis) must be ≥ 0 (default false: a bilateral hold). Read
+        /// by the acceleration envelope; the dynamics holds every row as an equality.
+        #[serde(default)]
+        unilateral: bool,
+        /// `friction:` Coulomb coefficient μ > 0 of a ground contact (`frame_b: world`, rows with
+        /// `z` and `x` and/or `y`): ‖λ_xy‖ ≤ μ λ_z, which also keeps λ_z ≥ 0 (default: none,
+        /// friction unchecked). Read by the acceleration envelope.
+        #[serde(default)]
+        friction: Option<f64>,
     },
     /// Relative pose of `frame_a` and `frame_b` fixed (selected rows). λ: wrench on frame_a at its
     /// origin [N, N·m] in `axes`.
@@ -165,6 +175,11 @@ pub enum ConstraintSpec {
         /// `plane_height:` h in the plane n·x = h [m] (default 0).
         #[serde(default)]
         plane_height: f64,
+        /// `friction:` Coulomb coefficient μ > 0: ‖λ_t‖ ≤ μ λ_n (default: none, friction
+        /// unchecked). The normal row pushes but never pulls whatever μ. Read by the
+        /// acceleration envelope.
+        #[serde(default)]
+        friction: Option<f64>,
     },
     /// Velocity of `frame`'s origin along its own `axis` is zero (knife edge). λ: lateral force [N].
     NoSideSlip {

@@ -134,6 +134,8 @@ pub fn specs_for(
                         frame_b: "world".into(),
                         point_b: [a[0], a[1], a[2]],
                         rows,
+                        unilateral: false,
+                        friction: None,
                     }
                 }
                 "rolling_disk_on_plane_z0" => {
@@ -145,6 +147,7 @@ pub fn specs_for(
                         radius: c["radius"].as_f64().unwrap(),
                         plane_normal: [0.0, 0.0, 1.0],
                         plane_height: 0.0,
+                        friction: None,
                     }
                 }
                 t => panic!("unknown reference constraint type {t}"),

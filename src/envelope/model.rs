@@ -1,0 +1,248 @@
+//! What the envelope knows of a robot, built once from the model, the constraint set and the
+//! scene's `passive_joints:`: the contacts and their limits, the actuators and their efforts, the
+//! coordinates held at zero acceleration and the two base directions.
+
+use super::BindingKind;
+use crate::constraints::{Constraint, ConstraintSet};
+use crate::error::{Error, Result};
+use crate::linalg::NO_PARENT;
+use crate::model::{BaseType, Model};
+
+/// A contact: a constraint whose force is limited (a rolling wheel, a unilateral or frictional
+/// point contact). Rows are indices into the stacked λ of the constraint set.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Contact {
+    /// The constraint's name.
+    pub name: String,
+    /// The row of the normal force, which pushes and never pulls (λ_n ≥ 0); `None` where the
+    /// model has no such row (a wheel on a planar base: the base holds the height).
+    pub normal: Option<usize>,
+    /// The rows of the tangential force (t₁, t₂ of a wheel; x, y of a point contact).
+    pub tangential: Vec<usize>,
+    /// Coulomb coefficient μ: ‖λ_t‖ ≤ μ λ_n (a second-order cone) when given with a normal row.
+    pub friction: Option<f64>,
+}
+
+impl Contact {
+    /// The friction cone applies: a normal row, tangential rows and μ.
+    pub fn has_cone(&self) -> bool {
+        self.normal.is_some() && self.friction.is_some() && !self.tangential.is_empty()
+    }
+}
+
+/// An actuated velocity coordinate: τ on it is free within ±effort.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Actuator {
+    /// The joint's name.
+    pub joint: String,
+    /// Its velocity coordinate.
+    pub coordinate: usize,
+    /// URDF `<limit effort>` [N·m or N]; ∞ where the URDF gives none (unbounded, reported
+    /// under `unchecked`).
+    pub effort: f64,
+}
+
+/// The envelope's view of a robot (the "model" half of the Model / Data pair; never modified by
+/// an evaluation).
+#[derive(Clone, Debug)]
+pub struct EnvelopeModel {
+    /// Velocity coordinates (nv).
+    pub nv: usize,
+    /// Constraint rows (nc).
+    pub nc: usize,
+    /// Contacts whose forces are limited, in the constraint set's order.
+    pub contacts: Vec<Contact>,
+    /// Actuated coordinates in coordinate order: every joint coordinate but the base's and the
+    /// `passive_joints:`.
+    pub actuators: Vec<Actuator>,
+    /// Coordinates held at zero acceleration: the joints that do not drive the base (every
+    /// joint that is not on the path from the base to a rolling wheel, e.g. an arm).
+    pub held: Vec<usize>,
+    /// The base's forward coordinate (`vx_local`): its acceleration is d/dt of the base
+    /// twist's forward component [m/s²].
+    pub forward: usize,
+    /// The base's yaw coordinate (`wz_local` or the planar `yaw` rate) [rad/s²].
+    pub yaw: usize,
+    /// Limits the envelope cannot check, by kind and name: friction of a contact without μ,
+    /// lift-off of a wheel without a normal row (planar base), effort of a joint without one.
+    pub unchecked: Vec<(BindingKind, String)>,
+    /// Force scale of the activity tests: the weight m·|g| [N] (1 N without gravity).
+    pub force_scale: f64,
+    /// M's structural pattern, nv × nv row-major: coordinate i couples to c only if one moves
+    /// the other (an ancestor in the tree).
+    pub(super) mass_pattern: Vec<bool>,
+    /// J's structural pattern, nc × nv row-major: a rolling or point row reads only the
+    /// coordinates that move its frames; every other kind's row may read any coordinate.
+    pub(super) jacobian_pattern: Vec<bool>,
+}
+
+/// The coordinates that move `body` (its joint's and every ancestor's), as a mask over nv.
+fn support(model: &Model, body: usize, mask: &mut [bool]) {
+    if body == 0 {
+        return;
+    }
+    let j = &model.bodies[body].joint;
+    let mut c = j.idx_v + j.kind.nv() - 1;
+    while c != NO_PARENT {
+        mask[c] = true;
+        c = model.v_parent[c];
+    }
+}
+
+/// [`EnvelopeModel::mass_pattern`] and [`EnvelopeModel::jacobian_pattern`].
+fn patterns(model: &Model, set: &ConstraintSet) -> (Vec<bool>, Vec<bool>) {
+    let nv = model.nv;
+    let mut mass = vec![false; nv * nv];
+    for c in 0..nv {
+        let mut a = c;
+        while a != NO_PARENT {
+            mass[a * nv + c] = true;
+            mass[c * nv + a] = true;
+            a = model.v_parent[a];
+        }
+    }
+    let mut jac = vec![false; set.nrows * nv];
+    let mut mask = vec![false; nv];
+    for (k, c) in set.items.iter().enumerate() {
+        mask.fill(false);
+        match c {
+            Constraint::Rolling(rc) => support(model, model.frames[rc.wheel].body, &mut mask),
+            Constraint::Point(pc) => {
+                support(model, model.frames[pc.frame_a].body, &mut mask);
+                support(model, model.frames[pc.frame_b].body, &mut mask);
+            }
+            _ => mask.fill(true),
+        }
+        for r in set.ranges[k].clone() {
+            jac[r * nv..(r + 1) * nv].copy_from_slice(&mask);
+        }
+    }
+    (mass, jac)
+}
+
+impl EnvelopeModel {
+    /// Contacts, actuators and held coordinates of `model` under `set`; `passive_joints` are the
+    /// scene's joints without actuator. A fixed base has no envelope (an error).
+    pub fn new(model: &Model, set: &ConstraintSet, passive_joints: &[String]) -> Result<Self> {
+        let (forward, yaw) = match model.base {
+            BaseType::Planar => (0, 2),
+            BaseType::Floating => (0, 5),
+            BaseType::Fixed => {
+                return Err(Error::Unsupported {
+                    what: "the acceleration envelope of a fixed-base robot".into(),
+                    why: "the envelope limits the base's forward and yaw accelerations; give the \
+                          scene `base: planar` or `base: floating`"
+                        .into(),
+                });
+            }
+        };
+        // Body 1 carries the base's joint (planar or floating, parent the world).
+        let base_body = 1;
+        let nb_base = model.bodies[base_body].joint.kind.nv();
+        let mut drives = vec![false; model.nv];
+        let mut contacts = vec![];
+        let mut unchecked = vec![];
+        for (k, c) in set.items.iter().enumerate() {
+            let r0 = set.ranges[k].start;
+            let name = set.names[k].clone();
+            let contact = match c {
+                Constraint::Rolling(rc) => {
+                    let mut b = model.frames[rc.wheel].body;
+                    while b != 0 && b != base_body {
+                        let j = &model.bodies[b].joint;
+                        drives[j.idx_v..j.idx_v + j.kind.nv()].fill(true);
+                        b = model.bodies[b].parent;
+                    }
+                    let normal = rc.rows.iter().position(|&r| r == 2).map(|i| r0 + i);
+                    let tangential = (0..rc.rows.len())
+                        .filter(|&i| rc.rows[i] != 2)
+                        .map(|i| r0 + i)
+                        .collect();
+                    Contact {
+                        name,
+                        normal,
+                        tangential,
+                        friction: rc.friction,
+                    }
+                }
+                Constraint::Point(pc) if pc.unilateral || pc.friction.is_some() => {
+                    let normal_axis = if pc.unilateral { pc.axes[0] } else { 2 };
+                    let normal = pc.axes.iter().position(|&a| a == normal_axis);
+                    let tangential = (0..pc.axes.len())
+                        .filter(|&i| Some(i) != normal)
+                        .map(|i| r0 + i)
+                        .collect();
+                    Contact {
+                        name,
+                        normal: normal.map(|i| r0 + i),
+                        tangential,
+                        friction: pc.friction,
+                    }
+                }
+                _ => continue,
+            };
+            if contact.normal.is_none() {
+                unchecked.push((BindingKind::LiftOff, contact.name.clone()));
+            }
+            if !contact.tangential.is_empty() && !contact.has_cone() {
+                unchecked.push((BindingKind::Friction, contact.name.clone()));
+            }
+            contacts.push(contact);
+        }
+        let mut actuators = vec![];
+        let mut held = vec![];
+        for b in model.bodies.iter().skip(base_body + 1) {
+            let j = &b.joint;
+            let passive = passive_joints.contains(&j.name);
+            for c in j.idx_v..j.idx_v + j.kind.nv() {
+                if !drives[c] {
+                    held.push(c);
+                }
+                if passive {
+                    continue;
+                }
+                let effort = model.limits.effort[c];
+                let listed = (BindingKind::Effort, j.name.clone());
+                if !effort.is_finite() && !unchecked.contains(&listed) {
+                    unchecked.push(listed);
+                }
+                actuators.push(Actuator {
+                    joint: j.name.clone(),
+                    coordinate: c,
+                    effort,
+                });
+            }
+        }
+        debug_assert!(held.iter().all(|&c| c >= nb_base));
+        let weight = model.total_mass() * model.gravity.norm();
+        let (mass_pattern, jacobian_pattern) = patterns(model, set);
+        Ok(Self {
+            nv: model.nv,
+            nc: set.nrows,
+            contacts,
+            actuators,
+            held,
+            forward,
+            yaw,
+            unchecked,
+            force_scale: if weight > 0.0 { weight } else { 1.0 },
+            mass_pattern,
+            jacobian_pattern,
+        })
+    }
+
+    /// Number of actuated coordinates (na).
+    pub fn na(&self) -> usize {
+        self.actuators.len()
+    }
+
+    /// The name a binding limit carries: the joint (effort), the contact (friction, lift-off)
+    /// or the coordinate (bound, by index into the model's `v_names`).
+    pub fn binding_name<'a>(&'a self, model: &'a Model, b: &super::Binding) -> &'a str {
+        match b.kind {
+            BindingKind::Effort => &self.actuators[b.index].joint,
+            BindingKind::Friction | BindingKind::LiftOff => &self.contacts[b.index].name,
+            BindingKind::Bound => &model.v_names[b.index],
+        }
+    }
+}
