@@ -5,24 +5,16 @@
 //! held reference is asserted in tests/live_prediction.rs.
 
 use constraint_dynamics::Scene;
-use constraint_dynamics::actuators::{Command, Hold};
-use constraint_dynamics::predict::{Method, PredictionRequest, Predictor};
+use constraint_dynamics::actuators::Command;
+use constraint_dynamics::predict::{CovarianceSamples, PredictionRequest, Predictor};
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 use std::path::PathBuf;
 
 fn bench(c: &mut Criterion) {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let mut scene = Scene::load(root.join("params/suite_mobile_manipulator.yaml")).expect("scene");
-    scene.file.actuators.hold = Hold::Continuous;
-    let mut predictor = Predictor::from_scene(&scene)
-        .expect("predictor")
-        .with_settings(|s| {
-            s.method = Method::Ros2;
-            s.dt = 0.02;
-            s.max_error = 0.05;
-        })
-        .expect("settings");
+    let scene = Scene::load(root.join("params/suite_mobile_manipulator.yaml")).expect("scene");
+    let mut predictor = Predictor::from_scene(&scene).expect("predictor");
     let mut cmd = Command {
         base_twist: Some([0.3, 0.5]),
         ..Default::default()
@@ -52,7 +44,8 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             let req = PredictionRequest::new(black_box(&scene.q0), &scene.v0)
                 .commands(&cmds)
-                .covariance(&p0);
+                .covariance(&p0)
+                .covariance_samples(CovarianceSamples::Last);
             predictor.predict(&req).unwrap()
         })
     });

@@ -27,6 +27,9 @@ pub(super) struct Ros2Buffers {
     fe: DMatrix<f64>,
     dk1: DMatrix<f64>,
     dk2: DMatrix<f64>,
+    /// W⁻¹, and δk₂'s right-hand side.
+    w_inv: DMatrix<f64>,
+    rhs: DMatrix<f64>,
     k1: Vec<f64>,
     k2: Vec<f64>,
 }
@@ -41,6 +44,8 @@ impl Ros2Buffers {
             fe: DMatrix::zeros(n, 3 * nv),
             dk1: DMatrix::zeros(n, 3 * nv),
             dk2: DMatrix::zeros(n, 3 * nv),
+            w_inv: DMatrix::zeros(n, n),
+            rhs: DMatrix::zeros(n, 3 * nv),
             k1: vec![0.0; n],
             k2: vec![0.0; n],
         }
@@ -141,17 +146,19 @@ fn from_f(
             };
         }
     }
-    r.dk1.columns_mut(0, cols).copy_from(&r.fe.columns(0, cols));
-    solve_columns(&r.w, &r.piv, &mut r.dk1, cols);
+    // W⁻¹ once (n solves), then products: the 2 × cols column solves cost twice as much.
+    r.w_inv.fill_with_identity();
+    solve_columns(&r.w, &r.piv, &mut r.w_inv, n);
+    gemm_columns(&mut r.dk1, 1.0, &r.w_inv, &r.fe, 0.0, cols);
     // δk₂ = W⁻¹ (F E + dt F δk₁ − 2 δk₁)
-    r.dk2.columns_mut(0, cols).copy_from(&r.fe.columns(0, cols));
-    gemm_columns(&mut r.dk2, dt, &r.f, &r.dk1, 1.0, cols);
+    r.rhs.columns_mut(0, cols).copy_from(&r.fe.columns(0, cols));
+    gemm_columns(&mut r.rhs, dt, &r.f, &r.dk1, 1.0, cols);
     for c in 0..cols {
         for i in 0..n {
-            r.dk2[(i, c)] -= 2.0 * r.dk1[(i, c)];
+            r.rhs[(i, c)] -= 2.0 * r.dk1[(i, c)];
         }
     }
-    solve_columns(&r.w, &r.piv, &mut r.dk2, cols);
+    gemm_columns(&mut r.dk2, 1.0, &r.w_inv, &r.rhs, 0.0, cols);
     for c in 0..cols {
         for i in 0..nv {
             let d = |m: &DMatrix<f64>, row| dt * (1.5 * m[(row, c)] + 0.5 * r.dk2[(row, c)]);

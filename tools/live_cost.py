@@ -1,0 +1,113 @@
+#!/usr/bin/env python3
+"""Measure the default suite's live cost and accuracy, and write the table of
+docs/performance.md ("The live cost") between its `live:begin` / `live:end` markers.
+
+    python3 tools/live_cost.py [--runs N] [--no-write]
+
+What it runs, in order:
+- the release suite, fed at 20 Hz inside a private network namespace (tools/ros2/live_cpu.py,
+  the peer venv of tools/ros2/setup_peer_venv.sh): CPU share and predicted-odometry rate,
+  `--runs` times;
+- the live-prediction and covariance tests (tests/live_prediction.rs, tests/covariance.rs):
+  the base pose against the controllers' 1 ms hold integrated at 0.1 ms, the error estimate
+  against the true error, the tick's work, the covariance against Monte Carlo.
+The machine should be otherwise idle: a CPU share is only as good as the quiet around it.
+"""
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+DOC = os.path.join(ROOT, "docs", "performance.md")
+BEGIN = "<!-- live:begin -->"
+END = "<!-- live:end -->"
+
+
+def run(cmd, **kw):
+    print("+", " ".join(cmd), file=sys.stderr)
+    return subprocess.run(cmd, cwd=ROOT, check=True, text=True, **kw)
+
+
+def suite_cpu(runs):
+    run(["cargo", "build", "--release", "--locked", "-p", "constraint_dynamics_nodes",
+         "--bin", "constraint_dynamics_suite"])
+    run(["bash", "tools/ros2/setup_peer_venv.sh"])
+    out = []
+    for _ in range(runs):
+        r = run(["tools/ros2/netns_run.sh", ".venv-ros2/bin/python", "tools/ros2/live_cpu.py",
+                 "--suite", "target/release/constraint_dynamics_suite"], stdout=subprocess.PIPE)
+        out.append(json.loads(r.stdout.strip().splitlines()[-1]))
+    return out
+
+
+def accuracy():
+    r = run(["cargo", "test", "--locked", "-p", "constraint_dynamics", "--test", "live_prediction",
+             "--test", "covariance", "--", "--nocapture", "live"],
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    text = r.stdout
+    base = [(float(a), float(b)) for a, b in
+            re.findall(r"base ([0-9.e+-]+) m, yaw ([0-9.e+-]+) rad from the held reference", text)]
+    ratios = [float(x) for x in re.findall(r"\(×([0-9.]+)\)", text)]
+    work = re.search(r"evaluations (\d+) \+ (\d+) \(estimate\), Jacobians (\d+), covariance "
+                     r"linearizations (\d+)", text)
+    mc = [float(x) for x in re.findall(r"live mobile manipulator[^:]*: achieved \|P_mc − P\| / "
+                                       r"\|P\| = ([0-9.]+)", text)]
+    if not (base and ratios and work and mc):
+        sys.exit("live_cost.py: the tests' printout changed; nothing written\n" + text[-3000:])
+    return {
+        "position_m": max(b[0] for b in base),
+        "yaw_rad": max(b[1] for b in base),
+        "ratio": (min(ratios), max(ratios)),
+        "work": tuple(int(x) for x in work.groups()),
+        "mc": max(mc),
+    }
+
+
+def table(cpu, acc):
+    shares = sorted(c["cpu_share"] for c in cpu)
+    rates = sorted(c["predicted_odom_hz"] for c in cpu)
+    share = f"{shares[0]:.3f}" if len(shares) == 1 else f"{shares[0]:.3f}–{shares[-1]:.3f}"
+    rate = f"{rates[0]:.1f}" if len(rates) == 1 else f"{rates[0]:.1f}–{rates[-1]:.1f}"
+    cov = "yes" if all(c["covariance"] for c in cpu) else "**no**"
+    ev, est, jac, lin = acc["work"]
+    lo, hi = acc["ratio"]
+    return "\n".join([
+        BEGIN,
+        "<!-- written by python3 tools/live_cost.py: do not edit -->",
+        "",
+        "| suite CPU share [cores] | predicted_odom [Hz] | with covariance | evaluations per tick "
+        "(answer + estimate) | Jacobians | covariance linearizations | base position vs held "
+        "| yaw vs held | estimate / true error | covariance vs Monte Carlo |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+        f"| {share} ({len(cpu)} runs) | {rate} | {cov} | {ev} + {est} | {jac} | {lin} "
+        f"| {acc['position_m']:.1e} m | {acc['yaw_rad']:.1e} rad | {lo:.2f}–{hi:.2f} "
+        f"| {100 * acc['mc']:.1f} % |",
+        "",
+        END,
+    ])
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=2, help="suite CPU measurements")
+    ap.add_argument("--no-write", action="store_true", help="print the table only")
+    args = ap.parse_args()
+    cpu = suite_cpu(args.runs)
+    acc = accuracy()
+    t = table(cpu, acc)
+    print(t)
+    if args.no_write:
+        return
+    doc = open(DOC).read()
+    a, b = doc.find(BEGIN), doc.find(END)
+    if a < 0 or b < a:
+        sys.exit(f"{DOC}: no {BEGIN} ... {END} block")
+    open(DOC, "w").write(doc[:a] + t + doc[b + len(END):])
+
+
+if __name__ == "__main__":
+    main()
