@@ -49,7 +49,7 @@ fn commands(scene: &Scene, p: &Predictor, twists: [[f64; 2]; 2]) -> Vec<(f64, Co
 const TURNS: [[[f64; 2]; 2]; 2] = [[[0.3, 0.5], [0.3, 0.5]], [[0.3, 0.5], [0.3, -0.3]]];
 
 /// RK4 at 0.1 ms on `scene` (its controllers' hold as given), no error estimate.
-fn fine(scene: &Scene, cmds: &[(f64, Command)]) -> Trajectory {
+fn fine(scene: &Scene, cmds: &[(f64, Command)], horizon: f64) -> Trajectory {
     let mut p = Predictor::from_scene(scene)
         .unwrap()
         .with_settings(|s| {
@@ -60,8 +60,8 @@ fn fine(scene: &Scene, cmds: &[(f64, Command)]) -> Trajectory {
             s.max_work = 1e12;
         })
         .unwrap();
-    p.predict(&PredictionRequest::new(&scene.q0, &scene.v0).commands(cmds))
-        .unwrap()
+    let req = PredictionRequest::new(&scene.q0, &scene.v0).commands(cmds);
+    p.predict(&req.horizon(horizon)).unwrap()
 }
 
 /// Largest base position [m] and yaw [rad] difference over the common samples.
@@ -80,23 +80,28 @@ fn base_pose_gap(a: &Trajectory, b: &Trajectory) -> (f64, f64) {
     w
 }
 
+/// The predictor's tick (1 s) and a planner's 2 s `Predict`.
 #[test]
 fn the_live_prediction_stays_within_a_millimetre_of_the_held_controllers() {
     let (scene, mut live) = live();
     let held = common::suite_held_scene();
-    for twists in TURNS {
-        let cmds = commands(&scene, &live, twists);
-        let reference = fine(&held, &cmds);
-        let answer = live
-            .predict(&PredictionRequest::new(&scene.q0, &scene.v0).commands(&cmds))
-            .unwrap();
-        let (dp, dyaw) = base_pose_gap(&answer, &reference);
-        println!("{twists:?}: base {dp:.3e} m, yaw {dyaw:.3e} rad from the held reference");
-        // Measured 1.7e-4 m and 7.0e-4 / 9.0e-4 rad.
-        assert!(
-            dp <= 1e-3 && dyaw <= 1e-3,
-            "{twists:?}: {dp:e} m, {dyaw:e} rad"
-        );
+    for horizon in [1.0, 2.0] {
+        for twists in TURNS {
+            let cmds = commands(&scene, &live, twists);
+            let reference = fine(&held, &cmds, horizon);
+            let req = PredictionRequest::new(&scene.q0, &scene.v0).commands(&cmds);
+            let answer = live.predict(&req.horizon(horizon)).unwrap();
+            let (dp, dyaw) = base_pose_gap(&answer, &reference);
+            println!(
+                "{twists:?} over {horizon} s: base {dp:.3e} m, yaw {dyaw:.3e} rad from the held \
+                 reference"
+            );
+            // Measured 1.7e-4 m and 7.0e-4 / 9.0e-4 rad over 1 s.
+            assert!(
+                dp <= 1e-3 && dyaw <= 1e-3,
+                "{twists:?} over {horizon} s: {dp:e} m, {dyaw:e} rad"
+            );
+        }
     }
 }
 
@@ -105,7 +110,7 @@ fn the_live_error_estimate_tracks_the_true_error() {
     let (scene, mut live) = live();
     for twists in TURNS {
         let cmds = commands(&scene, &live, twists);
-        let exact = fine(&scene, &cmds);
+        let exact = fine(&scene, &cmds, 1.0);
         let answer = live
             .predict(&PredictionRequest::new(&scene.q0, &scene.v0).commands(&cmds))
             .unwrap();

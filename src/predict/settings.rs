@@ -23,7 +23,7 @@ pub enum DriftControl {
 #[derive(Clone, Debug, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct IntegrationSettings {
-    /// `method:` semi_implicit_euler | rk4 | dopri5 | dop853 | sdirk2 | radau5 (default `rk4`).
+    /// `method:` semi_implicit_euler | rk4 | dopri5 | dop853 | sdirk2 | radau5 | ros2 (default `rk4`).
     #[serde(default)]
     pub method: Method,
     /// Step [s] (fixed-step methods; first step of the adaptive ones).
