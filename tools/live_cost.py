@@ -67,14 +67,18 @@ def accuracy():
     }
 
 
+def span(values, fmt):
+    """'lo–hi' in `fmt`, or one value when they print the same."""
+    lo, hi = format(min(values), fmt), format(max(values), fmt)
+    return lo if lo == hi else f"{lo}–{hi}"
+
+
 def table(cpu, acc):
-    shares = sorted(c["cpu_share"] for c in cpu)
-    rates = sorted(c["predicted_odom_hz"] for c in cpu)
-    share = f"{shares[0]:.3f}" if len(shares) == 1 else f"{shares[0]:.3f}–{shares[-1]:.3f}"
-    rate = f"{rates[0]:.1f}" if len(rates) == 1 else f"{rates[0]:.1f}–{rates[-1]:.1f}"
+    share = span([c["cpu_share"] for c in cpu], ".3f")
+    rate = span([c["predicted_odom_hz"] for c in cpu], ".1f")
     cov = "yes" if all(c["covariance"] for c in cpu) else "**no**"
     ev, est, jac, lin = acc["work"]
-    lo, hi = acc["ratio"]
+    ratio = span(acc["ratio"], ".2f")
     return "\n".join([
         BEGIN,
         "<!-- written by python3 tools/live_cost.py: do not edit -->",
@@ -84,7 +88,7 @@ def table(cpu, acc):
         "| yaw vs held | estimate / true error | covariance vs Monte Carlo |",
         "|---|---|---|---|---|---|---|---|---|---|",
         f"| {share} ({len(cpu)} runs) | {rate} | {cov} | {ev} + {est} | {jac} | {lin} "
-        f"| {acc['position_m']:.1e} m | {acc['yaw_rad']:.1e} rad | {lo:.2f}–{hi:.2f} "
+        f"| {acc['position_m']:.1e} m | {acc['yaw_rad']:.1e} rad | {ratio} "
         f"| {100 * acc['mc']:.1f} % |",
         "",
         END,

@@ -9,7 +9,9 @@
 //! - fixed-step methods (semi-implicit Euler, RK4, SDIRK2): the step halved, two companion steps
 //!   per step of the answer. With a global error `e(dt) ≈ C dt^p` (p the method's order),
 //!   `e(dt) ≈ (q_dt ⊖ q_dt/2) · 2^p / (2^p − 1)`: factor 2 (SIE), 4/3 (SDIRK2), 16/15 (RK4).
-//!   Cost: two extra steps per step, 3× the evaluations.
+//!   Cost: two extra steps per step, 3× the evaluations. ROS2's companion steps with the
+//!   answer's F of the span (a W-method keeps its order with any F), so it computes no
+//!   Jacobian of its own.
 //! - adaptive methods (DOPRI5, DOP853, Radau5; order p): the tolerances divided by K = 2^p (32,
 //!   256, 32) and every step at most half the answer's largest in the span. DOPRI5 in detail: Where the tolerance sets the step, DOPRI5's global error is about proportional
 //!   to it; where the span caps the step (smooth motion, loose tolerance) both lanes would take

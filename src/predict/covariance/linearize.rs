@@ -12,15 +12,18 @@
 //! (tests).
 
 mod ros2;
+mod stages;
 pub(in crate::predict) use ros2::ros2_with_step_jacobian;
+pub(in crate::predict) use stages::dynamics_derivatives;
+use stages::{dynamics, stage_acceleration};
 
 use crate::actuators::Feedback;
-use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
+use crate::derivatives::DerivativeData;
 use crate::error::{Error, Result};
 use crate::linalg::{gemm_columns, mat_vec_add};
 use crate::predict::integrators::lie::{StageMaps, dexp_inv, right_jacobian, transport};
 use crate::predict::integrators::{DOP853, DOPRI5, Method, RK4, Tableau};
-use crate::system::{DynamicsOptions, System};
+use crate::system::System;
 use nalgebra::DMatrix;
 
 /// Workspace and result of [`linearize_step`], sized once for a system.
@@ -177,104 +180,6 @@ impl Linearization {
             power: [vec![0.0; 2 * nv], vec![0.0; 2 * nv]],
             ros2: ros2::Ros2Buffers::new(nv),
         }
-    }
-}
-
-/// q̈ and its derivatives at (q, v, τ) into `dd`: the multiplier form's with constraints (its
-/// Baumgarte gains included), ABA's without. With joint spring-dampers, τ's share of them is
-/// taken at this (q, v) (τ holds the share at the step's start (q₀, v₀)) and their stiffness and
-/// damping enter ∂q̈/∂q and ∂q̈/∂v through ∂q̈/∂τ.
-#[allow(clippy::too_many_arguments)]
-fn dynamics(
-    sys: &mut System,
-    dd: &mut DerivativeData,
-    springs: &[(usize, usize, f64, f64, f64)],
-    tau_stage: &mut [f64],
-    (q0, v0): (&[f64], &[f64]),
-    (q, v, ds): (&[f64], &[f64], f64),
-    tau: &[f64],
-) -> Result<()> {
-    stage_torque(springs, tau_stage, (q0, v0), (q, v, ds), tau);
-    dynamics_derivatives(sys, dd, q, v, tau_stage)?;
-    let nv = v.len();
-    for &(_, iv, k, d, _) in springs {
-        for i in 0..nv {
-            let g = dd.dqdd_dtau[(i, iv)];
-            dd.dqdd_dq[(i, iv)] -= g * k;
-            dd.dqdd_dv[(i, iv)] -= g * d;
-        }
-    }
-    Ok(())
-}
-
-/// The generalized force at a stage (q, v) `ds` [s] into the step: the step's τ, with each
-/// joint spring's and controller's share moved from the start (q0, v0) to the stage
-/// (−k Δq − d Δv) and a controller's own rate (its `Feedback::rate`) added over ds.
-fn stage_torque(
-    springs: &[(usize, usize, f64, f64, f64)],
-    tau_stage: &mut [f64],
-    (q0, v0): (&[f64], &[f64]),
-    (q, v, ds): (&[f64], &[f64], f64),
-    tau: &[f64],
-) {
-    tau_stage.copy_from_slice(tau);
-    for &(iq, iv, k, d, rate) in springs {
-        tau_stage[iv] -= k * (q[iq] - q0[iq]) + d * (v[iv] - v0[iv]);
-        if rate != 0.0 {
-            tau_stage[iv] += rate * ds;
-        }
-    }
-}
-
-/// q̈ alone at the stage (q, v) under τ and the joint springs measured from (q0, v0) (as in
-/// [`dynamics`]), into `qdd`: a plain evaluation, solved as the prediction solves a stage.
-#[allow(clippy::too_many_arguments)]
-fn stage_acceleration(
-    sys: &mut System,
-    springs: &[(usize, usize, f64, f64, f64)],
-    tau_stage: &mut [f64],
-    (q0, v0): (&[f64], &[f64]),
-    (q, v, ds): (&[f64], &[f64], f64),
-    tau: &[f64],
-    qdd: &mut [f64],
-) -> Result<()> {
-    stage_torque(springs, tau_stage, (q0, v0), (q, v, ds), tau);
-    let opts = DynamicsOptions::stage(sys.formulation);
-    qdd.copy_from_slice(sys.forward_dynamics_with(q, v, tau_stage, opts)?.as_slice());
-    Ok(())
-}
-
-/// q̈ and ∂q̈/∂(q, v, τ) at (q, v, τ) into `dd`: the multiplier form's (its Baumgarte gains
-/// included) with constraints, ABA's without. (q, v) is a stage of a step, and its rows are
-/// solved as the prediction solves a stage's (`DynamicsOptions::stage`): redundant rows that
-/// disagree there get the least-squares λ, whose derivatives `derivatives::kkt` takes.
-pub(in crate::predict) fn dynamics_derivatives(
-    sys: &mut System,
-    dd: &mut DerivativeData,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-) -> Result<()> {
-    if sys.constraints.is_empty() {
-        aba_derivatives(&sys.model, &mut sys.data, dd, q, v, tau)
-    } else {
-        // Set here, not inherited: the flag stays in the workspace from the last evaluation on
-        // this system, unset after a sample's forces and on the covariance worker's clone (made
-        // before any stage ran), set after a stage of the prediction.
-        let stage = DynamicsOptions::stage(sys.formulation);
-        sys.kkt.allow_inconsistent = stage.allow_inconsistent;
-        constrained_dynamics_derivatives(
-            &sys.model,
-            &mut sys.data,
-            &sys.constraints,
-            &mut sys.cdata,
-            &mut sys.kkt,
-            dd,
-            q,
-            v,
-            tau,
-            sys.baumgarte,
-        )
     }
 }
 
