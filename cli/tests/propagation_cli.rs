@@ -103,10 +103,10 @@ fn quick_report_writes_csv_png_and_summary() {
 }
 
 /// Every bundled scene (params/*.yaml with a URDF, and the report's) predicts its default horizon
-/// with its own integration settings and the default max_error, and every sample carries a
-/// finite `error_estimate` within the bound.
+/// with its own integration settings and max_error (the default 1e-3, or the scene's), and every
+/// sample carries a finite `error_estimate` within that bound.
 #[test]
-fn every_bundled_scene_predicts_within_the_default_max_error() {
+fn every_bundled_scene_predicts_within_its_max_error() {
     let root = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
     let mut scenes = vec![];
     for dir in ["params", "params/report"] {
@@ -149,7 +149,15 @@ fn every_bundled_scene_predicts_within_the_default_max_error() {
             "{scene}: {} samples, largest error_estimate {worst:.2e}",
             est.len()
         );
-        assert!(est.iter().all(|x| x.is_finite() && *x <= 1e-3), "{scene}");
+        let bound = constraint_dynamics::Scene::load(root.join(scene))
+            .unwrap()
+            .file
+            .integration
+            .max_error;
+        assert!(
+            est.iter().all(|x| x.is_finite() && *x <= bound),
+            "{scene}: bound {bound:e}"
+        );
     }
 }
 
