@@ -7,7 +7,7 @@ use super::projector::{SolvePath, Status, VelocityProjector};
 use super::request::{ProjectionRequest, base_dofs};
 use crate::algorithm::{Data, crba_after_kinematics};
 use crate::constraints::{ConstraintData, ConstraintSet, constraint_forces};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::model::Model;
 use serde::Serialize;
 
@@ -116,6 +116,33 @@ pub struct Projection {
     pub conflicts: Vec<NamedConflict>,
     /// Clarabel interior-point iterations (0 when not called).
     pub qp_iterations: u32,
+    /// With a control period: the period, what binds and the torques (absent when Δt = 0).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dynamics: Option<super::dynamic::DynamicReport>,
+}
+
+/// Each constraint's impulse `lambda` (nc) at its frame (kinematics in `data`).
+pub(super) fn impulses(
+    model: &Model,
+    data: &Data,
+    set: &ConstraintSet,
+    cd: &ConstraintData,
+    lambda: &nalgebra::DVector<f64>,
+) -> Vec<ConstraintImpulse> {
+    constraint_forces(model, data, set, cd, lambda)
+        .into_iter()
+        .map(|f| ConstraintImpulse {
+            name: f.name,
+            kind: f.kind,
+            frame: f.frame,
+            axes: f.axes,
+            rows: f.rows,
+            lambda: f.lambda,
+            impulse: f.force,
+            angular_impulse: f.torque,
+            point_world: f.point_world,
+        })
+        .collect()
 }
 
 fn relation(side: Side) -> &'static str {
@@ -139,6 +166,13 @@ impl VelocityProjector {
         request: &ProjectionRequest,
     ) -> Result<Projection> {
         model.check_state(q, v_current)?;
+        if request.period != 0.0 {
+            return Err(Error::Invalid(format!(
+                "projection request: period = {} s needs the robot's limits; project it with \
+                 DynamicProjector (the CLI's --period)",
+                request.period
+            )));
+        }
         set.evaluate(model, data, cd, q, v_current);
         crba_after_kinematics(model, data);
         let problem = request.resolve(model, &cd.j, v_current)?;
@@ -173,20 +207,7 @@ impl VelocityProjector {
         let row_names = set.row_names();
         let v: Vec<f64> = self.v.iter().copied().collect();
         let constraints = if ok {
-            constraint_forces(model, data, set, cd, &self.lambda)
-                .into_iter()
-                .map(|f| ConstraintImpulse {
-                    name: f.name,
-                    kind: f.kind,
-                    frame: f.frame,
-                    axes: f.axes,
-                    rows: f.rows,
-                    lambda: f.lambda,
-                    impulse: f.force,
-                    angular_impulse: f.torque,
-                    point_world: f.point_world,
-                })
-                .collect()
+            impulses(model, data, set, cd, &self.lambda)
         } else {
             vec![]
         };
@@ -248,10 +269,11 @@ impl VelocityProjector {
             active_inequalities,
             conflicts,
             qp_iterations: o.qp_iterations,
+            dynamics: None,
         }
     }
 
-    fn name_conflict(
+    pub(super) fn name_conflict(
         &self,
         model: &Model,
         set: &ConstraintSet,
