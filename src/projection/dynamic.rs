@@ -69,7 +69,8 @@ pub struct DynamicReport {
     pub binding: Vec<NamedLimit>,
     /// The actuated joints, in order.
     pub actuators: Vec<String>,
-    /// Their torques (forces) over the period [N·m or N]; null when infeasible.
+    /// Their torques (forces) over the period [N·m or N]; absent when infeasible.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub tau: Option<Vec<f64>>,
     /// Limits the dynamics cannot check (as the envelope lists them).
     pub unchecked: Vec<NamedLimit>,
@@ -255,7 +256,7 @@ impl DynamicProjector {
         self.outcome.qp_iterations = socp.iterations();
         let z = socp.z();
         if status == SocpOutcome::Infeasible {
-            name_certificate(em, socp, &mut self.conflicts);
+            diagnose(em, socp, &data, &mut self.conflicts)?;
             return Ok(self.finish_infeasible(SolvePath::DynamicCertificate));
         }
         let x = socp.x();
@@ -501,42 +502,86 @@ fn check_period(period: f64, em: Option<&EnvelopeModel>) -> Result<&EnvelopeMode
     })
 }
 
-/// The support of the infeasibility certificate, named (the dynamics rows, always part of it,
-/// are left out). Allocates as it pushes; only on infeasible requests.
-fn name_certificate(em: &EnvelopeModel, socp: &DynSocp, out: &mut Vec<DynamicConflict>) {
+/// A limit of the cone program that a diagnosis may lift: its rows and its name.
+fn groups(em: &EnvelopeModel, socp: &DynSocp) -> Vec<(std::ops::Range<usize>, DynamicConflict)> {
     let z = socp.z();
-    let zmax = z.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let tol = 1e-7 * zmax;
-    let mut push = |c: DynamicConflict| {
-        if !out.contains(&c) {
-            out.push(c);
-        }
-    };
-    for (r, kind) in socp.rows.iter().enumerate() {
-        let on = z[r].abs() > tol;
-        match *kind {
-            RowKind::Dynamics(_) | RowKind::ConeTail => {}
-            RowKind::Constraint(row) if on => {
-                push(DynamicConflict::Kinematic(Conflict::ConstraintRow(row)))
+    let mut out = vec![];
+    let mut r = 0;
+    while r < socp.rows.len() {
+        let (len, c) = match socp.rows[r] {
+            RowKind::Ineq(IneqRow::Bound(index, side)) => {
+                (1, DynamicConflict::Kinematic(Conflict::Bound { index, side }))
             }
-            RowKind::Ineq(IneqRow::Bound(index, side)) if on => {
-                push(DynamicConflict::Kinematic(Conflict::Bound { index, side }))
+            RowKind::Ineq(IneqRow::User(k)) => {
+                (1, DynamicConflict::Kinematic(Conflict::Inequality(k)))
             }
-            RowKind::Ineq(IneqRow::User(k)) if on => {
-                push(DynamicConflict::Kinematic(Conflict::Inequality(k)))
-            }
-            RowKind::Effort(k) if on => push(DynamicConflict::Effort(k)),
-            RowKind::Normal(k) if on => push(DynamicConflict::LiftOff(k)),
-            RowKind::Cone(k) if on => {
+            RowKind::Effort(k) => (2, DynamicConflict::Effort(k)),
+            RowKind::Normal(k) => (1, DynamicConflict::LiftOff(k)),
+            RowKind::Cone(k) => {
+                // A certificate that uses the cone's tangential part is friction's; one that
+                // uses only its normal is the contact's push.
                 let nt = em.contacts[k].tangential.len();
                 let zt = (1..=nt).map(|t| z[r + t] * z[r + t]).sum::<f64>().sqrt();
-                push(if zt > 1e-6 * z[r].abs() {
+                let c = if zt > 1e-6 * z[r].abs() {
                     DynamicConflict::Friction(k)
                 } else {
                     DynamicConflict::LiftOff(k)
-                });
+                };
+                (1 + nt, c)
             }
-            _ => {}
+            RowKind::Dynamics(_) | RowKind::Constraint(_) | RowKind::ConeTail => {
+                r += 1;
+                continue;
+            }
+        };
+        out.push((r..r + len, c));
+        r += len;
+    }
+    out
+}
+
+/// A minimal set of limits that cannot hold together with the dynamics and the constraints:
+/// the limits in the support of Clarabel's certificate, reduced by a deletion filter (each
+/// lifted in turn, and left out if the rest is still infeasible), so that every limit named is
+/// necessary. Allocates and re-solves; only on infeasible requests.
+fn diagnose(
+    em: &EnvelopeModel,
+    socp: &mut DynSocp,
+    data: &SocpData,
+    out: &mut Vec<DynamicConflict>,
+) -> Result<()> {
+    let all = groups(em, socp);
+    let z = socp.z();
+    let zmax = z.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let in_support = |g: &std::ops::Range<usize>| g.clone().any(|r| z[r].abs() > 1e-7 * zmax);
+    let support: Vec<bool> = all.iter().map(|(g, _)| in_support(g)).collect();
+    let infeasible = |socp: &mut DynSocp| -> bool {
+        matches!(socp.solve(em, data), Ok(SocpOutcome::Infeasible))
+    };
+    for ((g, _), &s) in all.iter().zip(&support) {
+        for r in g.clone() {
+            socp.relaxed[r] = !s;
         }
     }
+    if !infeasible(socp) {
+        socp.relaxed.fill(false);
+    }
+    let mut kept = vec![];
+    for (k, (g, c)) in all.iter().enumerate() {
+        if socp.relaxed[g.start] {
+            continue;
+        }
+        for r in g.clone() {
+            socp.relaxed[r] = true;
+        }
+        if !infeasible(socp) {
+            for r in g.clone() {
+                socp.relaxed[r] = false;
+            }
+            kept.push(k);
+            out.push(*c);
+        }
+    }
+    socp.relaxed.fill(false);
+    Ok(())
 }

@@ -121,7 +121,12 @@ pub(super) struct DynSocp {
     p_idx: Vec<(usize, usize)>,
     p_val: Vec<f64>,
     a_src: Vec<Src>,
+    /// Row of each stored entry of A.
+    a_row: Vec<usize>,
     a_val: Vec<f64>,
+    /// Rows lifted out of the problem (the diagnosis of an infeasible request): their entries
+    /// are zero and their slack is a point inside the cone.
+    pub relaxed: Vec<bool>,
     q: Vec<f64>,
     b: Vec<f64>,
     /// First row of the inequality block.
@@ -245,9 +250,10 @@ impl DynSocp {
             (ineq_row0, effort_row0),
         );
         let p = CscMatrix::new(n, n, p_colptr, p_row, p_val.clone());
-        let a = CscMatrix::new(m, n, colptr, rowval, a_val.clone());
+        let a = CscMatrix::new(m, n, colptr, rowval.clone(), a_val.clone());
         let solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings())
             .map_err(|e| numerical(&format!("Clarabel refused the problem: {e:?}")))?;
+        let relaxed = vec![false; m];
         Ok(Self {
             n,
             ineq: ineq.to_vec(),
@@ -255,7 +261,9 @@ impl DynSocp {
             p_idx,
             p_val,
             a_src,
+            a_row: rowval,
             a_val,
+            relaxed,
             q,
             b,
             ineq_row0,
@@ -281,6 +289,16 @@ impl DynSocp {
             &mut self.b,
             (self.ineq_row0, self.effort_row0),
         );
+        for (val, &r) in self.a_val.iter_mut().zip(&self.a_row) {
+            if self.relaxed[r] {
+                *val = 0.0;
+            }
+        }
+        for (r, kind) in self.rows.iter().enumerate() {
+            if self.relaxed[r] {
+                self.b[r] = if *kind == RowKind::ConeTail { 0.0 } else { 1.0 };
+            }
+        }
         let s = &mut self.solver;
         let ok = s.update_P(&self.p_val).is_ok()
             && s.update_q(&self.q).is_ok()

@@ -87,18 +87,21 @@ pub struct Projection {
     pub v_names: Vec<String>,
     /// Resolved desired velocity (nv) [m/s, rad/s].
     pub v_des: Vec<f64>,
-    /// v* [m/s, rad/s]; null when infeasible.
+    /// v* [m/s, rad/s]; absent when infeasible (the CLI prints no null).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub v: Option<Vec<f64>>,
     /// v* split: base twist in the base frame (planar [vx, vy, wz], floating 6), then joints.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub base_twist: Option<Vec<f64>>,
     /// Names of the joint velocity coordinates (after the base's).
     pub joint_names: Vec<String>,
-    /// v* of the joints [rad/s or m/s]; null when infeasible.
+    /// v* of the joints [rad/s or m/s]; absent when infeasible (the CLI prints no null).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub joint_velocities: Option<Vec<f64>>,
     /// Constraint row names `constraint/row`, in stacked order.
     pub constraint_rows: Vec<String>,
-    /// λ per constraint row [N·s or N·m·s]; null when infeasible.
+    /// λ per constraint row [N·s or N·m·s]; absent when infeasible (the CLI prints no null).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub impulses: Option<Vec<f64>>,
     /// Impulse of each constraint at its frame; empty when infeasible.
     pub constraints: Vec<ConstraintImpulse>,
