@@ -280,10 +280,14 @@ impl DynamicProjector {
                     self.nu[i] += if side == Side::Lower { zt } else { -zt };
                     if active {
                         self.active_bounds.push((i, side));
-                        self.binding.push(Binding {
+                        let b = Binding {
                             kind: BindingKind::Bound,
                             index: i,
-                        });
+                        };
+                        // lo = hi: one coordinate held, named once.
+                        if self.binding.last() != Some(&b) {
+                            self.binding.push(b);
+                        }
                     }
                 }
                 IneqRow::User(k) => {
