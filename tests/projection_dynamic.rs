@@ -202,7 +202,12 @@ fn from_rest_the_floating_mobile_manipulator_gains_period_times_its_envelope() {
             let named = |l: &constraint_dynamics::envelope::Limit| {
                 l.binding
                     .iter()
-                    .map(|x| (x.kind.name().to_string(), r.em.binding_name(&r.sys.model, x).to_string()))
+                    .map(|x| {
+                        (
+                            x.kind.name().to_string(),
+                            r.em.binding_name(&r.sys.model, x).to_string(),
+                        )
+                    })
                     .collect::<Vec<_>>()
             };
             let lim = if vx > 0.0 {
@@ -287,8 +292,8 @@ fn infeasible_requests_name_the_limits_that_cannot_hold_together() {
         [("lift_off".to_string(), "caster_contact".to_string())]
     );
     // A bad period is refused.
-    let req = ProjectionRequest::from_json(r#"{"base_twist": [0,0,0,0,0,0], "period": -1}"#)
-        .unwrap();
+    let req =
+        ProjectionRequest::from_json(r#"{"base_twist": [0,0,0,0,0,0], "period": -1}"#).unwrap();
     let q = r.scene.q0.clone();
     let zero = vec![0.0; r.sys.model.nv];
     let e = r
@@ -308,14 +313,25 @@ fn infeasible_requests_name_the_limits_that_cannot_hold_together() {
 fn period_zero_is_the_kinematic_projection() {
     let mut worst = 0.0f64;
     let mut cases = 0;
-    let mut compare = |tag: &str, sys: &mut System, em: Option<&EnvelopeModel>, q: &[f64], p: &ProjectionProblem| {
+    let mut compare = |tag: &str,
+                       sys: &mut System,
+                       em: Option<&EnvelopeModel>,
+                       q: &[f64],
+                       p: &ProjectionProblem| {
         let nv = sys.model.nv;
         let zero = vec![0.0; nv];
         let mut dynamic = DynamicProjector::new(&sys.model, &sys.constraints);
         let od = dynamic.project(sys, em, q, &zero, &zero, p, 0.0).unwrap();
         let mut kin = VelocityProjector::new(&sys.model, &sys.constraints);
         let ok = kin
-            .project(&sys.model, &mut sys.data, &sys.constraints, &mut sys.cdata, q, p)
+            .project(
+                &sys.model,
+                &mut sys.data,
+                &sys.constraints,
+                &mut sys.cdata,
+                q,
+                p,
+            )
             .unwrap();
         assert_eq!(od, ok, "{tag}");
         let d = &dynamic.kinematic;
@@ -326,15 +342,30 @@ fn period_zero_is_the_kinematic_projection() {
         ] {
             let e = rel_err(a, b);
             worst = worst.max(if e.is_nan() { 0.0 } else { e });
-            assert!(e <= 1e-12 || (a.iter().all(|x| x.is_nan()) && b.iter().all(|x| x.is_nan())), "{tag} {what}: {e}");
-            assert!(a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()), "{tag} {what}: not bit for bit");
+            assert!(
+                e <= 1e-12 || (a.iter().all(|x| x.is_nan()) && b.iter().all(|x| x.is_nan())),
+                "{tag} {what}: {e}"
+            );
+            assert!(
+                a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{tag} {what}: not bit for bit"
+            );
         }
         cases += 1;
     };
     let bound_array = |v: &serde_json::Value, none: f64| -> Vec<f64> {
-        v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap_or(none)).collect()
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap_or(none))
+            .collect()
     };
-    for name in ["fourbar", "ur5_ee_point", "solo12_four_feet", "rolling_disk"] {
+    for name in [
+        "fourbar",
+        "ur5_ee_point",
+        "solo12_four_feet",
+        "rolling_disk",
+    ] {
         let case = load_case(name);
         let model = case_model(&case);
         for (k, st) in case["states"].as_array().unwrap().iter().enumerate() {
@@ -345,7 +376,13 @@ fn period_zero_is_the_kinematic_projection() {
             let mut p = ProjectionProblem::new(&model);
             p.velocity_limits = false;
             p.v_des = vecf(&vp["v_des"]);
-            compare(&format!("{name}[{k}] equality-only"), &mut sys, None, &q, &p);
+            compare(
+                &format!("{name}[{k}] equality-only"),
+                &mut sys,
+                None,
+                &q,
+                &p,
+            );
             if let Some(b) = vp.get("bounded") {
                 p.lower = bound_array(&b["lb"], f64::NEG_INFINITY);
                 p.upper = bound_array(&b["ub"], f64::INFINITY);
@@ -353,25 +390,47 @@ fn period_zero_is_the_kinematic_projection() {
             }
         }
     }
-    for name in ["mobile_manipulator.yaml", "diff_drive.yaml", "mobile_manipulator_floating.yaml"] {
+    for name in [
+        "mobile_manipulator.yaml",
+        "diff_drive.yaml",
+        "mobile_manipulator_floating.yaml",
+    ] {
         let (scene, mut sys) = scene_system(name);
         let em = EnvelopeModel::from_scene(&scene, &sys).unwrap();
         let nv = sys.model.nv;
         let mut p = ProjectionProblem::new(&sys.model);
-        p.v_des = (0..nv).map(|i| 3.0 * ((i as f64 + 1.0) * 0.7).sin()).collect();
-        compare(&format!("{name} URDF limits"), &mut sys, Some(&em), &scene.q0, &p);
+        p.v_des = (0..nv)
+            .map(|i| 3.0 * ((i as f64 + 1.0) * 0.7).sin())
+            .collect();
+        compare(
+            &format!("{name} URDF limits"),
+            &mut sys,
+            Some(&em),
+            &scene.q0,
+            &p,
+        );
         p.upper[0] = 0.1;
         p.accel_limit = Some(AccelLimit {
             dt: 0.1,
             a_max: vec![1.0; nv],
             v_current: scene.v0.clone(),
         });
-        compare(&format!("{name} bounded"), &mut sys, Some(&em), &scene.q0, &p);
+        compare(
+            &format!("{name} bounded"),
+            &mut sys,
+            Some(&em),
+            &scene.q0,
+            &p,
+        );
         // The named path: the same JSON.
-        let req = ProjectionRequest::from_json(r#"{"base_twist": [0.5, 0.0, 0.3], "mode": "mass"}"#);
+        let req =
+            ProjectionRequest::from_json(r#"{"base_twist": [0.5, 0.0, 0.3], "mode": "mass"}"#);
         let req = match (req, sys.model.base) {
             (Ok(r), constraint_dynamics::model::BaseType::Planar) => r,
-            _ => ProjectionRequest::from_json(r#"{"base_twist": [0.5, 0, 0, 0, 0, 0.3], "upper": {"vx": 0.2}}"#).unwrap(),
+            _ => ProjectionRequest::from_json(
+                r#"{"base_twist": [0.5, 0, 0, 0, 0, 0.3], "upper": {"vx": 0.2}}"#,
+            )
+            .unwrap(),
         };
         let zero = vec![0.0; nv];
         let mut dynamic = DynamicProjector::new(&sys.model, &sys.constraints);
@@ -514,8 +573,18 @@ fn certificate(
             continue;
         };
         limited[n] = true;
-        let lt = ct.tangential.iter().map(|&t| lam[t] * lam[t]).sum::<f64>().sqrt();
-        let ut = ct.tangential.iter().map(|&t| u[t] * u[t]).sum::<f64>().sqrt();
+        let lt = ct
+            .tangential
+            .iter()
+            .map(|&t| lam[t] * lam[t])
+            .sum::<f64>()
+            .sqrt();
+        let ut = ct
+            .tangential
+            .iter()
+            .map(|&t| u[t] * u[t])
+            .sum::<f64>()
+            .sqrt();
         for &t in &ct.tangential {
             limited[t] = true;
         }
@@ -531,7 +600,9 @@ fn certificate(
         }
         c.cones = c.cones.max(-lam[n] / weight);
         c.dual = c.dual.max(-u[n] / yscale);
-        let rows: Vec<usize> = std::iter::once(n).chain(ct.tangential.iter().copied()).collect();
+        let rows: Vec<usize> = std::iter::once(n)
+            .chain(ct.tangential.iter().copied())
+            .collect();
         let compl: f64 = rows.iter().map(|&r| lam[r] * u[r]).sum();
         c.complementarity = c.complementarity.max(compl.abs() / (weight * yscale));
     }
@@ -606,17 +677,24 @@ fn random_dynamic_projections_carry_kkt_and_cone_certificates() {
             // A current velocity the constraints allow: a random one, projected.
             let mut pk = ProjectionProblem::new(&r.sys.model);
             pk.v_des = (0..nv).map(|_| 1.0 * (rng.next() - 0.5)).collect();
-            kin.project(&r.sys.model, &mut r.sys.data, &r.sys.constraints, &mut r.sys.cdata, &q, &pk)
-                .unwrap();
+            kin.project(
+                &r.sys.model,
+                &mut r.sys.data,
+                &r.sys.constraints,
+                &mut r.sys.cdata,
+                &q,
+                &pk,
+            )
+            .unwrap();
             let v: Vec<f64> = kin.v.iter().copied().collect();
             let mut p = ProjectionProblem::new(&r.sys.model);
             p.v_des = (0..nv).map(|_| 6.0 * (rng.next() - 0.5)).collect();
-            for i in 0..nv {
+            for (i, &vi) in v.iter().enumerate() {
                 let u = rng.next();
                 if u < 0.2 {
-                    p.upper[i] = v[i] + 0.05 + rng.next();
+                    p.upper[i] = vi + 0.05 + rng.next();
                 } else if u < 0.4 {
-                    p.lower[i] = v[i] - 0.05 - rng.next();
+                    p.lower[i] = vi - 0.05 - rng.next();
                 }
             }
             let period = [0.005, 0.02, 0.1][trial % 3];
@@ -629,7 +707,9 @@ fn random_dynamic_projections_carry_kkt_and_cone_certificates() {
                 continue;
             }
             for b in &r.proj.binding {
-                *counts.entry(format!("{name}: binds {}", b.kind.name())).or_default() += 1;
+                *counts
+                    .entry(format!("{name}: binds {}", b.kind.name()))
+                    .or_default() += 1;
             }
             let c = certificate(&r.sys, &r.em, &r.proj, &q, &v, &p, period);
             worst = worst.max(c);

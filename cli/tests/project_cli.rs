@@ -90,7 +90,12 @@ fn cli_project_with_a_period_respects_the_dynamics() {
         .as_array()
         .unwrap()
         .iter()
-        .map(|b| (b["kind"].as_str().unwrap().into(), b["name"].as_str().unwrap().into()))
+        .map(|b| {
+            (
+                b["kind"].as_str().unwrap().into(),
+                b["name"].as_str().unwrap().into(),
+            )
+        })
         .collect();
     assert_eq!(
         binding,

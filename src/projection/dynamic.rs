@@ -513,9 +513,10 @@ fn groups(em: &EnvelopeModel, socp: &DynSocp) -> Vec<(std::ops::Range<usize>, Dy
     let mut r = 0;
     while r < socp.rows.len() {
         let (len, c) = match socp.rows[r] {
-            RowKind::Ineq(IneqRow::Bound(index, side)) => {
-                (1, DynamicConflict::Kinematic(Conflict::Bound { index, side }))
-            }
+            RowKind::Ineq(IneqRow::Bound(index, side)) => (
+                1,
+                DynamicConflict::Kinematic(Conflict::Bound { index, side }),
+            ),
             RowKind::Ineq(IneqRow::User(k)) => {
                 (1, DynamicConflict::Kinematic(Conflict::Inequality(k)))
             }

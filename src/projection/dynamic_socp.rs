@@ -201,7 +201,12 @@ impl DynSocp {
         if n_nonneg > 0 {
             cones.push(NonnegativeConeT(n_nonneg));
         }
-        for (k, ct) in em.contacts.iter().enumerate().filter(|(_, ct)| ct.has_cone()) {
+        for (k, ct) in em
+            .contacts
+            .iter()
+            .enumerate()
+            .filter(|(_, ct)| ct.has_cone())
+        {
             let (nr, mu) = (ct.normal.expect("a cone"), ct.friction.expect("a cone"));
             let row = rows.len();
             cols[nv + na + nr].push((row, Src::Const(-mu)));
