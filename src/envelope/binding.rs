@@ -16,6 +16,18 @@ pub const ACTIVE_TOLERANCE: f64 = 1e-6;
 /// The active limits at x = [a; τ; λ] into `out` (cleared first; allocates nothing once `out`
 /// has the capacity of every limit).
 pub(super) fn active_limits(em: &EnvelopeModel, x: &[f64], out: &mut Vec<Binding>) {
+    active_limits_scaled(em, x, em.force_scale, out);
+}
+
+/// [`active_limits`] with the contacts' forces (or impulses) measured against `force_scale`
+/// [N, or N·s for impulses over a period]. Every limit named is pushed onto `out` after it is
+/// cleared.
+pub(crate) fn active_limits_scaled(
+    em: &EnvelopeModel,
+    x: &[f64],
+    force_scale: f64,
+    out: &mut Vec<Binding>,
+) {
     out.clear();
     let (nv, na) = (em.nv, em.na());
     for (k, act) in em.actuators.iter().enumerate() {
@@ -28,7 +40,7 @@ pub(super) fn active_limits(em: &EnvelopeModel, x: &[f64], out: &mut Vec<Binding
         }
     }
     let lambda = &x[nv + na..];
-    let tol = ACTIVE_TOLERANCE * em.force_scale;
+    let tol = ACTIVE_TOLERANCE * force_scale;
     for (k, ct) in em.contacts.iter().enumerate() {
         let Some(nr) = ct.normal else { continue };
         let n = lambda[nr];
@@ -55,6 +67,6 @@ pub(super) fn active_limits(em: &EnvelopeModel, x: &[f64], out: &mut Vec<Binding
 }
 
 /// The most limits one optimum can name: every actuator and every contact.
-pub(super) fn capacity(em: &EnvelopeModel) -> usize {
+pub(crate) fn capacity(em: &EnvelopeModel) -> usize {
     em.na() + em.contacts.len()
 }

@@ -38,7 +38,7 @@
 //! scene) and [`EnvelopeData`] (the Clarabel solver, built at the first call and updated in
 //! place, and the results). See `docs/projection.md`, "The acceleration envelope".
 
-mod binding;
+pub(crate) mod binding;
 mod model;
 mod report;
 mod socp;

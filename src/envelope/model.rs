@@ -70,10 +70,10 @@ pub struct EnvelopeModel {
     pub force_scale: f64,
     /// M's structural pattern, nv × nv row-major: coordinate i couples to c only if one moves
     /// the other (an ancestor in the tree).
-    pub(super) mass_pattern: Vec<bool>,
+    pub(crate) mass_pattern: Vec<bool>,
     /// J's structural pattern, nc × nv row-major: a rolling or point row reads only the
     /// coordinates that move its frames; every other kind's row may read any coordinate.
-    pub(super) jacobian_pattern: Vec<bool>,
+    pub(crate) jacobian_pattern: Vec<bool>,
 }
 
 /// The coordinates that move `body` (its joint's and every ancestor's), as a mask over nv.

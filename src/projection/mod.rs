@@ -28,11 +28,17 @@
 //!   planner semantics instead: nearest in the requested components, then one uniform scale
 //!   that satisfies every bound (`twist.rs`).
 //!
+//! - With a control period Δt (`period` in a request): the velocity reachable within Δt under
+//!   the robot's efforts, friction cones and contacts, nearest in the same metric — a cone
+//!   program (`dynamic.rs`, [`DynamicProjector`]); Δt = 0 is the kinematic projection above.
+//!
 //! Entry points: [`VelocityProjector::project`] (numeric [`ProjectionProblem`], coordinate
 //! order), [`VelocityProjector::project_request`] (named [`ProjectionRequest`] → [`Projection`]),
 //! and [`project_system`] for a [`System`]. See `docs/projection.md`.
 
 mod diagnose;
+mod dynamic;
+mod dynamic_socp;
 mod kkt;
 mod polish;
 mod problem;
@@ -43,6 +49,7 @@ mod request;
 mod twist;
 
 pub use diagnose::Conflict;
+pub use dynamic::{DynamicConflict, DynamicProjector, DynamicReport};
 pub use problem::{AccelLimit, BoundSource, ProjectionProblem, Side};
 pub use projector::{Outcome, SolvePath, Status, VelocityProjector};
 pub use report::{ActiveBound, ActiveInequality, ConstraintImpulse, NamedConflict, Projection};

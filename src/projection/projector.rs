@@ -53,6 +53,11 @@ pub enum SolvePath {
     ClarabelCertificate,
     /// Planner semantics: nearest in the requested components, uniformly scaled to the bounds.
     TwistScaled,
+    /// Over a control period: the cone program of the dynamic projection (`dynamic.rs`),
+    /// Clarabel's solution (tolerance 1e-10).
+    Dynamic,
+    /// Over a control period: infeasibility certificate of the cone program.
+    DynamicCertificate,
 }
 
 /// Summary of the last `project` call (Copy: returned without allocating).

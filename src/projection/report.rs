@@ -7,7 +7,7 @@ use super::projector::{SolvePath, Status, VelocityProjector};
 use super::request::{ProjectionRequest, base_dofs};
 use crate::algorithm::{Data, crba_after_kinematics};
 use crate::constraints::{ConstraintData, ConstraintSet, constraint_forces};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::model::Model;
 use serde::Serialize;
 
@@ -87,18 +87,21 @@ pub struct Projection {
     pub v_names: Vec<String>,
     /// Resolved desired velocity (nv) [m/s, rad/s].
     pub v_des: Vec<f64>,
-    /// v* [m/s, rad/s]; null when infeasible.
+    /// v* [m/s, rad/s]; absent when infeasible (the CLI prints no null).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub v: Option<Vec<f64>>,
     /// v* split: base twist in the base frame (planar [vx, vy, wz], floating 6), then joints.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub base_twist: Option<Vec<f64>>,
     /// Names of the joint velocity coordinates (after the base's).
     pub joint_names: Vec<String>,
-    /// v* of the joints [rad/s or m/s]; null when infeasible.
+    /// v* of the joints [rad/s or m/s]; absent when infeasible (the CLI prints no null).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub joint_velocities: Option<Vec<f64>>,
     /// Constraint row names `constraint/row`, in stacked order.
     pub constraint_rows: Vec<String>,
-    /// λ per constraint row [N·s or N·m·s]; null when infeasible.
+    /// λ per constraint row [N·s or N·m·s]; absent when infeasible (the CLI prints no null).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub impulses: Option<Vec<f64>>,
     /// Impulse of each constraint at its frame; empty when infeasible.
     pub constraints: Vec<ConstraintImpulse>,
@@ -116,6 +119,33 @@ pub struct Projection {
     pub conflicts: Vec<NamedConflict>,
     /// Clarabel interior-point iterations (0 when not called).
     pub qp_iterations: u32,
+    /// With a control period: the period, what binds and the torques (absent when Δt = 0).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dynamics: Option<super::dynamic::DynamicReport>,
+}
+
+/// Each constraint's impulse `lambda` (nc) at its frame (kinematics in `data`).
+pub(super) fn impulses(
+    model: &Model,
+    data: &Data,
+    set: &ConstraintSet,
+    cd: &ConstraintData,
+    lambda: &nalgebra::DVector<f64>,
+) -> Vec<ConstraintImpulse> {
+    constraint_forces(model, data, set, cd, lambda)
+        .into_iter()
+        .map(|f| ConstraintImpulse {
+            name: f.name,
+            kind: f.kind,
+            frame: f.frame,
+            axes: f.axes,
+            rows: f.rows,
+            lambda: f.lambda,
+            impulse: f.force,
+            angular_impulse: f.torque,
+            point_world: f.point_world,
+        })
+        .collect()
 }
 
 fn relation(side: Side) -> &'static str {
@@ -139,6 +169,13 @@ impl VelocityProjector {
         request: &ProjectionRequest,
     ) -> Result<Projection> {
         model.check_state(q, v_current)?;
+        if request.period != 0.0 {
+            return Err(Error::Invalid(format!(
+                "projection request: period = {} s needs the robot's limits; project it with \
+                 DynamicProjector (the CLI's --period)",
+                request.period
+            )));
+        }
         set.evaluate(model, data, cd, q, v_current);
         crba_after_kinematics(model, data);
         let problem = request.resolve(model, &cd.j, v_current)?;
@@ -173,20 +210,7 @@ impl VelocityProjector {
         let row_names = set.row_names();
         let v: Vec<f64> = self.v.iter().copied().collect();
         let constraints = if ok {
-            constraint_forces(model, data, set, cd, &self.lambda)
-                .into_iter()
-                .map(|f| ConstraintImpulse {
-                    name: f.name,
-                    kind: f.kind,
-                    frame: f.frame,
-                    axes: f.axes,
-                    rows: f.rows,
-                    lambda: f.lambda,
-                    impulse: f.force,
-                    angular_impulse: f.torque,
-                    point_world: f.point_world,
-                })
-                .collect()
+            impulses(model, data, set, cd, &self.lambda)
         } else {
             vec![]
         };
@@ -248,10 +272,11 @@ impl VelocityProjector {
             active_inequalities,
             conflicts,
             qp_iterations: o.qp_iterations,
+            dynamics: None,
         }
     }
 
-    fn name_conflict(
+    pub(super) fn name_conflict(
         &self,
         model: &Model,
         set: &ConstraintSet,

@@ -114,6 +114,11 @@ pub struct ProjectionRequest {
     /// Right-hand sides b of A v ≤ b, one per row of `A` (default empty).
     #[serde(default)]
     pub b: Vec<f64>,
+    /// Control period Δt [s]: the answer is reachable within Δt under the robot's efforts,
+    /// friction cones and contacts (the dynamic projection, `dynamic.rs`); 0 (the default) is
+    /// the kinematic projection.
+    #[serde(default)]
+    pub period: f64,
 }
 
 fn yes() -> bool {
@@ -134,6 +139,7 @@ impl Default for ProjectionRequest {
             accel_limit: None,
             a: vec![],
             b: vec![],
+            period: 0.0,
         }
     }
 }

@@ -18,7 +18,7 @@ use counting_alloc::allocations;
 
 /// Allocations of one `solve` of a Clarabel solver that has solved before (max x₀ subject to
 /// ‖x‖ ≤ 1, x₁ ≥ −1).
-fn clarabel_solve_allocations() -> usize {
+pub(crate) fn clarabel_solve_allocations() -> usize {
     let p = CscMatrix::new(2, 2, vec![0, 0, 0], vec![], vec![]);
     let a = CscMatrix::new(4, 2, vec![0, 1, 3], vec![1, 0, 2], vec![-1.0, -1.0, -1.0]);
     let cones = [NonnegativeConeT(1), SecondOrderConeT(3)];

@@ -12,6 +12,7 @@ mod common;
 #[path = "../common/counting_alloc.rs"]
 mod counting_alloc;
 
+mod dynamic_projection;
 mod envelope;
 mod hot_paths;
 mod propagation;

@@ -1,0 +1,592 @@
+//! The projection that respects the dynamics: the velocity closest to the request (the
+//! kinetic-energy metric) that the robot can reach within one control period Δt under the
+//! limits of the acceleration envelope.
+//!
+//! ```text
+//! v⁺ = argmin ½ (v⁺ − v_des)ᵀ M(q) (v⁺ − v_des)    over v⁺ (nv), τ (na), Λ (nc)
+//!      subject to  M (v⁺ − v) = Δt (Q + Sᵀ τ − h) + Jᵀ Λ    impulse form of the dynamics
+//!                  J(q) v⁺ = 0                             the constraints at v⁺
+//!                  |τ_k| ≤ e_k                             URDF <limit effort>
+//!                  Λ_n ≥ 0,  ‖Λ_t‖ ≤ μ Λ_n                 contacts push, inside their cones
+//!                  lo ≤ v⁺ ≤ hi,  A v⁺ ≤ b                 the kinematic projection's bounds
+//!                                                          (URDF velocity limits, request,
+//!                                                          v ± a_max Δt_accel) and rows
+//! ```
+//!
+//! v is the current velocity, h = h(q, v) the bias force, Q the force elements' generalized
+//! force, S the actuated coordinates' selection, Λ the constraint impulses over the period
+//! [N·s per row, the rows' convention]. Everything holds over the period with M, J, h frozen at
+//! the current state (one explicit step): from rest with every contact steady, the reachable
+//! set is exactly Δt times the envelope's acceleration set, which is what the tests check.
+//!
+//! Δt = 0 is the kinematic projection, unchanged: the same code path ([`VelocityProjector`]).
+//! The per-axis acceleration limits of the request still apply as bounds, so the tighter of
+//! them and the dynamics wins. The answer names what binds (the envelope's kinds: `effort`,
+//! `friction`, `lift_off`, and `bound` for a velocity bound) and, when nothing is reachable, the
+//! limits that cannot hold together (the support of Clarabel's infeasibility certificate).
+//!
+//! The cone program (`dynamic_socp.rs`) is built at the first call and updated in place; it is
+//! rebuilt only when the set of finite bounds or the number of rows of A changes. Nothing else
+//! allocates after the first call on an optimal answer (an infeasible one names its conflicts).
+
+use super::diagnose::Conflict;
+use super::dynamic_socp::{DynSocp, RowKind, SocpData, SocpOutcome};
+use super::polish::velocity_scale;
+use super::problem::{ProjectionProblem, Side};
+use super::projector::{Outcome, SolvePath, Status, VelocityProjector};
+use super::qp::{IneqRow, inequality_rows};
+use super::report::{ActiveBound, ActiveInequality, NamedConflict, Projection};
+use super::request::{Mode, ProjectionRequest};
+use crate::algorithm::{bias_forces_after_kinematics, crba_after_kinematics};
+use crate::constraints::ConstraintSet;
+use crate::envelope::binding::{active_limits_scaled, capacity};
+use crate::envelope::{ACTIVE_TOLERANCE, Binding, BindingKind, EnvelopeModel, NamedLimit};
+use crate::error::{Error, Result, check_finite, check_len};
+use crate::model::Model;
+use crate::system::System;
+use nalgebra::DVector;
+use serde::Serialize;
+
+/// A member of the set of limits that make a dynamic request infeasible.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DynamicConflict {
+    /// A constraint row, a velocity bound or a row of A (as in the kinematic projection).
+    Kinematic(Conflict),
+    /// Actuator k of [`EnvelopeModel::actuators`] at its effort.
+    Effort(usize),
+    /// Contact k of [`EnvelopeModel::contacts`] at its friction cone.
+    Friction(usize),
+    /// Contact k would have to pull.
+    LiftOff(usize),
+}
+
+/// What the dynamics add to a named projection (absent when Δt = 0).
+#[derive(Clone, Debug, Serialize)]
+pub struct DynamicReport {
+    /// The control period Δt [s].
+    pub period: f64,
+    /// The limits that bind the answer (or, when infeasible, that cannot hold together).
+    pub binding: Vec<NamedLimit>,
+    /// The actuated joints, in order.
+    pub actuators: Vec<String>,
+    /// Their torques (forces) over the period [N·m or N]; absent when infeasible.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tau: Option<Vec<f64>>,
+    /// Limits the dynamics cannot check (as the envelope lists them).
+    pub unchecked: Vec<NamedLimit>,
+}
+
+/// Workspace and results of the dynamic projection for one model and constraint set.
+pub struct DynamicProjector {
+    /// The kinematic projection (Δt = 0), and the effective bounds of a dynamic call.
+    pub kinematic: VelocityProjector,
+    socp: Option<DynSocp>,
+    builds: usize,
+    ineq: Vec<IneqRow>,
+    rhs: DVector<f64>,
+    /// v⁺ (nv) [m/s, rad/s]; NaN when infeasible.
+    pub v: DVector<f64>,
+    /// Actuator torques over the period (na, [`EnvelopeModel::actuators`]) [N·m or N].
+    pub tau: DVector<f64>,
+    /// Constraint impulses over the period Λ (nc) [N·s or N·m·s], the rows' convention.
+    pub lambda: DVector<f64>,
+    /// Dual of the dynamics rows (nv) [m/s]: `M (v⁺ − v_des) = −M y − Jᵀ w + ν − Aᵀ η`;
+    /// `Δt (S y)_k` is actuator k's effort multiplier, `−J y` lies in the contacts' dual cones.
+    pub y: DVector<f64>,
+    /// Dual of the constraint rows J v⁺ = 0 (nc).
+    pub w: DVector<f64>,
+    /// Bound multipliers ν (nv): ≥ 0 on an active lower bound, ≤ 0 on an upper one.
+    pub nu: DVector<f64>,
+    /// Multipliers η ≥ 0 of the rows of A.
+    pub eta: Vec<f64>,
+    /// What binds the answer: efforts, cones, lift-off, and velocity bounds (index = coordinate).
+    pub binding: Vec<Binding>,
+    /// Active velocity bounds (coordinate, side).
+    pub active_bounds: Vec<(usize, Side)>,
+    /// Active rows of A.
+    pub active_rows: Vec<usize>,
+    /// When infeasible: the limits that cannot hold together.
+    pub conflicts: Vec<DynamicConflict>,
+    /// Summary of the last call.
+    pub outcome: Outcome,
+}
+
+impl DynamicProjector {
+    /// Size the workspaces for the model and constraint set.
+    pub fn new(model: &Model, set: &ConstraintSet) -> Self {
+        let (nv, nc) = (model.nv, set.nrows);
+        let kinematic = VelocityProjector::new(model, set);
+        let outcome = kinematic.outcome;
+        Self {
+            kinematic,
+            socp: None,
+            builds: 0,
+            ineq: Vec::with_capacity(2 * nv),
+            rhs: DVector::zeros(nv),
+            v: DVector::zeros(nv),
+            tau: DVector::zeros(0),
+            lambda: DVector::zeros(nc),
+            y: DVector::zeros(nv),
+            w: DVector::zeros(nc),
+            nu: DVector::zeros(nv),
+            eta: vec![],
+            binding: vec![],
+            active_bounds: Vec::with_capacity(2 * nv),
+            active_rows: vec![],
+            conflicts: vec![],
+            outcome,
+        }
+    }
+
+    /// How many times the cone program was built (once per structure: the finite bounds and
+    /// the number of rows of A); other calls update it in place.
+    pub fn builds(&self) -> usize {
+        self.builds
+    }
+
+    /// Project `problem` at (q, v) over the period Δt = `period` [s] with the force elements'
+    /// generalized force `applied` (nv). Δt = 0 is [`VelocityProjector::project`] itself (no
+    /// limits needed: `em` may be `None`); Δt > 0 needs the robot's limits `em`. Results in
+    /// `v`, `tau`, `lambda`, the duals and `binding` (or `conflicts`); for Δt = 0 in
+    /// `kinematic`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn project(
+        &mut self,
+        sys: &mut System,
+        em: Option<&EnvelopeModel>,
+        q: &[f64],
+        v: &[f64],
+        applied: &[f64],
+        problem: &ProjectionProblem,
+        period: f64,
+    ) -> Result<Outcome> {
+        if period == 0.0 {
+            return self.kinematic.project(
+                &sys.model,
+                &mut sys.data,
+                &sys.constraints,
+                &mut sys.cdata,
+                q,
+                problem,
+            );
+        }
+        let em = check_period(period, em)?;
+        let model = &sys.model;
+        model.check_state(q, v)?;
+        check_len("applied", applied, model.nv)?;
+        check_finite("applied", applied)?;
+        problem.validate(model.nv)?;
+        if em.nv != model.nv || em.nc != sys.constraints.nrows {
+            return Err(Error::Invalid(format!(
+                "the limits are sized for nv = {}, nc = {}; the system has nv = {}, nc = {}",
+                em.nv, em.nc, model.nv, sys.constraints.nrows
+            )));
+        }
+        sys.constraints
+            .evaluate(model, &mut sys.data, &mut sys.cdata, q, v);
+        sys.constraints.check_finite(&sys.cdata)?;
+        crba_after_kinematics(model, &mut sys.data);
+        bias_forces_after_kinematics(model, &mut sys.data);
+        let m = &sys.data.mass_matrix;
+        // rhs = M v + Δt (Q − h); sys.data.tau holds h(q, v).
+        for i in 0..model.nv {
+            let mv: f64 = (0..model.nv).map(|c| m[(i, c)] * v[c]).sum();
+            self.rhs[i] = mv + period * (applied[i] - sys.data.tau[i]);
+        }
+        self.solve_evaluated(model, em, problem, period, sys)
+    }
+
+    fn solve_evaluated(
+        &mut self,
+        model: &Model,
+        em: &EnvelopeModel,
+        p: &ProjectionProblem,
+        period: f64,
+        sys: &System,
+    ) -> Result<Outcome> {
+        let (nv, na) = (model.nv, em.na());
+        if self.tau.len() != na {
+            self.tau = DVector::zeros(na);
+        }
+        if self.binding.capacity() < capacity(em) + 2 * nv {
+            self.binding = Vec::with_capacity(capacity(em) + 2 * nv);
+        }
+        if self.eta.len() != p.b.len() {
+            self.eta = vec![0.0; p.b.len()];
+        }
+        let kin = &mut self.kinematic;
+        kin.bounds.fill(model, p);
+        let vscale = velocity_scale(p, &kin.bounds);
+        self.conflicts.clear();
+        self.binding.clear();
+        self.active_bounds.clear();
+        self.active_rows.clear();
+        self.outcome = Outcome {
+            status: Status::Optimal,
+            method: SolvePath::Dynamic,
+            rank_deficiency: 0,
+            multipliers_unique: false,
+            multipliers_exact: false,
+            qp_iterations: 0,
+        };
+        if let Some(i) = (0..nv).find(|&i| kin.bounds.lo[i] > kin.bounds.hi[i]) {
+            for side in [Side::Lower, Side::Upper] {
+                let c = Conflict::Bound { index: i, side };
+                self.conflicts.push(DynamicConflict::Kinematic(c));
+            }
+            return Ok(self.finish_infeasible(SolvePath::BoundCheck));
+        }
+        inequality_rows(&kin.bounds, p.a.nrows(), &mut self.ineq);
+        let data = SocpData {
+            m: &sys.data.mass_matrix,
+            j: &sys.cdata.j,
+            rhs: &self.rhs,
+            v_des: &p.v_des,
+            bounds: &kin.bounds,
+            a: &p.a,
+            b: &p.b,
+            period,
+        };
+        if !self.socp.as_ref().is_some_and(|s| s.matches(&self.ineq)) {
+            self.socp = Some(DynSocp::new(em, &self.ineq, &data)?);
+            self.builds += 1;
+        }
+        let socp = self.socp.as_mut().expect("built above");
+        let status = socp.solve(em, &data)?;
+        self.outcome.qp_iterations = socp.iterations();
+        let z = socp.z();
+        if status == SocpOutcome::Infeasible {
+            diagnose(em, socp, &data, &mut self.conflicts)?;
+            return Ok(self.finish_infeasible(SolvePath::DynamicCertificate));
+        }
+        let x = socp.x();
+        let nc = em.nc;
+        self.v.as_mut_slice().copy_from_slice(&x[..nv]);
+        self.tau.as_mut_slice().copy_from_slice(&x[nv..nv + na]);
+        self.lambda
+            .as_mut_slice()
+            .copy_from_slice(&x[nv + na..nv + na + nc]);
+        self.y.as_mut_slice().copy_from_slice(&z[..nv]);
+        self.w.as_mut_slice().copy_from_slice(&z[nv..nv + nc]);
+        self.nu.fill(0.0);
+        self.eta.fill(0.0);
+        active_limits_scaled(em, x, em.force_scale * period, &mut self.binding);
+        for (t, &row) in self.ineq.iter().enumerate() {
+            let zt = z[socp.ineq_row0 + t];
+            let slack = row.violation(&x[..nv], &kin.bounds, &p.a, &p.b).abs();
+            let active = slack <= ACTIVE_TOLERANCE * (row.value(&kin.bounds, &p.b).abs() + vscale);
+            match row {
+                IneqRow::Bound(i, side) => {
+                    self.nu[i] += if side == Side::Lower { zt } else { -zt };
+                    if active {
+                        self.active_bounds.push((i, side));
+                        let b = Binding {
+                            kind: BindingKind::Bound,
+                            index: i,
+                        };
+                        // lo = hi: one coordinate held, named once.
+                        if self.binding.last() != Some(&b) {
+                            self.binding.push(b);
+                        }
+                    }
+                }
+                IneqRow::User(k) => {
+                    self.eta[k] = zt;
+                    if active {
+                        self.active_rows.push(k);
+                    }
+                }
+            }
+        }
+        Ok(self.outcome)
+    }
+
+    fn finish_infeasible(&mut self, method: SolvePath) -> Outcome {
+        for x in [
+            &mut self.v,
+            &mut self.tau,
+            &mut self.lambda,
+            &mut self.y,
+            &mut self.w,
+            &mut self.nu,
+        ] {
+            x.fill(f64::NAN);
+        }
+        self.eta.fill(f64::NAN);
+        self.outcome.status = Status::Infeasible;
+        self.outcome.method = method;
+        self.outcome
+    }
+
+    /// Evaluate at (q, v), resolve the named request, project over its `period` and name the
+    /// result. `period: 0` is [`VelocityProjector::project_request`] itself. With a period the
+    /// request is solved in the mass metric (`mode: twist`'s uniform scaling is kinematic).
+    #[allow(clippy::too_many_arguments)]
+    pub fn project_request(
+        &mut self,
+        sys: &mut System,
+        em: Option<&EnvelopeModel>,
+        q: &[f64],
+        v: &[f64],
+        applied: &[f64],
+        request: &ProjectionRequest,
+    ) -> Result<Projection> {
+        let period = request.period;
+        if period == 0.0 {
+            return super::project_system(&mut self.kinematic, sys, q, v, request);
+        }
+        let em = check_period(period, em)?;
+        if request.mode == Mode::Twist {
+            return Err(Error::Invalid(
+                "projection request: mode twist scales the request uniformly, a kinematic \
+                 answer; with a period the request is solved in the mass metric (mode mass or \
+                 auto)"
+                    .into(),
+            ));
+        }
+        sys.model.check_state(q, v)?;
+        let model = &sys.model;
+        sys.constraints
+            .evaluate(model, &mut sys.data, &mut sys.cdata, q, v);
+        let problem = request.resolve(model, &sys.cdata.j, v)?;
+        // The kinematics stay at (q, v) for the impulses' frames.
+        self.project(sys, Some(em), q, v, applied, &problem, period)?;
+        Ok(self.report(sys, em, &problem, period))
+    }
+
+    /// Name the results of the last dynamic solve (kinematics in `sys` at the same q).
+    pub fn report(
+        &self,
+        sys: &System,
+        em: &EnvelopeModel,
+        problem: &ProjectionProblem,
+        period: f64,
+    ) -> Projection {
+        let model = &sys.model;
+        let o = self.outcome;
+        let ok = o.status == Status::Optimal;
+        let row_names = sys.constraints.row_names();
+        let named = |b: &Binding| NamedLimit {
+            kind: b.kind.name(),
+            name: em.binding_name(model, b).to_string(),
+        };
+        let mut binding: Vec<NamedLimit> = self.binding.iter().map(named).collect();
+        let mut conflicts = vec![];
+        for c in &self.conflicts {
+            let (kind, index) = match *c {
+                DynamicConflict::Kinematic(k) => {
+                    conflicts.push(self.kinematic.name_conflict(
+                        model,
+                        &sys.constraints,
+                        &row_names,
+                        k,
+                    ));
+                    if let Conflict::Bound { index, .. } = k {
+                        binding.push(named(&Binding {
+                            kind: BindingKind::Bound,
+                            index,
+                        }));
+                    }
+                    continue;
+                }
+                DynamicConflict::Effort(k) => (BindingKind::Effort, k),
+                DynamicConflict::Friction(k) => (BindingKind::Friction, k),
+                DynamicConflict::LiftOff(k) => (BindingKind::LiftOff, k),
+            };
+            let b = named(&Binding { kind, index });
+            let label = match kind {
+                BindingKind::Effort => format!("|tau| <= effort of {} (effort)", b.name),
+                BindingKind::Friction => format!("{} inside its friction cone (friction)", b.name),
+                _ => format!("{} pushes, never pulls (lift_off)", b.name),
+            };
+            conflicts.push(NamedConflict {
+                kind: b.kind,
+                name: b.name.clone(),
+                detail: String::new(),
+                label,
+            });
+            binding.push(b);
+        }
+        let v: Vec<f64> = self.v.iter().copied().collect();
+        let nb = super::base_dofs(model);
+        let message = if ok {
+            format!("optimal ({:?}, period {period} s)", o.method)
+        } else {
+            format!(
+                "infeasible: no velocity reachable within {period} s meets every limit; these \
+                 cannot hold together: {}",
+                conflicts
+                    .iter()
+                    .map(|c| c.label.as_str())
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            )
+        };
+        let mut out = Projection {
+            status: o.status,
+            method: o.method,
+            message,
+            v_names: model.v_names.clone(),
+            v_des: problem.v_des.clone(),
+            v: ok.then(|| v.clone()),
+            base_twist: (ok && nb > 0).then(|| v[..nb].to_vec()),
+            joint_names: model.v_names[nb..].to_vec(),
+            joint_velocities: ok.then(|| v[nb..].to_vec()),
+            constraint_rows: row_names,
+            impulses: ok.then(|| self.lambda.iter().copied().collect()),
+            constraints: if ok {
+                super::report::impulses(
+                    model,
+                    &sys.data,
+                    &sys.constraints,
+                    &sys.cdata,
+                    &self.lambda,
+                )
+            } else {
+                vec![]
+            },
+            rank_deficiency: 0,
+            multipliers_unique: false,
+            multipliers_exact: false,
+            active_bounds: self
+                .active_bounds
+                .iter()
+                .map(|&(i, side)| {
+                    let (value, source) = self.kinematic.bound(i, side);
+                    ActiveBound {
+                        coordinate: model.v_names[i].clone(),
+                        index: i,
+                        side,
+                        source,
+                        value,
+                        multiplier: self.nu[i],
+                    }
+                })
+                .collect(),
+            active_inequalities: self
+                .active_rows
+                .iter()
+                .map(|&k| ActiveInequality {
+                    index: k,
+                    multiplier: self.eta[k],
+                })
+                .collect(),
+            conflicts,
+            qp_iterations: o.qp_iterations,
+            dynamics: None,
+        };
+        out.dynamics = Some(DynamicReport {
+            period,
+            binding,
+            actuators: em.actuators.iter().map(|a| a.joint.clone()).collect(),
+            tau: ok.then(|| self.tau.iter().copied().collect()),
+            unchecked: em
+                .unchecked
+                .iter()
+                .map(|(k, n)| NamedLimit {
+                    kind: k.name(),
+                    name: n.clone(),
+                })
+                .collect(),
+        });
+        out
+    }
+}
+
+/// A period is ≥ 0 and finite; a positive one needs the robot's limits.
+fn check_period(period: f64, em: Option<&EnvelopeModel>) -> Result<&EnvelopeModel> {
+    if !(period.is_finite() && period > 0.0) {
+        return Err(Error::Invalid(format!(
+            "period = {period} s must be zero (the kinematic projection) or positive and finite"
+        )));
+    }
+    em.ok_or_else(|| Error::Unsupported {
+        what: "a projection over a period".into(),
+        why: "it needs the robot's limits (an envelope model: a planar or floating base)".into(),
+    })
+}
+
+/// A limit of the cone program that a diagnosis may lift: its rows and its name.
+fn groups(em: &EnvelopeModel, socp: &DynSocp) -> Vec<(std::ops::Range<usize>, DynamicConflict)> {
+    let z = socp.z();
+    let mut out = vec![];
+    let mut r = 0;
+    while r < socp.rows.len() {
+        let (len, c) = match socp.rows[r] {
+            RowKind::Ineq(IneqRow::Bound(index, side)) => (
+                1,
+                DynamicConflict::Kinematic(Conflict::Bound { index, side }),
+            ),
+            RowKind::Ineq(IneqRow::User(k)) => {
+                (1, DynamicConflict::Kinematic(Conflict::Inequality(k)))
+            }
+            RowKind::Effort(k) => (2, DynamicConflict::Effort(k)),
+            RowKind::Normal(k) => (1, DynamicConflict::LiftOff(k)),
+            RowKind::Cone(k) => {
+                // A certificate that uses the cone's tangential part is friction's; one that
+                // uses only its normal is the contact's push.
+                let nt = em.contacts[k].tangential.len();
+                let zt = (1..=nt).map(|t| z[r + t] * z[r + t]).sum::<f64>().sqrt();
+                let c = if zt > 1e-6 * z[r].abs() {
+                    DynamicConflict::Friction(k)
+                } else {
+                    DynamicConflict::LiftOff(k)
+                };
+                (1 + nt, c)
+            }
+            RowKind::Dynamics(_) | RowKind::Constraint(_) | RowKind::ConeTail => {
+                r += 1;
+                continue;
+            }
+        };
+        out.push((r..r + len, c));
+        r += len;
+    }
+    out
+}
+
+/// A minimal set of limits that cannot hold together with the dynamics and the constraints:
+/// the limits in the support of Clarabel's certificate, reduced by a deletion filter (each
+/// lifted in turn, and left out if the rest is still infeasible), so that every limit named is
+/// necessary. Allocates and re-solves; only on infeasible requests.
+fn diagnose(
+    em: &EnvelopeModel,
+    socp: &mut DynSocp,
+    data: &SocpData,
+    out: &mut Vec<DynamicConflict>,
+) -> Result<()> {
+    let all = groups(em, socp);
+    let z = socp.z();
+    let zmax = z.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let in_support = |g: &std::ops::Range<usize>| g.clone().any(|r| z[r].abs() > 1e-7 * zmax);
+    let support: Vec<bool> = all.iter().map(|(g, _)| in_support(g)).collect();
+    let infeasible = |socp: &mut DynSocp| -> bool {
+        matches!(socp.solve(em, data), Ok(SocpOutcome::Infeasible))
+    };
+    for ((g, _), &s) in all.iter().zip(&support) {
+        for r in g.clone() {
+            socp.relaxed[r] = !s;
+        }
+    }
+    if !infeasible(socp) {
+        socp.relaxed.fill(false);
+    }
+    let mut kept = vec![];
+    for (k, (g, c)) in all.iter().enumerate() {
+        if socp.relaxed[g.start] {
+            continue;
+        }
+        for r in g.clone() {
+            socp.relaxed[r] = true;
+        }
+        if !infeasible(socp) {
+            for r in g.clone() {
+                socp.relaxed[r] = false;
+            }
+            kept.push(k);
+            out.push(*c);
+        }
+    }
+    socp.relaxed.fill(false);
+    Ok(())
+}
