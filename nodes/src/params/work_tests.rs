@@ -11,10 +11,16 @@ use crate::predictor::PredictorParams;
 use crate::ros::args::Parameters;
 use crate::ros::args::parse_params_yaml;
 
-fn scene_budget() -> WorkBudget {
+/// The budget of a bundled scene (`params/<name>`).
+fn budget_of(name: &str) -> WorkBudget {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let scene = Scene::load(root.join("params/suite_mobile_manipulator.yaml")).expect("scene");
+    let scene = Scene::load(root.join("params").join(name)).expect("scene");
     WorkBudget::of(&scene)
+}
+
+/// The suite's diff drive: its controllers held for the 1 ms control period, RK4 at that period.
+fn scene_budget() -> WorkBudget {
+    budget_of("suite_diff_drive.yaml")
 }
 
 fn current<K: crate::params::KindParams>(p: &NodeParams<K>) -> Parameters {
@@ -88,9 +94,26 @@ fn absurd_values_are_refused_with_their_range() {
 
 #[test]
 fn the_scene_limits_the_horizon() {
-    // The suite's scene: rk4 at dt = control period = 1 ms, samples every 20 ms, default limits
-    // (1e6 steps, 1e5 samples): one prediction may cover 1e6 × 1 ms = 1000 s; at 10 Hz,
-    // 10 × horizon / 1 ms ≤ 1e6 steps per second gives 100 s.
+    // The suite's mobile manipulator: ROS2 at dt = 20 ms, samples every 20 ms, default limits
+    // (1e6 steps, 1e5 samples): one prediction may cover 1e5 samples × 20 ms = 2000 s (its
+    // 1e6 steps would allow 20 000 s); at 10 Hz, 10 × horizon / 20 ms ≤ 1e6 gives 2000 s too.
+    let b = budget_of("suite_mobile_manipulator.yaml");
+    assert_eq!(b.max_horizon(None), 2000.0);
+    assert_eq!(b.max_horizon(Some(10.0)), 2000.0);
+    b.check_horizon("horizon", 2000.0, Some(10.0)).unwrap();
+    let e = b
+        .check_horizon("horizon", 2001.0, Some(10.0))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("horizon = 2001 s is beyond its limit of 2000 s on this scene")
+            && e.contains("integration.max_steps = 1e6 steps (horizon / integration.dt 0.02 s)")
+            && e.contains("integration.max_samples = 100000 samples"),
+        "{e}"
+    );
+    // The suite's diff drive: rk4 at dt = control period = 1 ms, samples every 20 ms: one
+    // prediction may cover 1e6 × 1 ms = 1000 s; at 10 Hz, 10 × horizon / 1 ms ≤ 1e6 steps per
+    // second gives 100 s.
     let b = scene_budget();
     assert_eq!(b.max_horizon(None), 1000.0);
     assert_eq!(b.max_horizon(Some(10.0)), 100.0);
