@@ -451,9 +451,10 @@ impl Actuators {
     }
 
     /// Continuous hold: the linear feedback of the controllers inside their effort at
-    /// (t, q, v) — ∂τ/∂q = −k, ∂τ/∂v = −d on each joint (a saturated one has none).
+    /// (t, q, v) — ∂τ/∂q = −k, ∂τ/∂v = −d and ∂τ/∂t = rate on each joint (a saturated one has
+    /// none).
     pub fn continuous_feedback(&self, t: f64, q: &[f64], v: &[f64], mut f: impl FnMut(Feedback)) {
-        self.continuous_each(t, q, v, |c, raw, (k, d)| {
+        self.continuous_each(t, q, v, |c, raw, (k, d, rate)| {
             if raw.abs() <= c.effort {
                 f(Feedback {
                     iq: c.iq,
@@ -461,7 +462,7 @@ impl Actuators {
                     k,
                     d,
                     integral: false,
-                    rate: 0.0,
+                    rate,
                 });
             }
         });
@@ -473,7 +474,7 @@ impl Actuators {
         t: f64,
         q: &[f64],
         v: &[f64],
-        mut f: impl FnMut(Joint, f64, (f64, f64)),
+        mut f: impl FnMut(Joint, f64, (f64, f64, f64)),
     ) {
         for c in self.velocity.iter().filter(|c| c.target.is_finite()) {
             let integral =
@@ -486,7 +487,7 @@ impl Actuators {
                     effort: c.effort,
                 },
                 raw,
-                (c.ki, c.kp),
+                (c.ki, c.kp, c.ki * c.target),
             );
         }
         for c in self.position.iter().filter(|c| c.target.is_finite()) {
@@ -498,7 +499,7 @@ impl Actuators {
                     effort: c.effort,
                 },
                 raw,
-                (c.kp, c.kd),
+                (c.kp, c.kd, 0.0),
             );
         }
     }

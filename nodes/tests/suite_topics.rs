@@ -102,15 +102,22 @@ fn suite_topics_match_the_core_library() {
         traj.samples.len()
     );
 
-    // Forces at the start state under the torques of the first control tick.
+    // Forces at the start state under the controllers' torques there: the first control
+    // tick's for held controllers, the continuous law's at t = 0 otherwise.
     let mut act = core.actuators.clone();
     act.reset();
     let mut tau = vec![0.0; scene.model.nv];
-    let dt = act
-        .control_period
-        .min(core.predictor.config().settings().sample_period)
-        .min(1.0);
-    act.update(&expected_cmd, &ql, &vl, dt, &mut tau);
+    if act.is_continuous() {
+        act.start_continuous(&ql);
+        act.begin_segment(&expected_cmd, 0.0);
+        act.continuous_torque(0.0, &ql, &vl, &mut tau);
+    } else {
+        let dt = act
+            .control_period
+            .min(core.predictor.config().settings().sample_period)
+            .min(1.0);
+        act.update(&expected_cmd, &ql, &vl, dt, &mut tau);
+    }
     let (_, f, gf) = core.forces(&ql, &vl, &tau);
     let m = take_until(&forces_sub, WAIT, |m: &ConstraintForces| {
         check_forces(&mut core, &ql, m, &f, &gf, TOL)
@@ -120,7 +127,7 @@ fn suite_topics_match_the_core_library() {
         m.constraints.iter().all(|c| !c.slipping),
         "slip at μ = 0.8: {m:?}"
     );
-    println!("{TEST}: constraint_forces topic = core (first-tick actuator torques)");
+    println!("{TEST}: constraint_forces topic = core (the controllers' torques at the start)");
 
     // ---- parameters ---------------------------------------------------------------------------
     let list = t.client::<ListParameters>("/cd_predictor/list_parameters");

@@ -187,21 +187,25 @@ impl Accel for Rhs<'_> {
                 jac[(nv + r, nv + c)] = dd.dqdd_dv[(r, c)];
             }
         }
-        // A joint force −k q − d v (a continuous controller, a joint spring-damper) moves q̈ by
-        // −∂q̈/∂τ_j (k, d) on its joint's columns (1-DOF: its tangent column is its v index).
-        let mut joint_feedback = |iv: usize, k: f64, d: f64| {
+        // A joint force −k q − d v + rate·t (a continuous controller, a joint spring-damper)
+        // moves q̈ by ∂q̈/∂τ_j (−k, −d) on its joint's columns (1-DOF: its tangent column is its
+        // v index), and ∂q̈/∂t by ∂q̈/∂τ_j rate.
+        let dqdd_dt = &mut scratch.dqdd_dt;
+        dqdd_dt.iter_mut().for_each(|x| *x = 0.0);
+        let mut joint_feedback = |iv: usize, k: f64, d: f64, rate: f64| {
             for r in 0..nv {
                 let g = dd.dqdd_dtau[(r, iv)];
                 jac[(nv + r, iv)] -= g * k;
                 jac[(nv + r, nv + iv)] -= g * d;
+                dqdd_dt[r] += g * rate;
             }
         };
         if let Some(a) = self.control {
-            a.continuous_feedback(t, q, v, |fb| joint_feedback(fb.iv, fb.k, fb.d));
+            a.continuous_feedback(t, q, v, |fb| joint_feedback(fb.iv, fb.k, fb.d, fb.rate));
         }
         if self.forces.depends_on_state_by_joints_only() {
             for &(_, iv, k, d, _) in self.forces.joint_spring_dampers() {
-                joint_feedback(iv, k, d);
+                joint_feedback(iv, k, d, 0.0);
             }
             return Ok(true);
         }
@@ -423,8 +427,12 @@ impl Predictor {
                 if let Some(c) = cov.as_mut() {
                     let start = (&ws.qn[..], &ws.vn[..]);
                     let feedback = actuators.feedback();
-                    // ROS2's step brings its F and the start's q̈ (integrators/ros2.rs).
-                    let own = (s.method == Method::Ros2).then_some((&step.jac, &step.a0[..]));
+                    // ROS2's step brings its F, the start's q̈ and ∂q̈/∂t (integrators/ros2.rs).
+                    let own = (s.method == Method::Ros2).then_some((
+                        &step.jac,
+                        &step.a0[..],
+                        &step.scratch.dqdd_dt[..],
+                    ));
                     c.record_step(
                         rhs.sys,
                         s.method,

@@ -155,6 +155,9 @@ pub struct JacobianScratch {
     qs: Vec<f64>,
     vs: Vec<f64>,
     ap: Vec<f64>,
+    /// ∂q̈/∂t at fixed (q, v) where the last Jacobian was taken (nv): the continuous
+    /// controllers' own torque rate through ∂q̈/∂τ (analytic), or a difference in t.
+    pub(in crate::predict) dqdd_dt: Vec<f64>,
 }
 
 impl JacobianScratch {
@@ -164,6 +167,7 @@ impl JacobianScratch {
             qs: vec![0.0; nq],
             vs: vec![0.0; nv],
             ap: vec![0.0; nv],
+            dqdd_dt: vec![0.0; nv],
         }
     }
 }
@@ -179,6 +183,8 @@ pub fn accel_jacobian_fd<F: Accel + ?Sized>(
     s: &mut JacobianScratch,
 ) -> Result<()> {
     let nv = v.len();
+    // No ∂q̈/∂t here (a W-method keeps its order without it).
+    s.dqdd_dt.iter_mut().for_each(|x| *x = 0.0);
     for col in 0..2 * nv {
         s.dx.iter_mut().for_each(|x| *x = 0.0);
         let scale = if col < nv {
@@ -266,6 +272,7 @@ impl StepWorkspace {
     /// nearly the same state, instead of its own.
     pub(in crate::predict) fn share_jacobian(&mut self, other: &StepWorkspace) {
         self.jac.copy_from(&other.jac);
+        (self.scratch.dqdd_dt).copy_from_slice(&other.scratch.dqdd_dt);
         self.jac_valid = true;
         self.newton_dt = f64::NAN;
     }

@@ -32,6 +32,8 @@ pub(super) struct Ros2Buffers {
     rhs: DMatrix<f64>,
     k1: Vec<f64>,
     k2: Vec<f64>,
+    /// ∂q̈/∂t at the start (nv).
+    ft: Vec<f64>,
 }
 
 impl Ros2Buffers {
@@ -48,6 +50,7 @@ impl Ros2Buffers {
             rhs: DMatrix::zeros(n, 3 * nv),
             k1: vec![0.0; n],
             k2: vec![0.0; n],
+            ft: vec![0.0; nv],
         }
     }
 }
@@ -89,28 +92,40 @@ pub(super) fn ros2(
         }
     }
     r.k1[nv..].copy_from_slice(lin.dd.qdd.as_slice());
+    // ∂q̈/∂t: the controllers' own torque rates through ∂q̈/∂τ (as the step takes it).
+    r.ft.iter_mut().for_each(|x| *x = 0.0);
+    if lin.dd.with_tau {
+        for &(_, iv, _, _, rate) in &lin.joint_springs {
+            for i in 0..nv {
+                r.ft[i] += lin.dd.dqdd_dtau[(i, iv)] * rate;
+            }
+        }
+    }
     from_f(sys, lin, q, v, tau, dt)
 }
 
 /// The linearized ROS2 step under the F the prediction's step used (`jac`, its W-method
 /// matrix, the controllers' feedback and the joint springs included) and q̈ at the step's
-/// start (`qdd`): no derivatives are computed. Only without input columns (B).
+/// start and its ∂q̈/∂t (`qdd`, `qdd_dt`): no derivatives are computed. Only without input
+/// columns (B).
 pub(in crate::predict) fn ros2_with_step_jacobian(
     sys: &mut System,
     lin: &mut Linearization,
     (q, v): (&[f64], &[f64]),
     tau: &[f64],
     dt: f64,
-    (jac, qdd): (&DMatrix<f64>, &[f64]),
+    (jac, qdd, qdd_dt): (&DMatrix<f64>, &[f64], &[f64]),
 ) -> Result<()> {
     let nv = v.len();
     debug_assert!(!lin.inputs);
     lin.ros2.f.copy_from(jac);
     lin.ros2.k1[nv..].copy_from_slice(qdd);
+    lin.ros2.ft.copy_from_slice(qdd_dt);
     from_f(sys, lin, q, v, tau, dt)
 }
 
-/// The step's sensitivity from F (`lin.ros2.f`) and q̈ at the start (`lin.ros2.k1[nv..]`).
+/// The step's sensitivity from F (`lin.ros2.f`), q̈ at the start (`lin.ros2.k1[nv..]`) and
+/// ∂q̈/∂t (`lin.ros2.ft`, a constant: it moves the nominal step, not its sensitivity).
 fn from_f(
     sys: &mut System,
     lin: &mut Linearization,
@@ -166,8 +181,12 @@ fn from_f(
             lin.d_vel[(i, c)] = d(&r.dk1, nv + i) + f64::from(u8::from(c == nv + i));
         }
     }
-    // The nominal step (k1's q̈ part was set by the caller).
+    // The nominal step (k1's q̈ part was set by the caller), as integrators/ros2.rs takes it.
+    let gdt = GAMMA * dt;
     r.k1[..nv].copy_from_slice(v);
+    for i in 0..nv {
+        r.k1[nv + i] += gdt * r.ft[i];
+    }
     lu_solve(&r.w, &r.piv, &mut r.k1);
     for i in 0..nv {
         lin.theta[0][i] = dt * r.k1[i];
@@ -187,6 +206,9 @@ fn from_f(
     dexp_inv(&sys.model, &lin.theta[0], &lin.vel[0], &mut r.k2[..nv]);
     for i in 0..n {
         r.k2[i] -= 2.0 * r.k1[i];
+    }
+    for i in 0..nv {
+        r.k2[nv + i] -= gdt * r.ft[i];
     }
     lu_solve(&r.w, &r.piv, &mut r.k2);
     for i in 0..nv {
