@@ -157,7 +157,7 @@ fn reaches_the_reference(method: Method) -> usize {
 /// test set's reference at 0.03 s, for every method over a sweep of steps or tolerances chosen so
 /// that the true error (≥ 5e-7 rad) dwarfs the reference's own (1.4e-9 rad, module doc; RK4 at
 /// dt ≤ 4e-5 s is already below it). Achieved: estimate / true error within [0.97, 1.07]; bar
-/// [0.5, 2] (the issue's: [0.1, 100]). The
+/// [0.5, 2] (required: [0.1, 100]). The
 /// rows are the table in docs/propagation.md (`--nocapture`).
 #[test]
 fn error_estimate_brackets_the_reference_error() {

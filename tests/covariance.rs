@@ -27,9 +27,9 @@ use nalgebra::{DMatrix, DVector, Matrix3};
 
 /// Monte Carlo samples; the sample covariance's own relative error is ~sqrt(2/N) ≈ 2 %.
 const N: usize = 4000;
-/// Monte Carlo samples of the scenes with more coordinates (the 2000).
+/// Monte Carlo samples of the scenes with more coordinates (N = 2000).
 const N_SLOW: usize = 2000;
-/// Relative Frobenius difference allowed (the bar). Achieved 0.023 (diff drive,
+/// Relative Frobenius difference allowed (the required bar). Achieved 0.023 (diff drive,
 /// N = 4000), 0.031 (mobile manipulator) and 0.058 (rolling disk, N = 2000 each): the sampling
 /// error, ~√(2/N) = 2–3 %, dominates.
 const TOL: f64 = 0.10;
@@ -247,7 +247,7 @@ fn rigid_motion_pose_covariance_is_the_closed_form() {
         traj.samples.len()
     );
     // Achieved 2.8e-12 (1.75e-13 with N by central differences; rounding over 200 linearized
-    // steps, on entries of ~1e-2; the bar is 1e-9).
+    // steps, on entries of ~1e-2; the required bar is 1e-9).
     assert!(
         worst < 1e-11,
         "rigid-motion pose covariance off by {worst:e}"

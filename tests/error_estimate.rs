@@ -1,7 +1,7 @@
 //! The global error estimate (`Sample::error_estimate`, Richardson against a companion run,
 //! src/predict/estimate.rs) against the true error, for every method over a sweep of steps or
 //! tolerances: on A01 (closed form by Jacobi's sn) and on stiff spring chains (modal closed form),
-//! the estimate at the horizon lies within [0.25×, 4×] of the true error (the bar:
+//! the estimate at the horizon lies within [0.25×, 4×] of the true error (the required bar:
 //! [0.1×, 100×]). `max_error` stops a run with the typed error naming a step that meets it;
 //! `adapt: true` meets the bound by itself.
 //! The table printed here (`--nocapture`) is the one in docs/propagation.md.
@@ -38,7 +38,7 @@ fn predictor(sc: &Scene, method: Method, x: f64) -> Predictor {
         .unwrap()
 }
 
-/// Prints a row and checks estimate / true error ∈ [0.25, 4] (achieved 0.34–1.75; the bar
+/// Prints a row and checks estimate / true error ∈ [0.25, 4] (achieved 0.34–1.75; the required bar
 /// is [0.1, 100]).
 fn check_row(scene: &str, method: Method, x: f64, truth: f64, estimate: f64) {
     let ratio = estimate / truth;

@@ -19,7 +19,7 @@ use constraint_dynamics::{Scene, System};
 use nalgebra::{DMatrix, DVector};
 
 /// Achieved ≤ 1.4e-10 (the differences' own error), 7e-10 for B on Andrews' gram-scale bodies;
-/// the bar is 1e-7.
+/// the required bar is 1e-7.
 const TOL: f64 = 1e-8;
 /// Step [s], or ten of the scene's own steps where that is shorter (Andrews' spring: a 1e-5 s
 /// scene step; at 0.01 s one explicit step is far outside its stable range).

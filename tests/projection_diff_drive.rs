@@ -78,7 +78,7 @@ impl DiffDrive {
     }
 }
 
-/// `mode: mass` (the M-metric QP): a pure sideways twist (0, V, 0) with the wheels
+/// `mode: mass` (the M-metric QP): a pure sideways twist (0, V, 0) with the wheels
 /// completed from the constraints (ω = 0).
 ///
 /// On the manifold, v* = N s* with A s* = Nᵀ M v_des. M v_des = V · M[:, vy], and the only

@@ -68,7 +68,7 @@ fn appell_hamel_follows_its_closed_form() {
     }
     // RK4 integrates this motion exactly (constant accelerations), so what is left is
     // round-off grown over 2000 steps and their velocity projections: achieved q 5.3e-14,
-    // v 2.0e-13, λ 1.1e-16, energy 6.1e-14 relative (the bar is 1e-9).
+    // v 2.0e-13, λ 1.1e-16, energy 6.1e-14 relative (the required bar is 1e-9).
     assert_close("Appell–Hamel q (x, y, z, quaternion)", &[wq], &[0.0], 5e-12);
     assert_close("Appell–Hamel v (ẋ, ẏ, ż)", &[wv], &[0.0], 2e-11);
     assert_close("Appell–Hamel λ = m g/(1 + a²)", &[wl], &[0.0], 1e-14);
@@ -146,7 +146,7 @@ fn seed_disk_as_expressions_gives_the_rolling_constraints_accelerations() {
             1e-15,
         );
         // Achieved ≤ 2.2e-16 (q̈, both forms) and 2.2e-16 (Jᵀλ): the same force through other
-        // rows (the bar is 1e-12).
+        // rows (the required bar is 1e-12).
         assert_close(
             &format!("state {k}: q̈ multipliers"),
             a_mul.as_slice(),
@@ -360,7 +360,7 @@ fn multiplier_and_embedded_forms_agree_on_expression_scenes() {
                 .forward_dynamics(&sc.q0, &v, &tau, false)
                 .unwrap()
                 .clone();
-            // Achieved ≤ 2.8e-16 (q̈) and 8.4e-16 (the rows); the bar is 1e-10.
+            // Achieved ≤ 2.8e-16 (q̈) and 8.4e-16 (the rows); the required bar is 1e-10.
             assert_close(
                 &format!("{rel}[{k}] embedded vs multipliers"),
                 b.as_slice(),

@@ -112,7 +112,7 @@ fn dependent_velocities_are_solved_from_f_by_newton() {
 }
 
 /// The embedded propagation with vz dependent follows the closed form too (achieved q 5.3e-14,
-/// v 2.0e-13 over 2 s; the bar is 1e-9).
+/// v 2.0e-13 over 2 s; the required bar is 1e-9).
 #[test]
 fn embedded_propagation_with_dependent_velocity_follows_the_closed_form() {
     let (g, s0, z0) = (9.81, 10.0, 1.0);

@@ -242,8 +242,8 @@ fn two_clients_at_1khz_every_call_answered() {
     // half of the span from `RSS_FROM` with the second half (20 s, four trim periods each, in a
     // 60 s run; at least two), each by the upper median of its trim periods' peaks. A leak
     // raises every later peak; one tooth that reaches higher does not: with each half's single
-    // highest sample, one tooth at 39.4 MB among peaks of 37.1–37.2 MB failed a run (session
-    // 18, +6.16 %). With two trim periods per end a tooth sampled before its top decided the
+    // highest sample, one tooth at 39.4 MB among peaks of 37.1–37.2 MB failed a run
+    // (+6.16 %). With two trim periods per end a tooth sampled before its top decided the
     // figure: +5.27 % in a run whose peaks from 20 s on were 35.0–36.9 MB, flat.
     let from = RSS_FROM.as_secs_f64();
     let end = rss[rss.len() - 1].0;
@@ -342,8 +342,8 @@ fn two_clients_at_1khz_every_call_answered() {
     // Held, or said: under the clients the predictor keeps at least 0.65 of the lower of its
     // rates in the 10 s before and after them (10 Hz is not assumed: other builds on the
     // machine move its rate between 3 and 7 Hz from one minute to the next), or its
-    // `/diagnostics` status says the rate is below the one asked (the issue: "prediction rate
-    // held, or a diagnostic says why not"). Its worker yields the CPU to the service threads by
+    // `/diagnostics` status says the rate is below the one asked (the requirement: the
+    // prediction rate held, or a diagnostic says why not). Its worker yields the CPU to the service threads by
     // design (`node::timer::PERIODIC_NICE`), and 2 000 calls/s take a share of the two cores:
     // the ratio was 0.79–0.86 on idle machines, 0.61 in a CI run with the scheduling tail
     // above. Never starved (it must not stop publishing): every 5 s window keeps a
