@@ -38,10 +38,10 @@
 //! (tests/covariance_sensitivity.rs, mobile manipulator) — a covariance is an uncertainty, and
 //! 0.1 % of it is far below what a Monte Carlo check resolves (√(2/N) = 3 % at N = 2000).
 //!
-//! A ROS2 step hands over the F it stepped with and q̈ at its start (`StepRecord::push`): such
-//! steps are linearized one by one with them (linearize/ros2.rs, no derivatives of their own),
-//! which costs less than one refused chunk, and a chunk of them would not pass the check where
-//! the step damps stiff modes rather than resolving them.
+//! A ROS2 step hands over the F it stepped with, q̈ at its start and ∂q̈/∂t
+//! (`StepRecord::push`): such steps are linearized one by one with them (linearize/ros2.rs, no
+//! derivatives of their own), which costs less than one refused chunk, and a chunk of them would
+//! not pass the check where the step damps stiff modes rather than resolving them.
 //!
 //! P is brought onto the constraints (`project`) where the flush ends — a sample, where P is
 //! read, or a full record — not after every chunk: the linearized flow keeps it on them to
@@ -86,8 +86,8 @@ pub(crate) struct StepRecord {
     feedback: Vec<Vec<Feedback>>,
     /// Time of each recorded state since the first [s].
     t: Vec<f64>,
-    /// Each step's own W-method matrix F (2nv × 2nv) and q̈ at its start, where the step
-    /// gave them (ROS2): its linearization then needs no derivatives.
+    /// Each step's own W-method matrix F (2nv × 2nv), q̈ at its start and ∂q̈/∂t, where the
+    /// step gave them (ROS2): its linearization then needs no derivatives.
     jac: Vec<DMatrix<f64>>,
     qdd: Vec<Vec<f64>>,
     qdd_dt: Vec<Vec<f64>>,
