@@ -45,7 +45,9 @@ mod socp;
 
 pub use binding::ACTIVE_TOLERANCE;
 pub use model::{Actuator, Contact, EnvelopeModel};
+pub(crate) use report::unchecked_limits;
 pub use report::{EnvelopeReport, LimitReport, NamedLimit};
+pub(crate) use socp::solver_settings;
 
 use crate::algorithm::{bias_forces_after_kinematics, crba_after_kinematics};
 use crate::error::{Result, check_len};

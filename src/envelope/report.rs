@@ -69,14 +69,19 @@ impl EnvelopeReport {
             forward_deceleration: limit(&envelope.forward_deceleration),
             yaw_acceleration_left: limit(&envelope.yaw_acceleration_left),
             yaw_acceleration_right: limit(&envelope.yaw_acceleration_right),
-            unchecked: em
-                .unchecked
-                .iter()
-                .map(|(k, n)| NamedLimit {
-                    kind: k.name(),
-                    name: n.clone(),
-                })
-                .collect(),
+            unchecked: unchecked_limits(em),
         }
     }
+}
+
+/// The limits the model cannot check (`EnvelopeModel::unchecked`), named as the report names
+/// them.
+pub(crate) fn unchecked_limits(em: &EnvelopeModel) -> Vec<NamedLimit> {
+    em.unchecked
+        .iter()
+        .map(|(k, n)| NamedLimit {
+            kind: k.name(),
+            name: n.clone(),
+        })
+        .collect()
 }

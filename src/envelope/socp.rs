@@ -55,9 +55,10 @@ pub(super) enum Direction {
     Yaw,
 }
 
-/// Solver settings: the pattern stays fixed for updates; tolerances tighter than Clarabel's
-/// defaults (the limits are compared with closed forms to 1e-6).
-fn settings() -> DefaultSettings<f64> {
+/// Clarabel's settings for the dynamics' cone programs (the envelope and the dynamic
+/// projection): the pattern stays fixed for updates; tolerances tighter than Clarabel's defaults
+/// (the limits are compared with closed forms to 1e-6).
+pub(crate) fn solver_settings() -> DefaultSettings<f64> {
     DefaultSettingsBuilder::default()
         .verbose(false)
         .presolve_enable(false)
@@ -245,8 +246,9 @@ impl Socp {
                     self.rowval.clone(),
                     self.a_val.clone(),
                 );
-                let s = DefaultSolver::new(&p, &self.c, &a, &self.b, &self.cones, settings())
-                    .map_err(|e| numerical(&format!("Clarabel refused the problem: {e:?}")))?;
+                let s =
+                    DefaultSolver::new(&p, &self.c, &a, &self.b, &self.cones, solver_settings())
+                        .map_err(|e| numerical(&format!("Clarabel refused the problem: {e:?}")))?;
                 self.solver = Some(s);
             }
         }

@@ -40,7 +40,9 @@ use super::request::{Mode, ProjectionRequest};
 use crate::algorithm::{bias_forces_after_kinematics, crba_after_kinematics};
 use crate::constraints::ConstraintSet;
 use crate::envelope::binding::{active_limits_scaled, capacity};
-use crate::envelope::{ACTIVE_TOLERANCE, Binding, BindingKind, EnvelopeModel, NamedLimit};
+use crate::envelope::{
+    ACTIVE_TOLERANCE, Binding, BindingKind, EnvelopeModel, NamedLimit, unchecked_limits,
+};
 use crate::error::{Error, Result, check_finite, check_len};
 use crate::model::Model;
 use crate::system::System;
@@ -480,14 +482,7 @@ impl DynamicProjector {
             binding,
             actuators: em.actuators.iter().map(|a| a.joint.clone()).collect(),
             tau: ok.then(|| self.tau.iter().copied().collect()),
-            unchecked: em
-                .unchecked
-                .iter()
-                .map(|(k, n)| NamedLimit {
-                    kind: k.name(),
-                    name: n.clone(),
-                })
-                .collect(),
+            unchecked: unchecked_limits(em),
         });
         out
     }

@@ -28,12 +28,12 @@
 
 use super::problem::{Bounds, Side};
 use super::qp::IneqRow;
-use crate::envelope::EnvelopeModel;
+use crate::envelope::{EnvelopeModel, solver_settings};
 use crate::error::{Error, Result};
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
-    DefaultSettings, DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT,
-    SecondOrderConeT, SolverStatus, SupportedConeT, ZeroConeT,
+    DefaultSolver, IPSolver, NonnegativeConeT, SecondOrderConeT, SolverStatus, SupportedConeT,
+    ZeroConeT,
 };
 use nalgebra::{DMatrix, DVector};
 
@@ -71,22 +71,6 @@ pub(super) enum RowKind {
     Cone(usize),
     /// A tangential row of a cone (its normal is the cone's first row).
     ConeTail,
-}
-
-/// Settings: the pattern stays fixed for updates; tolerances tighter than Clarabel's defaults
-/// (the velocity is compared with the envelope's closed forms to 1e-6).
-fn settings() -> DefaultSettings<f64> {
-    DefaultSettingsBuilder::default()
-        .verbose(false)
-        .presolve_enable(false)
-        .input_sparse_dropzeros(false)
-        .max_threads(1)
-        .tol_gap_abs(1e-10)
-        .tol_gap_rel(1e-10)
-        .tol_feas(1e-10)
-        .tol_ktratio(1e-8)
-        .build()
-        .expect("valid Clarabel settings")
 }
 
 /// The outcome of one solve.
@@ -256,7 +240,7 @@ impl DynSocp {
         );
         let p = CscMatrix::new(n, n, p_colptr, p_row, p_val.clone());
         let a = CscMatrix::new(m, n, colptr, rowval.clone(), a_val.clone());
-        let solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings())
+        let solver = DefaultSolver::new(&p, &q, &a, &b, &cones, solver_settings())
             .map_err(|e| numerical(&format!("Clarabel refused the problem: {e:?}")))?;
         let relaxed = vec![false; m];
         Ok(Self {
