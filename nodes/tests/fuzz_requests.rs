@@ -74,6 +74,8 @@ proptest! {
         lower in floats(9),
         upper in floats(9),
         accel_limit_dt in hostile(),
+        period in hostile(),
+        v_current in prop::collection::vec(hostile(), 0..10),
         od in prop::collection::vec(odometry(), 0..2),
         clean in prop::bool::weighted(CLEAN),
     ) {
@@ -93,9 +95,15 @@ proptest! {
         } else {
             (joint_names, joint_velocities, accel_limit_dt)
         };
+        // A clean case keeps the period small (a control period) and the start velocity whole.
+        let (period, v_current) = if clean {
+            (sanitized(&[period], 1)[0].abs() * 0.01, sanitized(&v_current, 9))
+        } else {
+            (period, v_current)
+        };
         let req = ProjectVelocityRequest {
             use_latest_state, q, v_names, v_des, use_twist, base_twist, joint_names,
-            joint_velocities, bound_names, lower, upper, accel_limit_dt,
+            joint_velocities, bound_names, lower, upper, accel_limit_dt, period, v_current,
         };
         let r = timed("project_velocity", || n.project_velocity(&req));
         judge("project_velocity", r.success, &r.message, &r).map_err(TestCaseError::fail)?;

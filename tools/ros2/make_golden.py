@@ -277,6 +277,8 @@ def cases():
     req.lower = [-10.0, -10.5]
     req.upper = [10.0, 10.5]
     req.accel_limit_dt = 0.02
+    req.period = 0.05
+    req.v_current = [0.1, 0.0, -0.25]
     out["constraint_dynamics_msgs__ProjectVelocity_Request"] = req
 
     resp = ProjectVelocity.Response()
@@ -292,6 +294,10 @@ def cases():
     resp.impulses = [0.125, -0.125]
     resp.active_bounds = ["left_wheel"]
     resp.conflicting = ["left_wheel_contact", "left_wheel.upper"]
+    resp.binding_kinds = ["effort", "lift_off"]
+    resp.binding_names = ["left_wheel_joint", "caster_contact"]
+    resp.unchecked_kinds = ["friction"]
+    resp.unchecked_names = ["caster_contact"]
     out["constraint_dynamics_msgs__ProjectVelocity_Response"] = resp
 
     req = Predict.Request()

@@ -131,6 +131,12 @@ pub mod srv {
         pub upper: Vec<f64>,
         /// If > 0, bound |v − v_current| ≤ a_max · accel_limit_dt [s].
         pub accel_limit_dt: f64,
+        /// Control period [s]: > 0 asks for a velocity reachable within it under the robot's
+        /// efforts, friction cones and contacts (the dynamic projection); 0 = kinematic.
+        pub period: f64,
+        /// Current velocity (nv, the node's order) when `use_latest_state` is false; empty =
+        /// the node's latest [m/s, rad/s].
+        pub v_current: Vec<f64>,
     }
 
     /// Response of `ProjectVelocity`.
@@ -150,6 +156,13 @@ pub mod srv {
         pub impulses: Vec<f64>,
         pub active_bounds: Vec<String>,
         pub conflicting: Vec<String>,
+        /// What binds the answer: `effort` (joint), `friction` / `lift_off` (constraint),
+        /// `bound` (coordinate); parallel to `binding_names`. Empty with period 0.
+        pub binding_kinds: Vec<String>,
+        pub binding_names: Vec<String>,
+        /// Limits the dynamics cannot check (same kinds), parallel to `unchecked_names`.
+        pub unchecked_kinds: Vec<String>,
+        pub unchecked_names: Vec<String>,
     }
 
     ros_service!(

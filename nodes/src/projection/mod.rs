@@ -1,14 +1,20 @@
 //! `cd_projection`: the nearest velocity the constraints allow (`~/project_velocity`), and the
 //! same projection as a command filter between a planner and the base controller.
 //!
-//! The core's [`project_system`] solves the QP (Clarabel, built once and updated); this module
+//! The core's [`DynamicProjector`] solves the QP (Clarabel, built once and updated) — with a
+//! control period, the cone program of the dynamic projection under the robot's limits
+//! ([`EnvelopeModel`]: URDF efforts, friction cones, contacts that push); this module
 //! translates the request ([`request`]) and applies the node's limits.
 
 pub mod params;
 pub mod request;
 pub mod ros;
 
-use constraint_dynamics::projection::{VelocityProjector, project_system};
+use constraint_dynamics::System;
+use constraint_dynamics::applied::applied_generalized_force;
+use constraint_dynamics::envelope::EnvelopeModel;
+use constraint_dynamics::forces::ForceElements;
+use constraint_dynamics::projection::{DynamicProjector, ProjectionRequest};
 
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
@@ -32,10 +38,17 @@ pub enum ProjectionInput {
 /// A filtered command (with the input's header when stamped), to publish.
 pub struct Filtered(pub Twist, pub Option<Header>);
 
-/// The projection node's logic: a robot and its projector.
+/// The projection node's logic: a robot, its projector and the robot's limits.
 pub struct ProjectionNode {
     robot: Robot,
-    projector: VelocityProjector,
+    projector: DynamicProjector,
+    /// The limits of a request with a control period, or why the scene has none.
+    limits: Result<EnvelopeModel, String>,
+    /// The scene's force elements (springs, dampers, URDF damping): they act over the period.
+    elements: ForceElements,
+    /// Their generalized force at the request's state, and nv zeros (scratch, nv).
+    applied: Vec<f64>,
+    zero: Vec<f64>,
     params: NodeParams<ProjectionParams>,
     log: NodeLog,
 }
@@ -50,11 +63,20 @@ impl NodeLogic for ProjectionNode {
         params: NodeParams<ProjectionParams>,
         log: NodeLog,
     ) -> Result<Self, NodeError> {
+        let sys = System::from_scene(robot.scene()).map_err(NodeError::core("projection"))?;
+        let limits = EnvelopeModel::from_scene(robot.scene(), &sys).map_err(|e| e.to_string());
+        let elements = ForceElements::new(&sys.model, &robot.scene().file.forces)
+            .map_err(NodeError::core("projection"))?;
         let sys = robot.system();
-        let projector = VelocityProjector::new(&sys.model, &sys.constraints);
+        let projector = DynamicProjector::new(&sys.model, &sys.constraints);
+        let nv = sys.model.nv;
         Ok(ProjectionNode {
             robot,
             projector,
+            limits,
+            elements,
+            applied: vec![0.0; nv],
+            zero: vec![0.0; nv],
             params,
             log,
         })
@@ -122,12 +144,54 @@ impl ProjectionNode {
                 .latest_state(self.params.common.state.project_to_constraints)?
         } else {
             let model = self.robot.model();
-            let latest = &self.robot.state().q;
-            let mut q = state_request::assemble("q", &[], &req.q, latest, &model.q_names, false)?;
+            let state = self.robot.state();
+            let mut q =
+                state_request::assemble("q", &[], &req.q, &state.q, &model.q_names, false)?;
             model.normalize(&mut q);
-            (q, self.robot.state().v.clone())
+            // The velocity the period starts from: the request's, else the latest measured.
+            let v = if req.v_current.is_empty() {
+                state.v.clone()
+            } else {
+                state_request::check_values("v_current", &req.v_current, &model.v_names)?;
+                req.v_current.clone()
+            };
+            (q, v)
         };
-        let out = project_system(&mut self.projector, self.robot.system(), &q, &v, &pr)
+        self.project(&q, &v, &pr)
+    }
+
+    /// Project at (q, v): the kinematic projection, or with a period the dynamic one under the
+    /// robot's limits and the scene's force elements at (q, v).
+    fn project(
+        &mut self,
+        q: &[f64],
+        v: &[f64],
+        pr: &ProjectionRequest,
+    ) -> Result<ProjectVelocityResponse, NodeError> {
+        let limits = match (&self.limits, pr.period > 0.0) {
+            (_, false) => None,
+            (Ok(em), true) => Some(em),
+            (Err(why), true) => {
+                return Err(NodeError::request(
+                    "period",
+                    format!("this scene's limits are unavailable: {why}"),
+                ));
+            }
+        };
+        let sys = self.robot.system();
+        if limits.is_some() {
+            applied_generalized_force(
+                sys,
+                &mut self.elements,
+                (0.0, q, v),
+                &self.zero,
+                &self.zero,
+                &mut self.applied,
+            );
+        }
+        let out = self
+            .projector
+            .project_request(sys, limits, q, v, &self.applied, pr)
             .map_err(NodeError::core("projection"))?;
         Ok(request::response(&out))
     }
@@ -143,6 +207,7 @@ impl ProjectionNode {
             use_twist: true,
             base_twist: *cmd,
             accel_limit_dt: f.accel_limit_dt,
+            period: f.control_period,
             ..Default::default()
         };
         let mut pr = request::projection_request(
@@ -154,9 +219,7 @@ impl ProjectionNode {
         let (q, v) = self
             .robot
             .latest_state(self.params.common.state.project_to_constraints)?;
-        let out = project_system(&mut self.projector, self.robot.system(), &q, &v, &pr)
-            .map_err(NodeError::core("projection"))?;
-        let resp = request::response(&out);
+        let resp = self.project(&q, &v, &pr)?;
         let twist = if resp.success {
             resp.base_twist
         } else {
@@ -165,3 +228,6 @@ impl ProjectionNode {
         Ok((twist, resp))
     }
 }
+
+#[cfg(test)]
+mod tests;

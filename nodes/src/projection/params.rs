@@ -40,6 +40,10 @@ pub struct FilterParams {
     pub velocity_limits: bool,
     /// If > 0, also bound |v − v_current| ≤ a_max · accel_limit_dt (see `acceleration_limits`) [s].
     pub accel_limit_dt: f64,
+    /// The base controller's control period [s]: if > 0, each command becomes one the robot
+    /// can reach within it under its efforts, friction cones and contacts (the dynamic
+    /// projection); 0 = the kinematic projection.
+    pub control_period: f64,
 }
 
 impl Default for FilterParams {
@@ -51,6 +55,7 @@ impl Default for FilterParams {
             stamped: false,
             velocity_limits: true,
             accel_limit_dt: 0.0,
+            control_period: 0.0,
         }
     }
 }
@@ -78,7 +83,11 @@ impl Default for ProjectionParams {
 }
 
 impl KindParams for ProjectionParams {
-    const DYNAMIC: &'static [&'static str] = &["acceleration_limits.", "filter.accel_limit_dt"];
+    const DYNAMIC: &'static [&'static str] = &[
+        "acceleration_limits.",
+        "filter.accel_limit_dt",
+        "filter.control_period",
+    ];
 
     fn validate(&self) -> Result<(), ParamsError> {
         let a = &self.acceleration_limits;
@@ -92,6 +101,7 @@ impl KindParams for ProjectionParams {
             positive(&format!("acceleration_limits ({n})"), *v)?;
         }
         nonneg("filter.accel_limit_dt", self.filter.accel_limit_dt)?;
+        nonneg("filter.control_period", self.filter.control_period)?;
         if self.filter.enabled {
             nonempty("filter.input_topic", &self.filter.input_topic)?;
             nonempty("filter.output_topic", &self.filter.output_topic)?;

@@ -4,6 +4,7 @@
 use std::collections::BTreeMap;
 
 use constraint_dynamics::Model;
+use constraint_dynamics::envelope::NamedLimit;
 use constraint_dynamics::model::BaseTwist;
 use constraint_dynamics::projection::{
     AccelLimitRequest, PerCoordinate, Projection, ProjectionRequest, Side, Status,
@@ -98,12 +99,21 @@ pub fn projection_request(
             v_current: None,
         });
     }
+    let period = req.period;
+    if !period.is_finite() || period < 0.0 {
+        return Err(NodeError::request(
+            "period",
+            format!("{period} must be finite and ≥ 0 (0: the kinematic projection)"),
+        ));
+    }
+    pr.period = period;
     Ok(pr)
 }
 
 /// The response for the core's projection.
 pub fn response(out: &Projection) -> ProjectVelocityResponse {
     let optimal = out.status == Status::Optimal;
+    let dynamics = out.dynamics.as_ref();
     let base_twist = match out.base_twist.as_deref() {
         Some(&[vx, vy, wz]) => twist_msg(&BaseTwist {
             linear: [vx, vy, 0.0],
@@ -138,5 +148,14 @@ pub fn response(out: &Projection) -> ProjectVelocityResponse {
             })
             .collect(),
         conflicting: out.conflicts.iter().map(|c| c.label.clone()).collect(),
+        binding_kinds: named(dynamics.map(|d| &d.binding), |l| l.kind.to_string()),
+        binding_names: named(dynamics.map(|d| &d.binding), |l| l.name.clone()),
+        unchecked_kinds: named(dynamics.map(|d| &d.unchecked), |l| l.kind.to_string()),
+        unchecked_names: named(dynamics.map(|d| &d.unchecked), |l| l.name.clone()),
     }
+}
+
+/// One field of each named limit (none without a period).
+fn named(limits: Option<&Vec<NamedLimit>>, field: impl Fn(&NamedLimit) -> String) -> Vec<String> {
+    limits.map_or_else(Vec::new, |l| l.iter().map(field).collect())
 }
