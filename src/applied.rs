@@ -24,8 +24,10 @@ pub fn applied_generalized_force(
     tau: &mut [f64],
 ) {
     tau.copy_from_slice(tau_act);
-    if !elements.is_empty() {
+    if elements.needs_kinematics() {
         forward_kinematics(&sys.model, &mut sys.data, q, v, zero);
+    }
+    if !elements.is_empty() {
         elements.add_generalized_force(&sys.model, &sys.data, t, q, v, tau);
     }
 }

@@ -252,6 +252,12 @@ impl ForceElements {
         self.springs.is_empty() && self.frame_forces.is_empty()
     }
 
+    /// True when the generalized force needs the kinematics at (q, v): point springs and frame
+    /// forces act at frames; joint spring-dampers and joint torques act on coordinates.
+    pub fn needs_kinematics(&self) -> bool {
+        !self.springs.is_empty() || !self.frame_forces.is_empty()
+    }
+
     /// True when there are point-to-point spring-dampers (whose direction turns with q).
     pub fn has_point_springs(&self) -> bool {
         !self.springs.is_empty()

@@ -315,12 +315,7 @@ impl Predictor {
         let h_fixed = (t1 - t0) / n_fixed;
         let mut i = 0.0;
         let mut t = t0;
-        // ROS2 keeps one F over a span (a W-method keeps its order with any F; a fresh one per
-        // span keeps the stiff modes damped); the companion's is the answer's (run.rs).
-        // SDIRK2 keeps its own while Newton converges.
-        if s.method == Method::Ros2 && !companion {
-            step.jac_valid = false;
-        }
+        // SDIRK2 keeps its own F while Newton converges; ROS2's is refreshed by run.rs.
         let result = (|| -> Result<()> {
             while t < t1 - 1e-12 {
                 let dt = if s.method.is_adaptive() {
