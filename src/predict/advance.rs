@@ -305,7 +305,6 @@ impl Predictor {
                 .or_else(|| ws.pipe.get_mut().map(CovarianceFeed::Worker)),
             Some(_) => None,
         };
-        let companion = cap.is_some();
         let cap = cap.unwrap_or(f64::INFINITY);
         let mut largest = 0.0f64;
         // Fixed steps: the span in n equal steps of at most dt, n computed once (a step
