@@ -65,10 +65,21 @@ fn predict_prints_the_trajectory_with_forces() {
 fn predict_with_forces_prints_the_first_contact_break_and_the_unchecked_limits() {
     let run = |scene: &str, horizon: &str| -> Value {
         let out = cli()
-            .args(["predict", "--scene", scene, "--horizon", horizon, "--forces"])
+            .args([
+                "predict",
+                "--scene",
+                scene,
+                "--horizon",
+                horizon,
+                "--forces",
+            ])
             .output()
             .unwrap();
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         serde_json::from_slice(&out.stdout).unwrap()
     };
     let v = run("tests/data/cart_torque_ramp.yaml", "1.0");

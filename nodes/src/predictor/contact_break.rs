@@ -20,9 +20,7 @@ pub fn warning(b: &ContactBreak) -> String {
         }
         BreakKind::LiftOff => format!(
             "lift-off at t={:.2} s on {} (it would have to pull with {:.3} N)",
-            b.t,
-            b.contact,
-            -b.normal_force
+            b.t, b.contact, -b.normal_force
         ),
     }
 }

@@ -346,7 +346,10 @@ fn a_predicted_slip_is_a_diagnostics_warning() {
         let d = n.diagnostics();
         d.iter().find(|v| v.key == key).expect(key).value.clone()
     };
-    assert_eq!(value(&n, "predicted contact break"), "none within the horizon");
+    assert_eq!(
+        value(&n, "predicted contact break"),
+        "none within the horizon"
+    );
     assert_eq!(
         value(&n, "unchecked contact limits"),
         "lift_off: left_wheel_contact, lift_off: right_wheel_contact"
@@ -365,6 +368,6 @@ fn a_predicted_slip_is_a_diagnostics_warning() {
     let a = 2.0 * 5.0 / (r * (m + 2.0 * i_w / (r * r)));
     let used = (m * a / 2.0) / (mu * m * g / 2.0);
     let want = format!("slip at t=0.00 s on left_wheel_contact (friction used {used:.2} × μ)");
-    assert_eq!(n.warnings(), [want.clone()]);
+    assert_eq!(n.warnings(), std::slice::from_ref(&want));
     assert_eq!(value(&n, "predicted contact break"), want);
 }
