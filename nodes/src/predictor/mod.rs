@@ -7,7 +7,7 @@
 //! of the inputs ([`inputs`]); inputs older than `state.timeout` stop the predictions or, with
 //! `state.stale_behaviour: warn`, are used with a WARN and a covariance grown with their age.
 
-mod contact_break;
+pub(crate) mod contact_break;
 pub mod markers;
 pub mod params;
 pub mod ros;
