@@ -1,5 +1,6 @@
 //! `predict`: propagate a scene from a state over a horizon, following commands; the trajectory as
-//! JSON (samples of q, v, λ with `--forces`, constraint residuals, energies, error estimate).
+//! JSON (samples of q, v, λ and the contacts' judgement with `--forces`, constraint residuals,
+//! energies, error estimate).
 
 use constraint_dynamics::actuators::Command;
 use constraint_dynamics::predict::{DriftControl, Method, PredictionRequest, Predictor};
@@ -54,7 +55,10 @@ pub struct PredictArgs {
     /// no `error_estimate` and max_error is not checked.
     #[arg(long)]
     no_error_estimate: bool,
-    /// Record the multipliers λ and the constraint forces in every sample.
+    /// Record the multipliers λ and the constraint forces in every sample, and judge the
+    /// contacts at each: `contact_check` names the first slip or lift-off and lists what it
+    /// could not check (friction of a contact without `friction:`, lift-off and friction of a
+    /// wheel on a planar base); nothing is assumed.
     #[arg(long)]
     forces: bool,
     /// Start covariance file ({"P": [[...]]} 2nv × 2nv, or {"sigma": {"<v_name>": σ,

@@ -56,6 +56,59 @@ fn predict_prints_the_trajectory_with_forces() {
     );
 }
 
+/// `predict --forces` prints the contacts' judgement: the cart pushed by its torque ramp
+/// (tests/data/cart_torque_ramp.yaml) first slips at t* = a* r m_eff / (2 k) = 0.572264 s
+/// (closed form derived in tests/propagation_contacts.rs), reported at the first sample after
+/// it; the planar diff drive's wheels (no normal row, no `friction:`) are listed unchecked,
+/// never guessed.
+#[test]
+fn predict_with_forces_prints_the_first_contact_break_and_the_unchecked_limits() {
+    let run = |scene: &str, horizon: &str| -> Value {
+        let out = cli()
+            .args([
+                "predict",
+                "--scene",
+                scene,
+                "--horizon",
+                horizon,
+                "--forces",
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let v = run("tests/data/cart_torque_ramp.yaml", "1.0");
+    let check = &v["contact_check"];
+    let b = &check["first_break"];
+    assert_eq!(b["kind"], "slip");
+    assert_eq!(b["contact"], "left_wheel_contact");
+    let (t, t_star, sample) = (b["t"].as_f64().unwrap(), 0.572264, 0.01);
+    assert!(t >= t_star && t - t_star <= sample, "t = {t} s");
+    assert!(b["friction_used"].as_f64().unwrap() > 1.0);
+    assert_eq!(check["unchecked"], serde_json::json!([]));
+    let last = v["samples"].as_array().unwrap().last().unwrap().clone();
+    assert_eq!(last["contacts"][0]["breaks"], "slip");
+    assert!(last["contacts"][2].get("friction_used").is_none());
+
+    let v = run("params/diff_drive.yaml", "0.1");
+    let check = &v["contact_check"];
+    assert!(check.get("first_break").is_none());
+    let unchecked: Vec<(&str, &str)> = check["unchecked"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|u| (u["kind"].as_str().unwrap(), u["name"].as_str().unwrap()))
+        .collect();
+    assert_eq!(unchecked.len(), 4);
+    assert!(unchecked.contains(&("friction", "left_wheel_contact")));
+    assert!(unchecked.contains(&("lift_off", "right_wheel_contact")));
+}
+
 #[test]
 fn quick_report_writes_csv_png_and_summary() {
     let out_dir: PathBuf = std::env::temp_dir().join(format!("cd_report_{}", std::process::id()));

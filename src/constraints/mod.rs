@@ -6,6 +6,7 @@
 //! `J(q) v = 0` at velocity level, `J q̈ + γ = 0` at acceleration level, and `φ(q) = 0` on holonomic
 //! rows (φ is zero on nonholonomic rows).
 
+mod contact;
 mod coupling;
 mod distance;
 mod expression;
@@ -24,6 +25,7 @@ mod spec;
 mod velocity;
 mod weld;
 
+pub use contact::{BreakKind, Contact, ContactLimits, ContactState, UncheckedContactLimit};
 pub use coupling::CouplingConstraint;
 pub use distance::DistanceConstraint;
 pub use expression::{Expression, FUNCTIONS, MAX_SYMBOLS, RESERVED, Source};

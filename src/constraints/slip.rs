@@ -6,7 +6,7 @@
 //! model has no normal row and N is taken from the test's fallback (by default the weight
 //! shared equally by the rolling contacts).
 
-use super::{ConstraintForce, ConstraintKind, ConstraintSet};
+use super::{ConstraintForce, ConstraintKind, ConstraintSet, ContactLimits};
 use crate::model::Model;
 
 /// Coulomb's rule for rolling contacts.
@@ -51,6 +51,16 @@ impl SlipTest {
         SlipTest {
             friction_coefficient,
             fallback_normal_force,
+        }
+    }
+
+    /// What a prediction's contact judgement assumes under this test (the ROS nodes' rule):
+    /// μ for the contacts that declare none, and the fallback normal force for the wheels
+    /// without a normal row. A contact's own `friction:` still wins (predict/contacts.rs).
+    pub fn contact_limits(&self) -> ContactLimits {
+        ContactLimits {
+            friction: Some(self.friction_coefficient),
+            normal_force: Some(self.fallback_normal_force),
         }
     }
 

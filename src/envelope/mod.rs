@@ -43,8 +43,9 @@ mod model;
 mod report;
 mod socp;
 
+pub use crate::constraints::Contact;
 pub use binding::ACTIVE_TOLERANCE;
-pub use model::{Actuator, Contact, EnvelopeModel};
+pub use model::{Actuator, EnvelopeModel};
 pub(crate) use report::unchecked_limits;
 pub use report::{EnvelopeReport, LimitReport, NamedLimit};
 pub(crate) use socp::solver_settings;
@@ -69,6 +70,15 @@ pub enum BindingKind {
     /// A coordinate at a bound (named by its coordinate); the envelope bounds no coordinate,
     /// so it never reports one.
     Bound,
+}
+
+impl From<crate::constraints::UncheckedContactLimit> for BindingKind {
+    fn from(limit: crate::constraints::UncheckedContactLimit) -> Self {
+        match limit {
+            crate::constraints::UncheckedContactLimit::Friction => BindingKind::Friction,
+            crate::constraints::UncheckedContactLimit::LiftOff => BindingKind::LiftOff,
+        }
+    }
 }
 
 impl BindingKind {

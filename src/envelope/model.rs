@@ -3,32 +3,10 @@
 //! coordinates held at zero acceleration and the two base directions.
 
 use super::BindingKind;
-use crate::constraints::{Constraint, ConstraintSet};
+use crate::constraints::{Constraint, ConstraintSet, Contact, ContactLimits};
 use crate::error::{Error, Result};
 use crate::linalg::NO_PARENT;
 use crate::model::{BaseType, Model};
-
-/// A contact: a constraint whose force is limited (a rolling wheel, a unilateral or frictional
-/// point contact). Rows are indices into the stacked λ of the constraint set.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Contact {
-    /// The constraint's name.
-    pub name: String,
-    /// The row of the normal force, which pushes and never pulls (λ_n ≥ 0); `None` where the
-    /// model has no such row (a wheel on a planar base: the base holds the height).
-    pub normal: Option<usize>,
-    /// The rows of the tangential force (t₁, t₂ of a wheel; x, y of a point contact).
-    pub tangential: Vec<usize>,
-    /// Coulomb coefficient μ: ‖λ_t‖ ≤ μ λ_n (a second-order cone) when given with a normal row.
-    pub friction: Option<f64>,
-}
-
-impl Contact {
-    /// The friction cone applies: a normal row, tangential rows and μ.
-    pub fn has_cone(&self) -> bool {
-        self.normal.is_some() && self.friction.is_some() && !self.tangential.is_empty()
-    }
-}
 
 /// An actuated velocity coordinate: τ on it is free within ±effort.
 #[derive(Clone, Debug, PartialEq)]
@@ -142,50 +120,18 @@ impl EnvelopeModel {
         let mut drives = vec![false; model.nv];
         let mut contacts = vec![];
         let mut unchecked = vec![];
-        for (k, c) in set.items.iter().enumerate() {
-            let r0 = set.ranges[k].start;
-            let name = set.names[k].clone();
-            let contact = match c {
-                Constraint::Rolling(rc) => {
-                    let mut b = model.frames[rc.wheel].body;
-                    while b != 0 && b != base_body {
-                        let j = &model.bodies[b].joint;
-                        drives[j.idx_v..j.idx_v + j.kind.nv()].fill(true);
-                        b = model.bodies[b].parent;
-                    }
-                    let normal = rc.rows.iter().position(|&r| r == 2).map(|i| r0 + i);
-                    let tangential = (0..rc.rows.len())
-                        .filter(|&i| rc.rows[i] != 2)
-                        .map(|i| r0 + i)
-                        .collect();
-                    Contact {
-                        name,
-                        normal,
-                        tangential,
-                        friction: rc.friction,
-                    }
+        for (k, contact) in Contact::all(set) {
+            if let Constraint::Rolling(rc) = &set.items[k] {
+                let mut b = model.frames[rc.wheel].body;
+                while b != 0 && b != base_body {
+                    let j = &model.bodies[b].joint;
+                    drives[j.idx_v..j.idx_v + j.kind.nv()].fill(true);
+                    b = model.bodies[b].parent;
                 }
-                Constraint::Point(pc) if pc.unilateral || pc.friction.is_some() => {
-                    let normal_axis = if pc.unilateral { pc.axes[0] } else { 2 };
-                    let normal = pc.axes.iter().position(|&a| a == normal_axis);
-                    let tangential = (0..pc.axes.len())
-                        .filter(|&i| Some(i) != normal)
-                        .map(|i| r0 + i)
-                        .collect();
-                    Contact {
-                        name,
-                        normal: normal.map(|i| r0 + i),
-                        tangential,
-                        friction: pc.friction,
-                    }
-                }
-                _ => continue,
-            };
-            if contact.normal.is_none() {
-                unchecked.push((BindingKind::LiftOff, contact.name.clone()));
             }
-            if !contact.tangential.is_empty() && !contact.has_cone() {
-                unchecked.push((BindingKind::Friction, contact.name.clone()));
+            // The envelope assumes nothing a contact does not declare.
+            for limit in contact.unchecked(&ContactLimits::default()) {
+                unchecked.push((limit.into(), contact.name.clone()));
             }
             contacts.push(contact);
         }

@@ -17,6 +17,7 @@
 //! - covariance/: the covariance carried through the integrator's own step linearization.
 
 mod advance;
+mod contacts;
 mod covariance;
 pub mod drift;
 mod estimate;
@@ -28,6 +29,7 @@ mod run;
 mod settings;
 mod trajectory;
 
+pub use contacts::{ContactBreak, ContactCheck};
 pub use covariance::linearize::{Linearization, linearize_step};
 pub use covariance::{CovariancePropagator, UncertaintySpec};
 pub use drift::DriftProjector;

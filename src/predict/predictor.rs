@@ -8,6 +8,7 @@
 //! configuration, never saved and restored around it.
 
 use super::advance::JacobianWork;
+use super::contacts::ContactJudge;
 use super::covariance::UncertaintySpec;
 use super::covariance::worker::PipeSlot;
 use super::drift::DriftProjector;
@@ -106,6 +107,8 @@ pub struct Predictor {
     pub(super) covariance: Option<super::covariance::CovariancePropagator>,
     pub(super) model: Model,
     pub(super) ws: Workspace,
+    /// The scene's contacts, judged at every sample with forces (contacts.rs).
+    pub(super) contact_judge: ContactJudge,
 }
 
 impl Predictor {
@@ -146,8 +149,10 @@ impl Predictor {
             gains: sys.baumgarte,
             parallel_covariance: true,
         };
+        let contact_judge = ContactJudge::new(&model, &sys.constraints);
         Ok(Self {
             config,
+            contact_judge,
             sys,
             forces,
             actuators,
@@ -207,6 +212,9 @@ impl Predictor {
     pub fn predict(&mut self, req: &PredictionRequest) -> Result<Trajectory> {
         let start = Instant::now();
         crate::limits::check_input_state(&self.model, req.q0, req.v0, &self.ws.zero)?;
+        if req.forces {
+            super::contacts::validate(&req.contact_limits)?;
+        }
         let budget = self.budget(&req.integration)?;
         let horizon = budget.horizon(req.horizon);
         budget.check(horizon)?;

@@ -7,6 +7,7 @@
 use super::integrators::Method;
 use super::settings::{DriftControl, IntegrationSettings};
 use crate::actuators::Command;
+use crate::constraints::ContactLimits;
 use crate::error::{Error, Result};
 use crate::limits::{evaluation_cost, show};
 use crate::model::Model;
@@ -33,8 +34,12 @@ pub struct PredictionRequest<'a> {
     pub integration: IntegrationOverrides,
     /// Start covariance of [δq; δv] (2nv × 2nv, tangent space); None: no covariance.
     pub start_covariance: Option<&'a DMatrix<f64>>,
-    /// Record λ, the constraint forces and Jᵀλ in every sample.
+    /// Record λ, the constraint forces and Jᵀλ in every sample, and judge the contacts at
+    /// each (`Sample::contacts`, `Trajectory::contact_check`).
     pub forces: bool,
+    /// What the contacts' judgement assumes where a contact declares no μ, or has no normal
+    /// row (default: nothing; those limits are listed unchecked). Read only with `forces`.
+    pub contact_limits: ContactLimits,
     /// Which samples carry the propagated covariance (with a start covariance).
     pub covariance_samples: CovarianceSamples,
 }
@@ -79,6 +84,12 @@ impl<'a> PredictionRequest<'a> {
     /// With λ and the constraint forces in every sample when `on`.
     pub fn forces(mut self, on: bool) -> Self {
         self.forces = on;
+        self
+    }
+
+    /// Judging the contacts with `limits` assumed where they declare less.
+    pub fn contact_limits(mut self, limits: ContactLimits) -> Self {
+        self.contact_limits = limits;
         self
     }
 

@@ -12,6 +12,7 @@ use super::request::{CovarianceSamples, PredictionRequest};
 use super::settings::IntegrationSettings;
 use super::trajectory::{Sample, Trajectory};
 use crate::actuators::Command;
+use crate::constraints::ContactLimits;
 use crate::error::{Error, Result};
 
 /// The command in force at t [s] (the last one started; `idle` before the first), borrowed: a
@@ -34,8 +35,8 @@ struct Plan<'a> {
     /// The error estimate companion's settings and Richardson factor (estimate.rs).
     companion: &'a IntegrationSettings,
     factor: f64,
-    /// Record forces in the samples.
-    forces: bool,
+    /// Record forces in the samples, judging the contacts under these limits.
+    forces: Option<&'a ContactLimits>,
     /// Bring P up to every sample (else only to the horizon).
     covariance_every_sample: bool,
 }
@@ -124,6 +125,7 @@ impl Predictor {
             dt: s.dt,
             rtol: s.rtol,
             samples: vec![],
+            contact_check: None,
             steps: 0,
             evaluations: 0,
             least_squares_evaluations: 0,
@@ -156,12 +158,13 @@ impl Predictor {
             }
         }
         let every = req.covariance_samples == CovarianceSamples::Every;
+        let forces = req.forces.then_some(&req.contact_limits);
         let first = self.sample(
             0.0,
             &lanes[0].q,
             &lanes[0].v,
             s.error_estimate.then_some(0.0),
-            (req.forces, every || horizon <= 0.0),
+            (forces, every || horizon <= 0.0),
         )?;
         let springs = self
             .forces
@@ -175,7 +178,7 @@ impl Predictor {
             s,
             companion,
             factor,
-            forces: req.forces,
+            forces,
             covariance_every_sample: every,
         };
         let parallel = self.config.parallel_covariance
@@ -213,6 +216,10 @@ impl Predictor {
         if let Some(cov) = &self.covariance {
             (traj.covariance_linearizations, traj.covariance_time_s) =
                 (cov.linearizations, cov.time_s);
+        }
+        if let Some(limits) = forces {
+            let samples = traj.samples.iter().map(|s| (s.t, s.contacts.as_deref()));
+            traj.contact_check = Some(self.contact_judge.check(samples, limits));
         }
         result.map(|()| traj)
     }

@@ -1,11 +1,12 @@
 //! What a prediction returns: samples of the state along the horizon, with what acted on the
 //! robot and, on request, the constraint forces and the covariance; and how a sample is taken.
 
+use super::contacts::ContactCheck;
 use super::covariance::worker::covariance_rows;
 use super::predictor::Predictor;
 use crate::algorithm::{kinetic_energy, potential_energy};
 use crate::applied::constraint_forces_at;
-use crate::constraints::ConstraintForce;
+use crate::constraints::{ConstraintForce, ContactLimits, ContactState};
 use crate::error::Result;
 use crate::predict::integrators::Method;
 
@@ -32,6 +33,11 @@ pub struct Sample {
     /// Jᵀλ per velocity coordinate (nv) [N or N·m] (when forces were asked for).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub generalized_force: Option<Vec<f64>>,
+    /// Each contact judged at this sample's λ, in the order of `ContactCheck::contacts` (when
+    /// forces were asked for and the scene has contacts): its normal force, the friction it
+    /// uses and whether it breaks (predict/contacts.rs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contacts: Option<Vec<ContactState>>,
     /// nc − rank(J M⁻¹ Jᵀ) at this state (when forces were asked for): > 0 at a singular
     /// configuration or with redundant constraints, where λ is the minimum-norm solution.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -83,6 +89,10 @@ pub struct Trajectory {
     pub refinements: usize,
     /// Output samples, one every sample period over the horizon.
     pub samples: Vec<Sample>,
+    /// The contacts judged at every sample (when forces were asked for): the first slip or
+    /// lift-off, and the limits left unchecked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contact_check: Option<ContactCheck>,
     /// Accepted steps and right-hand-side evaluations.
     pub steps: usize,
     /// Right-hand-side (forward dynamics) evaluations.
@@ -109,21 +119,29 @@ pub struct Trajectory {
     pub run_time_s: f64,
 }
 
+impl Trajectory {
+    /// The first sample and contact where ideal rolling breaks (with forces; None without, or
+    /// when every contact holds).
+    pub fn first_contact_break(&self) -> Option<&super::contacts::ContactBreak> {
+        self.contact_check.as_ref()?.first_break.as_ref()
+    }
+}
+
 impl Predictor {
     /// The output sample at (t, q, v): residuals, energies, λ and the constraint forces when
-    /// `forces`, the covariance when one is propagated inline and `covariance`; `err` the error
-    /// estimate.
+    /// `forces` (the contacts judged under its limits), the covariance when one is propagated
+    /// inline and `covariance`; `err` the error estimate.
     pub(super) fn sample(
         &mut self,
         t: f64,
         q: &[f64],
         v: &[f64],
         err: Option<f64>,
-        (forces, covariance): (bool, bool),
+        (forces, covariance): (Option<&ContactLimits>, bool),
     ) -> Result<Sample> {
         let sys = &mut self.sys;
         let at = match forces {
-            true if !sys.constraints.is_empty() => Some(constraint_forces_at(
+            Some(_) if !sys.constraints.is_empty() => Some(constraint_forces_at(
                 sys,
                 &mut self.forces,
                 (t, q, v),
@@ -144,14 +162,16 @@ impl Predictor {
         let ke = kinetic_energy(&sys.model, &sys.data);
         let pe = potential_energy(&sys.model, &sys.data)
             + self.forces.potential_energy(&sys.model, &sys.data, q);
-        let (lambda, forces, generalized_force, rank_deficiency) = match at {
-            Some(f) => (
+        let (contacts, lambda, forces, generalized_force, rank_deficiency) = match (at, forces) {
+            (Some(f), Some(limits)) => (
+                // Reads λ only: the prediction is the same with or without the judgement.
+                self.contact_judge.judge(&f.lambda, limits),
                 Some(f.lambda),
                 Some(f.forces),
                 Some(f.generalized_force),
                 Some(f.rank_deficiency),
             ),
-            None => (None, None, None, None),
+            _ => (None, None, None, None, None),
         };
         let energies = [
             ke,
@@ -187,6 +207,7 @@ impl Predictor {
             lambda,
             forces,
             generalized_force,
+            contacts,
             rank_deficiency,
             position_residual,
             velocity_residual,

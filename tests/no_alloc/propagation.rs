@@ -176,3 +176,34 @@ fn actuated_with_covariance(parallel: bool) {
     );
     assert_eq!(short, long, "the control ticks or the covariance allocate");
 }
+
+/// With forces, the contacts are judged at the samples only: the cart pushed by its torque ramp
+/// (tests/data/cart_torque_ramp.yaml, two rolling wheels and a unilateral caster), 4× the steps
+/// and the same two samples, the same allocations.
+#[test]
+fn judging_contacts_allocates_nothing_per_step() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let sc = Scene::load(root.join("tests/data/cart_torque_ramp.yaml")).unwrap();
+    let mut p = Predictor::from_scene(&sc).unwrap();
+    let mut run = |h: f64| {
+        let req = PredictionRequest::new(&sc.q0, &sc.v0)
+            .horizon(h)
+            .forces(true)
+            .integration(sample_every(h));
+        let mut t = None;
+        let n = allocations(|| t = Some(p.predict(&req).unwrap()));
+        let t = t.unwrap();
+        assert_eq!(t.samples.len(), 2);
+        assert!(t.samples.iter().all(|s| s.contacts.is_some()));
+        assert!(t.contact_check.is_some());
+        n
+    };
+    let h = 0.05;
+    run(h); // warm-up
+    let (short, long) = (run(h), run(4.0 * h));
+    println!(
+        "cart with forces and contacts judged: {short} allocations over {h} s, {long} over {} s",
+        4.0 * h
+    );
+    assert_eq!(short, long, "judging the contacts allocates per step");
+}

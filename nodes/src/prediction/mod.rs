@@ -196,6 +196,8 @@ impl PredictionNode {
             horizon: Some(req.horizon),
             start_covariance: p0.as_ref(),
             forces: req.with_forces,
+            // μ where a contact declares none, N of a planar base's wheels: the slip test's.
+            contact_limits: self.robot.slip_test(common).contact_limits(),
             ..PredictionRequest::new(&q, &v)
         };
         let traj = self
@@ -233,11 +235,15 @@ impl PredictionNode {
             covariances,
             success: true,
             message: format!(
-                "{} samples, {} steps in {:.3} ms ({:?})",
+                "{} samples, {} steps in {:.3} ms ({:?}){}",
                 traj.samples.len(),
                 traj.steps,
                 traj.run_time_s * 1e3,
-                traj.method
+                traj.method,
+                // With forces, the first slip or lift-off along the horizon.
+                traj.first_contact_break()
+                    .map(|b| format!("; {}", crate::predictor::contact_break::warning(b)))
+                    .unwrap_or_default()
             ),
             path,
             times: traj.samples.iter().map(|s| s.t).collect(),

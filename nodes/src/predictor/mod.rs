@@ -7,6 +7,7 @@
 //! of the inputs ([`inputs`]); inputs older than `state.timeout` stop the predictions or, with
 //! `state.stale_behaviour: warn`, are used with a WARN and a covariance grown with their age.
 
+pub(crate) mod contact_break;
 pub mod markers;
 pub mod params;
 pub mod ros;
@@ -17,7 +18,9 @@ use std::time::{Duration, Instant};
 use constraint_dynamics::algorithm::frame_placement;
 use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::forces::ForceElements;
-use constraint_dynamics::predict::{CovarianceSamples, PredictionRequest, Predictor, Trajectory};
+use constraint_dynamics::predict::{
+    ContactCheck, CovarianceSamples, PredictionRequest, Predictor, Trajectory,
+};
 use constraint_dynamics::system::System;
 
 use crate::convert::{path_msg, pose_msg, time_plus, twist_msg};
@@ -87,6 +90,8 @@ pub struct PredictorNode {
     stale: Vec<String>,
     /// The last periodic prediction's work (for `/diagnostics`).
     work: Option<work::PredictionWork>,
+    /// The contacts judged along the last prediction: its first slip or lift-off is a WARN.
+    contacts: Option<ContactCheck>,
 }
 
 impl NodeLogic for PredictorNode {
@@ -125,6 +130,7 @@ impl NodeLogic for PredictorNode {
             start_covariance,
             stale: Vec::new(),
             work: None,
+            contacts: None,
         })
     }
     fn robot(&self) -> &Robot {
@@ -179,10 +185,13 @@ impl NodeLogic for PredictorNode {
         Ok(())
     }
     fn warnings(&self) -> Vec<String> {
-        match self.stale.is_empty() {
+        let mut w = match self.stale.is_empty() {
             true => Vec::new(),
             false => vec![self.stale_message(&self.stale)],
-        }
+        };
+        let first_break = self.contacts.as_ref().and_then(|c| c.first_break.as_ref());
+        w.extend(first_break.map(contact_break::warning));
+        w
     }
     fn diagnostics(&self) -> Vec<KeyValue> {
         let inputs = match self.stale.is_empty() {
@@ -198,6 +207,8 @@ impl NodeLogic for PredictorNode {
             ),
         ];
         values.extend(self.work.iter().flat_map(|w| w.key_values()));
+        let contacts = self.contacts.iter().flat_map(contact_break::values);
+        values.extend(contacts.map(|(key, value)| kv(key, &value)));
         values
     }
     fn rate_shortfall(&self) -> Option<String> {
@@ -272,6 +283,10 @@ impl PredictorNode {
             start_covariance: p0.as_ref(),
             // The odometry carries P at the horizon only.
             covariance_samples: CovarianceSamples::Last,
+            // Every sample's contacts judged: no prediction drives past a slip or a lift-off
+            // unsaid (`/diagnostics`).
+            forces: true,
+            contact_limits: self.robot.slip_test(common).contact_limits(),
             ..PredictionRequest::new(&q, &v)
         };
         let traj = self
@@ -303,6 +318,7 @@ impl PredictorNode {
         let (markers, wrenches) = self.markers(&at.forces, &path, now);
         let compute_s = t0.elapsed().as_secs_f64();
         self.work = Some(work::PredictionWork::of(&traj, compute_s));
+        self.contacts = traj.contact_check;
         Ok(PeriodicOutput {
             odom,
             path,

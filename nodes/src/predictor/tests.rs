@@ -329,3 +329,45 @@ fn joint_noise_for_an_unknown_joint_is_refused() {
         "{e}"
     );
 }
+
+/// Every prediction judges its contacts: at rest nothing breaks and the planar base's lift-off is
+/// listed unchecked; commanded 0.5 m/s from rest, the PI wheel controllers saturate at the URDF
+/// effort (5 N·m, tests/propagation_actuator_forces.rs) and `/diagnostics` WARNs of a slip at the
+/// first sample. urdf/diff_drive.urdf: M = 8 + 2 × 0.5 + 0.2 kg, r = 0.05 m, I_w = 0.000625 kg·m²;
+/// a = 2 τ / (r (M + 2 I_w / r²)), each wheel pushed with M a / 2 against
+/// μ N = 0.8 × M g / 2 (`slip.planar_normal_force` 0: half the weight).
+#[test]
+fn a_predicted_slip_is_a_diagnostics_warning() {
+    let mut n = node("stop");
+    let t0 = Time::from_nanos(0);
+    tick(&mut n, t0);
+    assert!(n.warnings().is_empty(), "{:?}", n.warnings());
+    let value = |n: &PredictorNode, key: &str| {
+        let d = n.diagnostics();
+        d.iter().find(|v| v.key == key).expect(key).value.clone()
+    };
+    assert_eq!(
+        value(&n, "predicted contact break"),
+        "none within the horizon"
+    );
+    assert_eq!(
+        value(&n, "unchecked contact limits"),
+        "lift_off: left_wheel_contact, lift_off: right_wheel_contact"
+    );
+    let cmd = Twist {
+        linear: crate::msg::geometry_msgs::Vector3 {
+            x: 0.5,
+            y: 0.0,
+            z: 0.0,
+        },
+        ..Default::default()
+    };
+    n.handle(PredictorInput::Command(cmd), t0, &mut |_| {});
+    tick(&mut n, t0);
+    let (m, r, i_w, g, mu) = (9.2, 0.05, 0.000625, 9.81, 0.8);
+    let a = 2.0 * 5.0 / (r * (m + 2.0 * i_w / (r * r)));
+    let used = (m * a / 2.0) / (mu * m * g / 2.0);
+    let want = format!("slip at t=0.00 s on left_wheel_contact (friction used {used:.2} × μ)");
+    assert_eq!(n.warnings(), std::slice::from_ref(&want));
+    assert_eq!(value(&n, "predicted contact break"), want);
+}
