@@ -17,6 +17,7 @@ use std::time::{Duration, Instant};
 
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
+use crate::msg::constraint_dynamics_msgs::srv::{SetPayloadRequest, SetPayloadResponse};
 use crate::msg::diagnostic_msgs::{DiagnosticStatus, KeyValue};
 use crate::msg::nav_msgs::Odometry;
 use crate::msg::sensor_msgs::JointState;
@@ -27,6 +28,9 @@ use crate::robot::Robot;
 use crate::ros::logging::{DropLog, NodeLog};
 
 pub use crate::ros::io::Reply;
+
+#[path = "worker_payload.rs"]
+mod payload;
 
 /// The domain logic of one node kind: plain data in, plain data out, no ROS handles.
 pub trait NodeLogic: Sized + Send + 'static {
@@ -85,6 +89,8 @@ pub enum Event<N: NodeLogic> {
     Clock(Time),
     /// New parameter values (run-time change), already validated.
     Params(Box<NodeParams<N::Params>>),
+    /// `~/set_payload`: rebuild the model with this payload.
+    SetPayload(SetPayloadRequest, Reply<SetPayloadResponse>),
     /// The kind's own input.
     Node(N::Input),
     /// Lifecycle: active (tick and report) or not (follow inputs only).
@@ -304,6 +310,26 @@ impl<N: NodeLogic> Worker<N> {
                     t.reset();
                 }
             }
+            Event::SetPayload(req, reply) => {
+                // A new model re-plans at once, as a new URDF does.
+                let mut response = None;
+                self.guarded("set_payload", |w| {
+                    response = Some(w.set_payload(&req));
+                    false
+                });
+                let response = response.unwrap_or_else(|| SetPayloadResponse {
+                    success: false,
+                    message: "internal error while rebuilding the model (see the node's log); \
+                              the payload in use is unchanged"
+                        .into(),
+                });
+                if response.success
+                    && let Some(t) = timers.tick.as_mut()
+                {
+                    t.reset();
+                }
+                let _ = reply.try_send(response);
+            }
             Event::Active(active) => {
                 if active && !self.active {
                     // Predict and report at once on activation.
@@ -346,13 +372,18 @@ impl<N: NodeLogic> Worker<N> {
     fn publish_status(&mut self, scheduled: bool) {
         let now = self.now();
         let params = self.logic.params();
+        let mut extra = vec![KeyValue {
+            key: "payload".into(),
+            value: self.logic.robot().payload().describe(),
+        }];
+        extra.extend(self.logic.diagnostics());
         let ctx = StatusContext {
             name: &self.fqn,
             model: &self.logic.robot().model().name,
             requested_rate: self.logic.tick_period().map(|p| 1.0 / p.as_secs_f64()),
             subscribed: &self.subscribed,
             params: &params.common.diagnostics,
-            extra: self.logic.diagnostics(),
+            extra,
             warnings: self.logic.warnings(),
             rate_shortfall: self.logic.rate_shortfall(),
         };
@@ -440,7 +471,11 @@ impl<N: NodeLogic> Worker<N> {
             Event::Clock(t) => self.sim_time = Some(t),
             Event::Params(p) => {
                 self.log.info("parameters changed");
-                self.logic.set_params(*p);
+                if p.common.payload != self.logic.params().common.payload {
+                    self.payload_params(*p);
+                } else {
+                    self.logic.set_params(*p);
+                }
             }
             Event::Node(input) => {
                 let now = self.now();
@@ -450,6 +485,9 @@ impl<N: NodeLogic> Worker<N> {
                     let _ = outputs.try_send(o);
                 });
                 self.health.request(started.elapsed().as_secs_f64());
+            }
+            Event::SetPayload(req, reply) => {
+                let _ = reply.try_send(self.set_payload(&req));
             }
             Event::Shutdown | Event::Active(_) => {}
         }
