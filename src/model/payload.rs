@@ -88,7 +88,7 @@ impl Payload {
     pub fn describe(&self) -> String {
         match self.is_none() {
             true => "none".into(),
-            false => format!("{} kg on {}", self.mass, self.frame),
+            false => format!("{:?} kg on {}", self.mass, self.frame),
         }
     }
 }

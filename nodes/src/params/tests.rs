@@ -283,5 +283,5 @@ fn payload_group_is_typed_named_and_changeable_on_every_kind() {
     .unwrap();
     let p = next.common.payload.payload().unwrap().unwrap();
     assert_eq!((p.frame.as_str(), p.mass), ("tool0", 2.0));
-    assert_eq!(p.describe(), "2 kg on tool0");
+    assert_eq!(p.describe(), "2.0 kg on tool0");
 }
