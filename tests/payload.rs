@@ -2,7 +2,7 @@
 //! forms — the total mass and centre of mass with a point mass added, the cart's acceleration
 //! envelope (docs/projection.md, "The acceleration envelope") with the payload's mass in M,
 //! Σ m x and Σ m z — and against the same payload written into the URDF as a fixed link
-//! (tests/data/cart_payload_link.urdf).
+//! (tests/data/cart_payload_link.urdf): the same M(q), envelope and prediction.
 
 mod common;
 
@@ -12,6 +12,7 @@ use constraint_dynamics::envelope::{
     EnvelopeData, EnvelopeModel, EnvelopeReport, LimitReport, acceleration_envelope,
 };
 use constraint_dynamics::model::Payload;
+use constraint_dynamics::predict::{PredictionRequest, Predictor};
 use constraint_dynamics::scene::SceneFile;
 use constraint_dynamics::{Model, Scene, System};
 
@@ -265,8 +266,46 @@ fn a_payload_equals_the_same_payload_written_into_the_urdf_as_a_fixed_link() {
         // The same cone program from the same numbers: measured 0.
         assert!(rel(a, b) < EXACT, "{what}: {a} vs {b}");
     }
+    // And a prediction (the predictor is built from the scene's model): the cart rolling at
+    // 0.5 m/s (wheels at v/r = 5 rad/s) for 0.5 s.
+    let mut v0 = vec![0.0; 8];
+    v0[0] = 0.5;
+    (v0[6], v0[7]) = (5.0, 5.0);
+    let end = |scene: &Scene| {
+        let mut p = Predictor::from_scene(scene).unwrap();
+        let t = p
+            .predict(&PredictionRequest::new(&scene.q0, &v0).horizon(0.5))
+            .unwrap();
+        t.samples.last().unwrap().q.clone()
+    };
+    let (qa, qb) = (end(&with_payload), end(&link));
+    eprintln!("prediction end: {qa:?} vs {qb:?}");
+    assert!(
+        qa.iter()
+            .zip(&qb)
+            .all(|(a, b)| (a - b).abs() <= EXACT * (1.0 + b.abs()))
+    );
+    assert!(qa[0] > 0.2, "the cart rolled: x = {}", qa[0]);
     // The scene's payload is the one in use; the URDF's model is kept without it.
     assert_eq!(with_payload.payload, mount_payload());
     assert!(rel(with_payload.model.total_mass(), cart::M + 3.0) < 1e-15);
     assert!(rel(with_payload.urdf_model.total_mass(), cart::M) < 1e-15);
+}
+
+#[test]
+fn a_payload_on_a_fixed_bases_root_moves_nothing_and_says_so() {
+    // params/fourbar.yaml: a fixed base, whose root link `base` is the world's body.
+    let scene = Scene::load(repo_dir().join("params/fourbar.yaml")).unwrap();
+    let loaded = scene
+        .model
+        .with_payload(&Payload::point("base", 3.0, [0.1, 0.0, 0.0]))
+        .unwrap();
+    for (a, b) in loaded.bodies.iter().zip(&scene.model.bodies) {
+        assert_eq!(a.inertia, b.inertia);
+    }
+    let warning = loaded.warnings.last().unwrap();
+    assert!(
+        warning.contains("'base'") && warning.contains("fixed to the world"),
+        "{warning}"
+    );
 }
