@@ -29,8 +29,8 @@ use crate::ros::logging::{DropLog, NodeLog};
 
 pub use crate::ros::io::Reply;
 
-#[path = "worker_payload.rs"]
-mod payload;
+#[path = "worker_rebuild.rs"]
+mod rebuild;
 
 /// The domain logic of one node kind: plain data in, plain data out, no ROS handles.
 pub trait NodeLogic: Sized + Send + 'static {
@@ -312,23 +312,11 @@ impl<N: NodeLogic> Worker<N> {
             }
             Event::SetPayload(req, reply) => {
                 // A new model re-plans at once, as a new URDF does.
-                let mut response = None;
-                self.guarded("set_payload", |w| {
-                    response = Some(w.set_payload(&req));
-                    false
-                });
-                let response = response.unwrap_or_else(|| SetPayloadResponse {
-                    success: false,
-                    message: "internal error while rebuilding the model (see the node's log); \
-                              the payload in use is unchanged"
-                        .into(),
-                });
-                if response.success
+                if self.serve_set_payload(&req, reply)
                     && let Some(t) = timers.tick.as_mut()
                 {
                     t.reset();
                 }
-                let _ = reply.try_send(response);
             }
             Event::Active(active) => {
                 if active && !self.active {
@@ -372,10 +360,7 @@ impl<N: NodeLogic> Worker<N> {
     fn publish_status(&mut self, scheduled: bool) {
         let now = self.now();
         let params = self.logic.params();
-        let mut extra = vec![KeyValue {
-            key: "payload".into(),
-            value: self.logic.robot().payload().describe(),
-        }];
+        let mut extra = vec![self.payload_status()];
         extra.extend(self.logic.diagnostics());
         let ctx = StatusContext {
             name: &self.fqn,
@@ -469,14 +454,7 @@ impl<N: NodeLogic> Worker<N> {
                 self.robot_description(&urdf);
             }
             Event::Clock(t) => self.sim_time = Some(t),
-            Event::Params(p) => {
-                self.log.info("parameters changed");
-                if p.common.payload != self.logic.params().common.payload {
-                    self.payload_params(*p);
-                } else {
-                    self.logic.set_params(*p);
-                }
-            }
+            Event::Params(p) => self.params_changed(*p),
             Event::Node(input) => {
                 let now = self.now();
                 let started = Instant::now();
@@ -487,36 +465,9 @@ impl<N: NodeLogic> Worker<N> {
                 self.health.request(started.elapsed().as_secs_f64());
             }
             Event::SetPayload(req, reply) => {
-                let _ = reply.try_send(self.set_payload(&req));
+                self.serve_set_payload(&req, reply);
             }
             Event::Shutdown | Event::Active(_) => {}
-        }
-    }
-
-    /// Rebuilds the model from a URDF; true if it changed.
-    fn robot_description(&mut self, urdf: &str) -> bool {
-        let params = self.logic.params().clone();
-        let next = self
-            .logic
-            .robot()
-            .with_urdf(urdf, &params.common)
-            .and_then(|robot| N::new(robot, params, self.log.clone()));
-        match next {
-            Ok(next) => {
-                let m = next.robot().model();
-                self.log.info(&format!(
-                    "model rebuilt from robot_description: '{}', nq = {}, nv = {}",
-                    m.name, m.nq, m.nv
-                ));
-                self.logic = next;
-                true
-            }
-            Err(e) => {
-                let message = format!("robot_description refused, keeping the current model: {e}");
-                self.log.error(&message);
-                self.health.error(message);
-                false
-            }
         }
     }
 }

@@ -1,12 +1,13 @@
-//! The worker's payload changes: `~/set_payload` and a run-time set of `payload.*` rebuild the
-//! node's logic around a robot carrying the new payload (the path a new URDF takes), and the
-//! current logic stays in use when that fails. A service call's payload holds until the next
-//! `payload.*` parameter set.
+//! What rebuilds a worker's logic around a new robot: a URDF on `robot_description`, and a
+//! payload from `~/set_payload` or a run-time set of `payload.*`. The state is carried over;
+//! the current logic stays in use when the rebuild fails. A service call's payload holds until
+//! the next `payload.*` parameter set.
 
 use constraint_dynamics::model::Payload;
 
-use super::{NodeLogic, Worker};
+use super::{NodeLogic, Reply, Worker};
 use crate::msg::constraint_dynamics_msgs::srv::{SetPayloadRequest, SetPayloadResponse};
+use crate::msg::diagnostic_msgs::KeyValue;
 use crate::params::NodeParams;
 
 /// The payload of a `SetPayload` request; errors name the request's field.
@@ -38,8 +39,39 @@ fn request_fields(message: &str) -> String {
 }
 
 impl<N: NodeLogic> Worker<N> {
-    /// `~/set_payload`: the logic rebuilt with the request's payload, or the reason it was not.
-    pub(super) fn set_payload(&mut self, req: &SetPayloadRequest) -> SetPayloadResponse {
+    /// `~/set_payload`, a panic caught (the logic then rebuilt from its scene): replies and
+    /// returns whether the payload was set.
+    pub(super) fn serve_set_payload(
+        &mut self,
+        req: &SetPayloadRequest,
+        reply: Reply<SetPayloadResponse>,
+    ) -> bool {
+        let mut response = None;
+        self.guarded("set_payload", |w| {
+            response = Some(w.set_payload(req));
+            false
+        });
+        let response = response.unwrap_or_else(|| SetPayloadResponse {
+            success: false,
+            message: "internal error while rebuilding the model (see the node's log); the \
+                      payload in use is unchanged"
+                .into(),
+        });
+        let success = response.success;
+        let _ = reply.try_send(response);
+        success
+    }
+
+    /// The `/diagnostics` value of the payload in use.
+    pub(super) fn payload_status(&self) -> KeyValue {
+        KeyValue {
+            key: "payload".into(),
+            value: self.logic.robot().payload().describe(),
+        }
+    }
+
+    /// The logic rebuilt with the request's payload, or the reason it was not.
+    fn set_payload(&mut self, req: &SetPayloadRequest) -> SetPayloadResponse {
         let refused = |message: String| SetPayloadResponse {
             success: false,
             message,
@@ -58,9 +90,46 @@ impl<N: NodeLogic> Worker<N> {
         }
     }
 
+    /// New parameters (run-time set): a changed `payload.*` rebuilds the logic.
+    pub(super) fn params_changed(&mut self, params: NodeParams<N::Params>) {
+        self.log.info("parameters changed");
+        if params.common.payload != self.logic.params().common.payload {
+            self.payload_params(params);
+        } else {
+            self.logic.set_params(params);
+        }
+    }
+
+    /// Rebuilds the model from a URDF; true if it changed.
+    pub(super) fn robot_description(&mut self, urdf: &str) -> bool {
+        let params = self.logic.params().clone();
+        let next = self
+            .logic
+            .robot()
+            .with_urdf(urdf, &params.common)
+            .and_then(|robot| N::new(robot, params, self.log.clone()));
+        match next {
+            Ok(next) => {
+                let m = next.robot().model();
+                self.log.info(&format!(
+                    "model rebuilt from robot_description: '{}', nq = {}, nv = {}",
+                    m.name, m.nq, m.nv
+                ));
+                self.logic = next;
+                true
+            }
+            Err(e) => {
+                let message = format!("robot_description refused, keeping the current model: {e}");
+                self.log.error(&message);
+                self.health.error(message);
+                false
+            }
+        }
+    }
+
     /// A run-time set of `payload.*`: the parameters' payload (the scene's when they name
     /// none) replaces the one in use, a service call's included.
-    pub(super) fn payload_params(&mut self, params: NodeParams<N::Params>) {
+    fn payload_params(&mut self, params: NodeParams<N::Params>) {
         let payload = match params.common.payload.payload() {
             Ok(Some(p)) => p,
             Ok(None) => self.logic.robot().scene().file.payload.clone(),
