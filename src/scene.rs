@@ -1,5 +1,5 @@
-//! The scene file (YAML): which URDF, the base, gravity, locked joints, the initial state and the
-//! constraints. Unknown keys are an error that names the key.
+//! The scene file (YAML): which URDF, the base, gravity, locked joints, a payload, the initial
+//! state and the constraints. Unknown keys are an error that names the key.
 
 use crate::actuators::Actuators;
 use crate::actuators::ActuatorsSpec;
@@ -9,7 +9,7 @@ use crate::dynamics::{Baumgarte, Formulation};
 use crate::error::{Error, Result};
 use crate::forces::ForceElements;
 use crate::forces::ForcesSpec;
-use crate::model::{BaseType, InertiaPolicy, Model, ModelOptions};
+use crate::model::{BaseType, InertiaPolicy, Model, ModelOptions, Payload};
 use crate::predict::{IntegrationSettings, PredictionBudget, Predictor};
 use crate::system::{DynamicsOptions, System};
 use nalgebra::Vector3;
@@ -73,6 +73,10 @@ pub struct SceneFile {
     /// `model:` how the URDF is read (default: inertias checked, not repaired).
     #[serde(default)]
     pub model: ModelSettings,
+    /// `payload:` a rigid payload on a frame (`frame`, `mass` [kg], `com` [m] and `inertia`
+    /// [kg·m²] about the centre of mass, in the frame); default none (mass 0).
+    #[serde(default)]
+    pub payload: Payload,
 }
 
 /// `model:` in a scene.
@@ -133,8 +137,14 @@ pub struct Scene {
     pub path: PathBuf,
     /// The parsed scene file.
     pub file: SceneFile,
-    /// The model built from the URDF with the scene's base, gravity and locked joints.
+    /// The model built from the URDF with the scene's base, gravity and locked joints,
+    /// carrying [`Scene::payload`].
     pub model: Model,
+    /// The same model without a payload (what [`Scene::with_payload`] adds to).
+    pub urdf_model: Model,
+    /// The payload `model` carries: the file's `payload:` unless replaced by
+    /// [`Scene::with_payload`].
+    pub payload: Payload,
     /// Initial configuration (nq) and velocity (nv).
     pub q0: Vec<f64>,
     /// Initial velocity (nv) [m/s, rad/s].
@@ -190,7 +200,10 @@ impl Scene {
                 .collect(),
             inertia: file.model.inertia,
         };
-        let model = Model::from_urdf_str(urdf_text, urdf_name, &opts)?;
+        let urdf_model = Model::from_urdf_str(urdf_text, urdf_name, &opts)?;
+        let model = urdf_model
+            .with_payload(&file.payload)
+            .map_err(|e| scene_err(e.to_string()))?;
         let mut q0 = model.neutral();
         let mut v0 = vec![0.0; model.nv];
         for (name, value) in &file.initial_state.q {
@@ -219,10 +232,29 @@ impl Scene {
         }
         Ok(Scene {
             path: path.to_path_buf(),
+            payload: file.payload.clone(),
             file,
             model,
+            urdf_model,
             q0,
             v0,
+        })
+    }
+
+    /// The same scene carrying `payload` instead of its own (mass 0: none); the initial state
+    /// and everything else unchanged. Errors name the payload's field.
+    pub fn with_payload(&self, payload: &Payload) -> Result<Scene> {
+        let model = self
+            .urdf_model
+            .with_payload(payload)
+            .map_err(|e| Error::Scene {
+                file: self.path.display().to_string(),
+                message: e.to_string(),
+            })?;
+        Ok(Scene {
+            model,
+            payload: payload.clone(),
+            ..self.clone()
         })
     }
 }

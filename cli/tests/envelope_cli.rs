@@ -116,3 +116,22 @@ fn cli_envelope_lists_what_it_cannot_check_and_refuses_a_fixed_base() {
     let (ok, _, stderr) = run(&["--scene", "params/fourbar.yaml"]);
     assert!(!ok && stderr.contains("fixed-base"), "{stderr}");
 }
+
+#[test]
+fn cli_envelope_reflects_the_scenes_payload() {
+    // tests/data/cart_tall_mass_payload.yaml: the cart with 5 kg at x = −0.1 m, z = 1.0 m above
+    // the ground. The closed forms of tests/payload.rs with the payload's mass added:
+    // 2 τ_max / (r (M + m_p + 2 I_w/r²)) = 8 / 3.85 and g |Σmx + m_p x_p| / (Σmz + m_p z_p + 2 I_w/r)
+    // = 9.81 × 3.2 / 18.325 (without it 8 / 3.35 and 9.81 × 2.7 / 13.325).
+    let (ok, stdout, stderr) = run(&["--scene", "tests/data/cart_tall_mass_payload.yaml"]);
+    assert!(ok, "{stderr}");
+    let v: Value = serde_json::from_str(&stdout).unwrap();
+    let a = v["forward_acceleration"]["max"].as_f64().unwrap();
+    assert!((a - 8.0 / 3.85).abs() < 1e-8 * a, "{a}");
+    let d = v["forward_deceleration"]["max"].as_f64().unwrap();
+    assert!((d - 9.81 * 3.2 / 18.325).abs() < 1e-8 * d, "{d}");
+    assert_eq!(
+        kinds(&v["forward_deceleration"]),
+        ["lift_off:caster_contact"]
+    );
+}

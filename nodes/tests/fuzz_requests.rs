@@ -1,7 +1,7 @@
 //! Fuzzing every ROS request type without DDS: the pure handlers the ROS plumbing
 //! calls — `get_constraint_forces`, `project_velocity`, `filter_command`, `predict`, `rollouts` —
 //! and the predictor's inputs (joint states, odometry, twist commands, `/robot_description`
-//! text), fed hostile floats (NaN, ±∞, ±1e308, 1e-300, −0), wrong-length arrays (0, n−1, n+1, 10 000),
+//! text), and a payload (`~/set_payload`'s rebuild), fed hostile floats (NaN, ±∞, ±1e308, 1e-300, −0), wrong-length arrays (0, n−1, n+1, 10 000),
 //! unknown / duplicated / empty / unicode joint names, big command lists and odd timestamps.
 //!
 //! Property per call: no panic; the response is `success = false` with a non-empty message, or
@@ -17,6 +17,7 @@
 
 mod fuzz_support;
 
+use constraint_dynamics::model::Payload;
 use constraint_dynamics_nodes::forces::{ForcesNode, ForcesParams};
 use constraint_dynamics_nodes::msg::builtin_interfaces::Time;
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::{
@@ -37,6 +38,10 @@ static PREDICT: Tally = Tally::new("predict");
 static ROLLOUTS: Tally = Tally::new("rollouts");
 static PREDICTOR_TICK: Tally = Tally::new("predictor tick (answered: odometry published)");
 static ROBOT_DESCRIPTION: Tally = Tally::new("robot_description (answered: robot replaced)");
+static SET_PAYLOAD: Tally = Tally::new("set_payload (answered: forces with the payload)");
+
+/// The mobile manipulator's frames a payload may sit on.
+const FRAMES: [&str; 5] = ["base_link", "arm_link2", "arm_link4", "tool0", "left_wheel"];
 
 proptest! {
     #![proptest_config(config())]
@@ -303,6 +308,48 @@ proptest! {
                         prop_assert!(all_finite(&o.odom), "odom: {:?}", o.odom);
                     }
                 }
+            }
+        }
+    }
+
+    /// A payload of hostile numbers on a real, unknown or empty frame: the robot carrying it is
+    /// refused with a message naming the field, or the forces node rebuilt around it answers
+    /// with finite forces.
+    #[test]
+    fn set_payload_hostile(
+        frame in name(&FRAMES),
+        mass in prop_oneof![3 => 0.0..50.0f64, 1 => hostile()],
+        com in fixed(3),
+        inertia in prop_oneof![
+            2 => (0.0..1.0f64).prop_map(|a| vec![a, 0.0, 0.0, a, 0.0, a]),
+            1 => hostile().prop_map(|a| vec![a, 0.0, 0.0, a, 0.0, a]),
+            1 => fixed(6),
+        ],
+    ) {
+        let n: ForcesNode = node(ForcesParams::default());
+        let common = n.params().common.clone();
+        let payload = Payload {
+            frame,
+            mass,
+            com: [com[0], com[1], com[2]],
+            inertia: [inertia[0], inertia[1], inertia[2], inertia[3], inertia[4], inertia[5]],
+        };
+        let loaded = timed("with_payload", || n.robot().with_payload(&payload, &common));
+        match loaded {
+            Err(e) => {
+                let e = e.to_string();
+                prop_assert!(e.contains("payload."), "{e}");
+                SET_PAYLOAD.count(false);
+            }
+            Ok(robot) => {
+                let mut m = ForcesNode::new(robot, n.params().clone(), NodeLog::new("fuzz"))
+                    .map_err(|e| TestCaseError::fail(e.to_string()))?;
+                let req = GetConstraintForcesRequest { use_latest_state: true, ..Default::default() };
+                let r = timed("get_constraint_forces", || {
+                    m.get_constraint_forces(&req, Time::from_nanos(1))
+                });
+                judge("set_payload", r.success, &r.message, &r).map_err(TestCaseError::fail)?;
+                SET_PAYLOAD.count(r.success);
             }
         }
     }

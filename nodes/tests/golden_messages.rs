@@ -227,6 +227,8 @@ fn rust_messages_match_rclpy_bytes() {
     srv_case!("constraint_dynamics_msgs__ProjectVelocity", ProjectVelocity);
     srv_case!("constraint_dynamics_msgs__Predict", Predict);
     srv_case!("constraint_dynamics_msgs__Rollouts", Rollouts);
+    msg_case!("geometry_msgs__Inertia", Inertia);
+    srv_case!("constraint_dynamics_msgs__SetPayload", SetPayload);
     msg_case!("geometry_msgs__WrenchStamped", WrenchStamped);
     msg_case!("visualization_msgs__Marker", Marker);
     msg_case!("visualization_msgs__MarkerArray", MarkerArray);

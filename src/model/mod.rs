@@ -1,5 +1,6 @@
 //! The immutable robot `Model`: bodies (URDF links merged across fixed and locked joints), their
-//! joints, named frames (every URDF link) and the named generalized coordinates.
+//! joints, named frames (every URDF link) and the named generalized coordinates. A payload
+//! carried at run time makes a new model ([`Model::with_payload`]).
 //!
 //! Body 0 is the world ("universe"). Bodies are numbered depth-first over the URDF tree, children in
 //! the order their joints appear in the file, so a parent always precedes its children and the
@@ -10,12 +11,14 @@ mod build;
 mod check;
 mod inertial;
 mod joint;
+mod payload;
 mod urdf_text;
 
 pub use base::{BasePose, BaseTwist, TWIST_TOLERANCE};
 pub use build::{BaseType, InertiaPolicy, ModelOptions};
 pub use check::{MIN_PIVOT_RATIO, pivot_ratios};
 pub use joint::JointKind;
+pub use payload::Payload;
 pub use urdf_text::MAX_URDF_MAGNITUDE;
 
 use crate::error::{Error, Result};

@@ -8,7 +8,8 @@
 //! - `urdf_robustness`: the loader on real-robot habits and hostile URDF values;
 //! - `hostile_input`: hostile numbers at the scene and prediction boundary;
 //! - `fuzz_hostile`: proptest over hostile URDF numbers and scene fields;
-//! - `velocity_bad_input`: malformed and over-long `kind: velocity` declarations.
+//! - `velocity_bad_input`: malformed and over-long `kind: velocity` declarations;
+//! - `payload`: a bad `payload:` names its field.
 
 #[path = "../common/mod.rs"]
 mod common;
@@ -20,5 +21,6 @@ mod counting_alloc;
 mod bad_input;
 mod fuzz_hostile;
 mod hostile_input;
+mod payload;
 mod urdf_robustness;
 mod velocity_bad_input;

@@ -33,8 +33,9 @@ from rosidl_parser import definition as idl
 
 from builtin_interfaces.msg import Time
 from std_msgs.msg import Header, String
-from geometry_msgs.msg import (Point, Pose, PoseStamped, PoseWithCovariance, Quaternion, Twist,
-                               TwistStamped, TwistWithCovariance, Vector3, Wrench, WrenchStamped)
+from geometry_msgs.msg import (Inertia, Point, Pose, PoseStamped, PoseWithCovariance, Quaternion,
+                               Twist, TwistStamped, TwistWithCovariance, Vector3, Wrench,
+                               WrenchStamped)
 from std_msgs.msg import ColorRGBA
 from builtin_interfaces.msg import Duration
 from visualization_msgs.msg import Marker, MarkerArray, MeshFile, UVCoordinate
@@ -44,7 +45,8 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from nav_msgs.msg import Odometry, Path
 from constraint_dynamics_msgs.msg import ConstraintForce, ConstraintForces
-from constraint_dynamics_msgs.srv import GetConstraintForces, Predict, ProjectVelocity, Rollouts
+from constraint_dynamics_msgs.srv import (GetConstraintForces, Predict, ProjectVelocity, Rollouts,
+                                          SetPayload)
 
 
 def to_plain(value):
@@ -344,6 +346,15 @@ def cases():
     resp.twists = [twist(0.2, 0.0, 0.0, 0.0, 0.0, 0.1), twist(0.25, 0.0, 0.0, 0.0, 0.0, -0.1)]
     resp.forces = [constraint_forces(1, sec=1_700_000_500)]
     out["constraint_dynamics_msgs__Rollouts_Response"] = resp
+
+    # A string of length 5 + NUL before the float64s (padding), -0.0 and a tiny number.
+    inertia = Inertia(m=2.5, com=vec3(0.05, -0.0, 0.125), ixx=0.0125, ixy=-1e-4, ixz=0.0,
+                      iyy=0.02, iyz=3e-300, izz=0.015)
+    out["geometry_msgs__Inertia"] = inertia
+    out["constraint_dynamics_msgs__SetPayload_Request"] = SetPayload.Request(frame="tool0",
+                                                                             inertia=inertia)
+    out["constraint_dynamics_msgs__SetPayload_Response"] = SetPayload.Response(
+        success=False, message="inertia.m: -1 kg must be finite, ≥ 0 and ≤ 1e9")
 
     out["geometry_msgs__WrenchStamped"] = WrenchStamped(
         header=header("left_wheel"), wrench=Wrench(force=vec3(0.0, -3.0, 50.0),

@@ -62,7 +62,7 @@ pub mod srv {
 
     use super::ConstraintForces;
     use crate::msg::RosService;
-    use crate::msg::geometry_msgs::{Pose, Twist};
+    use crate::msg::geometry_msgs::{Inertia, Pose, Twist};
     use crate::msg::nav_msgs::Path;
     use crate::msg::std_msgs::Header;
 
@@ -238,4 +238,22 @@ pub mod srv {
     }
 
     ros_service!(Rollouts, RolloutsRequest, RolloutsResponse);
+
+    /// Request of `SetPayload`.
+    #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct SetPayloadRequest {
+        /// Frame (URDF link) carrying the payload.
+        pub frame: String,
+        /// Mass [kg], centre of mass [m] in `frame`, inertia about it [kg·m²].
+        pub inertia: Inertia,
+    }
+
+    /// Response of `SetPayload`.
+    #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+    pub struct SetPayloadResponse {
+        pub success: bool,
+        pub message: String,
+    }
+
+    ros_service!(SetPayload, SetPayloadRequest, SetPayloadResponse);
 }

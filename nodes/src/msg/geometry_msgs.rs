@@ -121,7 +121,21 @@ pub struct WrenchStamped {
     pub wrench: Wrench,
 }
 
+/// `geometry_msgs/msg/Inertia`: mass m [kg], centre of mass [m] and the rotational inertia
+/// about it [kg·m²], in one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Inertia {
+    pub m: f64,
+    pub com: Vector3,
+    pub ixx: f64,
+    pub ixy: f64,
+    pub ixz: f64,
+    pub iyy: f64,
+    pub iyz: f64,
+    pub izz: f64,
+}
+
 super::ros_messages!("geometry_msgs":
     Vector3, Point, Quaternion, Pose, PoseStamped, PoseWithCovariance,
-    Twist, TwistStamped, TwistWithCovariance, Wrench, WrenchStamped,
+    Twist, TwistStamped, TwistWithCovariance, Wrench, WrenchStamped, Inertia,
 );

@@ -20,7 +20,8 @@ use std::thread::JoinHandle;
 use ros2_client::{Context, Publisher};
 
 use super::wiring::{
-    Followed, GRAPH_PERIOD, RosWiring, Wiring, wire_diagnostics, wire_state_inputs,
+    Followed, GRAPH_PERIOD, RosWiring, Wiring, wire_diagnostics, wire_set_payload,
+    wire_state_inputs,
 };
 use super::worker::{Event, NodeLogic, WorkerHandle};
 use crate::error::NodeError;
@@ -49,6 +50,8 @@ pub struct WorkerLink<N: NodeLogic> {
     pub tx: SyncSender<Event<N>>,
     /// The scene's work limits, which the values that size work must respect.
     pub budget: WorkBudget,
+    /// The model's frame names, which `payload.frame` must be one of.
+    pub frames: Vec<String>,
 }
 
 /// What the lifecycle servers ask the supervisor.
@@ -309,6 +312,13 @@ impl<N: RosWiring> Managed<N> {
             )
         };
         let constraints = logic.robot().constraint_names().to_vec();
+        let frames = logic
+            .robot()
+            .model()
+            .frames
+            .iter()
+            .map(|f| f.name.clone())
+            .collect();
         let (out_tx, outputs) = smol::channel::bounded::<N::Output>(16);
         let (diag_tx, statuses) = smol::channel::bounded::<(Time, DiagnosticStatus)>(4);
         let worker = WorkerHandle::spawn(logic, self.ros.name(), &self.fqn, out_tx, diag_tx)?;
@@ -322,8 +332,11 @@ impl<N: RosWiring> Managed<N> {
                 let latest = NodeParams::<N::Params>::from_parameters(&now)?;
                 let _ = sender.send(Event::Params(Box::new(latest)));
             }
-            *self.params.1.lock().map_err(|_| poisoned())? =
-                Some(WorkerLink { tx: sender, budget });
+            *self.params.1.lock().map_err(|_| poisoned())? = Some(WorkerLink {
+                tx: sender,
+                budget,
+                frames,
+            });
         }
         let mut c = Configured {
             params,
@@ -370,6 +383,7 @@ impl<N: RosWiring> Managed<N> {
             &mut tasks,
             |w| {
                 wire_diagnostics(w, statuses)?;
+                wire_set_payload(w)?;
                 N::wire(w)?;
                 N::follow_graph(w, &mut followed)
             },

@@ -1,7 +1,7 @@
 //! Starting one node of any kind: its ROS node with declared, validated parameters and its
 //! lifecycle ([`super::managed`]), which brings up the inputs every node has (`joint_states`,
-//! `odom`, `robot_description`, `/clock`) and its worker when configured, and the kind's own
-//! topics and services ([`RosWiring`]) when active.
+//! `odom`, `robot_description`, `/clock`) and its worker when configured, and when active
+//! `/diagnostics`, `~/set_payload` and the kind's own topics and services ([`RosWiring`]).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::SyncSender;
@@ -14,6 +14,7 @@ use super::managed::{Managed, Supervisor, WorkerLink};
 use crate::error::NodeError;
 use crate::msg::RosService;
 use crate::msg::builtin_interfaces::Time;
+use crate::msg::constraint_dynamics_msgs::srv::{SetPayload, SetPayloadResponse};
 use crate::msg::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
 use crate::msg::nav_msgs::Odometry;
 use crate::msg::rosgraph_msgs::Clock;
@@ -149,9 +150,9 @@ pub fn start_node<N: RosWiring>(
             }
             let c = current.lock().map_err(|e| e.to_string())?;
             let budget = budget_of(&link);
-            NodeParams::<N::Params>::updated(&c, pname, value, budget.as_ref())
-                .map(|_| ())
-                .map_err(|e| e.to_string())
+            let next = NodeParams::<N::Params>::updated(&c, pname, value, budget.as_ref())
+                .map_err(|e| e.to_string())?;
+            check_payload_frame(&next, &link)
         }));
     }
     {
@@ -164,6 +165,7 @@ pub fn start_node<N: RosWiring>(
             let budget = budget_of(&link);
             let next = NodeParams::<N::Params>::updated(&c, pname, value, budget.as_ref())
                 .map_err(|e| e.to_string())?;
+            check_payload_frame(&next, &link)?;
             // A set is acknowledged only once the worker has it: with its queue full the set is
             // refused (the caller can retry), never dropped after a success reply.
             let tx = link
@@ -229,6 +231,41 @@ where
         error,
     )));
     Ok(())
+}
+
+/// `~/set_payload` (every kind): each request goes to the worker, which rebuilds the model.
+pub(crate) fn wire_set_payload<N: NodeLogic>(w: &mut Wiring<N>) -> Result<(), NodeError> {
+    let server = w.ros.server::<SetPayload>(&(w.topic)("~/set_payload"))?;
+    let tx = w.tx.clone();
+    w.tasks.push(w.ros.spawn(serve::<SetPayload, _>(
+        server,
+        w.log.clone(),
+        move |req, reply| tx.try_send(Event::SetPayload(req, reply)).is_ok(),
+        |message| SetPayloadResponse {
+            success: false,
+            message,
+        },
+    )));
+    Ok(())
+}
+
+/// A `payload.frame` the model does not have, refused when the parameter is set (the frames
+/// are the configured model's; none before the node is configured, when `configure` checks).
+fn check_payload_frame<N: NodeLogic>(
+    params: &NodeParams<N::Params>,
+    link: &Mutex<Option<WorkerLink<N>>>,
+) -> Result<(), String> {
+    let frame = params.common.payload.frame.as_str();
+    let Ok(link) = link.lock() else {
+        return Ok(());
+    };
+    match link.as_ref() {
+        Some(l) if !frame.is_empty() && !l.frames.iter().any(|f| f == frame) => Err(format!(
+            "payload.frame = '{frame}' is not a frame of the model (known frames: {})",
+            l.frames.join(", ")
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// The node's status on `/diagnostics` (global, as diagnostic_updater publishes it; the status

@@ -17,6 +17,7 @@ use std::time::{Duration, Instant};
 
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
+use crate::msg::constraint_dynamics_msgs::srv::{SetPayloadRequest, SetPayloadResponse};
 use crate::msg::diagnostic_msgs::{DiagnosticStatus, KeyValue};
 use crate::msg::nav_msgs::Odometry;
 use crate::msg::sensor_msgs::JointState;
@@ -27,6 +28,9 @@ use crate::robot::Robot;
 use crate::ros::logging::{DropLog, NodeLog};
 
 pub use crate::ros::io::Reply;
+
+#[path = "worker_rebuild.rs"]
+mod rebuild;
 
 /// The domain logic of one node kind: plain data in, plain data out, no ROS handles.
 pub trait NodeLogic: Sized + Send + 'static {
@@ -85,6 +89,8 @@ pub enum Event<N: NodeLogic> {
     Clock(Time),
     /// New parameter values (run-time change), already validated.
     Params(Box<NodeParams<N::Params>>),
+    /// `~/set_payload`: rebuild the model with this payload.
+    SetPayload(SetPayloadRequest, Reply<SetPayloadResponse>),
     /// The kind's own input.
     Node(N::Input),
     /// Lifecycle: active (tick and report) or not (follow inputs only).
@@ -304,6 +310,14 @@ impl<N: NodeLogic> Worker<N> {
                     t.reset();
                 }
             }
+            Event::SetPayload(req, reply) => {
+                // A new model re-plans at once, as a new URDF does.
+                if self.serve_set_payload(&req, reply)
+                    && let Some(t) = timers.tick.as_mut()
+                {
+                    t.reset();
+                }
+            }
             Event::Active(active) => {
                 if active && !self.active {
                     // Predict and report at once on activation.
@@ -346,13 +360,15 @@ impl<N: NodeLogic> Worker<N> {
     fn publish_status(&mut self, scheduled: bool) {
         let now = self.now();
         let params = self.logic.params();
+        let mut extra = vec![self.payload_status()];
+        extra.extend(self.logic.diagnostics());
         let ctx = StatusContext {
             name: &self.fqn,
             model: &self.logic.robot().model().name,
             requested_rate: self.logic.tick_period().map(|p| 1.0 / p.as_secs_f64()),
             subscribed: &self.subscribed,
             params: &params.common.diagnostics,
-            extra: self.logic.diagnostics(),
+            extra,
             warnings: self.logic.warnings(),
             rate_shortfall: self.logic.rate_shortfall(),
         };
@@ -438,10 +454,7 @@ impl<N: NodeLogic> Worker<N> {
                 self.robot_description(&urdf);
             }
             Event::Clock(t) => self.sim_time = Some(t),
-            Event::Params(p) => {
-                self.log.info("parameters changed");
-                self.logic.set_params(*p);
-            }
+            Event::Params(p) => self.params_changed(*p),
             Event::Node(input) => {
                 let now = self.now();
                 let started = Instant::now();
@@ -451,34 +464,10 @@ impl<N: NodeLogic> Worker<N> {
                 });
                 self.health.request(started.elapsed().as_secs_f64());
             }
+            Event::SetPayload(req, reply) => {
+                self.serve_set_payload(&req, reply);
+            }
             Event::Shutdown | Event::Active(_) => {}
-        }
-    }
-
-    /// Rebuilds the model from a URDF; true if it changed.
-    fn robot_description(&mut self, urdf: &str) -> bool {
-        let params = self.logic.params().clone();
-        let next = self
-            .logic
-            .robot()
-            .with_urdf(urdf, &params.common)
-            .and_then(|robot| N::new(robot, params, self.log.clone()));
-        match next {
-            Ok(next) => {
-                let m = next.robot().model();
-                self.log.info(&format!(
-                    "model rebuilt from robot_description: '{}', nq = {}, nv = {}",
-                    m.name, m.nq, m.nv
-                ));
-                self.logic = next;
-                true
-            }
-            Err(e) => {
-                let message = format!("robot_description refused, keeping the current model: {e}");
-                self.log.error(&message);
-                self.health.error(message);
-                false
-            }
         }
     }
 }

@@ -2,7 +2,8 @@
 //! validated before anything is built.
 //!
 //! A node's parameters are [`NodeParams<K>`]: the groups every node kind has ([`CommonParams`]:
-//! `enabled`, `use_sim_time`, `model.*`, `state.*`, `frames.*`, `slip.*`, `network.*`) and the
+//! `enabled`, `use_sim_time`, `model.*`, `state.*`, `frames.*`, `slip.*`, `network.*`,
+//! `diagnostics.*`, `payload.*`) and the
 //! kind's own struct `K` (its module: `crate::predictor::PredictorParams`, …). The common groups
 //! let one `/**:` section of a parameter file set what all nodes share; kind-specific keys go
 //! under the node's own name. As ROS parameters the nested keys are dotted
@@ -13,6 +14,7 @@
 
 mod groups;
 mod kind;
+mod payload;
 pub mod work;
 
 use std::path::{Path, PathBuf};
@@ -28,6 +30,7 @@ pub use groups::{
     JointNoiseParams, ModelParams, NetworkParams, SlipParams, StaleBehaviour, StateParams,
 };
 pub use kind::NodeKind;
+pub use payload::PayloadParams;
 pub use work::WorkBudget;
 
 /// A parameter that is missing, malformed or out of its range.
@@ -108,6 +111,8 @@ pub struct CommonParams {
     pub network: NetworkParams,
     /// The node's status on `/diagnostics`.
     pub diagnostics: DiagnosticsParams,
+    /// A payload the robot carries (default: the scene's `payload:`); changeable at run time.
+    pub payload: PayloadParams,
 }
 
 impl Default for CommonParams {
@@ -122,12 +127,13 @@ impl Default for CommonParams {
             slip: SlipParams::default(),
             network: NetworkParams::default(),
             diagnostics: DiagnosticsParams::default(),
+            payload: PayloadParams::default(),
         }
     }
 }
 
 /// The top-level keys of [`CommonParams`] (the rest belong to the kind's struct).
-const COMMON_KEYS: [&str; 9] = [
+const COMMON_KEYS: [&str; 10] = [
     "enabled",
     "use_sim_time",
     "autostart",
@@ -137,10 +143,15 @@ const COMMON_KEYS: [&str; 9] = [
     "slip",
     "network",
     "diagnostics",
+    "payload",
 ];
 
 /// Parameters no kind may change at run time: `use_sim_time` and `autostart` are read once.
 const NEVER_DYNAMIC: [&str; 2] = ["use_sim_time", "autostart"];
+
+/// Parameters every kind may change at run time (besides its own [`KindParams::DYNAMIC`]): the
+/// payload rebuilds the model.
+pub const COMMON_DYNAMIC: [&str; 1] = ["payload."];
 
 impl CommonParams {
     /// Checks every value, naming the parameter that is wrong.
@@ -164,7 +175,8 @@ impl CommonParams {
         crate::ros::context::NetworkConfig::default()
             .with_interfaces_param(&self.network.interfaces)
             .map_err(|e| ParamsError::invalid("network.interfaces", e.to_string()))?;
-        self.diagnostics.validate()
+        self.diagnostics.validate()?;
+        self.payload.validate()
     }
 }
 
@@ -226,10 +238,12 @@ impl<K: KindParams> NodeParams<K> {
         budget: Option<&WorkBudget>,
     ) -> Result<Self, ParamsError> {
         let dynamic = |d: &&str| name == *d || (d.ends_with('.') && name.starts_with(d));
-        if NEVER_DYNAMIC.contains(&name) || !K::DYNAMIC.iter().any(dynamic) {
+        let mut allowed = K::DYNAMIC.iter().chain(COMMON_DYNAMIC.iter());
+        if NEVER_DYNAMIC.contains(&name) || !allowed.any(dynamic) {
+            let all: Vec<&str> = K::DYNAMIC.iter().chain(&COMMON_DYNAMIC).copied().collect();
             return Err(ParamsError::Fixed {
                 name: name.to_string(),
-                detail: format!(" (run-time changes: {})", K::DYNAMIC.join(", ")),
+                detail: format!(" (run-time changes: {})", all.join(", ")),
             });
         }
         let mut params = current.clone();

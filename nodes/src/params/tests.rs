@@ -226,3 +226,62 @@ fn joint_noise_by_name() {
         "{names:?}"
     );
 }
+
+#[test]
+fn payload_group_is_typed_named_and_changeable_on_every_kind() {
+    let cases = [
+        ("payload: { mass: 2.0 }", "payload.frame"),
+        ("payload: { frame: tool0, mass: -2.0 }", "payload.mass"),
+        (
+            "payload: { frame: tool0, mass: 2.0, com: [0.1, 0.2] }",
+            "payload.com",
+        ),
+        (
+            "payload: { frame: tool0, mass: 2.0, inertia: [0.3, 0.0, 0.0, 0.1, 0.0, 0.1] }",
+            "payload.inertia",
+        ),
+        (
+            "payload: { frame: tool0, masss: 2.0 }",
+            "unknown field `masss`",
+        ),
+    ];
+    for (body, name) in cases {
+        let yaml = format!(
+            "cd_forces:\n  ros__parameters:\n    model: {{ scene_file: s.yaml }}\n    {body}\n"
+        );
+        let p = parse_params_yaml(&yaml, "/cd_forces").unwrap();
+        let e = NodeParams::<ForcesParams>::from_parameters(&p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(name), "{body}: {e}");
+    }
+    // Default: the scene's payload; a frame with mass 0 is "none".
+    let mut p = NodeParams::<ProjectionParams>::default();
+    p.common.model.scene_file = "s.yaml".into();
+    assert_eq!(p.common.payload.payload().unwrap(), None);
+    let mut current = Parameters::default();
+    current.values.extend(p.to_ros());
+    let next = NodeParams::<ProjectionParams>::updated(
+        &current,
+        "payload.frame",
+        &ParameterValue::String("tool0".into()),
+        None,
+    )
+    .unwrap();
+    let none = next.common.payload.payload().unwrap().unwrap();
+    assert!(none.is_none() && none.frame == "tool0");
+    current.values.insert(
+        "payload.frame".into(),
+        ParameterValue::String("tool0".into()),
+    );
+    let next = NodeParams::<ProjectionParams>::updated(
+        &current,
+        "payload.mass",
+        &ParameterValue::Double(2.0),
+        None,
+    )
+    .unwrap();
+    let p = next.common.payload.payload().unwrap().unwrap();
+    assert_eq!((p.frame.as_str(), p.mass), ("tool0", 2.0));
+    assert_eq!(p.describe(), "2.0 kg on tool0");
+}

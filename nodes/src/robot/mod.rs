@@ -11,6 +11,7 @@ pub mod state;
 use constraint_dynamics::actuators::Command;
 use constraint_dynamics::constraints::{ConstraintForce, SlipTest};
 use constraint_dynamics::dynamics::Formulation;
+use constraint_dynamics::model::Payload;
 use constraint_dynamics::predict::drift;
 use constraint_dynamics::{Model, Scene, System};
 
@@ -35,14 +36,40 @@ pub struct Robot {
 }
 
 impl Robot {
-    /// Loads the scene file named in the parameters (already resolved to a path).
+    /// Loads the scene file named in the parameters (already resolved to a path), carrying the
+    /// `payload.*` parameters' payload when they name one (else the scene's).
     pub fn load(common: &CommonParams) -> Result<Self, NodeError> {
         let path = &common.model.scene_file;
-        let scene = Scene::load(path).map_err(|source| NodeError::Scene {
+        let scene_err = |source| NodeError::Scene {
             path: path.clone(),
             source,
-        })?;
+        };
+        let mut scene = Scene::load(path).map_err(scene_err)?;
+        if let Some(p) = common.payload.payload()? {
+            scene = scene.with_payload(&p).map_err(scene_err)?;
+        }
         Self::from_scene(scene, common)
+    }
+
+    /// The same robot carrying `payload` instead (mass 0: none), the state carried over. The
+    /// current robot is untouched: on an error (naming the payload's field) it stays in use.
+    pub fn with_payload(
+        &self,
+        payload: &Payload,
+        common: &CommonParams,
+    ) -> Result<Robot, NodeError> {
+        let scene = self
+            .scene
+            .with_payload(payload)
+            .map_err(NodeError::core("payload"))?;
+        let mut next = Robot::from_scene(scene, common)?;
+        next.state.carry_over(&self.state);
+        Ok(next)
+    }
+
+    /// The payload the model carries.
+    pub fn payload(&self) -> &Payload {
+        &self.scene.payload
     }
 
     /// Builds the system and the state estimate (at the scene's initial state) of a scene.
@@ -75,8 +102,8 @@ impl Robot {
         })
     }
 
-    /// The same scene settings with the URDF of a `/robot_description` message; the state is
-    /// carried over by name.
+    /// The same scene settings and payload with the URDF of a `/robot_description` message;
+    /// the state is carried over by name.
     pub fn with_urdf(&self, urdf: &str, common: &CommonParams) -> Result<Robot, NodeError> {
         if urdf.trim().is_empty() {
             return Err(NodeError::EmptyUrdf);
@@ -87,6 +114,7 @@ impl Robot {
             urdf,
             "robot_description",
         )
+        .and_then(|s| s.with_payload(&self.scene.payload))
         .map_err(NodeError::core("robot_description"))?;
         let mut next = Robot::from_scene(scene, common)?;
         next.state.carry_over(&self.state);

@@ -220,6 +220,7 @@ def phase_twist(user):
                 "/cd_projection/project_velocity": "constraint_dynamics_msgs/srv/ProjectVelocity",
                 "/cd_prediction/predict": "constraint_dynamics_msgs/srv/Predict",
                 "/cd_prediction/rollouts": "constraint_dynamics_msgs/srv/Rollouts",
+                "/cd_predictor/set_payload": "constraint_dynamics_msgs/srv/SetPayload",
                 "/cd_predictor/get_parameters": "rcl_interfaces/srv/GetParameters",
                 "/cd_predictor/set_parameters": "rcl_interfaces/srv/SetParameters"}
     deadline = time.monotonic() + 10

@@ -1,0 +1,220 @@
+//! A payload set at run time, through `~/set_payload` by a real ROS 2 peer (rclpy with
+//! rmw_fastrtps_cpp, `nodes/tests/peers/payload_peer.py`) and through the `payload.*`
+//! parameters, changes what the forces node computes as the closed form says and as the core
+//! computes it with the same payload in the scene.
+//!
+//! The scene is the floating cart of tests/data/cart_tall_mass.yaml (32.5 kg) at rest on its
+//! two wheels and caster. At rest with its height, roll and pitch held by the contacts, no
+//! point of it accelerates vertically, so the contacts carry the whole weight: the constraint
+//! force along the base's z axis (the generalized force of `root_joint:vz_local`, the base
+//! level) is (m_robot + m_payload)·g.
+//!
+//! Needs root (a loopback-only network namespace) and the peer venv
+//! (`tools/ros2/setup_peer_venv.sh`; `CD_ROS2_VENV`, default `<repo>/.venv-ros2`): `#[ignore]`d
+//! in a plain `cargo test`, run by `tools/test.sh`; a missing prerequisite fails the test.
+
+mod common;
+
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use common::*;
+use constraint_dynamics::applied::constraint_forces_at;
+use constraint_dynamics::forces::ForceElements;
+use constraint_dynamics::model::Payload;
+use constraint_dynamics::{Scene, System};
+use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::{
+    GetConstraintForces, GetConstraintForcesRequest, GetConstraintForcesResponse,
+};
+use constraint_dynamics_nodes::msg::rcl_interfaces::SetParameters;
+use ros2_client::ParameterValue;
+use serde_json::Value;
+
+const TEST: &str = "a_payload_set_by_rclpy_changes_the_forces_as_the_core_computes_them";
+
+const G: f64 = 9.81;
+/// The cart's mass [kg] (urdf/cart_tall_mass.urdf: 20 + 2 × 1 + 0.5 + 10).
+const M_ROBOT: f64 = 32.5;
+/// The weight's share of rounding in the constraint solve (a 7-row KKT system of O(10) entries):
+/// measured 0 to 1.7e-16 relative.
+const WEIGHT_TOL: f64 = 1e-14;
+
+/// The forces at the scene's initial state, at rest, without torques.
+fn forces_at_rest(
+    client: &ros2_client::Client<GetConstraintForcesRequest, GetConstraintForcesResponse>,
+) -> GetConstraintForcesResponse {
+    let mut q = vec![0.0; 9];
+    q[6] = 1.0; // root_joint:qw
+    let r = call(
+        client,
+        GetConstraintForcesRequest {
+            use_latest_state: false,
+            q,
+            v: vec![0.0; 8],
+            ..Default::default()
+        },
+    );
+    assert!(r.success, "{}", r.message);
+    r
+}
+
+/// The constraint force along the base's z axis [N].
+fn vertical_force(r: &GetConstraintForcesResponse) -> f64 {
+    let i = r
+        .forces
+        .v_names
+        .iter()
+        .position(|n| n == "root_joint:vz_local")
+        .expect("a floating base");
+    r.forces.generalized_force[i]
+}
+
+fn assert_weight(what: &str, r: &GetConstraintForcesResponse, mass: f64) {
+    let (got, expect) = (vertical_force(r), mass * G);
+    let rel = (got - expect).abs() / expect;
+    println!("{TEST}: achieved {what}: {got} N vs {mass} kg × g = {expect} N (rel {rel:.1e})");
+    assert!(rel < WEIGHT_TOL, "{what}: {got} vs {expect}");
+}
+
+#[test]
+#[ignore = "needs root and the peer venv: run by tools/test.sh"]
+fn a_payload_set_by_rclpy_changes_the_forces_as_the_core_computes_them() {
+    let python = peer_python(TEST);
+    if !in_namespace_or_reexec(TEST) {
+        return; // the run inside the namespace passed
+    }
+    let mut t = TestNode::new("cd_payload_test");
+    let mut suite = SuiteProcess::spawn(
+        env!("CARGO_BIN_EXE_constraint_dynamics_suite"),
+        &[
+            "--node",
+            "forces",
+            "--ros-args",
+            "--params-file",
+            "params/default.yaml",
+            "-p",
+            "model.scene_file:=tests/data/cart_tall_mass.yaml",
+        ],
+        "payload",
+    );
+    let forces = t.client::<GetConstraintForces>("/cd_forces/get_constraint_forces");
+    assert_weight("weight without payload", &forces_at_rest(&forces), M_ROBOT);
+
+    // rclpy sets 2 kg on tall_mass (after two bad requests the node must refuse and survive).
+    let good = serde_json::json!({
+        "frame": "tall_mass",
+        "inertia": {"m": 2.0, "com": {"x": 0.3, "y": 0.1, "z": 0.5},
+                    "ixx": 0.01, "ixy": 0.001, "ixz": 0.0, "iyy": 0.012, "iyz": 0.0, "izz": 0.008},
+    });
+    let out = run_peer(&python, &good);
+    assert_eq!(out["ok"], true, "payload_peer.py: {out}\n{}", suite.log());
+    assert_eq!(out["negative_mass"]["success"], false, "{out}");
+    let m = out["negative_mass"]["message"].as_str().unwrap();
+    assert!(m.starts_with("inertia.m"), "{m}");
+    assert_eq!(out["unknown_frame"]["success"], false, "{out}");
+    let m = out["unknown_frame"]["message"].as_str().unwrap();
+    assert!(m.contains("frame: unknown frame 'gripper'"), "{m}");
+    assert_eq!(out["good"]["success"], true, "{out}");
+    assert_eq!(out["diagnostics_payload"], "2.0 kg on tall_mass");
+
+    let with_service = forces_at_rest(&forces);
+    assert_weight(
+        "weight with 2 kg by ~/set_payload",
+        &with_service,
+        M_ROBOT + 2.0,
+    );
+    // As the core computes it with the same payload in the scene: the same arithmetic on the
+    // same model, so the same numbers.
+    let payload = Payload {
+        frame: "tall_mass".into(),
+        mass: 2.0,
+        com: [0.3, 0.1, 0.5],
+        inertia: [0.01, 0.001, 0.0, 0.012, 0.0, 0.008],
+    };
+    let scene = Scene::load(repo_root().join("tests/data/cart_tall_mass.yaml"))
+        .unwrap()
+        .with_payload(&payload)
+        .unwrap();
+    let mut sys = System::from_scene(&scene).unwrap();
+    let mut elements = ForceElements::new(&sys.model, &scene.file.forces).unwrap();
+    let core = constraint_forces_at(
+        &mut sys,
+        &mut elements,
+        (0.0, &scene.q0, &scene.v0),
+        &[0.0; 8],
+    )
+    .unwrap();
+    assert_close("q̈ node vs core", &with_service.qdd, &core.qdd, 1e-15);
+    assert_close(
+        "Jᵀλ node vs core",
+        &with_service.forces.generalized_force,
+        &core.generalized_force,
+        1e-15,
+    );
+
+    // A parameter set replaces the service's payload; a frame with mass 0 is none.
+    let set = t.client::<SetParameters>("/cd_forces/set_parameters");
+    let ok = |(accepted, reason): (bool, String)| assert!(accepted, "{reason}");
+    let (accepted, reason) = set_param(
+        &set,
+        "payload.frame",
+        ParameterValue::String("nowhere".into()),
+    );
+    assert!(!accepted && reason.contains("payload.frame"), "{reason}");
+    ok(set_param(
+        &set,
+        "payload.frame",
+        ParameterValue::String("base_link".into()),
+    ));
+    assert_weight(
+        "weight with payload.frame set, mass 0",
+        &forces_at_rest(&forces),
+        M_ROBOT,
+    );
+    ok(set_param(&set, "payload.mass", ParameterValue::Double(5.0)));
+    assert_weight(
+        "weight with 5 kg by payload.*",
+        &forces_at_rest(&forces),
+        M_ROBOT + 5.0,
+    );
+    ok(set_param(&set, "payload.mass", ParameterValue::Double(0.0)));
+    ok(set_param(
+        &set,
+        "payload.frame",
+        ParameterValue::String(String::new()),
+    ));
+    assert_weight(
+        "weight back to the scene's (none)",
+        &forces_at_rest(&forces),
+        M_ROBOT,
+    );
+    assert!(suite.stop(), "{}", suite.log());
+}
+
+fn run_peer(python: &std::path::Path, good: &Value) -> Value {
+    let child = Command::new(python)
+        .arg(repo_root().join("nodes/tests/peers/payload_peer.py"))
+        .arg("/cd_forces")
+        .arg(good.to_string())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("start payload_peer.py");
+    let pid = child.id();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(child.wait_with_output());
+    });
+    let out = match rx.recv_timeout(Duration::from_secs(120)) {
+        Ok(out) => out.expect("payload_peer.py output"),
+        Err(_) => {
+            unsafe {
+                libc::kill(pid as libc::pid_t, libc::SIGKILL);
+            }
+            panic!("payload_peer.py did not finish within 120 s");
+        }
+    };
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    serde_json::from_str(stdout.lines().last().unwrap_or(""))
+        .unwrap_or_else(|e| panic!("payload_peer.py: last line is not JSON ({e}): {stdout}"))
+}
