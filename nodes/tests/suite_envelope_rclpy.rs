@@ -207,7 +207,7 @@ fn rclpy_reads_acceleration_limits_and_its_smoother_follows_them() {
     );
     let report = run_peer(&python);
     let log = suite.log();
-    let scene = Scene::load(&repo_root().join(SCENE)).expect("scene");
+    let scene = Scene::load(repo_root().join(SCENE)).expect("scene");
     let phases = report["phases"].as_array().unwrap();
     let limits = report["limits"].as_array().unwrap();
     let sets = sends(report["sets"].as_array().unwrap());
@@ -294,8 +294,8 @@ fn rclpy_reads_acceleration_limits_and_its_smoother_follows_them() {
         envelopes[3][2].is_none() && envelopes[3][3].is_none(),
         "{envelopes:?}"
     );
-    for k in 0..4 {
-        let (a, b) = (envelopes[2][k].unwrap(), envelopes[1][k].unwrap());
+    for (k, (a, b)) in envelopes[2].iter().zip(&envelopes[1]).enumerate() {
+        let (a, b) = (a.unwrap(), b.unwrap());
         let step = rel(a, b);
         assert!(
             step < DEAD_BAND,
