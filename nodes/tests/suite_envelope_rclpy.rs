@@ -7,7 +7,8 @@
 //! - the limits arrive at the predictor's rate (10 Hz, from the stamps and from the receipts);
 //! - every message of each phase's window equals the core's envelope at the state the peer
 //!   published (the library's `acceleration_envelope`, as the CLI's `envelope` computes it,
-//!   with the scene's force elements), with the same binding and unchecked limits;
+//!   with the scene's force elements), with the same binding and unchecked limits, and its
+//!   braking limit equals the closed form of the caster lifting off ([`braking_closed_form`]);
 //! - the bridge sets the smoother to the envelope by the documented rules (forward motion:
 //!   max_accel = [a_fwd, y, min yaw], max_decel = [−d_fwd, y, −min yaw], capped by the smoother's
 //!   own values, floored at `envelope.linear_floor`), tightens at once when the arm leans
@@ -45,9 +46,12 @@ const DEAD_BAND: f64 = 0.05; // envelope.dead_band's default [-]
 const SETTLE: f64 = 0.6; // [s]
 const FIRST_SETTLE: f64 = 3.0; // [s]
 /// The node and the test run the same solver on the same (q, v), but the node's state went
-/// through `JointState`/`Odometry` and the projection onto the constraints (round-off); the
-/// achieved agreement is printed.
-const TOL: f64 = 1e-9;
+/// through `JointState`/`Odometry` and the projection onto the constraints (round-off):
+/// achieved 5.3e-16 (Kilted and Jazzy), ~100× margin.
+const TOL: f64 = 5e-14;
+/// The braking limit against its closed form: the cone program is solved to 1e-10; achieved
+/// 9.6e-12, ~50× margin.
+const CLOSED_TOL: f64 = 5e-10;
 
 /// The four limits (forward acceleration, forward deceleration, yaw left, yaw right) [m/s²,
 /// rad/s²], None where infeasible, and the report, from the core at a phase's state.
@@ -110,6 +114,25 @@ fn expected_smoother(l: [Option<f64>; 4], own: &Value) -> [[f64; 3]; 2] {
         [fa.min(f(a, 0)), f(a, 1), yaw.min(f(a, 2))],
         [-fd.min(-f(d, 0)), f(d, 1), -yaw.min(-f(d, 2))],
     ]
+}
+
+/// The braking limit −a [m/s²] of the floating mobile manipulator moving straight with its arm
+/// at shoulder pitch `pitch` [rad] (yaw, elbow, wrist 0), when the caster lifts off: the cart's
+/// closed form of docs/projection.md, −a = −g Σ mᵢxᵢ / K, K = Σ mᵢzᵢ + 2 I_w / r (moments
+/// about the ground point under the axle; nothing pitches; the wheel and arm torques are
+/// within their efforts). From urdf/mobile_manipulator.urdf, x forward of the axle, z above the
+/// ground: chassis 8 kg at (−0.05, 0.08), wheels 2 × 0.5 kg at (0, 0.05), I_w = 0.000625
+/// kg·m², r = 0.05 m, caster 0.2 kg at (−0.15, 0.025), turret 0.8 kg at (0.1, 0.18); the
+/// shoulder at (0.1, 0.23) carries 0.6 kg at 0.125 m, 0.5 kg at 0.35 m, 0.3 kg at 0.5 m along
+/// (sin pitch, cos pitch).
+fn braking_closed_form(pitch: f64) -> f64 {
+    let g = 9.81;
+    let (s, c) = pitch.sin_cos();
+    let arm = 0.6 * 0.125 + 0.5 * 0.35 + 0.3 * 0.5; // Σ m·l along the arm [kg·m]
+    let sum_mx = 8.0 * -0.05 + 0.2 * -0.15 + 0.8 * 0.1 + 1.4 * 0.1 + arm * s;
+    let sum_mz = 8.0 * 0.08 + 1.0 * 0.05 + 0.2 * 0.025 + 0.8 * 0.18 + 1.4 * 0.23 + arm * c;
+    let k = sum_mz + 2.0 * 0.000625 / 0.05;
+    -g * sum_mx / k
 }
 
 fn rel(a: f64, b: f64) -> f64 {
@@ -223,7 +246,7 @@ fn rclpy_reads_acceleration_limits_and_its_smoother_follows_them() {
     }
 
     // Every message of every phase's window against the core at the phase's state.
-    let mut worst = 0.0f64;
+    let (mut worst, mut worst_closed) = (0.0f64, 0.0f64);
     let mut envelopes = Vec::new();
     for (i, phase) in phases.iter().enumerate() {
         let name = phase["name"].as_str().unwrap();
@@ -270,6 +293,19 @@ fn rclpy_reads_acceleration_limits_and_its_smoother_follows_them() {
                     .collect();
                 assert_eq!(names, bindings[k], "{name}: limit {k}'s binding");
             }
+            // The braking limit against the closed form: the caster lifts off.
+            let braking = m["limits"][1]["max"].as_f64().unwrap();
+            let closed = braking_closed_form(phase["pitch"].as_f64().unwrap());
+            let e = rel(braking, closed);
+            worst_closed = worst_closed.max(e);
+            assert!(
+                e <= CLOSED_TOL,
+                "{name}: braking {braking}, closed form {closed} ({e:.1e})"
+            );
+            assert_eq!(
+                m["limits"][1]["binding_names"],
+                serde_json::json!(["caster_contact"])
+            );
             let unchecked: Vec<&str> = core.unchecked.iter().map(|u| u.name.as_str()).collect();
             assert_eq!(m["unchecked"][1], serde_json::json!(unchecked), "{name}");
         }
@@ -283,6 +319,9 @@ fn rclpy_reads_acceleration_limits_and_its_smoother_follows_them() {
     }
     println!(
         "{TEST}: achieved largest relative difference node vs core: {worst:.2e} (tol {TOL:.0e})"
+    );
+    println!(
+        "{TEST}: achieved braking limit vs closed form: {worst_closed:.2e} (tol {CLOSED_TOL:.0e})"
     );
     // The physics the phases stand for (docs/projection.md): the braking limit falls as the arm
     // leans forward and is negative far forward; the small step stays inside the dead band.
