@@ -348,19 +348,20 @@ fn rclpy_reads_acceleration_limits_and_its_smoother_follows_them() {
     let stamps: Vec<f64> = first.iter().map(|m| m["stamp"].as_f64().unwrap()).collect();
     let n = stamps.len() as f64;
     let by_stamps = (n - 1.0) / (stamps[stamps.len() - 1] - stamps[0]);
-    let by_receipts = n / (b - a);
+    let receipts: Vec<f64> = first.iter().map(|m| t(m)).collect();
+    let by_receipts = (n - 1.0) / (receipts[receipts.len() - 1] - receipts[0]);
     println!(
         "{TEST}: achieved rate {by_stamps:.3} Hz (stamps), {by_receipts:.3} Hz (receipts over {:.1} s)",
         b - a
     );
-    // A tick is computed in a few ms, so the node keeps the timer's rate; receipts over a
-    // window of ~3 s count ±1 message at its ends.
+    // A tick is computed in a few ms, so the node keeps the timer's rate (achieved 9.99–10.00
+    // Hz); receipts add the transport's jitter at the window's two ends.
     assert!(
         rel(by_stamps, RATE) < 0.05,
         "rate from stamps {by_stamps} Hz"
     );
     assert!(
-        rel(by_receipts, RATE) < 0.15,
+        rel(by_receipts, RATE) < 0.1,
         "rate from receipts {by_receipts} Hz"
     );
 
