@@ -78,11 +78,6 @@ impl StartEnvelope {
         }
     }
 
-    /// True when the scene has an envelope.
-    pub fn available(&self) -> bool {
-        self.solver.is_some()
-    }
-
     /// The envelope at (q, v), stamped `stamp` in `base_frame`; None (logged, throttled) when it
     /// cannot be computed.
     pub fn at(

@@ -173,11 +173,6 @@ impl DeadBand {
     pub fn sent(&mut self, limits: SmootherLimits, now: Instant) {
         self.sent = Some((limits, now));
     }
-
-    /// The values last sent.
-    pub fn last(&self) -> Option<&SmootherLimits> {
-        self.sent.as_ref().map(|(l, _)| l)
-    }
 }
 
 #[cfg(test)]
