@@ -31,7 +31,8 @@ tools/ros2/netns_run.sh .venv-ros2/bin/python tools/ros2/interop/interop.py 2>&1
 interop_status=${PIPESTATUS[0]}
 # The same peer tests against Jazzy's rclpy (rmw_fastrtps_cpp 8.4 / Fast DDS 2.14).
 CD_ROS2_VENV="$PWD/.venv-ros2-jazzy" tools/ros2/netns_run.sh cargo test -p constraint_dynamics_nodes \
-    --locked --offline --test suite_rclpy_peer --test suite_stack_rclpy --test suite_covariance_rclpy --test suite_payload_rclpy --test ros_smoke \
+    --locked --offline --test suite_rclpy_peer --test suite_stack_rclpy --test suite_covariance_rclpy --test suite_payload_rclpy \
+    --test suite_envelope_rclpy --test ros_smoke \
     -- --include-ignored 2>&1 | tee /tmp/cd_cargo_test_jazzy.log
 jazzy_status=${PIPESTATUS[0]}
 tools/ros2/netns_run.sh .venv-ros2-jazzy/bin/python tools/ros2/interop/interop.py 2>&1 | grep -v '^\[\(ERROR\|WARN\)\]' | tee /tmp/cd_interop_jazzy.log

@@ -22,7 +22,9 @@ use std::path::PathBuf;
 
 use constraint_dynamics_nodes::msg::builtin_interfaces::Time;
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::*;
-use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::{ConstraintForce, ConstraintForces};
+use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::{
+    AccelerationLimit, AccelerationLimits, ConstraintForce, ConstraintForces,
+};
 use constraint_dynamics_nodes::msg::geometry_msgs::*;
 use constraint_dynamics_nodes::msg::lifecycle_msgs::{
     ChangeState, GetAvailableStates, GetAvailableTransitions, GetState, State, TransitionEvent,
@@ -218,6 +220,14 @@ fn rust_messages_match_rclpy_bytes() {
     msg_case!(
         "constraint_dynamics_msgs__ConstraintForces_empty",
         ConstraintForces
+    );
+    msg_case!(
+        "constraint_dynamics_msgs__AccelerationLimit",
+        AccelerationLimit
+    );
+    msg_case!(
+        "constraint_dynamics_msgs__AccelerationLimits",
+        AccelerationLimits
     );
     srv_case!("std_srvs__Trigger", Trigger);
     srv_case!(

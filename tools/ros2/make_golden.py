@@ -44,7 +44,8 @@ from lifecycle_msgs.srv import ChangeState, GetAvailableStates, GetAvailableTran
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from nav_msgs.msg import Odometry, Path
-from constraint_dynamics_msgs.msg import ConstraintForce, ConstraintForces
+from constraint_dynamics_msgs.msg import (AccelerationLimit, AccelerationLimits, ConstraintForce,
+                                         ConstraintForces)
 from constraint_dynamics_msgs.srv import (GetConstraintForces, Predict, ProjectVelocity, Rollouts,
                                           SetPayload)
 
@@ -198,6 +199,24 @@ def constraint_forces(n, sec=1_700_000_200):
     return f
 
 
+def acceleration_limits():
+    m = AccelerationLimits()
+    m.header = header("base_footprint", sec=1_700_000_300, nanosec=7)
+    # A bool-free message of uint8s next to float64s: padding of 7 after each status.
+    m.forward_acceleration = AccelerationLimit(
+        status=AccelerationLimit.BOUNDED, max=9.28125,
+        binding_kinds=["lift_off", "lift_off"],
+        binding_names=["left_wheel_contact", "right_wheel_contact"])
+    m.forward_deceleration = AccelerationLimit(
+        status=AccelerationLimit.BOUNDED, max=-0.0,
+        binding_kinds=["effort", "friction", "lift_off"], binding_names=["a", "ab", "abc"])
+    m.yaw_acceleration_left = AccelerationLimit(status=AccelerationLimit.UNBOUNDED, max=0.0)
+    m.yaw_acceleration_right = AccelerationLimit(status=AccelerationLimit.INFEASIBLE, max=0.0)
+    m.unchecked_kinds = ["friction", "effort"]
+    m.unchecked_names = ["left_wheel_contact", "caster_j\u00fc"]
+    return m
+
+
 def cases():
     out = {}
 
@@ -249,6 +268,10 @@ def cases():
     out["constraint_dynamics_msgs__ConstraintForce"] = constraint_force(0)
     out["constraint_dynamics_msgs__ConstraintForces"] = constraint_forces(3)
     out["constraint_dynamics_msgs__ConstraintForces_empty"] = ConstraintForces()
+    out["constraint_dynamics_msgs__AccelerationLimit"] = AccelerationLimit(
+        status=AccelerationLimit.BOUNDED, max=-0.515312345678,
+        binding_kinds=["lift_off"], binding_names=["caster_contact"])
+    out["constraint_dynamics_msgs__AccelerationLimits"] = acceleration_limits()
 
     req = GetConstraintForces.Request()
     req.use_latest_state = False

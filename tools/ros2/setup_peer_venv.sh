@@ -156,7 +156,7 @@ PATH="$VENV/bin:$PATH" "$VENV/bin/cmake" --build "$BUILD" -j2 > "$BUILD/build.lo
 "$VENV/bin/cmake" --install "$BUILD" > /dev/null
 
 # Check that the venv's python can import it (no DDS participant is opened).
-"$VENV/bin/python" -c 'from constraint_dynamics_msgs.msg import ConstraintForces; from constraint_dynamics_msgs.srv import GetConstraintForces, ProjectVelocity, Predict, Rollouts, SetPayload; from geometry_msgs.msg import Inertia; import rclpy, cyclonedds; from visualization_msgs.msg import MarkerArray; from lifecycle_msgs.srv import ChangeState; from diagnostic_msgs.msg import DiagnosticArray'
+"$VENV/bin/python" -c 'from constraint_dynamics_msgs.msg import ConstraintForces, AccelerationLimits, AccelerationLimit; from constraint_dynamics_msgs.srv import GetConstraintForces, ProjectVelocity, Predict, Rollouts, SetPayload; from geometry_msgs.msg import Inertia; import rclpy, cyclonedds; from visualization_msgs.msg import MarkerArray; from lifecycle_msgs.srv import ChangeState; from diagnostic_msgs.msg import DiagnosticArray'
 
 printf '%s\n' "$WANT" > "$STAMP"
 t1=$(date +%s.%N)

@@ -54,7 +54,56 @@ pub struct ConstraintForces {
     pub rank_deficiency: u32,
 }
 
-super::ros_messages!("constraint_dynamics_msgs": ConstraintForce, ConstraintForces);
+/// `constraint_dynamics_msgs/msg/AccelerationLimit`: one limit of the base's acceleration
+/// envelope.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct AccelerationLimit {
+    /// [`AccelerationLimit::BOUNDED`], [`AccelerationLimit::UNBOUNDED`] or
+    /// [`AccelerationLimit::INFEASIBLE`].
+    pub status: u8,
+    /// The signed maximum when bounded [m/s² or rad/s²]; 0 otherwise.
+    pub max: f64,
+    /// `effort`, `friction`, `lift_off` or `bound`, one per binding limit.
+    pub binding_kinds: Vec<String>,
+    /// The joint, constraint or coordinate each binding limit names.
+    pub binding_names: Vec<String>,
+}
+
+impl AccelerationLimit {
+    /// `max` holds the limit.
+    pub const BOUNDED: u8 = 0;
+    /// Nothing limits this direction.
+    pub const UNBOUNDED: u8 = 1;
+    /// No acceleration meets every limit with the other base coordinate held.
+    pub const INFEASIBLE: u8 = 2;
+}
+
+/// `constraint_dynamics_msgs/msg/AccelerationLimits`: the base's acceleration envelope at one
+/// state (derivatives of the base twist in the base frame).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct AccelerationLimits {
+    /// Stamp of the state; frame_id the base frame.
+    pub header: Header,
+    /// Largest forward acceleration a_x [m/s²], yaw acceleration held at 0.
+    pub forward_acceleration: AccelerationLimit,
+    /// Largest forward deceleration −a_x [m/s²], yaw acceleration held at 0.
+    pub forward_deceleration: AccelerationLimit,
+    /// Largest yaw acceleration to the left +α_z [rad/s²], forward acceleration held at 0.
+    pub yaw_acceleration_left: AccelerationLimit,
+    /// Largest yaw acceleration to the right −α_z [rad/s²], forward acceleration held at 0.
+    pub yaw_acceleration_right: AccelerationLimit,
+    /// Kinds of the limits not checked (`effort`, `friction`, `lift_off`).
+    pub unchecked_kinds: Vec<String>,
+    /// What each unchecked limit names, as long as `unchecked_kinds`.
+    pub unchecked_names: Vec<String>,
+}
+
+super::ros_messages!(
+    "constraint_dynamics_msgs": ConstraintForce,
+    ConstraintForces,
+    AccelerationLimit,
+    AccelerationLimits
+);
 
 /// `constraint_dynamics_msgs/srv/*`.
 pub mod srv {

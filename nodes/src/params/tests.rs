@@ -79,6 +79,21 @@ fn bad_values_are_named() {
             "state: { joint_noise: { joints: { arm_elbow: [0.1] } } }",
             "state.joint_noise.joints.arm_elbow",
         ),
+        ("envelope: { dead_band: 1.0 }", "envelope.dead_band"),
+        ("envelope: { min_interval: 0.0 }", "envelope.min_interval"),
+        ("envelope: { linear_floor: -0.1 }", "envelope.linear_floor"),
+        (
+            "envelope: { angular_floor: .nan }",
+            "envelope.angular_floor",
+        ),
+        (
+            "envelope: { velocity_smoother: 'smoother node' }",
+            "envelope.velocity_smoother",
+        ),
+        (
+            "envelope: { enabled: false, velocity_smoother: velocity_smoother }",
+            "envelope.velocity_smoother",
+        ),
     ];
     for (body, name) in cases {
         let yaml = format!(

@@ -1,16 +1,20 @@
 //! `cd_predictor`: at its rate, predicts from the latest state under the latest command and
 //! publishes the base at the horizon (`~/predicted_odom`), the path (`~/predicted_path`) and the
 //! constraint forces at the current state (`~/constraint_forces`), with slip transitions
-//! logged. Everything the predictor decides to publish is decided in [`PredictorNode::periodic`].
+//! logged, and the acceleration envelope at that state (`~/acceleration_limits`, [`envelope`]),
+//! which may also drive a velocity smoother's limits ([`smoother`]). Everything the predictor decides to publish is decided in [`PredictorNode::periodic`].
 //!
 //! The predicted odometry carries the covariance the core propagates from the start covariance
 //! of the inputs ([`inputs`]); inputs older than `state.timeout` stop the predictions or, with
 //! `state.stale_behaviour: warn`, are used with a WARN and a covariance grown with their age.
 
 pub(crate) mod contact_break;
+pub mod envelope;
 pub mod markers;
 pub mod params;
 pub mod ros;
+pub mod smoother;
+mod smoother_ros;
 mod work;
 
 use std::time::{Duration, Instant};
@@ -27,7 +31,7 @@ use crate::convert::{path_msg, pose_msg, time_plus, twist_msg};
 use crate::covariance::odometry_covariance;
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
-use crate::msg::constraint_dynamics_msgs::ConstraintForces;
+use crate::msg::constraint_dynamics_msgs::{AccelerationLimits, ConstraintForces};
 use crate::msg::diagnostic_msgs::KeyValue;
 use crate::msg::geometry_msgs::{Twist, WrenchStamped};
 use crate::msg::nav_msgs::{Odometry, Path};
@@ -39,7 +43,7 @@ use crate::params::{NodeParams, StaleBehaviour};
 use crate::robot::Robot;
 use crate::robot::inputs::{InputAges, StartCovariance};
 use crate::ros::logging::{DropLog, NodeLog};
-pub use params::{CovarianceParams, MarkerParams, PredictorParams};
+pub use params::{CovarianceParams, EnvelopeParams, MarkerParams, PredictorParams};
 
 /// What one periodic prediction publishes.
 #[derive(Clone, Debug)]
@@ -54,6 +58,11 @@ pub struct PeriodicOutput {
     pub markers: Option<MarkerArray>,
     /// Each constraint's wrench in its own frame (`markers.wrenches`): (name, message).
     pub wrenches: Vec<(String, WrenchStamped)>,
+    /// The acceleration envelope at the start state (`envelope.enabled`; none when it failed).
+    pub limits: Option<AccelerationLimits>,
+    /// The base's forward speed at the start state [m/s] (which envelope limits bound a
+    /// velocity smoother's acceleration and deceleration).
+    pub forward_speed: f64,
     /// Time spent computing [s].
     pub compute_s: f64,
 }
@@ -92,6 +101,8 @@ pub struct PredictorNode {
     work: Option<work::PredictionWork>,
     /// The contacts judged along the last prediction: its first slip or lift-off is a WARN.
     contacts: Option<ContactCheck>,
+    /// The acceleration envelope at the start state (with its own model and workspace).
+    envelope: envelope::StartEnvelope,
 }
 
 impl NodeLogic for PredictorNode {
@@ -110,6 +121,7 @@ impl NodeLogic for PredictorNode {
         let forces = ForceElements::new(&sys.model, &robot.scene().file.forces)
             .map_err(NodeError::core("predictor"))?;
         let nc = robot.scene().file.constraints.len();
+        let envelope = envelope::StartEnvelope::new(&sys, &robot.scene().file.passive_joints, &log);
         let start_covariance = StartCovariance::new(
             robot.model(),
             &params.common.state,
@@ -131,6 +143,7 @@ impl NodeLogic for PredictorNode {
             stale: Vec::new(),
             work: None,
             contacts: None,
+            envelope,
         })
     }
     fn robot(&self) -> &Robot {
@@ -185,13 +198,13 @@ impl NodeLogic for PredictorNode {
         Ok(())
     }
     fn warnings(&self) -> Vec<String> {
-        let mut w = match self.stale.is_empty() {
-            true => Vec::new(),
-            false => vec![self.stale_message(&self.stale)],
-        };
+        let stale = (!self.stale.is_empty()).then(|| self.stale_message(&self.stale));
         let first_break = self.contacts.as_ref().and_then(|c| c.first_break.as_ref());
-        w.extend(first_break.map(contact_break::warning));
-        w
+        stale
+            .into_iter()
+            .chain(first_break.map(contact_break::warning))
+            .chain(self.envelope.warning())
+            .collect()
     }
     fn diagnostics(&self) -> Vec<KeyValue> {
         let inputs = match self.stale.is_empty() {
@@ -209,6 +222,7 @@ impl NodeLogic for PredictorNode {
         values.extend(self.work.iter().flat_map(|w| w.key_values()));
         let contacts = self.contacts.iter().flat_map(contact_break::values);
         values.extend(contacts.map(|(key, value)| kv(key, &value)));
+        values.extend(self.envelope.key_values());
         values
     }
     fn rate_shortfall(&self) -> Option<String> {
@@ -316,6 +330,17 @@ impl PredictorNode {
             .collect();
         self.position_residual = traj.samples.last().map_or(0.0, |s| s.position_residual);
         let (markers, wrenches) = self.markers(&at.forces, &path, now);
+        // Last: the envelope's kinematics pass replaces the start state's in `self.start`.
+        let limits = match self.params.node.envelope.enabled {
+            true => {
+                let (sys, elements) = &mut self.start;
+                let frame = self.robot.base_frame();
+                self.envelope
+                    .at(sys, elements, (&q, &v), (now, frame), &self.log)
+            }
+            false => None,
+        };
+        let forward_speed = self.robot.model().base_twist(&v).linear[0];
         let compute_s = t0.elapsed().as_secs_f64();
         self.work = Some(work::PredictionWork::of(&traj, compute_s));
         self.contacts = traj.contact_check;
@@ -325,6 +350,8 @@ impl PredictorNode {
             forces,
             markers,
             wrenches,
+            limits,
+            forward_speed,
             compute_s,
         })
     }

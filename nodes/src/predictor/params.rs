@@ -23,6 +23,8 @@ pub struct PredictorParams {
     pub publish_forces: bool,
     /// rviz2 markers and per-constraint wrenches.
     pub markers: MarkerParams,
+    /// The acceleration envelope (`~/acceleration_limits`) and its velocity smoother bridge.
+    pub envelope: EnvelopeParams,
 }
 
 impl Default for PredictorParams {
@@ -35,6 +37,7 @@ impl Default for PredictorParams {
             publish_path: true,
             publish_forces: true,
             markers: MarkerParams::default(),
+            envelope: EnvelopeParams::default(),
         }
     }
 }
@@ -69,7 +72,8 @@ impl KindParams for PredictorParams {
         positive("covariance.position_floor", c.position_floor)?;
         positive("covariance.orientation_floor", c.orientation_floor)?;
         positive("covariance.twist_floor", c.twist_floor)?;
-        self.markers.validate()
+        self.markers.validate()?;
+        self.envelope.validate()
     }
 
     /// The horizon (the scene's when 0) within the scene's limits, at `rate`.
@@ -107,6 +111,79 @@ impl Default for CovarianceParams {
             orientation_floor: 1e-3,
             twist_floor: 1e-3,
         }
+    }
+}
+
+/// `envelope.*`: the acceleration envelope at the prediction's start state, published every
+/// tick on `~/acceleration_limits`, and the optional bridge that keeps a Nav2 velocity
+/// smoother's `max_accel` and `max_decel` at it (`docs/ros2.md`, "Acceleration limits"). Fixed
+/// while the node runs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EnvelopeParams {
+    /// Compute the envelope and publish `~/acceleration_limits`
+    /// (`constraint_dynamics_msgs/AccelerationLimits`).
+    pub enabled: bool,
+    /// Node name of a Nav2 velocity smoother whose `max_accel` and `max_decel` follow the
+    /// envelope through its `<name>/set_parameters` service (relative names resolve in this
+    /// node's namespace); "" = no bridge.
+    pub velocity_smoother: String,
+    /// Relative change of any sent value that is worth a new `set_parameters` [-] (in [0, 1)).
+    pub dead_band: f64,
+    /// Least time between two sends that only loosen the limits [s] (> 0); a send that
+    /// tightens one goes at once.
+    pub min_interval: f64,
+    /// Forward limits at or below this (≤ 0: the robot cannot hold that direction with every
+    /// contact; infeasible) are sent as this [m/s²] (> 0: a smoother needs max_accel > 0,
+    /// max_decel < 0).
+    pub linear_floor: f64,
+    /// The same for the yaw limits [rad/s²] (> 0).
+    pub angular_floor: f64,
+}
+
+impl Default for EnvelopeParams {
+    fn default() -> Self {
+        EnvelopeParams {
+            enabled: true,
+            velocity_smoother: String::new(),
+            dead_band: 0.05,
+            min_interval: 1.0,
+            linear_floor: 0.05,
+            angular_floor: 0.1,
+        }
+    }
+}
+
+impl EnvelopeParams {
+    /// Checks every value, naming the one that is wrong.
+    pub fn validate(&self) -> Result<(), ParamsError> {
+        if !(0.0..1.0).contains(&self.dead_band) {
+            return Err(ParamsError::invalid(
+                "envelope.dead_band",
+                format!("= {} must be in [0, 1)", self.dead_band),
+            ));
+        }
+        positive("envelope.min_interval", self.min_interval)?;
+        positive("envelope.linear_floor", self.linear_floor)?;
+        positive("envelope.angular_floor", self.angular_floor)?;
+        let name = &self.velocity_smoother;
+        if name.is_empty() {
+            return Ok(());
+        }
+        if !self.enabled {
+            return Err(ParamsError::invalid(
+                "envelope.velocity_smoother",
+                format!("= '{name}' needs envelope.enabled: true"),
+            ));
+        }
+        let service = format!("{name}/set_parameters");
+        crate::ros::context::topic_name("/", "cd_predictor", &service).map_err(|e| {
+            ParamsError::invalid(
+                "envelope.velocity_smoother",
+                format!("= '{name}' is not a ROS node name: {e}"),
+            )
+        })?;
+        Ok(())
     }
 }
 

@@ -9,7 +9,7 @@ use ros2_client::dds::rustdds::{DomainParticipant, GUID, RTPSEntity};
 use super::markers::topic_token;
 use super::{PredictorInput, PredictorNode};
 use crate::error::NodeError;
-use crate::msg::constraint_dynamics_msgs::ConstraintForces;
+use crate::msg::constraint_dynamics_msgs::{AccelerationLimits, ConstraintForces};
 use crate::msg::geometry_msgs::{Twist, TwistStamped, WrenchStamped};
 use crate::msg::nav_msgs::{Odometry, Path};
 use crate::msg::visualization_msgs::MarkerArray;
@@ -125,6 +125,22 @@ impl RosWiring for PredictorNode {
                 wrench_pubs.insert(name.clone(), publisher);
             }
         }
+        let limits_pub = match p.envelope.enabled {
+            true => Some(w.ros.publisher::<AccelerationLimits>(
+                &(w.topic)("~/acceleration_limits"),
+                &qos::reliable(10),
+            )?),
+            false => None,
+        };
+        let bridge = match p.envelope.velocity_smoother.is_empty() {
+            true => None,
+            false => {
+                let (tx, task) =
+                    super::smoother_ros::start(w.ros, w.topic, &p.envelope, w.log.clone())?;
+                w.tasks.push(task);
+                Some(tx)
+            }
+        };
         let log = w.log.clone();
         let Some(out_rx) = w.outputs.take() else {
             return Ok(());
@@ -149,6 +165,14 @@ impl RosWiring for PredictorNode {
                     && let Err(e) = p.async_publish(m).await
                 {
                     log.warn(&format!("publish markers: {e:?}"));
+                }
+                if let (Some(tx), Some(m)) = (&bridge, &out.limits) {
+                    super::smoother_ros::offer(tx, (m.clone(), out.forward_speed));
+                }
+                if let (Some(p), Some(m)) = (&limits_pub, out.limits)
+                    && let Err(e) = p.async_publish(m).await
+                {
+                    log.warn(&format!("publish acceleration_limits: {e:?}"));
                 }
                 for (name, msg) in out.wrenches {
                     if let Some(p) = wrench_pubs.get(&name)

@@ -1,6 +1,7 @@
 //! The predictor's logic without DDS: messages in, messages out, on the ROS clock.
 
 use super::*;
+use crate::msg::constraint_dynamics_msgs::AccelerationLimit;
 use crate::params::CommonParams;
 
 fn node(fallback: &str) -> PredictorNode {
@@ -370,4 +371,48 @@ fn a_predicted_slip_is_a_diagnostics_warning() {
     let want = format!("slip at t=0.00 s on left_wheel_contact (friction used {used:.2} × μ)");
     assert_eq!(n.warnings(), std::slice::from_ref(&want));
     assert_eq!(value(&n, "predicted contact break"), want);
+}
+
+/// Every tick carries the acceleration envelope at its start state: the diff drive at rest has
+/// docs/projection.md's closed forms, a = 2 τ_max / (r (M + 2 I_w/r²)) = 20.61856 m/s² both
+/// ways and α = 2 τ_max d / (r (I_O + 2 I_w d²/r²)) = 144.5169 rad/s² both ways, the wheels'
+/// effort binding each; the planar base leaves lift-off and friction unchecked.
+#[test]
+fn each_tick_publishes_the_envelope_of_its_start_state() {
+    let mut n = node("stop");
+    let t0 = Time::from_nanos(1_000_000_000);
+    let o = tick(&mut n, t0);
+    let m = o.limits.expect("acceleration limits");
+    assert_eq!(m.header.stamp, t0);
+    assert_eq!(m.header.frame_id, n.robot.base_frame());
+    let closed = [20.61855670, 20.61855670, 144.5168603, 144.5168603];
+    let limits = [
+        &m.forward_acceleration,
+        &m.forward_deceleration,
+        &m.yaw_acceleration_left,
+        &m.yaw_acceleration_right,
+    ];
+    for (l, want) in limits.into_iter().zip(closed) {
+        assert_eq!(l.status, AccelerationLimit::BOUNDED);
+        // The closed forms are written to 10 digits (±5e-10 relative); the core meets the exact
+        // values to 4e-11 (tests/envelope.rs).
+        assert!((l.max - want).abs() <= 1e-9 * want, "{} vs {want}", l.max);
+        assert_eq!(l.binding_kinds, ["effort", "effort"]);
+        assert_eq!(l.binding_names, ["left_wheel_joint", "right_wheel_joint"]);
+    }
+    for kind in ["lift_off", "friction"] {
+        assert_eq!(m.unchecked_kinds.iter().filter(|k| *k == kind).count(), 2);
+    }
+    assert_eq!(o.forward_speed, 0.0);
+    let diagnostics = n.diagnostics();
+    let shown = diagnostics
+        .iter()
+        .find(|kv| kv.key == "forward deceleration limit [m/s²]")
+        .expect("the braking limit on /diagnostics");
+    assert!(
+        shown.value.starts_with("20.6186 (effort: left_wheel_joint"),
+        "{}",
+        shown.value
+    );
+    assert!(n.warnings().is_empty(), "{:?}", n.warnings());
 }
