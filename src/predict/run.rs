@@ -284,10 +284,10 @@ impl Predictor {
                 // ros2::JACOBIAN_AGE, and a fresh one where a command starts, whose rate ∂f/∂t
                 // (the PI integrals' ramp) it carries.
                 let step = &mut answer[0].step;
-                let starts_command = continuous
-                    && t > 0.0
-                    && commands.iter().any(|(tc, _)| (tc - t).abs() <= 1e-12);
-                if starts_command || !(t - step.jac_t < ros2::JACOBIAN_AGE - 1e-12) {
+                let starts_command =
+                    continuous && t > 0.0 && commands.iter().any(|(tc, _)| (tc - t).abs() <= 1e-12);
+                let aged = step.jac_t.is_nan() || t - step.jac_t >= ros2::JACOBIAN_AGE - 1e-12;
+                if starts_command || aged {
                     step.invalidate();
                 }
             }

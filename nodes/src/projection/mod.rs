@@ -30,7 +30,7 @@ pub use params::ProjectionParams;
 /// What the projection node reacts to.
 pub enum ProjectionInput {
     /// `~/project_velocity`.
-    Project(ProjectVelocityRequest, Reply<ProjectVelocityResponse>),
+    Project(Box<ProjectVelocityRequest>, Reply<ProjectVelocityResponse>),
     /// A command to filter, with the header of a stamped input.
     Filter(Twist, Option<Header>),
 }
@@ -145,8 +145,7 @@ impl ProjectionNode {
         } else {
             let model = self.robot.model();
             let state = self.robot.state();
-            let mut q =
-                state_request::assemble("q", &[], &req.q, &state.q, &model.q_names, false)?;
+            let mut q = state_request::assemble("q", &[], &req.q, &state.q, &model.q_names, false)?;
             model.normalize(&mut q);
             // The velocity the period starts from: the request's, else the latest measured.
             let v = if req.v_current.is_empty() {

@@ -16,7 +16,7 @@ impl RosWiring for ProjectionNode {
             serve_service::<_, ProjectVelocity>(
                 w,
                 "~/project_velocity",
-                ProjectionInput::Project,
+                |req, reply| ProjectionInput::Project(Box::new(req), reply),
                 |message| ProjectVelocityResponse {
                     success: false,
                     status: "error".into(),

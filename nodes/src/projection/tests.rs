@@ -114,7 +114,11 @@ fn the_filter_sends_what_one_control_period_reaches() {
     let (out, resp) = n.filter_command(&cmd).unwrap();
     let want = period * env.forward_acceleration.max.unwrap();
     assert!(resp.success, "{}", resp.message);
-    assert!((out.linear.x - want).abs() < 1e-6 * want, "{} vs {want}", out.linear.x);
+    assert!(
+        (out.linear.x - want).abs() < 1e-6 * want,
+        "{} vs {want}",
+        out.linear.x
+    );
 }
 
 /// Bad periods and start velocities are refused, naming the field.
@@ -128,9 +132,17 @@ fn bad_periods_and_start_velocities_name_their_field() {
         assert!(!r.success && r.message.contains("period"), "{}", r.message);
     }
     let r = n.project_velocity(&request(1.0, 0.01, &q0, vec![0.0; nv - 1]));
-    assert!(!r.success && r.message.contains("v_current"), "{}", r.message);
+    assert!(
+        !r.success && r.message.contains("v_current"),
+        "{}",
+        r.message
+    );
     let mut v = vec![0.0; nv];
     v[2] = f64::NAN;
     let r = n.project_velocity(&request(1.0, 0.01, &q0, v));
-    assert!(!r.success && r.message.contains("v_current"), "{}", r.message);
+    assert!(
+        !r.success && r.message.contains("v_current"),
+        "{}",
+        r.message
+    );
 }
