@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::repo_dir;
+use common::{cart, repo_dir};
 use constraint_dynamics::envelope::{
     Contact, EnvelopeData, EnvelopeModel, EnvelopeReport, Reach, acceleration_envelope,
 };
@@ -17,21 +17,6 @@ use constraint_dynamics::{Scene, System};
 const TOL: f64 = 1e-6;
 
 const G: f64 = 9.81;
-
-/// The cart (urdf/cart_tall_mass.urdf): wheel radius, wheel spin inertia, effort, caster
-/// distance behind the axle, total mass, Σ m x and Σ m z over every body (wheels included).
-mod cart {
-    pub const R: f64 = 0.1;
-    pub const I_W: f64 = 0.005;
-    pub const TAU_MAX: f64 = 4.0;
-    pub const L_C: f64 = 0.4;
-    /// 20 (chassis) + 2 × 1 (wheels) + 0.5 (caster) + 10 (tall mass) [kg].
-    pub const M: f64 = 32.5;
-    /// 20 × (−0.1) + 0.5 × (−0.4) + 10 × (−0.05) [kg·m] (wheels at x = 0).
-    pub const M_X: f64 = -2.7;
-    /// Heights above the ground: 20 × 0.1 + 2 × 1 × 0.1 + 0.5 × 0.05 + 10 × 1.1 [kg·m].
-    pub const M_Z: f64 = 13.225;
-}
 
 fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs()

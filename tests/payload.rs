@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::repo_dir;
+use common::{cart, repo_dir};
 use constraint_dynamics::algorithm::{Data, center_of_mass, crba, forward_kinematics_pos};
 use constraint_dynamics::envelope::{
     EnvelopeData, EnvelopeModel, EnvelopeReport, LimitReport, acceleration_envelope,
@@ -25,18 +25,6 @@ const TOL: f64 = 1e-8;
 const EXACT: f64 = 1e-15;
 
 const G: f64 = 9.81;
-
-/// The cart of urdf/cart_tall_mass.urdf (see tests/envelope.rs): wheel radius, wheel spin
-/// inertia, effort, caster distance behind the axle; M, Σ m x, Σ m z of the robot alone.
-mod cart {
-    pub const R: f64 = 0.1;
-    pub const I_W: f64 = 0.005;
-    pub const TAU_MAX: f64 = 4.0;
-    pub const L_C: f64 = 0.4;
-    pub const M: f64 = 32.5;
-    pub const M_X: f64 = -2.7;
-    pub const M_Z: f64 = 13.225;
-}
 
 /// tests/data/cart_tall_mass_payload.yaml's payload: 5 kg at (−0.1, 0, 0.9) m in base_link,
 /// which sits 0.1 m above the ground: x = −0.1 m, z = 1.0 m.

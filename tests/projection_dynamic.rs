@@ -19,17 +19,6 @@ use serde_json::json;
 
 const G: f64 = 9.81;
 
-/// The cart's numbers (urdf/cart_tall_mass.urdf), as tests/envelope.rs writes them out.
-mod cart {
-    pub const R: f64 = 0.1;
-    pub const I_W: f64 = 0.005;
-    pub const TAU_MAX: f64 = 4.0;
-    pub const L_C: f64 = 0.4;
-    pub const M: f64 = 32.5;
-    pub const M_X: f64 = -2.7;
-    pub const M_Z: f64 = 13.225;
-}
-
 fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs()
 }
