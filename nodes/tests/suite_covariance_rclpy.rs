@@ -16,7 +16,6 @@
 
 mod common;
 
-use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use common::*;
@@ -48,29 +47,7 @@ fn rclpy_odometry_covariance_is_propagated_and_stale_input_handled() {
         ],
         "covariance_rclpy",
     );
-    let child = Command::new(&python)
-        .arg(repo_root().join("nodes/tests/peers/covariance_peer.py"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("start covariance_peer.py");
-    let pid = child.id();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(child.wait_with_output());
-    });
-    let out = match rx.recv_timeout(Duration::from_secs(120)) {
-        Ok(out) => out.expect("covariance_peer.py output"),
-        Err(_) => {
-            unsafe {
-                libc::kill(pid as libc::pid_t, libc::SIGKILL);
-            }
-            panic!("covariance_peer.py did not finish within 120 s");
-        }
-    };
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let report: Value = serde_json::from_str(stdout.lines().last().unwrap_or(""))
-        .unwrap_or_else(|e| panic!("covariance_peer.py: last line is not JSON ({e}): {stdout}"));
+    let report: Value = peer_report(&python, "covariance_peer.py", &[], Duration::from_secs(120));
     if let Some(figures) = report["figures"].as_object() {
         for (k, v) in figures {
             println!("{TEST}: achieved {k}: {v}");

@@ -21,7 +21,6 @@
 
 mod common;
 
-use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use common::*;
@@ -149,30 +148,7 @@ fn floats(v: &Value) -> Vec<f64> {
 
 /// The peer's report (the last line of its stdout), within a time limit.
 fn run_peer(python: &std::path::Path) -> Value {
-    let child = Command::new(python)
-        .arg(repo_root().join("nodes/tests/peers/envelope_peer.py"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("start envelope_peer.py");
-    let pid = child.id();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(child.wait_with_output());
-    });
-    let out = match rx.recv_timeout(Duration::from_secs(90)) {
-        Ok(out) => out.expect("envelope_peer.py output"),
-        Err(_) => {
-            unsafe {
-                libc::kill(pid as libc::pid_t, libc::SIGKILL);
-            }
-            panic!("envelope_peer.py did not finish within 90 s");
-        }
-    };
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "envelope_peer.py failed: {stdout}");
-    serde_json::from_str(stdout.lines().last().unwrap_or(""))
-        .unwrap_or_else(|e| panic!("envelope_peer.py: last line is not JSON ({e}): {stdout}"))
+    peer_report(python, "envelope_peer.py", &[], Duration::from_secs(90))
 }
 
 /// The smoother's parameter sets grouped into the bridge's sends: rclpy applies a

@@ -15,7 +15,6 @@
 
 mod common;
 
-use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use common::*;
@@ -192,29 +191,10 @@ fn a_payload_set_by_rclpy_changes_the_forces_as_the_core_computes_them() {
 }
 
 fn run_peer(python: &std::path::Path, good: &Value) -> Value {
-    let child = Command::new(python)
-        .arg(repo_root().join("nodes/tests/peers/payload_peer.py"))
-        .arg("/cd_forces")
-        .arg(good.to_string())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("start payload_peer.py");
-    let pid = child.id();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(child.wait_with_output());
-    });
-    let out = match rx.recv_timeout(Duration::from_secs(120)) {
-        Ok(out) => out.expect("payload_peer.py output"),
-        Err(_) => {
-            unsafe {
-                libc::kill(pid as libc::pid_t, libc::SIGKILL);
-            }
-            panic!("payload_peer.py did not finish within 120 s");
-        }
-    };
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    serde_json::from_str(stdout.lines().last().unwrap_or(""))
-        .unwrap_or_else(|e| panic!("payload_peer.py: last line is not JSON ({e}): {stdout}"))
+    peer_report(
+        python,
+        "payload_peer.py",
+        &["/cd_forces".to_string(), good.to_string()],
+        Duration::from_secs(120),
+    )
 }

@@ -11,7 +11,6 @@
 
 mod common;
 
-use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use common::*;
@@ -110,30 +109,12 @@ fn rclpy_peer_reads_topics_calls_services_and_parameters() {
     });
 
     // The output is larger than a pipe buffer: read it while the peer runs.
-    let child = Command::new(&python)
-        .arg(repo_root().join("nodes/tests/peers/suite_peer.py"))
-        .arg(requests.to_string())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("start suite_peer.py");
-    let pid = child.id();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(child.wait_with_output());
-    });
-    let out = match rx.recv_timeout(Duration::from_secs(120)) {
-        Ok(out) => out.expect("suite_peer.py output"),
-        Err(_) => {
-            unsafe {
-                libc::kill(pid as libc::pid_t, libc::SIGKILL);
-            }
-            panic!("suite_peer.py did not finish within 120 s");
-        }
-    };
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let out: Value = serde_json::from_str(stdout.lines().last().unwrap_or(""))
-        .unwrap_or_else(|e| panic!("suite_peer.py: last line is not JSON ({e}): {stdout}"));
+    let out: Value = peer_report(
+        &python,
+        "suite_peer.py",
+        &[requests.to_string()],
+        Duration::from_secs(120),
+    );
     assert_eq!(out["ok"], true, "suite_peer.py: {}", out["errors"]);
 
     for (key, mut mine) in ours {

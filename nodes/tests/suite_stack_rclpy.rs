@@ -19,7 +19,6 @@
 
 mod common;
 
-use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use common::*;
@@ -51,29 +50,7 @@ fn rclpy_stack_drives_the_lifecycle_reads_markers_and_commands() {
         ],
         "stack_rclpy",
     );
-    let child = Command::new(&python)
-        .arg(repo_root().join("nodes/tests/peers/stack_peer.py"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .expect("start stack_peer.py");
-    let pid = child.id();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        let _ = tx.send(child.wait_with_output());
-    });
-    let out = match rx.recv_timeout(Duration::from_secs(240)) {
-        Ok(out) => out.expect("stack_peer.py output"),
-        Err(_) => {
-            unsafe {
-                libc::kill(pid as libc::pid_t, libc::SIGKILL);
-            }
-            panic!("stack_peer.py did not finish within 240 s");
-        }
-    };
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let report: Value = serde_json::from_str(stdout.lines().last().unwrap_or(""))
-        .unwrap_or_else(|e| panic!("stack_peer.py: last line is not JSON ({e}): {stdout}"));
+    let report: Value = peer_report(&python, "stack_peer.py", &[], Duration::from_secs(240));
     if let Some(figures) = report["figures"].as_object() {
         for (k, v) in figures {
             println!("{TEST}: achieved {k}: {v}");

@@ -19,6 +19,7 @@ use constraint_dynamics_nodes::ros::context::{
     NetworkConfig, RosNode, call_with_retry, in_loopback_only_namespace, qos,
 };
 use ros2_client::{Client, NodeOptions, Publisher, Subscription};
+use serde_json::Value;
 
 pub const WAIT: Duration = Duration::from_secs(20);
 
@@ -491,4 +492,38 @@ impl SuiteProcess {
         let _ = self.child.wait();
         (None, false)
     }
+}
+
+/// Run the rclpy peer `nodes/tests/peers/<script>` with `args` under `python`, killed if it has
+/// not finished within `limit`, and return its report: the JSON on the last line of its stdout.
+/// The stdout is read while the peer runs (a report can exceed a pipe buffer).
+pub fn peer_report(python: &Path, script: &str, args: &[String], limit: Duration) -> Value {
+    let child = Command::new(python)
+        .arg(repo_root().join("nodes/tests/peers").join(script))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap_or_else(|e| panic!("start {script}: {e}"));
+    let pid = child.id();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(child.wait_with_output());
+    });
+    let out = match rx.recv_timeout(limit) {
+        Ok(out) => out.unwrap_or_else(|e| panic!("{script} output: {e}")),
+        Err(_) => {
+            unsafe {
+                libc::kill(pid as libc::pid_t, libc::SIGKILL);
+            }
+            panic!("{script} did not finish within {} s", limit.as_secs_f64());
+        }
+    };
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    serde_json::from_str(stdout.lines().last().unwrap_or("")).unwrap_or_else(|e| {
+        panic!(
+            "{script} ({}): last line is not JSON ({e}): {stdout}",
+            out.status
+        )
+    })
 }
