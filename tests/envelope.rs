@@ -7,7 +7,7 @@ mod common;
 
 use common::{cart, repo_dir};
 use constraint_dynamics::envelope::{
-    Contact, EnvelopeData, EnvelopeModel, EnvelopeReport, Reach, acceleration_envelope,
+    BindingKind, Contact, EnvelopeData, EnvelopeModel, EnvelopeReport, Reach, acceleration_envelope,
 };
 use constraint_dynamics::scene::SceneFile;
 use constraint_dynamics::{Scene, System};
@@ -397,4 +397,60 @@ fn the_floating_mobile_manipulators_envelope_model_holds_the_arm_and_drives_the_
     let em = EnvelopeModel::from_scene(&passive, &sys).unwrap();
     assert!(em.actuators.iter().all(|a| a.joint != "arm_elbow"));
     assert_eq!(em.held.len(), 4);
+}
+
+/// Contacts that declare no `friction:`: the envelope as declared (the CLI's) lists their friction
+/// unchecked; with an assumed μ (the ROS nodes' `slip.friction_coefficient`) it checks them, and
+/// the cart's friction limit is the closed form of that μ. A planar wheel has no normal row: its
+/// friction stays unchecked whatever μ is assumed.
+#[test]
+fn an_assumed_friction_coefficient_checks_the_contacts_that_declare_none() {
+    use cart::*;
+    let path = repo_dir().join("tests/data/cart_tall_mass.yaml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert_eq!(text.matches("    friction: 0.8\n").count(), 2);
+    let file: SceneFile = serde_yaml::from_str(&text.replace("    friction: 0.8\n", "")).unwrap();
+    let urdf = repo_dir().join("urdf/cart_tall_mass.urdf");
+    let urdf_text = std::fs::read_to_string(&urdf).unwrap();
+    let scene = Scene::from_parts(&path, file, &urdf_text, &urdf.display().to_string()).unwrap();
+    let mut sys = System::from_scene(&scene).unwrap();
+    let declared = EnvelopeModel::from_scene(&scene, &sys).unwrap();
+    let friction = |em: &EnvelopeModel| {
+        let mut v: Vec<String> = (em.unchecked.iter())
+            .filter(|(k, _)| *k == BindingKind::Friction)
+            .map(|(_, n)| n.clone())
+            .collect();
+        v.sort();
+        v
+    };
+    assert_eq!(
+        friction(&declared),
+        ["left_wheel_contact", "right_wheel_contact"]
+    );
+    let mu = 0.3;
+    let em = declared.assume_friction(mu);
+    assert!(friction(&em).is_empty(), "{:?}", em.unchecked);
+    let mut ed = EnvelopeData::new(&em);
+    let zero = vec![0.0; sys.model.nv];
+    acceleration_envelope(&mut sys, &em, &mut ed, &scene.q0, &scene.v0, &zero).unwrap();
+    let report = EnvelopeReport::new(&sys.model, &em, &ed.envelope);
+    let k = M_Z + 2.0 * I_W / R;
+    let expect = mu * G * (M * L_C + M_X) / (M * L_C + mu * k);
+    let got = report.forward_acceleration.max.unwrap();
+    eprintln!(
+        "assumed μ {mu}: a {got} vs {expect} (rel {:.2e})",
+        rel(got, expect)
+    );
+    assert!(rel(got, expect) < TOL, "{got} vs {expect}");
+    assert_eq!(
+        names(&report.forward_acceleration),
+        pair("friction", "left_wheel_contact", "right_wheel_contact")
+    );
+    // The planar diff drive: no normal rows, so nothing to assume μ against.
+    let scene = Scene::load(repo_dir().join("params/diff_drive.yaml")).unwrap();
+    let sys = System::from_scene(&scene).unwrap();
+    let em = EnvelopeModel::from_scene(&scene, &sys)
+        .unwrap()
+        .assume_friction(mu);
+    assert_eq!(friction(&em), ["left_wheel_contact", "right_wheel_contact"]);
 }

@@ -37,6 +37,7 @@ const TEST: &str = "rclpy_reads_acceleration_limits_and_its_smoother_follows_the
 const SCENE: &str = "params/suite_mobile_manipulator_floating.yaml";
 const RATE: f64 = 10.0; // [Hz]
 const MIN_INTERVAL: f64 = 2.0; // envelope.min_interval [s]
+const MU: f64 = 0.8; // slip.friction_coefficient, set below
 const LINEAR_FLOOR: f64 = 0.05; // envelope.linear_floor's default [m/s²]
 const ANGULAR_FLOOR: f64 = 0.1; // envelope.angular_floor's default [rad/s²]
 const DEAD_BAND: f64 = 0.05; // envelope.dead_band's default [-]
@@ -69,7 +70,10 @@ fn core_envelope(scene: &Scene, phase: &Value) -> ([Option<f64>; 4], EnvelopeRep
         let iv = model.v_names.iter().position(|n| n == name).expect("v");
         v[iv] = j["velocity"].as_f64().unwrap();
     }
-    let em = EnvelopeModel::from_scene(scene, &sys).expect("envelope model");
+    // The wheels declare no μ: the node assumes its slip.friction_coefficient.
+    let em = EnvelopeModel::from_scene(scene, &sys)
+        .expect("envelope model")
+        .assume_friction(MU);
     let mut ed = EnvelopeData::new(&em);
     let mut elements = ForceElements::new(&sys.model, &scene.file.forces).expect("forces");
     let zero = vec![0.0; model.nv];
@@ -189,6 +193,8 @@ fn rclpy_reads_acceleration_limits_and_its_smoother_follows_them() {
             &format!("model.scene_file:={SCENE}"),
             "-p",
             &rate,
+            "-p",
+            "slip.friction_coefficient:=0.8",
             "-p",
             "cd_predictor:covariance.propagate:=false",
             "-p",

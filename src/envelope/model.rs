@@ -177,6 +177,22 @@ impl EnvelopeModel {
         })
     }
 
+    /// The same model with `mu` [-] as the friction coefficient of every contact that declares
+    /// none and has a normal row (the ROS nodes' `slip.friction_coefficient`): its friction is
+    /// then checked, no longer listed in `unchecked`. A wheel of a planar base has no normal row
+    /// and stays unchecked. The CLI assumes nothing.
+    pub fn assume_friction(mut self, mu: f64) -> Self {
+        for c in &mut self.contacts {
+            if c.friction.is_none() && c.normal.is_some() {
+                c.friction = Some(mu);
+                let name = &c.name;
+                self.unchecked
+                    .retain(|(kind, n)| !(*kind == BindingKind::Friction && n == name));
+            }
+        }
+        self
+    }
+
     /// Number of actuated coordinates (na).
     pub fn na(&self) -> usize {
         self.actuators.len()

@@ -26,8 +26,12 @@ use crate::ros::logging::{DropLog, NodeLog};
 
 /// The envelope's model, workspace and last result.
 pub struct StartEnvelope {
-    /// None when the scene has no envelope (no mobile base); the reason is in `last`.
-    solver: Option<(EnvelopeModel, EnvelopeData)>,
+    /// The scene's limits as declared; None when the scene has no envelope (no mobile base),
+    /// the reason in `last`.
+    declared: Option<EnvelopeModel>,
+    /// The limits in use (the declared ones with `slip.friction_coefficient` where a contact
+    /// declares no μ) and their workspace, with that μ; rebuilt when the parameter changes.
+    solver: Option<(EnvelopeModel, EnvelopeData, f64)>,
     /// The force elements' generalized force at the state (nv) and nv zeros.
     applied: Vec<f64>,
     zero: Vec<f64>,
@@ -57,20 +61,18 @@ impl StartEnvelope {
     /// `passive_joints`; a scene without a mobile base gets none (logged once).
     pub fn new(sys: &System, passive_joints: &[String], log: &NodeLog) -> Self {
         let nv = sys.model.nv;
-        let (solver, last) = match EnvelopeModel::new(&sys.model, &sys.constraints, passive_joints)
-        {
-            Ok(em) => {
-                let ed = EnvelopeData::new(&em);
-                (Some((em, ed)), Err("not computed yet".to_string()))
-            }
-            Err(e) => {
-                let why = format!("unavailable for this scene: {e}");
-                log.info(&format!("acceleration envelope {why}"));
-                (None, Err(why))
-            }
-        };
+        let (declared, last) =
+            match EnvelopeModel::new(&sys.model, &sys.constraints, passive_joints) {
+                Ok(em) => (Some(em), Err("not computed yet".to_string())),
+                Err(e) => {
+                    let why = format!("unavailable for this scene: {e}");
+                    log.info(&format!("acceleration envelope {why}"));
+                    (None, Err(why))
+                }
+            };
         StartEnvelope {
-            solver,
+            declared,
+            solver: None,
             applied: vec![0.0; nv],
             zero: vec![0.0; nv],
             last,
@@ -78,17 +80,26 @@ impl StartEnvelope {
         }
     }
 
-    /// The envelope at (q, v), stamped `stamp` in `base_frame`; None (logged, throttled) when it
-    /// cannot be computed.
+    /// The envelope at (q, v), stamped `stamp` in `base_frame`, with `mu` [-] (the node's
+    /// `slip.friction_coefficient`) for the contacts that declare no friction; None (logged,
+    /// throttled) when it cannot be computed.
+    #[allow(clippy::too_many_arguments)]
     pub fn at(
         &mut self,
         sys: &mut System,
         elements: &mut ForceElements,
         (q, v): (&[f64], &[f64]),
+        mu: f64,
         header: (Time, &str),
         log: &NodeLog,
     ) -> Option<AccelerationLimits> {
-        let (em, ed) = self.solver.as_mut()?;
+        let declared = self.declared.as_ref()?;
+        if self.solver.as_ref().is_none_or(|(_, _, m)| *m != mu) {
+            let em = declared.clone().assume_friction(mu);
+            let ed = EnvelopeData::new(&em);
+            self.solver = Some((em, ed, mu));
+        }
+        let (em, ed, _) = self.solver.as_mut()?;
         // The scene's force elements (springs, dampers, URDF damping) at (q, v) act as well, as
         // in the CLI's `envelope`.
         applied_generalized_force(

@@ -335,8 +335,9 @@ impl PredictorNode {
             true => {
                 let (sys, elements) = &mut self.start;
                 let frame = self.robot.base_frame();
+                let mu = self.params.common.slip.friction_coefficient;
                 self.envelope
-                    .at(sys, elements, (&q, &v), (now, frame), &self.log)
+                    .at(sys, elements, (&q, &v), mu, (now, frame), &self.log)
             }
             false => None,
         };

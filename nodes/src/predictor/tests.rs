@@ -416,3 +416,39 @@ fn each_tick_publishes_the_envelope_of_its_start_state() {
     );
     assert!(n.warnings().is_empty(), "{:?}", n.warnings());
 }
+
+/// The floating suite's wheels declare no μ: the envelope checks their friction with
+/// `slip.friction_coefficient` (nothing is left unchecked: the caster is a frictionless
+/// unilateral point), a lower μ lowers the forward limit until friction binds it, and a change
+/// of the parameter at run time takes effect at the next tick.
+#[test]
+fn contacts_without_friction_take_the_slip_coefficient_in_the_envelope() {
+    let mut common = CommonParams::default();
+    common.model.scene_file = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../params/suite_mobile_manipulator_floating.yaml"
+    )
+    .into();
+    let mut params = NodeParams::<PredictorParams> {
+        common,
+        node: PredictorParams::default(),
+    };
+    params.node.covariance.propagate = false;
+    let robot = Robot::load(&params.common).unwrap();
+    let mut n = PredictorNode::new(robot, params.clone(), NodeLog::new("test")).unwrap();
+    let forward = |n: &mut PredictorNode| {
+        let m = tick(n, Time::from_nanos(1_000_000_000))
+            .limits
+            .expect("limits");
+        assert!(m.unchecked_kinds.is_empty(), "{:?}", m.unchecked_names);
+        let f = m.forward_acceleration;
+        assert_eq!(f.status, AccelerationLimit::BOUNDED);
+        (f.max, f.binding_kinds)
+    };
+    let (a_high, _) = forward(&mut n);
+    params.common.slip.friction_coefficient = 0.05;
+    n.set_params(params);
+    let (a_low, kinds) = forward(&mut n);
+    assert!(a_low < a_high, "{a_low} vs {a_high}");
+    assert!(kinds.iter().all(|k| k == "friction"), "{kinds:?}");
+}

@@ -64,7 +64,12 @@ impl NodeLogic for ProjectionNode {
         log: NodeLog,
     ) -> Result<Self, NodeError> {
         let sys = System::from_scene(robot.scene()).map_err(NodeError::core("projection"))?;
-        let limits = EnvelopeModel::from_scene(robot.scene(), &sys).map_err(|e| e.to_string());
+        // Contacts that declare no μ take `slip.friction_coefficient`, as in the predictor's
+        // envelope (read at start; the projection's limits are built once).
+        let mu = params.common.slip.friction_coefficient;
+        let limits = EnvelopeModel::from_scene(robot.scene(), &sys)
+            .map(|em| em.assume_friction(mu))
+            .map_err(|e| e.to_string());
         let elements = ForceElements::new(&sys.model, &robot.scene().file.forces)
             .map_err(NodeError::core("projection"))?;
         let sys = robot.system();
