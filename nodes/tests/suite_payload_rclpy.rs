@@ -9,6 +9,10 @@
 //! force along the base's z axis (the generalized force of `root_joint:vz_local`, the base
 //! level) is (m_robot + m_payload)·g.
 //!
+//! The same payload set on the predictor moves its `~/acceleration_limits` as the closed forms
+//! of docs/projection.md say and as the CLI's `envelope` computes them for the same payload in
+//! the scene (tests/data/cart_tall_mass_payload.yaml).
+//!
 //! Needs root (a loopback-only network namespace) and the peer venv
 //! (`tools/ros2/setup_peer_venv.sh`; `CD_ROS2_VENV`, default `<repo>/.venv-ros2`): `#[ignore]`d
 //! in a plain `cargo test`, run by `tools/test.sh`; a missing prerequisite fails the test.
@@ -19,6 +23,7 @@ use std::time::Duration;
 
 use common::*;
 use constraint_dynamics::applied::constraint_forces_at;
+use constraint_dynamics::envelope::{EnvelopeData, EnvelopeModel, acceleration_envelope};
 use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::model::Payload;
 use constraint_dynamics::{Scene, System};
@@ -30,6 +35,8 @@ use ros2_client::ParameterValue;
 use serde_json::Value;
 
 const TEST: &str = "a_payload_set_by_rclpy_changes_the_forces_as_the_core_computes_them";
+const LIMITS_TEST: &str =
+    "a_payload_set_by_rclpy_changes_the_acceleration_limits_as_the_cli_computes_them";
 
 const G: f64 = 9.81;
 /// The cart's mass [kg] (urdf/cart_tall_mass.urdf: 20 + 2 × 1 + 0.5 + 10).
@@ -197,4 +204,101 @@ fn run_peer(python: &std::path::Path, good: &Value) -> Value {
         &["/cd_forces".to_string(), good.to_string()],
         Duration::from_secs(120),
     )
+}
+
+/// The four limits of `scene` at its initial state (at rest), as the CLI's `envelope` computes
+/// them (no force elements in the cart's scene).
+fn core_limits(scene: &Scene) -> [f64; 4] {
+    let mut sys = System::from_scene(scene).unwrap();
+    let em = EnvelopeModel::from_scene(scene, &sys).unwrap();
+    let mut ed = EnvelopeData::new(&em);
+    let zero = vec![0.0; sys.model.nv];
+    let e = acceleration_envelope(&mut sys, &em, &mut ed, &scene.q0, &scene.v0, &zero).unwrap();
+    [
+        e.forward_acceleration.max,
+        e.forward_deceleration.max,
+        e.yaw_acceleration_left.max,
+        e.yaw_acceleration_right.max,
+    ]
+}
+
+#[test]
+#[ignore = "needs root and the peer venv: run by tools/test.sh"]
+fn a_payload_set_by_rclpy_changes_the_acceleration_limits_as_the_cli_computes_them() {
+    let python = peer_python(LIMITS_TEST);
+    if !in_namespace_or_reexec(LIMITS_TEST) {
+        return; // the run inside the namespace passed
+    }
+    let mut suite = SuiteProcess::spawn(
+        env!("CARGO_BIN_EXE_constraint_dynamics_suite"),
+        &[
+            "--node",
+            "predictor",
+            "--ros-args",
+            "--params-file",
+            "params/default.yaml",
+            "-p",
+            "model.scene_file:=tests/data/cart_tall_mass.yaml",
+            "-p",
+            "covariance.propagate:=false",
+        ],
+        "payload_limits",
+    );
+    // The payload of tests/data/cart_tall_mass_payload.yaml: 5 kg 0.9 m above base_link, 0.1 m
+    // behind the axle.
+    let good = serde_json::json!({
+        "frame": "base_link",
+        "inertia": {"m": 5.0, "com": {"x": -0.1, "y": 0.0, "z": 0.9},
+                    "ixx": 0.1, "ixy": 0.0, "ixz": 0.0, "iyy": 0.08, "iyz": 0.0, "izz": 0.05},
+    });
+    let out = peer_report(
+        &python,
+        "payload_limits_peer.py",
+        &[good.to_string()],
+        Duration::from_secs(90),
+    );
+    assert_eq!(
+        out["ok"],
+        true,
+        "payload_limits_peer.py: {out}\n{}",
+        suite.log()
+    );
+    assert_eq!(out["set_payload"]["success"], true, "{out}");
+    // Closed forms (docs/projection.md): the effort limit 2 τ_max / (r (M + 2 I_w / r²)) and the
+    // caster's lift-off braking limit g |Σ m x| / (Σ m z + 2 I_w / r), with the payload's 5 kg
+    // at x = −0.1 m, z = 1.0 m added to M = 32.5 kg, Σ m x = −2.7 kg·m, Σ m z = 13.225 kg·m.
+    let closed = [
+        ([8.0 / 3.35, G * 2.7 / 13.325], "before"),
+        ([8.0 / 3.85, G * 3.2 / 18.325], "after"),
+    ];
+    let dir = repo_root().join("tests/data");
+    let cli = [
+        core_limits(&Scene::load(dir.join("cart_tall_mass.yaml")).unwrap()),
+        core_limits(&Scene::load(dir.join("cart_tall_mass_payload.yaml")).unwrap()),
+    ];
+    for ((want, key), core) in closed.iter().zip(cli) {
+        let msgs = out[key].as_array().unwrap();
+        for m in msgs {
+            let got: Vec<f64> = (0..4).map(|i| m[i][1].as_f64().unwrap()).collect();
+            assert!(
+                (0..4).all(|i| m[i][0] == 0),
+                "{key}: every limit bounded: {m}"
+            );
+            for (i, w) in want.iter().enumerate() {
+                let rel = (got[i] - w).abs() / w;
+                assert!(rel < 1e-8, "{key} limit {i}: {} vs closed form {w}", got[i]);
+            }
+            assert_close(&format!("{key}: node vs CLI"), &got, &core, 1e-12);
+        }
+        println!(
+            "{LIMITS_TEST}: achieved {key}: {} messages, forward {:.6} m/s² (closed form {:.6}), \
+             braking {:.6} m/s² (closed form {:.6})",
+            msgs.len(),
+            core[0],
+            want[0],
+            core[1],
+            want[1]
+        );
+    }
+    assert!(suite.stop(), "{}", suite.log());
 }
