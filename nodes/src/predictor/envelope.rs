@@ -9,6 +9,7 @@
 
 use std::time::Instant;
 
+use constraint_dynamics::Scene;
 use constraint_dynamics::applied::applied_generalized_force;
 use constraint_dynamics::envelope::{
     Envelope, EnvelopeData, EnvelopeModel, Limit, Reach, acceleration_envelope,
@@ -24,8 +25,79 @@ use crate::msg::std_msgs::Header;
 use crate::node::health::kv;
 use crate::ros::logging::{DropLog, NodeLog};
 
+/// A scene of its own for the envelope (`envelope.scene_file`): a variant of the predictor's
+/// robot, and where each of its coordinates comes from in the predictor's state.
+pub struct EnvelopeScene {
+    sys: System,
+    elements: ForceElements,
+    /// (envelope q index, predictor q index) and (envelope v index, predictor v index) of every
+    /// joint coordinate; the base goes through its pose and twist.
+    q_map: Vec<(usize, usize)>,
+    v_map: Vec<(usize, usize)>,
+    /// The state in the envelope scene's coordinates (its initial state where the predictor
+    /// says nothing: the base's height on a floating base).
+    q: Vec<f64>,
+    v: Vec<f64>,
+}
+
+impl EnvelopeScene {
+    /// The scene `scene` for a predictor of `model`: every joint coordinate of the scene must
+    /// be one of the model's, by name.
+    pub fn new(scene: &Scene, model: &Model) -> Result<Self, String> {
+        let sys = System::from_scene(scene).map_err(|e| e.to_string())?;
+        let elements =
+            ForceElements::new(&sys.model, &scene.file.forces).map_err(|e| e.to_string())?;
+        let m = &sys.model;
+        let map = |names: &[String], theirs: &[String], skip: usize, what: &str| {
+            names
+                .iter()
+                .enumerate()
+                .skip(skip)
+                .map(|(i, n)| match theirs.iter().position(|t| t == n) {
+                    Some(j) => Ok((i, j)),
+                    None => Err(format!(
+                        "its {what} coordinate '{n}' is not one of the predictor's robot"
+                    )),
+                })
+                .collect::<Result<Vec<_>, String>>()
+        };
+        let q_map = map(&m.q_names, &model.q_names, m.base.nq(), "position")?;
+        let v_map = map(&m.v_names, &model.v_names, m.base.nv(), "velocity")?;
+        Ok(EnvelopeScene {
+            q: scene.q0.clone(),
+            v: scene.v0.clone(),
+            sys,
+            elements,
+            q_map,
+            v_map,
+        })
+    }
+
+    /// The predictor's state (q, v) of `model` in this scene's coordinates.
+    fn map(&mut self, model: &Model, (q, v): (&[f64], &[f64])) {
+        let mut pose = model.base_pose(q);
+        let twist = model.base_twist(v);
+        // A planar base says nothing of the height: the scene's own.
+        if model.base.nq() < self.sys.model.base.nq() {
+            pose.position[2] = self.sys.model.base_pose(&self.q).position[2];
+        }
+        self.v.iter_mut().for_each(|x| *x = 0.0);
+        self.sys
+            .model
+            .set_base(&pose, &twist, &mut self.q, &mut self.v);
+        for &(i, j) in &self.q_map {
+            self.q[i] = q[j];
+        }
+        for &(i, j) in &self.v_map {
+            self.v[i] = v[j];
+        }
+    }
+}
+
 /// The envelope's model, workspace and last result.
 pub struct StartEnvelope {
+    /// `envelope.scene_file`'s scene, when the envelope has one of its own.
+    own: Option<EnvelopeScene>,
     /// The scene's limits as declared; None when the scene has no envelope (no mobile base),
     /// the reason in `last`.
     declared: Option<EnvelopeModel>,
@@ -58,8 +130,18 @@ const LIMITS: [(&str, &str); 4] = [
 
 impl StartEnvelope {
     /// The envelope of `sys` (the predictor's start-state system) with the scene's
-    /// `passive_joints`; a scene without a mobile base gets none (logged once).
-    pub fn new(sys: &System, passive_joints: &[String], log: &NodeLog) -> Self {
+    /// `passive_joints`, or of `own` (`envelope.scene_file`) with its own; a scene without a
+    /// mobile base gets none (logged once).
+    pub fn new(
+        sys: &System,
+        passive_joints: &[String],
+        own: Option<(EnvelopeScene, Vec<String>)>,
+        log: &NodeLog,
+    ) -> Self {
+        let (sys, passive_joints) = match &own {
+            Some((scene, passive)) => (&scene.sys, &passive[..]),
+            None => (sys, passive_joints),
+        };
         let nv = sys.model.nv;
         let (declared, last) =
             match EnvelopeModel::new(&sys.model, &sys.constraints, passive_joints) {
@@ -70,7 +152,9 @@ impl StartEnvelope {
                     (None, Err(why))
                 }
             };
+        let own = own.map(|(scene, _)| scene);
         StartEnvelope {
+            own,
             declared,
             solver: None,
             applied: vec![0.0; nv],
@@ -94,6 +178,14 @@ impl StartEnvelope {
         log: &NodeLog,
     ) -> Option<AccelerationLimits> {
         let declared = self.declared.as_ref()?;
+        // The envelope's own scene: the predictor's state in its coordinates.
+        let (sys, elements, q, v) = match self.own.as_mut() {
+            Some(own) => {
+                own.map(&sys.model, (q, v));
+                (&mut own.sys, &mut own.elements, &own.q[..], &own.v[..])
+            }
+            None => (sys, elements, q, v),
+        };
         if self.solver.as_ref().is_none_or(|(_, _, m)| *m != mu) {
             let em = declared.clone().assume_friction(mu);
             let ed = EnvelopeData::new(&em);

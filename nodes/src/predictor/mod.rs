@@ -19,6 +19,7 @@ mod work;
 
 use std::time::{Duration, Instant};
 
+use constraint_dynamics::Scene;
 use constraint_dynamics::algorithm::frame_placement;
 use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::forces::ForceElements;
@@ -121,7 +122,25 @@ impl NodeLogic for PredictorNode {
         let forces = ForceElements::new(&sys.model, &robot.scene().file.forces)
             .map_err(NodeError::core("predictor"))?;
         let nc = robot.scene().file.constraints.len();
-        let envelope = envelope::StartEnvelope::new(&sys, &robot.scene().file.passive_joints, &log);
+        let path = &params.node.envelope.scene_file;
+        let own = match path.is_empty() {
+            true => None,
+            false => {
+                let scene = Scene::load(path).map_err(|source| NodeError::Scene {
+                    path: path.clone(),
+                    source,
+                })?;
+                let own = envelope::EnvelopeScene::new(&scene, &sys.model).map_err(|why| {
+                    NodeError::request(
+                        "envelope.scene_file",
+                        format!("{path} cannot take the predictor's state: {why}"),
+                    )
+                })?;
+                Some((own, scene.file.passive_joints))
+            }
+        };
+        let envelope =
+            envelope::StartEnvelope::new(&sys, &robot.scene().file.passive_joints, own, &log);
         let start_covariance = StartCovariance::new(
             robot.model(),
             &params.common.state,

@@ -139,6 +139,11 @@ pub struct EnvelopeParams {
     pub linear_floor: f64,
     /// The same for the yaw limits [rad/s²] (> 0).
     pub angular_floor: f64,
+    /// The scene whose limits the envelope checks, "" = the predictor's own. A planar base has
+    /// no normal rows: a floating variant of the same robot with its supports as contacts
+    /// (`params/suite_mobile_manipulator_floating.yaml`) checks lift-off and friction too. Its
+    /// state is the predictor's: the base pose and twist, and every joint by name.
+    pub scene_file: String,
 }
 
 impl Default for EnvelopeParams {
@@ -150,6 +155,7 @@ impl Default for EnvelopeParams {
             min_interval: 1.0,
             linear_floor: 0.05,
             angular_floor: 0.1,
+            scene_file: String::new(),
         }
     }
 }

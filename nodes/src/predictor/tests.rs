@@ -452,3 +452,134 @@ fn contacts_without_friction_take_the_slip_coefficient_in_the_envelope() {
     assert!(a_low < a_high, "{a_low} vs {a_high}");
     assert!(kinds.iter().all(|k| k == "friction"), "{kinds:?}");
 }
+
+/// `envelope.scene_file`: the planar suite's predictor checks its limits on the floating variant
+/// of the same robot, at the predictor's state (base pose and twist, joints by name), so the
+/// caster's lift-off is checked: the core's envelope of that scene at that state, to rounding.
+#[test]
+fn the_envelope_may_check_a_floating_variant_of_the_robot() {
+    use constraint_dynamics::envelope::{
+        EnvelopeData, EnvelopeModel, Reach, acceleration_envelope,
+    };
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../params/");
+    let mut common = CommonParams::default();
+    common.model.scene_file = format!("{root}suite_mobile_manipulator.yaml");
+    let mut params = NodeParams::<PredictorParams> {
+        common,
+        node: PredictorParams::default(),
+    };
+    params.node.covariance.propagate = false;
+    let floating = format!("{root}suite_mobile_manipulator_floating.yaml");
+    params.node.envelope.scene_file = floating.clone();
+    let robot = Robot::load(&params.common).unwrap();
+    let mut n = PredictorNode::new(robot, params, NodeLog::new("test")).unwrap();
+    let m = tick(&mut n, Time::from_nanos(1_000_000_000))
+        .limits
+        .expect("limits");
+    assert!(m.unchecked_kinds.is_empty(), "{:?}", m.unchecked_names);
+    assert_eq!(m.forward_deceleration.binding_kinds, ["lift_off"]);
+    assert_eq!(m.forward_deceleration.binding_names, ["caster_contact"]);
+    // The core on the floating scene, its coordinates set by name from the planar start state
+    // (the base upright at the origin, its forward speed and the joints; the planar yaw rate is
+    // zero at the start).
+    let scene = Scene::load(&floating).unwrap();
+    let (mut q, mut v) = (scene.q0.clone(), scene.v0.clone());
+    let planar = Robot::load(&{
+        let mut c = CommonParams::default();
+        c.model.scene_file = format!("{root}suite_mobile_manipulator.yaml");
+        c
+    })
+    .unwrap();
+    let pm = planar.model();
+    for (x, names, from, planar_names) in [
+        (
+            &mut q,
+            &scene.model.q_names,
+            &planar.scene().q0,
+            &pm.q_names,
+        ),
+        (
+            &mut v,
+            &scene.model.v_names,
+            &planar.scene().v0,
+            &pm.v_names,
+        ),
+    ] {
+        for (i, name) in names.iter().enumerate() {
+            if let Some(j) = planar_names.iter().position(|p| p == name) {
+                x[i] = from[j];
+            }
+        }
+    }
+    assert_eq!(q[0..3], [0.0, 0.0, 0.0]);
+    let mut sys = System::from_scene(&scene).unwrap();
+    let mut elements = ForceElements::new(&sys.model, &scene.file.forces).unwrap();
+    let em = EnvelopeModel::from_scene(&scene, &sys)
+        .unwrap()
+        .assume_friction(0.8);
+    let mut ed = EnvelopeData::new(&em);
+    let zero = vec![0.0; sys.model.nv];
+    let mut applied = zero.clone();
+    constraint_dynamics::applied::applied_generalized_force(
+        &mut sys,
+        &mut elements,
+        (0.0, &q, &v),
+        &zero,
+        &zero,
+        &mut applied,
+    );
+    let e = acceleration_envelope(&mut sys, &em, &mut ed, &q, &v, &applied).unwrap();
+    let pairs = [
+        (&m.forward_acceleration, &e.forward_acceleration),
+        (&m.forward_deceleration, &e.forward_deceleration),
+        (&m.yaw_acceleration_left, &e.yaw_acceleration_left),
+        (&m.yaw_acceleration_right, &e.yaw_acceleration_right),
+    ];
+    for (got, want) in pairs {
+        match want.reach {
+            Reach::Bounded => {
+                assert_eq!(got.status, AccelerationLimit::BOUNDED);
+                let tol = 1e-12 * want.max.abs();
+                assert!(
+                    (got.max - want.max).abs() <= tol,
+                    "{} vs {}",
+                    got.max,
+                    want.max
+                );
+            }
+            Reach::Infeasible => assert_eq!(got.status, AccelerationLimit::INFEASIBLE),
+            Reach::Unbounded => assert_eq!(got.status, AccelerationLimit::UNBOUNDED),
+        }
+    }
+    // The suite's start pose holds the arm out ahead of the axle: braking is out of reach (the
+    // caster behind would lift), which the planar model alone cannot say.
+    assert!(
+        m.forward_deceleration.max < 0.0,
+        "{}",
+        m.forward_deceleration.max
+    );
+}
+
+/// An `envelope.scene_file` that cannot be loaded, or whose coordinates the predictor's robot
+/// does not have, is refused at start, naming the file or the parameter.
+#[test]
+fn a_bad_envelope_scene_is_refused_by_name() {
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../params/");
+    for (file, expect) in [
+        ("no_such_scene.yaml", "no_such_scene.yaml"),
+        ("fourbar.yaml", "envelope.scene_file"),
+    ] {
+        let mut common = CommonParams::default();
+        common.model.scene_file = format!("{root}suite_mobile_manipulator.yaml");
+        let mut params = NodeParams::<PredictorParams> {
+            common,
+            node: PredictorParams::default(),
+        };
+        params.node.envelope.scene_file = format!("{root}{file}");
+        let robot = Robot::load(&params.common).unwrap();
+        let e = PredictorNode::new(robot, params, NodeLog::new("test"))
+            .err()
+            .expect("refused");
+        assert!(e.to_string().contains(expect), "{file}: {e}");
+    }
+}
