@@ -234,8 +234,6 @@ pub struct StepWorkspace {
     pub(in crate::predict) jac_fresh: bool,
     /// Jacobians computed since the lane started.
     pub(in crate::predict) jacobians: usize,
-    /// Time of the state `jac` was computed at [s].
-    pub(in crate::predict) jac_t: f64,
 }
 
 impl StepWorkspace {
@@ -260,7 +258,6 @@ impl StepWorkspace {
             jac_valid: false,
             jac_fresh: false,
             jacobians: 0,
-            jac_t: f64::NAN,
         }
     }
 
@@ -274,10 +271,6 @@ impl StepWorkspace {
     /// order with any F, and the error estimate's companion takes the answer's, computed at
     /// nearly the same state, instead of its own.
     pub(in crate::predict) fn share_jacobian(&mut self, other: &StepWorkspace) {
-        if self.jac_valid && self.jac_t == other.jac_t {
-            return; // the same F, already factored
-        }
-        self.jac_t = other.jac_t;
         self.jac.copy_from(&other.jac);
         (self.scratch.dqdd_dt).copy_from_slice(&other.scratch.dqdd_dt);
         self.jac_valid = true;
@@ -319,7 +312,6 @@ pub(in crate::predict) fn state_jacobian<F: Accel>(
         ws.jac[(i, nv + i)] = 1.0; // ∂(stage velocity)/∂v
     }
     f.accel_jacobian(model, (t, q, v), &ws.a0, &mut ws.jac, &mut ws.scratch)?;
-    ws.jac_t = t;
     ws.jac_fresh = true;
     ws.jac_valid = true;
     ws.jacobians += 1;

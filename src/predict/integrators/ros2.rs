@@ -23,12 +23,6 @@ use crate::predict::integrators::{
 /// γ of ROS2 (L-stable choice).
 pub(in crate::predict) const GAMMA: f64 = 1.0 - std::f64::consts::FRAC_1_SQRT_2;
 
-/// How long one F may serve ROS2 [s]; 0: a fresh F every sample span. The order holds with any
-/// F, but an older F damps the stiff modes less exactly: at 0.1 s a suite prediction's error
-/// estimate rose past its max_error (5.8e-2 against 5e-2, wheel angle) where a fresh F per span
-/// keeps it inside.
-pub(in crate::predict) const JACOBIAN_AGE: f64 = 0.0;
-
 /// One ROS2 step of `dt` from (q, v) at t, in place. F is evaluated at this step's start when
 /// `ws.jac_valid` is false (the caller decides how long one F serves), and W refactored when
 /// dt changes.
