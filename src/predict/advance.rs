@@ -421,12 +421,8 @@ impl Predictor {
                 if let Some(c) = cov.as_mut() {
                     let start = (&ws.qn[..], &ws.vn[..]);
                     let feedback = actuators.feedback();
-                    // ROS2's step brings its F, the start's q̈ and ∂q̈/∂t (integrators/ros2.rs).
-                    let own = (s.method == Method::Ros2).then_some((
-                        &step.jac,
-                        &step.a0[..],
-                        &step.scratch.dqdd_dt[..],
-                    ));
+                    // ROS2's step brings its F and its increment (integrators/ros2.rs).
+                    let own = (s.method == Method::Ros2).then_some((&step.jac, &step.dx[..]));
                     c.record_step(
                         rhs.sys,
                         s.method,

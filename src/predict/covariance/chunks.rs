@@ -86,11 +86,11 @@ pub(crate) struct StepRecord {
     feedback: Vec<Vec<Feedback>>,
     /// Time of each recorded state since the first [s].
     t: Vec<f64>,
-    /// Each step's own W-method matrix F (2nv × 2nv), q̈ at its start and ∂q̈/∂t, where the
-    /// step gave them (ROS2): its linearization then needs no derivatives.
+    /// Each step's own W-method matrix F (2nv × 2nv) and increment (Θ, Δv) before the drift
+    /// projection, where the step gave them (ROS2): its linearization then needs no
+    /// derivatives and no evaluation.
     jac: Vec<DMatrix<f64>>,
-    qdd: Vec<Vec<f64>>,
-    qdd_dt: Vec<Vec<f64>>,
+    dx: Vec<Vec<f64>>,
     has_jac: Vec<bool>,
     /// Recorded steps.
     len: usize,
@@ -106,8 +106,7 @@ impl StepRecord {
             feedback: vec![vec![]; CHUNK_CAPACITY],
             t: vec![0.0; CHUNK_CAPACITY + 1],
             jac: vec![DMatrix::zeros(2 * nv, 2 * nv); CHUNK_CAPACITY],
-            qdd: vec![vec![0.0; nv]; CHUNK_CAPACITY],
-            qdd_dt: vec![vec![0.0; nv]; CHUNK_CAPACITY],
+            dx: vec![vec![0.0; 2 * nv]; CHUNK_CAPACITY],
             has_jac: vec![false; CHUNK_CAPACITY],
             len: 0,
         }
@@ -134,15 +133,15 @@ impl StepRecord {
     }
 
     /// Append one step of the prediction: from (q0, v0) under the held generalized force τ
-    /// [N, N·m] and the controllers' `feedback` for h [s] to (q1, v1), with the step's own F,
-    /// q̈ at its start and ∂q̈/∂t when it has them (`step`). Returns true when the record is full (P
+    /// [N, N·m] and the controllers' `feedback` for h [s] to (q1, v1), with the step's own F
+    /// and increment when it has them (`step`). Returns true when the record is full (P
     /// must catch up before the next step).
     pub(crate) fn push(
         &mut self,
         (q0, v0): (&[f64], &[f64]),
         tau: &[f64],
         feedback: impl Iterator<Item = Feedback>,
-        step: Option<(&DMatrix<f64>, &[f64], &[f64])>,
+        step: Option<(&DMatrix<f64>, &[f64])>,
         h: f64,
         (q1, v1): (&[f64], &[f64]),
     ) -> bool {
@@ -156,10 +155,9 @@ impl StepRecord {
         self.feedback[k].clear();
         self.feedback[k].extend(feedback);
         self.has_jac[k] = step.is_some();
-        if let Some((jac, qdd, qdd_dt)) = step {
+        if let Some((jac, dx)) = step {
             self.jac[k].copy_from(jac);
-            self.qdd[k].copy_from_slice(qdd);
-            self.qdd_dt[k].copy_from_slice(qdd_dt);
+            self.dx[k].copy_from_slice(dx);
         }
         self.t[k + 1] = self.t[k] + h;
         self.q[k + 1].copy_from_slice(q1);
@@ -280,8 +278,8 @@ impl CovariancePropagator {
             let h = rec.t[lo + 1] - rec.t[lo];
             self.lin.set_feedback(&rec.feedback[lo]);
             let start = (&rec.q[lo][..], &rec.v[lo][..]);
-            let step = (&rec.jac[lo], &rec.qdd[lo][..], &rec.qdd_dt[lo][..]);
-            ros2_with_step_jacobian(sys, &mut self.lin, start, &rec.tau[lo], h, step)?;
+            let step = (&rec.jac[lo], &rec.dx[lo][..]);
+            ros2_with_step_jacobian(sys, &mut self.lin, start, h, step)?;
             self.linearizations += 1;
             self.apply_linearization(h, &rec.feedback[lo]);
             lo += 1;

@@ -142,7 +142,7 @@ impl CovarianceFeed<'_> {
         start: (&[f64], &[f64]),
         tau: &[f64],
         feedback: impl Iterator<Item = Feedback>,
-        step: Option<(&DMatrix<f64>, &[f64], &[f64])>,
+        step: Option<(&DMatrix<f64>, &[f64])>,
         h: f64,
         (t, end): (f64, (&[f64], &[f64])),
     ) -> Result<()> {

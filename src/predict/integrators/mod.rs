@@ -9,9 +9,9 @@ pub(in crate::predict) mod radau;
 mod radau_tableau;
 pub(in crate::predict) mod ros2;
 pub(in crate::predict) mod sdirk2;
+mod shifted;
 
 use crate::error::{Error, Result};
-use crate::linalg::lu_in_place;
 use crate::model::Model;
 pub use explicit::{
     DOP853, DOPRI5, MAX_STAGES, RK4, Tableau, explicit_step, semi_implicit_euler_step,
@@ -20,6 +20,7 @@ pub(in crate::predict) use explicit::{dop853_error_norm, dopri5_error_norm};
 use lie::dexp_inv;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
+pub(in crate::predict) use shifted::ShiftedFactor;
 
 /// The integration method a scene or request chooses.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -217,12 +218,11 @@ pub struct StepWorkspace {
     pub err: Vec<f64>,
     /// DOP853's 3rd-order error vector (2nv).
     pub err3: Vec<f64>,
-    /// SDIRK2: ∂k/∂(Θ, v) (analytic, or finite differences), its LU (I − dt γ ∂k/∂x), pivots, residual.
-    /// `jac` is kept across steps while Newton converges (`jac_valid`); `newton` is refactored
-    /// from it when dt moves by more than rounding (`newton_dt`).
+    /// SDIRK2 and ROS2: F = ∂k/∂(Θ, v) (analytic, or finite differences), the factored
+    /// I − dt γ F, the residual. `jac` is kept across steps while Newton converges
+    /// (`jac_valid`); `newton` is refactored from it when dt moves (`newton_dt`).
     pub(in crate::predict) jac: DMatrix<f64>,
-    pub(in crate::predict) newton: DMatrix<f64>,
-    pub(in crate::predict) piv: Vec<usize>,
+    pub(in crate::predict) newton: ShiftedFactor,
     pub(in crate::predict) resid: Vec<f64>,
     pub(in crate::predict) a0: Vec<f64>,
     pub(in crate::predict) scratch: JacobianScratch,
@@ -249,8 +249,7 @@ impl StepWorkspace {
             err: vec![0.0; n],
             err3: vec![0.0; n],
             jac: DMatrix::zeros(n, n),
-            newton: DMatrix::zeros(n, n),
-            piv: vec![0; n],
+            newton: ShiftedFactor::new(nv),
             resid: vec![0.0; n],
             a0: vec![0.0; nv],
             scratch: JacobianScratch::new(nq, nv),
@@ -318,19 +317,13 @@ pub(in crate::predict) fn state_jacobian<F: Accel>(
     Ok(())
 }
 
-/// `ws.newton` ← LU of (I − dtg · `ws.jac`); `method` names the step in the error.
+/// `ws.newton` ← the factored I − dtg · `ws.jac`; `method` names the step in the error.
 pub(in crate::predict) fn factor_shifted(
     ws: &mut StepWorkspace,
     dtg: f64,
     method: &str,
 ) -> Result<()> {
-    let n = ws.jac.nrows();
-    for c in 0..n {
-        for r in 0..n {
-            ws.newton[(r, c)] = if r == c { 1.0 } else { 0.0 } - dtg * ws.jac[(r, c)];
-        }
-    }
-    if !lu_in_place(&mut ws.newton, &mut ws.piv) {
+    if !ws.newton.factor(&ws.jac, dtg) {
         return Err(Error::StepTooLarge {
             message: format!("the {method} matrix I − γ dt F is singular"),
         });

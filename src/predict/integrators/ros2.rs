@@ -14,7 +14,6 @@
 //! (analytic derivatives of the constrained dynamics where the right-hand side has them).
 
 use crate::error::Result;
-use crate::linalg::lu_solve;
 use crate::model::Model;
 use crate::predict::integrators::{
     Accel, StepWorkspace, derivative, factor_shifted, stage, state_jacobian,
@@ -53,7 +52,7 @@ pub fn ros2_step<F: Accel>(
     for i in 0..nv {
         ws.ks[0][nv + i] = ws.a0[i] + gdt * ws.scratch.dqdd_dt[i];
     }
-    lu_solve(&ws.newton, &ws.piv, &mut ws.ks[0]);
+    ws.newton.solve(&mut ws.ks[0]);
     // k₂ = W⁻¹ (f(x_n ⊕ dt k₁) − 2 k₁ − γ dt ∂f/∂t)
     for i in 0..n {
         ws.dx[i] = dt * ws.ks[0][i];
@@ -67,7 +66,7 @@ pub fn ros2_step<F: Accel>(
     for i in 0..nv {
         k2[0][nv + i] -= gdt * ws.scratch.dqdd_dt[i];
     }
-    lu_solve(&ws.newton, &ws.piv, &mut k2[0]);
+    ws.newton.solve(&mut k2[0]);
     for i in 0..n {
         ws.dx[i] = dt * (1.5 * k1[0][i] + 0.5 * k2[0][i]);
     }

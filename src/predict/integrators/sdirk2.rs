@@ -3,7 +3,6 @@
 //! configuration Lie group, with the buffers of the shared [`StepWorkspace`] (integrators/mod.rs).
 
 use crate::error::{Error, Result};
-use crate::linalg::lu_solve;
 use crate::model::Model;
 use crate::predict::integrators::{
     Accel, StepWorkspace, derivative, factor_shifted, stage, state_jacobian,
@@ -105,7 +104,7 @@ fn sdirk2_stages<F: Accel>(
             for r in 0..n {
                 ws.resid[r] = ws.err[r] - ws.ks[i][r];
             }
-            lu_solve(&ws.newton, &ws.piv, &mut ws.resid);
+            ws.newton.solve(&mut ws.resid);
             let scale = ws.ks[i].iter().fold(1.0f64, |m, x| m.max(x.abs()));
             let mut step = 0.0f64;
             for r in 0..n {

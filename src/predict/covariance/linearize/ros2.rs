@@ -6,11 +6,14 @@
 //!
 //! which is the step's exact sensitivity for a linear flow and within O(dt · ∂F) of it
 //! otherwise; the increment then moves to q⁺ as in the explicit steps (the Lie maps of
-//! linearize.rs). L-stable, so a chunk of many steps keeps the stiff modes damped.
+//! linearize.rs). L-stable, so a chunk of many steps keeps the stiff modes damped. W is
+//! factored as the step factors it (integrators/shifted.rs); a step the prediction recorded
+//! brings its own increment, so only its sensitivity is computed here.
 
 use super::{Linearization, dynamics, stage_acceleration, tangent_variation};
 use crate::error::{Error, Result};
-use crate::linalg::{gemm_columns, lu_in_place, lu_solve};
+use crate::linalg::gemm_columns;
+use crate::predict::integrators::ShiftedFactor;
 use crate::predict::integrators::lie::dexp_inv;
 use crate::predict::integrators::ros2::GAMMA;
 use crate::system::System;
@@ -19,17 +22,13 @@ use nalgebra::DMatrix;
 /// Buffers of the linearized ROS2 step (2nv = n).
 #[derive(Clone, Debug)]
 pub(super) struct Ros2Buffers {
-    /// F, then W = I − γ dt F factored in place.
+    /// F, and W = I − γ dt F factored.
     f: DMatrix<f64>,
-    w: DMatrix<f64>,
-    piv: Vec<usize>,
+    w: ShiftedFactor,
     /// F E, then δk₁, δk₂ over the seed columns (n × 3nv).
     fe: DMatrix<f64>,
     dk1: DMatrix<f64>,
     dk2: DMatrix<f64>,
-    /// W⁻¹, and δk₂'s right-hand side.
-    w_inv: DMatrix<f64>,
-    rhs: DMatrix<f64>,
     k1: Vec<f64>,
     k2: Vec<f64>,
     /// ∂q̈/∂t at the start (nv).
@@ -41,13 +40,10 @@ impl Ros2Buffers {
         let n = 2 * nv;
         Self {
             f: DMatrix::zeros(n, n),
-            w: DMatrix::zeros(n, n),
-            piv: vec![0; n],
+            w: ShiftedFactor::new(nv),
             fe: DMatrix::zeros(n, 3 * nv),
             dk1: DMatrix::zeros(n, 3 * nv),
             dk2: DMatrix::zeros(n, 3 * nv),
-            w_inv: DMatrix::zeros(n, n),
-            rhs: DMatrix::zeros(n, 3 * nv),
             k1: vec![0.0; n],
             k2: vec![0.0; n],
             ft: vec![0.0; nv],
@@ -56,10 +52,10 @@ impl Ros2Buffers {
 }
 
 /// Solve W x = b for columns 0..cols of `m` in place.
-fn solve_columns(w: &DMatrix<f64>, piv: &[usize], m: &mut DMatrix<f64>, cols: usize) {
+fn solve_columns(w: &ShiftedFactor, m: &mut DMatrix<f64>, cols: usize) {
     let n = m.nrows();
-    for c in 0..cols {
-        lu_solve(w, piv, &mut m.as_mut_slice()[c * n..(c + 1) * n]);
+    for col in m.as_mut_slice().chunks_exact_mut(n).take(cols) {
+        w.solve(col);
     }
 }
 
@@ -101,50 +97,41 @@ pub(super) fn ros2(
             }
         }
     }
-    from_f(sys, lin, q, v, tau, dt)
+    sensitivity(lin, dt)?;
+    nominal(sys, lin, q, v, tau, dt)?;
+    finish(sys, lin, q)
 }
 
-/// The linearized ROS2 step under the F the prediction's step used (`jac`, its W-method
-/// matrix, the controllers' feedback and the joint springs included) and q̈ at the step's
-/// start and its ∂q̈/∂t (`qdd`, `qdd_dt`): no derivatives are computed. Only without input
+/// The linearized ROS2 step the prediction took: under its F (`jac`, its W-method matrix, the
+/// controllers' feedback and the joint springs included) and with its increment
+/// `dx = (Θ, Δv)`: no derivatives and no evaluation are computed. Only without input
 /// columns (B).
 pub(in crate::predict) fn ros2_with_step_jacobian(
     sys: &mut System,
     lin: &mut Linearization,
     (q, v): (&[f64], &[f64]),
-    tau: &[f64],
     dt: f64,
-    (jac, qdd, qdd_dt): (&DMatrix<f64>, &[f64], &[f64]),
+    (jac, dx): (&DMatrix<f64>, &[f64]),
 ) -> Result<()> {
     let nv = v.len();
     debug_assert!(!lin.inputs);
     lin.ros2.f.copy_from(jac);
-    lin.ros2.k1[nv..].copy_from_slice(qdd);
-    lin.ros2.ft.copy_from_slice(qdd_dt);
-    from_f(sys, lin, q, v, tau, dt)
+    sensitivity(lin, dt)?;
+    lin.theta_end.copy_from_slice(&dx[..nv]);
+    for i in 0..nv {
+        lin.v_next[i] = v[i] + dx[nv + i];
+    }
+    finish(sys, lin, q)
 }
 
-/// The step's sensitivity from F (`lin.ros2.f`), q̈ at the start (`lin.ros2.k1[nv..]`) and
-/// ∂q̈/∂t (`lin.ros2.ft`, a constant: it moves the nominal step, not its sensitivity).
-fn from_f(
-    sys: &mut System,
-    lin: &mut Linearization,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-    dt: f64,
-) -> Result<()> {
-    let nv = v.len();
+/// The step's sensitivity from F (`lin.ros2.f`): W factored, δk₁ and δk₂ over the seed
+/// columns, and the increment's variation (`d_theta`, `d_vel`).
+fn sensitivity(lin: &mut Linearization, dt: f64) -> Result<()> {
+    let nv = lin.v_next.len();
     let n = 2 * nv;
     let cols = lin.columns();
-    let springs = &lin.joint_springs;
     let r = &mut lin.ros2;
-    for c in 0..n {
-        for i in 0..n {
-            r.w[(i, c)] = f64::from(u8::from(i == c)) - dt * GAMMA * r.f[(i, c)];
-        }
-    }
-    if !lu_in_place(&mut r.w, &mut r.piv) {
+    if !r.w.factor(&r.f, dt * GAMMA) {
         return Err(Error::StepTooLarge {
             message: format!("linearize: the ROS2 matrix I − γ dt F is singular at dt = {dt} s"),
         });
@@ -161,19 +148,18 @@ fn from_f(
             };
         }
     }
-    // W⁻¹ once (n solves), then products: the 2 × cols column solves cost twice as much.
-    r.w_inv.fill_with_identity();
-    solve_columns(&r.w, &r.piv, &mut r.w_inv, n);
-    gemm_columns(&mut r.dk1, 1.0, &r.w_inv, &r.fe, 0.0, cols);
+    // δk₁ = W⁻¹ F E
+    r.dk1.columns_mut(0, cols).copy_from(&r.fe.columns(0, cols));
+    solve_columns(&r.w, &mut r.dk1, cols);
     // δk₂ = W⁻¹ (F E + dt F δk₁ − 2 δk₁)
-    r.rhs.columns_mut(0, cols).copy_from(&r.fe.columns(0, cols));
-    gemm_columns(&mut r.rhs, dt, &r.f, &r.dk1, 1.0, cols);
+    r.dk2.columns_mut(0, cols).copy_from(&r.fe.columns(0, cols));
+    gemm_columns(&mut r.dk2, dt, &r.f, &r.dk1, 1.0, cols);
     for c in 0..cols {
         for i in 0..n {
-            r.rhs[(i, c)] -= 2.0 * r.dk1[(i, c)];
+            r.dk2[(i, c)] -= 2.0 * r.dk1[(i, c)];
         }
     }
-    gemm_columns(&mut r.dk2, 1.0, &r.w_inv, &r.rhs, 0.0, cols);
+    solve_columns(&r.w, &mut r.dk2, cols);
     for c in 0..cols {
         for i in 0..nv {
             let d = |m: &DMatrix<f64>, row| dt * (1.5 * m[(row, c)] + 0.5 * r.dk2[(row, c)]);
@@ -181,13 +167,29 @@ fn from_f(
             lin.d_vel[(i, c)] = d(&r.dk1, nv + i) + f64::from(u8::from(c == nv + i));
         }
     }
-    // The nominal step (k1's q̈ part was set by the caller), as integrators/ros2.rs takes it.
+    Ok(())
+}
+
+/// The nominal step (`theta_end`, `v_next`) as integrators/ros2.rs takes it, from q̈ at the
+/// start (`lin.ros2.k1[nv..]`, set by the caller) and ∂q̈/∂t (`lin.ros2.ft`) with W factored.
+fn nominal(
+    sys: &mut System,
+    lin: &mut Linearization,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    dt: f64,
+) -> Result<()> {
+    let nv = v.len();
+    let n = 2 * nv;
+    let springs = &lin.joint_springs;
+    let r = &mut lin.ros2;
     let gdt = GAMMA * dt;
     r.k1[..nv].copy_from_slice(v);
     for i in 0..nv {
         r.k1[nv + i] += gdt * r.ft[i];
     }
-    lu_solve(&r.w, &r.piv, &mut r.k1);
+    r.w.solve(&mut r.k1);
     for i in 0..nv {
         lin.theta[0][i] = dt * r.k1[i];
         lin.vel[0][i] = v[i] + dt * r.k1[nv + i];
@@ -210,11 +212,19 @@ fn from_f(
     for i in 0..nv {
         r.k2[nv + i] -= gdt * r.ft[i];
     }
-    lu_solve(&r.w, &r.piv, &mut r.k2);
+    r.w.solve(&mut r.k2);
     for i in 0..nv {
         lin.theta_end[i] = dt * (1.5 * r.k1[i] + 0.5 * r.k2[i]);
         lin.v_next[i] = v[i] + dt * (1.5 * r.k1[nv + i] + 0.5 * r.k2[nv + i]);
     }
+    Ok(())
+}
+
+/// q⁺ from the increment, and the step's A (and B) with the increment's variation moved there.
+fn finish(sys: &mut System, lin: &mut Linearization, q: &[f64]) -> Result<()> {
+    let nv = lin.v_next.len();
+    let n = 2 * nv;
+    let cols = lin.columns();
     sys.model.integrate(q, &lin.theta_end, 1.0, &mut lin.q_next);
     lin.maps.build(&sys.model, &lin.theta_end, None);
     tangent_variation(lin, cols, false);
