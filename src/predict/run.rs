@@ -6,7 +6,7 @@ use super::advance::companion_error;
 use super::covariance::CovariancePropagator;
 use super::covariance::worker::with_worker;
 use super::estimate::{self, Lane};
-use super::integrators::Method;
+use super::integrators::{Method, ros2};
 use super::predictor::Predictor;
 use super::request::{CovarianceSamples, PredictionRequest};
 use super::settings::IntegrationSettings;
@@ -248,6 +248,7 @@ impl Predictor {
         let (mut t, mut k) = (0.0, 0usize);
         let mut next_sample = s.sample_period;
         let continuous = self.actuators.is_continuous();
+        let mut jacobian_t = f64::NEG_INFINITY;
         while t < horizon - 1e-12 {
             k += 1;
             let mut t_end = (k as f64 * period).min(horizon);
@@ -280,10 +281,14 @@ impl Predictor {
             }
             let (answer, comp) = lanes.split_at_mut(1);
             if s.method == Method::Ros2 {
-                // ROS2 takes a fresh F each sample span: the order holds with any F, but an older
-                // one damps the stiff modes less exactly (at 0.1 s a suite prediction's error
-                // estimate rose past its max_error); the companion steps with the answer's.
-                answer[0].step.invalidate();
+                // A W-method keeps its order with any F: one serves ROS2 for up to
+                // ros2::JACOBIAN_AGE, and a fresh one where a command starts; the companion
+                // steps with the answer's.
+                let starts_command = commands.iter().any(|(tc, _)| (tc - t).abs() <= 1e-12);
+                if starts_command || t - jacobian_t >= ros2::JACOBIAN_AGE - 1e-12 {
+                    answer[0].step.invalidate();
+                    jacobian_t = t;
+                }
             }
             let work = comp[0].evaluations;
             let largest = self.advance(&mut answer[0], None, work, (t, t_end), s)?;
