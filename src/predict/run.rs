@@ -249,6 +249,7 @@ impl Predictor {
         let mut next_sample = s.sample_period;
         let continuous = self.actuators.is_continuous();
         let mut jacobian_t = f64::NEG_INFINITY;
+        let mut shared_jacobians = usize::MAX;
         while t < horizon - 1e-12 {
             k += 1;
             let mut t_end = (k as f64 * period).min(horizon);
@@ -282,10 +283,16 @@ impl Predictor {
             let (answer, comp) = lanes.split_at_mut(1);
             if s.method == Method::Ros2 {
                 // A W-method keeps its order with any F: one serves ROS2 for up to
-                // ros2::JACOBIAN_AGE, and a fresh one where a command starts; the companion
+                // ros2::JACOBIAN_AGE, except in a command's first ros2::JACOBIAN_AGE (the
+                // controllers' transient), where each span takes a fresh one; the companion
                 // steps with the answer's.
-                let starts_command = commands.iter().any(|(tc, _)| (tc - t).abs() <= 1e-12);
-                if starts_command || t - jacobian_t >= ros2::JACOBIAN_AGE - 1e-12 {
+                let command_start = commands
+                    .iter()
+                    .map(|&(tc, _)| tc)
+                    .filter(|&tc| tc <= t + 1e-12)
+                    .fold(0.0, f64::max);
+                let transient = t - command_start < ros2::JACOBIAN_AGE - 1e-12;
+                if transient || t - jacobian_t >= ros2::JACOBIAN_AGE - 1e-12 {
                     answer[0].step.invalidate();
                     jacobian_t = t;
                 }
@@ -293,8 +300,10 @@ impl Predictor {
             let work = comp[0].evaluations;
             let largest = self.advance(&mut answer[0], None, work, (t, t_end), s)?;
             if s.error_estimate {
-                if s.method == Method::Ros2 {
+                // The answer's F when it is new (the companion's W follows its own dt).
+                if s.method == Method::Ros2 && answer[0].step.jacobians != shared_jacobians {
                     comp[0].step.share_jacobian(&answer[0].step);
+                    shared_jacobians = answer[0].step.jacobians;
                 }
                 let work = answer[0].evaluations;
                 let cap = Some(0.5 * largest);
