@@ -246,6 +246,35 @@ impl Accel for Rhs<'_> {
 }
 
 impl Predictor {
+    /// q̈ at the lane's state at t into `qdd` (one evaluation, counted in the lane's): where
+    /// a frozen controller's torque is heading (`Actuators::saturation_exit`).
+    pub(super) fn probe_accel(&mut self, lane: &mut Lane, t: f64, qdd: &mut [f64]) -> Result<()> {
+        let actuators = &self.actuators;
+        let ws = &mut self.ws;
+        let mut rhs = Rhs {
+            sys: &mut self.sys,
+            forces: &mut self.forces,
+            tau_act: &ws.tau_act,
+            control: actuators.is_continuous().then_some(actuators),
+            tau_ctl: &mut ws.tau_ctl,
+            tau: &mut ws.tau,
+            zero: &ws.zero,
+            ls: &mut ws.ls,
+            jw: &mut ws.jw,
+            rows: RowsAt {
+                t: None,
+                q: &mut ws.rows_q,
+                v: &mut ws.rows_v,
+            },
+            evaluations: 0,
+            least_squares: 0,
+        };
+        let result = rhs.accel(t, &lane.q, &lane.v, qdd);
+        lane.evaluations += rhs.evaluations;
+        lane.least_squares += rhs.least_squares;
+        result
+    }
+
     /// Integrate `lane` over `span` = (t0, t1) with the chosen method, controlling drift after
     /// every step. `cap`: None for the answer (the covariance follows it); for the error
     /// estimate's companion, the largest DOPRI5 step it may take (half the answer's largest in the

@@ -83,6 +83,8 @@ pub(super) struct Workspace {
     pub(super) tau_n: Vec<f64>,
     /// The continuous controllers' torque at the current stage (nv).
     pub(super) tau_ctl: Vec<f64>,
+    /// q̈ probed where a frozen continuous controller heads back inside its effort (nv).
+    pub(super) probe_qdd: Vec<f64>,
     /// The state the drift projection left with its rows evaluated (advance.rs, `RowsAt`).
     pub(super) rows_q: Vec<f64>,
     pub(super) rows_v: Vec<f64>,
@@ -136,6 +138,7 @@ impl Predictor {
             vn: vec![0.0; nv],
             tau_n: vec![0.0; nv],
             tau_ctl: vec![0.0; nv],
+            probe_qdd: vec![0.0; nv],
             rows_q: vec![0.0; nq],
             rows_v: vec![0.0; nv],
             cost: crate::limits::evaluation_cost(&model),

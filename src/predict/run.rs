@@ -15,6 +15,12 @@ use crate::actuators::Command;
 use crate::constraints::ContactLimits;
 use crate::error::{Error, Result};
 
+/// Pieces a span is cut into at most where frozen controllers come back inside their effort
+/// (two wheels, each once, and a retry for each prediction that came early).
+const MAX_PIECES: usize = 6;
+/// The shortest piece [s]: a predicted return closer than this is taken at the piece's end.
+const MIN_PIECE: f64 = 1e-4;
+
 /// The command in force at t [s] (the last one started; `idle` before the first), borrowed: a
 /// clone per control tick allocated its maps.
 fn command_at<'a>(commands: &'a [(f64, Command)], idle: &'a Command, t: f64) -> &'a Command {
@@ -278,23 +284,31 @@ impl Predictor {
                     );
                 }
             }
-            let (answer, comp) = lanes.split_at_mut(1);
-            if s.method == Method::Ros2 {
-                // ROS2 takes a fresh F each sample span: the order holds with any F, but an older
-                // one damps the stiff modes less exactly (at 0.1 s a suite prediction's error
-                // estimate rose past its max_error); the companion steps with the answer's.
-                answer[0].step.invalidate();
-            }
-            let work = comp[0].evaluations;
-            let largest = self.advance(&mut answer[0], None, work, (t, t_end), s)?;
-            if s.error_estimate {
-                if s.method == Method::Ros2 {
-                    comp[0].step.share_jacobian(&answer[0].step);
+            // Continuous controllers: the span in pieces, each ending where a frozen
+            // controller's torque is predicted back inside its effort (anti-windup,
+            // actuators.rs), the modes reviewed at each piece's start.
+            let (mut ts, mut pieces) = (t, 0);
+            while ts < t_end - 1e-12 {
+                let mut te = t_end;
+                if continuous {
+                    let a = &mut lanes[0];
+                    self.actuators.review_saturation(ts, &a.q, &a.v);
+                    if self.actuators.any_frozen() && pieces < MAX_PIECES {
+                        let mut qdd = std::mem::take(&mut self.ws.probe_qdd);
+                        let probed = self.probe_accel(a, ts, &mut qdd);
+                        let exit = self.actuators.saturation_exit(&a.v, &qdd);
+                        self.ws.probe_qdd = qdd;
+                        probed?;
+                        if let Some(dt) = exit {
+                            te = (ts + dt.max(MIN_PIECE)).min(t_end);
+                            if t_end - te < MIN_PIECE {
+                                te = t_end;
+                            }
+                        }
+                    }
                 }
-                let work = answer[0].evaluations;
-                let cap = Some(0.5 * largest);
-                self.advance(&mut comp[0], cap, work, (t, t_end), companion)
-                    .map_err(companion_error)?;
+                self.advance_piece(lanes, (ts, te), s, companion)?;
+                (ts, pieces) = (te, pieces + 1);
             }
             t = t_end;
             if t >= next_sample - 1e-9 || t >= horizon - 1e-12 {
@@ -329,6 +343,36 @@ impl Predictor {
                     next_sample += s.sample_period;
                 }
             }
+        }
+        Ok(())
+    }
+
+    /// Both lanes over one piece (t0, t1) of a span: the answer, then the error estimate's
+    /// companion.
+    fn advance_piece(
+        &mut self,
+        lanes: &mut [Lane; 2],
+        (t0, t1): (f64, f64),
+        s: &IntegrationSettings,
+        companion: &IntegrationSettings,
+    ) -> Result<()> {
+        let (answer, comp) = lanes.split_at_mut(1);
+        if s.method == Method::Ros2 {
+            // ROS2 takes a fresh F each sample span: the order holds with any F, but an older
+            // one damps the stiff modes less exactly (at 0.1 s a suite prediction's error
+            // estimate rose past its max_error); the companion steps with the answer's.
+            answer[0].step.invalidate();
+        }
+        let work = comp[0].evaluations;
+        let largest = self.advance(&mut answer[0], None, work, (t0, t1), s)?;
+        if s.error_estimate {
+            if s.method == Method::Ros2 {
+                comp[0].step.share_jacobian(&answer[0].step);
+            }
+            let work = answer[0].evaluations;
+            let cap = Some(0.5 * largest);
+            self.advance(&mut comp[0], cap, work, (t0, t1), companion)
+                .map_err(companion_error)?;
         }
         Ok(())
     }
