@@ -77,3 +77,15 @@ fn planner_rollouts_stay_within_1_cm_and_0_01_rad_of_the_scenes_controllers() {
     assert!(d <= 3e-3, "{d} m");
     assert!(yaw <= 1e-2, "{yaw} rad");
 }
+
+#[test]
+fn a_jacobian_every_zero_spans_is_refused_by_name() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let scene = Scene::load(root.join("params/suite_diff_drive.yaml")).unwrap();
+    let e = constraint_dynamics::predict::Predictor::from_scene(&scene)
+        .unwrap()
+        .with_settings(|s| s.jacobian_spans = 0)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("integration.jacobian_spans = 0"), "{e}");
+}

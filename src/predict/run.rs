@@ -254,6 +254,8 @@ impl Predictor {
         let (mut t, mut k) = (0.0, 0usize);
         let mut next_sample = s.sample_period;
         let continuous = self.actuators.is_continuous();
+        // Pieces stepped on ROS2's current F (none yet).
+        let mut on_f = usize::MAX;
         while t < horizon - 1e-12 {
             k += 1;
             let mut t_end = (k as f64 * period).min(horizon);
@@ -290,9 +292,10 @@ impl Predictor {
             let (mut ts, mut pieces) = (t, 0);
             while ts < t_end - 1e-12 {
                 let mut te = t_end;
+                let mut changed = false;
                 if continuous {
                     let a = &mut lanes[0];
-                    self.actuators.review_saturation(ts, &a.q, &a.v);
+                    changed = self.actuators.review_saturation(ts, &a.q, &a.v);
                     if self.actuators.any_frozen() && pieces < MAX_PIECES {
                         let mut qdd = std::mem::take(&mut self.ws.probe_qdd);
                         let probed = self.probe_accel(a, ts, &mut qdd);
@@ -307,8 +310,14 @@ impl Predictor {
                         }
                     }
                 }
-                self.advance_piece(lanes, (ts, te), s, companion)?;
-                (ts, pieces) = (te, pieces + 1);
+                // ROS2's F: fresh every `jacobian_spans` pieces, and where the right-hand side
+                // changed form.
+                let fresh = changed || on_f >= s.jacobian_spans;
+                if fresh {
+                    on_f = 0;
+                }
+                self.advance_piece(lanes, (ts, te), s, companion, fresh)?;
+                (ts, pieces, on_f) = (te, pieces + 1, on_f + 1);
             }
             t = t_end;
             if t >= next_sample - 1e-9 || t >= horizon - 1e-12 {
@@ -348,19 +357,20 @@ impl Predictor {
     }
 
     /// Both lanes over one piece (t0, t1) of a span: the answer, then the error estimate's
-    /// companion.
+    /// companion; ROS2 with a fresh F if `fresh_jacobian`.
     fn advance_piece(
         &mut self,
         lanes: &mut [Lane; 2],
         (t0, t1): (f64, f64),
         s: &IntegrationSettings,
         companion: &IntegrationSettings,
+        fresh_jacobian: bool,
     ) -> Result<()> {
         let (answer, comp) = lanes.split_at_mut(1);
-        if s.method == Method::Ros2 {
-            // ROS2 takes a fresh F each sample span: the order holds with any F, but an older
-            // one damps the stiff modes less exactly (at 0.1 s a suite prediction's error
-            // estimate rose past its max_error); the companion steps with the answer's.
+        if s.method == Method::Ros2 && fresh_jacobian {
+            // The order holds with any F, but an older one damps the stiff modes less exactly
+            // (at 0.1 s a suite prediction's error estimate rose past its max_error, hence one
+            // per span by default); the companion steps with the answer's.
             answer[0].step.invalidate();
         }
         let work = comp[0].evaluations;

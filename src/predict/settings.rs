@@ -78,6 +78,16 @@ pub struct IntegrationSettings {
     /// `error_estimate` and `max_error` / `adapt` cannot act.
     #[serde(default = "default_true")]
     pub error_estimate: bool,
+    /// `jacobian_spans:` ROS2 evaluates its F at the start of every this many spans between
+    /// samples and command starts (default 1), and whenever a continuous controller's
+    /// saturation changes (its feedback enters or leaves F). A W-method keeps its order with
+    /// any F; an older one damps the stiff modes less exactly.
+    #[serde(default = "default_jacobian_spans")]
+    pub jacobian_spans: usize,
+}
+
+fn default_jacobian_spans() -> usize {
+    1
 }
 
 fn default_true() -> bool {
@@ -138,6 +148,7 @@ impl Default for IntegrationSettings {
             max_error: default_max_error(),
             adapt: false,
             error_estimate: true,
+            jacobian_spans: default_jacobian_spans(),
         }
     }
 }
@@ -180,6 +191,11 @@ impl IntegrationSettings {
                 "integration.max_error = {} must be positive (.inf: no check)",
                 self.max_error
             )));
+        }
+        if self.jacobian_spans == 0 {
+            return Err(crate::Error::Invalid(
+                "integration.jacobian_spans = 0 must be at least 1".into(),
+            ));
         }
         if self.adapt && !self.error_estimate {
             return Err(crate::Error::Invalid(

@@ -8,7 +8,8 @@ use constraint_dynamics::actuators::Hold;
 use constraint_dynamics::predict::{DriftControl, Method, Predictor};
 
 /// The planner's settings: continuous wheel controllers (with their anti-windup) and ROS2 at a
-/// third of the 50 ms command step, projection, no error-estimate companion (2× the work).
+/// third of the 50 ms command step with one F per two commands (and where a wheel saturates or
+/// comes back), projection, no error-estimate companion (2× the work).
 pub fn planner(scene: &Scene) -> Predictor {
     let mut scene = scene.clone();
     scene.file.actuators.hold = Hold::Continuous;
@@ -17,6 +18,7 @@ pub fn planner(scene: &Scene) -> Predictor {
         .with_settings(|s| {
             s.method = Method::Ros2;
             s.dt = 0.05 / 3.0;
+            s.jacobian_spans = 2;
             s.drift = DriftControl::Projection;
             s.error_estimate = false;
         })
