@@ -159,9 +159,9 @@ impl Actuators {
         changed
     }
 
-    /// True while a velocity controller holds its integral.
+    /// True while a velocity controller with a target holds its integral.
     pub fn any_frozen(&self) -> bool {
-        self.velocity.iter().any(|c| c.frozen.is_finite())
+        (self.velocity.iter()).any(|c| c.target.is_finite() && c.frozen.is_finite())
     }
 
     /// Continuous hold: from (v, q̈) at a span's start, the shortest time [s] after which a

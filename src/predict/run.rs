@@ -75,6 +75,8 @@ impl Predictor {
         let companion = estimate::companion_settings(s);
         let factor = estimate::richardson_factor(s.method);
         // The lanes leave the workspace while they step (disjoint borrows), and come back.
+        // A probe left by an earlier run (one that failed before its step) is no one's.
+        self.ws.probe_t = None;
         let mut lanes = std::mem::take(&mut self.ws.lanes);
         lanes[0].start(&q, v0, s.dt);
         lanes[1].start(&q, v0, companion.dt);
@@ -297,11 +299,8 @@ impl Predictor {
                     let a = &mut lanes[0];
                     changed = self.actuators.review_saturation(ts, &a.q, &a.v);
                     if self.actuators.any_frozen() && pieces < MAX_PIECES {
-                        let mut qdd = std::mem::take(&mut self.ws.probe_qdd);
-                        let probed = self.probe_accel(a, ts, &mut qdd);
-                        let exit = self.actuators.saturation_exit(&a.v, &qdd);
-                        self.ws.probe_qdd = qdd;
-                        probed?;
+                        self.probe_accel(a, ts)?;
+                        let exit = self.actuators.saturation_exit(&a.v, &self.ws.probe_qdd);
                         if let Some(dt) = exit {
                             te = (ts + dt.max(MIN_PIECE)).min(t_end);
                             if t_end - te < MIN_PIECE {
