@@ -1,42 +1,30 @@
-//! Criterion benchmark of rollouts for sampling planners: N = 2000 command sequences × 56 steps
-//! of 50 ms (Nav2 MPPI's defaults: batch_size 2000, time_steps 56, model_dt 0.05) on the
-//! differential drive with its wheel-speed controllers (params/suite_diff_drive.yaml) at planner
-//! settings: RK4 with projection, dt = control period = 5 ms (the wheel loop's time constant is
-//! ≈ 10 ms; the scene's own rk4 at 1 ms control ticks costs 5× the steps), on 1
-//! worker thread and on every core: sequences per second per core and the parallel efficiency
-//! T₁ / (n T_n). `ROLLOUTS=N` sets another N.
+//! Criterion benchmark of rollouts for sampling planners: N = 1000 command sequences × 56 steps
+//! of 50 ms (Nav2 MPPI's time_steps and model_dt) on the differential drive
+//! (params/suite_diff_drive.yaml) at the planner's settings (`tests/common/planner_settings.rs`:
+//! continuous wheel controllers with anti-windup, ROS2 at 16.7 ms, projection, no error-estimate
+//! companion; `tests/rollouts_planner.rs` holds them to 1 cm and 0.01 rad of the scene's 1 ms
+//! controllers), on 1 worker thread and on every core. `ROLLOUTS=N` sets another N.
 
 #[path = "../tests/common/command_sequences.rs"]
 mod command_sequences;
+#[path = "../tests/common/planner_settings.rs"]
+mod planner_settings;
 
 use command_sequences::sequences;
 use constraint_dynamics::Scene;
-use constraint_dynamics::predict::{
-    DriftControl, Method, PredictionRequest, Predictor, RolloutOptions,
-};
+use constraint_dynamics::predict::{PredictionRequest, RolloutOptions};
 use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 use std::path::PathBuf;
 
 fn bench(c: &mut Criterion) {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let mut scene = Scene::load(root.join("params/suite_diff_drive.yaml")).expect("scene");
-    scene.file.actuators.control_period = Some(0.005);
-    let predictor = Predictor::from_scene(&scene)
-        .expect("predictor")
-        .with_settings(|s| {
-            s.method = Method::Rk4;
-            s.dt = 0.005;
-            s.drift = DriftControl::Projection;
-            // A planner scores thousands of rollouts: no error-estimate companion (2× the
-            // work).
-            s.error_estimate = false;
-        })
-        .expect("settings");
+    let scene = Scene::load(root.join("params/suite_diff_drive.yaml")).expect("scene");
+    let predictor = planner_settings::planner(&scene);
     let n: usize = std::env::var("ROLLOUTS")
         .ok()
         .and_then(|s| s.parse().ok())
-        .unwrap_or(2000);
+        .unwrap_or(1000);
     let seqs = sequences(n, 56);
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let mut group = c.benchmark_group("rollouts");

@@ -7,14 +7,20 @@
 //!   control period and held until the next tick; the integrators never step across a tick.
 //! - `continuous`: the torques are a function of (t, q, v) evaluated at every stage, so the step
 //!   follows the accuracy asked for, not the control period. A velocity controller's integral
-//!   is then `∫(v* − q̇) dt = ∫v* dt − (q − q(0))`, exact for piecewise-constant targets; it has
-//!   no anti-windup (a saturated controller keeps integrating), so this model suits controllers
-//!   that stay inside their effort. docs/performance.md gives its distance from the held model.
+//!   is then `∫(v* − q̇) dt = ∫v* dt − (q − q(0))`, exact for piecewise-constant targets, less
+//!   what it did not integrate while saturated (the held model's conditional anti-windup): a
+//!   controller found beyond its effort at a span's start holds its integral (`frozen`) until
+//!   its torque comes back inside, at a time the run predicts from q̈ and steps to
+//!   ([`Actuators::saturation_exit`]); the integral it skipped is kept as `windup`. Between those
+//!   reviews the torque stays a function of (t, q, v). docs/performance.md gives its distance
+//!   from the held model.
 
 use crate::error::{Error, Result};
 use crate::model::Model;
 use serde::Deserialize;
 use std::collections::BTreeMap;
+
+mod continuous;
 
 /// `actuators:` in a scene.
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -141,6 +147,10 @@ struct Pi {
     target: f64,
     target_integral: f64,
     q_start: f64,
+    /// Continuous hold, anti-windup: the integral held while saturated (NaN: integrating) and
+    /// the error integral skipped while saturated [rad or m].
+    frozen: f64,
+    windup: f64,
 }
 
 #[derive(Clone, Debug)]
@@ -243,6 +253,8 @@ impl Actuators {
                 target: f64::NAN,
                 target_integral: 0.0,
                 q_start: 0.0,
+                frozen: f64::NAN,
+                windup: 0.0,
             });
         }
         for s in &spec.position {
@@ -282,6 +294,8 @@ impl Actuators {
                     target: f64::NAN,
                     target_integral: 0.0,
                     q_start: 0.0,
+                    frozen: f64::NAN,
+                    windup: 0.0,
                 });
                 idx[k] = a.velocity.len() - 1;
             }
@@ -394,123 +408,6 @@ impl Actuators {
             tau[c.iv] += raw.clamp(-c.effort, c.effort);
         }
     }
-
-    /// The torques are a function of (t, q, v) (`hold: continuous`).
-    pub fn is_continuous(&self) -> bool {
-        self.hold == Hold::Continuous && !self.is_empty()
-    }
-
-    /// Continuous hold: a prediction starts at t = 0 from configuration `q`, with no target yet.
-    pub fn start_continuous(&mut self, q: &[f64]) {
-        self.segment_start = 0.0;
-        for c in &mut self.velocity {
-            (c.target, c.target_integral, c.q_start) = (f64::NAN, 0.0, q[c.iq]);
-            c.gain = (0.0, 0.0);
-        }
-        for c in &mut self.position {
-            c.target = f64::NAN;
-            c.gain = (0.0, 0.0);
-        }
-    }
-
-    /// Continuous hold: `cmd` is in force from t [s] on (the previous target's integral is
-    /// closed at t). The feedback of [`Actuators::feedback`] is then each controller's
-    /// unsaturated gain: (ki, kp) for a velocity controller, (kp, kd) for a position one.
-    pub fn begin_segment(&mut self, cmd: &Command, t: f64) {
-        let drive = self.diff_drive;
-        let elapsed = t - self.segment_start;
-        for (k, c) in self.velocity.iter_mut().enumerate() {
-            if c.target.is_finite() {
-                c.target_integral += c.target * elapsed;
-            }
-            c.target = velocity_target(drive, cmd, k, &c.name).unwrap_or(f64::NAN);
-            c.gain = if c.target.is_finite() {
-                (c.ki, c.kp)
-            } else {
-                (0.0, 0.0)
-            };
-        }
-        for c in &mut self.position {
-            c.target = cmd.joint_position.get(&c.name).copied().unwrap_or(f64::NAN);
-            c.gain = if c.target.is_finite() {
-                (c.kp, c.kd)
-            } else {
-                (0.0, 0.0)
-            };
-        }
-        self.segment_start = t;
-    }
-
-    /// Continuous hold: the controllers' torques at (t, q, v) into `tau` (nv), each clamped to
-    /// ±effort.
-    pub fn continuous_torque(&self, t: f64, q: &[f64], v: &[f64], tau: &mut [f64]) {
-        tau.iter_mut().for_each(|x| *x = 0.0);
-        self.continuous_each(t, q, v, |c, raw, _| {
-            tau[c.iv] += raw.clamp(-c.effort, c.effort)
-        });
-    }
-
-    /// Continuous hold: the linear feedback of the controllers inside their effort at
-    /// (t, q, v) — ∂τ/∂q = −k, ∂τ/∂v = −d and ∂τ/∂t = rate on each joint (a saturated one has
-    /// none).
-    pub fn continuous_feedback(&self, t: f64, q: &[f64], v: &[f64], mut f: impl FnMut(Feedback)) {
-        self.continuous_each(t, q, v, |c, raw, (k, d, rate)| {
-            if raw.abs() <= c.effort {
-                f(Feedback {
-                    iq: c.iq,
-                    iv: c.iv,
-                    k,
-                    d,
-                    integral: false,
-                    rate,
-                });
-            }
-        });
-    }
-
-    /// Each controller with a target: its joint, raw (unclamped) torque at (t, q, v) and gains.
-    fn continuous_each(
-        &self,
-        t: f64,
-        q: &[f64],
-        v: &[f64],
-        mut f: impl FnMut(Joint, f64, (f64, f64, f64)),
-    ) {
-        for c in self.velocity.iter().filter(|c| c.target.is_finite()) {
-            let integral =
-                c.target_integral + c.target * (t - self.segment_start) - (q[c.iq] - c.q_start);
-            let raw = c.kp * (c.target - v[c.iv]) + c.ki * integral;
-            f(
-                Joint {
-                    iq: c.iq,
-                    iv: c.iv,
-                    effort: c.effort,
-                },
-                raw,
-                (c.ki, c.kp, c.ki * c.target),
-            );
-        }
-        for c in self.position.iter().filter(|c| c.target.is_finite()) {
-            let raw = c.kp * (c.target - q[c.iq]) - c.kd * v[c.iv];
-            f(
-                Joint {
-                    iq: c.iq,
-                    iv: c.iv,
-                    effort: c.effort,
-                },
-                raw,
-                (c.kp, c.kd, 0.0),
-            );
-        }
-    }
-}
-
-/// A controlled joint's indices and effort bound.
-#[derive(Clone, Copy)]
-struct Joint {
-    iq: usize,
-    iv: usize,
-    effort: f64,
 }
 
 /// The target of velocity controller `k` (named `name`) under `cmd`: a base twist gives the

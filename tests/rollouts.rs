@@ -4,6 +4,8 @@
 
 #[path = "common/command_sequences.rs"]
 mod command_sequences;
+#[path = "common/planner_settings.rs"]
+mod planner_settings;
 
 use command_sequences::sequences;
 use constraint_dynamics::Scene;
@@ -32,12 +34,10 @@ fn bits(t: &Trajectory) -> Vec<u64> {
         .collect()
 }
 
-#[test]
-fn rollouts_equal_single_predictions_bit_for_bit() {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let scene = Scene::load(root.join("params/suite_diff_drive.yaml")).unwrap();
-    let predictor = Predictor::from_scene(&scene).unwrap();
-    let (n, steps, step) = (12, 6, 0.05);
+/// N rollouts of `predictor` equal N single predictions of fresh predictors from `make`.
+fn check_bit_for_bit(scene: &Scene, make: impl Fn() -> Predictor, n: usize, what: &str) {
+    let predictor = make();
+    let (steps, step) = (6, 0.05);
     let seqs = sequences(n, steps);
     for (threads, forces) in [(2, false), (3, true), (1, false)] {
         let opts = RolloutOptions { step, threads };
@@ -46,10 +46,7 @@ fn rollouts_equal_single_predictions_bit_for_bit() {
         assert_eq!(rolled.len(), n);
         for (k, (seq, r)) in seqs.iter().zip(&rolled).enumerate() {
             // The single prediction, from a fresh predictor each time.
-            let mut single = Predictor::from_scene(&scene)
-                .unwrap()
-                .with_settings(|s| s.sample_period = step)
-                .unwrap();
+            let mut single = make().with_settings(|s| s.sample_period = step).unwrap();
             let timed: Vec<(f64, Command)> = seq
                 .iter()
                 .enumerate()
@@ -63,16 +60,16 @@ fn rollouts_equal_single_predictions_bit_for_bit() {
             assert_eq!(
                 r.samples.len(),
                 steps + 1,
-                "rollout {k}: one sample per step"
+                "{what} rollout {k}: one sample per step"
             );
             assert_eq!(
                 (r.steps, r.evaluations),
                 (t.steps, t.evaluations),
-                "rollout {k} ({threads} threads): work differs"
+                "{what} rollout {k} ({threads} threads): work differs"
             );
             assert!(
                 bits(r) == bits(&t),
-                "rollout {k} ({threads} threads) differs"
+                "{what} rollout {k} ({threads} threads) differs"
             );
             assert_eq!(r.samples[0].lambda.is_some(), forces);
         }
@@ -80,6 +77,27 @@ fn rollouts_equal_single_predictions_bit_for_bit() {
         let x_end: Vec<f64> = rolled.iter().map(|r| r.samples[steps].q[0]).collect();
         assert!(x_end.windows(2).any(|w| w[0] != w[1]), "{x_end:?}");
     }
+}
+
+#[test]
+fn rollouts_equal_single_predictions_bit_for_bit() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let scene = Scene::load(root.join("params/suite_diff_drive.yaml")).unwrap();
+    check_bit_for_bit(
+        &scene,
+        || Predictor::from_scene(&scene).unwrap(),
+        12,
+        "scene",
+    );
+}
+
+/// The planner's settings too: their continuous controllers keep a saturation state (frozen
+/// integrals, skipped windup) that each prediction starts afresh.
+#[test]
+fn planner_rollouts_equal_single_predictions_bit_for_bit() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let scene = Scene::load(root.join("params/suite_diff_drive.yaml")).unwrap();
+    check_bit_for_bit(&scene, || planner_settings::planner(&scene), 24, "planner");
 }
 
 #[test]

@@ -70,6 +70,7 @@ struct Rhs<'a> {
     ls: &'a mut DriftProjector,
     jw: &'a mut JacobianWork,
     rows: RowsAt<'a>,
+    probe: Probe<'a>,
     evaluations: usize,
     least_squares: usize,
 }
@@ -81,6 +82,25 @@ struct RowsAt<'a> {
     t: Option<f64>,
     q: &'a mut [f64],
     v: &'a mut [f64],
+}
+
+/// A q̈ the run probed at (t, q, v) (`Predictor::probe_accel`), for the first evaluation there.
+struct Probe<'a> {
+    t: &'a mut Option<f64>,
+    q: &'a [f64],
+    v: &'a [f64],
+    qdd: &'a [f64],
+}
+
+impl Probe<'_> {
+    /// True once, for the probed state (bitwise): its q̈ is copied into `qdd`.
+    fn take(&mut self, t: f64, q: &[f64], v: &[f64], qdd: &mut [f64]) -> bool {
+        let hit = self.t.take() == Some(t) && self.q == q && self.v == v;
+        if hit {
+            qdd.copy_from_slice(self.qdd);
+        }
+        hit
+    }
 }
 
 impl RowsAt<'_> {
@@ -121,6 +141,9 @@ impl Rhs<'_> {
 
 impl Accel for Rhs<'_> {
     fn accel(&mut self, t: f64, q: &[f64], v: &[f64], qdd: &mut [f64]) -> Result<()> {
+        if self.probe.take(t, q, v, qdd) {
+            return Ok(());
+        }
         self.evaluations += 1;
         let rows_evaluated = self.rows.take(t, q, v);
         self.apply(t, q, v);
@@ -246,6 +269,48 @@ impl Accel for Rhs<'_> {
 }
 
 impl Predictor {
+    /// q̈ at the lane's state at t into `ws.probe_qdd` (one evaluation, counted in the lane's):
+    /// where a frozen controller's torque is heading (`Actuators::saturation_exit`). The
+    /// answer's next step starts there and takes it as its first evaluation.
+    pub(super) fn probe_accel(&mut self, lane: &mut Lane, t: f64) -> Result<()> {
+        let actuators = &self.actuators;
+        let ws = &mut self.ws;
+        ws.probe_t = None;
+        let mut rhs = Rhs {
+            sys: &mut self.sys,
+            forces: &mut self.forces,
+            tau_act: &ws.tau_act,
+            control: actuators.is_continuous().then_some(actuators),
+            tau_ctl: &mut ws.tau_ctl,
+            tau: &mut ws.tau,
+            zero: &ws.zero,
+            ls: &mut ws.ls,
+            jw: &mut ws.jw,
+            rows: RowsAt {
+                t: None,
+                q: &mut ws.rows_q,
+                v: &mut ws.rows_v,
+            },
+            probe: Probe {
+                t: &mut None,
+                q: &[],
+                v: &[],
+                qdd: &[],
+            },
+            evaluations: 0,
+            least_squares: 0,
+        };
+        let result = rhs.accel(t, &lane.q, &lane.v, &mut ws.probe_qdd);
+        lane.evaluations += rhs.evaluations;
+        lane.least_squares += rhs.least_squares;
+        if result.is_ok() {
+            ws.probe_t = Some(t);
+            ws.probe_q.copy_from_slice(&lane.q);
+            ws.probe_v.copy_from_slice(&lane.v);
+        }
+        result
+    }
+
     /// Integrate `lane` over `span` = (t0, t1) with the chosen method, controlling drift after
     /// every step. `cap`: None for the answer (the covariance follows it); for the error
     /// estimate's companion, the largest DOPRI5 step it may take (half the answer's largest in the
@@ -284,6 +349,17 @@ impl Predictor {
                 t: None,
                 q: &mut ws.rows_q,
                 v: &mut ws.rows_v,
+            },
+            // The probe was the answer's state: the companion evaluates its own.
+            probe: Probe {
+                t: if cap.is_none() {
+                    &mut ws.probe_t
+                } else {
+                    &mut None
+                },
+                q: &ws.probe_q,
+                v: &ws.probe_v,
+                qdd: &ws.probe_qdd,
             },
             evaluations: 0,
             least_squares: 0,

@@ -83,6 +83,12 @@ pub(super) struct Workspace {
     pub(super) tau_n: Vec<f64>,
     /// The continuous controllers' torque at the current stage (nv).
     pub(super) tau_ctl: Vec<f64>,
+    /// q̈ probed where a frozen continuous controller heads back inside its effort (nv), at
+    /// (t, `probe_q`, `probe_v`): the next step's first evaluation there takes it.
+    pub(super) probe_qdd: Vec<f64>,
+    pub(super) probe_t: Option<f64>,
+    pub(super) probe_q: Vec<f64>,
+    pub(super) probe_v: Vec<f64>,
     /// The state the drift projection left with its rows evaluated (advance.rs, `RowsAt`).
     pub(super) rows_q: Vec<f64>,
     pub(super) rows_v: Vec<f64>,
@@ -136,6 +142,10 @@ impl Predictor {
             vn: vec![0.0; nv],
             tau_n: vec![0.0; nv],
             tau_ctl: vec![0.0; nv],
+            probe_qdd: vec![0.0; nv],
+            probe_t: None,
+            probe_q: vec![0.0; nq],
+            probe_v: vec![0.0; nv],
             rows_q: vec![0.0; nq],
             rows_v: vec![0.0; nv],
             cost: crate::limits::evaluation_cost(&model),

@@ -6,7 +6,7 @@ use super::advance::companion_error;
 use super::covariance::CovariancePropagator;
 use super::covariance::worker::with_worker;
 use super::estimate::{self, Lane};
-use super::integrators::{Method, ros2};
+use super::integrators::Method;
 use super::predictor::Predictor;
 use super::request::{CovarianceSamples, PredictionRequest};
 use super::settings::IntegrationSettings;
@@ -14,6 +14,12 @@ use super::trajectory::{Sample, Trajectory};
 use crate::actuators::Command;
 use crate::constraints::ContactLimits;
 use crate::error::{Error, Result};
+
+/// Pieces a span is cut into at most where frozen controllers come back inside their effort
+/// (two wheels, each once, and a retry for each prediction that came early).
+const MAX_PIECES: usize = 6;
+/// The shortest piece [s]: a predicted return closer than this is taken at the piece's end.
+const MIN_PIECE: f64 = 1e-4;
 
 /// The command in force at t [s] (the last one started; `idle` before the first), borrowed: a
 /// clone per control tick allocated its maps.
@@ -69,6 +75,8 @@ impl Predictor {
         let companion = estimate::companion_settings(s);
         let factor = estimate::richardson_factor(s.method);
         // The lanes leave the workspace while they step (disjoint borrows), and come back.
+        // A probe left by an earlier run (one that failed before its step) is no one's.
+        self.ws.probe_t = None;
         let mut lanes = std::mem::take(&mut self.ws.lanes);
         lanes[0].start(&q, v0, s.dt);
         lanes[1].start(&q, v0, companion.dt);
@@ -248,8 +256,9 @@ impl Predictor {
         let (mut t, mut k) = (0.0, 0usize);
         let mut next_sample = s.sample_period;
         let continuous = self.actuators.is_continuous();
-        let mut jacobian_t = f64::NEG_INFINITY;
-        let mut shared_jacobians = usize::MAX;
+        // Pieces stepped on ROS2's current F (none yet), pieces since the last command
+        // started, and the answer's F the companion took last.
+        let (mut on_f, mut since_command, mut shared) = (usize::MAX, 0usize, usize::MAX);
         while t < horizon - 1e-12 {
             k += 1;
             let mut t_end = (k as f64 * period).min(horizon);
@@ -280,35 +289,44 @@ impl Predictor {
                     );
                 }
             }
-            let (answer, comp) = lanes.split_at_mut(1);
-            if s.method == Method::Ros2 {
-                // A W-method keeps its order with any F: one serves ROS2 for up to
-                // ros2::JACOBIAN_AGE, except in a command's first ros2::JACOBIAN_AGE (the
-                // controllers' transient), where each span takes a fresh one; the companion
-                // steps with the answer's.
-                let command_start = commands
-                    .iter()
-                    .map(|&(tc, _)| tc)
-                    .filter(|&tc| tc <= t + 1e-12)
-                    .fold(0.0, f64::max);
-                let transient = t - command_start < ros2::JACOBIAN_AGE - 1e-12;
-                if transient || t - jacobian_t >= ros2::JACOBIAN_AGE - 1e-12 {
-                    answer[0].step.invalidate();
-                    jacobian_t = t;
-                }
+            if commands
+                .iter()
+                .any(|&(tc, _)| t > 0.0 && (tc - t).abs() <= 1e-12)
+            {
+                since_command = 0;
             }
-            let work = comp[0].evaluations;
-            let largest = self.advance(&mut answer[0], None, work, (t, t_end), s)?;
-            if s.error_estimate {
-                // The answer's F when it is new (the companion's W follows its own dt).
-                if s.method == Method::Ros2 && answer[0].step.jacobians != shared_jacobians {
-                    comp[0].step.share_jacobian(&answer[0].step);
-                    shared_jacobians = answer[0].step.jacobians;
+            // Continuous controllers: the span in pieces, each ending where a frozen
+            // controller's torque is predicted back inside its effort (anti-windup,
+            // actuators.rs), the modes reviewed at each piece's start.
+            let (mut ts, mut pieces) = (t, 0);
+            while ts < t_end - 1e-12 {
+                let mut te = t_end;
+                let mut changed = false;
+                if continuous {
+                    let a = &mut lanes[0];
+                    changed = self.actuators.review_saturation(ts, &a.q, &a.v);
+                    if self.actuators.any_frozen() && pieces < MAX_PIECES {
+                        self.probe_accel(a, ts)?;
+                        let exit = self.actuators.saturation_exit(&a.v, &self.ws.probe_qdd);
+                        if let Some(dt) = exit {
+                            te = (ts + dt.max(MIN_PIECE)).min(t_end);
+                            if t_end - te < MIN_PIECE {
+                                te = t_end;
+                            }
+                        }
+                    }
                 }
-                let work = answer[0].evaluations;
-                let cap = Some(0.5 * largest);
-                self.advance(&mut comp[0], cap, work, (t, t_end), companion)
-                    .map_err(companion_error)?;
+                // ROS2's F: fresh every `jacobian_spans` pieces, at each of a command's first
+                // `jacobian_spans` pieces (the controllers' transient after a new target), and
+                // where the right-hand side changed form.
+                let fresh = changed || since_command < s.jacobian_spans || on_f >= s.jacobian_spans;
+                if fresh {
+                    on_f = 0;
+                }
+                let f = (fresh, &mut shared);
+                self.advance_piece(lanes, (ts, te), s, companion, f)?;
+                (ts, pieces, on_f) = (te, pieces + 1, on_f + 1);
+                since_command += 1;
             }
             t = t_end;
             if t >= next_sample - 1e-9 || t >= horizon - 1e-12 {
@@ -343,6 +361,39 @@ impl Predictor {
                     next_sample += s.sample_period;
                 }
             }
+        }
+        Ok(())
+    }
+
+    /// Both lanes over one piece (t0, t1) of a span: the answer, then the error estimate's
+    /// companion; ROS2 with a fresh F if `fresh_jacobian`, the companion taking the answer's
+    /// when it is not the one it took last (`shared`: the answer's Jacobian count then).
+    fn advance_piece(
+        &mut self,
+        lanes: &mut [Lane; 2],
+        (t0, t1): (f64, f64),
+        s: &IntegrationSettings,
+        companion: &IntegrationSettings,
+        (fresh_jacobian, shared): (bool, &mut usize),
+    ) -> Result<()> {
+        let (answer, comp) = lanes.split_at_mut(1);
+        if s.method == Method::Ros2 && fresh_jacobian {
+            // The order holds with any F, but an older one damps the stiff modes less exactly
+            // (settings.rs, `jacobian_spans`); the companion steps with the answer's.
+            answer[0].step.invalidate();
+        }
+        let work = comp[0].evaluations;
+        let largest = self.advance(&mut answer[0], None, work, (t0, t1), s)?;
+        if s.error_estimate {
+            // Its W follows its own dt when the F is the one it took last.
+            if s.method == Method::Ros2 && answer[0].step.jacobians != *shared {
+                comp[0].step.share_jacobian(&answer[0].step);
+                *shared = answer[0].step.jacobians;
+            }
+            let work = answer[0].evaluations;
+            let cap = Some(0.5 * largest);
+            self.advance(&mut comp[0], cap, work, (t0, t1), companion)
+                .map_err(companion_error)?;
         }
         Ok(())
     }

@@ -78,6 +78,20 @@ pub struct IntegrationSettings {
     /// `error_estimate` and `max_error` / `adapt` cannot act.
     #[serde(default = "default_true")]
     pub error_estimate: bool,
+    /// `jacobian_spans:` ROS2 evaluates its F at the start of every this many spans between
+    /// samples and command starts (default 1), at each of a command's first this many spans
+    /// (the controllers' transient after a new target), and whenever a continuous controller's
+    /// saturation changes (its feedback enters or leaves F). A W-method keeps its order with
+    /// any F; an older one damps the stiff modes less exactly, and a command's first span needs
+    /// its own (F carries the controllers' ∂q̈/∂t, which follows the target). Measured on the
+    /// suite's scene (`jacobian_spans: 2` at 20 ms): the accuracy against the held reference,
+    /// the error estimate and the covariance against Monte Carlo are those of 1 to three digits.
+    #[serde(default = "default_jacobian_spans")]
+    pub jacobian_spans: usize,
+}
+
+fn default_jacobian_spans() -> usize {
+    1
 }
 
 fn default_true() -> bool {
@@ -138,6 +152,7 @@ impl Default for IntegrationSettings {
             max_error: default_max_error(),
             adapt: false,
             error_estimate: true,
+            jacobian_spans: default_jacobian_spans(),
         }
     }
 }
@@ -180,6 +195,11 @@ impl IntegrationSettings {
                 "integration.max_error = {} must be positive (.inf: no check)",
                 self.max_error
             )));
+        }
+        if self.jacobian_spans == 0 {
+            return Err(crate::Error::Invalid(
+                "integration.jacobian_spans = 0 must be at least 1".into(),
+            ));
         }
         if self.adapt && !self.error_estimate {
             return Err(crate::Error::Invalid(

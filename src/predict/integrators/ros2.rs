@@ -22,16 +22,6 @@ use crate::predict::integrators::{
 /// γ of ROS2 (L-stable choice).
 pub(in crate::predict) const GAMMA: f64 = 1.0 - std::f64::consts::FRAC_1_SQRT_2;
 
-/// How long one F serves ROS2 [s] (run.rs), and how long after a command starts each span takes
-/// a fresh one. The order holds with any F; an older one damps the stiff modes less exactly, most
-/// of all in the controllers' transient after a new target. Measured on the suite's scene: at
-/// 40 ms the accuracy against the held reference, the error estimate and the covariance against
-/// Monte Carlo (tests/live_prediction.rs, tests/covariance.rs) are those of a fresh F every 20 ms
-/// span to three digits, and so is the largest estimate of a prediction from a moving arm under
-/// two commands (2.62e-2 rad). Without fresh spans in the transient that estimate reads
-/// 4.5e-2, and with one F per 0.1 s 5.8e-2.
-pub(in crate::predict) const JACOBIAN_AGE: f64 = 0.04;
-
 /// One ROS2 step of `dt` from (q, v) at t, in place. F is evaluated at this step's start when
 /// `ws.jac_valid` is false (the caller decides how long one F serves), and W refactored when
 /// dt changes.

@@ -1,0 +1,191 @@
+//! `hold: continuous`: the controllers' torques as a function of (t, q, v) within a command
+//! segment, and the anti-windup reviewed between steps (module doc of `actuators`).
+
+use super::{Actuators, Command, Feedback, Hold, Pi, velocity_target};
+
+impl Actuators {
+    /// The torques are a function of (t, q, v) (`hold: continuous`).
+    pub fn is_continuous(&self) -> bool {
+        self.hold == Hold::Continuous && !self.is_empty()
+    }
+
+    /// Continuous hold: a prediction starts at t = 0 from configuration `q`, with no target yet.
+    pub fn start_continuous(&mut self, q: &[f64]) {
+        self.segment_start = 0.0;
+        for c in &mut self.velocity {
+            (c.target, c.target_integral, c.q_start) = (f64::NAN, 0.0, q[c.iq]);
+            (c.frozen, c.windup) = (f64::NAN, 0.0);
+            c.gain = (0.0, 0.0);
+        }
+        for c in &mut self.position {
+            c.target = f64::NAN;
+            c.gain = (0.0, 0.0);
+        }
+    }
+
+    /// Continuous hold: `cmd` is in force from t [s] on (the previous target's integral is
+    /// closed at t). The feedback of [`Actuators::feedback`] is then each controller's
+    /// unsaturated gain: (ki, kp) for a velocity controller, (kp, kd) for a position one.
+    pub fn begin_segment(&mut self, cmd: &Command, t: f64) {
+        let drive = self.diff_drive;
+        let elapsed = t - self.segment_start;
+        for (k, c) in self.velocity.iter_mut().enumerate() {
+            if c.target.is_finite() {
+                c.target_integral += c.target * elapsed;
+            }
+            c.target = velocity_target(drive, cmd, k, &c.name).unwrap_or(f64::NAN);
+            c.gain = if c.target.is_finite() && c.frozen.is_nan() {
+                (c.ki, c.kp)
+            } else {
+                (0.0, 0.0)
+            };
+        }
+        for c in &mut self.position {
+            c.target = cmd.joint_position.get(&c.name).copied().unwrap_or(f64::NAN);
+            c.gain = if c.target.is_finite() {
+                (c.kp, c.kd)
+            } else {
+                (0.0, 0.0)
+            };
+        }
+        self.segment_start = t;
+    }
+
+    /// Continuous hold: the controllers' torques at (t, q, v) into `tau` (nv), each clamped to
+    /// ±effort.
+    pub fn continuous_torque(&self, t: f64, q: &[f64], v: &[f64], tau: &mut [f64]) {
+        tau.iter_mut().for_each(|x| *x = 0.0);
+        self.continuous_each(t, q, v, |c, raw, _| {
+            tau[c.iv] += raw.clamp(-c.effort, c.effort)
+        });
+    }
+
+    /// Continuous hold: the linear feedback of the controllers inside their effort at
+    /// (t, q, v) — ∂τ/∂q = −k, ∂τ/∂v = −d and ∂τ/∂t = rate on each joint (a saturated one has
+    /// none).
+    pub fn continuous_feedback(&self, t: f64, q: &[f64], v: &[f64], mut f: impl FnMut(Feedback)) {
+        self.continuous_each(t, q, v, |c, raw, (k, d, rate)| {
+            if raw.abs() <= c.effort {
+                f(Feedback {
+                    iq: c.iq,
+                    iv: c.iv,
+                    k,
+                    d,
+                    integral: false,
+                    rate,
+                });
+            }
+        });
+    }
+
+    /// Each controller with a target: its joint, raw (unclamped) torque at (t, q, v) and gains.
+    fn continuous_each(
+        &self,
+        t: f64,
+        q: &[f64],
+        v: &[f64],
+        mut f: impl FnMut(Joint, f64, (f64, f64, f64)),
+    ) {
+        for c in self.velocity.iter().filter(|c| c.target.is_finite()) {
+            let raw = c.kp * (c.target - v[c.iv]) + c.ki * self.integral(c, t, q);
+            // A frozen integral depends on neither q nor t.
+            let (k, rate) = match c.frozen.is_nan() {
+                true => (c.ki, c.ki * c.target),
+                false => (0.0, 0.0),
+            };
+            f(
+                Joint {
+                    iq: c.iq,
+                    iv: c.iv,
+                    effort: c.effort,
+                },
+                raw,
+                (k, c.kp, rate),
+            );
+        }
+        for c in self.position.iter().filter(|c| c.target.is_finite()) {
+            let raw = c.kp * (c.target - q[c.iq]) - c.kd * v[c.iv];
+            f(
+                Joint {
+                    iq: c.iq,
+                    iv: c.iv,
+                    effort: c.effort,
+                },
+                raw,
+                (c.kp, c.kd, 0.0),
+            );
+        }
+    }
+    /// Continuous hold: a velocity controller's integral ∫(v* − q̇) dt at (t, q) [rad or m] —
+    /// held while frozen, else the exact integral less the skipped windup.
+    fn integral(&self, c: &Pi, t: f64, q: &[f64]) -> f64 {
+        if c.frozen.is_nan() {
+            self.segment_integral(c, t, q) - c.windup
+        } else {
+            c.frozen
+        }
+    }
+
+    /// ∫v* dt − (q − q(0)) at (t, q): the integral without anti-windup [rad or m].
+    fn segment_integral(&self, c: &Pi, t: f64, q: &[f64]) -> f64 {
+        c.target_integral + c.target * (t - self.segment_start) - (q[c.iq] - c.q_start)
+    }
+
+    /// Continuous hold, anti-windup at (t, q, v), between steps: a velocity controller beyond
+    /// its effort freezes its integral, a frozen one back inside resumes integrating from the
+    /// value it held (its skipped error integral joins `windup`). True when one changed: the
+    /// right-hand side is then another function (an implicit method's F is stale).
+    pub fn review_saturation(&mut self, t: f64, q: &[f64], v: &[f64]) -> bool {
+        let mut changed = false;
+        for k in 0..self.velocity.len() {
+            let c = &self.velocity[k];
+            if !c.target.is_finite() {
+                continue;
+            }
+            let integral = self.integral(c, t, q);
+            let raw = c.kp * (c.target - v[c.iv]) + c.ki * integral;
+            let frozen = c.frozen.is_finite();
+            let free = self.segment_integral(c, t, q) - c.windup;
+            let c = &mut self.velocity[k];
+            if !frozen && raw.abs() > c.effort {
+                (c.frozen, c.gain) = (integral, (0.0, 0.0));
+                changed = true;
+            } else if frozen && raw.abs() <= c.effort {
+                c.windup += free - c.frozen;
+                (c.frozen, c.gain) = (f64::NAN, (c.ki, c.kp));
+                changed = true;
+            }
+        }
+        changed
+    }
+
+    /// True while a velocity controller with a target holds its integral.
+    pub fn any_frozen(&self) -> bool {
+        (self.velocity.iter()).any(|c| c.target.is_finite() && c.frozen.is_finite())
+    }
+
+    /// Continuous hold: from (v, q̈) at a span's start, the shortest time [s] after which a
+    /// frozen controller's torque, moving at its rate −kp q̈ (its target and integral held),
+    /// comes back inside its effort; None when none is heading back.
+    pub fn saturation_exit(&self, v: &[f64], qdd: &[f64]) -> Option<f64> {
+        self.velocity
+            .iter()
+            .filter(|c| c.target.is_finite() && c.frozen.is_finite())
+            .filter_map(|c| {
+                let raw = c.kp * (c.target - v[c.iv]) + c.ki * c.frozen;
+                let rate = -c.kp * qdd[c.iv];
+                let excess = raw.abs() - c.effort;
+                let toward = -rate * raw.signum();
+                (excess > 0.0 && toward > 0.0).then(|| excess / toward)
+            })
+            .min_by(f64::total_cmp)
+    }
+}
+
+/// A controlled joint's indices and effort bound.
+#[derive(Clone, Copy)]
+struct Joint {
+    iq: usize,
+    iv: usize,
+    effort: f64,
+}
