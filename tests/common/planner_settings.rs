@@ -8,8 +8,9 @@ use constraint_dynamics::actuators::Hold;
 use constraint_dynamics::predict::{DriftControl, Method, Predictor};
 
 /// The planner's settings: continuous wheel controllers (with their anti-windup) and ROS2 at a
-/// third of the 50 ms command step with one F per two commands (and where a wheel saturates or
-/// comes back), projection, no error-estimate companion (2× the work).
+/// third of the 50 ms command step, `jacobian_spans: 2` (a fresh F at a command's first two
+/// steps, and where a wheel saturates or comes back), projection, no error-estimate companion
+/// (2× the work).
 pub fn planner(scene: &Scene) -> Predictor {
     let mut scene = scene.clone();
     scene.file.actuators.hold = Hold::Continuous;
