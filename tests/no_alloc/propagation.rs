@@ -207,3 +207,50 @@ fn judging_contacts_allocates_nothing_per_step() {
     );
     assert_eq!(short, long, "judging the contacts allocates per step");
 }
+
+/// The suite's live settings (continuous controllers, ROS2 with `jacobian_spans: 2`, the
+/// covariance on the steps' own F) under a command that saturates both wheels (their targets
+/// jump by 17 and 11 rad/s against kp 1 N·m·s/rad and 5 N·m): the anti-windup's probes and cut
+/// spans, 4× the steps, the same allocations.
+#[test]
+fn live_settings_with_saturated_wheels_allocate_nothing_per_step() {
+    use constraint_dynamics::actuators::Command;
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let sc = Scene::load(root.join("params/suite_mobile_manipulator.yaml")).unwrap();
+    let mut p = Predictor::from_scene(&sc).unwrap();
+    let n = 2 * p.model().nv;
+    let p0 = nalgebra::DMatrix::identity(n, n) * 1e-6;
+    // The arm held where it starts, as the predictor node commands it.
+    let mut cmd = Command {
+        base_twist: Some([-0.5, 1.0]),
+        ..Default::default()
+    };
+    for c in &sc.file.actuators.position {
+        let iq = sc.model.q_index(&c.joint).unwrap();
+        cmd.joint_position.insert(c.joint.clone(), sc.q0[iq]);
+    }
+    let commands = [(0.0, cmd)];
+    let mut run = |h: f64| {
+        let req = PredictionRequest::new(&sc.q0, &sc.v0)
+            .commands(&commands)
+            .horizon(h)
+            .covariance(&p0)
+            .integration(sample_every(h));
+        let mut t = None;
+        let n = allocations(|| t = Some(p.predict(&req).unwrap()));
+        let t = t.unwrap();
+        assert_eq!(t.samples.len(), 2);
+        (n, t.steps)
+    };
+    let h = 0.2;
+    run(h); // warm-up
+    let ((short, steps_short), (long, steps_long)) = (run(h), run(4.0 * h));
+    println!(
+        "live settings, saturated wheels: {short} allocations over {h} s ({steps_short} steps), \
+         {long} over {} s ({steps_long} steps)",
+        4.0 * h
+    );
+    // 10 steps of 20 ms, more where a span is cut at a wheel's return inside its effort.
+    assert!(steps_short > 10, "no span was cut: {steps_short} steps");
+    assert_eq!(short, long, "the anti-windup's probes or cut spans allocate");
+}
