@@ -252,5 +252,8 @@ fn live_settings_with_saturated_wheels_allocate_nothing_per_step() {
     );
     // 10 steps of 20 ms, more where a span is cut at a wheel's return inside its effort.
     assert!(steps_short > 10, "no span was cut: {steps_short} steps");
-    assert_eq!(short, long, "the anti-windup's probes or cut spans allocate");
+    assert_eq!(
+        short, long,
+        "the anti-windup's probes or cut spans allocate"
+    );
 }
