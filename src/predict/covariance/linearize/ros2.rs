@@ -99,7 +99,8 @@ pub(super) fn ros2(
     }
     sensitivity(lin, dt)?;
     nominal(sys, lin, q, v, tau, dt)?;
-    finish(sys, lin, q)
+    finish(sys, lin, q);
+    Ok(())
 }
 
 /// The linearized ROS2 step the prediction took: under its F (`jac`, its W-method matrix, the
@@ -121,7 +122,8 @@ pub(in crate::predict) fn ros2_with_step_jacobian(
     for i in 0..nv {
         lin.v_next[i] = v[i] + dx[nv + i];
     }
-    finish(sys, lin, q)
+    finish(sys, lin, q);
+    Ok(())
 }
 
 /// The step's sensitivity from F (`lin.ros2.f`): W factored, δk₁ and δk₂ over the seed
@@ -221,7 +223,7 @@ fn nominal(
 }
 
 /// q⁺ from the increment, and the step's A (and B) with the increment's variation moved there.
-fn finish(sys: &mut System, lin: &mut Linearization, q: &[f64]) -> Result<()> {
+fn finish(sys: &mut System, lin: &mut Linearization, q: &[f64]) {
     let nv = lin.v_next.len();
     let n = 2 * nv;
     let cols = lin.columns();
@@ -239,5 +241,4 @@ fn finish(sys: &mut System, lin: &mut Linearization, q: &[f64]) -> Result<()> {
             out[(nv + i, col)] = lin.d_vel[(i, c)];
         }
     }
-    Ok(())
 }
