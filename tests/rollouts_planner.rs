@@ -1,7 +1,8 @@
 //! The planner's rollout settings (continuous wheel controllers with anti-windup, ROS2 at
-//! 16.7 ms, `common/planner_settings.rs`) against the scene's own controllers — held for the
-//! scene's 1 ms control period and integrated by RK4 at 1 ms — on the bench's random command
-//! sequences: every rollout's final base pose within 1 cm and 0.01 rad.
+//! 16.7 ms on one F per rollout, `common/planner_settings.rs`) against the scene's own
+//! controllers — held for the scene's 1 ms control period and integrated by RK4 at 1 ms — on
+//! the bench's random command sequences: every rollout's final base pose within 1 cm and
+//! 0.01 rad.
 
 #[path = "common/command_sequences.rs"]
 mod command_sequences;
@@ -74,6 +75,8 @@ fn planner_rollouts_stay_within_1_cm_and_0_01_rad_of_the_scenes_controllers() {
         .unwrap();
     let ((d5, _), (yaw5, _)) = worst(&held5, &reference);
     println!("controllers held for 5 ms vs 1 ms: worst {d5:.2e} m, {yaw5:.2e} rad");
+    // One F per rollout, re-formed at each saturation change and command.
+    assert!(fast.iter().all(|t| t.jacobians == 1));
     assert!(d <= 3e-3, "{d} m");
     assert!(yaw <= 1e-2, "{yaw} rad");
 }

@@ -26,29 +26,38 @@ impl Actuators {
     /// Continuous hold: `cmd` is in force from t [s] on (the previous target's integral is
     /// closed at t). The feedback of [`Actuators::feedback`] is then each controller's
     /// unsaturated gain: (ki, kp) for a velocity controller, (kp, kd) for a position one.
-    pub fn begin_segment(&mut self, cmd: &Command, t: f64) {
+    /// Returns whether that feedback changed (a controller gained or lost its target), which
+    /// changes the form of the right-hand side's Jacobian; a new target alone moves only its
+    /// ∂q̈/∂t.
+    pub fn begin_segment(&mut self, cmd: &Command, t: f64) -> bool {
         let drive = self.diff_drive;
         let elapsed = t - self.segment_start;
+        let mut changed = false;
         for (k, c) in self.velocity.iter_mut().enumerate() {
             if c.target.is_finite() {
                 c.target_integral += c.target * elapsed;
             }
             c.target = velocity_target(drive, cmd, k, &c.name).unwrap_or(f64::NAN);
-            c.gain = if c.target.is_finite() && c.frozen.is_nan() {
+            let gain = if c.target.is_finite() && c.frozen.is_nan() {
                 (c.ki, c.kp)
             } else {
                 (0.0, 0.0)
             };
+            changed |= gain != c.gain;
+            c.gain = gain;
         }
         for c in &mut self.position {
             c.target = cmd.joint_position.get(&c.name).copied().unwrap_or(f64::NAN);
-            c.gain = if c.target.is_finite() {
+            let gain = if c.target.is_finite() {
                 (c.kp, c.kd)
             } else {
                 (0.0, 0.0)
             };
+            changed |= gain != c.gain;
+            c.gain = gain;
         }
         self.segment_start = t;
+        changed
     }
 
     /// Continuous hold: the controllers' torques at (t, q, v) into `tau` (nv), each clamped to

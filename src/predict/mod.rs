@@ -24,6 +24,7 @@ mod estimate;
 mod integrators;
 mod predictor;
 mod request;
+mod rhs;
 mod rollout;
 mod run;
 mod settings;

@@ -7,13 +7,13 @@
 //! configuration's at every call, and the drift gains a run uses are resolved from the
 //! configuration, never saved and restored around it.
 
-use super::advance::JacobianWork;
 use super::contacts::ContactJudge;
 use super::covariance::UncertaintySpec;
 use super::covariance::worker::PipeSlot;
 use super::drift::DriftProjector;
 use super::estimate::{self, Lane, MAX_REFINEMENTS};
 use super::request::{IntegrationOverrides, PredictionBudget, PredictionRequest};
+use super::rhs::JacobianWork;
 use super::settings::{DriftControl, IntegrationSettings};
 use super::trajectory::Trajectory;
 use crate::actuators::Actuators;

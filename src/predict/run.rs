@@ -256,9 +256,9 @@ impl Predictor {
         let (mut t, mut k) = (0.0, 0usize);
         let mut next_sample = s.sample_period;
         let continuous = self.actuators.is_continuous();
-        // Pieces stepped on ROS2's current F (none yet), pieces since the last command
-        // started, and the answer's F the companion took last.
-        let (mut on_f, mut since_command, mut shared) = (usize::MAX, 0usize, usize::MAX);
+        // Pieces stepped on ROS2's current F (none yet), and the answer's F the companion took
+        // last.
+        let (mut on_f, mut shared, mut gains_changed) = (usize::MAX, usize::MAX, false);
         while t < horizon - 1e-12 {
             k += 1;
             let mut t_end = (k as f64 * period).min(horizon);
@@ -270,9 +270,8 @@ impl Predictor {
                     t_end = tc;
                     k -= 1;
                 }
-                if t > 0.0 {
-                    self.actuators.begin_segment(command_at(t), t);
-                }
+                // A controller that gains or loses its target changes F's form (below).
+                gains_changed = t > 0.0 && self.actuators.begin_segment(command_at(t), t);
             } else if !self.actuators.is_empty() && k > 1 {
                 let [a, c] = &*lanes;
                 let cmd = command_at(t);
@@ -289,11 +288,13 @@ impl Predictor {
                     );
                 }
             }
-            if commands
-                .iter()
-                .any(|&(tc, _)| t > 0.0 && (tc - t).abs() <= 1e-12)
-            {
-                since_command = 0;
+            if continuous && (commands.iter()).any(|&(tc, _)| t > 0.0 && (tc - t).abs() <= 1e-12) {
+                // A new target moves only F's ∂q̈/∂t (the controllers' ramp): each lane's is
+                // recomputed from its F's ∂q̈/∂τ instead of a new F.
+                for lane in lanes.iter_mut() {
+                    let state = (t, &lane.q[..], &lane.v[..]);
+                    lane.step.scratch.retarget(&self.actuators, state);
+                }
             }
             // Continuous controllers: the span in pieces, each ending where a frozen
             // controller's torque is predicted back inside its effort (anti-windup,
@@ -301,10 +302,10 @@ impl Predictor {
             let (mut ts, mut pieces) = (t, 0);
             while ts < t_end - 1e-12 {
                 let mut te = t_end;
-                let mut changed = false;
+                let mut changed = std::mem::take(&mut gains_changed);
                 if continuous {
                     let a = &mut lanes[0];
-                    changed = self.actuators.review_saturation(ts, &a.q, &a.v);
+                    changed |= self.actuators.review_saturation(ts, &a.q, &a.v);
                     if self.actuators.any_frozen() && pieces < MAX_PIECES {
                         self.probe_accel(a, ts)?;
                         let exit = self.actuators.saturation_exit(&a.v, &self.ws.probe_qdd);
@@ -316,17 +317,20 @@ impl Predictor {
                         }
                     }
                 }
-                // ROS2's F: fresh every `jacobian_spans` pieces, at each of a command's first
-                // `jacobian_spans` pieces (the controllers' transient after a new target), and
-                // where the right-hand side changed form.
-                let fresh = changed || since_command < s.jacobian_spans || on_f >= s.jacobian_spans;
+                // ROS2's F: fresh every `jacobian_spans` pieces; where a controller's feedback
+                // left or entered, the current F re-formed for it (integrators/mod.rs,
+                // `JacobianScratch`), or a fresh one where it cannot be.
+                let mut fresh = on_f >= s.jacobian_spans;
+                if changed && !fresh && s.method == Method::Ros2 {
+                    let a = &mut lanes[0];
+                    fresh = !a.step.reform(&self.actuators, (ts, &a.q, &a.v));
+                }
                 if fresh {
                     on_f = 0;
                 }
                 let f = (fresh, &mut shared);
                 self.advance_piece(lanes, (ts, te), s, companion, f)?;
-                (ts, pieces, on_f) = (te, pieces + 1, on_f + 1);
-                since_command += 1;
+                (ts, pieces, on_f) = (te, pieces + 1, on_f.saturating_add(1));
             }
             t = t_end;
             if t >= next_sample - 1e-9 || t >= horizon - 1e-12 {
@@ -367,7 +371,7 @@ impl Predictor {
 
     /// Both lanes over one piece (t0, t1) of a span: the answer, then the error estimate's
     /// companion; ROS2 with a fresh F if `fresh_jacobian`, the companion taking the answer's
-    /// when it is not the one it took last (`shared`: the answer's Jacobian count then).
+    /// when it is not the one it took last (`shared`: the version of the answer's F it took, `StepWorkspace::forms`).
     fn advance_piece(
         &mut self,
         lanes: &mut [Lane; 2],
@@ -386,9 +390,9 @@ impl Predictor {
         let largest = self.advance(&mut answer[0], None, work, (t0, t1), s)?;
         if s.error_estimate {
             // Its W follows its own dt when the F is the one it took last.
-            if s.method == Method::Ros2 && answer[0].step.jacobians != *shared {
+            if s.method == Method::Ros2 && answer[0].step.forms != *shared {
                 comp[0].step.share_jacobian(&answer[0].step);
-                *shared = answer[0].step.jacobians;
+                *shared = answer[0].step.forms;
             }
             let work = answer[0].evaluations;
             let cap = Some(0.5 * largest);

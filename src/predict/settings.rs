@@ -78,14 +78,15 @@ pub struct IntegrationSettings {
     /// `error_estimate` and `max_error` / `adapt` cannot act.
     #[serde(default = "default_true")]
     pub error_estimate: bool,
-    /// `jacobian_spans:` ROS2 evaluates its F at the start of every this many spans between
-    /// samples and command starts (default 1), at each of a command's first this many spans
-    /// (the controllers' transient after a new target), and whenever a continuous controller's
-    /// saturation changes (its feedback enters or leaves F). A W-method keeps its order with
-    /// any F; an older one damps the stiff modes less exactly, and a command's first span needs
-    /// its own (F carries the controllers' ∂q̈/∂t, which follows the target). Measured on the
-    /// suite's scene (`jacobian_spans: 2` at 20 ms): the accuracy against the held reference,
-    /// the error estimate and the covariance against Monte Carlo are those of 1 to three digits.
+    /// `jacobian_spans:` ROS2 evaluates its F at the start of every this many pieces of
+    /// spans (between samples, command starts and a continuous controller's predicted
+    /// saturation exit; default 1). The continuous controllers enter F only through their
+    /// feedback through ∂q̈/∂τ, kept with each F: a new target re-forms F's ∂q̈/∂t, and a
+    /// controller that saturates or comes back inside re-forms F with or without its feedback,
+    /// with no new derivatives. A W-method keeps its order with any F; an older one damps the
+    /// stiff modes less exactly. Measured on the suite's scene (`jacobian_spans: 2` at 20 ms):
+    /// the accuracy against the held reference, the error estimate and the covariance against
+    /// Monte Carlo are those of 1 to three digits.
     #[serde(default = "default_jacobian_spans")]
     pub jacobian_spans: usize,
 }

@@ -11,6 +11,7 @@ pub(in crate::predict) mod ros2;
 pub(in crate::predict) mod sdirk2;
 mod shifted;
 
+use crate::actuators::Actuators;
 use crate::error::{Error, Result};
 use crate::model::Model;
 pub use explicit::{
@@ -159,6 +160,16 @@ pub struct JacobianScratch {
     /// ∂q̈/∂t at fixed (q, v) where the last Jacobian was taken (nv): the continuous
     /// controllers' own torque rate through ∂q̈/∂τ (analytic), or a difference in t.
     pub(in crate::predict) dqdd_dt: Vec<f64>,
+    /// Where the last analytic Jacobian was taken: ∂q̈/∂τ (nv × nv, column j for τ_j) and
+    /// ∂q̈/∂(δq, v) without the continuous controllers' feedback (nv × 2nv, column-major). The
+    /// controllers enter F only through their feedback through ∂q̈/∂τ, so a new target (their
+    /// ∂q̈/∂t) or a controller that saturates or comes back inside (its feedback leaves or
+    /// enters) re-forms F from these without new derivatives
+    /// ([`JacobianScratch::apply_controllers`]).
+    pub(in crate::predict) dqdd_dtau: Vec<f64>,
+    passive: Vec<f64>,
+    /// False after a difference Jacobian, which has neither.
+    pub(in crate::predict) has_dqdd_dtau: bool,
 }
 
 impl JacobianScratch {
@@ -169,7 +180,75 @@ impl JacobianScratch {
             vs: vec![0.0; nv],
             ap: vec![0.0; nv],
             dqdd_dt: vec![0.0; nv],
+            dqdd_dtau: vec![0.0; nv * nv],
+            passive: vec![0.0; 2 * nv * nv],
+            has_dqdd_dtau: false,
         }
+    }
+
+    /// Keep F's lower half `jac` (before the controllers' feedback) and ∂q̈/∂τ.
+    pub(in crate::predict) fn keep_passive(&mut self, jac: &DMatrix<f64>, dqdd_dtau: &[f64]) {
+        let nv = self.dqdd_dt.len();
+        for c in 0..2 * nv {
+            for r in 0..nv {
+                self.passive[c * nv + r] = jac[(nv + r, c)];
+            }
+        }
+        self.dqdd_dtau.copy_from_slice(dqdd_dtau);
+        self.has_dqdd_dtau = true;
+    }
+
+    /// F's lower half ← the kept one plus each unsaturated continuous controller's feedback at
+    /// (t, q, v) (a joint torque −k q − d v moves q̈ by ∂q̈/∂τ_j (−k, −d) on its joint's
+    /// columns; 1-DOF: its tangent column is its v index), and ∂q̈/∂t from their rates. False
+    /// (F untouched) after a difference Jacobian.
+    pub(in crate::predict) fn apply_controllers(
+        &mut self,
+        control: &Actuators,
+        (t, q, v): (f64, &[f64], &[f64]),
+        jac: &mut DMatrix<f64>,
+    ) -> bool {
+        if !self.has_dqdd_dtau {
+            return false;
+        }
+        let nv = self.dqdd_dt.len();
+        for c in 0..2 * nv {
+            for r in 0..nv {
+                jac[(nv + r, c)] = self.passive[c * nv + r];
+            }
+        }
+        let dtau = &self.dqdd_dtau;
+        control.continuous_feedback(t, q, v, |fb| {
+            let column = &dtau[fb.iv * nv..(fb.iv + 1) * nv];
+            for (r, g) in column.iter().enumerate() {
+                jac[(nv + r, fb.iv)] -= g * fb.k;
+                jac[(nv + r, nv + fb.iv)] -= g * fb.d;
+            }
+        });
+        self.retarget(control, (t, q, v));
+        true
+    }
+
+    /// ∂q̈/∂t = Σ_j ∂q̈/∂τ_j · rate_j: the continuous controllers' torque rates (a PI's ki ×
+    /// target) at (t, q, v) through the kept ∂q̈/∂τ. Left as it is after a difference
+    /// Jacobian, which carries no ∂q̈/∂t.
+    pub(in crate::predict) fn retarget(
+        &mut self,
+        control: &Actuators,
+        (t, q, v): (f64, &[f64], &[f64]),
+    ) {
+        if !self.has_dqdd_dtau {
+            return;
+        }
+        let nv = self.dqdd_dt.len();
+        let (dt, dtau) = (&mut self.dqdd_dt, &self.dqdd_dtau);
+        dt.iter_mut().for_each(|x| *x = 0.0);
+        control.continuous_feedback(t, q, v, |fb| {
+            let column = &dtau[fb.iv * nv..(fb.iv + 1) * nv];
+            for (d, g) in dt.iter_mut().zip(column) {
+                *d += g * fb.rate;
+            }
+        });
     }
 }
 
@@ -186,6 +265,7 @@ pub fn accel_jacobian_fd<F: Accel + ?Sized>(
     let nv = v.len();
     // No ∂q̈/∂t here (a W-method keeps its order without it).
     s.dqdd_dt.iter_mut().for_each(|x| *x = 0.0);
+    s.has_dqdd_dtau = false;
     for col in 0..2 * nv {
         s.dx.iter_mut().for_each(|x| *x = 0.0);
         let scale = if col < nv {
@@ -234,6 +314,8 @@ pub struct StepWorkspace {
     pub(in crate::predict) jac_fresh: bool,
     /// Jacobians computed since the lane started.
     pub(in crate::predict) jacobians: usize,
+    /// Versions of `jac`: each Jacobian computed and each re-formed (`reform`).
+    pub(in crate::predict) forms: usize,
 }
 
 impl StepWorkspace {
@@ -257,7 +339,28 @@ impl StepWorkspace {
             jac_valid: false,
             jac_fresh: false,
             jacobians: 0,
+            forms: 0,
         }
+    }
+
+    /// Re-form the valid F at (t, q, v) for the continuous controllers' current feedback
+    /// ([`JacobianScratch::apply_controllers`]), W refactored at the next step. False where it
+    /// cannot (no F, or a difference one): the caller takes a fresh F.
+    pub(in crate::predict) fn reform(
+        &mut self,
+        control: &Actuators,
+        state: (f64, &[f64], &[f64]),
+    ) -> bool {
+        if !self.jac_valid
+            || !self
+                .scratch
+                .apply_controllers(control, state, &mut self.jac)
+        {
+            return false;
+        }
+        self.newton_dt = f64::NAN;
+        self.forms += 1;
+        true
     }
 
     /// Forget the SDIRK2 Jacobian (a new run, or the state jumped).
@@ -272,6 +375,9 @@ impl StepWorkspace {
     pub(in crate::predict) fn share_jacobian(&mut self, other: &StepWorkspace) {
         self.jac.copy_from(&other.jac);
         (self.scratch.dqdd_dt).copy_from_slice(&other.scratch.dqdd_dt);
+        (self.scratch.dqdd_dtau).copy_from_slice(&other.scratch.dqdd_dtau);
+        (self.scratch.passive).copy_from_slice(&other.scratch.passive);
+        self.scratch.has_dqdd_dtau = other.scratch.has_dqdd_dtau;
         self.jac_valid = true;
         self.newton_dt = f64::NAN;
     }
@@ -314,6 +420,7 @@ pub(in crate::predict) fn state_jacobian<F: Accel>(
     ws.jac_fresh = true;
     ws.jac_valid = true;
     ws.jacobians += 1;
+    ws.forms += 1;
     Ok(())
 }
 

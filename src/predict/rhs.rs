@@ -1,0 +1,267 @@
+//! The right-hand side the integrators step: actuator torques (held, or continuous controllers
+//! evaluated at each stage) and force elements → constrained q̈, and its Jacobian F (analytic
+//! derivatives of the dynamics, the controllers' feedback through ∂q̈/∂τ).
+
+use super::drift::DriftProjector;
+use crate::actuators::Actuators;
+use crate::applied::applied_generalized_force;
+use crate::derivatives::DerivativeData;
+use crate::dynamics::disagree_beyond_rounding;
+use crate::error::{Error, Result};
+use crate::forces::ForceElements;
+use crate::model::Model;
+use crate::predict::covariance::linearize::dynamics_derivatives;
+use crate::predict::integrators::{Accel, JacobianScratch, accel_jacobian_fd, stage};
+use crate::system::{DynamicsOptions, System};
+use nalgebra::DMatrix;
+
+/// Buffers of the right-hand side's Jacobian: the analytic derivatives of the dynamics and the
+/// force elements' generalized force differenced (kinematics only).
+#[derive(Clone, Debug, Default)]
+pub(super) struct JacobianWork {
+    /// None: finite differences of the whole right-hand side.
+    pub(super) dd: Option<DerivativeData>,
+    pub(super) tau_p: Vec<f64>,
+    pub(super) tau_m: Vec<f64>,
+    pub(super) dtau: Vec<f64>,
+    pub(super) dx: Vec<f64>,
+    pub(super) qs: Vec<f64>,
+    pub(super) vs: Vec<f64>,
+}
+
+impl JacobianWork {
+    pub(super) fn new(sys: &System) -> Self {
+        let (nq, nv) = (sys.model.nq, sys.model.nv);
+        Self {
+            dd: Some(DerivativeData::new(&sys.model, sys.constraints.nrows)),
+            tau_p: vec![0.0; nv],
+            tau_m: vec![0.0; nv],
+            dtau: vec![0.0; nv],
+            dx: vec![0.0; 2 * nv],
+            qs: vec![0.0; nq],
+            vs: vec![0.0; nv],
+        }
+    }
+}
+
+/// The right-hand side: actuator torques (held, or continuous controllers evaluated at the
+/// stage) + force elements → constrained q̈.
+pub(super) struct Rhs<'a> {
+    pub(super) sys: &'a mut System,
+    pub(super) forces: &'a mut ForceElements,
+    pub(super) tau_act: &'a [f64],
+    /// Continuous controllers (`hold: continuous`), evaluated into `tau_ctl` at every stage
+    /// instead of `tau_act`.
+    pub(super) control: Option<&'a Actuators>,
+    pub(super) tau_ctl: &'a mut [f64],
+    pub(super) tau: &'a mut [f64],
+    pub(super) zero: &'a [f64],
+    pub(super) ls: &'a mut DriftProjector,
+    pub(super) jw: &'a mut JacobianWork,
+    pub(super) rows: RowsAt<'a>,
+    pub(super) probe: Probe<'a>,
+    pub(super) evaluations: usize,
+    pub(super) least_squares: usize,
+}
+
+/// Where the system's kinematics and constraint rows were last evaluated by the drift
+/// projection, when it left the state there: the next step's first stage, at that same
+/// (t, q, v), reuses them (`DynamicsOptions::rows_evaluated`) instead of a second pass.
+pub(super) struct RowsAt<'a> {
+    pub(super) t: Option<f64>,
+    pub(super) q: &'a mut [f64],
+    pub(super) v: &'a mut [f64],
+}
+
+/// A q̈ the run probed at (t, q, v) (`Predictor::probe_accel`), for the first evaluation there.
+pub(super) struct Probe<'a> {
+    pub(super) t: &'a mut Option<f64>,
+    pub(super) q: &'a [f64],
+    pub(super) v: &'a [f64],
+    pub(super) qdd: &'a [f64],
+}
+
+impl Probe<'_> {
+    /// True once, for the probed state (bitwise): its q̈ is copied into `qdd`.
+    pub(super) fn take(&mut self, t: f64, q: &[f64], v: &[f64], qdd: &mut [f64]) -> bool {
+        let hit = self.t.take() == Some(t) && self.q == q && self.v == v;
+        if hit {
+            qdd.copy_from_slice(self.qdd);
+        }
+        hit
+    }
+}
+
+impl RowsAt<'_> {
+    pub(super) fn mark(&mut self, t: f64, q: &[f64], v: &[f64]) {
+        self.t = Some(t);
+        self.q.copy_from_slice(q);
+        self.v.copy_from_slice(v);
+    }
+
+    /// True once, for the marked state (bitwise the same q and v: anything else evaluates).
+    pub(super) fn take(&mut self, t: f64, q: &[f64], v: &[f64]) -> bool {
+        self.t.take() == Some(t) && *self.q == *q && *self.v == *v
+    }
+}
+
+impl Rhs<'_> {
+    /// τ at (t, q, v) into `tau`; time reaches the constraints through their workspace
+    /// (`velocity` rows may use t).
+    pub(super) fn apply(&mut self, t: f64, q: &[f64], v: &[f64]) {
+        self.sys.cdata.t = t;
+        let tau_act: &[f64] = match self.control {
+            Some(a) => {
+                a.continuous_torque(t, q, v, self.tau_ctl);
+                self.tau_ctl
+            }
+            None => self.tau_act,
+        };
+        applied_generalized_force(
+            self.sys,
+            self.forces,
+            (t, q, v),
+            tau_act,
+            self.zero,
+            self.tau,
+        );
+    }
+
+    /// ∂q̈/∂τ · ∂τ/∂(δq, v) of the force elements other than joint spring-dampers (central
+    /// differences of their generalized force: kinematics only) added to F's lower half.
+    fn force_columns_fd(
+        &mut self,
+        model: &Model,
+        (t, q, v): (f64, &[f64], &[f64]),
+        jac: &mut DMatrix<f64>,
+    ) {
+        let nv = v.len();
+        let jw = &mut *self.jw;
+        let dd = jw.dd.as_ref().expect("checked above");
+        for col in 0..2 * nv {
+            let eps = 1e-6
+                * if col < nv {
+                    1.0
+                } else {
+                    v[col - nv].abs().max(1.0)
+                };
+            for (sign, out) in [(1.0, &mut jw.tau_p), (-1.0, &mut jw.tau_m)] {
+                jw.dx.iter_mut().for_each(|x| *x = 0.0);
+                jw.dx[col] = sign * eps;
+                stage(model, q, v, &jw.dx, &mut jw.qs, &mut jw.vs);
+                // The held torque: the controllers' share is their feedback (apply_controllers).
+                applied_generalized_force(
+                    self.sys,
+                    self.forces,
+                    (t, &jw.qs, &jw.vs),
+                    self.tau_act,
+                    self.zero,
+                    out,
+                );
+            }
+            for j in 0..nv {
+                jw.dtau[j] = (jw.tau_p[j] - jw.tau_m[j]) / (2.0 * eps);
+            }
+            for r in 0..nv {
+                jac[(nv + r, col)] += (0..nv)
+                    .map(|j| dd.dqdd_dtau[(r, j)] * jw.dtau[j])
+                    .sum::<f64>();
+            }
+        }
+    }
+}
+
+impl Accel for Rhs<'_> {
+    fn accel(&mut self, t: f64, q: &[f64], v: &[f64], qdd: &mut [f64]) -> Result<()> {
+        if self.probe.take(t, q, v, qdd) {
+            return Ok(());
+        }
+        self.evaluations += 1;
+        let rows_evaluated = self.rows.take(t, q, v);
+        self.apply(t, q, v);
+        // `formulation: auto` takes the multiplier form here: the same q̈ as the embedded form
+        // (tests/propagation_formulations.rs), 1.08–1.7× faster on every bundled scene
+        // (docs/performance.md). Least squares (λ = S⁺ r) where stages or drift make redundant
+        // rows disagree (`DynamicsOptions::stage`).
+        let opts = DynamicsOptions {
+            rows_evaluated,
+            ..DynamicsOptions::stage(self.sys.formulation)
+        };
+        let result = self
+            .sys
+            .forward_dynamics_with(q, v, self.tau, opts)
+            .map(|a| qdd.copy_from_slice(a.as_slice()));
+        let kkt = &self.sys.kkt;
+        if result.is_ok() && disagree_beyond_rounding(kkt.inconsistency, kkt.b.amax()) {
+            self.least_squares += 1;
+        }
+        match result {
+            Ok(()) => Ok(()),
+            Err(Error::InconsistentConstraints { .. }) => {
+                // At a singular configuration the acceleration rows disagree by the drift:
+                // satisfy the independent ones (counted in `Trajectory::least_squares_evaluations`).
+                self.least_squares += 1;
+                self.ls
+                    .least_squares_accel(self.sys, q, v, self.tau, qdd)
+                    .map(|_| ())
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// Analytic: the derivatives of the constrained (or free) forward dynamics at the applied τ,
+    /// plus ∂q̈/∂τ · ∂τ/∂(q, v) of the continuous controllers and of the force elements — their
+    /// joint spring-dampers in closed form, any other element's generalized force by central
+    /// differences (kinematics only: a point spring's geometric stiffness included). Falls back to
+    /// differences of the whole right-hand side where the derivatives are not available (a kind
+    /// without them, or a singular configuration).
+    fn accel_jacobian(
+        &mut self,
+        model: &Model,
+        (t, q, v): (f64, &[f64], &[f64]),
+        qdd: &[f64],
+        jac: &mut DMatrix<f64>,
+        scratch: &mut JacobianScratch,
+    ) -> Result<bool> {
+        let nv = v.len();
+        // The derivatives (or differences) evaluate at other states: nothing to reuse after.
+        self.rows.t = None;
+        self.apply(t, q, v);
+        let Some(dd) = self.jw.dd.as_mut() else {
+            accel_jacobian_fd(self, model, (t, q, v), qdd, jac, scratch)?;
+            return Ok(false);
+        };
+        let analytic = dynamics_derivatives(self.sys, dd, q, v, self.tau);
+        if analytic.is_err() {
+            accel_jacobian_fd(self, model, (t, q, v), qdd, jac, scratch)?;
+            return Ok(false);
+        }
+        for r in 0..nv {
+            for c in 0..nv {
+                jac[(nv + r, c)] = dd.dqdd_dq[(r, c)];
+                jac[(nv + r, nv + c)] = dd.dqdd_dv[(r, c)];
+            }
+        }
+        // A joint spring-damper −k q − d v moves q̈ by ∂q̈/∂τ_j (−k, −d) on its joint's
+        // columns (1-DOF: its tangent column is its v index); the continuous controllers'
+        // feedback (the same form) is added last, onto the F kept without it.
+        if self.forces.depends_on_state_by_joints_only() {
+            for &(_, iv, k, d, _) in self.forces.joint_spring_dampers() {
+                for r in 0..nv {
+                    let g = dd.dqdd_dtau[(r, iv)];
+                    jac[(nv + r, iv)] -= g * k;
+                    jac[(nv + r, nv + iv)] -= g * d;
+                }
+            }
+        } else {
+            self.force_columns_fd(model, (t, q, v), jac);
+        }
+        let dd = self.jw.dd.as_ref().expect("checked above");
+        scratch.keep_passive(jac, dd.dqdd_dtau.as_slice());
+        scratch.dqdd_dt.iter_mut().for_each(|x| *x = 0.0);
+        if let Some(a) = self.control {
+            scratch.apply_controllers(a, (t, q, v), jac);
+        }
+        Ok(true)
+    }
+}
