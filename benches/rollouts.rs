@@ -1,9 +1,9 @@
 //! Criterion benchmark of rollouts for sampling planners: N = 1000 command sequences × 56 steps
 //! of 50 ms (Nav2 MPPI's time_steps and model_dt) on the differential drive
-//! (params/suite_diff_drive.yaml) at the planner's settings (`tests/common/planner_settings.rs`:
-//! continuous wheel controllers with anti-windup, ROS2 at 16.7 ms, projection, no error-estimate
-//! companion; `tests/rollouts_planner.rs` holds them to 1 cm and 0.01 rad of the scene's 1 ms
-//! controllers), on 1 worker thread and on every core. `ROLLOUTS=N` sets another N.
+//! (params/suite_diff_drive.yaml) at the scene's `rollouts:` settings (continuous wheel
+//! controllers with anti-windup, ROS2 at 16.7 ms on one F per rollout, projection, no
+//! error-estimate companion; `tests/rollouts_planner.rs` holds them to 1 cm and 0.01 rad of the
+//! scene's 1 ms controllers), on 1 worker thread and on every core. `ROLLOUTS=N` sets another N.
 
 #[path = "../tests/common/command_sequences.rs"]
 mod command_sequences;

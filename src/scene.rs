@@ -77,6 +77,24 @@ pub struct SceneFile {
     /// [kg·m²] about the centre of mass, in the frame); default none (mass 0).
     #[serde(default)]
     pub payload: Payload,
+    /// `rollouts:` a sampling planner's rollouts at other settings than the scene's own
+    /// predictions ([`Scene::rollout_scene`]); default none (the same).
+    #[serde(default)]
+    pub rollouts: Option<RolloutsSpec>,
+}
+
+/// `rollouts:` in a scene: the controllers' model in time and the integration settings of a
+/// planner's rollouts (`Predictor::rollouts`), cheaper than the scene's own predictions and
+/// held to their accuracy by a test against the scene's own settings.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RolloutsSpec {
+    /// `hold:` `zero_order` or `continuous` (default: the scene's `actuators.hold`).
+    #[serde(default)]
+    pub hold: Option<crate::actuators::Hold>,
+    /// `integration:` the rollouts' integration settings, whole (defaults per field, as the
+    /// scene's `integration:`).
+    pub integration: IntegrationSettings,
 }
 
 /// `model:` in a scene.
@@ -219,6 +237,9 @@ impl Scene {
             v0[i] = *value;
         }
         model.normalize(&mut q0);
+        if let Some(r) = &file.rollouts {
+            (r.integration.validate()).map_err(|e| scene_err(format!("rollouts: {e}")))?;
+        }
         for name in &file.passive_joints {
             match model.joint_body(name) {
                 Ok(b) if model.bodies[b].parent != 0 || model.base == BaseType::Fixed => {}
@@ -239,6 +260,19 @@ impl Scene {
             q0,
             v0,
         })
+    }
+
+    /// The scene a planner's rollouts run: `rollouts:`'s hold and integration settings in
+    /// place of the scene's, where it has them; otherwise the same scene.
+    pub fn rollout_scene(&self) -> Scene {
+        let mut scene = self.clone();
+        if let Some(r) = &self.file.rollouts {
+            if let Some(hold) = r.hold {
+                scene.file.actuators.hold = hold;
+            }
+            scene.file.integration = r.integration.clone();
+        }
+        scene
     }
 
     /// The same scene carrying `payload` instead of its own (mass 0: none); the initial state

@@ -278,7 +278,7 @@ fn suite_services_match_the_core_library() {
             .enumerate()
             .map(|(k, &(v, w))| (step * k as f64, core.command([v, w], &state.q)))
             .collect();
-        let mut single = Predictor::from_scene(&scene)
+        let mut single = Predictor::from_scene(&scene.rollout_scene())
             .unwrap()
             .with_settings(|s| {
                 s.sample_period = step;

@@ -4,32 +4,17 @@
 #![allow(dead_code)]
 
 use constraint_dynamics::Scene;
-use constraint_dynamics::actuators::Hold;
 use constraint_dynamics::predict::{DriftControl, Method, Predictor};
 
-/// `jacobian_spans` of the planner's settings: more than a rollout's pieces (168 steps, plus
-/// one where a saturation exit cuts a step: ≈ 260).
-pub const JACOBIAN_SPANS: usize = 1000;
-
-/// The planner's settings: continuous wheel controllers (with their anti-windup) and ROS2 at a
-/// third of the 50 ms command step, one F per rollout (`jacobian_spans` beyond a rollout's
-/// steps; re-formed where a wheel saturates or comes back, and for each command's target),
-/// projection, no error-estimate companion (2× the work). The diff drive's F depends on no
-/// coordinate (a planar base on flat ground, round wheels) and on the velocities only
-/// through small Coriolis and damping terms.
+/// The planner's settings: the scene's `rollouts:` (params/suite_diff_drive.yaml: continuous
+/// wheel controllers with their anti-windup, ROS2 at a third of the 50 ms command step, one F
+/// per rollout, projection, no error-estimate companion).
 pub fn planner(scene: &Scene) -> Predictor {
-    let mut scene = scene.clone();
-    scene.file.actuators.hold = Hold::Continuous;
-    Predictor::from_scene(&scene)
-        .expect("predictor")
-        .with_settings(|s| {
-            s.method = Method::Ros2;
-            s.dt = 0.05 / 3.0;
-            s.jacobian_spans = JACOBIAN_SPANS;
-            s.drift = DriftControl::Projection;
-            s.error_estimate = false;
-        })
-        .expect("settings")
+    assert!(
+        scene.file.rollouts.is_some(),
+        "the scene declares no rollouts"
+    );
+    Predictor::from_scene(&scene.rollout_scene()).expect("predictor")
 }
 
 /// The wheel controllers as the scene declares them, held for `period` [s], integrated by RK4

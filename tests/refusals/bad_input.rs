@@ -116,6 +116,24 @@ fn unknown_scene_key_is_named() {
     assert_has(&Scene::load(&p).unwrap_err().to_string(), &["radus"]);
 }
 
+#[test]
+fn bad_rollout_settings_are_named() {
+    let p = write_scene(
+        "rollouts.yaml",
+        "rollouts:\n  hold: continuous\n  integration: {method: ros2, jacobian_spans: 0}\n",
+    );
+    let e = Scene::load(&p).unwrap_err().to_string();
+    assert_has(
+        &e,
+        &["rollouts.yaml", "rollouts: ", "integration.jacobian_spans"],
+    );
+    let p = write_scene("rollouts2.yaml", "rollouts:\n  hold: sampled\n");
+    assert_has(
+        &Scene::load(&p).unwrap_err().to_string(),
+        &["hold", "sampled"],
+    );
+}
+
 fn system_err(body: &str) -> String {
     let p = write_scene("c.yaml", body);
     let scene = Scene::load(&p).unwrap();

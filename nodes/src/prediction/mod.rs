@@ -31,10 +31,12 @@ pub enum PredictionInput {
     Rollouts(RolloutsRequest, Reply<RolloutsResponse>),
 }
 
-/// The prediction node's logic: a robot and its predictor.
+/// The prediction node's logic: a robot and its predictors.
 pub struct PredictionNode {
     robot: Robot,
     predictor: Predictor,
+    /// `~/rollouts`': the scene's `rollouts:` settings where it has them (`Scene::rollout_scene`).
+    rollout_predictor: Predictor,
     params: NodeParams<PredictionParams>,
     start_covariance: StartCovariance,
 }
@@ -51,6 +53,8 @@ impl NodeLogic for PredictionNode {
     ) -> Result<Self, NodeError> {
         let predictor =
             Predictor::from_scene(robot.scene()).map_err(NodeError::core("predictor"))?;
+        let rollout_predictor = Predictor::from_scene(&robot.scene().rollout_scene())
+            .map_err(NodeError::core("rollouts predictor"))?;
         let start_covariance = StartCovariance::new(
             robot.model(),
             &params.common.state,
@@ -59,6 +63,7 @@ impl NodeLogic for PredictionNode {
         Ok(PredictionNode {
             robot,
             predictor,
+            rollout_predictor,
             params,
             start_covariance,
         })

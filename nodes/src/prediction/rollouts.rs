@@ -111,7 +111,7 @@ impl PredictionNode {
             ..PredictionRequest::new(&q, &v)
         };
         let trajectories = self
-            .predictor
+            .rollout_predictor
             .rollouts(&request, &sequences, opts)
             .map_err(NodeError::core("rollouts"))?;
         let model = self.robot.model();
