@@ -3,11 +3,13 @@
 //! rollout equals the core's single prediction of its sequence with the scene's rollout
 //! settings, and takes their steps — three per 50 ms command, not the scene's fifty.
 
+mod common;
+
+use common::twist;
 use constraint_dynamics::actuators::Command;
 use constraint_dynamics::predict::{PredictionRequest, Predictor};
 use constraint_dynamics_nodes::msg::builtin_interfaces::Time;
 use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::RolloutsRequest;
-use constraint_dynamics_nodes::msg::geometry_msgs::{Twist, Vector3};
 use constraint_dynamics_nodes::node::worker::NodeLogic;
 use constraint_dynamics_nodes::params::{CommonParams, NodeParams};
 use constraint_dynamics_nodes::prediction::{PredictionNode, PredictionParams};
@@ -18,21 +20,6 @@ const SCENE: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/../params/suite_diff_drive.yaml"
 );
-
-fn twist(v: f64, w: f64) -> Twist {
-    Twist {
-        linear: Vector3 {
-            x: v,
-            y: 0.0,
-            z: 0.0,
-        },
-        angular: Vector3 {
-            x: 0.0,
-            y: 0.0,
-            z: w,
-        },
-    }
-}
 
 #[test]
 fn rollouts_run_at_the_scenes_rollout_settings() {
