@@ -40,6 +40,24 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], 
     }
 }
 
+/// [`forward_kinematics`] at q̈ = 0: placements, twists and the bias accelerations
+/// `a_i = li_m_iᵀ a_λ + v_i × S q̇_i` that the constraints' γ and the bias forces read, without
+/// forming and adding the zero `S q̈_i` terms (the same numbers).
+pub fn forward_kinematics_bias(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) {
+    for i in 1..model.nbodies() {
+        let b = &model.bodies[i];
+        let j = &b.joint;
+        place(model, data, i, q);
+        let mut vj = Motion::zero();
+        for k in 0..j.kind.nv() {
+            vj += j.subspace[k] * v[j.idx_v + k];
+        }
+        let vi = data.li_m_i[i].act_inv_motion(&data.v[b.parent]) + vj;
+        data.a[i] = data.li_m_i[i].act_inv_motion(&data.a[b.parent]) + vi.cross_motion(&vj);
+        data.v[i] = vi;
+    }
+}
+
 /// `(S q̇_i, S q̈_i)` of one joint.
 #[inline]
 pub(crate) fn joint_motion(j: &crate::model::Joint, v: &[f64], a: &[f64]) -> (Motion, Motion) {

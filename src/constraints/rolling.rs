@@ -10,7 +10,7 @@
 //! λ: contact force by the ground on the wheel at p_c [N] on (t₁, t₂, n).
 
 use super::{ConstraintRows, RowSink};
-use crate::algorithm::{Data, frame_placement, point_classical_acceleration, point_jacobian_rows};
+use crate::algorithm::{Data, frame_placement, point_jacobian_rows};
 use crate::model::Model;
 use crate::spatial::SE3;
 use nalgebra::{Matrix3, Vector3};
@@ -89,9 +89,7 @@ impl ConstraintRows for RollingConstraint {
     fn fill(&self, model: &Model, data: &Data, out: &mut RowSink) {
         let o_m_w = frame_placement(model, data, self.wheel);
         let Contact {
-            point: pc,
-            centre: c,
-            axis: a,
+            point: pc, axis: a, ..
         } = self.contact_at(&o_m_w);
         let f = &model.frames[self.wheel];
         let mut dirs = [Vector3::zeros(); 3];
@@ -100,11 +98,17 @@ impl ConstraintRows for RollingConstraint {
         }
         let dirs = &dirs[..self.rows.len()];
         point_jacobian_rows(model, data, f.body, &pc, dirs, out.j, out.row0);
-        // Body twist in world axes at the centre.
-        let rb = data.o_m_i[f.body].rotation;
-        let omega = rb * data.v[f.body].ang;
-        let v_c = crate::algorithm::point_velocity(model, data, self.wheel, &Vector3::zeros());
-        let v_mat = v_c + omega.cross(&(pc - c));
+        // The body's twist and bias acceleration at the contact's material point, straight from
+        // the body placement (no round trip through the wheel frame): v_mat = R vp,
+        // a_mat = R (a_lin + α × p + ω_b × vp), vp = v_lin + ω_b × p, p = Rᵀ (p_c − t).
+        let (ob, vb, ab) = (&data.o_m_i[f.body], &data.v[f.body], &data.a[f.body]);
+        let rb = ob.rotation;
+        let omega = rb * vb.ang;
+        let v_c = rb * (vb.lin + vb.ang.cross(&f.placement.translation));
+        let pb = ob.act_inv_point(&pc);
+        let vp = vb.lin + vb.ang.cross(&pb);
+        let v_mat = rb * vp;
+        let a_mat = rb * (ab.lin + ab.ang.cross(&pb) + vb.ang.cross(&vp));
         // ṗ_c = v_c + r u̇, u = −w/|w|, w = n − (n·a)a, ȧ = ω × a.
         let n = self.normal();
         let adot = omega.cross(&a);
@@ -113,8 +117,6 @@ impl ConstraintRows for RollingConstraint {
         let wn = w.norm().max(f64::MIN_POSITIVE);
         let udot = -(wdot / wn - w * (w.dot(&wdot) / (wn * wn * wn)));
         let pc_dot = v_c + udot * self.radius;
-        let p_local = o_m_w.act_inv_point(&pc);
-        let a_mat = point_classical_acceleration(model, data, self.wheel, &p_local);
         let gamma_w = a_mat + omega.cross(&(pc_dot - v_mat));
         let phi_n = n.dot(&pc) - self.height;
         for (k, (&row, dir)) in self.rows.iter().zip(dirs).enumerate() {

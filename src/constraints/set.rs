@@ -5,7 +5,7 @@ use super::{
     NoSideSlipConstraint, PointConstraint, RollingConstraint, RowSink, VelocityConstraint,
     WeldConstraint,
 };
-use crate::algorithm::{Data, forward_kinematics, forward_kinematics_pos};
+use crate::algorithm::{Data, forward_kinematics_bias, forward_kinematics_pos};
 use crate::error::{Error, Result};
 use crate::model::{JointKind, Model};
 use crate::spatial::{SE3, rotation_from_rpy};
@@ -92,7 +92,6 @@ pub struct ConstraintData {
     pub(crate) j3: DMatrix<f64>,
     pub(crate) jtmp: DMatrix<f64>,
     pub(crate) j6: DMatrix<f64>,
-    pub(crate) zero_v: Vec<f64>,
 }
 
 impl ConstraintData {
@@ -110,7 +109,6 @@ impl ConstraintData {
             j3: DMatrix::zeros(3, nv),
             jtmp: DMatrix::zeros(3, nv),
             j6: DMatrix::zeros(6, nv),
-            zero_v: vec![0.0; nv],
         }
     }
 }
@@ -211,13 +209,13 @@ impl ConstraintSet {
         q: &[f64],
         v: &[f64],
     ) {
-        let zero = std::mem::take(&mut cd.zero_v);
-        forward_kinematics(model, data, q, v, &zero);
-        cd.zero_v = zero;
+        forward_kinematics_bias(model, data, q, v);
         self.fill_rows(model, data, cd, q, v);
+        // J's column-major storage, entry (r, c) at c·nrows + r.
+        let (nr, j) = (cd.j.nrows(), cd.j.as_slice());
         for r in 0..self.nrows {
             if !cd.residual_given[r] {
-                cd.jv[r] = (0..v.len()).map(|c| cd.j[(r, c)] * v[c]).sum();
+                cd.jv[r] = v.iter().enumerate().map(|(c, x)| j[c * nr + r] * x).sum();
             }
         }
     }
