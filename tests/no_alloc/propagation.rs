@@ -8,10 +8,12 @@
 //! covered.
 
 use constraint_dynamics::Scene;
+use constraint_dynamics::actuators::Command;
 use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::predict::{
-    DriftControl, IntegrationOverrides, Method, PredictionRequest, Predictor,
+    DriftControl, IntegrationOverrides, Method, PredictionRequest, Predictor, Trajectory,
 };
+use nalgebra::DMatrix;
 use std::path::PathBuf;
 
 use crate::counting_alloc;
@@ -34,6 +36,27 @@ fn prediction_allocations(p: &mut Predictor, sc: &Scene, horizon: f64) -> usize 
             .all(|s| s.error_estimate.is_some_and(f64::is_finite))
     );
     n
+}
+
+/// Allocations of one prediction under `commands` over `horizon` with a start covariance `p0`
+/// and two samples (t = 0 and the end), and the trajectory.
+fn covariance_prediction_allocations(
+    p: &mut Predictor,
+    sc: &Scene,
+    commands: &[(f64, Command)],
+    p0: &DMatrix<f64>,
+    horizon: f64,
+) -> (usize, Trajectory) {
+    let req = PredictionRequest::new(&sc.q0, &sc.v0)
+        .commands(commands)
+        .horizon(horizon)
+        .covariance(p0)
+        .integration(sample_every(horizon));
+    let mut t = None;
+    let n = allocations(|| t = Some(p.predict(&req).unwrap()));
+    let t = t.unwrap();
+    assert_eq!(t.samples.len(), 2);
+    (n, t)
 }
 
 /// This call's samples every `period` [s].
@@ -133,7 +156,6 @@ fn actuated_prediction_with_covariance_allocates_nothing_per_step() {
 }
 
 fn actuated_with_covariance(parallel: bool) {
-    use constraint_dynamics::actuators::Command;
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let sc = Scene::load(root.join("params/suite_mobile_manipulator.yaml")).unwrap();
     let mut p = Predictor::from_scene(&sc)
@@ -154,15 +176,7 @@ fn actuated_with_covariance(parallel: bool) {
     cmd.joint_position.insert("arm_elbow".into(), 0.8);
     let commands = [(0.0, cmd)];
     let mut run = |h: f64| {
-        let req = PredictionRequest::new(&sc.q0, &sc.v0)
-            .commands(&commands)
-            .horizon(h)
-            .covariance(&p0)
-            .integration(sample_every(h));
-        let mut t = None;
-        let n = allocations(|| t = Some(p.predict(&req).unwrap()));
-        let t = t.unwrap();
-        assert_eq!(t.samples.len(), 2);
+        let (n, t) = covariance_prediction_allocations(&mut p, &sc, &commands, &p0, h);
         assert!(t.samples.iter().all(|s| s.covariance.is_some()));
         n
     };
@@ -214,7 +228,6 @@ fn judging_contacts_allocates_nothing_per_step() {
 /// spans, 4× the steps, the same allocations.
 #[test]
 fn live_settings_with_saturated_wheels_allocate_nothing_per_step() {
-    use constraint_dynamics::actuators::Command;
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let sc = Scene::load(root.join("params/suite_mobile_manipulator.yaml")).unwrap();
     let mut p = Predictor::from_scene(&sc).unwrap();
@@ -231,15 +244,7 @@ fn live_settings_with_saturated_wheels_allocate_nothing_per_step() {
     }
     let commands = [(0.0, cmd)];
     let mut run = |h: f64| {
-        let req = PredictionRequest::new(&sc.q0, &sc.v0)
-            .commands(&commands)
-            .horizon(h)
-            .covariance(&p0)
-            .integration(sample_every(h));
-        let mut t = None;
-        let n = allocations(|| t = Some(p.predict(&req).unwrap()));
-        let t = t.unwrap();
-        assert_eq!(t.samples.len(), 2);
+        let (n, t) = covariance_prediction_allocations(&mut p, &sc, &commands, &p0, h);
         (n, t.steps)
     };
     let h = 0.2;
