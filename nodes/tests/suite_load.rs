@@ -1,9 +1,10 @@
 //! Load: two clients, each its own DDS participant (as two processes would be), call
 //! `~/get_constraint_forces` and `~/project_velocity` alternately at 1 kHz each for
-//! `CD_LOAD_SECONDS` (default 60 s) while the predictor predicts at 10 Hz. Asserted: every call
-//! answered (a call without a reply within 2 s counts as lost); p99 latency under 3 ms or, on
-//! a machine whose own scheduling tail is larger, under `latency_bar_ms` of it (a probe thread
-//! measures it beside the load); the suite's RSS growth from 20 s on under 5 %;
+//! `CD_LOAD_SECONDS` (default 60 s), the predictor inactive for their first 15 s and predicting
+//! at 10 Hz after. Asserted: every call answered (a call without a reply within 2 s counts as
+//! lost); the p99 latency while predicting under 3 ms or, where the same calls without
+//! predictions are slower, under `latency_bar_ms` of theirs (a probe thread beside the load
+//! also prints the machine's own scheduling tail); the suite's RSS growth from 20 s on under 5 %;
 //! the prediction rate under load held (0.65 of the lower of the rates before and after the
 //! clients) or its drop reported on `/diagnostics`, and never starved; then SIGINT under 1 s.
 //!
@@ -24,6 +25,7 @@ use constraint_dynamics_nodes::msg::constraint_dynamics_msgs::srv::{
     GetConstraintForces, GetConstraintForcesRequest, ProjectVelocity, ProjectVelocityRequest,
 };
 use constraint_dynamics_nodes::msg::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
+use constraint_dynamics_nodes::msg::lifecycle_msgs::{ChangeState, ChangeStateRequest, Transition};
 use constraint_dynamics_nodes::msg::nav_msgs::Path;
 
 const TEST: &str = "two_clients_at_1khz_every_call_answered";
@@ -31,6 +33,15 @@ const TEST: &str = "two_clients_at_1khz_every_call_answered";
 const LOST_AFTER: Duration = Duration::from_secs(2);
 /// Latencies are counted after this (discovery settling, first allocations).
 const WARM_UP: Duration = Duration::from_secs(5);
+/// The predictor is inactive (lifecycle) until this point of the run: the calls from `WARM_UP`
+/// to here are the same clients on the same machine without predictions, the reference the
+/// calls under predictions are judged against.
+const PREDICTOR_FROM: Duration = Duration::from_secs(15);
+/// Calls and predictions are counted this long after the predictor is activated again.
+const SETTLE: Duration = Duration::from_secs(2);
+/// The predictor's `/diagnostics` rate is over its last 100 ticks (node/health.rs), 10 s at
+/// 10 Hz: for that long after it is activated it still spans the inactive time.
+const RATE_WINDOW: Duration = Duration::from_secs(10);
 /// RSS growth is measured from this point of the run on: the suite's RSS rises for the first
 /// ~20–40 s of load (allocator arenas and DDS caches reaching their working size: measured
 /// 24 → 37 MB in 42 s, then flat for the rest of a 60 s run) — a leak keeps growing after.
@@ -39,8 +50,8 @@ const RSS_FROM: Duration = Duration::from_secs(20);
 /// What one client measured.
 #[derive(Default)]
 struct ClientStats {
-    /// Round trips of answered calls [ms].
-    latencies_ms: Vec<f64>,
+    /// Answered calls after `WARM_UP`: (seconds into the run at the call, round trip [ms]).
+    latencies_ms: Vec<(f64, f64)>,
     /// Calls without a reply within `LOST_AFTER`: (seconds into the run, service).
     lost: Vec<(f64, &'static str)>,
     /// Replies with success = false, or transport errors.
@@ -87,8 +98,10 @@ fn client(id: usize, period: Duration, stop: Arc<AtomicBool>, t0: Instant) -> Cl
             Some(Err(e)) => s.errors.push(format!("{service}: {e:?}")),
             Some(Ok((false, m))) => s.errors.push(format!("{service}: {m}")),
             Some(Ok((true, _))) => {
-                if t0.elapsed() > WARM_UP {
-                    s.latencies_ms.push(started.elapsed().as_secs_f64() * 1e3);
+                let at = started.duration_since(t0);
+                if at > WARM_UP {
+                    let ms = started.elapsed().as_secs_f64() * 1e3;
+                    s.latencies_ms.push((at.as_secs_f64(), ms));
                 }
             }
         }
@@ -122,35 +135,42 @@ fn count(sub: &ros2_client::Subscription<Path>, window: Duration) -> f64 {
     n as f64 / window.as_secs_f64()
 }
 
-/// The predictor's `/diagnostics` statuses while the load runs: (seconds into the run, level,
-/// message). Its own participant and thread, so that the monitor's one-second counts of
-/// predictions are not disturbed.
-fn predictor_statuses(stop: Arc<AtomicBool>, t0: Instant) -> Vec<(f64, u8, String)> {
+/// One `/diagnostics` status of the predictor: seconds into the run, level, message, and its
+/// last tick's duration [ms] ("last tick [ms] (covariance)").
+type PredictorStatus = (f64, u8, String, Option<f64>);
+
+/// The predictor's `/diagnostics` statuses while the load runs. Its own participant and
+/// thread, so that the monitor's one-second counts of predictions are not disturbed.
+fn predictor_statuses(stop: Arc<AtomicBool>, t0: Instant) -> Vec<PredictorStatus> {
     let mut t = TestNode::new("cd_load_diagnostics");
     let sub = t.subscribe::<DiagnosticArray>("/diagnostics");
     let mut seen = Vec::new();
     while !stop.load(Ordering::Relaxed) {
         if let Some(Ok((m, _))) = block_on_timeout(Duration::from_millis(200), sub.async_take()) {
             for s in m.status.iter().filter(|s| s.name == "/cd_predictor") {
-                seen.push((t0.elapsed().as_secs_f64(), s.level, s.message.clone()));
+                let tick_ms = (s.values.iter())
+                    .find(|kv| kv.key.starts_with("last tick [ms]"))
+                    .and_then(|kv| kv.value.split_whitespace().next()?.parse().ok());
+                let at = t0.elapsed().as_secs_f64();
+                seen.push((at, s.level, s.message.clone(), tick_ms));
             }
         }
     }
     seen
 }
 
-/// The p99 latency bar [ms] on a machine whose 1 ms sleep wakes late by `noise99_ms` at p99.
-/// A call's critical path crosses at least two wake-ups that the machine can delay by its own
-/// tail (the server's executor woken by its DDS reader, the client woken by the reply; four
-/// threads in all), so its p99 cannot be below ~2 × the probe's. Measured (p99 of the calls
-/// against the probe's): 0.87–1.06 ms at 0.25–0.27 ms and 1.75 at 0.45 on an idle VM, yet
-/// 2.28–2.78 ms at 0.31–0.44 ms on the same kind of VM on another day, with the same code
-/// (the probe does not see all of a VM's slowness); 3.0 at 1.0, 4.1 at 2.2, 9.2 at 5.6 (a
-/// loaded CI run). The bar, 3 ms or 2 ms beyond twice the machine's tail, keeps what the test
-/// is for: a call that waits behind a prediction (tens of ms) fails it on any of these
-/// machines.
-fn latency_bar_ms(noise99_ms: f64) -> f64 {
-    3.0f64.max(2.0 + 2.0 * noise99_ms)
+/// The p99 latency bar [ms] for the calls while the predictor predicts, given the p99 of the
+/// same calls with the predictor inactive, measured in the same run (`idle99_ms`), and the
+/// predictor's median tick (`tick_ms`). Predictions may slow a call by sharing the two cores,
+/// but a call must not wait behind one: then the calls arriving during a tick (a tick's share
+/// of the time, ~7 %) would wait up to its whole length, and the p99 would rise by most of a
+/// tick. The bar — 3 ms, or half a tick beyond the inactive p99 — fails that on any machine.
+/// Measured (p99 inactive → predicting, tick): 0.79 → 2.59 ms and 1.95 → 2.19 ms at 7.0 ms on
+/// an idle 2-core VM. The machine's own tail moves both: a 10 s reference read 0.79 ms in one
+/// run and 1.95 ms in the next, and calls with predictions read 0.87–1.06 ms on an idle VM on
+/// one day and 2.3–3.2 ms on another, with the same code.
+fn latency_bar_ms(idle99_ms: f64, tick_ms: f64) -> f64 {
+    3.0f64.max(idle99_ms + 0.5 * tick_ms)
 }
 
 fn percentile(sorted: &[f64], p: f64) -> f64 {
@@ -176,6 +196,18 @@ fn two_clients_at_1khz_every_call_answered() {
     take_until(&paths, WAIT, |_| Ok(())).expect("no predicted_path from the suite");
     // The prediction rate without the clients, on the machine as it is now.
     let reference = count(&paths, Duration::from_secs(10));
+    // The first calls meet an inactive predictor (`PREDICTOR_FROM`).
+    let lifecycle = t.client::<ChangeState>("/cd_predictor/change_state");
+    let transition = |id: u8, label: &str| {
+        let request = ChangeStateRequest {
+            transition: Transition {
+                id,
+                label: label.into(),
+            },
+        };
+        assert!(call(&lifecycle, request).success, "cd_predictor: {label}");
+    };
+    transition(4, "deactivate");
     let stop = Arc::new(AtomicBool::new(false));
     let probe = {
         let stop = stop.clone();
@@ -196,9 +228,14 @@ fn two_clients_at_1khz_every_call_answered() {
     // Monitor: RSS and predictions per second.
     let pid = suite.child.id();
     let mut rss = Vec::new(); // (s, kB)
-    let mut predictions = Vec::new(); // per second after the warm-up
+    let mut predictions = Vec::new(); // per second once the predictor has settled
     let end = t0 + Duration::from_secs(seconds);
+    let mut inactive = true;
     while Instant::now() < end {
+        if inactive && t0.elapsed() >= PREDICTOR_FROM {
+            transition(3, "activate");
+            inactive = false;
+        }
         let second = Instant::now() + Duration::from_secs(1);
         let mut n = 0;
         while let Some(left) = second.checked_duration_since(Instant::now()) {
@@ -212,7 +249,7 @@ fn two_clients_at_1khz_every_call_answered() {
             suite.log()
         );
         rss.push((t0.elapsed().as_secs_f64(), rss_kb(pid)));
-        if t0.elapsed() > WARM_UP + Duration::from_secs(1) {
+        if t0.elapsed() > PREDICTOR_FROM + SETTLE + Duration::from_secs(1) {
             predictions.push(n);
         }
     }
@@ -225,18 +262,37 @@ fn two_clients_at_1khz_every_call_answered() {
     let (stopped, clean) = suite.interrupt_timed(Duration::from_secs(10));
 
     // ---- figures ----------------------------------------------------------------------------
-    let mut lat: Vec<f64> = stats.iter().flat_map(|s| s.latencies_ms.clone()).collect();
-    lat.sort_by(f64::total_cmp);
-    assert!(!lat.is_empty(), "no call answered");
+    let answered = stats.iter().flat_map(|s| s.latencies_ms.iter().copied());
+    let sorted = |keep: &dyn Fn(f64) -> bool| {
+        let mut ms: Vec<f64> = (answered.clone().filter(|&(at, _)| keep(at)))
+            .map(|(_, ms)| ms)
+            .collect();
+        ms.sort_by(f64::total_cmp);
+        ms
+    };
+    let paused = PREDICTOR_FROM.as_secs_f64();
+    let predicting = (PREDICTOR_FROM + SETTLE).as_secs_f64();
+    let idle = sorted(&|at| at < paused);
+    let lat = sorted(&|at| at >= predicting);
+    assert!(!lat.is_empty() && !idle.is_empty(), "no call answered");
     let (p50, p99, max) = (
         percentile(&lat, 0.5),
         percentile(&lat, 0.99),
         lat[lat.len() - 1],
     );
+    let (idle50, idle99) = (percentile(&idle, 0.5), percentile(&idle, 0.99));
+    let during = |t: f64| t > predicting && t <= seconds as f64;
+    let mut ticks_ms: Vec<f64> = (statuses.iter())
+        .filter(|s| during(s.0))
+        .filter_map(|s| s.3)
+        .collect();
+    ticks_ms.sort_by(f64::total_cmp);
+    assert!(!ticks_ms.is_empty(), "no tick duration on /diagnostics");
+    let tick_ms = percentile(&ticks_ms, 0.5);
     let over_2ms = lat.iter().filter(|&&x| x > 2.0).count();
     let lost: Vec<_> = stats.iter().flat_map(|s| s.lost.clone()).collect();
     let errors: Vec<_> = stats.iter().flat_map(|s| s.errors.clone()).collect();
-    let calls = lat.len() + lost.len() + errors.len();
+    let calls = answered.count() + lost.len() + errors.len();
     // The suite returns freed heap every `heap::PERIOD` (nodes/src/ros/heap.rs), so its RSS is
     // a sawtooth sampled once a second, and a leak raises its peaks: growth compares the first
     // half of the span from `RSS_FROM` with the second half (20 s, four trim periods each, in a
@@ -276,12 +332,16 @@ fn two_clients_at_1khz_every_call_answered() {
         .fold(f64::INFINITY, f64::min);
     let measured_s = seconds as f64 - WARM_UP.as_secs_f64();
     let noise99 = percentile(&noise, 0.99);
+    let predicting_s = seconds as f64 - predicting;
     println!(
-        "{TEST}: 2 clients for {seconds} s, {} calls answered in the last {measured_s} s \
-         ({:.0}/s), latency p50 {p50:.3} ms, p99 {p99:.3} ms, max {max:.1} ms, {over_2ms} over \
-         2 ms; lost {}, errors {}",
+        "{TEST}: 2 clients for {seconds} s; the predictor inactive from {WARM_UP:?} to \
+         {PREDICTOR_FROM:?}: {} calls, latency p50 {idle50:.3} ms, p99 {idle99:.3} ms; \
+         predicting, the last {predicting_s} s: {} calls ({:.0}/s), latency p50 {p50:.3} ms, \
+         p99 {p99:.3} ms, max {max:.1} ms, {over_2ms} over 2 ms; lost {}, errors {}; a \
+         prediction takes {tick_ms:.1} ms (median on /diagnostics)",
+        idle.len(),
         lat.len(),
-        lat.len() as f64 / measured_s,
+        lat.len() as f64 / predicting_s,
         lost.len(),
         errors.len()
     );
@@ -324,15 +384,15 @@ fn two_clients_at_1khz_every_call_answered() {
         calls as f64 >= 0.6 * 2000.0 * measured_s,
         "only {calls} calls in {measured_s} s"
     );
-    // The bar is 3 ms, and the machine's own tail beyond (`latency_bar_ms`). With the
-    // predictor's worker at a lower priority (`node::timer::PERIODIC_NICE`) p99 is 1.3 and
-    // 2.0 ms at load average 9–13 (2.8–4.7 ms at equal priority: a call waits behind a
-    // prediction for a core); with its short slice, 0.87–1.06 ms on an idle VM. The figure is
+    // Against the same calls without predictions (`latency_bar_ms`): the predictor's worker
+    // runs at a lower priority with a short slice (`node::timer::PERIODIC_NICE`), so a call
+    // shares the cores with a prediction but does not queue behind it. The figures are
     // printed and reported (docs/nodes.md).
-    let bar = latency_bar_ms(noise99);
+    let bar = latency_bar_ms(idle99, tick_ms);
     assert!(
         p99 < bar,
-        "p99 {p99:.3} ms ≥ {bar:.2} ms (machine: a 1 ms sleep wakes late by p99 {noise99:.3} ms)"
+        "p99 {p99:.3} ms ≥ {bar:.2} ms while predicting (the same calls with the predictor \
+         inactive: p99 {idle99:.3} ms; machine: a 1 ms sleep wakes late by p99 {noise99:.3} ms)"
     );
     assert!(
         growth < 0.05,
@@ -349,11 +409,13 @@ fn two_clients_at_1khz_every_call_answered() {
     // above. Never starved (it must not stop publishing): every 5 s window keeps a
     // quarter of that rate.
     let without = reference.min(after);
-    let during = |t: f64| t > WARM_UP.as_secs_f64() && t <= seconds as f64;
     let rate_warnings = statuses
         .iter()
-        .filter(|(t, level, m)| {
-            during(*t) && *level == DiagnosticStatus::WARN && m.contains("< requested")
+        .filter(|(t, level, m, _)| {
+            *t > (PREDICTOR_FROM + RATE_WINDOW).as_secs_f64()
+                && during(*t)
+                && *level == DiagnosticStatus::WARN
+                && m.contains("< requested")
         })
         .count();
     println!(
