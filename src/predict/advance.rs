@@ -46,6 +46,7 @@ impl Predictor {
                 v: &[],
                 qdd: &[],
             },
+            invariant: self.config.invariant.as_ref(),
             evaluations: 0,
             least_squares: 0,
         };
@@ -110,6 +111,7 @@ impl Predictor {
                 v: &ws.probe_v,
                 qdd: &ws.probe_qdd,
             },
+            invariant: self.config.invariant.as_ref(),
             evaluations: 0,
             least_squares: 0,
         };
@@ -235,7 +237,14 @@ impl Predictor {
                             .into(),
                     });
                 }
-                if s.drift == DriftControl::Projection {
+                // A scene with a constant form has no position rows, and its steps keep v in
+                // the rows' null space to rounding (dynamics/invariant.rs): projected only where
+                // v has left it.
+                let tol = super::drift::VELOCITY_TOL * v.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+                let kept = rhs
+                    .invariant
+                    .is_some_and(|form| form.on_constraints(v, tol));
+                if s.drift == DriftControl::Projection && !kept {
                     rhs.sys.cdata.t = t;
                     proj.project(rhs.sys, q, v, true)?;
                     // The covariance's linearization below evaluates elsewhere.

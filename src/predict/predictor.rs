@@ -18,7 +18,7 @@ use super::settings::{DriftControl, IntegrationSettings};
 use super::trajectory::Trajectory;
 use crate::actuators::Actuators;
 use crate::algorithm::{crba, forward_kinematics};
-use crate::dynamics::Baumgarte;
+use crate::dynamics::{Baumgarte, InvariantDynamics};
 use crate::error::{Error, Result};
 use crate::forces::ForceElements;
 use crate::model::Model;
@@ -40,6 +40,9 @@ pub struct PredictorConfig {
     /// Propagate the covariance on a second thread when the machine has more than one core
     /// (covariance/worker.rs; the same P to the bit).
     pub(super) parallel_covariance: bool,
+    /// The constrained dynamics as a constant form, where it depends on no coordinate (the
+    /// stages evaluate it instead of the full dynamics; dynamics/invariant.rs).
+    pub(super) invariant: Option<InvariantDynamics>,
 }
 
 impl PredictorConfig {
@@ -127,6 +130,9 @@ impl Predictor {
         settings: IntegrationSettings,
     ) -> Result<Self> {
         settings.validate()?;
+        let mut sys = sys;
+        let neutral = sys.model.neutral();
+        let invariant = InvariantDynamics::fit(&mut sys, &neutral);
         let model = sys.model.clone();
         let (nq, nv) = (model.nq, model.nv);
         let ws = Workspace {
@@ -158,6 +164,7 @@ impl Predictor {
             actuators: actuators.clone(),
             gains: sys.baumgarte,
             parallel_covariance: true,
+            invariant,
         };
         let contact_judge = ContactJudge::new(&model, &sys.constraints);
         Ok(Self {

@@ -1,0 +1,205 @@
+//! Constrained dynamics that depend on no coordinate: a planar base on flat ground rolling on
+//! axisymmetric wheels (the diff drive), a cart on a level rail. In the base's body axes, M and
+//! the rolling rows are then the same at every configuration, the velocity stays in J's null
+//! space N, and q̈ is a quadratic form of the velocity plus a linear map of the force:
+//!
+//! `q̈ = a₀ + A τ + Σ_{j≤k} c_jk u_j u_k`, `u = Nᵀ v`,
+//!
+//! with A (nv × nv), the c_jk (nv each) and N (nv × nu, orthonormal) constant. Fitted from the
+//! full multiplier evaluation at one configuration and accepted only where it reproduces that
+//! evaluation at random configurations, velocities on N and forces ([`InvariantDynamics::fit`]);
+//! one evaluation then costs ≈ nv (nv + nu²) flops instead of kinematics, CRBA, the rows and
+//! their solve (docs/performance.md, "Rollouts for sampling planners").
+
+use crate::constraints::Constraint;
+use crate::system::{DynamicsOptions, System};
+use nalgebra::{DMatrix, SymmetricEigen};
+
+/// The largest null space the form is built for (the stack holds u).
+const MAX_U: usize = 8;
+/// Random configurations the fit must reproduce.
+const CHECKS: usize = 32;
+/// Accepted disagreement with the full evaluation, relative to max(1, |q̈|∞): rounding of the
+/// full evaluation's factorizations, far below any integration error.
+const TOLERANCE: f64 = 1e-9;
+
+/// q̈ as a constant quadratic form of the velocity and linear map of the force (module doc).
+#[derive(Clone, Debug)]
+pub struct InvariantDynamics {
+    nv: usize,
+    nu: usize,
+    /// q̈ at v = 0, τ = 0 (nv).
+    a0: Vec<f64>,
+    /// ∂q̈/∂τ, column-major (nv × nv).
+    a: Vec<f64>,
+    /// J's null space, orthonormal columns, column-major (nv × nu).
+    n: Vec<f64>,
+    /// The coefficient of u_j u_k (j ≤ k, in that order), column-major (nv × nu(nu+1)/2).
+    c: Vec<f64>,
+}
+
+impl InvariantDynamics {
+    /// The form of `sys`'s constrained dynamics, fitted at `q0`, if it has one: only velocity
+    /// constraints of rolling wheels and knife edges (no time, no position rows), no Baumgarte
+    /// gains, and every one of [`CHECKS`] random states reproduced to [`TOLERANCE`]. Leaves
+    /// `sys`'s workspaces at the last state it evaluated.
+    pub fn fit(sys: &mut System, q0: &[f64]) -> Option<Self> {
+        let eligible = !sys.constraints.is_empty()
+            && (sys.constraints.items.iter())
+                .all(|c| matches!(c, Constraint::Rolling(_) | Constraint::NoSideSlip(_)))
+            && sys.baumgarte == Default::default();
+        if !eligible {
+            return None;
+        }
+        let nv = sys.model.nv;
+        let zero = vec![0.0; nv];
+        let full = |sys: &mut System, q: &[f64], v: &[f64], tau: &[f64]| {
+            (sys.forward_dynamics_with(q, v, tau, DynamicsOptions::default())
+                .ok())
+            .map(|qdd| qdd.as_slice().to_vec())
+        };
+        let a0 = full(sys, q0, &zero, &zero)?;
+        if sys.cdata.holonomic.iter().any(|&h| h) {
+            // A wheel's normal row (a floating base): positions drift, and the projection that
+            // corrects them needs the rows.
+            return None;
+        }
+        let n = null_space(&sys.cdata.j)?;
+        let nu = n.ncols();
+        if nu == 0 || nu > MAX_U {
+            return None;
+        }
+        let mut a = Vec::with_capacity(nv * nv);
+        let mut e = zero.clone();
+        for j in 0..nv {
+            e[j] = 1.0;
+            let r = full(sys, q0, &zero, &e)?;
+            a.extend(r.iter().zip(&a0).map(|(r, a0)| r - a0));
+            e[j] = 0.0;
+        }
+        // The diagonal terms from u = e_j, the cross terms from u = e_j + e_k by polarization.
+        let along = |u: &[f64]| -> Vec<f64> {
+            (0..nv)
+                .map(|i| (0..nu).map(|k| n[(i, k)] * u[k]).sum())
+                .collect()
+        };
+        let mut unit = vec![vec![0.0; nv]; nu];
+        for (j, f) in unit.iter_mut().enumerate() {
+            let mut u = vec![0.0; nu];
+            u[j] = 1.0;
+            let r = full(sys, q0, &along(&u), &zero)?;
+            *f = r.iter().zip(&a0).map(|(r, a0)| r - a0).collect();
+        }
+        let mut c = Vec::with_capacity(nv * nu * (nu + 1) / 2);
+        for j in 0..nu {
+            for k in j..nu {
+                if j == k {
+                    c.extend_from_slice(&unit[j]);
+                    continue;
+                }
+                let mut u = vec![0.0; nu];
+                (u[j], u[k]) = (1.0, 1.0);
+                let r = full(sys, q0, &along(&u), &zero)?;
+                c.extend((0..nv).map(|i| r[i] - a0[i] - unit[j][i] - unit[k][i]));
+            }
+        }
+        let form = Self {
+            nv,
+            nu,
+            a0,
+            a,
+            n: n.as_slice().to_vec(),
+            c,
+        };
+        // Reproduced at random states, or refused: a coordinate that M, h or the rows depend
+        // on shows at the first of them.
+        let mut rng = XorShift(0x9e37_79b9_7f4a_7c15);
+        let (mut q, mut dq, mut tau) = (q0.to_vec(), vec![0.0; nv], vec![0.0; nv]);
+        let mut fast = vec![0.0; nv];
+        for _ in 0..CHECKS {
+            dq.iter_mut().for_each(|x| *x = 3.0 * rng.uniform());
+            sys.model.integrate(q0, &dq, 1.0, &mut q);
+            let u: Vec<f64> = (0..nu).map(|_| 10.0 * rng.uniform()).collect();
+            tau.iter_mut().for_each(|x| *x = 10.0 * rng.uniform());
+            let v = along(&u);
+            let reference = full(sys, &q, &v, &tau)?;
+            form.accel(&v, &tau, &mut fast);
+            let scale = reference.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+            let off = (fast.iter().zip(&reference)).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            if off.is_nan() || off > TOLERANCE * scale {
+                return None;
+            }
+        }
+        Some(form)
+    }
+
+    /// Whether `v` lies in J's null space to `tol` (max |v − N Nᵀ v|): J is constant in body
+    /// axes and every q̈ of the form lies in N, so a step keeps v there to rounding, and the
+    /// drift projection has nothing to do unless this says otherwise.
+    pub fn on_constraints(&self, v: &[f64], tol: f64) -> bool {
+        let (nv, nu) = (self.nv, self.nu);
+        let mut u = [0.0; MAX_U];
+        for (k, uk) in u.iter_mut().enumerate().take(nu) {
+            let col = &self.n[k * nv..(k + 1) * nv];
+            *uk = col.iter().zip(v).map(|(n, v)| n * v).sum();
+        }
+        (0..nv).all(|i| {
+            let along: f64 = (0..nu).map(|k| self.n[k * nv + i] * u[k]).sum();
+            (v[i] - along).abs() <= tol
+        })
+    }
+
+    /// q̈ (nv) at velocity `v` and generalized force `tau`: the form, with v taken by its part
+    /// on the constraints (u = Nᵀ v; a stage off them by its step's error loses that part).
+    pub fn accel(&self, v: &[f64], tau: &[f64], qdd: &mut [f64]) {
+        let (nv, nu) = (self.nv, self.nu);
+        let mut u = [0.0; MAX_U];
+        for (k, uk) in u.iter_mut().enumerate().take(nu) {
+            let col = &self.n[k * nv..(k + 1) * nv];
+            *uk = col.iter().zip(v).map(|(n, v)| n * v).sum();
+        }
+        qdd.copy_from_slice(&self.a0);
+        for (j, &t) in tau.iter().enumerate() {
+            if t != 0.0 {
+                let col = &self.a[j * nv..(j + 1) * nv];
+                qdd.iter_mut().zip(col).for_each(|(x, a)| *x += a * t);
+            }
+        }
+        let mut p = 0;
+        for j in 0..nu {
+            for k in j..nu {
+                let w = u[j] * u[k];
+                let col = &self.c[p * nv..(p + 1) * nv];
+                qdd.iter_mut().zip(col).for_each(|(x, c)| *x += c * w);
+                p += 1;
+            }
+        }
+    }
+}
+
+/// An orthonormal basis of J's null space (nv × nu): the eigenvectors of JᵀJ whose eigenvalue
+/// is rounding against its largest. None if the eigen-solver fails.
+fn null_space(j: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let nv = j.ncols();
+    let eig = SymmetricEigen::try_new(j.transpose() * j, 1e-15, 1000)?;
+    let top = eig.eigenvalues.amax().max(f64::MIN_POSITIVE);
+    let keep: Vec<usize> = (0..nv)
+        .filter(|&i| eig.eigenvalues[i].abs() <= 1e-12 * top)
+        .collect();
+    Some(DMatrix::from_fn(nv, keep.len(), |r, c| {
+        eig.eigenvectors[(r, keep[c])]
+    }))
+}
+
+/// Deterministic uniform numbers in [−1, 1) for the fit's checks.
+struct XorShift(u64);
+
+impl XorShift {
+    fn uniform(&mut self) -> f64 {
+        let s = &mut self.0;
+        *s ^= *s << 13;
+        *s ^= *s >> 7;
+        *s ^= *s << 17;
+        (*s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    }
+}
