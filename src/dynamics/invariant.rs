@@ -139,11 +139,7 @@ impl InvariantDynamics {
     /// drift projection has nothing to do unless this says otherwise.
     pub fn on_constraints(&self, v: &[f64], tol: f64) -> bool {
         let (nv, nu) = (self.nv, self.nu);
-        let mut u = [0.0; MAX_U];
-        for (k, uk) in u.iter_mut().enumerate().take(nu) {
-            let col = &self.n[k * nv..(k + 1) * nv];
-            *uk = col.iter().zip(v).map(|(n, v)| n * v).sum();
-        }
+        let u = self.coordinates(v);
         (0..nv).all(|i| {
             let along: f64 = (0..nu).map(|k| self.n[k * nv + i] * u[k]).sum();
             (v[i] - along).abs() <= tol
@@ -154,11 +150,7 @@ impl InvariantDynamics {
     /// on the constraints (u = Nᵀ v; a stage off them by its step's error loses that part).
     pub fn accel(&self, v: &[f64], tau: &[f64], qdd: &mut [f64]) {
         let (nv, nu) = (self.nv, self.nu);
-        let mut u = [0.0; MAX_U];
-        for (k, uk) in u.iter_mut().enumerate().take(nu) {
-            let col = &self.n[k * nv..(k + 1) * nv];
-            *uk = col.iter().zip(v).map(|(n, v)| n * v).sum();
-        }
+        let u = self.coordinates(v);
         qdd.copy_from_slice(&self.a0);
         for (j, &t) in tau.iter().enumerate() {
             if t != 0.0 {
@@ -175,6 +167,17 @@ impl InvariantDynamics {
                 p += 1;
             }
         }
+    }
+
+    /// u = Nᵀ v (the first nu entries).
+    fn coordinates(&self, v: &[f64]) -> [f64; MAX_U] {
+        let nv = self.nv;
+        let mut u = [0.0; MAX_U];
+        for (k, uk) in u.iter_mut().enumerate().take(self.nu) {
+            let col = &self.n[k * nv..(k + 1) * nv];
+            *uk = col.iter().zip(v).map(|(n, v)| n * v).sum();
+        }
+        u
     }
 }
 

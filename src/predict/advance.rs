@@ -237,16 +237,9 @@ impl Predictor {
                             .into(),
                     });
                 }
-                // A scene with a constant form has no position rows, and its steps keep v in
-                // the rows' null space to rounding (dynamics/invariant.rs): projected only where
-                // v has left it.
-                let tol = super::drift::VELOCITY_TOL * v.iter().fold(1.0f64, |m, x| m.max(x.abs()));
-                let kept = rhs
-                    .invariant
-                    .is_some_and(|form| form.on_constraints(v, tol));
-                if s.drift == DriftControl::Projection && !kept {
+                if s.drift == DriftControl::Projection {
                     rhs.sys.cdata.t = t;
-                    proj.project(rhs.sys, q, v, true)?;
+                    proj.project(rhs.sys, q, v, true, rhs.invariant)?;
                     // The covariance's linearization below evaluates elsewhere.
                     if proj.rows_current && cov.is_none() {
                         rhs.rows.mark(t, q, v);

@@ -9,6 +9,7 @@
 //! Everything lives in a [`DriftProjector`] sized once: a projection allocates nothing.
 
 use crate::algorithm::{bias_forces_after_kinematics, crba_after_kinematics};
+use crate::dynamics::InvariantDynamics;
 use crate::error::{Error, Result};
 use crate::linalg::cholesky_in_place;
 use crate::linalg::{semidefinite_cholesky, semidefinite_solve};
@@ -73,15 +74,22 @@ impl DriftProjector {
 
     /// Project (q, v) onto the constraint manifold in place (positions first when asked).
     /// Returns the largest holonomic residual after the position projection.
+    /// `form`: the scene's constant form, if it has one — no position rows, and v left as it is
+    /// while it stays in the rows' null space (dynamics/invariant.rs), judged without the rows.
     pub fn project(
         &mut self,
         sys: &mut System,
         q: &mut [f64],
         v: &mut [f64],
         positions: bool,
+        form: Option<&InvariantDynamics>,
     ) -> Result<f64> {
         self.rows_current = false;
         if sys.constraints.is_empty() {
+            return Ok(0.0);
+        }
+        let tol = VELOCITY_TOL * v.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+        if form.is_some_and(|f| f.on_constraints(v, tol)) {
             return Ok(0.0);
         }
         let mut residual = 0.0;
@@ -93,7 +101,6 @@ impl DriftProjector {
                 .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
         }
         let nc = sys.constraints.nrows;
-        let tol = VELOCITY_TOL * v.iter().fold(1.0f64, |m, x| m.max(x.abs()));
         if sys.cdata.jv.iter().all(|x| x.abs() <= tol) {
             self.rows_current = true;
             return Ok(residual);
@@ -292,6 +299,6 @@ impl DriftProjector {
 /// Project (q, v) onto the constraint manifold in place (convenience: a fresh workspace).
 pub fn project(sys: &mut System, q: &mut [f64], v: &mut [f64], positions: bool) -> Result<()> {
     DriftProjector::new(sys)
-        .project(sys, q, v, positions)
+        .project(sys, q, v, positions, None)
         .map(|_| ())
 }

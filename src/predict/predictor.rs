@@ -124,13 +124,12 @@ impl Predictor {
     /// Build from its parts, validating the integration settings; no process noise (see
     /// [`Predictor::with_uncertainty`]).
     pub fn new(
-        sys: System,
+        mut sys: System,
         forces: ForceElements,
         actuators: Actuators,
         settings: IntegrationSettings,
     ) -> Result<Self> {
         settings.validate()?;
-        let mut sys = sys;
         let neutral = sys.model.neutral();
         let invariant = InvariantDynamics::fit(&mut sys, &neutral);
         let model = sys.model.clone();
