@@ -6,9 +6,17 @@
 //!
 //! so det W = det S, and a factor and a solve cost an nv × nv LU and its solve plus one product
 //! with A, not a 2nv × 2nv LU: an eighth of the factor's operations.
+//!
+//! A step factors and solves with W once or twice, on a handful of coordinates, so loop control
+//! would cost as much as the arithmetic: up to [`FIXED_MAX`] coordinates the kernels are built
+//! for each size (loops of known length, unrolled, no bounds checks), above it they run on the
+//! general LU. Both do the same operations in the same order.
 
 use crate::linalg::{lu_in_place, lu_solve};
 use nalgebra::DMatrix;
+
+/// The largest nv with kernels built for its size.
+const FIXED_MAX: usize = 12;
 
 /// The factored `W = I − g F` (module doc). Sized once per model.
 #[derive(Clone, Debug, Default)]
@@ -19,6 +27,27 @@ pub(in crate::predict) struct ShiftedFactor {
     /// The LU of S, and its pivots.
     s: DMatrix<f64>,
     piv: Vec<usize>,
+}
+
+/// `$f::<nv>($args)` for the sizes with their own kernels, else `$general`.
+macro_rules! by_size {
+    ($nv:expr, $f:ident($($arg:expr),*), $general:expr) => {
+        match $nv {
+            1 => $f::<1>($($arg),*),
+            2 => $f::<2>($($arg),*),
+            3 => $f::<3>($($arg),*),
+            4 => $f::<4>($($arg),*),
+            5 => $f::<5>($($arg),*),
+            6 => $f::<6>($($arg),*),
+            7 => $f::<7>($($arg),*),
+            8 => $f::<8>($($arg),*),
+            9 => $f::<9>($($arg),*),
+            10 => $f::<10>($($arg),*),
+            11 => $f::<11>($($arg),*),
+            FIXED_MAX => $f::<FIXED_MAX>($($arg),*),
+            _ => $general,
+        }
+    };
 }
 
 impl ShiftedFactor {
@@ -37,39 +66,144 @@ impl ShiftedFactor {
         let nv = self.piv.len();
         debug_assert_eq!(f.nrows(), 2 * nv);
         self.g = g;
-        let g2 = g * g;
-        let n = 2 * nv;
-        let f = f.as_slice();
-        let (a, s) = (self.a.as_mut_slice(), self.s.as_mut_slice());
-        for c in 0..nv {
-            let fa = &f[c * n + nv..(c + 1) * n];
-            let fb = &f[(nv + c) * n + nv..(nv + c + 1) * n];
-            let (ac, sc) = (&mut a[c * nv..(c + 1) * nv], &mut s[c * nv..(c + 1) * nv]);
-            for r in 0..nv {
-                ac[r] = fa[r];
-                sc[r] = -g * fb[r] - g2 * fa[r];
-            }
-            sc[c] += 1.0;
-        }
-        lu_in_place(&mut self.s, &mut self.piv)
+        let (f, a, s) = (f.as_slice(), self.a.as_mut_slice(), self.s.as_mut_slice());
+        let piv = &mut self.piv[..];
+        by_size!(nv, factor_fixed(f, g, a, s, piv), {
+            form_s(f, g, nv, a, s);
+            lu_in_place(&mut self.s, &mut self.piv)
+        })
     }
 
     /// Solve `W x = rhs` in place (2nv).
     pub(in crate::predict) fn solve(&self, x: &mut [f64]) {
         let nv = self.piv.len();
-        let (top, bottom) = x.split_at_mut(nv);
-        for (&ac, col) in top.iter().zip(self.a.as_slice().chunks_exact(nv)) {
-            let gac = self.g * ac;
-            if gac != 0.0 {
-                for (b, &arc) in bottom.iter_mut().zip(col) {
-                    *b += arc * gac;
+        let (a, s) = (self.a.as_slice(), self.s.as_slice());
+        by_size!(nv, solve_fixed(a, s, &self.piv, self.g, x), {
+            let (top, bottom) = x.split_at_mut(nv);
+            add_g_a_top(a, self.g, top, bottom);
+            lu_solve(&self.s, &self.piv, bottom);
+            for (t, &y) in top.iter_mut().zip(bottom.iter()) {
+                *t += self.g * y;
+            }
+        })
+    }
+}
+
+/// bottom += g A top (A column-major, nv × nv).
+#[inline(always)]
+fn add_g_a_top(a: &[f64], g: f64, top: &[f64], bottom: &mut [f64]) {
+    let nv = top.len();
+    for (&ac, col) in top.iter().zip(a.chunks_exact(nv)) {
+        let gac = g * ac;
+        if gac != 0.0 {
+            for (b, &arc) in bottom.iter_mut().zip(col) {
+                *b += arc * gac;
+            }
+        }
+    }
+}
+
+/// A and S from F (module doc).
+#[inline(always)]
+fn form_s(f: &[f64], g: f64, nv: usize, a: &mut [f64], s: &mut [f64]) {
+    let g2 = g * g;
+    let n = 2 * nv;
+    for c in 0..nv {
+        let fa = &f[c * n + nv..(c + 1) * n];
+        let fb = &f[(nv + c) * n + nv..(nv + c + 1) * n];
+        let (ac, sc) = (&mut a[c * nv..(c + 1) * nv], &mut s[c * nv..(c + 1) * nv]);
+        for r in 0..nv {
+            ac[r] = fa[r];
+            sc[r] = -g * fb[r] - g2 * fa[r];
+        }
+        sc[c] += 1.0;
+    }
+}
+
+/// [`form_s`] and [`lu_in_place`] for nv = N known when compiled.
+fn factor_fixed<const N: usize>(
+    f: &[f64],
+    g: f64,
+    a: &mut [f64],
+    s: &mut [f64],
+    piv: &mut [usize],
+) -> bool {
+    let (f, a, s, piv) = (
+        &f[..4 * N * N],
+        &mut a[..N * N],
+        &mut s[..N * N],
+        &mut piv[..N],
+    );
+    form_s(f, g, N, a, s);
+    for k in 0..N {
+        let (mut p, mut best) = (k, s[k * N + k].abs());
+        for r in k + 1..N {
+            let x = s[k * N + r].abs();
+            if x > best {
+                (p, best) = (r, x);
+            }
+        }
+        if !(best > 0.0 && best.is_finite()) {
+            return false;
+        }
+        piv[k] = p;
+        if p != k {
+            for c in 0..N {
+                s.swap(c * N + p, c * N + k);
+            }
+        }
+        let d = s[k * N + k];
+        for r in k + 1..N {
+            s[k * N + r] /= d;
+        }
+        for c in k + 1..N {
+            let akc = s[c * N + k];
+            for r in k + 1..N {
+                let l = s[k * N + r];
+                if l != 0.0 {
+                    s[c * N + r] -= l * akc;
                 }
             }
         }
-        lu_solve(&self.s, &self.piv, bottom);
-        for (t, &y) in top.iter_mut().zip(bottom.iter()) {
-            *t += self.g * y;
+    }
+    true
+}
+
+/// [`ShiftedFactor::solve`] for nv = N known when compiled: the same operations as the general
+/// path ([`add_g_a_top`], [`lu_solve`]).
+fn solve_fixed<const N: usize>(a: &[f64], s: &[f64], piv: &[usize], g: f64, x: &mut [f64]) {
+    let (a, s, piv) = (&a[..N * N], &s[..N * N], &piv[..N]);
+    let (top, bottom) = x[..2 * N].split_at_mut(N);
+    for c in 0..N {
+        let gac = g * top[c];
+        if gac != 0.0 {
+            for r in 0..N {
+                bottom[r] += a[c * N + r] * gac;
+            }
         }
+    }
+    for k in 0..N {
+        bottom.swap(k, piv[k]);
+    }
+    for k in 0..N {
+        let bk = bottom[k];
+        if bk != 0.0 {
+            for r in k + 1..N {
+                bottom[r] -= s[k * N + r] * bk;
+            }
+        }
+    }
+    for k in (0..N).rev() {
+        bottom[k] /= s[k * N + k];
+        let bk = bottom[k];
+        if bk != 0.0 {
+            for r in 0..k {
+                bottom[r] -= s[k * N + r] * bk;
+            }
+        }
+    }
+    for r in 0..N {
+        top[r] += g * bottom[r];
     }
 }
 
@@ -77,11 +211,11 @@ impl ShiftedFactor {
 mod tests {
     use super::*;
 
-    /// The residual ‖W x − b‖ of a random F of the shape, with g dt near ROS2's at 20 ms and
-    /// stiff entries (10³ /s).
+    /// The residual ‖W x − b‖ of random F of the shape, with g dt near ROS2's at 20 ms and stiff
+    /// entries (10³ /s), on sizes with their own kernels and above them; and the fixed-size
+    /// kernels give the general LU's factor bit for bit.
     #[test]
     fn solves_w() {
-        let nv = 5;
         let mut seed = 0x9e37_79b9_7f4a_7c15u64;
         let mut rnd = move || {
             seed ^= seed << 13;
@@ -89,21 +223,39 @@ mod tests {
             seed ^= seed << 17;
             (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
         };
-        let mut f = DMatrix::zeros(2 * nv, 2 * nv);
-        for i in 0..nv {
-            f[(i, nv + i)] = 1.0;
-            for j in 0..2 * nv {
-                f[(nv + i, j)] = 1e3 * rnd();
+        for nv in [1, 5, 9, FIXED_MAX, FIXED_MAX + 3] {
+            let mut f = DMatrix::zeros(2 * nv, 2 * nv);
+            for i in 0..nv {
+                f[(i, nv + i)] = 1.0;
+                for j in 0..2 * nv {
+                    f[(nv + i, j)] = 1e3 * rnd();
+                }
             }
+            let g = 0.02 * (1.0 - std::f64::consts::FRAC_1_SQRT_2);
+            let w = DMatrix::identity(2 * nv, 2 * nv) - &f * g;
+            let mut sf = ShiftedFactor::new(nv);
+            assert!(sf.factor(&f, g));
+            let b = nalgebra::DVector::from_fn(2 * nv, |_, _| rnd());
+            let mut x = b.clone();
+            sf.solve(x.as_mut_slice());
+            let residual = (&w * &x - &b).amax();
+            assert!(residual < 1e-12, "nv {nv}: {residual:e}");
+            // S as the factor forms it: −g B − g² A, then the identity added.
+            let mut general =
+                -(f.view((nv, nv), (nv, nv)) * g) - f.view((nv, 0), (nv, nv)) * (g * g);
+            for i in 0..nv {
+                general[(i, i)] += 1.0;
+            }
+            let mut piv = vec![0; nv];
+            assert!(lu_in_place(&mut general, &mut piv));
+            assert_eq!(piv, sf.piv, "nv {nv}");
+            assert!(
+                general
+                    .iter()
+                    .zip(sf.s.iter())
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "nv {nv}"
+            );
         }
-        let g = 0.02 * (1.0 - std::f64::consts::FRAC_1_SQRT_2);
-        let w = DMatrix::identity(2 * nv, 2 * nv) - &f * g;
-        let mut sf = ShiftedFactor::new(nv);
-        assert!(sf.factor(&f, g));
-        let b = nalgebra::DVector::from_fn(2 * nv, |_, _| rnd());
-        let mut x = b.clone();
-        sf.solve(x.as_mut_slice());
-        let residual = (&w * &x - &b).amax();
-        assert!(residual < 1e-12, "{residual:e}");
     }
 }
