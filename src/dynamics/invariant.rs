@@ -12,6 +12,7 @@
 //! their solve (docs/performance.md, "Rollouts for sampling planners").
 
 use crate::constraints::Constraint;
+use crate::linalg::by_size;
 use crate::system::{DynamicsOptions, System};
 use nalgebra::{DMatrix, SymmetricEigen};
 
@@ -138,47 +139,86 @@ impl InvariantDynamics {
     /// axes and every q̈ of the form lies in N, so a step keeps v there to rounding, and the
     /// drift projection has nothing to do unless this says otherwise.
     pub fn on_constraints(&self, v: &[f64], tol: f64) -> bool {
-        let (nv, nu) = (self.nv, self.nu);
-        let u = self.coordinates(v);
-        (0..nv).all(|i| {
-            let along: f64 = (0..nu).map(|k| self.n[k * nv + i] * u[k]).sum();
-            (v[i] - along).abs() <= tol
-        })
+        by_size!(
+            self.nv,
+            on_constraints_n(self, v, tol),
+            on_constraints_n_dyn(self, self.nv, v, tol)
+        )
     }
 
     /// q̈ (nv) at velocity `v` and generalized force `tau`: the form, with v taken by its part
     /// on the constraints (u = Nᵀ v; a stage off them by its step's error loses that part).
     pub fn accel(&self, v: &[f64], tau: &[f64], qdd: &mut [f64]) {
-        let (nv, nu) = (self.nv, self.nu);
-        let u = self.coordinates(v);
-        qdd.copy_from_slice(&self.a0);
-        for (j, &t) in tau.iter().enumerate() {
-            if t != 0.0 {
-                let col = &self.a[j * nv..(j + 1) * nv];
-                qdd.iter_mut().zip(col).for_each(|(x, a)| *x += a * t);
-            }
-        }
-        let mut p = 0;
-        for j in 0..nu {
-            for k in j..nu {
-                let w = u[j] * u[k];
-                let col = &self.c[p * nv..(p + 1) * nv];
-                qdd.iter_mut().zip(col).for_each(|(x, c)| *x += c * w);
-                p += 1;
-            }
-        }
+        by_size!(
+            self.nv,
+            accel_n(self, v, tau, qdd),
+            accel_dyn(self, self.nv, v, tau, qdd)
+        )
     }
+}
 
-    /// u = Nᵀ v (the first nu entries).
-    fn coordinates(&self, v: &[f64]) -> [f64; MAX_U] {
-        let nv = self.nv;
-        let mut u = [0.0; MAX_U];
-        for (k, uk) in u.iter_mut().enumerate().take(self.nu) {
-            let col = &self.n[k * nv..(k + 1) * nv];
-            *uk = col.iter().zip(v).map(|(n, v)| n * v).sum();
+// The kernels, each once with nv known when compiled (linalg/sized.rs) and once general.
+
+fn on_constraints_n<const NV: usize>(form: &InvariantDynamics, v: &[f64], tol: f64) -> bool {
+    on_constraints_n_dyn(form, NV, v, tol)
+}
+
+#[inline(always)]
+fn on_constraints_n_dyn(form: &InvariantDynamics, nv: usize, v: &[f64], tol: f64) -> bool {
+    let (v, n) = (&v[..nv], &form.n[..nv * form.nu]);
+    let u = coordinates(form, nv, v);
+    (0..nv).all(|i| {
+        let mut along = 0.0;
+        for (k, &uk) in u.iter().enumerate().take(form.nu) {
+            along += n[k * nv + i] * uk;
         }
-        u
+        (v[i] - along).abs() <= tol
+    })
+}
+
+fn accel_n<const NV: usize>(form: &InvariantDynamics, v: &[f64], tau: &[f64], qdd: &mut [f64]) {
+    accel_dyn(form, NV, v, tau, qdd)
+}
+
+#[inline(always)]
+fn accel_dyn(form: &InvariantDynamics, nv: usize, v: &[f64], tau: &[f64], qdd: &mut [f64]) {
+    let nu = form.nu;
+    let (v, tau, qdd) = (&v[..nv], &tau[..nv], &mut qdd[..nv]);
+    let (a, c) = (&form.a[..nv * nv], &form.c[..nv * nu * (nu + 1) / 2]);
+    let u = coordinates(form, nv, v);
+    qdd.copy_from_slice(&form.a0[..nv]);
+    for (j, &t) in tau.iter().enumerate() {
+        if t != 0.0 {
+            for i in 0..nv {
+                qdd[i] += a[j * nv + i] * t;
+            }
+        }
     }
+    let mut p = 0;
+    for j in 0..nu {
+        for k in j..nu {
+            let w = u[j] * u[k];
+            for i in 0..nv {
+                qdd[i] += c[p * nv + i] * w;
+            }
+            p += 1;
+        }
+    }
+}
+
+/// u = Nᵀ v (the first nu entries).
+#[inline(always)]
+fn coordinates(form: &InvariantDynamics, nv: usize, v: &[f64]) -> [f64; MAX_U] {
+    let (v, n) = (&v[..nv], &form.n[..nv * form.nu]);
+    let mut u = [0.0; MAX_U];
+    for (k, uk) in u.iter_mut().enumerate().take(form.nu) {
+        let mut sum = 0.0;
+        for i in 0..nv {
+            sum += n[k * nv + i] * v[i];
+        }
+        *uk = sum;
+    }
+    u
 }
 
 /// An orthonormal basis of J's null space (nv × nu): the eigenvectors of JᵀJ whose eigenvalue

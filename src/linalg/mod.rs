@@ -12,6 +12,10 @@ mod lu;
 mod min_norm;
 mod pivot;
 mod rank;
+#[macro_use]
+mod sized;
+pub(crate) use by_size;
+pub(crate) use sized::FIXED_MAX;
 
 pub use dense::{
     cholesky_in_place, cholesky_solve, dot_unrolled, gemm_columns, gemm_into, gemm_nt_into,

@@ -171,7 +171,8 @@ impl JointKind {
                 let (a, b) = if w.abs() < 1e-9 {
                     (1.0 - w * w / 6.0, w / 2.0)
                 } else {
-                    (w.sin() / w, (1.0 - w.cos()) / w)
+                    let (sw, cw) = sin_cos(w);
+                    (sw / w, (1.0 - cw) / w)
                 };
                 let dx = a * vx - b * vy;
                 let dy = b * vx + a * vy;
@@ -204,7 +205,8 @@ impl JointKind {
                 let (a, b) = if w.abs() < 1e-9 {
                     (1.0 - w * w / 6.0, w / 2.0)
                 } else {
-                    (w.sin() / w, (1.0 - w.cos()) / w)
+                    let (sw, cw) = sin_cos(w);
+                    (sw / w, (1.0 - cw) / w)
                 };
                 let det = a * a + b * b;
                 v_out[0] = (a * dx + b * dy) / det;

@@ -212,17 +212,18 @@ impl JacobianScratch {
             return false;
         }
         let nv = self.dqdd_dt.len();
-        for c in 0..2 * nv {
-            for r in 0..nv {
-                jac[(nv + r, c)] = self.passive[c * nv + r];
-            }
+        let n = 2 * nv;
+        let f = jac.as_mut_slice();
+        for (col, kept) in f.chunks_exact_mut(n).zip(self.passive.chunks_exact(nv)) {
+            col[nv..].copy_from_slice(kept);
         }
         let dtau = &self.dqdd_dtau;
         control.continuous_feedback(t, q, v, |fb| {
             let column = &dtau[fb.iv * nv..(fb.iv + 1) * nv];
+            let (dq, dv) = (fb.iv * n + nv, (nv + fb.iv) * n + nv);
             for (r, g) in column.iter().enumerate() {
-                jac[(nv + r, fb.iv)] -= g * fb.k;
-                jac[(nv + r, nv + fb.iv)] -= g * fb.d;
+                f[dq + r] -= g * fb.k;
+                f[dv + r] -= g * fb.d;
             }
         });
         self.retarget(control, (t, q, v));

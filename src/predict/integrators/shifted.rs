@@ -7,16 +7,11 @@
 //! so det W = det S, and a factor and a solve cost an nv × nv LU and its solve plus one product
 //! with A, not a 2nv × 2nv LU: an eighth of the factor's operations.
 //!
-//! A step factors and solves with W once or twice, on a handful of coordinates, so loop control
-//! would cost as much as the arithmetic: up to [`FIXED_MAX`] coordinates the kernels are built
-//! for each size (loops of known length, unrolled, no bounds checks), above it they run on the
-//! general LU. Both do the same operations in the same order.
+//! A step factors and solves with W once or twice, on a handful of coordinates: up to
+//! `linalg::FIXED_MAX` coordinates the kernels are built for each size (linalg/sized.rs).
 
-use crate::linalg::{lu_in_place, lu_solve};
+use crate::linalg::{by_size, lu_in_place, lu_solve};
 use nalgebra::DMatrix;
-
-/// The largest nv with kernels built for its size.
-const FIXED_MAX: usize = 12;
 
 /// The factored `W = I − g F` (module doc). Sized once per model.
 #[derive(Clone, Debug, Default)]
@@ -27,27 +22,6 @@ pub(in crate::predict) struct ShiftedFactor {
     /// The LU of S, and its pivots.
     s: DMatrix<f64>,
     piv: Vec<usize>,
-}
-
-/// `$f::<nv>($args)` for the sizes with their own kernels, else `$general`.
-macro_rules! by_size {
-    ($nv:expr, $f:ident($($arg:expr),*), $general:expr) => {
-        match $nv {
-            1 => $f::<1>($($arg),*),
-            2 => $f::<2>($($arg),*),
-            3 => $f::<3>($($arg),*),
-            4 => $f::<4>($($arg),*),
-            5 => $f::<5>($($arg),*),
-            6 => $f::<6>($($arg),*),
-            7 => $f::<7>($($arg),*),
-            8 => $f::<8>($($arg),*),
-            9 => $f::<9>($($arg),*),
-            10 => $f::<10>($($arg),*),
-            11 => $f::<11>($($arg),*),
-            FIXED_MAX => $f::<FIXED_MAX>($($arg),*),
-            _ => $general,
-        }
-    };
 }
 
 impl ShiftedFactor {
@@ -223,7 +197,13 @@ mod tests {
             seed ^= seed << 17;
             (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
         };
-        for nv in [1, 5, 9, FIXED_MAX, FIXED_MAX + 3] {
+        for nv in [
+            1,
+            5,
+            9,
+            crate::linalg::FIXED_MAX,
+            crate::linalg::FIXED_MAX + 3,
+        ] {
             let mut f = DMatrix::zeros(2 * nv, 2 * nv);
             for i in 0..nv {
                 f[(i, nv + i)] = 1.0;
