@@ -98,6 +98,15 @@ fn the_diff_drive_has_a_form_that_meets_its_closed_forms() {
     }
     println!("diff drive form against its closed forms: worst relative {worst:.2e}");
     assert!(worst < 1e-13, "{worst:e}");
+    // On the constraints: the wheels roll at (v ∓ h ω)/r with no sideways speed. A sideways
+    // speed or a wheel off its rolling rate by 1e-6 leaves them.
+    let rolling = [0.4, 0.0, -1.5, (0.4 + h * 1.5) / r, (0.4 - h * 1.5) / r];
+    assert!(form.on_constraints(&rolling, 1e-9));
+    for (i, dv) in [(1, 1e-6), (3, 1e-6), (4, -1e-6)] {
+        let mut off = rolling;
+        off[i] += dv;
+        assert!(!form.on_constraints(&off, 1e-9), "v[{i}] + {dv:e}");
+    }
 }
 
 #[test]

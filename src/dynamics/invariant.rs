@@ -35,6 +35,8 @@ pub struct InvariantDynamics {
     a: Vec<f64>,
     /// J's null space, orthonormal columns, column-major (nv × nu).
     n: Vec<f64>,
+    /// I − N Nᵀ, the projector off N, column-major (nv × nv).
+    off: Vec<f64>,
     /// The coefficient of u_j u_k (j ≤ k, in that order), column-major (nv × nu(nu+1)/2).
     c: Vec<f64>,
 }
@@ -110,6 +112,9 @@ impl InvariantDynamics {
             a0,
             a,
             n: n.as_slice().to_vec(),
+            off: (DMatrix::identity(nv, nv) - &n * n.transpose())
+                .as_slice()
+                .to_vec(),
             c,
         };
         // Reproduced at random states, or refused: a coordinate that M, h or the rows depend
@@ -142,7 +147,7 @@ impl InvariantDynamics {
         by_size!(
             self.nv,
             on_constraints_n(self, v, tol),
-            on_constraints_n_dyn(self, self.nv, v, tol)
+            on_constraints_general(self, v, tol)
         )
     }
 
@@ -159,19 +164,24 @@ impl InvariantDynamics {
 
 // The kernels, each once with nv known when compiled (linalg/sized.rs) and once general.
 
+/// max |(I − N Nᵀ) v| ≤ tol.
 fn on_constraints_n<const NV: usize>(form: &InvariantDynamics, v: &[f64], tol: f64) -> bool {
-    on_constraints_n_dyn(form, NV, v, tol)
+    let (v, off) = (&v[..NV], &form.off[..NV * NV]);
+    let mut r = [0.0; NV];
+    for (c, &vc) in v.iter().enumerate() {
+        for (i, ri) in r.iter_mut().enumerate() {
+            *ri += off[c * NV + i] * vc;
+        }
+    }
+    r.iter().all(|x| x.abs() <= tol)
 }
 
-#[inline(always)]
-fn on_constraints_n_dyn(form: &InvariantDynamics, nv: usize, v: &[f64], tol: f64) -> bool {
-    let (v, n) = (&v[..nv], &form.n[..nv * form.nu]);
+/// [`on_constraints_n`] above the built sizes: through u = Nᵀ v.
+fn on_constraints_general(form: &InvariantDynamics, v: &[f64], tol: f64) -> bool {
+    let (nv, n) = (v.len(), &form.n);
     let u = coordinates(form, nv, v);
     (0..nv).all(|i| {
-        let mut along = 0.0;
-        for (k, &uk) in u.iter().enumerate().take(form.nu) {
-            along += n[k * nv + i] * uk;
-        }
+        let along: f64 = (0..form.nu).map(|k| n[k * nv + i] * u[k]).sum();
         (v[i] - along).abs() <= tol
     })
 }
@@ -183,25 +193,29 @@ fn accel_n<const NV: usize>(form: &InvariantDynamics, v: &[f64], tau: &[f64], qd
 #[inline(always)]
 fn accel_dyn(form: &InvariantDynamics, nv: usize, v: &[f64], tau: &[f64], qdd: &mut [f64]) {
     let nu = form.nu;
+    let np = nu * (nu + 1) / 2;
     let (v, tau, qdd) = (&v[..nv], &tau[..nv], &mut qdd[..nv]);
-    let (a, c) = (&form.a[..nv * nv], &form.c[..nv * nu * (nu + 1) / 2]);
+    let (a, c) = (&form.a[..nv * nv], &form.c[..nv * np]);
     let u = coordinates(form, nv, v);
-    qdd.copy_from_slice(&form.a0[..nv]);
-    for (j, &t) in tau.iter().enumerate() {
-        if t != 0.0 {
-            for i in 0..nv {
-                qdd[i] += a[j * nv + i] * t;
-            }
-        }
-    }
+    let mut w = [0.0; MAX_U * (MAX_U + 1) / 2];
     let mut p = 0;
     for j in 0..nu {
         for k in j..nu {
-            let w = u[j] * u[k];
-            for i in 0..nv {
-                qdd[i] += c[p * nv + i] * w;
-            }
+            w[p] = u[j] * u[k];
             p += 1;
+        }
+    }
+    qdd.copy_from_slice(&form.a0[..nv]);
+    for (col, &t) in a.chunks_exact(nv).zip(tau) {
+        if t != 0.0 {
+            for (x, &a) in qdd.iter_mut().zip(col) {
+                *x += a * t;
+            }
+        }
+    }
+    for (col, &w) in c.chunks_exact(nv).zip(&w[..np]) {
+        for (x, &c) in qdd.iter_mut().zip(col) {
+            *x += c * w;
         }
     }
 }
@@ -209,12 +223,11 @@ fn accel_dyn(form: &InvariantDynamics, nv: usize, v: &[f64], tau: &[f64], qdd: &
 /// u = Nᵀ v (the first nu entries).
 #[inline(always)]
 fn coordinates(form: &InvariantDynamics, nv: usize, v: &[f64]) -> [f64; MAX_U] {
-    let (v, n) = (&v[..nv], &form.n[..nv * form.nu]);
     let mut u = [0.0; MAX_U];
-    for (k, uk) in u.iter_mut().enumerate().take(form.nu) {
+    for (uk, col) in u.iter_mut().zip(form.n.chunks_exact(nv)) {
         let mut sum = 0.0;
-        for i in 0..nv {
-            sum += n[k * nv + i] * v[i];
+        for (&n, &v) in col.iter().zip(&v[..nv]) {
+            sum += n * v;
         }
         *uk = sum;
     }

@@ -41,40 +41,62 @@ pub fn ros2_step<F: Accel>(
         state_jacobian(f, model, t, q, v, ws)?;
         factor_shifted(ws, dt * GAMMA, "ROS2")?;
         ws.newton_dt = dt;
-    } else if !((dt - ws.newton_dt).abs() <= 1e-12 * dt) {
+    } else if ws.newton_dt.is_nan() || (dt - ws.newton_dt).abs() > 1e-12 * dt {
         // Spans cut from the same sample period give steps equal to rounding; W with either
         // is I − γ dt F with F scaled by 1 ± 1e-12, which a W-method allows (any F keeps its
         // order), so only a real change of dt, or a re-formed F (NaN), refactors.
         factor_shifted(ws, dt * GAMMA, "ROS2")?;
         ws.newton_dt = dt;
     }
+    // Slices of known length up front: the loops below then run without bounds checks.
+    let StepWorkspace {
+        ks,
+        a0,
+        scratch,
+        newton,
+        dx,
+        qs,
+        vs,
+        err,
+        q0,
+        v0,
+        ..
+    } = ws;
+    let (ft, a0, dx, err) = (
+        &scratch.dqdd_dt[..nv],
+        &a0[..nv],
+        &mut dx[..n],
+        &mut err[..n],
+    );
+    let (k1, rest) = ks.split_at_mut(1);
+    let (k1, k2) = (&mut k1[0][..n], &mut rest[0][..n]);
     // k₁ = W⁻¹ (f(x_n) + γ dt ∂f/∂t): time as a state of the W-method, so that a motion the
     // controllers hold steady (their integral ramps with t) is a fixed point of the step.
     let gdt = GAMMA * dt;
-    ws.ks[0][..nv].copy_from_slice(v);
-    for i in 0..nv {
-        ws.ks[0][nv + i] = ws.a0[i] + gdt * ws.scratch.dqdd_dt[i];
+    k1[..nv].copy_from_slice(v);
+    for ((k, &a), &f) in k1[nv..].iter_mut().zip(a0).zip(ft) {
+        *k = a + gdt * f;
     }
-    ws.newton.solve(&mut ws.ks[0]);
+    newton.solve(k1);
     // k₂ = W⁻¹ (f(x_n ⊕ dt k₁) − 2 k₁ − γ dt ∂f/∂t)
-    for i in 0..n {
-        ws.dx[i] = dt * ws.ks[0][i];
+    for (d, &k) in dx.iter_mut().zip(k1.iter()) {
+        *d = dt * k;
     }
-    stage(model, q, v, &ws.dx, &mut ws.qs, &mut ws.vs);
-    derivative(f, model, t + dt, &ws.dx[..nv], &ws.qs, &ws.vs, &mut ws.err)?;
-    let (k1, k2) = ws.ks.split_at_mut(1);
-    for i in 0..n {
-        k2[0][i] = ws.err[i] - 2.0 * k1[0][i];
+    stage(model, q, v, dx, qs, vs);
+    derivative(f, model, t + dt, &dx[..nv], qs, vs, err)?;
+    for ((k, &e), &k1) in k2.iter_mut().zip(err.iter()).zip(k1.iter()) {
+        *k = e - 2.0 * k1;
     }
-    for i in 0..nv {
-        k2[0][nv + i] -= gdt * ws.scratch.dqdd_dt[i];
+    for (k, &f) in k2[nv..].iter_mut().zip(ft) {
+        *k -= gdt * f;
     }
-    ws.newton.solve(&mut k2[0]);
-    for i in 0..n {
-        ws.dx[i] = dt * (1.5 * k1[0][i] + 0.5 * k2[0][i]);
+    newton.solve(k2);
+    for ((d, &k1), &k2) in dx.iter_mut().zip(k1.iter()).zip(k2.iter()) {
+        *d = dt * (1.5 * k1 + 0.5 * k2);
     }
-    ws.save(q, v);
-    stage(model, &ws.q0, &ws.v0, &ws.dx, q, v);
+    q0.copy_from_slice(q);
+    v0.copy_from_slice(v);
+    stage(model, q0, v0, dx, q, v);
     Ok(())
 }
 
