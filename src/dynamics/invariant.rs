@@ -197,14 +197,6 @@ fn accel_dyn(form: &InvariantDynamics, nv: usize, v: &[f64], tau: &[f64], qdd: &
     let (v, tau, qdd) = (&v[..nv], &tau[..nv], &mut qdd[..nv]);
     let (a, c) = (&form.a[..nv * nv], &form.c[..nv * np]);
     let u = coordinates(form, nv, v);
-    let mut w = [0.0; MAX_U * (MAX_U + 1) / 2];
-    let mut p = 0;
-    for j in 0..nu {
-        for k in j..nu {
-            w[p] = u[j] * u[k];
-            p += 1;
-        }
-    }
     qdd.copy_from_slice(&form.a0[..nv]);
     for (col, &t) in a.chunks_exact(nv).zip(tau) {
         if t != 0.0 {
@@ -213,9 +205,14 @@ fn accel_dyn(form: &InvariantDynamics, nv: usize, v: &[f64], tau: &[f64], qdd: &
             }
         }
     }
-    for (col, &w) in c.chunks_exact(nv).zip(&w[..np]) {
-        for (x, &c) in qdd.iter_mut().zip(col) {
-            *x += c * w;
+    // The columns of c in the order of the pairs j ≤ k.
+    let mut cols = c.chunks_exact(nv);
+    for j in 0..nu {
+        for k in j..nu {
+            let (w, col) = (u[j] * u[k], cols.next().unwrap_or_default());
+            for (x, &c) in qdd.iter_mut().zip(col) {
+                *x += c * w;
+            }
         }
     }
 }
