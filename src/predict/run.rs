@@ -132,7 +132,10 @@ impl Predictor {
             method: s.method,
             dt: s.dt,
             rtol: s.rtol,
-            samples: vec![],
+            // One sample per period and the start (the request's budget bounds the count).
+            samples: Vec::with_capacity(
+                (horizon / s.sample_period).min(s.max_samples).max(0.0) as usize + 2,
+            ),
             contact_check: None,
             steps: 0,
             evaluations: 0,
