@@ -94,7 +94,8 @@ fn form_s(f: &[f64], g: f64, nv: usize, a: &mut [f64], s: &mut [f64]) {
     }
 }
 
-/// [`form_s`] and [`lu_in_place`] for nv = N known when compiled.
+/// [`form_s`] and [`lu_in_place`] for nv = N known when compiled: indexed, because the general
+/// LU's column iterators do not unroll at these sizes.
 fn factor_fixed<const N: usize>(
     f: &[f64],
     g: f64,
