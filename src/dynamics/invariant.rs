@@ -147,7 +147,7 @@ impl InvariantDynamics {
         by_size!(
             self.nv,
             on_constraints_n(self, v, tol),
-            on_constraints_general(self, v, tol)
+            on_constraints_body(self, self.nv, v, tol)
         )
     }
 
@@ -157,41 +157,37 @@ impl InvariantDynamics {
         by_size!(
             self.nv,
             accel_n(self, v, tau, qdd),
-            accel_dyn(self, self.nv, v, tau, qdd)
+            accel_body(self, self.nv, v, tau, qdd)
         )
     }
 }
 
-// The kernels, each once with nv known when compiled (linalg/sized.rs) and once general.
+// The kernels: one body each, built for each nv up to linalg::FIXED_MAX (linalg/sized.rs).
 
-/// max |(I − N Nᵀ) v| ≤ tol.
 fn on_constraints_n<const NV: usize>(form: &InvariantDynamics, v: &[f64], tol: f64) -> bool {
-    let (v, off) = (&v[..NV], &form.off[..NV * NV]);
-    let mut r = [0.0; NV];
-    for (c, &vc) in v.iter().enumerate() {
-        for (i, ri) in r.iter_mut().enumerate() {
-            *ri += off[c * NV + i] * vc;
-        }
-    }
-    r.iter().all(|x| x.abs() <= tol)
+    on_constraints_body(form, NV, v, tol)
 }
 
-/// [`on_constraints_n`] above the built sizes: through u = Nᵀ v.
-fn on_constraints_general(form: &InvariantDynamics, v: &[f64], tol: f64) -> bool {
-    let (nv, n) = (v.len(), &form.n);
-    let u = coordinates(form, nv, v);
+/// max |(I − N Nᵀ) v| ≤ tol.
+#[inline(always)]
+fn on_constraints_body(form: &InvariantDynamics, nv: usize, v: &[f64], tol: f64) -> bool {
+    let (v, off) = (&v[..nv], &form.off[..nv * nv]);
     (0..nv).all(|i| {
-        let along: f64 = (0..form.nu).map(|k| n[k * nv + i] * u[k]).sum();
-        (v[i] - along).abs() <= tol
+        let mut r = 0.0;
+        for (c, &vc) in v.iter().enumerate() {
+            r += off[c * nv + i] * vc;
+        }
+        r.abs() <= tol
     })
 }
 
 fn accel_n<const NV: usize>(form: &InvariantDynamics, v: &[f64], tau: &[f64], qdd: &mut [f64]) {
-    accel_dyn(form, NV, v, tau, qdd)
+    accel_body(form, NV, v, tau, qdd)
 }
 
+/// The form (module doc).
 #[inline(always)]
-fn accel_dyn(form: &InvariantDynamics, nv: usize, v: &[f64], tau: &[f64], qdd: &mut [f64]) {
+fn accel_body(form: &InvariantDynamics, nv: usize, v: &[f64], tau: &[f64], qdd: &mut [f64]) {
     let nu = form.nu;
     let np = nu * (nu + 1) / 2;
     let (v, tau, qdd) = (&v[..nv], &tau[..nv], &mut qdd[..nv]);
