@@ -188,7 +188,7 @@ mod tests {
 
     /// The residual ‖W x − b‖ of random F of the shape, with g dt near ROS2's at 20 ms and stiff
     /// entries (10³ /s), on sizes with their own kernels and above them; and the fixed-size
-    /// kernels give the general LU's factor bit for bit.
+    /// kernels give the general path's factor and solve bit for bit.
     #[test]
     fn solves_w() {
         let mut seed = 0x9e37_79b9_7f4a_7c15u64;
@@ -234,6 +234,20 @@ mod tests {
                 general
                     .iter()
                     .zip(sf.s.iter())
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "nv {nv}"
+            );
+            // The general path's solve with that factor.
+            let mut y = b.clone();
+            let (top, bottom) = y.as_mut_slice().split_at_mut(nv);
+            add_g_a_top(sf.a.as_slice(), g, top, bottom);
+            lu_solve(&general, &piv, bottom);
+            for (t, &yb) in top.iter_mut().zip(bottom.iter()) {
+                *t += g * yb;
+            }
+            assert!(
+                y.iter()
+                    .zip(x.iter())
                     .all(|(a, b)| a.to_bits() == b.to_bits()),
                 "nv {nv}"
             );
