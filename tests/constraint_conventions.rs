@@ -129,3 +129,43 @@ fn omitted_fields_take_the_documented_defaults() {
         }
     );
 }
+
+/// The residuals a sample reports, by their definitions: a disk of radius 0.1 m upright (axis
+/// y) with its centre 0.13 m above the plane z = 0 is 0.03 m off its normal row, its contact's
+/// material point moves at v_c + ω × (−r ẑ) = (vx − r ω_y, vy + r ω_x, vz), and a knife edge
+/// along the disk's y sees vy: here (0.1, −0.16, 0.05) m/s and −0.2 m/s, the largest 0.2.
+#[test]
+fn sample_residuals_are_the_contact_gap_and_the_slip_speed() {
+    let model = reference_disk(BaseType::Floating);
+    let specs = [
+        ConstraintSpec::Rolling {
+            name: "contact".into(),
+            wheel: "disk".into(),
+            axis: [0.0, 1.0, 0.0],
+            radius: 0.1,
+            plane_normal: [0.0, 0.0, 1.0],
+            plane_height: 0.0,
+            friction: None,
+        },
+        ConstraintSpec::NoSideSlip {
+            name: "edge".into(),
+            frame: "disk".into(),
+            axis: [0.0, 1.0, 0.0],
+        },
+    ];
+    let q = [0.2, -0.1, 0.13, 0.0, 0.0, 0.0, 1.0];
+    let v = [0.3, -0.2, 0.05, 0.4, 2.0, -0.7];
+    let mut sys = multiplier_system(model, &specs, &q);
+    let (position, velocity) =
+        (sys.constraints).residuals(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v);
+    let rows = [0.1, -0.16, 0.05, -0.2];
+    for (k, (got, want)) in sys.cdata.jv.iter().zip(rows).enumerate() {
+        assert!(
+            (got - want).abs() < 1e-15,
+            "row {k}: J v = {got}, not {want}"
+        );
+    }
+    assert_eq!(sys.cdata.holonomic, [false, false, true, false]);
+    assert!((position - 0.03).abs() < 1e-15, "{position}");
+    assert!((velocity - 0.2).abs() < 1e-15, "{velocity}");
+}

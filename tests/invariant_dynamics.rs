@@ -110,6 +110,49 @@ fn the_diff_drive_has_a_form_that_meets_its_closed_forms() {
 }
 
 #[test]
+fn the_forms_derivatives_are_those_of_the_closed_forms() {
+    let scene = scene("diff_drive.yaml");
+    let mut sys = System::from_scene(&scene).unwrap();
+    let form = InvariantDynamics::fit(&mut sys, &scene.q0).expect("the diff drive has a form");
+    let DiffDrive {
+        m,
+        md,
+        i_a,
+        spin,
+        r,
+        half_track: h,
+    } = DD;
+    let (mass, yaw_inertia) = (m + 2.0 * spin / (r * r), i_a + 2.0 * spin * h * h / (r * r));
+    let rolling = |v: f64, w: f64| [v, 0.0, w, (v - h * w) / r, (v + h * w) / r];
+    let z = || nalgebra::DMatrix::<f64>::from_element(5, 5, f64::NAN);
+    let (mut dq, mut dv, mut dtau) = (z(), z(), z());
+    let mut worst = 0.0f64;
+    for &(v, w) in &[(0.0, 0.0), (0.4, -1.5), (-0.8, 3.0)] {
+        form.derivatives(&rolling(v, w), &mut dq, &mut dv, &mut dtau);
+        assert!(dq.iter().all(|&x| x == 0.0), "no coordinate enters q̈");
+        // Differentiating the closed forms: a velocity change (δv, δω) on the constraints moves
+        // v̇ by 2 m d ω δω / M and ω̇ by −m d (ω δv + v δω) / I; a torque change by (δτ_R ± δτ_L).
+        let (d_v, d_w) = (0.3, 0.7);
+        let (vdot, wdot) = (
+            2.0 * md * w * d_w / mass,
+            -md * (w * d_v + v * d_w) / yaw_inertia,
+        );
+        let along = &dv * nalgebra::DVector::from_row_slice(&rolling(d_v, d_w));
+        let (d_l, d_r) = (0.2, -0.9);
+        let (tdot_v, tdot_w) = ((d_r + d_l) / r / mass, h * (d_r - d_l) / r / yaw_inertia);
+        let by_tau = &dtau * nalgebra::DVector::from_row_slice(&[0.0, 0.0, 0.0, d_l, d_r]);
+        for (got, (a, b)) in [(along, (vdot, wdot)), (by_tau, (tdot_v, tdot_w))] {
+            let expected = rolling(a, b);
+            for (g, e) in got.iter().zip(&expected) {
+                worst = worst.max((g - e).abs() / e.abs().max(1.0));
+            }
+        }
+    }
+    println!("the form's derivatives against the closed forms': worst relative {worst:.2e}");
+    assert!(worst < 1e-13, "{worst:e}");
+}
+
+#[test]
 fn a_coordinate_that_matters_refuses_the_form() {
     // The arm's configuration changes M; the four-bar's loop closure has position rows.
     for name in ["suite_mobile_manipulator.yaml", "fourbar.yaml"] {

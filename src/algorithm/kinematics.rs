@@ -58,6 +58,21 @@ pub fn forward_kinematics_bias(model: &Model, data: &mut Data, q: &[f64], v: &[f
     }
 }
 
+/// Placements and body twists without accelerations: what the residuals a sample reports and
+/// the kinetic energy read (`ConstraintSet::residuals`).
+pub fn forward_kinematics_vel(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) {
+    for i in 1..model.nbodies() {
+        let b = &model.bodies[i];
+        let j = &b.joint;
+        place(model, data, i, q);
+        let mut vj = Motion::zero();
+        for k in 0..j.kind.nv() {
+            vj += j.subspace[k] * v[j.idx_v + k];
+        }
+        data.v[i] = data.li_m_i[i].act_inv_motion(&data.v[b.parent]) + vj;
+    }
+}
+
 /// `(S q̇_i, S q̈_i)` of one joint.
 #[inline]
 pub(crate) fn joint_motion(j: &crate::model::Joint, v: &[f64], a: &[f64]) -> (Motion, Motion) {

@@ -18,8 +18,8 @@ pub use data::Data;
 pub use energy::{center_of_mass, kinetic_energy, potential_energy};
 pub use jacobian::{ReferenceFrame, frame_jacobian, point_jacobian, point_jacobian_rows};
 pub use kinematics::{
-    forward_kinematics, forward_kinematics_bias, forward_kinematics_pos, frame_placement,
-    frame_velocity, point_classical_acceleration, point_position, point_velocity,
+    forward_kinematics, forward_kinematics_bias, forward_kinematics_pos, forward_kinematics_vel,
+    frame_placement, frame_velocity, point_classical_acceleration, point_position, point_velocity,
 };
 pub(crate) use rnea::bias_forces_after_kinematics;
 pub use rnea::{nonlinear_effects, rnea};

@@ -18,6 +18,7 @@ mod forces;
 mod kind;
 mod no_side_slip;
 mod point;
+mod residuals;
 mod rolling;
 mod set;
 mod slip;
@@ -51,6 +52,19 @@ pub(crate) trait ConstraintRows {
     fn dim(&self) -> usize;
     /// Write J rows, φ and γ for rows `out.row0 .. out.row0 + dim`.
     fn fill(&self, model: &Model, data: &Data, out: &mut RowSink);
+    /// φ, J v and the holonomic flag of each row straight from placements and twists (no J, no
+    /// γ), for the residuals a sample reports; false for a kind without such a shortcut (its
+    /// rows then come from `fill`).
+    fn residuals(&self, _model: &Model, _data: &Data, _out: RowResiduals) -> bool {
+        false
+    }
+}
+
+/// Where [`ConstraintRows::residuals`] writes a constraint's rows (its own slices).
+pub(crate) struct RowResiduals<'a> {
+    pub phi: &'a mut [f64],
+    pub jv: &'a mut [f64],
+    pub holonomic: &'a mut [bool],
 }
 
 /// Where a constraint writes its rows, plus scratch Jacobians (allocated once).

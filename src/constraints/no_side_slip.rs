@@ -4,7 +4,7 @@
 //! Row: eᵀ v_F (v_F = linear velocity of the origin in F's axes), nonholonomic (φ = 0);
 //! γ = eᵀ a_F(q̈ = 0), the body-frame derivative. λ: lateral force on F's origin along e [N].
 
-use super::{ConstraintRows, RowSink};
+use super::{ConstraintRows, RowResiduals, RowSink};
 use crate::algorithm::{Data, ReferenceFrame, frame_jacobian};
 use crate::model::Model;
 use nalgebra::Vector3;
@@ -34,5 +34,13 @@ impl ConstraintRows for NoSideSlipConstraint {
         out.phi[r] = 0.0;
         out.gamma[r] = self.axis.dot(&a.lin);
         out.holonomic[r] = false;
+    }
+
+    /// J v = eᵀ v_F from the frame's twist.
+    fn residuals(&self, model: &Model, data: &Data, out: RowResiduals) -> bool {
+        let f = &model.frames[self.frame];
+        let v = f.placement.act_inv_motion(&data.v[f.body]);
+        (out.phi[0], out.jv[0], out.holonomic[0]) = (0.0, self.axis.dot(&v.lin), false);
+        true
     }
 }

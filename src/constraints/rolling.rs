@@ -9,7 +9,7 @@
 //! γ = a_mat(p_c)|q̈=0 + ω × (ṗ_c − v_mat(p_c)) (not the material point's acceleration alone).
 //! λ: contact force by the ground on the wheel at p_c [N] on (t₁, t₂, n).
 
-use super::{ConstraintRows, RowSink};
+use super::{ConstraintRows, RowResiduals, RowSink};
 use crate::algorithm::{Data, frame_placement, point_jacobian_rows};
 use crate::model::Model;
 use crate::spatial::SE3;
@@ -127,5 +127,24 @@ impl ConstraintRows for RollingConstraint {
             };
             out.finish(out.row0 + k, phi, dir.dot(&gamma_w), hol);
         }
+    }
+
+    /// J v = the contact's material-point velocity on each kept direction; φ as in `fill`.
+    fn residuals(&self, model: &Model, data: &Data, out: RowResiduals) -> bool {
+        let o_m_w = frame_placement(model, data, self.wheel);
+        let pc = self.contact_at(&o_m_w).point;
+        let body = model.frames[self.wheel].body;
+        let (ob, vb) = (&data.o_m_i[body], &data.v[body]);
+        let v_mat = ob.rotation * (vb.lin + vb.ang.cross(&ob.act_inv_point(&pc)));
+        for (k, &row) in self.rows.iter().enumerate() {
+            let dir = self.basis.column(row);
+            out.jv[k] = dir.dot(&v_mat);
+            (out.phi[k], out.holonomic[k]) = if row == 2 {
+                (dir.dot(&pc) - self.height, true)
+            } else {
+                (0.0, false)
+            };
+        }
+        true
     }
 }

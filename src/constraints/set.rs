@@ -32,7 +32,7 @@ pub enum Constraint {
 }
 
 impl Constraint {
-    fn rows(&self) -> &dyn ConstraintRows {
+    pub(super) fn rows(&self) -> &dyn ConstraintRows {
         match self {
             Constraint::Point(c) => c,
             Constraint::Weld(c) => c,

@@ -160,6 +160,40 @@ impl InvariantDynamics {
             accel_body(self, self.nv, v, tau, qdd)
         )
     }
+
+    /// The form's derivatives at velocity `v` (all nv × nv): ∂q̈/∂q = 0 (no coordinate enters
+    /// it), ∂q̈/∂τ = A, and ∂q̈/∂v = Σ_{j≤k} c_jk (u_k n_j + u_j n_k)ᵀ with n_j N's columns — the
+    /// exact Jacobian of what the form integrates (zero along velocities off N, which it takes
+    /// by their part on N).
+    pub fn derivatives(
+        &self,
+        v: &[f64],
+        dqdd_dq: &mut DMatrix<f64>,
+        dqdd_dv: &mut DMatrix<f64>,
+        dqdd_dtau: &mut DMatrix<f64>,
+    ) {
+        let (nv, nu) = (self.nv, self.nu);
+        let u = coordinates(self, nv, v);
+        dqdd_dq.fill(0.0);
+        dqdd_dv.fill(0.0);
+        dqdd_dtau.as_mut_slice().copy_from_slice(&self.a);
+        let (n, dv) = (&self.n[..nv * nu], dqdd_dv.as_mut_slice());
+        let mut cols = self.c.chunks_exact(nv);
+        for j in 0..nu {
+            for k in j..nu {
+                let col = cols.next().unwrap_or_default();
+                // ∂(u_j u_k)/∂v = u_k n_j + u_j n_k.
+                for (c, dvc) in dv.chunks_exact_mut(nv).enumerate() {
+                    let w = u[k] * n[j * nv + c] + u[j] * n[k * nv + c];
+                    if w != 0.0 {
+                        for (x, &ci) in dvc.iter_mut().zip(col) {
+                            *x += ci * w;
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
 
 // The kernels: one body each, built for each nv up to linalg::FIXED_MAX (linalg/sized.rs).

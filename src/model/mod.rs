@@ -248,7 +248,14 @@ impl Model {
     pub fn integrate(&self, q: &[f64], v: &[f64], dt: f64, q_out: &mut [f64]) {
         for b in self.bodies.iter().skip(1) {
             let j = &b.joint;
-            let (iq, iv, nq, nv) = (j.idx_q, j.idx_v, j.kind.nq(), j.kind.nv());
+            let (iq, iv) = (j.idx_q, j.idx_v);
+            // A 1-DOF joint's group is the line: written here, without the per-joint call and
+            // slices (the stages of every step pass each joint).
+            if let JointKind::Revolute { .. } | JointKind::Prismatic { .. } = j.kind {
+                q_out[iq] = q[iq] + v[iv] * dt;
+                continue;
+            }
+            let (nq, nv) = (j.kind.nq(), j.kind.nv());
             j.kind.integrate(
                 &q[iq..iq + nq],
                 &v[iv..iv + nv],

@@ -240,7 +240,15 @@ impl Accel for Rhs<'_> {
             accel_jacobian_fd(self, model, (t, q, v), qdd, jac, scratch)?;
             return Ok(false);
         };
-        let analytic = dynamics_derivatives(self.sys, dd, q, v, self.tau);
+        // Where the dynamics are a constant form, its own derivatives: the exact Jacobian of
+        // the right-hand side evaluated (dynamics/invariant.rs).
+        let analytic = match self.invariant {
+            Some(form) if self.sys.baumgarte == Baumgarte::default() => {
+                form.derivatives(v, &mut dd.dqdd_dq, &mut dd.dqdd_dv, &mut dd.dqdd_dtau);
+                Ok(())
+            }
+            _ => dynamics_derivatives(self.sys, dd, q, v, self.tau),
+        };
         if analytic.is_err() {
             accel_jacobian_fd(self, model, (t, q, v), qdd, jac, scratch)?;
             return Ok(false);

@@ -151,14 +151,8 @@ impl Predictor {
         };
         // Time reaches the constraints through their workspace (`velocity` rows may use t).
         sys.cdata.t = t;
-        sys.constraints
-            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
-        let cd = &sys.cdata;
-        let position_residual = (0..sys.constraints.nrows)
-            .filter(|&k| cd.holonomic[k])
-            .map(|k| cd.phi[k].abs())
-            .fold(0.0, f64::max);
-        let velocity_residual = cd.jv.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let (position_residual, velocity_residual) =
+            (sys.constraints).residuals(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
         let ke = kinetic_energy(&sys.model, &sys.data);
         let pe = potential_energy(&sys.model, &sys.data)
             + self.forces.potential_energy(&sys.model, &sys.data, q);

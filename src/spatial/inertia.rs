@@ -99,9 +99,11 @@ impl Inertia {
         out
     }
 
-    /// Kinetic energy `½ vᵀ I v` [J].
+    /// Kinetic energy `½ vᵀ I v = ½ (m |v − c × ω|² + ωᵀ I_c ω)` [J] (the cross terms of
+    /// [`Self::mul_motion`] cancel).
     pub fn kinetic_energy(&self, v: &Motion) -> f64 {
-        0.5 * v.dot(&self.mul_motion(v))
+        let u = v.lin - self.com.cross(&v.ang);
+        0.5 * (self.mass * u.norm_squared() + v.ang.dot(&(self.inertia_com * v.ang)))
     }
 }
 
