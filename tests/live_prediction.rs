@@ -153,10 +153,10 @@ fn the_live_tick_does_bounded_work() {
         t.evaluations, t.estimate_evaluations, t.jacobians, t.covariance_linearizations
     );
     // 50 steps of 20 ms, 2 evaluations each; the companion 100 steps of 10 ms on the answer's
-    // F; one F per two spans (`jacobian_spans: 2`; the command at 0.5 s changes only the
+    // F; one F per five spans (`jacobian_spans: 5`; the command at 0.5 s changes only the
     // targets, so F's ∂q̈/∂t, not F), one linearization per step.
     assert_eq!((t.evaluations, t.estimate_evaluations), (100, 200));
-    assert_eq!(t.jacobians, 25);
+    assert_eq!(t.jacobians, 10);
     assert!(
         t.covariance_linearizations <= 60,
         "{}",

@@ -84,7 +84,7 @@ pub struct IntegrationSettings {
     /// feedback through ∂q̈/∂τ, kept with each F: a new target re-forms F's ∂q̈/∂t, and a
     /// controller that saturates or comes back inside re-forms F with or without its feedback,
     /// with no new derivatives. A W-method keeps its order with any F; an older one damps the
-    /// stiff modes less exactly. Measured on the suite's scene (`jacobian_spans: 2` at 20 ms):
+    /// stiff modes less exactly. Measured on the suite's scene (`jacobian_spans: 5` at 20 ms):
     /// the accuracy against the held reference, the error estimate and the covariance against
     /// Monte Carlo are those of 1 to three digits.
     #[serde(default = "default_jacobian_spans")]

@@ -222,7 +222,7 @@ fn judging_contacts_allocates_nothing_per_step() {
     assert_eq!(short, long, "judging the contacts allocates per step");
 }
 
-/// The suite's live settings (continuous controllers, ROS2 with `jacobian_spans: 2`, the
+/// The suite's live settings (continuous controllers, ROS2 with `jacobian_spans: 5`, the
 /// covariance on the steps' own F) under a command that saturates both wheels (their targets
 /// jump by 17 and 11 rad/s against kp 1 N·m·s/rad and 5 N·m): the anti-windup's probes and cut
 /// spans, 4× the steps, the same allocations.
