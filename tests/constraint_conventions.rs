@@ -34,15 +34,7 @@ fn constraint_set_stacks_rows_in_declaration_order() {
             unilateral: false,
             friction: None,
         },
-        ConstraintSpec::Rolling {
-            name: "contact".into(),
-            wheel: "disk".into(),
-            axis: [0.0, 1.0, 0.0],
-            radius: 0.1,
-            plane_normal: [0.0, 0.0, 1.0],
-            plane_height: 0.0,
-            friction: None,
-        },
+        disk_on_the_ground(),
     ];
     let q = [0.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0];
     let set = ConstraintSet::new(&model, &specs, &q).unwrap();
@@ -57,6 +49,19 @@ fn constraint_set_stacks_rows_in_declaration_order() {
         ["pin/x", "pin/z", "contact/t1", "contact/t2", "contact/n"]
     );
     assert!(!set.is_empty());
+}
+
+/// The reference disk (radius 0.1 m, spin axis y) rolling on the plane z = 0.
+fn disk_on_the_ground() -> ConstraintSpec {
+    ConstraintSpec::Rolling {
+        name: "contact".into(),
+        wheel: "disk".into(),
+        axis: [0.0, 1.0, 0.0],
+        radius: 0.1,
+        plane_normal: [0.0, 0.0, 1.0],
+        plane_height: 0.0,
+        friction: None,
+    }
 }
 
 /// Units of joints that do not start at velocity index 0: a revolute arm (N·m) carrying a body
@@ -138,15 +143,7 @@ fn omitted_fields_take_the_documented_defaults() {
 fn sample_residuals_are_the_contact_gap_and_the_slip_speed() {
     let model = reference_disk(BaseType::Floating);
     let specs = [
-        ConstraintSpec::Rolling {
-            name: "contact".into(),
-            wheel: "disk".into(),
-            axis: [0.0, 1.0, 0.0],
-            radius: 0.1,
-            plane_normal: [0.0, 0.0, 1.0],
-            plane_height: 0.0,
-            friction: None,
-        },
+        disk_on_the_ground(),
         ConstraintSpec::NoSideSlip {
             name: "edge".into(),
             frame: "disk".into(),

@@ -45,15 +45,9 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], 
 /// forming and adding the zero `S q̈_i` terms (the same numbers).
 pub fn forward_kinematics_bias(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) {
     for i in 1..model.nbodies() {
-        let b = &model.bodies[i];
-        let j = &b.joint;
-        place(model, data, i, q);
-        let mut vj = Motion::zero();
-        for k in 0..j.kind.nv() {
-            vj += j.subspace[k] * v[j.idx_v + k];
-        }
-        let vi = data.li_m_i[i].act_inv_motion(&data.v[b.parent]) + vj;
-        data.a[i] = data.li_m_i[i].act_inv_motion(&data.a[b.parent]) + vi.cross_motion(&vj);
+        let (vj, vi) = place_with_twist(model, data, i, q, v);
+        let parent = model.bodies[i].parent;
+        data.a[i] = data.li_m_i[i].act_inv_motion(&data.a[parent]) + vi.cross_motion(&vj);
         data.v[i] = vi;
     }
 }
@@ -62,15 +56,27 @@ pub fn forward_kinematics_bias(model: &Model, data: &mut Data, q: &[f64], v: &[f
 /// the kinetic energy read (`ConstraintSet::residuals`).
 pub fn forward_kinematics_vel(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) {
     for i in 1..model.nbodies() {
-        let b = &model.bodies[i];
-        let j = &b.joint;
-        place(model, data, i, q);
-        let mut vj = Motion::zero();
-        for k in 0..j.kind.nv() {
-            vj += j.subspace[k] * v[j.idx_v + k];
-        }
-        data.v[i] = data.li_m_i[i].act_inv_motion(&data.v[b.parent]) + vj;
+        data.v[i] = place_with_twist(model, data, i, q, v).1;
     }
+}
+
+/// Body i placed at q, and (S q̇_i, its twist `v_i = li_m_iᵀ v_λ + S q̇_i`) from its parent's.
+#[inline(always)]
+fn place_with_twist(
+    model: &Model,
+    data: &mut Data,
+    i: usize,
+    q: &[f64],
+    v: &[f64],
+) -> (Motion, Motion) {
+    let b = &model.bodies[i];
+    let j = &b.joint;
+    place(model, data, i, q);
+    let mut vj = Motion::zero();
+    for k in 0..j.kind.nv() {
+        vj += j.subspace[k] * v[j.idx_v + k];
+    }
+    (vj, data.li_m_i[i].act_inv_motion(&data.v[b.parent]) + vj)
 }
 
 /// `(S q̇_i, S q̈_i)` of one joint.
