@@ -47,18 +47,24 @@ const DD: DiffDrive = DiffDrive {
     half_track: 0.17,
 };
 
+impl DiffDrive {
+    /// The mass and the yaw inertia about A that the closed forms divide by, the wheels' spin
+    /// included: (m + 2 I_s/r², I_A + 2 I_s (b/2)²/r²).
+    fn inertias(&self) -> (f64, f64) {
+        let (r, h) = (self.r, self.half_track);
+        (
+            self.m + 2.0 * self.spin / (r * r),
+            self.i_a + 2.0 * self.spin * h * h / (r * r),
+        )
+    }
+}
+
 /// (v̇, ω̇) of the closed forms above.
 fn closed_form(v: f64, w: f64, tau_l: f64, tau_r: f64) -> (f64, f64) {
-    let DiffDrive {
-        m,
-        md,
-        i_a,
-        spin,
-        r,
-        half_track: h,
-    } = DD;
-    let vdot = ((tau_r + tau_l) / r + md * w * w) / (m + 2.0 * spin / (r * r));
-    let wdot = (h * (tau_r - tau_l) / r - md * w * v) / (i_a + 2.0 * spin * h * h / (r * r));
+    let (mass, yaw_inertia) = DD.inertias();
+    let (md, r, h) = (DD.md, DD.r, DD.half_track);
+    let vdot = ((tau_r + tau_l) / r + md * w * w) / mass;
+    let wdot = (h * (tau_r - tau_l) / r - md * w * v) / yaw_inertia;
     (vdot, wdot)
 }
 
@@ -114,15 +120,8 @@ fn the_forms_derivatives_are_those_of_the_closed_forms() {
     let scene = scene("diff_drive.yaml");
     let mut sys = System::from_scene(&scene).unwrap();
     let form = InvariantDynamics::fit(&mut sys, &scene.q0).expect("the diff drive has a form");
-    let DiffDrive {
-        m,
-        md,
-        i_a,
-        spin,
-        r,
-        half_track: h,
-    } = DD;
-    let (mass, yaw_inertia) = (m + 2.0 * spin / (r * r), i_a + 2.0 * spin * h * h / (r * r));
+    let (mass, yaw_inertia) = DD.inertias();
+    let (md, r, h) = (DD.md, DD.r, DD.half_track);
     let rolling = |v: f64, w: f64| [v, 0.0, w, (v - h * w) / r, (v + h * w) / r];
     let z = || nalgebra::DMatrix::<f64>::from_element(5, 5, f64::NAN);
     let (mut dq, mut dv, mut dtau) = (z(), z(), z());
