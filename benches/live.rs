@@ -2,7 +2,7 @@
 //! (params/suite_mobile_manipulator.yaml) with continuous controllers and ROS2 at 20 ms, error
 //! estimate on: the predictor node's tick (1 s with a start covariance, as /odom gives one) and a
 //! planner's 2 s `Predict` under a turning command with its arm held. Their accuracy against the
-//! held reference is asserted in tests/live_prediction.rs.
+//! held reference is asserted in tests/it/live_prediction.rs.
 
 use constraint_dynamics::Scene;
 use constraint_dynamics::actuators::Command;

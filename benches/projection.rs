@@ -8,7 +8,7 @@
 //! solution meets: no QP), `bounded` (bounds that bind: Clarabel + polish). UR5 and Solo12 use
 //! the reference case's state 2 with its `bounded` lb/ub (3 and 5 active bounds).
 
-#[path = "../tests/common/mod.rs"]
+#[path = "../tests/it/common/mod.rs"]
 mod common;
 
 use constraint_dynamics::algorithm::Data;

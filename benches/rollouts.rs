@@ -2,12 +2,12 @@
 //! of 50 ms (Nav2 MPPI's time_steps and model_dt) on the differential drive
 //! (params/suite_diff_drive.yaml) at the scene's `rollouts:` settings (continuous wheel
 //! controllers with anti-windup, ROS2 at 16.7 ms on one F per rollout, projection, no
-//! error-estimate companion; `tests/rollouts_planner.rs` holds them to 1 cm and 0.01 rad of the
+//! error-estimate companion; `tests/it/rollouts_planner.rs` holds them to 1 cm and 0.01 rad of the
 //! scene's 1 ms controllers), on 1 worker thread and on every core. `ROLLOUTS=N` sets another N.
 
-#[path = "../tests/common/command_sequences.rs"]
+#[path = "../tests/it/common/command_sequences.rs"]
 mod command_sequences;
-#[path = "../tests/common/planner_settings.rs"]
+#[path = "../tests/it/common/planner_settings.rs"]
 mod planner_settings;
 
 use command_sequences::sequences;

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Long fuzzing run: every proptest fuzz target -- the core's tests/refusals/fuzz_hostile.rs and
-# the nodes' nodes/tests/fuzz_requests.rs (handlers without DDS; no participant is opened) and the
+# Long fuzzing run: every proptest fuzz target -- the core's tests/it/refusals/fuzz_hostile.rs and
+# the nodes' nodes/tests/it/fuzz_requests.rs (handlers without DDS; no participant is opened) and the
 # CLI's file parsers (cli/src/fuzz_tests.rs) -- in a
 # loop with a new seed per round and PROPTEST_CASES large, at nice 19, until MINUTES are up.
 # Prints per target the rounds, cases, failures and elapsed time; exits non-zero on any failure.
@@ -11,8 +11,8 @@ minutes=${1:?usage: tools/fuzz_long.sh MINUTES [CASES]}
 cases=${2:-4096}
 start=$(date +%s)
 # "name cargo-test-arguments" per target.
-targets=("fuzz_hostile -p constraint_dynamics --test refusals fuzz_hostile::"
-    "fuzz_requests -p constraint_dynamics_nodes --test fuzz_requests"
+targets=("fuzz_hostile -p constraint_dynamics --test it refusals::fuzz_hostile::"
+    "fuzz_requests -p constraint_dynamics_nodes --test it fuzz_requests::"
     "cli_fuzz_files -p constraint_dynamics_cli --bin constraint_dynamics fuzz_tests")
 for t in "${targets[@]}"; do
     read -r _ args <<<"$t"

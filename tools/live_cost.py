@@ -8,7 +8,7 @@ What it runs, in order:
 - the release suite, fed at 20 Hz inside a private network namespace (tools/ros2/live_cpu.py,
   the peer venv of tools/ros2/setup_peer_venv.sh): CPU share and predicted-odometry rate,
   `--runs` times;
-- the live-prediction and covariance tests (tests/live_prediction.rs, tests/covariance.rs):
+- the live-prediction and covariance tests (tests/it/live_prediction.rs, tests/it/covariance.rs):
   the base pose against the controllers' 1 ms hold integrated at 0.1 ms, the error estimate
   against the true error, the tick's work, the covariance against Monte Carlo.
 The machine should be otherwise idle: a CPU share is only as good as the quiet around it.

@@ -15,14 +15,14 @@ cd "$(dirname "$0")/.."
 cargo fetch --locked
 bash tools/ros2/setup_peer_venv.sh
 bash tools/ros2/setup_peer_venv.sh --distro jazzy
-bash tools/robots/setup_venv.sh     # Pinocchio + example-robot-data (tests/example_robot_data.rs)
+bash tools/robots/setup_venv.sh     # Pinocchio + example-robot-data (tests/it/example_robot_data.rs)
 bash tools/ros2/check_colcon_install.sh setup   # colcon + colcon-ros-cargo + cargo-ament-build
 cargo build --workspace --all-targets --locked --offline
 
 # Rust tests, then the rclpy/Cyclone interop suite, in one private namespace each. The DDS tests
 # are #[ignore]d in a plain `cargo test` (they need root and the peer venv, both set up here):
-# --include-ignored runs them, and a missing prerequisite fails them. Every nodes/tests/*.rs
-# target runs here, the robustness ones included: suite_load (~85 s; CD_LOAD_SECONDS, default
+# --include-ignored runs them, and a missing prerequisite fails them. Every nodes/tests/it module
+# runs here, the robustness ones included: suite_load (~85 s; CD_LOAD_SECONDS, default
 # 60), suite_churn (~75 s; CD_CHURN_PARTICIPANTS, default 1000), suite_absurd_params (~15 s).
 set +e
 tools/ros2/netns_run.sh cargo test --workspace --locked --offline -- --include-ignored 2>&1 | tee /tmp/cd_cargo_test.log
@@ -31,9 +31,8 @@ tools/ros2/netns_run.sh .venv-ros2/bin/python tools/ros2/interop/interop.py 2>&1
 interop_status=${PIPESTATUS[0]}
 # The same peer tests against Jazzy's rclpy (rmw_fastrtps_cpp 8.4 / Fast DDS 2.14).
 CD_ROS2_VENV="$PWD/.venv-ros2-jazzy" tools/ros2/netns_run.sh cargo test -p constraint_dynamics_nodes \
-    --locked --offline --test suite_rclpy_peer --test suite_stack_rclpy --test suite_covariance_rclpy --test suite_payload_rclpy \
-    --test suite_envelope_rclpy --test ros_smoke \
-    -- --include-ignored 2>&1 | tee /tmp/cd_cargo_test_jazzy.log
+    --locked --offline --test it -- --include-ignored suite_rclpy_peer:: suite_stack_rclpy:: \
+    suite_covariance_rclpy:: suite_payload_rclpy:: suite_envelope_rclpy:: ros_smoke:: 2>&1 | tee /tmp/cd_cargo_test_jazzy.log
 jazzy_status=${PIPESTATUS[0]}
 tools/ros2/netns_run.sh .venv-ros2-jazzy/bin/python tools/ros2/interop/interop.py 2>&1 | grep -v '^\[\(ERROR\|WARN\)\]' | tee /tmp/cd_interop_jazzy.log
 interop_jazzy_status=${PIPESTATUS[0]}

@@ -13,7 +13,7 @@
 //!   (default 2000) after 50 warm-up calls, and of `~/predict` (1 s horizon, 20 calls),
 //! - the same computations in-process (engine only, no ROS) for the overhead.
 
-#[path = "../tests/common/mod.rs"]
+#[path = "../tests/it/common/mod.rs"]
 mod common;
 
 use std::process::{Command, ExitCode};

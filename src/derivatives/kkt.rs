@@ -15,7 +15,7 @@ use crate::model::Model;
 /// Rank test of J M⁻¹ Jᵀ: a row whose Cholesky pivot is below this fraction of the largest
 /// diagonal is dependent. Looser than the multiplier solve's first attempt (1e-12): an exactly
 /// dependent row's pivot is rounding times the condition number, and 1e-12 missed the
-/// dependent wheel row of a floating mobile manipulator state (tests/derivatives_fd.rs); 1e-9
+/// dependent wheel row of a floating mobile manipulator state (tests/it/derivatives_fd.rs); 1e-9
 /// still keeps rows at a singular-value ratio above ~3e-5.
 const RANK_TOL: f64 = 1e-9;
 

@@ -19,7 +19,7 @@
 //! wheels' lateral rows being one row, and that work is lost): an independent set taken in order
 //! can hold a nearly dependent row that the largest-first order leaves for last, and on the
 //! floating mobile manipulator that moved the RK4 step's derivative along the base's roll from
-//! its finite differences by 1.6e-5 (tests/linearize.rs, bar 1e-8).
+//! its finite differences by 1.6e-5 (tests/it/linearize.rs, bar 1e-8).
 //!
 //! The matrices are a few rows wide (one per constraint row), so they live in flat column-major
 //! buffers indexed directly: nalgebra's indexing and row swaps cost more than the arithmetic.

@@ -22,7 +22,7 @@
 //! error grows with t²), and DOPRI5's embedded estimate measures the 4th-order solution, not the
 //! propagated 5th-order one (pessimistic by 1/(C h)). The companion's difference follows the
 //! nonlinear dynamics, projection and constraints as they are; it is asymptotically exact and
-//! measured against closed forms and far tighter runs in `tests/error_estimate.rs` (table in
+//! measured against closed forms and far tighter runs in `tests/it/error_estimate.rs` (table in
 //! docs/propagation.md). The estimate reported is the largest entry of the tangent-space
 //! difference of q [m or rad].
 

@@ -189,7 +189,7 @@ impl Accel for Rhs<'_> {
             return Ok(());
         }
         // `formulation: auto` takes the multiplier form here: the same q̈ as the embedded form
-        // (tests/propagation_formulations.rs), 1.08–1.7× faster on every bundled scene
+        // (tests/it/propagation_formulations.rs), 1.08–1.7× faster on every bundled scene
         // (docs/performance.md). Least squares (λ = S⁺ r) where stages or drift make redundant
         // rows disagree (`DynamicsOptions::stage`).
         let opts = DynamicsOptions {

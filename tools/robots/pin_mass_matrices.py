@@ -6,7 +6,7 @@ its joint-space inertia M at two configurations, as JSON on stdout.
 
 ROBOTS_DIR is example-robot-data's `robots/` folder (tools/robots/setup_venv.sh prints it).
 The second configuration is drawn here (numpy, fixed seed) and written out joint by joint, so the
-Rust test (tests/example_robot_data.rs) evaluates M at exactly the same state: joint angles
+Rust test (tests/it/example_robot_data.rs) evaluates M at exactly the same state: joint angles
 [rad] or positions [m] by URDF joint name, and the floating base's pose [x, y, z, qx, qy, qz, qw].
 M's rows and columns are given in Pinocchio's order with each joint's name and first velocity
 index, so the test maps them to its own order by name. No DDS, no network.

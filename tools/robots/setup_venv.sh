@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Create (or reuse) the pinned "anchors" venv: Pinocchio (PyPI `pin`) and example-robot-data,
-# the independent references of tests/example_robot_data.rs (and of tools/bench.py,
+# the independent references of tests/it/example_robot_data.rs (and of tools/bench.py,
 # which uses the same venv). The dataset stays in the venv; nothing is copied into the repo.
 #
 #   tools/robots/setup_venv.sh [VENV_DIR]

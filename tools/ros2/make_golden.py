@@ -6,7 +6,7 @@
 OUT_DIR defaults to nodes/tests/golden. For every case it writes CASE.bin (the
 bytes of rclpy.serialization.serialize_message: 4-byte encapsulation header +
 CDR body) and adds the message's field values to values.json, so the Rust test
-nodes/tests/golden_messages.rs can build the same message, serialize it with
+nodes/tests/it/golden_messages.rs can build the same message, serialize it with
 the serializer ros2-client uses, and compare bytes. serialize_message opens no
 DDS participant; run it in the namespace wrapper anyway.
 

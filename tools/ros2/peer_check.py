@@ -12,7 +12,7 @@ the same namespace as the Rust node. It
    age of the next messages (now - header.stamp);
 2. calls the Rust node's constraint_dynamics_msgs/GetConstraintForces service
    `--calls` times, checking every response against the echo rule of
-   nodes/tests/ros_smoke.rs, and measures the round trip;
+   nodes/tests/it/ros_smoke.rs, and measures the round trip;
 3. calls the std_srvs/Trigger service once.
 It prints one JSON object on the last line of stdout (the received Odometry
 field by field, the numbers, `ok` and any `errors`), and exits 0 iff ok.
@@ -58,7 +58,7 @@ def request(i):
 
 
 def check_response(req, resp):
-    """The echo rule of the Rust test server (nodes/tests/ros_smoke.rs)."""
+    """The echo rule of the Rust test server (nodes/tests/it/ros_smoke.rs)."""
     errors = []
 
     def expect(what, got, want):

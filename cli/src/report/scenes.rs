@@ -145,7 +145,7 @@ fn lines(constrained: bool, sie: f64, rk4: f64, sdirk2: f64, quick: bool) -> Vec
 }
 
 /// The IVP test set's reference q(0.03 s) of Andrews' squeezer (PSIDE at tol 1e-14), in its
-/// coordinate order; accurate to ~1.4e-9 rad only (tests/andrews.rs).
+/// coordinate order; accurate to ~1.4e-9 rad only (tests/it/andrews.rs).
 const ANDREWS_NAMES: [&str; 7] = ["beta", "theta", "gamma", "phi", "delta", "omega", "epsilon"];
 const ANDREWS_Q: [f64; 7] = [
     0.1581077119629904e+02,
@@ -318,7 +318,7 @@ pub fn benches(quick: bool) -> Vec<Bench> {
                 names: &ANDREWS_NAMES,
                 q: &ANDREWS_Q,
                 source: "the IVP test set's reference q(0.03 s) (PSIDE at tol 1e-14; accurate to \
-                         ~1.4e-9 rad, tests/andrews.rs)",
+                         ~1.4e-9 rad, tests/it/andrews.rs)",
             },
         },
         error_metric: "max over the coordinates of |q(0.03 s) − q_ref| [rad]",

@@ -4,7 +4,7 @@
 //! names and CDR types (`float64` → `f64`, `uint32` → `u32`, `string` →
 //! `String`, `T[]` → `Vec<T>`, `float64[36]` → `[f64; 36]` via
 //! `serde-big-array`). The CDR layout is checked byte for byte against rclpy in
-//! `nodes/tests/golden_messages.rs`.
+//! `nodes/tests/it/golden_messages.rs`.
 //!
 //! One module per ROS package; module paths mirror the ROS names
 //! (`geometry_msgs::Twist` is `geometry_msgs/msg/Twist`). The services of

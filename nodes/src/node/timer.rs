@@ -71,7 +71,7 @@ pub(crate) const PERIODIC_NICE: i32 = 10;
 /// kernels ignore it). Once picked, a thread runs its slice before a waking thread of the same
 /// class may preempt it (EEVDF's run-to-parity), so a request woken on the predictor's core
 /// waits up to the slice behind a prediction: by default 0.7 ms × (1 + log₂ cores). Measured
-/// (nodes/tests/suite_load.rs, idle 2-core VM, alternated runs): p99 of the service calls
+/// (nodes/tests/it/suite_load.rs, idle 2-core VM, alternated runs): p99 of the service calls
 /// 0.87–1.06 ms with this slice against 1.39 ms with the default 1.4 ms, calls over 2 ms 363–542
 /// against 829–868 of ~109 000, the predictor's rate 10 Hz with either.
 const PERIODIC_SLICE_NS: u64 = 100_000;

@@ -333,7 +333,7 @@ fn joint_noise_for_an_unknown_joint_is_refused() {
 
 /// Every prediction judges its contacts: at rest nothing breaks and the planar base's lift-off is
 /// listed unchecked; commanded 0.5 m/s from rest, the PI wheel controllers saturate at the URDF
-/// effort (5 N·m, tests/propagation_actuator_forces.rs) and `/diagnostics` WARNs of a slip at the
+/// effort (5 N·m, tests/it/propagation_actuator_forces.rs) and `/diagnostics` WARNs of a slip at the
 /// first sample. urdf/diff_drive.urdf: M = 8 + 2 × 0.5 + 0.2 kg, r = 0.05 m, I_w = 0.000625 kg·m²;
 /// a = 2 τ / (r (M + 2 I_w / r²)), each wheel pushed with M a / 2 against
 /// μ N = 0.8 × M g / 2 (`slip.planar_normal_force` 0: half the weight).
@@ -395,7 +395,7 @@ fn each_tick_publishes_the_envelope_of_its_start_state() {
     for (l, want) in limits.into_iter().zip(closed) {
         assert_eq!(l.status, AccelerationLimit::BOUNDED);
         // The closed forms are written to 10 digits (±5e-10 relative); the core meets the exact
-        // values to 4e-11 (tests/envelope.rs).
+        // values to 4e-11 (tests/it/envelope.rs).
         assert!((l.max - want).abs() <= 1e-9 * want, "{} vs {want}", l.max);
         assert_eq!(l.binding_kinds, ["effort", "effort"]);
         assert_eq!(l.binding_names, ["left_wheel_joint", "right_wheel_joint"]);

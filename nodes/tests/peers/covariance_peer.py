@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """rclpy as a robot's odometry and as a planner reading the predictions
-(nodes/tests/suite_covariance_rclpy.rs): the suite runs the bundled diff drive
+(nodes/tests/it/suite_covariance_rclpy.rs): the suite runs the bundled diff drive
 (params/suite_diff_drive.yaml), horizon T = 1 s, rate 10 Hz, state.timeout 0.5 s. Propagating the
 covariance costs ~0.1–0.6 s per prediction on a loaded 2-core machine, so the windows below
 count messages at the rate achieved, not at 10 Hz.

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """rclpy as a robot's state, a planner reading ~/acceleration_limits and a Nav2 velocity
-smoother (nodes/tests/suite_envelope_rclpy.rs): the suite runs the floating mobile manipulator
+smoother (nodes/tests/it/suite_envelope_rclpy.rs): the suite runs the floating mobile manipulator
 (params/suite_mobile_manipulator_floating.yaml) at 10 Hz with
 envelope.velocity_smoother: velocity_smoother and envelope.min_interval: MIN_INTERVAL.
 

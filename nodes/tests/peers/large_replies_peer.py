@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""rclpy (rmw_fastrtps_cpp) client of large ~/predict replies (nodes/tests/large_replies.rs).
+"""rclpy (rmw_fastrtps_cpp) client of large ~/predict replies (nodes/tests/it/large_replies.rs).
 
     tools/ros2/netns_run.sh .venv-ros2/bin/python nodes/tests/peers/large_replies_peer.py CONFIG_JSON
 

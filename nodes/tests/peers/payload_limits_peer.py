@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """A real ROS 2 peer (rclpy, rmw_fastrtps_cpp) that loads the predictor's robot with a payload and
-reads its acceleration limits (nodes/tests/suite_payload_rclpy.rs).
+reads its acceleration limits (nodes/tests/it/suite_payload_rclpy.rs).
 
     tools/ros2/netns_run.sh .venv-ros2/bin/python nodes/tests/peers/payload_limits_peer.py REQUEST_JSON
 
@@ -9,7 +9,7 @@ floating cart. It publishes the cart at rest (/odom, /joint_states at 50 Hz), re
 /cd_predictor/acceleration_limits for 1.5 s, calls /cd_predictor/set_payload with REQUEST_JSON
 ({"frame": ..., "inertia": {"m": ..., "com": {...}, "ixx": ...}}), and reads the limits again from
 1 s after the answer (a tick that started before it may still publish the old limits) for 1.5 s.
-The rate is not checked here (nodes/tests/suite_envelope_rclpy.rs does). It prints one JSON object on the last line of stdout (the four
+The rate is not checked here (nodes/tests/it/suite_envelope_rclpy.rs does). It prints one JSON object on the last line of stdout (the four
 limits of every message before and after) and exits 0 iff `ok`.
 """
 import json

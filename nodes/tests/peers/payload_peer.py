@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A real ROS 2 peer (rclpy, rmw_fastrtps_cpp) that sets a payload (nodes/tests/suite_payload_rclpy.rs).
+"""A real ROS 2 peer (rclpy, rmw_fastrtps_cpp) that sets a payload (nodes/tests/it/suite_payload_rclpy.rs).
 
     tools/ros2/netns_run.sh .venv-ros2/bin/python nodes/tests/peers/payload_peer.py NODE REQUEST_JSON
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""rclpy as the rest of a robot stack (nodes/tests/suite_stack_rclpy.rs): a fake simulator, a
+"""rclpy as the rest of a robot stack (nodes/tests/it/suite_stack_rclpy.rs): a fake simulator, a
 lifecycle manager and rviz2's reader of the markers, for a suite started in /robot1 with
 `use_sim_time`, params/namespaced.yaml and `autostart: false`.
 

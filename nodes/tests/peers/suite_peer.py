@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A real ROS 2 peer (rclpy, rmw_fastrtps_cpp) for the node suite (nodes/tests/suite_rclpy_peer.rs).
+"""A real ROS 2 peer (rclpy, rmw_fastrtps_cpp) for the node suite (nodes/tests/it/suite_rclpy_peer.rs).
 
     tools/ros2/netns_run.sh .venv-ros2/bin/python nodes/tests/peers/suite_peer.py REQUESTS_JSON
 

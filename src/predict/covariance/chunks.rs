@@ -35,7 +35,7 @@
 //!
 //! The acceptance tolerance [`CHUNK_RTOL`] trades P's accuracy against linearizations: at
 //! 3e-3 of the motion P stays within 8.2e-4 of finite differences of the whole prediction
-//! (tests/covariance_sensitivity.rs, mobile manipulator) — a covariance is an uncertainty, and
+//! (tests/it/covariance_sensitivity.rs, mobile manipulator) — a covariance is an uncertainty, and
 //! 0.1 % of it is far below what a Monte Carlo check resolves (√(2/N) = 3 % at N = 2000).
 //!
 //! A ROS2 step hands over the F it stepped with, q̈ at its start and ∂q̈/∂t

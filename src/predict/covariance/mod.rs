@@ -9,7 +9,7 @@
 //! - A = ∂x⁺/∂x of one step of the prediction's method ([`linearize_step`](crate::predict::covariance::linearize::linearize_step), under the
 //!   generalized force held over it, with the joint spring-dampers and the controllers'
 //!   feedback moving with the state — `Actuators::feedback`; without it P missed the suite's
-//!   closed-loop sensitivity by 10³, tests/covariance_sensitivity.rs) that may span several
+//!   closed-loop sensitivity by 10³, tests/it/covariance_sensitivity.rs) that may span several
 //!   of the prediction's steps: the
 //!   sensitivity of the flow, not of the step size, is what the covariance needs, and one
 //!   linearization per 2–32 steps is what makes the covariance cheap (covariance/chunks.rs,

@@ -10,7 +10,7 @@
 //! back, waiting only while the worker still flushes it (at most one flush in flight). The
 //! worker owns the propagator and a clone of the predictor's `System` (its own kinematics and
 //! factorization buffers); a flush computes there exactly what it computes inline, so every P
-//! is the same to the bit (tests/covariance_worker.rs). The samples' covariances are attached
+//! is the same to the bit (tests/it/covariance_worker.rs). The samples' covariances are attached
 //! when the run ends; a worker's error is the run's error (it concerns an earlier time than
 //! anything the prediction met after it).
 
@@ -44,7 +44,7 @@ pub(in crate::predict) struct Finished {
 /// a record over only after the worker returned the other), the record coming back, and who
 /// has left. A mutex and a condition variable (futexes) rather than channels: blocking on
 /// them allocates nothing, and the stepping loop stays allocation-free
-/// (tests/no_alloc/propagation.rs).
+/// (tests/it/no_alloc/propagation.rs).
 #[derive(Debug, Default)]
 struct Exchange {
     state: Mutex<Slots>,

@@ -338,7 +338,7 @@ def phase_twist(user):
     check("service rollouts: 3 sequences, the first on the closed-form arc (3 mm), a repeat equal", ok, detail)
 
     # Forces along the prediction, over a short horizon (keeps the run short; replies of
-    # hundreds of kB are checked by nodes/tests/large_replies.rs).
+    # hundreds of kB are checked by nodes/tests/it/large_replies.rs).
     req = Predict.Request(use_latest_state=False, q=q, v=v, commands=[cmd], command_period=0.2,
                           horizon=0.2, with_forces=True)
     resp = user.call(Predict, "/cd_prediction/predict", req)

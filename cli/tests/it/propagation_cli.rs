@@ -1,0 +1,248 @@
+//! The `predict` and `report --quick` subcommands end to end (the binary, JSON on stdout, files).
+
+use crate::common;
+use common::cli;
+use serde_json::Value;
+use std::path::PathBuf;
+
+#[test]
+fn predict_prints_the_trajectory_with_forces() {
+    let dir = std::env::temp_dir().join(format!("cd_predict_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let commands = dir.join("commands.json");
+    std::fs::write(&commands, r#"[{"t": 0.0}, {"t": 0.05}]"#).unwrap();
+    let out = cli()
+        .args([
+            "predict",
+            "--scene",
+            "params/fourbar.yaml",
+            "--horizon",
+            "0.1",
+        ])
+        .args(["--method", "dopri5", "--forces", "--sample-period", "0.05"])
+        .arg("--commands")
+        .arg(&commands)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let samples = v["samples"].as_array().unwrap();
+    assert_eq!(samples.len(), 3);
+    assert_eq!(v["method"], "dopri5");
+    assert_eq!(samples[2]["lambda"].as_array().unwrap().len(), 2);
+    assert_eq!(samples[2]["rank_deficiency"], 0);
+    assert!(samples[2]["position_residual"].as_f64().unwrap() < 1e-10);
+
+    let bad = cli()
+        .args([
+            "predict",
+            "--scene",
+            "params/fourbar.yaml",
+            "--method",
+            "euler",
+        ])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    let msg = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        msg.contains("--method 'euler'") && msg.contains("rk4"),
+        "{msg}"
+    );
+}
+
+/// `predict --forces` prints the contacts' judgement: the cart pushed by its torque ramp
+/// (tests/data/cart_torque_ramp.yaml) first slips at t* = a* r m_eff / (2 k) = 0.572264 s
+/// (closed form derived in tests/it/propagation_contacts.rs), reported at the first sample after
+/// it; the planar diff drive's wheels (no normal row, no `friction:`) are listed unchecked,
+/// never guessed.
+#[test]
+fn predict_with_forces_prints_the_first_contact_break_and_the_unchecked_limits() {
+    let run = |scene: &str, horizon: &str| -> Value {
+        let out = cli()
+            .args([
+                "predict",
+                "--scene",
+                scene,
+                "--horizon",
+                horizon,
+                "--forces",
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let v = run("tests/data/cart_torque_ramp.yaml", "1.0");
+    let check = &v["contact_check"];
+    let b = &check["first_break"];
+    assert_eq!(b["kind"], "slip");
+    assert_eq!(b["contact"], "left_wheel_contact");
+    let (t, t_star, sample) = (b["t"].as_f64().unwrap(), 0.572264, 0.01);
+    assert!(t >= t_star && t - t_star <= sample, "t = {t} s");
+    assert!(b["friction_used"].as_f64().unwrap() > 1.0);
+    assert_eq!(check["unchecked"], serde_json::json!([]));
+    let last = v["samples"].as_array().unwrap().last().unwrap().clone();
+    assert_eq!(last["contacts"][0]["breaks"], "slip");
+    assert!(last["contacts"][2].get("friction_used").is_none());
+
+    let v = run("params/diff_drive.yaml", "0.1");
+    let check = &v["contact_check"];
+    assert!(check.get("first_break").is_none());
+    let unchecked: Vec<(&str, &str)> = check["unchecked"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|u| (u["kind"].as_str().unwrap(), u["name"].as_str().unwrap()))
+        .collect();
+    assert_eq!(unchecked.len(), 4);
+    assert!(unchecked.contains(&("friction", "left_wheel_contact")));
+    assert!(unchecked.contains(&("lift_off", "right_wheel_contact")));
+}
+
+#[test]
+fn quick_report_writes_csv_png_and_summary() {
+    let out_dir: PathBuf = std::env::temp_dir().join(format!("cd_report_{}", std::process::id()));
+    let out = cli()
+        .args(["report", "--quick", "--out"])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["a01"]["max_position_error_m"].as_f64().unwrap() <= 1e-3);
+    for f in [
+        "README.md",
+        "a01_pendulum.csv",
+        "a01_pendulum_error.png",
+        "rod_body_drift.png",
+    ] {
+        let p = out_dir.join(f);
+        assert!(
+            std::fs::metadata(&p)
+                .map(|m| m.len() > 100)
+                .unwrap_or(false),
+            "{}",
+            p.display()
+        );
+    }
+    let csv = std::fs::read_to_string(out_dir.join("spring_chain_stiff.csv")).unwrap();
+    assert!(csv.contains("# reference: closed form"));
+    assert!(
+        csv.contains("step too large"),
+        "the stiff chain shows the refused steps"
+    );
+    let readme = std::fs::read_to_string(out_dir.join("README.md")).unwrap();
+    assert!(readme.contains("| a01_pendulum |") && readme.contains("high-precision bar"));
+    // Andrews' squeezer: the digits view, and the CasADi peer said not run (no PyPI in CI).
+    assert!(readme.contains("| andrews |") && readme.contains("≥ 12 digits"));
+    assert!(readme.contains("Peers not run"));
+    let csv = std::fs::read_to_string(out_dir.join("andrews.csv")).unwrap();
+    assert!(csv.contains("dopri5/projection") && !csv.contains("casadi/"));
+    let _ = std::fs::remove_dir_all(&out_dir);
+}
+
+/// Every bundled scene (params/*.yaml with a URDF, and the report's) predicts its default horizon
+/// with its own integration settings and max_error (the default 1e-3, or the scene's), and every
+/// sample carries a finite `error_estimate` within that bound.
+#[test]
+fn every_bundled_scene_predicts_within_its_max_error() {
+    let root = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
+    let mut scenes = vec![];
+    for dir in ["params", "params/report"] {
+        for e in std::fs::read_dir(root.join(dir)).unwrap() {
+            let p = e.unwrap().path();
+            let text = std::fs::read_to_string(&p).unwrap_or_default();
+            if p.extension().is_some_and(|x| x == "yaml") && text.contains("urdf:") {
+                scenes.push(format!(
+                    "{dir}/{}",
+                    p.file_name().unwrap().to_string_lossy()
+                ));
+            }
+        }
+    }
+    scenes.sort();
+    assert!(scenes.len() >= 15, "{scenes:?}");
+    for scene in &scenes {
+        let mut cmd = cli();
+        cmd.args(["predict", "--scene", scene]);
+        if scene.contains("spring_chain_stiff") {
+            // A report scene without `integration:`: RK4's default 1 ms is refused before
+            // running (stability limit 6.3e-4 s), as the report's sweeps expect.
+            cmd.args(["--dt", "1e-5"]);
+        }
+        let out = cmd.output().unwrap();
+        assert!(
+            out.status.success(),
+            "{scene}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+        let est: Vec<f64> = v["samples"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s["error_estimate"].as_f64().unwrap())
+            .collect();
+        let worst = est.iter().fold(0.0f64, |m, x| m.max(*x));
+        println!(
+            "{scene}: {} samples, largest error_estimate {worst:.2e}",
+            est.len()
+        );
+        let bound = constraint_dynamics::Scene::load(root.join(scene))
+            .unwrap()
+            .file
+            .integration
+            .max_error;
+        assert!(
+            est.iter().all(|x| x.is_finite() && *x <= bound),
+            "{scene}: bound {bound:e}"
+        );
+    }
+}
+
+/// `--max-error` below what the run achieves stops it with the typed error (non-zero exit, the
+/// message names the time, the estimate and a dt); `--adapt` meets the same bound.
+#[test]
+fn predict_max_error_stops_or_adapts() {
+    let args = [
+        "predict",
+        "--scene",
+        "params/pendulum_a01.yaml",
+        "--horizon",
+        "1",
+        "--method",
+        "semi_implicit_euler",
+        "--max-error",
+        "1e-4",
+    ];
+    let out = cli().args(args).output().unwrap();
+    assert!(!out.status.success());
+    let msg = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        msg.contains("error estimate") && msg.contains("at t = ") && msg.contains("dt = "),
+        "{msg}"
+    );
+    let out = cli().args(args).arg("--adapt").output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["refinements"].as_u64().unwrap() >= 1);
+    let last = v["samples"].as_array().unwrap().last().unwrap();
+    assert!(last["error_estimate"].as_f64().unwrap() <= 1e-4);
+}
