@@ -112,7 +112,7 @@ fn mobile_manipulator() -> Case {
         equality_only: eq,
         bounds_inactive: inactive,
         bounded,
-        model,
+        model: (*model).clone(),
     }
 }
 

@@ -16,6 +16,7 @@ use nalgebra::Vector3;
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Initial state by coordinate name; missing coordinates are neutral (0, identity quaternion).
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -156,10 +157,10 @@ pub struct Scene {
     /// The parsed scene file.
     pub file: SceneFile,
     /// The model built from the URDF with the scene's base, gravity and locked joints,
-    /// carrying [`Scene::payload`].
-    pub model: Model,
+    /// carrying [`Scene::payload`]; shared, never copied, by every system built from the scene.
+    pub model: Arc<Model>,
     /// The same model without a payload (what [`Scene::with_payload`] adds to).
-    pub urdf_model: Model,
+    pub urdf_model: Arc<Model>,
     /// The payload `model` carries: the file's `payload:` unless replaced by
     /// [`Scene::with_payload`].
     pub payload: Payload,
@@ -255,8 +256,8 @@ impl Scene {
             path: path.to_path_buf(),
             payload: file.payload.clone(),
             file,
-            model,
-            urdf_model,
+            model: Arc::new(model),
+            urdf_model: Arc::new(urdf_model),
             q0,
             v0,
         })
@@ -286,7 +287,7 @@ impl Scene {
                 message: e.to_string(),
             })?;
         Ok(Scene {
-            model,
+            model: Arc::new(model),
             payload: payload.clone(),
             ..self.clone()
         })
@@ -300,7 +301,7 @@ impl System {
     pub fn from_scene(scene: &Scene) -> Result<Self> {
         let set = ConstraintSet::new(&scene.model, &scene.file.constraints, &scene.q0)?;
         let (b, f) = scene.file.dynamics.settings()?;
-        let mut sys = Self::new(scene.model.clone(), set, b, f);
+        let mut sys = Self::new(Arc::clone(&scene.model), set, b, f);
         if let Some(singular) = &scene.model.singular {
             // M is singular: only constraints can give that joint its dynamics (a massless rod
             // pinned by a loop closure). Refused at load unless the KKT form factors at q0.

@@ -6,12 +6,13 @@ use crate::algorithm::{
 };
 use crate::constraints::{ConstraintData, ConstraintForce, ConstraintSet, constraint_forces};
 use crate::dynamics::{
-    Baumgarte, EmbeddedWorkspace, Formulation, KktWorkspace, constrained_forward_dynamics,
-    embedded_forward_dynamics,
+    Baumgarte, EmbeddedWorkspace, Formulation, KktOptions, KktWorkspace,
+    constrained_forward_dynamics, embedded_forward_dynamics,
 };
 use crate::error::{Result, check_len};
 use crate::model::Model;
 use nalgebra::DVector;
+use std::sync::Arc;
 
 /// How one dynamics evaluation is done (passed in, never toggled on the system around a call).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -64,8 +65,8 @@ impl Default for DynamicsOptions {
 /// Model + constraints + workspaces.
 #[derive(Clone, Debug)]
 pub struct System {
-    /// The robot model.
-    pub model: Model,
+    /// The robot model, shared with the scene and every other system built from it.
+    pub model: Arc<Model>,
     /// The validated constraints.
     pub constraints: ConstraintSet,
     /// Baumgarte stabilisation gains.
@@ -87,11 +88,12 @@ pub struct System {
 impl System {
     /// Build from a model and its constraint set.
     pub fn new(
-        model: Model,
+        model: impl Into<Arc<Model>>,
         constraints: ConstraintSet,
         baumgarte: Baumgarte,
         formulation: Formulation,
     ) -> Self {
+        let model = model.into();
         let data = Data::new(&model);
         let cdata = ConstraintData::new(&model, &constraints);
         let kkt = KktWorkspace::new(&model, &constraints);
@@ -154,8 +156,6 @@ impl System {
             Formulation::Embedded => false,
         };
         if use_multipliers {
-            self.kkt.allow_inconsistent = opts.allow_inconsistent;
-            self.kkt.rows_evaluated = opts.rows_evaluated;
             constrained_forward_dynamics(
                 &self.model,
                 &mut self.data,
@@ -165,7 +165,11 @@ impl System {
                 q,
                 v,
                 tau,
-                self.baumgarte,
+                KktOptions {
+                    gains: self.baumgarte,
+                    allow_inconsistent: opts.allow_inconsistent,
+                    rows_evaluated: opts.rows_evaluated,
+                },
             )?;
             self.last_formulation = Formulation::Multipliers;
             Ok(&self.kkt.qdd)

@@ -3,8 +3,9 @@
 
 use super::*;
 use constraint_dynamics::Scene;
+use std::sync::Arc;
 
-fn model(scene: &str) -> Model {
+fn model(scene: &str) -> Arc<Model> {
     let path = format!("{}/../params/{scene}", env!("CARGO_MANIFEST_DIR"));
     Scene::load(&path).unwrap().model
 }

@@ -8,7 +8,7 @@ use super::rnea::rnea_derivatives_with_point_forces;
 use super::{DerivativeData, kkt, rows};
 use crate::algorithm::Data;
 use crate::constraints::{ConstraintData, ConstraintSet};
-use crate::dynamics::{Baumgarte, KktWorkspace, constrained_forward_dynamics};
+use crate::dynamics::{KktOptions, KktWorkspace, constrained_forward_dynamics};
 use crate::error::{Error, Result};
 use crate::model::Model;
 
@@ -27,8 +27,10 @@ pub fn constrained_dynamics_derivatives(
     q: &[f64],
     v: &[f64],
     tau: &[f64],
-    stab: Baumgarte,
+    opts: impl Into<KktOptions>,
 ) -> Result<()> {
+    let opts = opts.into();
+    let stab = opts.gains;
     let nc = set.nrows;
     if dd.dlambda_dq.nrows() != nc {
         return Err(Error::Dimension {
@@ -45,7 +47,7 @@ pub fn constrained_dynamics_derivatives(
             });
         }
     }
-    constrained_forward_dynamics(model, data, set, cd, ws, q, v, tau, stab)?;
+    constrained_forward_dynamics(model, data, set, cd, ws, q, v, tau, opts)?;
     dd.qdd.copy_from(&ws.qdd);
 
     // λ as forces on the bodies (the kinematics of the solve are still in `data`).

@@ -15,7 +15,7 @@ mod partition;
 
 pub use embedded::{EmbeddedWorkspace, embedded_forward_dynamics};
 pub use invariant::InvariantDynamics;
-pub use multipliers::{KktWorkspace, constrained_forward_dynamics};
+pub use multipliers::{KktOptions, KktWorkspace, constrained_forward_dynamics};
 pub use partition::{
     Partition, PartitionWorkspace, partition, partition_into, partition_preferring,
 };

@@ -57,13 +57,6 @@ pub struct KktWorkspace {
     pub rank_deficiency: usize,
     /// M was only semi-definite and the augmented form was used.
     pub augmented: bool,
-    /// Accept constraint rows that cannot all be met and return the least-squares λ = S⁺ r
-    /// instead of an error (the predictor sets it: integration stages and drift near a singular
-    /// configuration make redundant rows disagree slightly). Default false.
-    pub allow_inconsistent: bool,
-    /// The kinematics and rows are already those of the next call's (q, v) (see
-    /// `DynamicsOptions::rows_evaluated`); consumed by that call.
-    pub rows_evaluated: bool,
     /// Part of r outside range(S) at the last solve (0 when consistent).
     pub inconsistency: f64,
     /// The factor of S and its solves.
@@ -90,10 +83,33 @@ impl KktWorkspace {
             generalized_force: DVector::zeros(nv),
             rank_deficiency: 0,
             augmented: false,
-            allow_inconsistent: false,
-            rows_evaluated: false,
             inconsistency: 0.0,
             min_norm: MinNormSolver::new(nc),
+        }
+    }
+}
+
+/// How one multiplier-form evaluation is done: the settings of that call alone, never kept in
+/// the workspace between calls. A `Baumgarte` converts to the defaults with those gains.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct KktOptions {
+    /// Baumgarte stabilisation gains of this evaluation.
+    pub gains: Baumgarte,
+    /// Accept constraint rows that cannot all be met and return the least-squares λ = S⁺ r
+    /// instead of an error (integration stages and drift near a singular configuration make
+    /// redundant rows disagree slightly).
+    pub allow_inconsistent: bool,
+    /// The kinematics in `data` and the rows in `cd` are already those of this call's (q, v)
+    /// (`ConstraintSet::evaluate` ran there and nothing has written them since), so that pass
+    /// is skipped.
+    pub rows_evaluated: bool,
+}
+
+impl From<Baumgarte> for KktOptions {
+    fn from(gains: Baumgarte) -> Self {
+        KktOptions {
+            gains,
+            ..Default::default()
         }
     }
 }
@@ -110,8 +126,10 @@ pub fn constrained_forward_dynamics(
     q: &[f64],
     v: &[f64],
     tau: &[f64],
-    stab: Baumgarte,
+    opts: impl Into<KktOptions>,
 ) -> Result<()> {
+    let opts = opts.into();
+    let stab = opts.gains;
     // A velocity-determined row's force is not along its J row (non-symmetric KKT).
     if let Some(k) = set.items.iter().position(
         |c| matches!(c, crate::constraints::Constraint::Velocity(vc) if vc.velocity_determined),
@@ -127,7 +145,7 @@ pub fn constrained_forward_dynamics(
         });
     }
     // One kinematics pass at (q, v, q̈ = 0) serves the constraints, M and h.
-    if !std::mem::take(&mut ws.rows_evaluated) {
+    if !opts.rows_evaluated {
         set.evaluate(model, data, cd, q, v);
     }
     set.check_finite(cd)?;
@@ -140,7 +158,7 @@ pub fn constrained_forward_dynamics(
         ws.b[k] = -cd.gamma[k] - stab.kd * cd.jv[k] - stab.kp * cd.phi[k];
     }
     factor_mass(model, data, cd, ws)?;
-    solve_kkt(model, set, cd, ws)
+    solve_kkt(model, set, cd, ws, opts.allow_inconsistent)
 }
 
 /// Factor M (sparse LTL, `M = LᵀL`), or the augmented M + ρ JᵀJ (dense Cholesky, `L Lᵀ`) when
@@ -236,6 +254,7 @@ fn solve_kkt(
     set: &ConstraintSet,
     cd: &ConstraintData,
     ws: &mut KktWorkspace,
+    allow_inconsistent: bool,
 ) -> Result<()> {
     let nc = set.nrows;
     // With M = W Wᵀ and Y = W⁻¹ Jᵀ: q̈ = M⁻¹ (τ − h + Jᵀλ) = W⁻ᵀ (u + Y λ), u = W⁻¹ (τ − h),
@@ -256,7 +275,7 @@ fn solve_kkt(
     if nc == 0 {
         ws.generalized_force.as_mut_slice().fill(0.0);
     } else {
-        add_constraint_forces(model, set, cd, ws)?;
+        add_constraint_forces(model, set, cd, ws, allow_inconsistent)?;
     }
     half_solve_t(
         model,
@@ -274,6 +293,7 @@ fn add_constraint_forces(
     set: &ConstraintSet,
     cd: &ConstraintData,
     ws: &mut KktWorkspace,
+    allow_inconsistent: bool,
 ) -> Result<()> {
     let (nv, nc) = (ws.qdd.len(), set.nrows);
     // Y = W⁻¹ Jᵀ (L⁻ᵀ Jᵀ for the LTL factor) with each column's non-zero rows: a row of J on
@@ -313,7 +333,7 @@ fn add_constraint_forces(
     for (k, &(lo, hi)) in ws.support.iter().enumerate() {
         ws.r[k] = ws.b[k] - dot_unrolled(&y[k * nv + lo..k * nv + hi], &u[lo..hi]);
     }
-    min_norm_solve(set, ws)?;
+    min_norm_solve(set, ws, allow_inconsistent)?;
     // u + Y λ (q̈ once the caller's solve with Wᵀ is done), generalized force Jᵀλ.
     mat_vec(&ws.y, ws.lambda.as_slice(), ws.tmp.as_mut_slice());
     ws.qdd += &ws.tmp;
@@ -350,7 +370,11 @@ fn schur_lower(ws: &mut KktWorkspace, nv: usize, nc: usize) {
 /// ([`disagree_beyond_rounding`] against r) unless `allow_inconsistent`. λ = S⁺ r varies
 /// smoothly with the state whichever independent set was picked. Allocation-free (only the
 /// error message allocates).
-fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
+fn min_norm_solve(
+    set: &ConstraintSet,
+    ws: &mut KktWorkspace,
+    allow_inconsistent: bool,
+) -> Result<()> {
     let nc = set.nrows;
     let rank = ws.min_norm.solve(
         &ws.s,
@@ -370,7 +394,7 @@ fn min_norm_solve(set: &ConstraintSet, ws: &mut KktWorkspace) -> Result<()> {
         }
     }
     ws.inconsistency = inconsistency;
-    if disagree_beyond_rounding(inconsistency, ws.r.amax()) && !ws.allow_inconsistent {
+    if disagree_beyond_rounding(inconsistency, ws.r.amax()) && !allow_inconsistent {
         let name = set
             .ranges
             .iter()

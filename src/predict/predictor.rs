@@ -23,6 +23,7 @@ use crate::error::{Error, Result};
 use crate::forces::ForceElements;
 use crate::model::Model;
 use crate::system::System;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// What a predictor is configured with, fixed once built.
@@ -114,7 +115,8 @@ pub struct Predictor {
     /// The run's controllers: a copy of the configuration's, started afresh by every run.
     pub(super) actuators: Actuators,
     pub(super) covariance: Option<super::covariance::CovariancePropagator>,
-    pub(super) model: Model,
+    /// The model the system evaluates (the same `Arc`).
+    pub(super) model: Arc<Model>,
     pub(super) ws: Workspace,
     /// The scene's contacts, judged at every sample with forces (contacts.rs).
     pub(super) contact_judge: ContactJudge,

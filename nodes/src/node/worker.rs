@@ -435,9 +435,7 @@ impl<N: NodeLogic> Worker<N> {
             }
             Event::Odometry(od) => {
                 let now = self.now();
-                let robot = self.logic.robot_mut();
-                let model = robot.model().clone();
-                match robot.state_mut().apply_odometry(&model, &od) {
+                match self.logic.robot_mut().apply_odometry(&od) {
                     Ok(()) => {
                         self.health.input(Input::Odometry, now);
                         self.logic.robot_mut().state_mut().odom_at = Some(now);

@@ -20,6 +20,7 @@ use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::constraint_dynamics_msgs::ConstraintForces;
 use crate::msg::geometry_msgs::Twist;
+use crate::msg::nav_msgs::Odometry;
 use crate::params::{CommonParams, Fallback};
 use state::StateEstimate;
 
@@ -151,6 +152,12 @@ impl Robot {
     /// The latest state.
     pub fn state(&self) -> &StateEstimate {
         &self.state
+    }
+
+    /// Applies an `/odom` message to the latest state with this robot's model (borrowed, not
+    /// copied: a message allocates nothing).
+    pub fn apply_odometry(&mut self, od: &Odometry) -> Result<(), NodeError> {
+        self.state.apply_odometry(&self.scene.model, od)
     }
 
     /// The latest state, to apply messages to.

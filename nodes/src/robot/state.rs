@@ -157,7 +157,8 @@ impl StateEstimate {
             angular: [t.angular.x, t.angular.y, t.angular.z],
         };
         finite("pose.position", &position)?;
-        finite("twist", &[twist.linear, twist.angular].concat())?;
+        finite("twist", &twist.linear)?;
+        finite("twist", &twist.angular)?;
         check_odometry_covariance(model.base, "pose", &od.pose.covariance)?;
         check_odometry_covariance(model.base, "twist", &od.twist.covariance)?;
         let pose = BasePose {

@@ -4,12 +4,17 @@
 //! tests still run side by side.
 
 mod common;
+// Counts per thread: the allocation test runs beside the others.
+#[path = "../../../tests/it/common/counting_alloc.rs"]
+#[allow(dead_code)]
+mod counting_alloc;
 mod fuzz_support;
 mod suite_fixture;
 
 mod fuzz_requests;
 mod golden_messages;
 mod large_replies;
+mod odometry_allocations;
 mod rollout_settings;
 mod ros_smoke;
 mod suite_absurd_params;

@@ -2,6 +2,7 @@
 //! generalized force, with the joint springs' and controllers' share moved to the stage.
 
 use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
+use crate::dynamics::KktOptions;
 use crate::error::Result;
 use crate::system::{DynamicsOptions, System};
 
@@ -83,11 +84,7 @@ pub(in crate::predict) fn dynamics_derivatives(
     if sys.constraints.is_empty() {
         aba_derivatives(&sys.model, &mut sys.data, dd, q, v, tau)
     } else {
-        // Set here, not inherited: the flag stays in the workspace from the last evaluation on
-        // this system, unset after a sample's forces and on the covariance worker's clone (made
-        // before any stage ran), set after a stage of the prediction.
         let stage = DynamicsOptions::stage(sys.formulation);
-        sys.kkt.allow_inconsistent = stage.allow_inconsistent;
         constrained_dynamics_derivatives(
             &sys.model,
             &mut sys.data,
@@ -98,7 +95,11 @@ pub(in crate::predict) fn dynamics_derivatives(
             q,
             v,
             tau,
-            sys.baumgarte,
+            KktOptions {
+                gains: sys.baumgarte,
+                allow_inconsistent: stage.allow_inconsistent,
+                rows_evaluated: false,
+            },
         )
     }
 }
