@@ -25,7 +25,7 @@ fn bench(c: &mut Criterion) {
         let mut sys = System::from_scene(&scene).expect("system");
         let em = EnvelopeModel::from_scene(&scene, &sys).expect("envelope model");
         let mut ed = EnvelopeData::new(&em);
-        let zero = vec![0.0; sys.model.nv];
+        let zero = vec![0.0; sys.model().nv];
         let (q, v) = (scene.q0.clone(), scene.v0.clone());
         acceleration_envelope(&mut sys, &em, &mut ed, &q, &v, &zero).expect("envelope");
         g.bench_function(format!("{name}/four_limits"), |b| {

@@ -127,7 +127,7 @@ fn horizon(c: &mut Criterion) {
     assert!(
         System::from_scene(&free)
             .expect("system")
-            .constraints
+            .constraints()
             .is_empty()
     );
     bench_horizon(c, "unconstrained", &mut p, &scene, (None, 2000));
@@ -155,10 +155,10 @@ fn evaluation(c: &mut Criterion) {
         let name = path.file_stem().unwrap().to_string_lossy().to_string();
         let scene = Scene::load(&path).expect("scene");
         let mut sys = System::from_scene(&scene).expect("system");
-        if sys.constraints.is_empty() {
+        if sys.constraints().is_empty() {
             continue; // unconstrained: both forms are M⁻¹(τ − h), nothing to compare
         }
-        let nv = sys.model.nv;
+        let nv = sys.model().nv;
         let tau: Vec<f64> = (0..nv).map(|i| ((i + 1) as f64 * 0.9).sin()).collect();
         for (label, formulation) in FORMS {
             let opts = DynamicsOptions {

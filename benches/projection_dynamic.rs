@@ -26,10 +26,10 @@ fn bench(c: &mut Criterion) {
         let scene = Scene::load(&path).expect("scene");
         let mut sys = System::from_scene(&scene).expect("system");
         let em = EnvelopeModel::from_scene(&scene, &sys).expect("envelope model");
-        let mut proj = DynamicProjector::new(&sys.model, &sys.constraints);
-        let nv = sys.model.nv;
+        let mut proj = DynamicProjector::new(sys.model(), sys.constraints());
+        let nv = sys.model().nv;
         let zero = vec![0.0; nv];
-        let mut p = ProjectionProblem::new(&sys.model);
+        let mut p = ProjectionProblem::new(sys.model());
         p.v_des[0] = 5.0;
         if name == "mobile_manipulator_floating" {
             // The arm (the coordinates after the base's six and the two wheels) held.

@@ -5,6 +5,9 @@ use crate::algorithm::{
     Data, center_of_mass, forward_kinematics, kinetic_energy, potential_energy,
 };
 use crate::constraints::{ConstraintData, ConstraintForce, ConstraintSet, constraint_forces};
+use crate::derivatives::{
+    DerivativeData, aba_derivatives, constrained_dynamics_derivatives, rnea_derivatives,
+};
 use crate::dynamics::{
     Baumgarte, EmbeddedWorkspace, Formulation, KktOptions, KktWorkspace,
     constrained_forward_dynamics, embedded_forward_dynamics,
@@ -29,6 +32,8 @@ pub struct DynamicsOptions {
     /// since — so that pass is skipped. The predictor sets it for a step's first stage when its
     /// drift projection evaluated the rows at that state and left it unchanged. Default false.
     pub rows_evaluated: bool,
+    /// Baumgarte gains of this evaluation; `None`: the system's (the scene's `dynamics:`).
+    pub gains: Option<Baumgarte>,
 }
 
 impl DynamicsOptions {
@@ -48,6 +53,7 @@ impl DynamicsOptions {
             },
             allow_inconsistent: true,
             rows_evaluated: false,
+            gains: None,
         }
     }
 }
@@ -58,31 +64,33 @@ impl Default for DynamicsOptions {
             formulation: Formulation::Multipliers,
             allow_inconsistent: false,
             rows_evaluated: false,
+            gains: None,
         }
     }
 }
 
-/// Model + constraints + workspaces.
+/// A constrained system: the immutable part a scene declares (the robot model, shared; the
+/// validated constraints; the scene's Baumgarte gains and formulation) and the workspaces its
+/// evaluations write. Outside the crate it is read through accessors and changed only by
+/// evaluations; what one evaluation does is its arguments ([`DynamicsOptions`]).
 #[derive(Clone, Debug)]
 pub struct System {
-    /// The robot model, shared with the scene and every other system built from it.
-    pub model: Arc<Model>,
-    /// The validated constraints.
-    pub constraints: ConstraintSet,
-    /// Baumgarte stabilisation gains.
-    pub baumgarte: Baumgarte,
-    /// Formulation asked for by the scene.
-    pub formulation: Formulation,
+    pub(crate) model: Arc<Model>,
+    pub(crate) constraints: ConstraintSet,
+    /// The scene's Baumgarte gains (`dynamics:`), used where an evaluation names none.
+    pub(crate) baumgarte: Baumgarte,
+    /// The formulation the scene asks for.
+    pub(crate) formulation: Formulation,
     /// Kinematics and dynamics workspace.
-    pub data: Data,
+    pub(crate) data: Data,
     /// Constraint rows (J, φ, γ, J v) at the last evaluation.
-    pub cdata: ConstraintData,
+    pub(crate) cdata: ConstraintData,
     /// Multiplier-form workspace; λ of the last multiplier solve.
-    pub kkt: KktWorkspace,
+    pub(crate) kkt: KktWorkspace,
     /// Embedded-form workspace.
-    pub embedded: EmbeddedWorkspace,
+    pub(crate) embedded: EmbeddedWorkspace,
     /// Which formulation produced the last result.
-    pub last_formulation: Formulation,
+    last_formulation: Formulation,
 }
 
 impl System {
@@ -109,6 +117,85 @@ impl System {
             embedded,
             last_formulation: Formulation::Multipliers,
         }
+    }
+
+    /// The same system evaluated in `formulation` unless a call names its own.
+    pub fn with_formulation(mut self, formulation: Formulation) -> Self {
+        self.formulation = formulation;
+        self
+    }
+
+    /// The same system with other Baumgarte gains in place of the scene's.
+    pub fn with_baumgarte(mut self, gains: Baumgarte) -> Self {
+        self.baumgarte = gains;
+        self
+    }
+
+    /// The constraint rows (J, φ, γ, J v) at (t, q, v), kept as [`System::rows`] until the next
+    /// evaluation.
+    pub fn evaluate_rows(&mut self, t: f64, q: &[f64], v: &[f64]) -> &ConstraintData {
+        self.cdata.t = t;
+        self.constraints
+            .evaluate(&self.model, &mut self.data, &mut self.cdata, q, v);
+        &self.cdata
+    }
+
+    /// (max |φ| over holonomic rows [m or rad], max |J v| [m/s or rad/s]) at (q, v), each row's
+    /// φ and J v kept as [`System::rows`] (`ConstraintSet::residuals`).
+    pub fn residuals(&mut self, q: &[f64], v: &[f64]) -> (f64, f64) {
+        self.constraints
+            .residuals(&self.model, &mut self.data, &mut self.cdata, q, v)
+    }
+
+    /// The robot model (shared with the scene it was built from).
+    pub fn model(&self) -> &Arc<Model> {
+        &self.model
+    }
+
+    /// The validated constraints.
+    pub fn constraints(&self) -> &ConstraintSet {
+        &self.constraints
+    }
+
+    /// The scene's Baumgarte gains.
+    pub fn baumgarte(&self) -> Baumgarte {
+        self.baumgarte
+    }
+
+    /// The formulation the scene asks for.
+    pub fn formulation(&self) -> Formulation {
+        self.formulation
+    }
+
+    /// Which formulation produced the last result.
+    pub fn last_formulation(&self) -> Formulation {
+        self.last_formulation
+    }
+
+    /// Kinematics, M and h of the last evaluation.
+    pub fn data(&self) -> &Data {
+        &self.data
+    }
+
+    /// The constraint rows (J, φ, γ, J v, at `t`) of the last evaluation.
+    pub fn rows(&self) -> &ConstraintData {
+        &self.cdata
+    }
+
+    /// The multiplier form's results of its last solve: λ (N, N·m, … on the robot), Jᵀλ,
+    /// the rank deficiency.
+    pub fn multipliers(&self) -> &KktWorkspace {
+        &self.kkt
+    }
+
+    /// λ of the last multiplier-form evaluation, in the rows' units: force ON the robot.
+    pub fn lambda(&self) -> &DVector<f64> {
+        &self.kkt.lambda
+    }
+
+    /// The embedded form's results of its last evaluation (partition, solved velocities).
+    pub fn embedded(&self) -> &EmbeddedWorkspace {
+        &self.embedded
     }
 
     /// Constrained forward dynamics at (q, v, τ); `want_forces` forces the multiplier form under
@@ -166,7 +253,7 @@ impl System {
                 v,
                 tau,
                 KktOptions {
-                    gains: self.baumgarte,
+                    gains: opts.gains.unwrap_or(self.baumgarte),
                     allow_inconsistent: opts.allow_inconsistent,
                     rows_evaluated: opts.rows_evaluated,
                 },
@@ -183,11 +270,51 @@ impl System {
                 q,
                 v,
                 tau,
-                self.baumgarte,
+                opts.gains.unwrap_or(self.baumgarte),
             )?;
             self.last_formulation = Formulation::Embedded;
             Ok(&self.embedded.qdd)
         }
+    }
+
+    /// q̈ and ∂q̈/∂(q, v, τ) at (q, v, τ) into `dd` (and ∂λ/∂(q, v, τ) with constraints): the
+    /// multiplier form's with the scene's gains, ABA's without constraints.
+    pub fn dynamics_derivatives(
+        &mut self,
+        dd: &mut DerivativeData,
+        q: &[f64],
+        v: &[f64],
+        tau: &[f64],
+    ) -> Result<()> {
+        self.model.check_state(q, v)?;
+        check_len("tau", tau, self.model.nv)?;
+        if self.constraints.is_empty() {
+            aba_derivatives(&self.model, &mut self.data, dd, q, v, tau)
+        } else {
+            constrained_dynamics_derivatives(
+                &self.model,
+                &mut self.data,
+                &self.constraints,
+                &mut self.cdata,
+                &mut self.kkt,
+                dd,
+                q,
+                v,
+                tau,
+                self.baumgarte,
+            )
+        }
+    }
+
+    /// ∂τ/∂(q, v) of inverse dynamics at (q, v, q̈) into `dd.dtau_dq`, `dd.dtau_dv`.
+    pub fn inverse_dynamics_derivatives(
+        &mut self,
+        dd: &mut DerivativeData,
+        q: &[f64],
+        v: &[f64],
+        qdd: &[f64],
+    ) {
+        rnea_derivatives(&self.model, &mut self.data, dd, q, v, qdd);
     }
 
     /// Constraint forces of the last multiplier-form evaluation.

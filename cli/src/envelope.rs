@@ -28,9 +28,9 @@ pub fn run(a: EnvelopeArgs) -> Result<Value> {
     let em = EnvelopeModel::from_scene(&scene, &sys)?;
     let mut ed = EnvelopeData::new(&em);
     // The scene's force elements (springs, dampers, URDF damping) at (q, v) act as well.
-    let mut elements = ForceElements::new(&sys.model, &scene.file.forces)?;
-    let zero = vec![0.0; sys.model.nv];
-    let mut applied = vec![0.0; sys.model.nv];
+    let mut elements = ForceElements::new(sys.model(), &scene.file.forces)?;
+    let zero = vec![0.0; sys.model().nv];
+    let mut applied = vec![0.0; sys.model().nv];
     applied_generalized_force(
         &mut sys,
         &mut elements,
@@ -40,7 +40,7 @@ pub fn run(a: EnvelopeArgs) -> Result<Value> {
         &mut applied,
     );
     acceleration_envelope(&mut sys, &em, &mut ed, &q, &v, &applied)?;
-    let report = EnvelopeReport::new(&sys.model, &em, &ed.envelope);
+    let report = EnvelopeReport::new(sys.model(), &em, &ed.envelope);
     let mut out = serde_json::to_value(report).map_err(|e| Error::Invalid(e.to_string()))?;
     out["scene"] = Value::from(a.scene.display().to_string());
     Ok(out)

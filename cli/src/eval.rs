@@ -2,9 +2,7 @@
 
 use crate::json::matrix_rows;
 use constraint_dynamics::applied::{applied_generalized_force, constraint_forces_at};
-use constraint_dynamics::derivatives::{
-    DerivativeData, aba_derivatives, constrained_dynamics_derivatives, rnea_derivatives,
-};
+use constraint_dynamics::derivatives::DerivativeData;
 use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::{Result, System};
@@ -35,8 +33,7 @@ pub struct EvalArgs {
 
 pub fn run(a: EvalArgs) -> Result<Value> {
     let scene = super::state::load_scene(&a.scene)?;
-    let mut sys = System::from_scene(&scene)?;
-    sys.formulation = match a.formulation.as_str() {
+    let formulation = match a.formulation.as_str() {
         "auto" => Formulation::Auto,
         "multipliers" => Formulation::Multipliers,
         "embedded" => Formulation::Embedded,
@@ -46,15 +43,16 @@ pub fn run(a: EvalArgs) -> Result<Value> {
             )));
         }
     };
+    let mut sys = System::from_scene(&scene)?.with_formulation(formulation);
     let (q, v, tau) = super::state::load(&scene, a.state.as_deref())?;
     // τ of the state file plus the scene's force elements (springs, dampers, scheduled torques).
-    let mut elements = ForceElements::new(&sys.model, &scene.file.forces)?;
-    let use_multipliers = sys.formulation != Formulation::Embedded;
+    let mut elements = ForceElements::new(sys.model(), &scene.file.forces)?;
+    let use_multipliers = sys.formulation() != Formulation::Embedded;
     let (qdd, at) = if use_multipliers {
         let at = constraint_forces_at(&mut sys, &mut elements, (0.0, &q, &v), &tau)?;
         (at.qdd.clone(), Some(at))
     } else {
-        let nv = sys.model.nv;
+        let nv = sys.model().nv;
         let mut applied = vec![0.0; nv];
         applied_generalized_force(
             &mut sys,
@@ -71,25 +69,25 @@ pub fn run(a: EvalArgs) -> Result<Value> {
             None,
         )
     };
-    let m = &sys.model;
+    let m = sys.model();
     let mut out = json!({
         "scene": a.scene.display().to_string(),
         "q_names": m.q_names,
         "v_names": m.v_names,
-        "formulation": sys.last_formulation,
+        "formulation": sys.last_formulation(),
         "qdd": qdd,
     });
-    if !sys.constraints.is_empty() {
-        out["constraint_rows"] = json!(sys.constraints.row_names());
-        out["phi"] = json!(sys.cdata.phi.as_slice());
-        out["velocity_residual"] = json!(sys.cdata.jv.as_slice());
+    if !sys.constraints().is_empty() {
+        out["constraint_rows"] = json!(sys.constraints().row_names());
+        out["phi"] = json!(sys.rows().phi.as_slice());
+        out["velocity_residual"] = json!(sys.rows().jv.as_slice());
         if let Some(at) = &at {
             out["lambda"] = json!(at.lambda);
             out["generalized_constraint_force"] = json!(at.generalized_force);
             out["rank_deficiency"] = json!(at.rank_deficiency);
             out["constraints"] = serde_json::to_value(&at.forces).unwrap_or_default();
         } else {
-            let p = &sys.embedded.partition;
+            let p = &sys.embedded().partition;
             out["independent_velocities"] = json!(
                 p.independent
                     .iter()
@@ -100,8 +98,8 @@ pub fn run(a: EvalArgs) -> Result<Value> {
     }
     if a.terms {
         // h = C v + g (data.tau holds the bias forces after the dynamics call)
-        out["M"] = matrix_rows(&sys.data.mass_matrix);
-        out["h"] = json!(sys.data.tau.as_slice());
+        out["M"] = matrix_rows(&sys.data().mass_matrix);
+        out["h"] = json!(sys.data().tau.as_slice());
     }
     if a.derivatives {
         out["derivatives"] = derivatives(&mut sys, &mut elements, &q, &v, &tau, &qdd, a.terms)?;
@@ -123,7 +121,7 @@ fn derivatives(
     qdd: &[f64],
     terms: bool,
 ) -> Result<Value> {
-    let nv = sys.model.nv;
+    let nv = sys.model().nv;
     let mut applied = vec![0.0; nv];
     applied_generalized_force(
         sys,
@@ -133,25 +131,12 @@ fn derivatives(
         &vec![0.0; nv],
         &mut applied,
     );
-    let mut dd = DerivativeData::new(&sys.model, sys.constraints.nrows);
+    let mut dd = DerivativeData::new(sys.model(), sys.constraints().nrows);
     let mut out = json!({
         "convention": "X[i][j] = d out_i / d in_j; d/dq along delta in q (+) delta (tangent, nv columns)",
     });
-    if sys.constraints.is_empty() {
-        aba_derivatives(&sys.model, &mut sys.data, &mut dd, q, v, &applied)?;
-    } else {
-        constrained_dynamics_derivatives(
-            &sys.model,
-            &mut sys.data,
-            &sys.constraints,
-            &mut sys.cdata,
-            &mut sys.kkt,
-            &mut dd,
-            q,
-            v,
-            &applied,
-            sys.baumgarte,
-        )?;
+    sys.dynamics_derivatives(&mut dd, q, v, &applied)?;
+    if !sys.constraints().is_empty() {
         out["lambda_unique"] = json!(dd.lambda_unique);
         if dd.lambda_unique {
             out["dlambda_dq"] = matrix_rows(&dd.dlambda_dq);
@@ -163,7 +148,7 @@ fn derivatives(
     out["dqdd_dv"] = matrix_rows(&dd.dqdd_dv);
     out["dqdd_dtau"] = matrix_rows(&dd.dqdd_dtau);
     if terms {
-        rnea_derivatives(&sys.model, &mut sys.data, &mut dd, q, v, qdd);
+        sys.inverse_dynamics_derivatives(&mut dd, q, v, qdd);
         out["dtau_dq"] = matrix_rows(&dd.dtau_dq);
         out["dtau_dv"] = matrix_rows(&dd.dtau_dv);
     }

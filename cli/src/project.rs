@@ -49,12 +49,12 @@ pub fn run(a: ProjectArgs) -> Result<Value> {
     if let Some(period) = a.period {
         request.period = period;
     }
-    let mut projector = DynamicProjector::new(&sys.model, &sys.constraints);
-    let nv = sys.model.nv;
+    let mut projector = DynamicProjector::new(sys.model(), sys.constraints());
+    let nv = sys.model().nv;
     let mut applied = vec![0.0; nv];
     let em = if request.period != 0.0 {
         // The scene's force elements (springs, dampers, URDF damping) at (q, v) act as well.
-        let mut elements = ForceElements::new(&sys.model, &scene.file.forces)?;
+        let mut elements = ForceElements::new(sys.model(), &scene.file.forces)?;
         let zero = vec![0.0; nv];
         applied_generalized_force(
             &mut sys,

@@ -27,6 +27,7 @@ impl Predictor {
         ws.probe_t = None;
         let mut rhs = Rhs {
             sys: &mut self.sys,
+            gains: ws.gains,
             forces: &mut self.forces,
             tau_act: &ws.tau_act,
             control: actuators.is_continuous().then_some(actuators),
@@ -82,6 +83,7 @@ impl Predictor {
         let ws = &mut self.ws;
         let mut rhs = Rhs {
             sys: &mut self.sys,
+            gains: ws.gains,
             forces: &mut self.forces,
             // Each lane under the torque of its own controllers (run.rs, Workspace).
             tau_act: if cap.is_none() {

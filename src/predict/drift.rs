@@ -9,7 +9,7 @@
 //! Everything lives in a [`DriftProjector`] sized once: a projection allocates nothing.
 
 use crate::algorithm::{bias_forces_after_kinematics, crba_after_kinematics};
-use crate::dynamics::InvariantDynamics;
+use crate::dynamics::{Baumgarte, InvariantDynamics};
 use crate::error::{Error, Result};
 use crate::linalg::cholesky_in_place;
 use crate::linalg::{semidefinite_cholesky, semidefinite_solve};
@@ -206,6 +206,7 @@ impl DriftProjector {
     pub(crate) fn least_squares_accel(
         &mut self,
         sys: &mut System,
+        gains: Baumgarte,
         q: &[f64],
         v: &[f64],
         tau: &[f64],
@@ -216,7 +217,7 @@ impl DriftProjector {
             .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
         let rho = self.metric(sys, false)?;
         bias_forces_after_kinematics(&sys.model, &mut sys.data);
-        let (cd, stab) = (&sys.cdata, sys.baumgarte);
+        let (cd, stab) = (&sys.cdata, gains);
         let b = |k: usize| -cd.gamma[k] - stab.kd * cd.jv[k] - stab.kp * cd.phi[k];
         // q̈_free = M̃⁻¹ (τ − h + ρ Jᵀ b)
         for i in 0..nv {

@@ -100,6 +100,8 @@ pub(super) struct Workspace {
     pub(super) jw: JacobianWork,
     /// Work units of one dynamics evaluation (`limits::evaluation_cost`).
     pub(super) cost: f64,
+    /// The Baumgarte gains of the current run (`Predictor::drift_gains`).
+    pub(super) gains: Baumgarte,
     /// The covariance worker's pipe while a run has one.
     pub(super) pipe: PipeSlot,
 }
@@ -156,6 +158,7 @@ impl Predictor {
             rows_q: vec![0.0; nq],
             rows_v: vec![0.0; nv],
             cost: crate::limits::evaluation_cost(&model),
+            gains: sys.baumgarte,
             jw: JacobianWork::new(&sys),
             pipe: PipeSlot::default(),
         };
@@ -244,7 +247,7 @@ impl Predictor {
         let mut s = budget.settings().clone();
         let mut refinements = 0;
         let result = loop {
-            self.sys.baumgarte = self.drift_gains(&s);
+            self.ws.gains = self.drift_gains(&s);
             match self.run(req, horizon, &s, control) {
                 // `adapt`: rerun with the step or tolerance the estimate asks for, bounded.
                 Err(Error::ErrorEstimateExceeded { t, estimate, .. })

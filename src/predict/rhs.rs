@@ -48,6 +48,8 @@ impl JacobianWork {
 /// stage) + force elements → constrained q̈.
 pub(super) struct Rhs<'a> {
     pub(super) sys: &'a mut System,
+    /// The run's Baumgarte gains.
+    pub(super) gains: Baumgarte,
     pub(super) forces: &'a mut ForceElements,
     pub(super) tau_act: &'a [f64],
     /// Continuous controllers (`hold: continuous`), evaluated into `tau_ctl` at every stage
@@ -183,7 +185,7 @@ impl Accel for Rhs<'_> {
         self.apply(t, q, v);
         // The form holds without stabilisation gains (a run under `drift: baumgarte` has them).
         if let Some(form) = self.invariant
-            && self.sys.baumgarte == Baumgarte::default()
+            && self.gains == Baumgarte::default()
         {
             form.accel(v, self.tau, qdd);
             return Ok(());
@@ -194,6 +196,7 @@ impl Accel for Rhs<'_> {
         // rows disagree (`DynamicsOptions::stage`).
         let opts = DynamicsOptions {
             rows_evaluated,
+            gains: Some(self.gains),
             ..DynamicsOptions::stage(self.sys.formulation)
         };
         let result = self
@@ -211,7 +214,7 @@ impl Accel for Rhs<'_> {
                 // satisfy the independent ones (counted in `Trajectory::least_squares_evaluations`).
                 self.least_squares += 1;
                 self.ls
-                    .least_squares_accel(self.sys, q, v, self.tau, qdd)
+                    .least_squares_accel(self.sys, self.gains, q, v, self.tau, qdd)
                     .map(|_| ())
             }
             Err(e) => Err(e),
@@ -243,11 +246,11 @@ impl Accel for Rhs<'_> {
         // Where the dynamics are a constant form, its own derivatives: the exact Jacobian of
         // the right-hand side evaluated (dynamics/invariant.rs).
         let analytic = match self.invariant {
-            Some(form) if self.sys.baumgarte == Baumgarte::default() => {
+            Some(form) if self.gains == Baumgarte::default() => {
                 form.derivatives(v, &mut dd.dqdd_dq, &mut dd.dqdd_dv, &mut dd.dqdd_dtau);
                 Ok(())
             }
-            _ => dynamics_derivatives(self.sys, dd, q, v, self.tau),
+            _ => dynamics_derivatives(self.sys, self.gains, dd, q, v, self.tau),
         };
         if analytic.is_err() {
             accel_jacobian_fd(self, model, (t, q, v), qdd, jac, scratch)?;

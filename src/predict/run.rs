@@ -112,6 +112,7 @@ impl Predictor {
         self.covariance = match req.start_covariance {
             Some(p0) => Some(CovariancePropagator::start(
                 &mut self.sys,
+                self.ws.gains,
                 &self.forces,
                 &self.actuators.feedback().collect::<Vec<_>>(),
                 &self.config.uncertainty,

@@ -55,9 +55,9 @@ fn order(sys_names: &[String]) -> Vec<usize> {
 fn initial_accelerations_and_multipliers_match_the_test_set() {
     let scene = scene();
     let mut sys = System::from_scene(&scene).unwrap();
-    let idx = order(&sys.model.v_names);
-    let mut elements = ForceElements::new(&sys.model, &scene.file.forces).unwrap();
-    let zero = vec![0.0; sys.model.nv];
+    let idx = order(&sys.model().v_names);
+    let mut elements = ForceElements::new(sys.model(), &scene.file.forces).unwrap();
+    let zero = vec![0.0; sys.model().nv];
     let at =
         constraint_forces_at(&mut sys, &mut elements, (0.0, &scene.q0, &scene.v0), &zero).unwrap();
     // The test set's y(0)[14..21] (given to 30 digits; f64-rounded here): q̈(0) = (14222.44…,

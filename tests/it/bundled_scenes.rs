@@ -4,7 +4,7 @@
 use crate::common;
 use common::*;
 use constraint_dynamics::algorithm::Data;
-use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
+use constraint_dynamics::constraints::ConstraintSet;
 use constraint_dynamics::dynamics::*;
 use constraint_dynamics::{BaseType, Model, ModelOptions, Scene, System};
 
@@ -33,20 +33,20 @@ fn embedded_and_multiplier_forms_agree_on_every_bundled_scene() {
     for p in list {
         let scene = Scene::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
         let mut sys = System::from_scene(&scene).unwrap();
-        let nv = sys.model.nv;
+        let nv = sys.model().nv;
         for k in 0..3 {
             // The scene state, then joint torques that excite every coordinate.
             let tau: Vec<f64> = (0..nv)
                 .map(|i| k as f64 * ((i + 1) as f64 * 0.9).sin())
                 .collect();
             let (q, v) = (scene.q0.clone(), scene.v0.clone());
-            sys.formulation = Formulation::Multipliers;
+            sys = sys.with_formulation(Formulation::Multipliers);
             let a = sys.forward_dynamics(&q, &v, &tau, true).unwrap().clone();
-            sys.formulation = Formulation::Embedded;
+            sys = sys.with_formulation(Formulation::Embedded);
             let b = sys.forward_dynamics(&q, &v, &tau, false).unwrap().clone();
             // Achieved ≤ 4.8e-15 on the fixed and planar bases, 5.3e-14 on the floating
             // mobile manipulator (printed by assert_close).
-            let tol = if sys.model.base == BaseType::Floating {
+            let tol = if sys.model().base == BaseType::Floating {
                 5e-12
             } else {
                 2e-13
@@ -60,15 +60,15 @@ fn embedded_and_multiplier_forms_agree_on_every_bundled_scene() {
             assert!(a.iter().all(|x| x.is_finite()));
         }
         // Auto picks the embedded form when nobody asks for forces, multipliers when they do.
-        sys.formulation = Formulation::Auto;
+        sys = sys.with_formulation(Formulation::Auto);
         let (q, v) = (scene.q0.clone(), scene.v0.clone());
         sys.forward_dynamics(&q, &v, &vec![0.0; nv], false).unwrap();
-        let expect = if sys.constraints.is_empty() {
+        let expect = if sys.constraints().is_empty() {
             Formulation::Multipliers
         } else {
             Formulation::Embedded
         };
-        assert_eq!(sys.last_formulation, expect, "{}", p.display());
+        assert_eq!(sys.last_formulation(), expect, "{}", p.display());
     }
 }
 
@@ -76,7 +76,7 @@ fn embedded_and_multiplier_forms_agree_on_every_bundled_scene() {
 fn mobile_manipulator_standing_still_carries_its_weight_on_its_contacts() {
     let scene = Scene::load(repo_dir().join("params/mobile_manipulator_floating.yaml")).unwrap();
     let mut sys = System::from_scene(&scene).unwrap();
-    let nv = sys.model.nv;
+    let nv = sys.model().nv;
     let qdd = sys
         .forward_dynamics(&scene.q0, &vec![0.0; nv], &vec![0.0; nv], true)
         .unwrap()
@@ -88,7 +88,7 @@ fn mobile_manipulator_standing_still_carries_its_weight_on_its_contacts() {
         &vec![0.0; nv],
         TOL_MM_QDD,
     );
-    let mg = sys.model.total_mass() * 9.81;
+    let mg = sys.model().total_mass() * 9.81;
     let forces = sys.constraint_forces();
     let fz: f64 = forces.iter().map(|f| f.force[2]).sum();
     assert_close(
@@ -98,7 +98,7 @@ fn mobile_manipulator_standing_still_carries_its_weight_on_its_contacts() {
         TOL_MM_FZ,
     );
     // The redundant lateral rows of the two wheels are reported, not hidden.
-    assert_eq!(sys.kkt.rank_deficiency, 1);
+    assert_eq!(sys.multipliers().rank_deficiency, 1);
     for f in forces.iter().filter(|f| f.kind.name() == "rolling") {
         assert!(f.normal_force.unwrap() > 0.0);
         assert_close(
@@ -156,7 +156,7 @@ fn solo12_static_equilibrium_carries_its_weight() {
     // The reference's static-equilibrium state: q̈ = 0 and Σ f_z = m g (Pinocchio itself reaches
     // |q̈| 8.9e-13 and |Σ λ_z − m g| 2.5e-14 N there, `crosschecks_maxabs`).
     assert_close("solo12 static: q̈", qdd.as_slice(), &[0.0; 18], TOL_SOLO_QDD);
-    let mg = sys.model.total_mass() * 9.81;
+    let mg = sys.model().total_mass() * 9.81;
     let fz: f64 = sys.constraint_forces().iter().map(|f| f.force[2]).sum();
     assert_close(
         "solo12 static: Σ f_z / m g",
@@ -226,14 +226,9 @@ fn urdf_mimic_becomes_a_coupling_constraint() {
         &[expect, -2.0 * expect],
         TOL_GEARS,
     );
-    let mut cd = ConstraintData::new(&sys.model, &sys.constraints);
-    sys.constraints.evaluate(
-        &sys.model,
-        &mut sys.data,
-        &mut cd,
-        &[0.3, -0.5],
-        &[0.0, 0.0],
-    );
+    let (mut data, mut cd, _) = workspaces(&sys);
+    sys.constraints()
+        .evaluate(sys.model(), &mut data, &mut cd, &[0.3, -0.5], &[0.0, 0.0]);
     assert_close(
         "gears: φ",
         &[cd.phi[0]],

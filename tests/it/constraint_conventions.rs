@@ -153,16 +153,15 @@ fn sample_residuals_are_the_contact_gap_and_the_slip_speed() {
     let q = [0.2, -0.1, 0.13, 0.0, 0.0, 0.0, 1.0];
     let v = [0.3, -0.2, 0.05, 0.4, 2.0, -0.7];
     let mut sys = multiplier_system(model, &specs, &q);
-    let (position, velocity) =
-        (sys.constraints).residuals(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v);
+    let (position, velocity) = sys.residuals(&q, &v);
     let rows = [0.1, -0.16, 0.05, -0.2];
-    for (k, (got, want)) in sys.cdata.jv.iter().zip(rows).enumerate() {
+    for (k, (got, want)) in sys.rows().jv.iter().zip(rows).enumerate() {
         assert!(
             (got - want).abs() < 1e-15,
             "row {k}: J v = {got}, not {want}"
         );
     }
-    assert_eq!(sys.cdata.holonomic, [false, false, true, false]);
+    assert_eq!(sys.rows().holonomic, [false, false, true, false]);
     assert!((position - 0.03).abs() < 1e-15, "{position}");
     assert!((velocity - 0.2).abs() < 1e-15, "{velocity}");
 }

@@ -33,7 +33,7 @@ fn point_constraint_force_is_the_weight_at_the_pin() {
     let mut sys = multiplier_system(model, &[spec], &q);
     sys.forward_dynamics(&q, &[0.0; 6], &[0.0; 6], true)
         .unwrap();
-    assert_eq!(sys.constraints.row_names(), ["pin/x", "pin/z"]);
+    assert_eq!(sys.constraints().row_names(), ["pin/x", "pin/z"]);
     let f = &sys.constraint_forces()[0];
     assert_eq!(
         (f.kind, f.frame.as_str(), f.axes.as_str()),
@@ -177,7 +177,7 @@ fn velocity_constraint_generalized_force_has_units_per_coordinate() {
         [("root_joint:vx_local", "N"), ("root_joint:wz", "N·m")]
     );
     // The parsed expression has the two symbols it was written with (never empty).
-    match &sys.constraints.items[0] {
+    match &sys.constraints().items[0] {
         Constraint::Velocity(vc) => {
             assert!(!vc.expression.is_empty());
             assert_eq!(vc.expression.len(), 2);
@@ -220,7 +220,7 @@ fn disk_rolls_down_an_incline_at_two_thirds_g_sin_alpha() {
         let q = [c[0], c[1], c[2], 0.0, 0.0, 0.0, 1.0];
         let mut sys = multiplier_system(reference_disk(BaseType::Floating), &[spec], &q);
         assert_eq!(
-            sys.constraints.row_names(),
+            sys.constraints().row_names(),
             ["contact/t1", "contact/t2", "contact/n"]
         );
         let a = 2.0 / 3.0 * g * alpha.sin();
@@ -331,14 +331,14 @@ fn distance_pendulum_off_the_vertical() {
         );
         assert_close(
             &format!("{what}: λ"),
-            sys.kkt.lambda.as_slice(),
+            sys.multipliers().lambda.as_slice(),
             &[-M * (g * beta.cos() + u * u / l)],
             1e-14, // achieved ≤ 1.9e-16
         );
         // φ = |d| − L: 0 here, and δ with the centre moved δ further out along n.
         assert_close(
             &format!("{what}: φ"),
-            sys.cdata.phi.as_slice(),
+            sys.rows().phi.as_slice(),
             &[0.0],
             1e-15,
         ); // achieved 0; floor 1e-15
@@ -355,7 +355,7 @@ fn distance_pendulum_off_the_vertical() {
         sys.forward_dynamics(&q_out, &v, &[0.0; 6], true).unwrap();
         assert_close(
             &format!("{what}: φ at L + δ"),
-            sys.cdata.phi.as_slice(),
+            sys.rows().phi.as_slice(),
             &[delta],
             1e-15,
         ); // achieved 1.7e-18 (δ by construction)
@@ -401,5 +401,5 @@ fn body_welded_to_a_falling_base_falls_with_it() {
     let mut expected = [0.0; 12];
     expected[2] = -9.81;
     assert_close("q̈", qdd.as_slice(), &expected, 1e-15); // achieved 1.8e-17 (free fall)
-    assert_close("λ", sys.kkt.lambda.as_slice(), &[0.0; 6], 5e-14); // achieved 9.5e-16
+    assert_close("λ", sys.multipliers().lambda.as_slice(), &[0.0; 6], 5e-14); // achieved 9.5e-16
 }

@@ -35,7 +35,7 @@ fn welded_body_carries_its_weight_and_baumgarte_pulls_it_back() {
         .clone();
     // Closed form: held at its target pose, the body does not move and φ = 0.
     assert_close("welded: q̈", qdd.as_slice(), &[0.0; 6], 1e-13); // achieved 1.8e-15
-    assert_close("welded: φ", sys.cdata.phi.as_slice(), &[0.0; 6], 5e-15); // achieved 9.7e-17
+    assert_close("welded: φ", sys.rows().phi.as_slice(), &[0.0; 6], 5e-15); // achieved 9.7e-17
     // Weight m g = 9.81 N upward, no torque about the COM (the frame origin).
     let f = &sys.constraint_forces()[0];
     assert_close("weld force", &f.force, &[0.0, 0.0, 9.81], 1e-14); // achieved 1.8e-16 (closed form m g)
@@ -44,7 +44,7 @@ fn welded_body_carries_its_weight_and_baumgarte_pulls_it_back() {
     // Off target by δ (world) and by a rotation ε about world z, at rest: with K_p only,
     // the world accelerations are −K_p δ and −K_p ε ẑ (a critically simple closed form).
     let (kp, delta, eps) = (50.0, Vector3::new(0.01, -0.02, 0.005), 0.03);
-    sys.baumgarte = Baumgarte { kp, kd: 0.0 };
+    sys = sys.with_baumgarte(Baumgarte { kp, kd: 0.0 });
     let rot = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), eps) * target;
     let q1 = q_at([xyz[0] + delta.x, xyz[1] + delta.y, xyz[2] + delta.z], &rot);
     let qdd = sys
@@ -119,7 +119,12 @@ fn axes_and_normals_of_any_length_act_as_unit_vectors() {
     let (u, w) = (1.5, -0.8);
     sys.forward_dynamics(&q, &[u, 0.0, w], &[0.0; 3], true)
         .unwrap();
-    assert_close("knife edge λ", sys.kkt.lambda.as_slice(), &[u * w], 1e-15); // achieved 0 (m u ω)
+    assert_close(
+        "knife edge λ",
+        sys.multipliers().lambda.as_slice(),
+        &[u * w],
+        1e-15,
+    ); // achieved 0 (m u ω)
 
     let contact = ConstraintSpec::Rolling {
         name: "contact".into(),
@@ -176,7 +181,7 @@ fn distance_pendulum_tension_is_m_g_plus_m_u2_over_l() {
         );
         assert_close(
             &format!("u = {u}: λ"),
-            sys.kkt.lambda.as_slice(),
+            sys.multipliers().lambda.as_slice(),
             &[-(9.81 + u * u)],
             1e-15, // achieved 0 (closed form −m(g + u²/L))
         );
@@ -191,7 +196,7 @@ fn distance_pendulum_tension_is_m_g_plus_m_u2_over_l() {
     // Off the velocity constraint: also a radial speed w (the rod lengthening), without
     // Baumgarte. The constraint then holds |d|¨ = 0: n·d̈ + (|ḋ|² − (n·ḋ)²)/|d| = 0 with
     // |ḋ|² − (n·ḋ)² = u², so the centre still accelerates upward by u²/L whatever w is.
-    sys.baumgarte = Baumgarte { kp: 0.0, kd: 0.0 };
+    sys = sys.with_baumgarte(Baumgarte { kp: 0.0, kd: 0.0 });
     for (u, w) in [(0.7, 0.4), (3.0, -1.5)] {
         let v = [u, 0.0, w, 0.0, 0.0, 0.0];
         let qdd = sys
@@ -294,7 +299,7 @@ fn weld_in_local_axes_gives_the_same_motion_and_rotated_wrench() {
     world
         .forward_dynamics(&q, &[0.0; 18], &[0.0; 18], true)
         .unwrap();
-    let jw = world.cdata.j.clone();
+    let jw = world.rows().j.clone();
     let svd = jw.clone().svd(true, true);
     let vt = svd.v_t.unwrap();
     let raw = DVector::from_fn(18, |i, _| ((i + 1) as f64 * 0.37).sin());
@@ -316,20 +321,20 @@ fn weld_in_local_axes_gives_the_same_motion_and_rotated_wrench() {
         .forward_dynamics(&q, v.as_slice(), &tau, true)
         .unwrap()
         .clone();
-    let lw = world.kkt.lambda.clone();
+    let lw = world.lambda().clone();
     let b = local
         .forward_dynamics(&q, v.as_slice(), &tau, true)
         .unwrap()
         .clone();
     assert_close("q̈ world vs local rows", b.as_slice(), a.as_slice(), 2e-12); // achieved 6.1e-14 (same constraint in two row bases)
-    let r = frame_placement(&model, &local.data, base).rotation;
+    let r = frame_placement(&model, local.data(), base).rotation;
     let (f, m) = (
         r.transpose() * lw.fixed_rows::<3>(0),
         r.transpose() * lw.fixed_rows::<3>(3),
     );
     assert_close(
         "λ local = Rᵀ λ world",
-        local.kkt.lambda.as_slice(),
+        local.lambda().as_slice(),
         &[f.as_slice(), m.as_slice()].concat(),
         5e-12, // achieved 9.9e-14 (λ_local = Rᵀ λ_world)
     );
@@ -365,13 +370,13 @@ fn redundant_rows_are_accepted_when_consistent_and_refused_when_not() {
     for speed in [1.0, 1e3] {
         let v: Vec<f64> = single.v0.iter().map(|x| speed * x).collect();
         let mut one = System::from_scene(&single).unwrap();
-        one.formulation = Formulation::Embedded;
+        one = one.with_formulation(Formulation::Embedded);
         let a = one
             .forward_dynamics(&single.q0, &v, &tau, false)
             .unwrap()
             .clone();
         let mut two = System::from_scene(&with_copy(0.0)).unwrap();
-        two.formulation = Formulation::Embedded;
+        two = two.with_formulation(Formulation::Embedded);
         let b = two
             .forward_dynamics(&single.q0, &v, &tau, false)
             .unwrap_or_else(|e| panic!("speed ×{speed}: consistent copies refused: {e}"))
@@ -391,13 +396,13 @@ fn redundant_rows_are_accepted_when_consistent_and_refused_when_not() {
         let (vx, wz) = (speed * 0.8, speed * 0.6);
         let v = [vx, 0.0, wz, (vx - c * wz) / r, (vx + c * wz) / r];
         let tau = [0.0, 0.0, 0.0, 0.3, -0.2];
-        sys.formulation = Formulation::Multipliers;
+        sys = sys.with_formulation(Formulation::Multipliers);
         let a = sys
             .forward_dynamics(&dd.q0, &v, &tau, true)
             .unwrap()
             .clone();
-        assert_eq!(sys.kkt.rank_deficiency, 1);
-        sys.formulation = Formulation::Embedded;
+        assert_eq!(sys.multipliers().rank_deficiency, 1);
+        sys = sys.with_formulation(Formulation::Embedded);
         let b = sys
             .forward_dynamics(&dd.q0, &v, &tau, false)
             .unwrap_or_else(|e| panic!("diff drive ×{speed}: consistent rows refused: {e}"))
@@ -412,8 +417,8 @@ fn redundant_rows_are_accepted_when_consistent_and_refused_when_not() {
     }
 
     let mut bad = System::from_scene(&with_copy(1e-3)).unwrap();
-    bad.formulation = Formulation::Embedded;
-    bad.baumgarte = Baumgarte { kp: 100.0, kd: 0.0 };
+    bad = bad.with_formulation(Formulation::Embedded);
+    bad = bad.with_baumgarte(Baumgarte { kp: 100.0, kd: 0.0 });
     match bad.forward_dynamics(&single.q0, &single.v0, &tau, false) {
         Err(Error::InconsistentConstraints { message }) => {
             eprintln!("inconsistent copies (embedded): {message}")
@@ -423,7 +428,7 @@ fn redundant_rows_are_accepted_when_consistent_and_refused_when_not() {
         ),
     }
     // The multiplier form refuses them too (its least-squares λ would hide the conflict).
-    bad.formulation = Formulation::Multipliers;
+    bad = bad.with_formulation(Formulation::Multipliers);
     match bad.forward_dynamics(&single.q0, &single.v0, &tau, true) {
         Err(Error::InconsistentConstraints { message }) => {
             eprintln!("inconsistent copies (multipliers): {message}")

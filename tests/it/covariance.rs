@@ -436,9 +436,8 @@ impl ClosurePlacement {
     fn new(scene: &Scene) -> Self {
         let mut sys = constraint_dynamics::System::from_scene(scene).unwrap();
         let (q0, v0) = (scene.q0.clone(), scene.v0.clone());
-        sys.constraints
-            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &q0, &v0);
-        let j = sys.cdata.j.clone();
+        sys.evaluate_rows(sys.rows().t, &q0, &v0);
+        let j = sys.rows().j.clone();
         let (nc, nv) = j.shape();
         let svd = j.svd(true, true);
         // nalgebra's singular values are in descending order: the last is the redundancy's.
@@ -458,22 +457,21 @@ impl ClosurePlacement {
 
     fn place(&self, q: &mut [f64]) {
         let mut sys = self.sys.clone();
-        let nv = sys.model.nv;
+        let nv = sys.model().nv;
         let zero = vec![0.0; nv];
         let along = |sys: &constraint_dynamics::System, q: &[f64]| {
             let mut d = vec![0.0; nv];
-            sys.model.difference(&self.q0, q, &mut d);
+            sys.model().difference(&self.q0, q, &mut d);
             self.tangent.dot(&DVector::from_vec(d))
         };
         let target = along(&sys, q);
         for _ in 0..20 {
-            sys.constraints
-                .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, &zero);
+            sys.evaluate_rows(sys.rows().t, q, &zero);
             let mut f = DVector::zeros(nv);
             let mut a = DMatrix::zeros(nv, nv);
             for (i, &r) in self.rows.iter().enumerate() {
-                f[i] = sys.cdata.phi[r];
-                a.row_mut(i).copy_from(&sys.cdata.j.row(r));
+                f[i] = sys.rows().phi[r];
+                a.row_mut(i).copy_from(&sys.rows().j.row(r));
             }
             f[nv - 1] = along(&sys, q) - target;
             a.row_mut(nv - 1).copy_from(&self.tangent.transpose());
@@ -482,7 +480,7 @@ impl ClosurePlacement {
             }
             let step = -a.lu().solve(&f).unwrap();
             let start = q.to_vec();
-            sys.model.integrate(&start, step.as_slice(), 1.0, q);
+            sys.model().integrate(&start, step.as_slice(), 1.0, q);
         }
         panic!("the closure placement did not converge from {q:?}");
     }

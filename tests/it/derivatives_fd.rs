@@ -200,18 +200,18 @@ fn dense_kkt(
     t: &[f64],
     stab: Baumgarte,
 ) -> DVector<f64> {
-    let (nv, nc) = (sys.model.nv, sys.constraints.nrows);
-    sys.constraints
-        .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
+    let (nv, nc) = (sys.model().nv, sys.constraints().nrows);
+    sys.evaluate_rows(sys.rows().t, q, v);
     let (j, gamma, jv, phi) = (
-        sys.cdata.j.clone(),
-        sys.cdata.gamma.clone(),
-        sys.cdata.jv.clone(),
-        sys.cdata.phi.clone(),
+        sys.rows().j.clone(),
+        sys.rows().gamma.clone(),
+        sys.rows().jv.clone(),
+        sys.rows().phi.clone(),
     );
-    crba(&sys.model, &mut sys.data, q);
-    let m = sys.data.mass_matrix.clone();
-    let h = nonlinear_effects(&sys.model, &mut sys.data, q, v).clone();
+    let (mut data, _, _) = workspaces(sys);
+    crba(sys.model(), &mut data, q);
+    let m = data.mass_matrix.clone();
+    let h = nonlinear_effects(sys.model(), &mut data, q, v).clone();
     let nk = kept.len();
     let mut a = DMatrix::zeros(nv + nk, nv + nk);
     let mut b = DVector::zeros(nv + nk);
@@ -240,29 +240,30 @@ fn dense_kkt(
 fn check_constrained_scene(name: &str, scene: &Scene, rng: &mut Rng) -> (f64, Vec<&'static str>) {
     let mut worst = 0.0f64;
     {
-        let mut s = System::from_scene(scene).unwrap();
-        if s.constraints.nrows == 0 {
+        let s = System::from_scene(scene).unwrap();
+        let (mut data, mut cd, mut kkt) = workspaces(&s);
+        if s.constraints().nrows == 0 {
             return (0.0, vec![]);
         }
         // Expression constraints have no analytic derivatives (Unsupported).
-        if s.constraints
+        if s.constraints()
             .items
             .iter()
             .any(|c| c.kind() == ConstraintKind::Velocity)
         {
             return (0.0, vec![]);
         }
-        let model = s.model.clone();
-        let (nv, nc) = (model.nv, s.constraints.nrows);
+        let model = s.model().clone();
+        let (nv, nc) = (model.nv, s.constraints().nrows);
         let mut s2 = System::from_scene(scene).unwrap();
         let mut dd = DerivativeData::new(&model, nc);
         for k in 0..2 {
             // Near the scene's (consistent) initial state; v with J v = 0 so that dependent
             // rows (two wheels on one axle) stay consistent.
             let q = perturbed(&model, &scene.q0, &rng.vec(nv, 0.05), 1.0);
-            s.constraints
-                .evaluate(&model, &mut s.data, &mut s.cdata, &q, &vec![0.0; nv]);
-            let j = s.cdata.j.clone();
+            s.constraints()
+                .evaluate(&model, &mut data, &mut cd, &q, &vec![0.0; nv]);
+            let j = cd.j.clone();
             let kept = independent_rows(&j);
             let full_rank = kept.len() == nc;
             let v0 = DVector::from_vec(rng.vec(nv, 0.5));
@@ -281,11 +282,11 @@ fn check_constrained_scene(name: &str, scene: &Scene, rng: &mut Rng) -> (f64, Ve
             let tau = rng.vec(nv, 2.0);
             let tag = format!("{name}[{k}]");
             constrained_dynamics_derivatives(
-                &s.model,
-                &mut s.data,
-                &s.constraints,
-                &mut s.cdata,
-                &mut s.kkt,
+                s.model(),
+                &mut data,
+                s.constraints(),
+                &mut cd,
+                &mut kkt,
                 &mut dd,
                 &q,
                 &v,
@@ -336,7 +337,7 @@ fn check_constrained_scene(name: &str, scene: &Scene, rng: &mut Rng) -> (f64, Ve
         }
         (
             worst,
-            s.constraints
+            s.constraints()
                 .items
                 .iter()
                 .map(|c| c.kind().name())

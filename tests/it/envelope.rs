@@ -39,9 +39,9 @@ fn envelope_of(scene: &Scene) -> (System, EnvelopeModel, EnvelopeData, EnvelopeR
     let mut sys = System::from_scene(scene).unwrap();
     let em = EnvelopeModel::from_scene(scene, &sys).unwrap();
     let mut ed = EnvelopeData::new(&em);
-    let zero = vec![0.0; sys.model.nv];
+    let zero = vec![0.0; sys.model().nv];
     acceleration_envelope(&mut sys, &em, &mut ed, &scene.q0, &scene.v0, &zero).unwrap();
-    let report = EnvelopeReport::new(&sys.model, &em, &ed.envelope);
+    let report = EnvelopeReport::new(sys.model(), &em, &ed.envelope);
     let e = &ed.envelope;
     eprintln!(
         "iterations: {} {} {} {}",
@@ -255,14 +255,14 @@ fn braking_limit_of_the_floating_mobile_manipulator_falls_as_the_arm_leans_forwa
     let mut sys = System::from_scene(&scene).unwrap();
     let em = EnvelopeModel::from_scene(&scene, &sys).unwrap();
     let mut ed = EnvelopeData::new(&em);
-    let pitch = sys.model.q_index("arm_shoulder_pitch").unwrap();
-    let zero = vec![0.0; sys.model.nv];
+    let pitch = sys.model().q_index("arm_shoulder_pitch").unwrap();
+    let zero = vec![0.0; sys.model().nv];
     let mut last = f64::INFINITY;
     for p in [0.0, 0.4, 0.8, 1.2, std::f64::consts::FRAC_PI_2] {
         let mut q = scene.q0.clone();
         q[pitch] = p;
         acceleration_envelope(&mut sys, &em, &mut ed, &q, &scene.v0, &zero).unwrap();
-        let report = EnvelopeReport::new(&sys.model, &em, &ed.envelope);
+        let report = EnvelopeReport::new(sys.model(), &em, &ed.envelope);
         let d = report.forward_deceleration.max.unwrap();
         eprintln!("pitch {p:.3}: braking limit {d:.6} m/s²");
         assert!(d < last, "pitch {p}: {d} after {last}");
@@ -351,7 +351,7 @@ fn the_floating_mobile_manipulators_envelope_model_holds_the_arm_and_drives_the_
     let scene = Scene::load(repo_dir().join("params/mobile_manipulator_floating.yaml")).unwrap();
     let sys = System::from_scene(&scene).unwrap();
     let em = EnvelopeModel::from_scene(&scene, &sys).unwrap();
-    let v = |n: &str| sys.model.v_index(n).unwrap();
+    let v = |n: &str| sys.model().v_index(n).unwrap();
     let arm = [
         "arm_shoulder_yaw",
         "arm_shoulder_pitch",
@@ -431,9 +431,9 @@ fn an_assumed_friction_coefficient_checks_the_contacts_that_declare_none() {
     let em = declared.assume_friction(mu);
     assert!(friction(&em).is_empty(), "{:?}", em.unchecked);
     let mut ed = EnvelopeData::new(&em);
-    let zero = vec![0.0; sys.model.nv];
+    let zero = vec![0.0; sys.model().nv];
     acceleration_envelope(&mut sys, &em, &mut ed, &scene.q0, &scene.v0, &zero).unwrap();
-    let report = EnvelopeReport::new(&sys.model, &em, &ed.envelope);
+    let report = EnvelopeReport::new(sys.model(), &em, &ed.envelope);
     let k = M_Z + 2.0 * I_W / R;
     let expect = mu * G * (M * L_C + M_X) / (M * L_C + mu * k);
     let got = report.forward_acceleration.max.unwrap();

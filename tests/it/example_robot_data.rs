@@ -302,7 +302,7 @@ fn icub_point_mass_head_is_refused_where_m_is_singular() {
         let q0 = model.neutral();
         let set = ConstraintSet::new(&model, &[] as &[ConstraintSpec], &q0).unwrap();
         let mut sys = System::new(model, set, Baumgarte::default(), Formulation::Multipliers);
-        let nv = sys.model.nv;
+        let nv = sys.model().nv;
         let e = sys
             .forward_dynamics(&q0, &vec![0.0; nv], &vec![0.0; nv], true)
             .unwrap_err()

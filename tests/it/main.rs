@@ -2,7 +2,6 @@
 //! `cargo test --test it <module>` runs one subject, e.g. `cargo test --test it projection`.
 
 #[path = "common/closed_forms.rs"]
-#[allow(dead_code)]
 mod closed_forms;
 #[path = "common/command_sequences.rs"]
 #[allow(dead_code)]
@@ -14,10 +13,8 @@ mod common;
 #[allow(dead_code)]
 mod counting_alloc;
 #[path = "common/planner_settings.rs"]
-#[allow(dead_code)]
 mod planner_settings;
 #[path = "common/properties_support.rs"]
-#[allow(dead_code)]
 mod properties_support;
 
 mod actuators_anti_windup;

@@ -82,10 +82,9 @@ fn gamma_is_the_rate_of_the_constraint_velocity() {
     let mut sys = System::new(model, set, Baumgarte::default(), Formulation::Multipliers);
     let mut jv_at = |h: f64| {
         let mut qh = vec![0.0; q.len()];
-        sys.model.integrate(&q, &v, h, &mut qh);
-        sys.constraints
-            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &qh, &v);
-        sys.cdata.jv.clone()
+        sys.model().integrate(&q, &v, h, &mut qh);
+        sys.evaluate_rows(sys.rows().t, &qh, &v);
+        sys.rows().jv.clone()
     };
     let d = |h: f64, jv_at: &mut dyn FnMut(f64) -> DVector<f64>| (jv_at(h) - jv_at(-h)) / (2.0 * h);
     let h = 1e-3;
@@ -98,7 +97,7 @@ fn gamma_is_the_rate_of_the_constraint_velocity() {
     );
     assert_close(
         "γ vs d/dt (J v)",
-        sys.cdata.gamma.as_slice(),
+        sys.rows().gamma.as_slice(),
         rate.as_slice(),
         5e-11,
     ); // achieved 9.2e-13 (Richardson, h = 1e-3)

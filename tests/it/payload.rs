@@ -28,7 +28,7 @@ const G: f64 = 9.81;
 
 /// tests/data/cart_tall_mass_payload.yaml's payload: 5 kg at (−0.1, 0, 0.9) m in base_link,
 /// which sits 0.1 m above the ground: x = −0.1 m, z = 1.0 m.
-mod payload {
+mod load {
     pub const M: f64 = 5.0;
     pub const X: f64 = -0.1;
     pub const Z: f64 = 1.0;
@@ -57,9 +57,9 @@ fn envelope(scene: &Scene) -> EnvelopeReport {
     let mut sys = System::from_scene(scene).unwrap();
     let em = EnvelopeModel::from_scene(scene, &sys).unwrap();
     let mut ed = EnvelopeData::new(&em);
-    let zero = vec![0.0; sys.model.nv];
+    let zero = vec![0.0; sys.model().nv];
     acceleration_envelope(&mut sys, &em, &mut ed, &scene.q0, &scene.v0, &zero).unwrap();
-    EnvelopeReport::new(&sys.model, &em, &ed.envelope)
+    EnvelopeReport::new(sys.model(), &em, &ed.envelope)
 }
 
 fn binding(limit: &LimitReport) -> Vec<String> {
@@ -111,10 +111,10 @@ fn a_point_payload_adds_its_mass_and_moves_the_centre_of_mass_exactly() {
 fn the_payloads_mass_lowers_the_effort_limited_acceleration_as_the_closed_form_says() {
     use cart::*;
     // a = 2 τ_max / (r m_eff), m_eff = M + m_p + 2 I_w / r².
-    let m_eff = M + payload::M + 2.0 * I_W / (R * R);
+    let m_eff = M + load::M + 2.0 * I_W / (R * R);
     let expect = 2.0 * TAU_MAX / (R * m_eff);
     let scene = Scene::load(repo_dir().join("tests/data/cart_tall_mass_payload.yaml")).unwrap();
-    assert!(rel(scene.model.total_mass(), M + payload::M) < 1e-15);
+    assert!(rel(scene.model.total_mass(), M + load::M) < 1e-15);
     let report = envelope(&scene);
     let got = report.forward_acceleration.max.unwrap();
     eprintln!(
@@ -133,9 +133,9 @@ fn the_payloads_mass_lowers_the_effort_limited_acceleration_as_the_closed_form_s
 fn the_payload_moves_the_friction_and_lift_off_limits_as_the_closed_forms_say() {
     use cart::*;
     // With the payload: M' = M + m_p, Σmx' = Σmx + m_p x_p, Σmz' = Σmz + m_p z_p, K' = Σmz' + 2 I_w/r.
-    let m = M + payload::M;
-    let mx = M_X + payload::M * payload::X;
-    let k = M_Z + payload::M * payload::Z + 2.0 * I_W / R;
+    let m = M + load::M;
+    let mx = M_X + load::M * load::X;
+    let k = M_Z + load::M * load::Z + 2.0 * I_W / R;
     // Friction (μ = 0.3): a = μ g (M' L_c + Σmx') / (M' L_c + μ K').
     let mu = 0.3;
     let expect = mu * G * (m * L_C + mx) / (m * L_C + mu * k);

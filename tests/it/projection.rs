@@ -215,11 +215,11 @@ fn equality_only_projection_does_not_allocate() {
     }
     // The diff drive: redundant rows (min-norm path), URDF limits present but not binding.
     let (scene, sys) = scene_system("diff_drive.yaml");
-    let mut p = ProjectionProblem::new(&sys.model);
+    let mut p = ProjectionProblem::new(sys.model());
     p.v_des = vec![0.3, 0.2, 0.5, 1.0, 2.0];
     cases.push((
         "diff_drive".into(),
-        fixture(&sys.model, sys.constraints.clone()),
+        fixture(sys.model(), sys.constraints().clone()),
         scene.q0.clone(),
         p,
     ));

@@ -15,7 +15,7 @@ use serde_json::{Value, json};
 
 fn project_named(sys: &mut System, q: &[f64], v: &[f64], req: Value) -> Result<Projection, Error> {
     let req = ProjectionRequest::from_json(&req.to_string())?;
-    let mut proj = VelocityProjector::new(&sys.model, &sys.constraints);
+    let mut proj = VelocityProjector::new(sys.model(), sys.constraints());
     project_system(&mut proj, sys, q, v, &req)
 }
 
@@ -369,18 +369,12 @@ fn infeasible_request_names_the_conflict() {
 fn bad_input_is_refused_with_a_clear_error() {
     let (scene, mut sys) = scene_system("diff_drive.yaml");
     let (q, v0) = (scene.q0.clone(), scene.v0.clone());
-    let mut proj = VelocityProjector::new(&sys.model, &sys.constraints);
-    let mut p = ProjectionProblem::new(&sys.model);
+    let mut proj = VelocityProjector::new(sys.model(), sys.constraints());
+    let mut p = ProjectionProblem::new(sys.model());
+    let (mut data, mut cd, _) = workspaces(&sys);
     let mut run = |p: &ProjectionProblem, q: &[f64]| {
-        proj.project(
-            &sys.model,
-            &mut sys.data,
-            &sys.constraints,
-            &mut sys.cdata,
-            q,
-            p,
-        )
-        .map(|_| ())
+        proj.project(sys.model(), &mut data, sys.constraints(), &mut cd, q, p)
+            .map(|_| ())
     };
     p.v_des[1] = f64::NAN;
     let e = run(&p, &q).unwrap_err();

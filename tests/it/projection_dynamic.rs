@@ -44,7 +44,7 @@ struct Robot {
 fn robot(scene: Scene) -> Robot {
     let sys = System::from_scene(&scene).unwrap();
     let em = EnvelopeModel::from_scene(&scene, &sys).unwrap();
-    let proj = DynamicProjector::new(&sys.model, &sys.constraints);
+    let proj = DynamicProjector::new(sys.model(), sys.constraints());
     Robot {
         scene,
         sys,
@@ -57,7 +57,7 @@ impl Robot {
     fn named(&mut self, v: &[f64], request: serde_json::Value) -> Projection {
         let req = ProjectionRequest::from_json(&request.to_string()).unwrap();
         let q = self.scene.q0.clone();
-        let zero = vec![0.0; self.sys.model.nv];
+        let zero = vec![0.0; self.sys.model().nv];
         self.proj
             .project_request(&mut self.sys, Some(&self.em), &q, v, &zero, &req)
             .unwrap()
@@ -159,7 +159,7 @@ fn from_rest_the_floating_mobile_manipulator_gains_period_times_its_envelope() {
     // (a different program: the largest acceleration, not the nearest velocity) gives the limit.
     let scene = Scene::load(repo_dir().join("params/mobile_manipulator_floating.yaml")).unwrap();
     let mut r = robot(scene);
-    let zero = vec![0.0; r.sys.model.nv];
+    let zero = vec![0.0; r.sys.model().nv];
     let mut ed = EnvelopeData::new(&r.em);
     let (q, v) = (r.scene.q0.clone(), r.scene.v0.clone());
     let env = acceleration_envelope(&mut r.sys, &r.em, &mut ed, &q, &v, &zero)
@@ -194,7 +194,7 @@ fn from_rest_the_floating_mobile_manipulator_gains_period_times_its_envelope() {
                     .map(|x| {
                         (
                             x.kind.name().to_string(),
-                            r.em.binding_name(&r.sys.model, x).to_string(),
+                            r.em.binding_name(r.sys.model(), x).to_string(),
                         )
                     })
                     .collect::<Vec<_>>()
@@ -284,7 +284,7 @@ fn infeasible_requests_name_the_limits_that_cannot_hold_together() {
     let req =
         ProjectionRequest::from_json(r#"{"base_twist": [0,0,0,0,0,0], "period": -1}"#).unwrap();
     let q = r.scene.q0.clone();
-    let zero = vec![0.0; r.sys.model.nv];
+    let zero = vec![0.0; r.sys.model().nv];
     let e = r
         .proj
         .project_request(&mut r.sys, Some(&r.em), &q, &v0, &zero, &req)
@@ -307,17 +307,20 @@ fn period_zero_is_the_kinematic_projection() {
                        em: Option<&EnvelopeModel>,
                        q: &[f64],
                        p: &ProjectionProblem| {
-        let nv = sys.model.nv;
+        let nv = sys.model().nv;
         let zero = vec![0.0; nv];
-        let mut dynamic = DynamicProjector::new(&sys.model, &sys.constraints);
+        let mut dynamic = DynamicProjector::new(sys.model(), sys.constraints());
         let od = dynamic.project(sys, em, q, &zero, &zero, p, 0.0).unwrap();
-        let mut kin = VelocityProjector::new(&sys.model, &sys.constraints);
+        let mut kin = VelocityProjector::new(sys.model(), sys.constraints());
         let ok = kin
             .project(
-                &sys.model,
-                &mut sys.data,
-                &sys.constraints,
-                &mut sys.cdata,
+                sys.model(),
+                &mut constraint_dynamics::algorithm::Data::new(sys.model()),
+                sys.constraints(),
+                &mut constraint_dynamics::constraints::ConstraintData::new(
+                    sys.model(),
+                    sys.constraints(),
+                ),
                 q,
                 p,
             )
@@ -386,8 +389,8 @@ fn period_zero_is_the_kinematic_projection() {
     ] {
         let (scene, mut sys) = scene_system(name);
         let em = EnvelopeModel::from_scene(&scene, &sys).unwrap();
-        let nv = sys.model.nv;
-        let mut p = ProjectionProblem::new(&sys.model);
+        let nv = sys.model().nv;
+        let mut p = ProjectionProblem::new(sys.model());
         p.v_des = (0..nv)
             .map(|i| 3.0 * ((i as f64 + 1.0) * 0.7).sin())
             .collect();
@@ -414,7 +417,7 @@ fn period_zero_is_the_kinematic_projection() {
         // The named path: the same JSON.
         let req =
             ProjectionRequest::from_json(r#"{"base_twist": [0.5, 0.0, 0.3], "mode": "mass"}"#);
-        let req = match (req, sys.model.base) {
+        let req = match (req, sys.model().base) {
             (Ok(r), constraint_dynamics::model::BaseType::Planar) => r,
             _ => ProjectionRequest::from_json(
                 r#"{"base_twist": [0.5, 0, 0, 0, 0, 0.3], "upper": {"vx": 0.2}}"#,
@@ -422,11 +425,11 @@ fn period_zero_is_the_kinematic_projection() {
             .unwrap(),
         };
         let zero = vec![0.0; nv];
-        let mut dynamic = DynamicProjector::new(&sys.model, &sys.constraints);
+        let mut dynamic = DynamicProjector::new(sys.model(), sys.constraints());
         let a = dynamic
             .project_request(&mut sys, Some(&em), &scene.q0, &scene.v0, &zero, &req)
             .unwrap();
-        let mut kin = VelocityProjector::new(&sys.model, &sys.constraints);
+        let mut kin = VelocityProjector::new(sys.model(), sys.constraints());
         let b = project_system(&mut kin, &mut sys, &scene.q0, &scene.v0, &req).unwrap();
         assert_eq!(
             serde_json::to_string(&a).unwrap(),
@@ -514,13 +517,13 @@ fn certificate(
 ) -> Certificate {
     use constraint_dynamics::algorithm::{Data, crba, nonlinear_effects};
     use constraint_dynamics::constraints::ConstraintData;
-    let model = &sys.model;
+    let model = sys.model();
     let nv = model.nv;
     let mut d = Data::new(model);
     let m = crba(model, &mut d, q).clone();
     let h = nonlinear_effects(model, &mut d, q, v).clone();
-    let mut cd = ConstraintData::new(model, &sys.constraints);
-    sys.constraints.evaluate(model, &mut d, &mut cd, q, v);
+    let mut cd = ConstraintData::new(model, sys.constraints());
+    sys.constraints().evaluate(model, &mut d, &mut cd, q, v);
     let j = cd.j.clone();
     let vv = DVector::from_column_slice(v);
     let (vp, tau, lam, y) = (&proj.v, &proj.tau, &proj.lambda, &proj.y);
@@ -658,25 +661,28 @@ fn random_dynamic_projections_carry_kkt_and_cone_certificates() {
     ];
     for (name, scene) in scenes {
         let mut r = robot(scene);
-        let nv = r.sys.model.nv;
+        let nv = r.sys.model().nv;
         let q = r.scene.q0.clone();
         let zero = vec![0.0; nv];
-        let mut kin = VelocityProjector::new(&r.sys.model, &r.sys.constraints);
+        let mut kin = VelocityProjector::new(r.sys.model(), r.sys.constraints());
         for trial in 0..60 {
             // A current velocity the constraints allow: a random one, projected.
-            let mut pk = ProjectionProblem::new(&r.sys.model);
+            let mut pk = ProjectionProblem::new(r.sys.model());
             pk.v_des = (0..nv).map(|_| 1.0 * (rng.next() - 0.5)).collect();
             kin.project(
-                &r.sys.model,
-                &mut r.sys.data,
-                &r.sys.constraints,
-                &mut r.sys.cdata,
+                r.sys.model(),
+                &mut constraint_dynamics::algorithm::Data::new(r.sys.model()),
+                r.sys.constraints(),
+                &mut constraint_dynamics::constraints::ConstraintData::new(
+                    r.sys.model(),
+                    r.sys.constraints(),
+                ),
                 &q,
                 &pk,
             )
             .unwrap();
             let v: Vec<f64> = kin.v.iter().copied().collect();
-            let mut p = ProjectionProblem::new(&r.sys.model);
+            let mut p = ProjectionProblem::new(r.sys.model());
             p.v_des = (0..nv).map(|_| 6.0 * (rng.next() - 0.5)).collect();
             for (i, &vi) in v.iter().enumerate() {
                 let u = rng.next();

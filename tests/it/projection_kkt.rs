@@ -6,7 +6,8 @@
 use crate::common;
 use common::*;
 use constraint_dynamics::System;
-use constraint_dynamics::constraints::ConstraintSet;
+use constraint_dynamics::algorithm::Data;
+use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
 use constraint_dynamics::projection::*;
 use nalgebra::DMatrix;
 
@@ -45,9 +46,14 @@ impl KktResiduals {
 }
 
 /// Residuals of the KKT conditions of the last answer of `proj` to `p`.
-fn kkt_residuals(sys: &System, proj: &VelocityProjector, p: &ProjectionProblem) -> KktResiduals {
-    let m = &sys.data.mass_matrix;
-    let j = &sys.cdata.j;
+fn kkt_residuals(
+    data: &Data,
+    cd: &ConstraintData,
+    proj: &VelocityProjector,
+    p: &ProjectionProblem,
+) -> KktResiduals {
+    let m = &data.mass_matrix;
+    let j = &cd.j;
     let v = &proj.v;
     let nv = v.len();
     let dv = nalgebra::DVector::from_iterator(nv, (0..nv).map(|i| v[i] - p.v_des[i]));
@@ -129,15 +135,16 @@ fn assert_kkt(tag: &str, r: KktResiduals, tol: KktResiduals) {
 /// one projector (the QP is built once and updated) equals fresh projectors.
 #[test]
 fn mobile_manipulator_mixed_bounds_satisfy_kkt_and_reuse_the_qp() {
-    let (scene, mut sys) = scene_system("mobile_manipulator.yaml");
+    let (scene, sys) = scene_system("mobile_manipulator.yaml");
+    let (mut data, mut cd, _) = workspaces(&sys);
     let (q, v0) = (scene.q0.clone(), scene.v0.clone());
-    let nv = sys.model.nv;
-    let mut proj = VelocityProjector::new(&sys.model, &sys.constraints);
+    let nv = sys.model().nv;
+    let mut proj = VelocityProjector::new(sys.model(), sys.constraints());
     let mut answers: Vec<Vec<f64>> = vec![];
     let mut worst = KktResiduals::default();
     for k in 0..4 {
         let s = k as f64;
-        let mut p = ProjectionProblem::new(&sys.model);
+        let mut p = ProjectionProblem::new(sys.model());
         p.v_des = (0..nv)
             .map(|i| 3.0 * ((i as f64 + 1.0) * (0.7 + s)).sin())
             .collect();
@@ -157,30 +164,16 @@ fn mobile_manipulator_mixed_bounds_satisfy_kkt_and_reuse_the_qp() {
         });
         p.b = vec![0.4];
         let o = proj
-            .project(
-                &sys.model,
-                &mut sys.data,
-                &sys.constraints,
-                &mut sys.cdata,
-                &q,
-                &p,
-            )
+            .project(sys.model(), &mut data, sys.constraints(), &mut cd, &q, &p)
             .unwrap();
         assert_eq!(o.status, Status::Optimal);
         assert_eq!(o.method, SolvePath::ClarabelPolished, "request {k}");
-        let r = kkt_residuals(&sys, &proj, &p);
+        let r = kkt_residuals(&data, &cd, &proj, &p);
         worst = worst.max(r);
         assert_kkt(&format!("request {k}"), r, KKT_TOL);
-        let mut fresh = VelocityProjector::new(&sys.model, &sys.constraints);
+        let mut fresh = VelocityProjector::new(sys.model(), sys.constraints());
         fresh
-            .project(
-                &sys.model,
-                &mut sys.data,
-                &sys.constraints,
-                &mut sys.cdata,
-                &q,
-                &p,
-            )
+            .project(sys.model(), &mut data, sys.constraints(), &mut cd, &q, &p)
             .unwrap();
         // achieved 0 (same data, same solver path); floor 1e-15
         assert_close(
@@ -263,10 +256,11 @@ fn random_bounded_projections_satisfy_kkt() {
     let mut methods = std::collections::BTreeMap::<String, usize>::new();
     let mut worst = KktResiduals::default();
     for (name, sys, q) in &mut systems {
-        let nv = sys.model.nv;
-        let mut proj = VelocityProjector::new(&sys.model, &sys.constraints);
+        let nv = sys.model().nv;
+        let (mut data, mut cd, _) = workspaces(sys);
+        let mut proj = VelocityProjector::new(sys.model(), sys.constraints());
         for trial in 0..150 {
-            let mut p = ProjectionProblem::new(&sys.model);
+            let mut p = ProjectionProblem::new(sys.model());
             p.v_des = (0..nv).map(|_| 6.0 * (rng.next() - 0.5)).collect();
             for i in 0..nv {
                 let u = rng.next();
@@ -283,14 +277,7 @@ fn random_bounded_projections_satisfy_kkt() {
                 }
             }
             let o = proj
-                .project(
-                    &sys.model,
-                    &mut sys.data,
-                    &sys.constraints,
-                    &mut sys.cdata,
-                    q,
-                    &p,
-                )
+                .project(sys.model(), &mut data, sys.constraints(), &mut cd, q, &p)
                 .unwrap();
             *methods
                 .entry(format!("{name}: {:?}", o.method))
@@ -307,7 +294,7 @@ fn random_bounded_projections_satisfy_kkt() {
                 .entry(format!("{name}: exact multipliers {}", o.multipliers_exact))
                 .or_default() += 1;
             assert!(o.multipliers_exact, "{name}[{trial}]: {o:?}");
-            let r = kkt_residuals(sys, &proj, &p);
+            let r = kkt_residuals(&data, &cd, &proj, &p);
             worst = worst.max(r);
             assert_kkt(&format!("{name}[{trial}]"), r, KKT_TOL);
         }

@@ -75,18 +75,18 @@ fn semi_implicit_euler_step_matches_reference_on_every_state() {
                         fe_spec
                             .joint_torques
                             .push(constraint_dynamics::forces::JointTorqueSpec {
-                                joint: sys.model.v_names[i].clone(),
+                                joint: sys.model().v_names[i].clone(),
                                 value: t,
                                 profile: vec![],
                             });
                     }
                 }
-                if sys.model.base == constraint_dynamics::BaseType::Floating
+                if sys.model().base == constraint_dynamics::BaseType::Floating
                     && tau[..6].iter().any(|t| *t != 0.0)
                 {
                     continue; // base wrenches are not joint torques
                 }
-                let forces = ForceElements::new(&sys.model, &fe_spec).unwrap();
+                let forces = ForceElements::new(sys.model(), &fe_spec).unwrap();
                 let mut p = Predictor::new(sys, forces, Actuators::default(), settings).unwrap();
                 check_step(&mut p, &q, &v, st, &format!("{name}[{k}]"));
             } else {
@@ -139,10 +139,10 @@ fn rolling_disk_energy_drift_matches_the_reference_run() {
     let case = load_case("rolling_disk");
     let chk = &case["simulation_energy_check"];
     let (mut sys, settings, q, v) = parts_for("rolling_disk", 1, Method::SemiImplicitEuler, 1e-4);
-    sys.baumgarte = Baumgarte {
+    sys = sys.with_baumgarte(Baumgarte {
         kp: 100.0,
         kd: 20.0,
-    };
+    });
     let mut p = Predictor::new(
         sys,
         ForceElements::default(),

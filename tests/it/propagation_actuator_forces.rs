@@ -32,7 +32,7 @@ fn first_sample_forces_include_the_saturated_wheel_torques() {
     assert_close(
         "λ at t = 0 with the held wheel torques",
         &got,
-        sys.kkt.lambda.as_slice(),
+        sys.multipliers().lambda.as_slice(),
         // The predictor's first sample and a direct evaluation at the same state and torques
         // run the same arithmetic: achieved 0; floor 1e-15.
         1e-15,

@@ -291,7 +291,7 @@ fn a_planar_base_lists_its_wheels_unchecked_unless_the_caller_assumes_their_limi
     // The nodes' rule (SlipTest: μ = 0.8, N = m·|g| / 2): friction judged, lift-off still not,
     // and every sample's verdict is the forces node's.
     let sys = System::from_scene(&scene).unwrap();
-    let slip = SlipTest::new(&sys.model, &sys.constraints, 0.8, 0.0);
+    let slip = SlipTest::new(sys.model(), sys.constraints(), 0.8, 0.0);
     let traj = p
         .predict(&req.contact_limits(slip.contact_limits()))
         .unwrap();

@@ -128,16 +128,16 @@ proptest! {
     ) {
         let scene = &rolling_scenes()[s];
         let mut sys = System::from_scene(scene).unwrap();
-        let nv = sys.model.nv;
+        let nv = sys.model().nv;
         let q = perturbed_config(scene, &uq);
-        sys.formulation = Formulation::Multipliers;
+        sys = sys.with_formulation(Formulation::Multipliers);
         sys.forward_dynamics(&q, &vec![0.0; nv], &vec![0.0; nv], true).unwrap();
-        let n = null_space(&sys.cdata.j);
+        let n = null_space(&sys.rows().j);
         let v = &n * DVector::from_iterator(n.ncols(), (0..n.ncols()).map(|i| 5.0 * uv[i % 32]));
         let tau = scaled(&ut, nv, 5.0);
         let a = sys.forward_dynamics(&q, v.as_slice(), &tau, true).unwrap().clone();
-        prop_assert!(sys.cdata.jv.amax() <= 1e-12 * (1.0 + v.amax()), "J v = {}", sys.cdata.jv);
-        sys.formulation = Formulation::Embedded;
+        prop_assert!(sys.rows().jv.amax() <= 1e-12 * (1.0 + v.amax()), "J v = {}", sys.rows().jv);
+        sys = sys.with_formulation(Formulation::Embedded);
         let b = sys.forward_dynamics(&q, v.as_slice(), &tau, false).unwrap().clone();
         let e = rel_err(b.as_slice(), a.as_slice());
         // Worst case: 1.9e-14; tol 1e-12.
@@ -185,9 +185,9 @@ proptest! {
         ud in prop::collection::vec(-1.0f64..1.0, 32),
         ub in prop::collection::vec(0.0f64..1.0, 64),
     ) {
-        let (name, sys0) = &projection_systems()[s];
-        let mut sys = sys0.clone();
-        let model = sys.model.clone();
+        let (name, sys) = &projection_systems()[s];
+        let (mut data, mut cd, _) = workspaces(sys);
+        let model = sys.model().clone();
         let nv = model.nv;
         let q = config_from(&model, &uq);
         let mut p = ProjectionProblem::new(&model);
@@ -206,14 +206,14 @@ proptest! {
                 p.upper[i] = 0.0;
             }
         }
-        let mut proj = VelocityProjector::new(&model, &sys.constraints);
+        let mut proj = VelocityProjector::new(&model, sys.constraints());
         let o = proj
-            .project(&model, &mut sys.data, &sys.constraints, &mut sys.cdata, &q, &p)
+            .project(&model, &mut data, sys.constraints(), &mut cd, &q, &p)
             .unwrap();
         prop_assert_eq!(o.status, Status::Optimal, "{}: {:?}", name, o);
         // The projection leaves M(q) and J(q) in the workspaces.
-        let m = &sys.data.mass_matrix;
-        let j = &sys.cdata.j;
+        let m = &data.mass_matrix;
+        let j = &cd.j;
         let v = &proj.v;
         let dv = DVector::from_iterator(nv, (0..nv).map(|i| v[i] - p.v_des[i]));
         let stat = m * dv - j.transpose() * &proj.lambda - &proj.nu;
@@ -288,9 +288,9 @@ proptest! {
     ) {
         let scene = &passive_scenes()[s];
         let mut sys = System::from_scene(scene).unwrap();
-        let nv = sys.model.nv;
+        let nv = sys.model().nv;
         sys.forward_dynamics(&scene.q0, &vec![0.0; nv], &vec![0.0; nv], true).unwrap();
-        let n = null_space(&sys.cdata.j);
+        let n = null_space(&sys.rows().j);
         // Each null-space direction at a speed of magnitude in [s/2, s) (s = 2, or 6 rad/s for
         // the free body) so that the error is well above round-off; the step per scene keeps
         // it in RK4's asymptotic range.

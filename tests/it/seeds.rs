@@ -89,7 +89,7 @@ fn seed000_rod_body_matches_lagrange_multiplier_equations() {
     let (l, rho, m, ic) = (1.0, 0.3, 2.0, 0.05);
     let scene = load("params/rod_body.yaml");
     let mut sys = System::from_scene(&scene).unwrap();
-    let model = &sys.model;
+    let model = sys.model();
     assert_eq!(model.q_names, ["theta", "x1C", "x2C", "phi"]);
     assert_eq!(model.v_names, ["theta", "x1C", "x2C", "phi"]);
     assert_close("body mass", &[model.total_mass()], &[m], T_MASS0);
@@ -175,13 +175,13 @@ fn seed000_rod_body_matches_lagrange_multiplier_equations() {
         let tau = [0.0; 4];
 
         let qdd = sys.forward_dynamics(&q, &v, &tau, true).unwrap().clone();
-        assert_eq!(sys.last_formulation, Formulation::Multipliers);
+        assert_eq!(sys.last_formulation(), Formulation::Multipliers);
         assert_close(&format!("state {k}: q̈"), qdd.as_slice(), &qdd_seed, T_ROD);
-        assert_eq!(sys.kkt.lambda.len(), 2);
+        assert_eq!(sys.multipliers().lambda.len(), 2);
         // λ_ours = λ_seed (J = −C, and M q̈ = Q − Cᵀλ_seed = Q + Jᵀλ_ours).
         assert_close(
             &format!("state {k}: λ"),
-            sys.kkt.lambda.as_slice(),
+            sys.multipliers().lambda.as_slice(),
             &lam_seed,
             T_ROD,
         );
@@ -195,7 +195,7 @@ fn seed000_rod_body_matches_lagrange_multiplier_equations() {
         ];
         assert_close(
             &format!("state {k}: Jᵀλ"),
-            sys.kkt.generalized_force.as_slice(),
+            sys.multipliers().generalized_force.as_slice(),
             &gen_force,
             T_ROD,
         );
@@ -212,7 +212,7 @@ fn seed000_rod_body_matches_lagrange_multiplier_equations() {
 
         // The multiplier-free form gives the same q̈.
         let qdd_e = sys.forward_dynamics(&q, &v, &tau, false).unwrap().clone();
-        assert_eq!(sys.last_formulation, Formulation::Embedded);
+        assert_eq!(sys.last_formulation(), Formulation::Embedded);
         assert_close(
             &format!("state {k}: embedded q̈"),
             qdd_e.as_slice(),
@@ -255,9 +255,9 @@ fn seed001_vertical_disk_rolls_with_constant_rates() {
     let (a, m) = (0.1, 1.0);
     let scene = load("params/vertical_disk.yaml");
     let mut sys = System::from_scene(&scene).unwrap();
-    let nv = sys.model.nv;
+    let nv = sys.model().nv;
     assert_eq!(
-        sys.model.v_names,
+        sys.model().v_names,
         [
             "root_joint:vx_local",
             "root_joint:vy_local",
@@ -266,10 +266,10 @@ fn seed001_vertical_disk_rolls_with_constant_rates() {
         ]
     );
     assert_eq!(
-        sys.model.q_names,
+        sys.model().q_names,
         ["root_joint:x", "root_joint:y", "root_joint:yaw", "spin"]
     );
-    assert_close("disk mass", &[sys.model.total_mass()], &[m], T_MASS1);
+    assert_close("disk mass", &[sys.model().total_mass()], &[m], T_MASS1);
     let (ivx, ivy, iwz, isp) = (0, 1, 2, 3);
     let iyaw = 2;
     // Sign convention fixed by the scene: vx_local = a·spin_rate, vy_local = 0.
@@ -296,11 +296,11 @@ fn seed001_vertical_disk_rolls_with_constant_rates() {
     let tau = vec![0.0; nv];
     for (k, (q, v)) in states.iter().enumerate() {
         let qdd = sys.forward_dynamics(q, v, &tau, true).unwrap().clone();
-        assert_eq!(sys.last_formulation, Formulation::Multipliers);
+        assert_eq!(sys.last_formulation(), Formulation::Multipliers);
         // The state satisfies the rolling constraints.
         assert_close(
             &format!("state {k}: J v"),
-            sys.cdata.jv.as_slice(),
+            sys.rows().jv.as_slice(),
             &[0.0, 0.0],
             T_DISK_JV,
         );
@@ -337,17 +337,17 @@ fn seed001_vertical_disk_rolls_with_constant_rates() {
 
         // Multiplier-free form: same q̈, fewer equations.
         let qdd_e = sys.forward_dynamics(q, v, &tau, false).unwrap().clone();
-        assert_eq!(sys.last_formulation, Formulation::Embedded);
+        assert_eq!(sys.last_formulation(), Formulation::Embedded);
         assert_close(
             &format!("state {k}: embedded q̈"),
             qdd_e.as_slice(),
             qdd.as_slice(),
             T_DISK_QDD,
         );
-        let r = rank(&sys.cdata.j);
+        let r = rank(&sys.rows().j);
         assert_eq!(r, 2, "state {k}: rank J (seed: two constraints (31), (32))");
-        assert_eq!(sys.embedded.partition.independent.len(), nv - r);
-        assert_eq!(sys.embedded.partition.dependent.len(), r);
+        assert_eq!(sys.embedded().partition.independent.len(), nv - r);
+        assert_eq!(sys.embedded().partition.dependent.len(), r);
     }
 }
 
@@ -378,7 +378,7 @@ fn seed_diff_drive_no_side_slip_is_lateral_velocity() {
     let _ = std::fs::remove_file(&path);
     let mut sys = System::from_scene(&scene).unwrap();
     assert_eq!(
-        sys.model.v_names,
+        sys.model().v_names,
         [
             "root_joint:vx_local",
             "root_joint:vy_local",
@@ -387,8 +387,8 @@ fn seed_diff_drive_no_side_slip_is_lateral_velocity() {
             "right_wheel_joint"
         ]
     );
-    assert_eq!(sys.constraints.nrows, 1);
-    let nv = sys.model.nv;
+    assert_eq!(sys.constraints().nrows, 1);
+    let nv = sys.model().nv;
     let tau = vec![0.0; nv];
     let th: f64 = 0.7;
     let q = vec![0.4, -0.2, th, 0.3, -1.1];
@@ -408,15 +408,15 @@ fn seed_diff_drive_no_side_slip_is_lateral_velocity() {
     sys.forward_dynamics(&q, &v, &tau, true).unwrap();
     assert_close(
         "J row",
-        sys.cdata.j.row(0).transpose().as_slice(),
+        sys.rows().j.row(0).transpose().as_slice(),
         &[0.0, 1.0, 0.0, 0.0, 0.0],
         1e-15, // achieved 0
     );
-    assert_close("J v, admissible", &[sys.cdata.jv[0]], &[0.0], T_NSS);
+    assert_close("J v, admissible", &[sys.rows().jv[0]], &[0.0], T_NSS);
     sys.forward_dynamics(&q, &v, &tau, false).unwrap();
     assert_close(
         "J v, admissible (embedded path)",
-        &[sys.cdata.jv[0]],
+        &[sys.rows().jv[0]],
         &[0.0],
         T_NSS,
     );
@@ -428,10 +428,10 @@ fn seed_diff_drive_no_side_slip_is_lateral_velocity() {
     assert!(vy.abs() > 0.1);
     let v = vec![vx, vy, -0.3, 1.0, 2.0];
     sys.forward_dynamics(&q, &v, &tau, true).unwrap();
-    assert_close("J v = vy_local", &[sys.cdata.jv[0]], &[vy], T_NSS);
+    assert_close("J v = vy_local", &[sys.rows().jv[0]], &[vy], T_NSS);
     assert_close(
         "J v = seed residual",
-        &[sys.cdata.jv[0]],
+        &[sys.rows().jv[0]],
         &[seed_residual],
         T_NSS,
     );

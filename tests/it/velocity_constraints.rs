@@ -34,7 +34,7 @@ fn appell_hamel_follows_its_closed_form() {
     let e = [0.8, 0.6];
     let sc = load("params/appell_hamel.yaml");
     let sys = System::from_scene(&sc).unwrap();
-    assert_eq!(sys.constraints.items[0].kind(), ConstraintKind::Velocity);
+    assert_eq!(sys.constraints().items[0].kind(), ConstraintKind::Velocity);
     let mut p = Predictor::from_scene(&sc)
         .unwrap()
         .with_settings(|s| {
@@ -133,14 +133,14 @@ fn disk_states() -> Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> {
 fn seed_disk_as_expressions_gives_the_rolling_constraints_accelerations() {
     let mut builtin = System::from_scene(&load("params/vertical_disk.yaml")).unwrap();
     let mut expr = System::from_scene(&load("params/vertical_disk_expressions.yaml")).unwrap();
-    assert_eq!(expr.constraints.nrows, 2);
+    assert_eq!(expr.constraints().nrows, 2);
     for (k, (q, v, tau)) in disk_states().iter().enumerate() {
         let a_ref = builtin.forward_dynamics(q, v, tau, true).unwrap().clone();
-        let f_ref = builtin.kkt.generalized_force.clone();
+        let f_ref = builtin.multipliers().generalized_force.clone();
         let a_mul = expr.forward_dynamics(q, v, tau, true).unwrap().clone();
         assert_close(
             &format!("state {k}: f"),
-            expr.cdata.jv.as_slice(),
+            expr.rows().jv.as_slice(),
             &[0.0; 2],
             1e-15,
         );
@@ -154,12 +154,12 @@ fn seed_disk_as_expressions_gives_the_rolling_constraints_accelerations() {
         );
         assert_close(
             &format!("state {k}: Jᵀλ"),
-            expr.kkt.generalized_force.as_slice(),
+            expr.multipliers().generalized_force.as_slice(),
             f_ref.as_slice(),
             2e-14,
         );
         let a_emb = expr.forward_dynamics(q, v, tau, false).unwrap().clone();
-        assert_eq!(expr.last_formulation, Formulation::Embedded);
+        assert_eq!(expr.last_formulation(), Formulation::Embedded);
         assert_close(
             &format!("state {k}: q̈ embedded"),
             a_emb.as_slice(),
@@ -210,17 +210,13 @@ fn seed_disk_as_expressions_moves_like_the_rolling_constraint() {
 /// Richardson-extrapolated (h = 1e-3, h/2): worst achieved 2.6e-13 (the differences' own
 /// error), tolerance 1e-11.
 fn check_rows_against_differences(sys: &mut System, q: &[f64], v: &[f64], t: f64) -> f64 {
-    let (nv, nc) = (sys.model.nv, sys.constraints.nrows);
-    sys.cdata.t = t;
-    sys.constraints
-        .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
-    let (j, gamma) = (sys.cdata.j.clone(), sys.cdata.gamma.clone());
-    let model = sys.model.clone();
+    let (nv, nc) = (sys.model().nv, sys.constraints().nrows);
+    sys.evaluate_rows(t, q, v);
+    let (j, gamma) = (sys.rows().j.clone(), sys.rows().gamma.clone());
+    let model = sys.model().clone();
     let mut f_at = |q: &[f64], v: &[f64], t: f64| -> Vec<f64> {
-        sys.cdata.t = t;
-        sys.constraints
-            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
-        sys.cdata.jv.as_slice().to_vec()
+        sys.evaluate_rows(t, q, v);
+        sys.rows().jv.as_slice().to_vec()
     };
     let central = |g: &mut dyn FnMut(f64) -> Vec<f64>, h: f64| -> Vec<f64> {
         let mut d = |h: f64| {
@@ -291,10 +287,8 @@ fn expression_rows_match_finite_differences() {
         + (2.0 + q[5] * q[5]).ln() * v[5]
         - (v[0] - 0.2).abs() * (0.1 * q[1]).tan()
         + v[3] * q[6] * q[6] / (1.5 + t.sin());
-    sys.cdata.t = t;
-    sys.constraints
-        .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v);
-    assert_close("f (floating)", sys.cdata.jv.as_slice(), &[f_hand], 1e-15);
+    sys.evaluate_rows(t, &q, &v);
+    assert_close("f (floating)", sys.rows().jv.as_slice(), &[f_hand], 1e-15);
     // Planar base with a wheel angle and yaw (q̇ of x, y is the world velocity R(yaw) v).
     let planar = r#"
   - name: pursuit
@@ -318,10 +312,8 @@ fn expression_rows_match_finite_differences() {
         - 0.05 * (v[3] + v[4]) * (0.1 * q[0]).exp()
         + v[2] * q[1] * t
         - q[3] * 0.01 * v[3] * v[3];
-    sys.cdata.t = t;
-    sys.constraints
-        .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v);
-    assert_close("f (planar)", sys.cdata.jv.as_slice(), &[f_hand], 1e-15); // achieved 0
+    sys.evaluate_rows(t, &q, &v);
+    assert_close("f (planar)", sys.rows().jv.as_slice(), &[f_hand], 1e-15); // achieved 0
     eprintln!("worst row difference: floating {w1:.2e}, planar {w2:.2e}");
 }
 
@@ -337,8 +329,8 @@ fn multiplier_and_embedded_forms_agree_on_expression_scenes() {
     ] {
         let sc = load(rel);
         let mut sys = System::from_scene(&sc).unwrap();
-        sys.baumgarte = Baumgarte::from_time_constant(0.05);
-        let nv = sys.model.nv;
+        sys = sys.with_baumgarte(Baumgarte::from_time_constant(0.05));
+        let nv = sys.model().nv;
         for k in 0..4 {
             let x = k as f64;
             let v: Vec<f64> = sc
@@ -354,7 +346,7 @@ fn multiplier_and_embedded_forms_agree_on_expression_scenes() {
                 .forward_dynamics(&sc.q0, &v, &tau, true)
                 .unwrap()
                 .clone();
-            let f = sys.cdata.jv.clone();
+            let f = sys.rows().jv.clone();
             let b = sys
                 .forward_dynamics(&sc.q0, &v, &tau, false)
                 .unwrap()
@@ -367,8 +359,8 @@ fn multiplier_and_embedded_forms_agree_on_expression_scenes() {
                 5e-14,
             );
             // The acceleration rows hold with the Baumgarte term on f: J q̈ = −γ − K_d f.
-            let jq = &sys.cdata.j * &a;
-            let rhs = -&sys.cdata.gamma - f * sys.baumgarte.kd;
+            let jq = &sys.rows().j * &a;
+            let rhs = -&sys.rows().gamma - f * sys.baumgarte().kd;
             assert_close(
                 &format!("{rel}[{k}] J q̈ = −γ − K_d f"),
                 jq.as_slice(),
@@ -392,15 +384,16 @@ fn expression_rows_do_not_allocate() {
     ] {
         let sc = load(rel);
         let mut sys = System::from_scene(&sc).unwrap();
-        let tau = vec![0.1; sys.model.nv];
+        let tau = vec![0.1; sys.model().nv];
         let b = Baumgarte::from_time_constant(0.1);
-        let run = |sys: &mut System| {
+        let (mut data, mut cd, mut kkt) = workspaces(&sys);
+        let mut run = |sys: &mut System| {
             constrained_forward_dynamics(
-                &sys.model,
-                &mut sys.data,
-                &sys.constraints,
-                &mut sys.cdata,
-                &mut sys.kkt,
+                sys.model(),
+                &mut data,
+                sys.constraints(),
+                &mut cd,
+                &mut kkt,
                 &sc.q0,
                 &sc.v0,
                 &tau,

@@ -42,9 +42,9 @@ fn declared_dependent_velocity_is_the_partitions() {
         let mut sys = System::from_scene(&sc).unwrap();
         sys.forward_dynamics(&sc.q0, &sc.v0, &[0.0; 6], false)
             .unwrap();
-        assert_eq!(sys.last_formulation, Formulation::Embedded);
+        assert_eq!(sys.last_formulation(), Formulation::Embedded);
         assert_eq!(
-            sys.embedded.partition.dependent,
+            sys.embedded().partition.dependent,
             [idx],
             "dependent: [{sym}]"
         );
@@ -53,8 +53,8 @@ fn declared_dependent_velocity_is_the_partitions() {
     let mut sys = System::from_scene(&sc).unwrap();
     sys.forward_dynamics(&sc.q0, &sc.v0, &[0.0; 6], false)
         .unwrap();
-    assert_eq!(sys.embedded.partition.dependent, [2]);
-    assert!(sys.embedded.solved_velocities().is_none());
+    assert_eq!(sys.embedded().partition.dependent, [2]);
+    assert!(sys.embedded().solved_velocities().is_none());
 }
 
 fn load_plain() -> Scene {
@@ -84,7 +84,7 @@ fn dependent_velocities_are_solved_from_f_by_newton() {
             .forward_dynamics(&q, &v_off, &tau, false)
             .unwrap()
             .clone();
-        let solved = sys.embedded.solved_velocities().unwrap().to_vec();
+        let solved = sys.embedded().solved_velocities().unwrap().to_vec();
         // Achieved 0 (vz) and 5.5e-15 (vx: Newton stops at |f| ≤ 1e-14 · max(1, |v_d|)).
         assert_close(&format!("{sym} solved from f"), &solved, &expected, 5e-14);
         let a_mul = sys

@@ -141,7 +141,7 @@ fn velocity_determined_motion_conserves_energy_where_chetaev_does_not() {
     let run = |vd: bool| {
         let sc = scene(vd, "");
         let sys = System::from_scene(&sc).unwrap();
-        assert_eq!(sys.formulation, Formulation::Embedded);
+        assert_eq!(sys.formulation(), Formulation::Embedded);
         let mut p = Predictor::from_scene(&sc)
             .unwrap()
             .with_settings(|s| {

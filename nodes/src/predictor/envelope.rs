@@ -46,8 +46,8 @@ impl EnvelopeScene {
     pub fn new(scene: &Scene, model: &Model) -> Result<Self, String> {
         let sys = System::from_scene(scene).map_err(|e| e.to_string())?;
         let elements =
-            ForceElements::new(&sys.model, &scene.file.forces).map_err(|e| e.to_string())?;
-        let m = &sys.model;
+            ForceElements::new(sys.model(), &scene.file.forces).map_err(|e| e.to_string())?;
+        let m = sys.model();
         let map = |names: &[String], theirs: &[String], skip: usize, what: &str| {
             names
                 .iter()
@@ -78,12 +78,12 @@ impl EnvelopeScene {
         let mut pose = model.base_pose(q);
         let twist = model.base_twist(v);
         // A planar base says nothing of the height: the scene's own.
-        if model.base.nq() < self.sys.model.base.nq() {
-            pose.position[2] = self.sys.model.base_pose(&self.q).position[2];
+        if model.base.nq() < self.sys.model().base.nq() {
+            pose.position[2] = self.sys.model().base_pose(&self.q).position[2];
         }
         self.v.iter_mut().for_each(|x| *x = 0.0);
         self.sys
-            .model
+            .model()
             .set_base(&pose, &twist, &mut self.q, &mut self.v);
         for &(i, j) in &self.q_map {
             self.q[i] = q[j];
@@ -142,9 +142,9 @@ impl StartEnvelope {
             Some((scene, passive)) => (&scene.sys, &passive[..]),
             None => (sys, passive_joints),
         };
-        let nv = sys.model.nv;
+        let nv = sys.model().nv;
         let (declared, last) =
-            match EnvelopeModel::new(&sys.model, &sys.constraints, passive_joints) {
+            match EnvelopeModel::new(sys.model(), sys.constraints(), passive_joints) {
                 Ok(em) => (Some(em), Err("not computed yet".to_string())),
                 Err(e) => {
                     let why = format!("unavailable for this scene: {e}");
@@ -181,7 +181,7 @@ impl StartEnvelope {
         // The envelope's own scene: the predictor's state in its coordinates.
         let (sys, elements, q, v) = match self.own.as_mut() {
             Some(own) => {
-                own.map(&sys.model, (q, v));
+                own.map(sys.model(), (q, v));
                 (&mut own.sys, &mut own.elements, &own.q[..], &own.v[..])
             }
             None => (sys, elements, q, v),
@@ -204,7 +204,7 @@ impl StartEnvelope {
         );
         match acceleration_envelope(sys, em, ed, q, v, &self.applied) {
             Ok(env) => {
-                let msg = limits_msg(&sys.model, em, env, header);
+                let msg = limits_msg(sys.model(), em, env, header);
                 self.last = Ok(summaries(&msg));
                 Some(msg)
             }

@@ -119,7 +119,7 @@ impl NodeLogic for PredictorNode {
         let predictor =
             Predictor::from_scene(robot.scene()).map_err(NodeError::core("predictor"))?;
         let sys = System::from_scene(robot.scene()).map_err(NodeError::core("predictor"))?;
-        let forces = ForceElements::new(&sys.model, &robot.scene().file.forces)
+        let forces = ForceElements::new(sys.model(), &robot.scene().file.forces)
             .map_err(NodeError::core("predictor"))?;
         let nc = robot.scene().file.constraints.len();
         let path = &params.node.envelope.scene_file;
@@ -130,7 +130,7 @@ impl NodeLogic for PredictorNode {
                     path: path.clone(),
                     source,
                 })?;
-                let own = envelope::EnvelopeScene::new(&scene, &sys.model).map_err(|why| {
+                let own = envelope::EnvelopeScene::new(&scene, sys.model()).map_err(|why| {
                     NodeError::request(
                         "envelope.scene_file",
                         format!("{path} cannot take the predictor's state: {why}"),
@@ -389,8 +389,8 @@ impl PredictorNode {
         let sys = &self.start.0;
         // Frame axes → world at the start state (the forces' state).
         let rotation = |frame: &str| -> Option<markers::Rotation> {
-            let id = sys.model.frame_id(frame).ok()?;
-            let r = frame_placement(&sys.model, &sys.data, id).rotation;
+            let id = sys.model().frame_id(frame).ok()?;
+            let r = frame_placement(sys.model(), sys.data(), id).rotation;
             Some([0, 1, 2].map(|i| [r[(i, 0)], r[(i, 1)], r[(i, 2)]]))
         };
         let style = markers::MarkerStyle {

@@ -513,12 +513,12 @@ fn the_envelope_may_check_a_floating_variant_of_the_robot() {
     }
     assert_eq!(q[0..3], [0.0, 0.0, 0.0]);
     let mut sys = System::from_scene(&scene).unwrap();
-    let mut elements = ForceElements::new(&sys.model, &scene.file.forces).unwrap();
+    let mut elements = ForceElements::new(sys.model(), &scene.file.forces).unwrap();
     let em = EnvelopeModel::from_scene(&scene, &sys)
         .unwrap()
         .assume_friction(0.8);
     let mut ed = EnvelopeData::new(&em);
-    let zero = vec![0.0; sys.model.nv];
+    let zero = vec![0.0; sys.model().nv];
     let mut applied = zero.clone();
     constraint_dynamics::applied::applied_generalized_force(
         &mut sys,

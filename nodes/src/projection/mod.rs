@@ -70,11 +70,11 @@ impl NodeLogic for ProjectionNode {
         let limits = EnvelopeModel::from_scene(robot.scene(), &sys)
             .map(|em| em.assume_friction(mu))
             .map_err(|e| e.to_string());
-        let elements = ForceElements::new(&sys.model, &robot.scene().file.forces)
+        let elements = ForceElements::new(sys.model(), &robot.scene().file.forces)
             .map_err(NodeError::core("projection"))?;
         let sys = robot.system();
-        let projector = DynamicProjector::new(&sys.model, &sys.constraints);
-        let nv = sys.model.nv;
+        let projector = DynamicProjector::new(sys.model(), sys.constraints());
+        let nv = sys.model().nv;
         Ok(ProjectionNode {
             robot,
             projector,

@@ -29,9 +29,9 @@ fn envelope(n: &mut ProjectionNode) -> EnvelopeReport {
     let mut sys = System::from_scene(&scene).unwrap();
     let em = EnvelopeModel::from_scene(&scene, &sys).unwrap();
     let mut ed = EnvelopeData::new(&em);
-    let zero = vec![0.0; sys.model.nv];
+    let zero = vec![0.0; sys.model().nv];
     acceleration_envelope(&mut sys, &em, &mut ed, &scene.q0, &scene.v0, &zero).unwrap();
-    EnvelopeReport::new(&sys.model, &em, &ed.envelope)
+    EnvelopeReport::new(sys.model(), &em, &ed.envelope)
 }
 
 fn request(vx: f64, period: f64, q: &[f64], v_current: Vec<f64>) -> ProjectVelocityRequest {

@@ -75,8 +75,9 @@ impl Robot {
 
     /// Builds the system and the state estimate (at the scene's initial state) of a scene.
     pub fn from_scene(scene: Scene, common: &CommonParams) -> Result<Self, NodeError> {
-        let mut sys = System::from_scene(&scene).map_err(NodeError::core("constraints"))?;
-        sys.formulation = Formulation::Multipliers;
+        let sys = System::from_scene(&scene)
+            .map_err(NodeError::core("constraints"))?
+            .with_formulation(Formulation::Multipliers);
         let state = StateEstimate::new(&scene.model, &scene.q0, &scene.v0);
         let held_joints = scene
             .file
@@ -141,7 +142,7 @@ impl Robot {
 
     /// The constraints' names, in the system's order.
     pub fn constraint_names(&self) -> &[String] {
-        &self.sys.constraints.names
+        &self.sys.constraints().names
     }
 
     /// The multiplier-form system.
@@ -236,7 +237,7 @@ impl Robot {
     pub fn slip_test(&self, common: &CommonParams) -> SlipTest {
         SlipTest::new(
             &self.scene.model,
-            &self.sys.constraints,
+            self.sys.constraints(),
             common.slip.friction_coefficient,
             common.slip.planar_normal_force,
         )

@@ -79,7 +79,7 @@ fn core_envelope(scene: &Scene, phase: &Value) -> ([Option<f64>; 4], EnvelopeRep
         .expect("envelope model")
         .assume_friction(MU);
     let mut ed = EnvelopeData::new(&em);
-    let mut elements = ForceElements::new(&sys.model, &scene.file.forces).expect("forces");
+    let mut elements = ForceElements::new(sys.model(), &scene.file.forces).expect("forces");
     let zero = vec![0.0; model.nv];
     let mut applied = vec![0.0; model.nv];
     applied_generalized_force(
@@ -91,7 +91,7 @@ fn core_envelope(scene: &Scene, phase: &Value) -> ([Option<f64>; 4], EnvelopeRep
         &mut applied,
     );
     acceleration_envelope(&mut sys, &em, &mut ed, &q, &v, &applied).expect("envelope");
-    let report = EnvelopeReport::new(&sys.model, &em, &ed.envelope);
+    let report = EnvelopeReport::new(sys.model(), &em, &ed.envelope);
     let max = |l: &LimitReport| {
         assert!(
             !l.unbounded,

@@ -36,8 +36,8 @@ fn filter_publishes_the_projected_command() {
     }
     let scene = Scene::load(repo_root().join("params/suite_diff_drive.yaml")).unwrap();
     let mut sys = System::from_scene(&scene).unwrap();
-    sys.formulation = Formulation::Multipliers;
-    let mut projector = VelocityProjector::new(&sys.model, &sys.constraints);
+    sys = sys.with_formulation(Formulation::Multipliers);
+    let mut projector = VelocityProjector::new(sys.model(), sys.constraints());
 
     let mut t = TestNode::new("cd_filter_test");
     let input = t

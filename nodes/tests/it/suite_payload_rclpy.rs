@@ -143,7 +143,7 @@ fn a_payload_set_by_rclpy_changes_the_forces_as_the_core_computes_them() {
         .with_payload(&payload)
         .unwrap();
     let mut sys = System::from_scene(&scene).unwrap();
-    let mut elements = ForceElements::new(&sys.model, &scene.file.forces).unwrap();
+    let mut elements = ForceElements::new(sys.model(), &scene.file.forces).unwrap();
     let core = constraint_forces_at(
         &mut sys,
         &mut elements,
@@ -213,7 +213,7 @@ fn core_limits(scene: &Scene) -> [f64; 4] {
     let mut sys = System::from_scene(scene).unwrap();
     let em = EnvelopeModel::from_scene(scene, &sys).unwrap();
     let mut ed = EnvelopeData::new(&em);
-    let zero = vec![0.0; sys.model.nv];
+    let zero = vec![0.0; sys.model().nv];
     let e = acceleration_envelope(&mut sys, &em, &mut ed, &scene.q0, &scene.v0, &zero).unwrap();
     [
         e.forward_acceleration.max,

@@ -137,7 +137,7 @@ fn suite_services_match_the_core_library() {
         ..Default::default()
     };
     pr.joints.insert("arm_elbow".into(), 0.3);
-    let mut projector = VelocityProjector::new(&core.sys.model, &core.sys.constraints);
+    let mut projector = VelocityProjector::new(core.sys.model(), core.sys.constraints());
     let expected = project_system(&mut projector, &mut core.sys, &ql, &vl, &pr).unwrap();
     assert_eq!(expected.status, Status::Optimal);
     assert!(

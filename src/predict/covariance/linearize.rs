@@ -19,6 +19,7 @@ use stages::{dynamics, stage_acceleration};
 
 use crate::actuators::Feedback;
 use crate::derivatives::DerivativeData;
+use crate::dynamics::Baumgarte;
 use crate::error::{Error, Result};
 use crate::linalg::{gemm_columns, mat_vec_add};
 use crate::predict::integrators::lie::{StageMaps, dexp_inv, right_jacobian, transport};
@@ -36,6 +37,9 @@ pub struct Linearization {
     /// Compute B (default true); false leaves `b` untouched and saves a third of the work
     /// (covariance propagation needs A only).
     pub inputs: bool,
+    /// Baumgarte gains of the step linearized: the system's own unless the prediction runs
+    /// with others (`drift: baumgarte` without the scene's gains).
+    pub gains: Baumgarte,
     /// Joint spring-dampers (q index, v index, k, d, rest) recomputed at every stage instead of
     /// held in τ, so that A carries their stiffness and damping
     /// ([`Linearization::with_joint_springs`]), then the controllers' feedback of the step
@@ -154,6 +158,7 @@ impl Linearization {
             a: DMatrix::zeros(2 * nv, 2 * nv),
             b: DMatrix::zeros(2 * nv, nv),
             inputs: true,
+            gains: sys.baumgarte,
             joint_springs: vec![],
             fixed_springs: 0,
             tau_stage: vec![0.0; nv],
@@ -240,6 +245,7 @@ fn semi_implicit_euler(
     let springs = &lin.joint_springs;
     dynamics(
         sys,
+        lin.gains,
         &mut lin.dd,
         springs,
         &mut lin.tau_stage,
@@ -333,6 +339,7 @@ fn explicit(
         let stage = (&lin.qs[..], &lin.vel[st][..], ds);
         dynamics(
             sys,
+            lin.gains,
             &mut lin.dd,
             springs,
             &mut lin.tau_stage,

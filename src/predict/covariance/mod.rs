@@ -36,6 +36,7 @@ pub(in crate::predict) mod worker;
 
 use crate::actuators::Feedback;
 use crate::algorithm::crba;
+use crate::dynamics::Baumgarte;
 use crate::error::{Error, Result, check_finite};
 use crate::forces::ForceElements;
 use crate::linalg::{
@@ -226,8 +227,10 @@ impl CovariancePropagator {
 
     /// A propagator for a prediction from (q, v): sized for `sys`, started at `p0` kept on the
     /// constraints, with the controllers of `feedback` (`Actuators::feedback`).
+    #[allow(clippy::too_many_arguments)]
     pub fn start(
         sys: &mut System,
+        gains: Baumgarte,
         forces: &ForceElements,
         feedback: &[Feedback],
         spec: &UncertaintySpec,
@@ -241,6 +244,7 @@ impl CovariancePropagator {
         c.project(sys, q, v)?;
         c.integral = IntegralOffsets::start(&c.p, feedback);
         c.lin.inputs = c.integral.is_some();
+        c.lin.gains = gains;
         Ok(c)
     }
 

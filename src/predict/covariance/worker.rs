@@ -292,7 +292,9 @@ mod tests {
         let p0 = DMatrix::identity(n, n) * 1e-6;
         let (q, v) = (&scene.q0, &scene.v0);
         let spec = Default::default();
-        let prop = CovariancePropagator::start(&mut sys, &forces, &[], &spec, &p0, q, v).unwrap();
+        let gains = sys.baumgarte;
+        let prop =
+            CovariancePropagator::start(&mut sys, gains, &forces, &[], &spec, &p0, q, v).unwrap();
         let kept = Mutex::new(None);
         let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             with_worker(prop, sys.clone(), Method::Rk4, |pipe| {

@@ -9,6 +9,22 @@ use serde_json::Value;
 use std::path::PathBuf;
 use std::process::Command;
 
+/// Workspaces of the system's model and constraints, for the tests that call the algorithms
+/// themselves (the system's own are written only by its evaluations).
+pub fn workspaces(
+    sys: &System,
+) -> (
+    constraint_dynamics::algorithm::Data,
+    constraint_dynamics::constraints::ConstraintData,
+    constraint_dynamics::dynamics::KktWorkspace,
+) {
+    (
+        constraint_dynamics::algorithm::Data::new(sys.model()),
+        constraint_dynamics::constraints::ConstraintData::new(sys.model(), sys.constraints()),
+        constraint_dynamics::dynamics::KktWorkspace::new(sys.model(), sys.constraints()),
+    )
+}
+
 pub fn reference_dir() -> PathBuf {
     repo_dir().join("../shared/reference")
 }

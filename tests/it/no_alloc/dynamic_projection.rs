@@ -23,10 +23,10 @@ fn dynamic_projection_allocates_nothing_outside_clarabels_solve_after_the_first_
         let scene = Scene::load(repo_dir().join(name)).unwrap();
         let mut sys = System::from_scene(&scene).unwrap();
         let em = EnvelopeModel::from_scene(&scene, &sys).unwrap();
-        let nv = sys.model.nv;
+        let nv = sys.model().nv;
         let zero = vec![0.0; nv];
-        let mut proj = DynamicProjector::new(&sys.model, &sys.constraints);
-        let mut p = ProjectionProblem::new(&sys.model);
+        let mut proj = DynamicProjector::new(sys.model(), sys.constraints());
+        let mut p = ProjectionProblem::new(sys.model());
         p.v_des[0] = 5.0;
         p.upper[0] = 0.01;
         let q = scene.q0.clone();

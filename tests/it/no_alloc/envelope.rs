@@ -50,7 +50,7 @@ fn envelope_allocates_nothing_outside_clarabels_solve_after_the_first_call() {
         let mut sys = System::from_scene(&scene).unwrap();
         let em = EnvelopeModel::from_scene(&scene, &sys).unwrap();
         let mut ed = EnvelopeData::new(&em);
-        let zero = vec![0.0; sys.model.nv];
+        let zero = vec![0.0; sys.model().nv];
         let (q, v) = (scene.q0.clone(), scene.v0.clone());
         acceleration_envelope(&mut sys, &em, &mut ed, &q, &v, &zero).unwrap();
         // A second state (the arm or the base moved) reuses the solver.

@@ -130,7 +130,7 @@ fn step_linearization_does_not_allocate() {
         let scene = Scene::load(repo_dir().join(file)).unwrap();
         let mut sys = System::from_scene(&scene).unwrap();
         let mut lin = Linearization::new(&sys);
-        let tau = vec![0.1; sys.model.nv];
+        let tau = vec![0.1; sys.model().nv];
         let (q, v) = (scene.q0.clone(), scene.v0.clone());
         for method in [Method::SemiImplicitEuler, Method::Rk4, Method::Dopri5] {
             linearize_step(&mut sys, &mut lin, method, &q, &v, &tau, 0.01).unwrap();

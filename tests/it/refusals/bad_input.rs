@@ -304,6 +304,6 @@ fn nan_and_wrong_sizes_are_named() {
         .unwrap_err()
         .to_string();
     assert_has(&e, &["q: entry 1 is not finite"]);
-    let none = ConstraintSet::new(&sys.model, &[] as &[ConstraintSpec], &scene.q0).unwrap();
+    let none = ConstraintSet::new(sys.model(), &[] as &[ConstraintSpec], &scene.q0).unwrap();
     assert!(none.is_empty() && none.nrows == 0);
 }

@@ -151,8 +151,8 @@ fn run(urdf: &str, scene: &str) -> Result<(), String> {
         .map_err(|e| e.to_string())?;
     let mut sys = System::from_scene(&sc).map_err(|e| e.to_string())?;
     let mut elements =
-        ForceElements::new(&sys.model, &sc.file.forces).map_err(|e| e.to_string())?;
-    let tau = vec![0.0; sys.model.nv];
+        ForceElements::new(sys.model(), &sc.file.forces).map_err(|e| e.to_string())?;
+    let tau = vec![0.0; sys.model().nv];
     let at = constraint_forces_at(&mut sys, &mut elements, (0.0, &sc.q0, &sc.v0), &tau)
         .map_err(|e| e.to_string())?;
     for x in at.qdd.iter().chain(&at.lambda).chain(&at.generalized_force) {

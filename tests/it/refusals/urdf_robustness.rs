@@ -189,7 +189,7 @@ fn inertia_repair_is_opt_in_and_gives_the_nearest_physical_tensor() {
     assert_has(&m.warnings.join(" "), &["repaired", "link 'arm'"]);
     // The scene key.
     let sys = scene_with(&bad, "model: {inertia: repair}\n").unwrap();
-    assert_eq!(sys.model.warnings.len(), 1);
+    assert_eq!(sys.model().warnings.len(), 1);
 }
 
 /// A moving body's defect is judged against m·ℓ², the inertia it presents at its joint (issue:

@@ -210,17 +210,20 @@ fn long_expressions_parse_and_overlong_ones_are_named() {
     let mut sys = scene_from("point_mass.urdf", "floating", &decl(&term(45))).unwrap();
     let q = [0.4, -1.1, 0.7, 0.0, 0.0, 0.0, 1.0];
     let v = [0.8, -0.5, 0.3, 1.2, -0.7, 0.9];
-    sys.constraints
-        .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v);
+    sys.evaluate_rows(sys.rows().t, &q, &v);
     // Closed form: f = Σ (i+1) vx vz^(i%3+1), ∂f/∂vx = f/vx.
     let f: f64 = (0..45)
         .map(|i| (i + 1) as f64 * v[0] * v[2].powi(i % 3 + 1))
         .sum();
-    assert_close("45-term f", &[sys.cdata.jv[0]], &[f], 1e-14);
-    assert_close("45-term ∂f/∂vx", &[sys.cdata.j[(0, 0)]], &[f / v[0]], 1e-14);
+    assert_close("45-term f", &[sys.rows().jv[0]], &[f], 1e-14);
+    assert_close(
+        "45-term ∂f/∂vx",
+        &[sys.rows().j[(0, 0)]],
+        &[f / v[0]],
+        1e-14,
+    );
     let n = allocations(|| {
-        sys.constraints
-            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v)
+        sys.evaluate_rows(0.0, &q, &v);
     });
     assert_eq!(n, 0, "a 45-term expression's rows allocate");
     match problem(&term(60), vars, "") {
@@ -264,10 +267,9 @@ fn sixteen_symbols_are_accepted_and_seventeen_named() {
     let mut sys = scene_from("point_mass.urdf", "floating", &yaml).unwrap();
     let q = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
     let v = [0.3, 0.0, 0.0, 0.0, 0.0, 0.0];
-    sys.constraints
-        .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v);
-    assert_close("f = 16 vx", &[sys.cdata.jv[0]], &[16.0 * 0.3], 1e-15); // achieved 1.9e-16 (sum of 16 equal terms)
-    assert_close("∂f/∂vx = 16", &[sys.cdata.j[(0, 0)]], &[16.0], 1e-15); // achieved 0; floor 1e-15
+    sys.evaluate_rows(sys.rows().t, &q, &v);
+    assert_close("f = 16 vx", &[sys.rows().jv[0]], &[16.0 * 0.3], 1e-15); // achieved 1.9e-16 (sum of 16 equal terms)
+    assert_close("∂f/∂vx = 16", &[sys.rows().j[(0, 0)]], &[16.0], 1e-15); // achieved 0; floor 1e-15
     let (e17, v17) = decl(17);
     match problem(&e17, &v17, "") {
         ExpressionProblem::Syntax { message, .. } => {
@@ -288,11 +290,10 @@ fn a_sign_before_a_power_negates_the_power() {
     let mut sys = scene_from("point_mass.urdf", "floating", &yaml).unwrap();
     let q = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
     let v = [0.8, -0.5, 0.3, 1.2, -0.7, 0.9];
-    sys.constraints
-        .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &q, &v);
+    sys.evaluate_rows(sys.rows().t, &q, &v);
     // f = 0.8 − 0.3² = 0.71 (not 0.8 + 0.09), ∂f/∂vx = 1, ∂f/∂vz = −2·0.3.
-    assert_close("f = -vz^2 + vx", &[sys.cdata.jv[0]], &[0.71], 1e-15);
-    let row: Vec<f64> = (0..6).map(|i| sys.cdata.j[(0, i)]).collect();
+    assert_close("f = -vz^2 + vx", &[sys.rows().jv[0]], &[0.71], 1e-15);
+    let row: Vec<f64> = (0..6).map(|i| sys.rows().j[(0, i)]).collect();
     assert_close("∂f/∂v", &row, &[1.0, 0.0, -0.6, 0.0, 0.0, 0.0], 1e-15);
 }
 
@@ -318,7 +319,7 @@ fn evaluation_and_gradient_do_not_allocate() {
         .map(|i| format!("sin({} + vx)^2", names[i % 15]))
         .collect::<Vec<_>>()
         .join(" + ");
-    let e = Expression::parse(&sys.model, &format!("-{text} + 0*vx"), &vars).unwrap();
+    let e = Expression::parse(sys.model(), &format!("-{text} + 0*vx"), &vars).unwrap();
     assert_eq!(e.len(), 16);
     let q = [0.4, -1.1, 0.7, 0.0, 0.0, 0.0, 1.0];
     let v = [0.8, -0.5, 0.3, 1.2, -0.7, 0.9];

@@ -8,7 +8,7 @@
 
 use super::common::*;
 use constraint_dynamics::actuators::{Actuators, Command};
-use constraint_dynamics::algorithm::{forward_kinematics_pos, frame_placement};
+use constraint_dynamics::algorithm::{Data, forward_kinematics_pos, frame_placement};
 use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::constraints::ConstraintForce as CoreForce;
 use constraint_dynamics::dynamics::Formulation;
@@ -164,7 +164,7 @@ pub struct Core {
 impl Core {
     pub fn new(scene: &Scene) -> Core {
         let mut sys = System::from_scene(scene).unwrap();
-        sys.formulation = Formulation::Multipliers;
+        sys = sys.with_formulation(Formulation::Multipliers);
         Core {
             scene: scene.clone(),
             sys,
@@ -209,9 +209,10 @@ impl Core {
     }
 
     pub fn frame_origin(&mut self, q: &[f64], frame: &str) -> Option<[f64; 3]> {
-        let id = self.sys.model.frame_id(frame).ok()?;
-        forward_kinematics_pos(&self.sys.model, &mut self.sys.data, q);
-        let t = frame_placement(&self.sys.model, &self.sys.data, id).translation;
+        let id = self.sys.model().frame_id(frame).ok()?;
+        let mut data = Data::new(self.sys.model());
+        forward_kinematics_pos(self.sys.model(), &mut data, q);
+        let t = frame_placement(self.sys.model(), &data, id).translation;
         Some([t.x, t.y, t.z])
     }
 }
@@ -241,13 +242,13 @@ pub fn check_forces(
         ));
     }
     close("generalized_force", &msg.generalized_force, gf, tol)?;
-    if msg.v_names != core.sys.model.v_names {
+    if msg.v_names != core.sys.model().v_names {
         return Err("v_names".into());
     }
     if msg.header.frame_id != "odom" {
         return Err(format!("header.frame_id {}", msg.header.frame_id));
     }
-    let m_g = core.sys.model.total_mass() * 9.81 / 2.0;
+    let m_g = core.sys.model().total_mass() * 9.81 / 2.0;
     for (c, f) in msg.constraints.iter().zip(expected) {
         if c.name != f.name
             || c.kind != f.kind.name()

@@ -71,6 +71,7 @@ pub(super) fn ros2(
     let springs = &lin.joint_springs;
     dynamics(
         sys,
+        lin.gains,
         &mut lin.dd,
         springs,
         &mut lin.tau_stage,
@@ -200,6 +201,7 @@ fn nominal(
     // The second stage's q̈ only (F is held): a plain evaluation.
     stage_acceleration(
         sys,
+        lin.gains,
         springs,
         &mut lin.tau_stage,
         (q, v),

@@ -2,7 +2,7 @@
 //! generalized force, with the joint springs' and controllers' share moved to the stage.
 
 use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
-use crate::dynamics::KktOptions;
+use crate::dynamics::{Baumgarte, KktOptions};
 use crate::error::Result;
 use crate::system::{DynamicsOptions, System};
 
@@ -13,6 +13,7 @@ use crate::system::{DynamicsOptions, System};
 #[allow(clippy::too_many_arguments)]
 pub(super) fn dynamics(
     sys: &mut System,
+    gains: Baumgarte,
     dd: &mut DerivativeData,
     springs: &[(usize, usize, f64, f64, f64)],
     tau_stage: &mut [f64],
@@ -21,7 +22,7 @@ pub(super) fn dynamics(
     tau: &[f64],
 ) -> Result<()> {
     stage_torque(springs, tau_stage, (q0, v0), (q, v, ds), tau);
-    dynamics_derivatives(sys, dd, q, v, tau_stage)?;
+    dynamics_derivatives(sys, gains, dd, q, v, tau_stage)?;
     let nv = v.len();
     for &(_, iv, k, d, _) in springs {
         for i in 0..nv {
@@ -57,6 +58,7 @@ fn stage_torque(
 #[allow(clippy::too_many_arguments)]
 pub(super) fn stage_acceleration(
     sys: &mut System,
+    gains: Baumgarte,
     springs: &[(usize, usize, f64, f64, f64)],
     tau_stage: &mut [f64],
     (q0, v0): (&[f64], &[f64]),
@@ -65,7 +67,10 @@ pub(super) fn stage_acceleration(
     qdd: &mut [f64],
 ) -> Result<()> {
     stage_torque(springs, tau_stage, (q0, v0), (q, v, ds), tau);
-    let opts = DynamicsOptions::stage(sys.formulation);
+    let opts = DynamicsOptions {
+        gains: Some(gains),
+        ..DynamicsOptions::stage(sys.formulation)
+    };
     qdd.copy_from_slice(sys.forward_dynamics_with(q, v, tau_stage, opts)?.as_slice());
     Ok(())
 }
@@ -76,6 +81,7 @@ pub(super) fn stage_acceleration(
 /// disagree there get the least-squares λ, whose derivatives `derivatives::kkt` takes.
 pub(in crate::predict) fn dynamics_derivatives(
     sys: &mut System,
+    gains: Baumgarte,
     dd: &mut DerivativeData,
     q: &[f64],
     v: &[f64],
@@ -96,7 +102,7 @@ pub(in crate::predict) fn dynamics_derivatives(
             v,
             tau,
             KktOptions {
-                gains: sys.baumgarte,
+                gains,
                 allow_inconsistent: stage.allow_inconsistent,
                 rows_evaluated: false,
             },
