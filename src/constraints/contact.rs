@@ -43,15 +43,6 @@ pub struct ContactLimits {
     pub normal_force: Option<f64>,
 }
 
-/// A limit of a contact that cannot be checked.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum UncheckedContactLimit {
-    /// Its friction: no μ, or no normal force.
-    Friction,
-    /// Its lift-off: no normal row.
-    LiftOff,
-}
-
 /// How a contact breaks ideal rolling (or sticking).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -173,19 +164,6 @@ impl Contact {
             .then(|| self.friction.or(limits.friction))
             .flatten()
     }
-
-    /// The limits of this contact that cannot be checked under `limits`: lift-off without a
-    /// normal row, friction without μ or a normal force (in that order).
-    pub fn unchecked(&self, limits: &ContactLimits) -> impl Iterator<Item = UncheckedContactLimit> {
-        let lift_off = self.normal.is_none();
-        let friction = !self.tangential.is_empty() && self.friction_under(limits).is_none();
-        [
-            lift_off.then_some(UncheckedContactLimit::LiftOff),
-            friction.then_some(UncheckedContactLimit::Friction),
-        ]
-        .into_iter()
-        .flatten()
-    }
 }
 
 #[cfg(test)]
@@ -237,22 +215,13 @@ mod tests {
             w.judge(&[1.2, 1.6, 4.0], &assumed, 1e-6).friction_used,
             Some(2.0)
         );
-        // No normal row (planar base): lift-off never judged, friction only with an assumed N.
+        // No normal row (planar base): lift-off never judged, friction only with an assumed N
+        // (which limits stay unchecked: robot_limits/contact.rs).
         let planar = wheel(None, None);
-        let kinds: Vec<_> = planar.unchecked(&assumed).collect();
-        assert_eq!(
-            kinds,
-            [
-                UncheckedContactLimit::LiftOff,
-                UncheckedContactLimit::Friction
-            ]
-        );
         let both = ContactLimits {
             normal_force: Some(4.0),
             ..assumed
         };
-        let kinds: Vec<_> = planar.unchecked(&both).collect();
-        assert_eq!(kinds, [UncheckedContactLimit::LiftOff]);
         let s = planar.judge(&[1.2, 1.6], &both, 1e-6);
         assert_eq!((s.normal_force, s.friction_used), (Some(4.0), Some(0.5)));
     }

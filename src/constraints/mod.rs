@@ -26,7 +26,7 @@ mod spec;
 mod velocity;
 mod weld;
 
-pub use contact::{BreakKind, Contact, ContactLimits, ContactState, UncheckedContactLimit};
+pub use contact::{BreakKind, Contact, ContactLimits, ContactState};
 pub use coupling::CouplingConstraint;
 pub use distance::DistanceConstraint;
 pub use expression::{Expression, FUNCTIONS, MAX_SYMBOLS, RESERVED, Source};

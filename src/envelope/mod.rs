@@ -26,7 +26,7 @@
 //! of reach — the robot must accelerate to keep every contact (it would tip over). An
 //! unbounded direction has no maximum ([`Reach::Unbounded`]); with the other direction held,
 //! an empty feasible set is [`Reach::Infeasible`]. Each limit names what binds it
-//! ([`BindingKind`]): the actuators at their effort, the contacts at their friction cone, the
+//! ([`LimitKind`](crate::robot_limits::LimitKind)): the actuators at their effort, the contacts at their friction cone, the
 //! contacts whose normal force vanishes (`lift_off`).
 //!
 //! A wheel on a planar base has no normal row: the envelope cannot tell lift-off nor, therefore,
@@ -38,70 +38,25 @@
 //! scene) and [`EnvelopeData`] (the Clarabel solver, built at the first call and updated in
 //! place, and the results). See `docs/projection.md`, "The acceleration envelope".
 
-pub(crate) mod binding;
 mod model;
 mod report;
 mod socp;
 
 pub use crate::constraints::Contact;
-pub use binding::ACTIVE_TOLERANCE;
-pub use model::{Actuator, EnvelopeModel};
+/// The kind of a binding (or unchecked) limit.
+pub use crate::robot_limits::LimitKind as BindingKind;
+pub use crate::robot_limits::{ACTIVE_TOLERANCE, Actuator, Binding, NamedLimit};
+pub use model::EnvelopeModel;
 pub(crate) use report::unchecked_limits;
-pub use report::{EnvelopeReport, LimitReport, NamedLimit};
-pub(crate) use socp::solver_settings;
+pub use report::{EnvelopeReport, LimitReport};
 
 use crate::algorithm::{bias_forces_after_kinematics, crba_after_kinematics};
 use crate::error::{Result, check_len};
+use crate::robot_limits::{active_limits, max_active_limits};
 use crate::system::System;
 use nalgebra::DVector;
 use serde::Serialize;
 use socp::{Direction, Outcome, Socp};
-
-/// What binds a limit.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum BindingKind {
-    /// An actuator at its effort (named by its joint).
-    Effort,
-    /// A contact at its friction cone (named by its constraint).
-    Friction,
-    /// A contact whose normal force vanishes: it would have to pull (named by its constraint).
-    LiftOff,
-    /// A coordinate at a bound (named by its coordinate); the envelope bounds no coordinate,
-    /// so it never reports one.
-    Bound,
-}
-
-impl From<crate::constraints::UncheckedContactLimit> for BindingKind {
-    fn from(limit: crate::constraints::UncheckedContactLimit) -> Self {
-        match limit {
-            crate::constraints::UncheckedContactLimit::Friction => BindingKind::Friction,
-            crate::constraints::UncheckedContactLimit::LiftOff => BindingKind::LiftOff,
-        }
-    }
-}
-
-impl BindingKind {
-    /// The kind's name in the JSON: `effort`, `friction`, `lift_off` or `bound`.
-    pub const fn name(self) -> &'static str {
-        match self {
-            BindingKind::Effort => "effort",
-            BindingKind::Friction => "friction",
-            BindingKind::LiftOff => "lift_off",
-            BindingKind::Bound => "bound",
-        }
-    }
-}
-
-/// One binding limit: its kind and the index of what it names (an actuator of
-/// [`EnvelopeModel::actuators`], a contact of [`EnvelopeModel::contacts`], a coordinate).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Binding {
-    /// What kind of limit.
-    pub kind: BindingKind,
-    /// Index of the actuator, contact or coordinate.
-    pub index: usize,
-}
 
 /// Whether a direction has a maximum.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -139,7 +94,7 @@ impl Limit {
         Self {
             reach: Reach::Infeasible,
             max: f64::NAN,
-            binding: Vec::with_capacity(binding::capacity(em)),
+            binding: Vec::with_capacity(max_active_limits(&em.actuators, &em.contacts)),
             qdd: DVector::zeros(em.nv),
             tau: DVector::zeros(em.na()),
             lambda: DVector::zeros(em.nc),
@@ -253,7 +208,16 @@ pub fn acceleration_envelope<'a>(
         limit.tau.as_mut_slice().copy_from_slice(&x[nv..nv + na]);
         limit.lambda.as_mut_slice().copy_from_slice(&x[nv + na..]);
         limit.max = sign * x[coordinate];
-        binding::active_limits(em, x, &mut limit.binding);
+        let (tau, lambda) = (&x[nv..nv + na], &x[nv + na..]);
+        let (actuators, contacts) = (&em.actuators, &em.contacts);
+        active_limits(
+            actuators,
+            contacts,
+            tau,
+            lambda,
+            em.force_scale,
+            &mut limit.binding,
+        );
     }
     Ok(&ed.envelope)
 }

@@ -2,23 +2,12 @@
 //! scene's `passive_joints:`: the contacts and their limits, the actuators and their efforts, the
 //! coordinates held at zero acceleration and the two base directions.
 
-use super::BindingKind;
 use crate::constraints::{Constraint, ConstraintSet, Contact, ContactLimits};
 use crate::error::{Error, Result};
 use crate::linalg::NO_PARENT;
 use crate::model::{BaseType, Model};
-
-/// An actuated velocity coordinate: τ on it is free within ±effort.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Actuator {
-    /// The joint's name.
-    pub joint: String,
-    /// Its velocity coordinate.
-    pub coordinate: usize,
-    /// URDF `<limit effort>` [N·m or N]; ∞ where the URDF gives none (unbounded, reported
-    /// under `unchecked`).
-    pub effort: f64,
-}
+use crate::robot_limits::program::Structure;
+use crate::robot_limits::{Actuator, Binding, LimitKind, unchecked_contact_limits};
 
 /// The envelope's view of a robot (the "model" half of the Model / Data pair; never modified by
 /// an evaluation).
@@ -43,7 +32,7 @@ pub struct EnvelopeModel {
     pub yaw: usize,
     /// Limits the envelope cannot check, by kind and name: friction of a contact without μ,
     /// lift-off of a wheel without a normal row (planar base), effort of a joint without one.
-    pub unchecked: Vec<(BindingKind, String)>,
+    pub unchecked: Vec<(LimitKind, String)>,
     /// Force scale of the activity tests: the weight m·|g| [N] (1 N without gravity).
     pub force_scale: f64,
     /// M's structural pattern, nv × nv row-major: coordinate i couples to c only if one moves
@@ -130,8 +119,8 @@ impl EnvelopeModel {
                 }
             }
             // The envelope assumes nothing a contact does not declare.
-            for limit in contact.unchecked(&ContactLimits::default()) {
-                unchecked.push((limit.into(), contact.name.clone()));
+            for limit in unchecked_contact_limits(&contact, &ContactLimits::default()) {
+                unchecked.push((limit, contact.name.clone()));
             }
             contacts.push(contact);
         }
@@ -148,7 +137,7 @@ impl EnvelopeModel {
                     continue;
                 }
                 let effort = model.limits.effort[c];
-                let listed = (BindingKind::Effort, j.name.clone());
+                let listed = (LimitKind::Effort, j.name.clone());
                 if !effort.is_finite() && !unchecked.contains(&listed) {
                     unchecked.push(listed);
                 }
@@ -187,10 +176,22 @@ impl EnvelopeModel {
                 c.friction = Some(mu);
                 let name = &c.name;
                 self.unchecked
-                    .retain(|(kind, n)| !(*kind == BindingKind::Friction && n == name));
+                    .retain(|(kind, n)| !(*kind == LimitKind::Friction && n == name));
             }
         }
         self
+    }
+
+    /// What the cone programs on this model are posed on.
+    pub(crate) fn structure(&self) -> Structure<'_> {
+        Structure {
+            nv: self.nv,
+            nc: self.nc,
+            actuators: &self.actuators,
+            contacts: &self.contacts,
+            mass_pattern: &self.mass_pattern,
+            jacobian_pattern: &self.jacobian_pattern,
+        }
     }
 
     /// Number of actuated coordinates (na).
@@ -200,11 +201,11 @@ impl EnvelopeModel {
 
     /// The name a binding limit carries: the joint (effort), the contact (friction, lift-off)
     /// or the coordinate (bound, by index into the model's `v_names`).
-    pub fn binding_name<'a>(&'a self, model: &'a Model, b: &super::Binding) -> &'a str {
+    pub fn binding_name<'a>(&'a self, model: &'a Model, b: &Binding) -> &'a str {
         match b.kind {
-            BindingKind::Effort => &self.actuators[b.index].joint,
-            BindingKind::Friction | BindingKind::LiftOff => &self.contacts[b.index].name,
-            BindingKind::Bound => &model.v_names[b.index],
+            LimitKind::Effort => &self.actuators[b.index].joint,
+            LimitKind::Friction | LimitKind::LiftOff => &self.contacts[b.index].name,
+            LimitKind::Bound => &model.v_names[b.index],
         }
     }
 }

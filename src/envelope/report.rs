@@ -3,16 +3,8 @@
 
 use super::{Envelope, EnvelopeModel, Limit, Reach};
 use crate::model::Model;
+use crate::robot_limits::NamedLimit;
 use serde::Serialize;
-
-/// A limit named: `{"kind": "effort", "name": "left_wheel_joint"}`.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
-pub struct NamedLimit {
-    /// `effort`, `friction`, `lift_off` or `bound`.
-    pub kind: &'static str,
-    /// The joint, contact or coordinate.
-    pub name: String,
-}
 
 /// One limit: `{"max": a, "binding": [...]}`, or `{"unbounded": true, ...}`, or
 /// `{"infeasible": true, ...}`.

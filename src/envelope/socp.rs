@@ -13,37 +13,37 @@
 //! SOC(1+nt)   (μ λ_n, λ_t) ∈ 𝒬                  each friction cone
 //! ```
 //!
-//! c = ∓ e_fwd or ∓ e_yaw picks the limit. The pattern is fixed by the envelope model (M's
-//! branch pattern, J's rows on the coordinates that move their frames, the held-direction row
-//! with both base entries), so one solver serves the
-//! four limits and every state: `update_A`, `update_b` and `update_q` overwrite its data
-//! (presolve and zero-dropping off keep the pattern).
+//! c = ∓ e_fwd or ∓ e_yaw picks the limit. The dynamics, constraint and limit rows are the
+//! shared layout of `robot_limits/program.rs`; the envelope adds the held rows (in the zero
+//! cone) and its objective. The pattern is fixed by the envelope model (M's branch pattern, J's
+//! rows on the coordinates that move their frames, the held-direction row with both base
+//! entries), so one solver serves the four limits and every state: `update_A`, `update_b` and
+//! `update_q` overwrite its data (presolve and zero-dropping off keep the pattern).
 
 use super::model::EnvelopeModel;
 use crate::error::{Error, Result};
+use crate::robot_limits::program::{Entry, Program, ProgramBuilder, solver_settings};
 use clarabel::algebra::CscMatrix;
-use clarabel::solver::{
-    DefaultSettings, DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT,
-    SecondOrderConeT, SolverStatus, SupportedConeT, ZeroConeT,
-};
+use clarabel::solver::{DefaultSolver, IPSolver, SolverStatus};
 use nalgebra::{DMatrix, DVector};
 
-/// Where a stored entry of A comes from.
-#[derive(Clone, Copy, Debug)]
-enum Src {
-    /// M[i, c].
-    Mass(usize, usize),
-    /// −J[r, i] (dynamics row i, λ column r).
-    JacobianT(usize, usize),
-    /// J[r, c] (constraint row r, a column c).
-    Jacobian(usize, usize),
-    /// A constant.
-    Const(f64),
-    /// The held-direction row's entry on the forward coordinate: 1 when the yaw limits are
-    /// sought (forward held), else 0.
-    HoldForward,
-    /// Its entry on the yaw coordinate: 1 when the forward limits are sought (yaw held).
-    HoldYaw,
+/// The envelope's own entries of A: the held-direction row's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Hold {
+    /// The entry on the forward coordinate: 1 when the yaw limits are sought (forward held),
+    /// else 0.
+    Forward,
+    /// The entry on the yaw coordinate: 1 when the forward limits are sought (yaw held).
+    Yaw,
+}
+
+/// The envelope's own rows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum HeldRow {
+    /// a_c = 0 for a coordinate that does not drive the base.
+    Coordinate(usize),
+    /// The other base direction held.
+    Direction,
 }
 
 /// Which base direction a limit maximises (the other one is held at zero acceleration).
@@ -53,23 +53,6 @@ pub(super) enum Direction {
     Forward,
     /// Yaw acceleration free, forward acceleration held.
     Yaw,
-}
-
-/// Clarabel's settings for the dynamics' cone programs (the envelope and the dynamic
-/// projection): the pattern stays fixed for updates; tolerances tighter than Clarabel's defaults
-/// (the limits are compared with closed forms to 1e-6).
-pub(crate) fn solver_settings() -> DefaultSettings<f64> {
-    DefaultSettingsBuilder::default()
-        .verbose(false)
-        .presolve_enable(false)
-        .input_sparse_dropzeros(false)
-        .max_threads(1)
-        .tol_gap_abs(1e-10)
-        .tol_gap_rel(1e-10)
-        .tol_feas(1e-10)
-        .tol_ktratio(1e-8)
-        .build()
-        .expect("valid Clarabel settings")
 }
 
 /// The outcome of one solve.
@@ -85,16 +68,10 @@ pub(super) enum Outcome {
 
 /// The cone program of one envelope model, with its Clarabel solver.
 pub(super) struct Socp {
-    n: usize,
-    m: usize,
-    /// A's column pattern and where each entry comes from.
-    colptr: Vec<usize>,
-    rowval: Vec<usize>,
-    src: Vec<Src>,
+    program: Program<Hold, HeldRow>,
     a_val: Vec<f64>,
     b: Vec<f64>,
     c: Vec<f64>,
-    cones: Vec<SupportedConeT<f64>>,
     solver: Option<DefaultSolver<f64>>,
     /// Direction whose held row is in the solver's A.
     direction: Direction,
@@ -104,95 +81,23 @@ impl Socp {
     /// The pattern for `em` (allocates; once per envelope model). The solver is built at the
     /// first [`Socp::load`].
     pub fn new(em: &EnvelopeModel) -> Self {
-        let (nv, na, nc) = (em.nv, em.na(), em.nc);
-        let n = nv + na + nc;
-        let mut cols: Vec<Vec<(usize, Src)>> = vec![vec![]; n];
-        let mut row = 0;
-        // Dynamics rows.
-        for i in 0..nv {
-            for c in (0..nv).filter(|&c| em.mass_pattern[i * nv + c]) {
-                cols[c].push((row, Src::Mass(i, c)));
-            }
-            for (k, act) in em.actuators.iter().enumerate() {
-                if act.coordinate == i {
-                    cols[nv + k].push((row, Src::Const(-1.0)));
-                }
-            }
-            for r in (0..nc).filter(|&r| em.jacobian_pattern[r * nv + i]) {
-                cols[nv + na + r].push((row, Src::JacobianT(r, i)));
-            }
-            row += 1;
-        }
-        for r in 0..nc {
-            for c in (0..nv).filter(|&c| em.jacobian_pattern[r * nv + c]) {
-                cols[c].push((row, Src::Jacobian(r, c)));
-            }
-            row += 1;
-        }
+        let mut builder = ProgramBuilder::new(em.structure());
         for &h in &em.held {
-            cols[h].push((row, Src::Const(1.0)));
-            row += 1;
+            builder.push_row(HeldRow::Coordinate(h), [(h, Entry::Const(1.0))]);
         }
-        cols[em.forward].push((row, Src::HoldForward));
-        cols[em.yaw].push((row, Src::HoldYaw));
-        row += 1;
-        let n_eq = row;
-        let effort_row0 = row;
-        for (k, act) in em.actuators.iter().enumerate() {
-            if act.effort.is_finite() {
-                cols[nv + k].push((row, Src::Const(1.0)));
-                cols[nv + k].push((row + 1, Src::Const(-1.0)));
-                row += 2;
-            }
-        }
-        for ct in em.contacts.iter().filter(|ct| !ct.has_cone()) {
-            if let Some(nr) = ct.normal {
-                cols[nv + na + nr].push((row, Src::Const(-1.0)));
-                row += 1;
-            }
-        }
-        let n_nonneg = row - n_eq;
-        let mut cones: Vec<SupportedConeT<f64>> = vec![ZeroConeT(n_eq)];
-        if n_nonneg > 0 {
-            cones.push(NonnegativeConeT(n_nonneg));
-        }
-        for ct in em.contacts.iter().filter(|ct| ct.has_cone()) {
-            let (nr, mu) = (ct.normal.expect("a cone"), ct.friction.expect("a cone"));
-            cols[nv + na + nr].push((row, Src::Const(-mu)));
-            for (t, &tr) in ct.tangential.iter().enumerate() {
-                cols[nv + na + tr].push((row + 1 + t, Src::Const(-1.0)));
-            }
-            cones.push(SecondOrderConeT(1 + ct.tangential.len()));
-            row += 1 + ct.tangential.len();
-        }
-        let m = row;
-        let mut colptr = vec![0];
-        let (mut rowval, mut src) = (vec![], vec![]);
-        for col in &mut cols {
-            col.sort_by_key(|e| e.0);
-            for &(r, s) in col.iter() {
-                rowval.push(r);
-                src.push(s);
-            }
-            colptr.push(rowval.len());
-        }
-        let mut b = vec![0.0; m];
-        let mut r = effort_row0;
-        for act in em.actuators.iter().filter(|a| a.effort.is_finite()) {
-            b[r] = act.effort;
-            b[r + 1] = act.effort;
-            r += 2;
-        }
+        let hold = [
+            (em.forward, Entry::Own(Hold::Forward)),
+            (em.yaw, Entry::Own(Hold::Yaw)),
+        ];
+        builder.push_row(HeldRow::Direction, hold);
+        let program = builder.build();
+        let mut b = vec![0.0; program.m()];
+        program.fill_effort_b(&mut b);
         Self {
-            n,
-            m,
-            a_val: vec![0.0; src.len()],
-            colptr,
-            rowval,
-            src,
+            a_val: vec![0.0; program.entries.len()],
             b,
-            c: vec![0.0; n],
-            cones,
+            c: vec![0.0; program.n],
+            program,
             solver: None,
             direction: Direction::Forward,
         }
@@ -200,16 +105,12 @@ impl Socp {
 
     fn fill_a(&mut self, m: &DMatrix<f64>, j: &DMatrix<f64>) {
         let hold_forward = self.direction == Direction::Yaw;
-        for (val, s) in self.a_val.iter_mut().zip(&self.src) {
-            *val = match *s {
-                Src::Mass(i, c) => m[(i, c)],
-                Src::JacobianT(r, i) => -j[(r, i)],
-                Src::Jacobian(r, c) => j[(r, c)],
-                Src::Const(x) => x,
-                Src::HoldForward => f64::from(u8::from(hold_forward)),
-                Src::HoldYaw => f64::from(u8::from(!hold_forward)),
-            };
-        }
+        let hold = |h| match h {
+            Hold::Forward => f64::from(u8::from(hold_forward)),
+            Hold::Yaw => f64::from(u8::from(!hold_forward)),
+        };
+        // The actuators' torques enter the dynamics with gain 1: forces, not impulses.
+        self.program.fill_a(m, j, 1.0, hold, &mut self.a_val);
     }
 
     /// Load one state's data: M, J, the dynamics right side Q − h (nv) and −γ (nc). Builds
@@ -238,17 +139,12 @@ impl Socp {
                 }
             }
             None => {
-                let p = CscMatrix::new(self.n, self.n, vec![0; self.n + 1], vec![], vec![]);
-                let a = CscMatrix::new(
-                    self.m,
-                    self.n,
-                    self.colptr.clone(),
-                    self.rowval.clone(),
-                    self.a_val.clone(),
-                );
-                let s =
-                    DefaultSolver::new(&p, &self.c, &a, &self.b, &self.cones, solver_settings())
-                        .map_err(|e| numerical(&format!("Clarabel refused the problem: {e:?}")))?;
+                let n = self.program.n;
+                let p = CscMatrix::new(n, n, vec![0; n + 1], vec![], vec![]);
+                let a = self.program.a_matrix(&self.a_val);
+                let cones = &self.program.cones;
+                let s = DefaultSolver::new(&p, &self.c, &a, &self.b, cones, solver_settings())
+                    .map_err(|e| numerical(&format!("Clarabel refused the problem: {e:?}")))?;
                 self.solver = Some(s);
             }
         }

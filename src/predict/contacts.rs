@@ -12,9 +12,9 @@
 //! guessed.
 
 use crate::constraints::{BreakKind, ConstraintSet, Contact, ContactLimits, ContactState};
-use crate::envelope::{ACTIVE_TOLERANCE, BindingKind, NamedLimit};
 use crate::error::{Error, Result};
 use crate::model::Model;
+use crate::robot_limits::{ACTIVE_TOLERANCE, NamedLimit, unchecked_contact_limits};
 use serde::Serialize;
 
 /// The first sample and contact where the predicted motion breaks ideal rolling.
@@ -88,8 +88,8 @@ impl ContactJudge {
     ) -> ContactCheck {
         let unchecked = (self.contacts.iter())
             .flat_map(|c| {
-                c.unchecked(limits).map(|l| NamedLimit {
-                    kind: BindingKind::from(l).name(),
+                unchecked_contact_limits(c, limits).map(|l| NamedLimit {
+                    kind: l.name(),
                     name: c.name.clone(),
                 })
             })

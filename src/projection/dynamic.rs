@@ -30,7 +30,8 @@
 //! allocates after the first call on an optimal answer (an infeasible one names its conflicts).
 
 use super::diagnose::Conflict;
-use super::dynamic_socp::{DynSocp, RowKind, SocpData, SocpOutcome};
+use super::dynamic_diagnose::{DynamicConflict, diagnose};
+use super::dynamic_socp::{DynSocp, SocpData, SocpOutcome};
 use super::polish::velocity_scale;
 use super::problem::{ProjectionProblem, Side};
 use super::projector::{Outcome, SolvePath, Status, VelocityProjector};
@@ -39,28 +40,15 @@ use super::report::{ActiveBound, ActiveInequality, NamedConflict, Projection};
 use super::request::{Mode, ProjectionRequest};
 use crate::algorithm::{bias_forces_after_kinematics, crba_after_kinematics};
 use crate::constraints::ConstraintSet;
-use crate::envelope::binding::{active_limits_scaled, capacity};
-use crate::envelope::{
-    ACTIVE_TOLERANCE, Binding, BindingKind, EnvelopeModel, NamedLimit, unchecked_limits,
-};
+use crate::envelope::{EnvelopeModel, unchecked_limits};
 use crate::error::{Error, Result, check_finite, check_len};
 use crate::model::Model;
+use crate::robot_limits::{
+    ACTIVE_TOLERANCE, Binding, LimitKind, NamedLimit, active_limits, max_active_limits,
+};
 use crate::system::System;
 use nalgebra::DVector;
 use serde::Serialize;
-
-/// A member of the set of limits that make a dynamic request infeasible.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum DynamicConflict {
-    /// A constraint row, a velocity bound or a row of A (as in the kinematic projection).
-    Kinematic(Conflict),
-    /// Actuator k of [`EnvelopeModel::actuators`] at its effort.
-    Effort(usize),
-    /// Contact k of [`EnvelopeModel::contacts`] at its friction cone.
-    Friction(usize),
-    /// Contact k would have to pull.
-    LiftOff(usize),
-}
 
 /// What the dynamics add to a named projection (absent when Δt = 0).
 #[derive(Clone, Debug, Serialize)]
@@ -210,8 +198,9 @@ impl DynamicProjector {
         if self.tau.len() != na {
             self.tau = DVector::zeros(na);
         }
-        if self.binding.capacity() < capacity(em) + 2 * nv {
-            self.binding = Vec::with_capacity(capacity(em) + 2 * nv);
+        let most = max_active_limits(&em.actuators, &em.contacts) + 2 * nv;
+        if self.binding.capacity() < most {
+            self.binding = Vec::with_capacity(most);
         }
         if self.eta.len() != p.b.len() {
             self.eta = vec![0.0; p.b.len()];
@@ -272,7 +261,17 @@ impl DynamicProjector {
         self.w.as_mut_slice().copy_from_slice(&z[nv..nv + nc]);
         self.nu.fill(0.0);
         self.eta.fill(0.0);
-        active_limits_scaled(em, x, em.force_scale * period, &mut self.binding);
+        // Impulses over the period: the force scale times Δt.
+        let (tau, lambda) = (&x[nv..nv + na], &x[nv + na..]);
+        let scale = em.force_scale * period;
+        active_limits(
+            &em.actuators,
+            &em.contacts,
+            tau,
+            lambda,
+            scale,
+            &mut self.binding,
+        );
         for (t, &row) in self.ineq.iter().enumerate() {
             let zt = z[socp.ineq_row0 + t];
             let slack = row.violation(&x[..nv], &kin.bounds, &p.a, &p.b).abs();
@@ -283,7 +282,7 @@ impl DynamicProjector {
                     if active {
                         self.active_bounds.push((i, side));
                         let b = Binding {
-                            kind: BindingKind::Bound,
+                            kind: LimitKind::Bound,
                             index: i,
                         };
                         // lo = hi: one coordinate held, named once.
@@ -385,20 +384,20 @@ impl DynamicProjector {
                     ));
                     if let Conflict::Bound { index, .. } = k {
                         binding.push(named(&Binding {
-                            kind: BindingKind::Bound,
+                            kind: LimitKind::Bound,
                             index,
                         }));
                     }
                     continue;
                 }
-                DynamicConflict::Effort(k) => (BindingKind::Effort, k),
-                DynamicConflict::Friction(k) => (BindingKind::Friction, k),
-                DynamicConflict::LiftOff(k) => (BindingKind::LiftOff, k),
+                DynamicConflict::Effort(k) => (LimitKind::Effort, k),
+                DynamicConflict::Friction(k) => (LimitKind::Friction, k),
+                DynamicConflict::LiftOff(k) => (LimitKind::LiftOff, k),
             };
             let b = named(&Binding { kind, index });
             let label = match kind {
-                BindingKind::Effort => format!("|tau| <= effort of {} (effort)", b.name),
-                BindingKind::Friction => format!("{} inside its friction cone (friction)", b.name),
+                LimitKind::Effort => format!("|tau| <= effort of {} (effort)", b.name),
+                LimitKind::Friction => format!("{} inside its friction cone (friction)", b.name),
                 _ => format!("{} pushes, never pulls (lift_off)", b.name),
             };
             conflicts.push(NamedConflict {
@@ -499,89 +498,4 @@ fn check_period(period: f64, em: Option<&EnvelopeModel>) -> Result<&EnvelopeMode
         what: "a projection over a period".into(),
         why: "it needs the robot's limits (an envelope model: a planar or floating base)".into(),
     })
-}
-
-/// A limit of the cone program that a diagnosis may lift: its rows and its name.
-fn groups(em: &EnvelopeModel, socp: &DynSocp) -> Vec<(std::ops::Range<usize>, DynamicConflict)> {
-    let z = socp.z();
-    let mut out = vec![];
-    let mut r = 0;
-    while r < socp.rows.len() {
-        let (len, c) = match socp.rows[r] {
-            RowKind::Ineq(IneqRow::Bound(index, side)) => (
-                1,
-                DynamicConflict::Kinematic(Conflict::Bound { index, side }),
-            ),
-            RowKind::Ineq(IneqRow::User(k)) => {
-                (1, DynamicConflict::Kinematic(Conflict::Inequality(k)))
-            }
-            RowKind::Effort(k) => (2, DynamicConflict::Effort(k)),
-            RowKind::Normal(k) => (1, DynamicConflict::LiftOff(k)),
-            RowKind::Cone(k) => {
-                // A certificate that uses the cone's tangential part is friction's; one that
-                // uses only its normal is the contact's push.
-                let nt = em.contacts[k].tangential.len();
-                let zt = (1..=nt).map(|t| z[r + t] * z[r + t]).sum::<f64>().sqrt();
-                let c = if zt > 1e-6 * z[r].abs() {
-                    DynamicConflict::Friction(k)
-                } else {
-                    DynamicConflict::LiftOff(k)
-                };
-                (1 + nt, c)
-            }
-            RowKind::Dynamics(_) | RowKind::Constraint(_) | RowKind::ConeTail => {
-                r += 1;
-                continue;
-            }
-        };
-        out.push((r..r + len, c));
-        r += len;
-    }
-    out
-}
-
-/// A minimal set of limits that cannot hold together with the dynamics and the constraints:
-/// the limits in the support of Clarabel's certificate, reduced by a deletion filter (each
-/// lifted in turn, and left out if the rest is still infeasible), so that every limit named is
-/// necessary. Allocates and re-solves; only on infeasible requests.
-fn diagnose(
-    em: &EnvelopeModel,
-    socp: &mut DynSocp,
-    data: &SocpData,
-    out: &mut Vec<DynamicConflict>,
-) -> Result<()> {
-    let all = groups(em, socp);
-    let z = socp.z();
-    let zmax = z.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let in_support = |g: &std::ops::Range<usize>| g.clone().any(|r| z[r].abs() > 1e-7 * zmax);
-    let support: Vec<bool> = all.iter().map(|(g, _)| in_support(g)).collect();
-    let infeasible = |socp: &mut DynSocp| -> bool {
-        matches!(socp.solve(em, data), Ok(SocpOutcome::Infeasible))
-    };
-    for ((g, _), &s) in all.iter().zip(&support) {
-        for r in g.clone() {
-            socp.relaxed[r] = !s;
-        }
-    }
-    if !infeasible(socp) {
-        socp.relaxed.fill(false);
-    }
-    let mut kept = vec![];
-    for (k, (g, c)) in all.iter().enumerate() {
-        if socp.relaxed[g.start] {
-            continue;
-        }
-        for r in g.clone() {
-            socp.relaxed[r] = true;
-        }
-        if !infeasible(socp) {
-            for r in g.clone() {
-                socp.relaxed[r] = false;
-            }
-            kept.push(k);
-            out.push(*c);
-        }
-    }
-    socp.relaxed.fill(false);
-    Ok(())
 }

@@ -38,6 +38,7 @@
 
 mod diagnose;
 mod dynamic;
+mod dynamic_diagnose;
 mod dynamic_socp;
 mod kkt;
 mod polish;
@@ -49,7 +50,8 @@ mod request;
 mod twist;
 
 pub use diagnose::Conflict;
-pub use dynamic::{DynamicConflict, DynamicProjector, DynamicReport};
+pub use dynamic::{DynamicProjector, DynamicReport};
+pub use dynamic_diagnose::DynamicConflict;
 pub use problem::{AccelLimit, BoundSource, ProjectionProblem, Side};
 pub use projector::{Outcome, SolvePath, Status, VelocityProjector};
 pub use report::{ActiveBound, ActiveInequality, ConstraintImpulse, NamedConflict, Projection};

@@ -44,7 +44,7 @@ pub fn values(check: &ContactCheck) -> [(&'static str, String); 2] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use constraint_dynamics::envelope::NamedLimit;
+    use constraint_dynamics::robot_limits::NamedLimit;
 
     #[test]
     fn a_break_reads_as_the_warning_and_the_values_name_it() {

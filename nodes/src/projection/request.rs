@@ -4,11 +4,11 @@
 use std::collections::BTreeMap;
 
 use constraint_dynamics::Model;
-use constraint_dynamics::envelope::NamedLimit;
 use constraint_dynamics::model::BaseTwist;
 use constraint_dynamics::projection::{
     AccelLimitRequest, PerCoordinate, Projection, ProjectionRequest, Side, Status,
 };
+use constraint_dynamics::robot_limits::NamedLimit;
 
 use super::params::AccelerationLimitsParams;
 use crate::convert::{base_twist_of, twist_msg};

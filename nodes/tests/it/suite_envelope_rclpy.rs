@@ -50,7 +50,7 @@ const FIRST_SETTLE: f64 = 3.0; // [s]
 /// through `JointState`/`Odometry` and the projection onto the constraints (round-off), and
 /// with the wheels' friction cones (μ assumed from `slip.friction_coefficient`) an interior-point
 /// answer is exact only to the solver's tolerances (gap and feasibility 1e-10,
-/// `envelope::solver_settings`): the node's solver, updated tick after tick, stops at another
+/// `robot_limits::program::solver_settings`): the node's solver, updated tick after tick, stops at another
 /// iterate than a fresh one. Achieved 1.4e-13 with the cones (5.3e-16 without them).
 const TOL: f64 = 1e-10;
 /// The braking limit against its closed form: the cone program is solved to 1e-10; achieved
