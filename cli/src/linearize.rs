@@ -18,9 +18,14 @@ pub struct LinearizeArgs {
     /// Step [s] (default: the scene's integration dt).
     #[arg(long)]
     dt: Option<f64>,
-    /// semi_implicit_euler | rk4 | dopri5 (default: the scene's method).
-    #[arg(long)]
+    #[arg(long, help = method_help())]
     method: Option<String>,
+}
+
+/// `--method`'s help: the methods whose step is linearized.
+fn method_help() -> String {
+    let names = Method::names(Method::linearizable(), " | ");
+    format!("{names} (default: the scene's method).")
 }
 
 pub fn run(a: LinearizeArgs) -> Result<Value> {
@@ -30,9 +35,8 @@ pub fn run(a: LinearizeArgs) -> Result<Value> {
     let method = match a.method.as_deref() {
         None => scene.file.integration.method,
         Some(m) => serde_json::from_value::<Method>(json!(m)).map_err(|_| {
-            Error::Invalid(format!(
-                "--method '{m}': expected semi_implicit_euler, rk4 or dopri5"
-            ))
+            let expected = Method::names(Method::linearizable(), ", ");
+            Error::Invalid(format!("--method '{m}': expected one of {expected}"))
         })?,
     };
     let dt = a.dt.unwrap_or(scene.file.integration.dt);

@@ -26,8 +26,7 @@ pub struct PredictArgs {
     /// Horizon [s] (default: the scene's integration.horizon).
     #[arg(long)]
     horizon: Option<f64>,
-    /// semi_implicit_euler | rk4 | dopri5 | dop853 | sdirk2 | radau5 (default: the scene's).
-    #[arg(long)]
+    #[arg(long, help = method_help())]
     method: Option<String>,
     /// Step [s] (fixed-step methods; first step of the adaptive methods).
     #[arg(long)]
@@ -81,6 +80,12 @@ struct CommandEntry {
     joint_position: BTreeMap<String, f64>,
 }
 
+/// `--method`'s help: every method's name.
+fn method_help() -> String {
+    let names = Method::names(Method::ALL.iter().copied(), " | ");
+    format!("{names} (default: the scene's).")
+}
+
 /// Parse a snake_case enum name as serde would, naming the option on failure.
 fn parse_enum<T: for<'de> Deserialize<'de>>(
     option: &str,
@@ -129,7 +134,7 @@ pub fn run(a: PredictArgs) -> Result<Value> {
         Some(m) => Some(parse_enum::<Method>(
             "method",
             m,
-            "semi_implicit_euler, rk4, dopri5, dop853, sdirk2, radau5, ros2",
+            &Method::names(Method::ALL.iter().copied(), ", "),
         )?),
         None => None,
     };

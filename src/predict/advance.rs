@@ -9,13 +9,7 @@ use super::predictor::Predictor;
 use super::rhs::{Probe, Rhs, RowsAt};
 use crate::error::{Error, Result};
 use crate::predict::covariance::worker::CovarianceFeed;
-use crate::predict::integrators::radau::radau5_step;
-use crate::predict::integrators::ros2::ros2_step;
-use crate::predict::integrators::sdirk2::sdirk2_step;
-use crate::predict::integrators::{
-    Accel, DOP853, DOPRI5, Method, RK4, dop853_error_norm, dopri5_error_norm, explicit_step,
-    semi_implicit_euler_step,
-};
+use crate::predict::integrators::{Accel, StepOutcome};
 
 impl Predictor {
     /// q̈ at the lane's state at t into `ws.probe_qdd` (one evaluation, counted in the lane's):
@@ -158,52 +152,12 @@ impl Predictor {
                     rhs.apply(t, qn, vn);
                     ws.tau_n.copy_from_slice(rhs.tau);
                 }
-                // Adaptive methods: (accepted, next step); a rejected step left (q, v) as they were.
-                let adapt = match s.method {
-                    Method::SemiImplicitEuler => {
-                        semi_implicit_euler_step(&mut rhs, model, t, dt, q, v, step)?;
-                        None
-                    }
-                    Method::Rk4 => {
-                        explicit_step(&mut rhs, model, &RK4, t, dt, q, v, step)?;
-                        None
-                    }
-                    Method::Sdirk2 => {
-                        sdirk2_step(&mut rhs, model, t, dt, q, v, step)?;
-                        None
-                    }
-                    Method::Ros2 => {
-                        ros2_step(&mut rhs, model, t, dt, q, v, step)?;
-                        None
-                    }
-                    Method::Dopri5 => {
-                        explicit_step(&mut rhs, model, &DOPRI5, t, dt, q, v, step)?;
-                        let norm = dopri5_error_norm(step, v, s);
-                        let factor = (0.9 * norm.max(1e-10).powf(-0.2)).clamp(0.2, 5.0);
-                        if norm > 1.0 || !norm.is_finite() {
-                            step.restore(q, v);
-                            Some((false, dt * factor.min(0.5)))
-                        } else {
-                            Some((true, dt * factor))
-                        }
-                    }
-                    Method::Dop853 => {
-                        explicit_step(&mut rhs, model, &DOP853, t, dt, q, v, step)?;
-                        let norm = dop853_error_norm(step, v, s);
-                        let factor = (0.9 * norm.max(1e-12).powf(-1.0 / 8.0)).clamp(0.2, 10.0);
-                        if norm > 1.0 || !norm.is_finite() {
-                            step.restore(q, v);
-                            Some((false, dt * factor.min(0.5)))
-                        } else {
-                            Some((true, dt * factor))
-                        }
-                    }
-                    Method::Radau5 => {
-                        let o = radau5_step(&mut rhs, model, t, dt, q, v, radau, (s.rtol, s.atol))?;
-                        Some((o.accepted, o.h_next))
-                    }
-                };
-                if let Some((accepted, h_next)) = adapt {
+                // Adaptive methods: accepted or not, and the next step; a rejected step left
+                // (q, v) as they were.
+                let adapt = s
+                    .method
+                    .step(&mut rhs, model, (t, dt), q, v, step, radau, s)?;
+                if let Some(StepOutcome { accepted, h_next }) = adapt {
                     if !accepted {
                         *h = h_next;
                         if *h < 1e-14 * t1.max(1.0) {
@@ -250,8 +204,9 @@ impl Predictor {
                 if let Some(c) = cov.as_mut() {
                     let start = (&ws.qn[..], &ws.vn[..]);
                     let feedback = actuators.feedback();
-                    // ROS2's step brings its F and its increment (integrators/ros2.rs).
-                    let own = (s.method == Method::Ros2).then_some((&step.jac, &step.dx[..]));
+                    // A W-method's step brings its F and its increment (integrators/ros2.rs).
+                    let own =
+                        (s.method.integrator().is_w_method()).then_some((&step.jac, &step.dx[..]));
                     c.record_step(
                         rhs.sys,
                         s.method,

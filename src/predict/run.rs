@@ -6,7 +6,6 @@ use super::advance::companion_error;
 use super::covariance::CovariancePropagator;
 use super::covariance::worker::with_worker;
 use super::estimate::{self, Lane};
-use super::integrators::Method;
 use super::predictor::Predictor;
 use super::request::{CovarianceSamples, PredictionRequest};
 use super::settings::IntegrationSettings;
@@ -325,7 +324,7 @@ impl Predictor {
                 // left or entered, the current F re-formed for it (integrators/mod.rs,
                 // `JacobianScratch`), or a fresh one where it cannot be.
                 let mut fresh = on_f >= s.jacobian_spans;
-                if changed && !fresh && s.method == Method::Ros2 {
+                if changed && !fresh && s.method.integrator().is_w_method() {
                     let a = &mut lanes[0];
                     fresh = !a.step.reform(&self.actuators, (ts, &a.q, &a.v));
                 }
@@ -385,7 +384,7 @@ impl Predictor {
         (fresh_jacobian, shared): (bool, &mut usize),
     ) -> Result<()> {
         let (answer, comp) = lanes.split_at_mut(1);
-        if s.method == Method::Ros2 && fresh_jacobian {
+        if s.method.integrator().is_w_method() && fresh_jacobian {
             // The order holds with any F, but an older one damps the stiff modes less exactly
             // (settings.rs, `jacobian_spans`); the companion steps with the answer's.
             answer[0].step.invalidate();
@@ -394,7 +393,7 @@ impl Predictor {
         let largest = self.advance(&mut answer[0], None, work, (t0, t1), s)?;
         if s.error_estimate {
             // Its W follows its own dt when the F is the one it took last.
-            if s.method == Method::Ros2 && answer[0].step.forms != *shared {
+            if s.method.integrator().is_w_method() && answer[0].step.forms != *shared {
                 comp[0].step.share_jacobian(&answer[0].step);
                 *shared = answer[0].step.forms;
             }

@@ -11,7 +11,7 @@
 //! series. Semi-implicit Euler likewise. The result equals finite differences of the step
 //! (tests).
 
-mod ros2;
+pub(in crate::predict) mod ros2;
 mod stages;
 pub(in crate::predict) use ros2::ros2_with_step_jacobian;
 pub(in crate::predict) use stages::dynamics_derivatives;
@@ -23,7 +23,7 @@ use crate::dynamics::Baumgarte;
 use crate::error::{Error, Result};
 use crate::linalg::{gemm_columns, mat_vec_add};
 use crate::predict::integrators::lie::{StageMaps, dexp_inv, right_jacobian, transport};
-use crate::predict::integrators::{DOP853, DOPRI5, Method, RK4, Tableau};
+use crate::predict::integrators::{Method, Tableau};
 use crate::system::System;
 use nalgebra::DMatrix;
 
@@ -189,8 +189,9 @@ impl Linearization {
 }
 
 /// One step of `method` from (q, v) under the held generalized force τ with step `dt` [s],
-/// and its linearization, into `lin`. Semi-implicit Euler, RK4, DOPRI5 and DOP853 (as fixed
-/// steps) and ROS2; SDIRK2 and Radau5 are refused. Drift projection and force elements are not part of this step.
+/// and its linearization, into `lin`. The methods of [`Method::linearizable`] (the embedded
+/// pairs as fixed steps); the others (the implicit SDIRK2 and Radau5) are refused. Drift
+/// projection and force elements are not part of this step.
 #[allow(clippy::too_many_arguments)]
 pub fn linearize_step(
     sys: &mut System,
@@ -209,19 +210,9 @@ pub fn linearize_step(
     }
     // ∂q̈/∂τ enters only B and the joint springs' stiffness and damping.
     lin.dd.with_tau = lin.inputs || !lin.joint_springs.is_empty();
-    match method {
-        Method::SemiImplicitEuler => semi_implicit_euler(sys, lin, q, v, tau, dt),
-        Method::Rk4 => explicit(sys, lin, &RK4, q, v, tau, dt),
-        Method::Dopri5 => explicit(sys, lin, &DOPRI5, q, v, tau, dt),
-        Method::Dop853 => explicit(sys, lin, &DOP853, q, v, tau, dt),
-        Method::Ros2 => ros2::ros2(sys, lin, q, v, tau, dt),
-        Method::Sdirk2 | Method::Radau5 => Err(Error::Unsupported {
-            what: format!("linearize with {method:?}"),
-            why: "the implicit step's sensitivity is not implemented; use rk4, dopri5 or \
-                  semi_implicit_euler"
-                .into(),
-        }),
-    }
+    // The method's own linearized step (integrators/, `Step::linearize`): one of the functions
+    // below, or a refusal.
+    method.linearize(sys, lin, (q, v), tau, dt)
 }
 
 /// Seed of column c of [δq | δv | δτ]: (δq, δv, δτ) unit vectors.
@@ -233,7 +224,8 @@ fn seed(nv: usize, c: usize, which: usize, i: usize) -> f64 {
     }
 }
 
-fn semi_implicit_euler(
+/// The linearized semi-implicit Euler step.
+pub(in crate::predict) fn semi_implicit_euler(
     sys: &mut System,
     lin: &mut Linearization,
     q: &[f64],
@@ -305,7 +297,7 @@ fn finish_column(model: &crate::model::Model, lin: &mut Linearization, c: usize)
 
 /// An explicit Munthe-Kaas RK step (integrators/mod.rs) with its variations, all seed columns at
 /// once as matrix products (the stage's Lie maps built once, [`StageMaps`]).
-fn explicit(
+pub(in crate::predict) fn explicit(
     sys: &mut System,
     lin: &mut Linearization,
     tab: &Tableau,

@@ -3,132 +3,27 @@
 //! and a stage derivative is `k = (dexp⁻¹_{−Θ}(v), q̈)` ∈ R^{2nv}. Every buffer lives in a
 //! [`StepWorkspace`] sized once per model: a step allocates nothing.
 
+// Adding an integrator: its file here (its step in `Step`, what the rest of the prediction
+// knows of it in `Integrator`), its `mod` line, and its one entry in `methods!` (methods.rs).
 mod explicit;
 pub(in crate::predict) mod lie;
+mod methods;
 pub(in crate::predict) mod radau;
 mod radau_tableau;
 pub(in crate::predict) mod ros2;
 pub(in crate::predict) mod sdirk2;
 mod shifted;
+mod tableaus;
 
 use crate::actuators::Actuators;
 use crate::error::{Error, Result};
 use crate::model::Model;
-pub use explicit::{
-    DOP853, DOPRI5, MAX_STAGES, RK4, Tableau, explicit_step, semi_implicit_euler_step,
-};
-pub(in crate::predict) use explicit::{dop853_error_norm, dopri5_error_norm};
 use lie::dexp_inv;
+pub(in crate::predict) use methods::Step;
+pub use methods::{ErrorEstimator, Integrator, Method, StepOutcome};
 use nalgebra::DMatrix;
-use serde::{Deserialize, Serialize};
 pub(in crate::predict) use shifted::ShiftedFactor;
-
-/// The integration method a scene or request chooses.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Method {
-    /// Semi-implicit (symplectic) Euler: v⁺ = v + dt q̈(q, v), q⁺ = q ⊕ dt v⁺. Order 1.
-    SemiImplicitEuler,
-    /// Classical Runge–Kutta, order 4 (Munthe-Kaas on the group).
-    #[default]
-    Rk4,
-    /// Dormand–Prince 5(4), adaptive with rtol/atol and an error estimate.
-    Dopri5,
-    /// Dormand–Prince 8(5,3), adaptive with rtol/atol: tight tolerances on smooth scenes in
-    /// fewer evaluations than DOPRI5.
-    Dop853,
-    /// Alexander's 2-stage L-stable SDIRK (order 2) with simplified Newton: for stiff scenes.
-    Sdirk2,
-    /// Radau IIA of order 5 (3 implicit stages, L-stable), adaptive with rtol/atol (radau.rs):
-    /// for stiff scenes at any accuracy.
-    Radau5,
-    /// ROS2, a two-stage linearly implicit W-method of order 2, L-stable (ros2.rs): stiff
-    /// controlled scenes at planning accuracy, two evaluations and one Jacobian a step.
-    Ros2,
-}
-
-impl Method {
-    /// What the rest of the prediction needs to know of this method.
-    pub fn integrator(self) -> &'static dyn Integrator {
-        match self {
-            Method::SemiImplicitEuler => &explicit::SemiImplicitEuler,
-            Method::Rk4 => &explicit::Rk4,
-            Method::Dopri5 => &explicit::Dopri5,
-            Method::Dop853 => &explicit::Dop853,
-            Method::Sdirk2 => &sdirk2::Sdirk2,
-            Method::Radau5 => &radau::Radau5,
-            Method::Ros2 => &ros2::Ros2,
-        }
-    }
-
-    /// Order of the global error (error ∝ dt^p for fixed steps); an embedded pair's is that of
-    /// its propagated solution.
-    pub fn order(self) -> u32 {
-        self.integrator().order()
-    }
-
-    /// The name a scene or the CLI uses.
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::SemiImplicitEuler => "semi_implicit_euler",
-            Method::Rk4 => "rk4",
-            Method::Dopri5 => "dopri5",
-            Method::Dop853 => "dop853",
-            Method::Sdirk2 => "sdirk2",
-            Method::Radau5 => "radau5",
-            Method::Ros2 => "ros2",
-        }
-    }
-
-    /// The step adapts to rtol/atol (`dt` is only the first step).
-    pub fn is_adaptive(self) -> bool {
-        self.integrator().is_adaptive()
-    }
-
-    /// Explicit methods' stability limit of dt·|λ| on the imaginary axis (oscillators).
-    pub fn explicit_stability_limit(self) -> Option<f64> {
-        self.integrator().stability_limit()
-    }
-}
-
-/// How the error estimate's companion run is made finer than the answer (estimate.rs).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ErrorEstimator {
-    /// Two companion steps of dt/2 per step: the error divides by 2^p.
-    HalvedStep,
-    /// The companion's rtol and atol divided by 2^p (the adaptive methods).
-    TightenedTolerances,
-}
-
-/// What the prediction loop, its work bound, its error estimate and its covariance know of an
-/// integration method; the steps themselves are the family's functions, generic over the
-/// right-hand side ([`Accel`]) so that a dynamics evaluation is inlined into its stages.
-pub trait Integrator: Sync {
-    /// The method a scene names.
-    fn method(&self) -> Method;
-    /// Order p of the global error (∝ dt^p).
-    fn order(&self) -> u32;
-    /// Right-hand-side evaluations per step of a fixed-step method, counted before running;
-    /// None where the step adapts or iterates (counted while running).
-    fn evaluations_per_step(&self) -> Option<f64>;
-    /// The step adapts to rtol/atol (`dt` is only the first step).
-    fn is_adaptive(&self) -> bool;
-    /// The stages are implicit (a Newton iteration on the step's Jacobian).
-    fn is_implicit(&self) -> bool;
-    /// The stability region's extent along the imaginary axis, dt·|λ| (undamped oscillators), for
-    /// the explicit methods; None for the L-stable implicit ones.
-    fn stability_limit(&self) -> Option<f64>;
-    /// How the error estimate's companion is refined.
-    fn error_estimator(&self) -> ErrorEstimator {
-        match self.is_adaptive() {
-            true => ErrorEstimator::TightenedTolerances,
-            false => ErrorEstimator::HalvedStep,
-        }
-    }
-    /// The method whose step the covariance linearizes over chunks of this method's steps
-    /// (covariance/chunks.rs); None where the step's sensitivity is not implemented.
-    fn linearized_as(&self) -> Option<Method>;
-}
+pub use tableaus::{MAX_STAGES, Tableau};
 
 /// q̈ = f(t, q, v), and its Jacobian for the implicit methods.
 pub trait Accel {

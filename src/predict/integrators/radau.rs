@@ -21,7 +21,9 @@ use super::radau_tableau::RadauCoefficients;
 use crate::error::{Error, Result};
 use crate::linalg::{lu_in_place, lu_solve};
 use crate::model::Model;
-use crate::predict::integrators::{Accel, JacobianScratch, derivative, stage};
+use crate::predict::integrators::{
+    Accel, JacobianScratch, StepOutcome, StepWorkspace, derivative, stage,
+};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
 /// Newton iterations per step before the step is rejected (RADAU5's NIT).
@@ -30,14 +32,6 @@ const MAX_NEWTON: usize = 7;
 const KEEP_JACOBIAN: f64 = 1e-3;
 /// Safety factor of the step size controller.
 const SAFE: f64 = 0.9;
-
-/// What a step did: accepted (the state advanced) or rejected (the state is unchanged), and the
-/// step to try next [s].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct StepOutcome {
-    pub accepted: bool,
-    pub h_next: f64,
-}
 
 /// Buffers and memory of the Radau IIA integrator (Jacobian, factorizations, the last step's
 /// collocation polynomial), sized once per model.
@@ -513,5 +507,21 @@ impl super::Integrator for Radau5 {
     }
     fn linearized_as(&self) -> Option<super::Method> {
         None
+    }
+}
+
+impl super::Step for Radau5 {
+    fn step<F: Accel>(
+        &self,
+        f: &mut F,
+        model: &Model,
+        (t, dt): (f64, f64),
+        q: &mut [f64],
+        v: &mut [f64],
+        _: &mut StepWorkspace,
+        radau: &mut RadauWorkspace,
+        s: &crate::predict::IntegrationSettings,
+    ) -> Result<Option<StepOutcome>> {
+        radau5_step(f, model, t, dt, q, v, radau, (s.rtol, s.atol)).map(Some)
     }
 }

@@ -15,8 +15,11 @@
 
 use crate::error::Result;
 use crate::model::Model;
+use crate::predict::IntegrationSettings;
+use crate::predict::covariance::linearize::{self, Linearization};
+use crate::predict::integrators::radau::RadauWorkspace;
 use crate::predict::integrators::{
-    Accel, StepWorkspace, derivative, factor_shifted, stage, state_jacobian,
+    Accel, StepOutcome, StepWorkspace, derivative, factor_shifted, stage, state_jacobian,
 };
 
 /// γ of ROS2 (L-stable choice).
@@ -125,5 +128,36 @@ impl super::Integrator for Ros2 {
     }
     fn linearized_as(&self) -> Option<super::Method> {
         Some(super::Method::Ros2)
+    }
+    fn is_w_method(&self) -> bool {
+        true
+    }
+}
+
+impl super::Step for Ros2 {
+    fn step<F: Accel>(
+        &self,
+        f: &mut F,
+        model: &Model,
+        (t, dt): (f64, f64),
+        q: &mut [f64],
+        v: &mut [f64],
+        ws: &mut StepWorkspace,
+        _: &mut RadauWorkspace,
+        _: &IntegrationSettings,
+    ) -> Result<Option<StepOutcome>> {
+        ros2_step(f, model, t, dt, q, v, ws)?;
+        Ok(None)
+    }
+
+    fn linearize(
+        &self,
+        sys: &mut crate::system::System,
+        lin: &mut Linearization,
+        (q, v): (&[f64], &[f64]),
+        tau: &[f64],
+        dt: f64,
+    ) -> Result<()> {
+        linearize::ros2::ros2(sys, lin, q, v, tau, dt)
     }
 }

@@ -4,8 +4,10 @@
 
 use crate::error::{Error, Result};
 use crate::model::Model;
+use crate::predict::IntegrationSettings;
+use crate::predict::integrators::radau::RadauWorkspace;
 use crate::predict::integrators::{
-    Accel, StepWorkspace, derivative, factor_shifted, stage, state_jacobian,
+    Accel, StepOutcome, StepWorkspace, derivative, factor_shifted, stage, state_jacobian,
 };
 
 /// Alexander's L-stable SDIRK2 (γ = 1 − 1/√2) with a simplified Newton iteration on
@@ -155,5 +157,22 @@ impl super::Integrator for Sdirk2 {
     }
     fn linearized_as(&self) -> Option<super::Method> {
         None
+    }
+}
+
+impl super::Step for Sdirk2 {
+    fn step<F: Accel>(
+        &self,
+        f: &mut F,
+        model: &Model,
+        (t, dt): (f64, f64),
+        q: &mut [f64],
+        v: &mut [f64],
+        ws: &mut StepWorkspace,
+        _: &mut RadauWorkspace,
+        _: &IntegrationSettings,
+    ) -> Result<Option<StepOutcome>> {
+        sdirk2_step(f, model, t, dt, q, v, ws)?;
+        Ok(None)
     }
 }

@@ -59,7 +59,8 @@ fn solve_columns(w: &ShiftedFactor, m: &mut DMatrix<f64>, cols: usize) {
     }
 }
 
-pub(super) fn ros2(
+/// The linearized ROS2 step from (q, v) under the held τ.
+pub(in crate::predict) fn ros2(
     sys: &mut System,
     lin: &mut Linearization,
     q: &[f64],
