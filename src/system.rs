@@ -2,7 +2,8 @@
 //! workspace, built once from a scene. The CLI, the predictor and the ROS nodes go through here.
 
 use crate::algorithm::{
-    Data, center_of_mass, forward_kinematics, kinetic_energy, potential_energy,
+    Data, center_of_mass, forward_kinematics, forward_kinematics_pos, kinetic_energy,
+    potential_energy,
 };
 use crate::constraints::{ConstraintData, ConstraintForce, ConstraintSet, constraint_forces};
 use crate::derivatives::{
@@ -145,6 +146,13 @@ impl System {
     pub fn residuals(&mut self, q: &[f64], v: &[f64]) -> (f64, f64) {
         self.constraints
             .residuals(&self.model, &mut self.data, &mut self.cdata, q, v)
+    }
+
+    /// The body placements at q (positions only; frames through `algorithm::frame_placement`),
+    /// kept as [`System::data`] until the next evaluation.
+    pub fn placements_at(&mut self, q: &[f64]) -> &Data {
+        forward_kinematics_pos(&self.model, &mut self.data, q);
+        &self.data
     }
 
     /// The robot model (shared with the scene it was built from).

@@ -4,9 +4,9 @@
 //! base coordinates are the core's (`constraint_dynamics::model::base`).
 
 use constraint_dynamics::Model;
-use constraint_dynamics::constraints::{ConstraintForce as CoreForce, SlipTest};
+use constraint_dynamics::constraints::{ConstraintForce as CoreForce, Contact, ContactState};
 use constraint_dynamics::model::{BasePose, BaseTwist};
-use constraint_dynamics::predict::Trajectory;
+use constraint_dynamics::predict::{ContactJudge, Sample, Trajectory};
 use constraint_dynamics::spatial::Force;
 
 use crate::error::NodeError;
@@ -120,6 +120,52 @@ pub fn path_msg(model: &Model, traj: &Trajectory, start: Time, frame_id: &str) -
     }
 }
 
+/// The constraint forces at one state, as the core gives them (`constraint_forces_at`, or a
+/// prediction's sample).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ForcesAt<'a> {
+    /// Each constraint's force, in the scene's order.
+    pub forces: &'a [CoreForce],
+    /// The stacked multipliers λ (nc).
+    pub lambda: &'a [f64],
+    /// Jᵀλ (nv) [N or N·m].
+    pub generalized_force: &'a [f64],
+    /// nc − rank(J M⁻¹ Jᵀ).
+    pub rank_deficiency: usize,
+    /// Each contact judged at λ, in the order of [`ContactJudge::contacts`]; `None` without
+    /// contacts.
+    pub contacts: Option<&'a [ContactState]>,
+}
+
+impl<'a> ForcesAt<'a> {
+    /// The forces a prediction's sample carries (`None` when it was predicted without).
+    pub fn of_sample(s: &'a Sample) -> Option<Self> {
+        Some(ForcesAt {
+            forces: s.forces.as_deref()?,
+            lambda: s.lambda.as_deref()?,
+            generalized_force: s.generalized_force.as_deref().unwrap_or_default(),
+            rank_deficiency: s.rank_deficiency.unwrap_or(0),
+            contacts: s.contacts.as_deref(),
+        })
+    }
+
+    /// Each constraint's contact and its state (`judge`'s contacts are those the states were
+    /// judged with); `None` for a constraint that limits no force.
+    pub fn judged(&self, judge: &'a ContactJudge) -> Vec<Option<(&'a Contact, ContactState)>> {
+        let mut out = vec![None; self.forces.len()];
+        for ((k, c), s) in judge
+            .contacts()
+            .iter()
+            .zip(self.contacts.unwrap_or_default())
+        {
+            if let Some(slot) = out.get_mut(*k) {
+                *slot = Some((c, *s));
+            }
+        }
+        out
+    }
+}
+
 /// Everything a `ConstraintForces` message needs besides the forces.
 pub struct ForcesContext<'a> {
     /// Header stamp.
@@ -128,17 +174,15 @@ pub struct ForcesContext<'a> {
     pub world_frame: &'a str,
     /// Names of the velocity coordinates (the order of `generalized_force`).
     pub v_names: &'a [String],
-    /// Jᵀλ (nv) [N or N·m].
-    pub generalized_force: &'a [f64],
-    /// nc − rank(J M⁻¹ Jᵀ).
-    pub rank_deficiency: usize,
-    /// How slip is judged.
-    pub slip: SlipTest,
+    /// The contacts the forces' states were judged with.
+    pub contacts: &'a ContactJudge,
 }
 
-/// A `ConstraintForces` message from core forces: each wrench about its frame's origin, slip
-/// judged per rolling contact.
-pub fn constraint_forces_msg(forces: &[CoreForce], ctx: &ForcesContext) -> ConstraintForces {
+/// A `ConstraintForces` message from core forces: each wrench about its frame's origin; each
+/// contact's normal force N (λ_n, or the assumed one of a wheel without a normal row), its
+/// tangential force ‖λ_t‖, and `slipping` where it breaks — slip (‖λ_t‖ > μ N) or lift-off
+/// (λ_n < 0, N then the pull it would need).
+pub fn constraint_forces_msg(at: &ForcesAt, ctx: &ForcesContext) -> ConstraintForces {
     let world = |s: &str| {
         if s == "world" {
             ctx.world_frame.to_string()
@@ -146,24 +190,21 @@ pub fn constraint_forces_msg(forces: &[CoreForce], ctx: &ForcesContext) -> Const
             s.to_string()
         }
     };
-    let constraints = forces
-        .iter()
-        .map(|f| {
-            let verdict = ctx.slip.judge(f);
-            ConstraintForce {
-                name: f.name.clone(),
-                kind: f.kind.name().to_string(),
-                frame_id: world(&f.frame),
-                axes_frame_id: world(&f.axes),
-                wrench: wrench_msg(&f.wrench_at_frame_origin()),
-                multipliers: f.lambda.clone(),
-                row_names: f.rows.clone(),
-                position_residual: f.position_residual.clone(),
-                velocity_residual: f.velocity_residual.clone(),
-                normal_force: verdict.map_or(0.0, |v| v.normal_force),
-                tangential_force: verdict.map_or(0.0, |v| v.tangential_force),
-                slipping: verdict.is_some_and(|v| v.slipping),
-            }
+    let constraints = (at.forces.iter())
+        .zip(at.judged(ctx.contacts))
+        .map(|(f, judged)| ConstraintForce {
+            name: f.name.clone(),
+            kind: f.kind.name().to_string(),
+            frame_id: world(&f.frame),
+            axes_frame_id: world(&f.axes),
+            wrench: wrench_msg(&f.wrench_at_frame_origin()),
+            multipliers: f.lambda.clone(),
+            row_names: f.rows.clone(),
+            position_residual: f.position_residual.clone(),
+            velocity_residual: f.velocity_residual.clone(),
+            normal_force: judged.and_then(|(_, s)| s.normal_force).unwrap_or(0.0),
+            tangential_force: judged.map_or(0.0, |(c, _)| c.tangential_force(at.lambda)),
+            slipping: judged.is_some_and(|(_, s)| s.breaks.is_some()),
         })
         .collect();
     ConstraintForces {
@@ -173,8 +214,8 @@ pub fn constraint_forces_msg(forces: &[CoreForce], ctx: &ForcesContext) -> Const
         },
         constraints,
         v_names: ctx.v_names.to_vec(),
-        generalized_force: ctx.generalized_force.to_vec(),
-        rank_deficiency: ctx.rank_deficiency as u32,
+        generalized_force: at.generalized_force.to_vec(),
+        rank_deficiency: at.rank_deficiency as u32,
     }
 }
 

@@ -13,7 +13,8 @@
 //! normal row is its one row when `unilateral`, else world z when it has `friction`; the other
 //! rows are tangential.
 
-use super::{Constraint, ConstraintSet};
+use super::{Constraint, ConstraintKind, ConstraintSet};
+use crate::model::Model;
 use serde::Serialize;
 
 /// A contact of a constraint set. Rows are indices into the stacked λ of the set.
@@ -38,9 +39,33 @@ pub struct ContactLimits {
     /// `slip.friction_coefficient`); `None`: their friction is unchecked.
     pub friction: Option<f64>,
     /// Normal force [N] of a contact without a normal row (a wheel on a planar base: the nodes'
-    /// `SlipTest` fallback); `None`: its friction is unchecked. Lift-off of such a contact is
-    /// never checked: nothing in the model can tell it.
+    /// `slip.planar_normal_force`, [`ContactLimits::assumed`]); `None`: its friction is
+    /// unchecked. Lift-off of such a contact is never checked: nothing in the model can tell it.
     pub normal_force: Option<f64>,
+}
+
+impl ContactLimits {
+    /// μ `friction` [-] for the contacts of `set` that declare none, and as the normal force of
+    /// a wheel without a normal row `planar_normal_force` [N] when positive, else the model's
+    /// weight m·|g| shared equally by the set's rolling contacts (the ROS nodes' `slip.*`).
+    pub fn assumed(
+        model: &Model,
+        set: &ConstraintSet,
+        friction: f64,
+        planar_normal_force: f64,
+    ) -> Self {
+        let rolling = (set.items.iter())
+            .filter(|c| c.kind() == ConstraintKind::Rolling)
+            .count();
+        let normal_force = match planar_normal_force > 0.0 {
+            true => planar_normal_force,
+            false => model.total_mass() * model.gravity.norm() / rolling.max(1) as f64,
+        };
+        ContactLimits {
+            friction: Some(friction),
+            normal_force: Some(normal_force),
+        }
+    }
 }
 
 /// How a contact breaks ideal rolling (or sticking).
@@ -72,8 +97,8 @@ pub struct ContactState {
 impl Contact {
     /// Judge this contact at the stacked multipliers `lambda` (nc) under `limits`. Lift-off
     /// when λ_n < −`pull_tolerance` [N] (a contact that carries nothing may read a rounding
-    /// error below zero); else slip when ‖λ_t‖ > μ max(N, 0), the rule of [`super::SlipTest`] (at
-    /// ‖λ_t‖ = μ N the contact still grips). Allocates nothing.
+    /// error below zero); else slip when ‖λ_t‖ > μ max(N, 0) (at ‖λ_t‖ = μ N the contact still
+    /// grips: Coulomb's cone is closed). Allocates nothing.
     pub fn judge(
         &self,
         lambda: &[f64],
@@ -95,11 +120,7 @@ impl Contact {
                 ..ContactState::default()
             };
         };
-        // hypot: finite wherever the components are (a sum of squares can overflow).
-        let t = self
-            .tangential
-            .iter()
-            .fold(0.0, |m: f64, &r| m.hypot(lambda[r]));
+        let t = self.tangential_force(lambda);
         let friction_used = (n > 0.0 && mu > 0.0)
             .then(|| t / (mu * n))
             .filter(|x| x.is_finite());
@@ -110,6 +131,13 @@ impl Contact {
             // and no slip without a tangential force.
             breaks: (t > mu * n.max(0.0)).then_some(BreakKind::Slip),
         }
+    }
+
+    /// ‖λ_t‖ at the stacked multipliers `lambda` (nc) [N]: the tangential force the contact
+    /// needs.
+    pub fn tangential_force(&self, lambda: &[f64]) -> f64 {
+        // hypot: finite wherever the components are (a sum of squares can overflow).
+        (self.tangential.iter()).fold(0.0, |m: f64, &r| m.hypot(lambda[r]))
     }
 
     /// Contact `k` of `set`, or `None` when the constraint limits no force (a bilateral point

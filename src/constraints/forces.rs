@@ -247,3 +247,34 @@ pub fn constraint_forces(
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wrench_moves_to_the_frame_origin() {
+        // Contact 0.05 m below the wheel centre: τ_o = (p − o) × f = (0, 0, −0.05) × (2, 0, 10)
+        // = (0, −0.1, 0).
+        let f = ConstraintForce {
+            name: "c".into(),
+            kind: ConstraintKind::Rolling,
+            frame: "wheel".into(),
+            frame_origin_world: Some([0.0, 0.0, 0.05]),
+            axes: "world".into(),
+            rows: vec![],
+            lambda: vec![],
+            force: [2.0, 0.0, 10.0],
+            torque: [0.0, 0.0, 0.0],
+            point_world: [0.0, 0.0, 0.0],
+            position_residual: vec![],
+            velocity_residual: vec![],
+            normal_force: Some(10.0),
+            tangential_force: Some(2.0),
+            generalized_force: None,
+        };
+        let w = f.wrench_at_frame_origin();
+        assert_eq!([w.ang.x, w.ang.y, w.ang.z], [0.0, -0.1, 0.0]);
+        assert_eq!([w.lin.x, w.lin.y, w.lin.z], [2.0, 0.0, 10.0]);
+    }
+}

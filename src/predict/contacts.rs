@@ -5,7 +5,8 @@
 //! (`slip`) or a contact would have to pull (`lift_off`).
 //!
 //! The prediction itself never changes: it keeps every contact rolling whatever force that
-//! takes; the judgement only reads the λ each sample already holds. μ is the contact's own
+//! takes; the judgement only reads the λ each sample already holds. The ROS nodes judge the
+//! forces they publish with the same [`ContactJudge`]. μ is the contact's own
 //! (`friction:`), else [`ContactLimits::friction`] of the request; N is the contact's normal
 //! row, else [`ContactLimits::normal_force`] (a wheel on a planar base). What neither gives is
 //! listed under [`ContactCheck::unchecked`], as the acceleration envelope lists it, never
@@ -49,32 +50,36 @@ pub struct ContactCheck {
 
 /// A scene's contacts and the tolerance of their lift-off, built once with the predictor.
 #[derive(Clone, Debug, Default)]
-pub(super) struct ContactJudge {
-    contacts: Vec<Contact>,
+pub struct ContactJudge {
+    /// (index of the constraint, its contact), in the scene's order.
+    contacts: Vec<(usize, Contact)>,
     /// λ_n may read this far below zero before a contact counts as pulling [N]: the envelope's
     /// activity tolerance of the weight m·|g| (1 N without gravity).
     pull_tolerance: f64,
 }
 
 impl ContactJudge {
-    pub(super) fn new(model: &Model, set: &ConstraintSet) -> Self {
+    /// The contacts of `set` on `model`.
+    pub fn new(model: &Model, set: &ConstraintSet) -> Self {
         let weight = model.total_mass() * model.gravity.norm();
         let scale = if weight > 0.0 { weight } else { 1.0 };
         Self {
-            contacts: Contact::all(set).into_iter().map(|(_, c)| c).collect(),
+            contacts: Contact::all(set),
             pull_tolerance: ACTIVE_TOLERANCE * scale,
         }
     }
 
+    /// (index of the constraint, its contact) of each contact judged, in the order of
+    /// [`ContactJudge::judge`]'s states and of `Sample::contacts`.
+    pub fn contacts(&self) -> &[(usize, Contact)] {
+        &self.contacts
+    }
+
     /// Each contact at `lambda` (nc); None without contacts. One allocation (the sample's list).
-    pub(super) fn judge(
-        &self,
-        lambda: &[f64],
-        limits: &ContactLimits,
-    ) -> Option<Vec<ContactState>> {
+    pub fn judge(&self, lambda: &[f64], limits: &ContactLimits) -> Option<Vec<ContactState>> {
         (!self.contacts.is_empty()).then(|| {
             (self.contacts.iter())
-                .map(|c| c.judge(lambda, limits, self.pull_tolerance))
+                .map(|(_, c)| c.judge(lambda, limits, self.pull_tolerance))
                 .collect()
         })
     }
@@ -87,7 +92,7 @@ impl ContactJudge {
         limits: &ContactLimits,
     ) -> ContactCheck {
         let unchecked = (self.contacts.iter())
-            .flat_map(|c| {
+            .flat_map(|(_, c)| {
                 unchecked_contact_limits(c, limits).map(|l| NamedLimit {
                     kind: l.name(),
                     name: c.name.clone(),
@@ -101,7 +106,7 @@ impl ContactJudge {
                 .find(|(_, s)| s.breaks.is_some())?;
             Some(ContactBreak {
                 t,
-                contact: self.contacts[k].name.clone(),
+                contact: self.contacts[k].1.name.clone(),
                 kind: s.breaks?,
                 friction_used: s.friction_used,
                 // A break has a normal force: a lift-off reads its row, a slip its N.
@@ -109,7 +114,7 @@ impl ContactJudge {
             })
         });
         ContactCheck {
-            contacts: self.contacts.iter().map(|c| c.name.clone()).collect(),
+            contacts: self.contacts.iter().map(|(_, c)| c.name.clone()).collect(),
             unchecked,
             first_break,
         }

@@ -30,7 +30,7 @@ mod run;
 mod settings;
 mod trajectory;
 
-pub use contacts::{ContactBreak, ContactCheck};
+pub use contacts::{ContactBreak, ContactCheck, ContactJudge};
 pub use covariance::linearize::{Linearization, linearize_step};
 pub use covariance::{CovariancePropagator, UncertaintySpec};
 pub use drift::DriftProjector;

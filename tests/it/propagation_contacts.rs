@@ -1,7 +1,7 @@
 //! When ideal rolling breaks (predict/contacts.rs): a prediction with forces reports the first
 //! sample and contact where the motion needs more friction than μ (`slip`) or a contact would
 //! have to pull (`lift_off`), against closed forms written here from the URDF's numbers, and
-//! against the forces node's own slip judgement (`SlipTest::judge`) on the same forces.
+//! against Coulomb's rule written out on the same sample's forces.
 //!
 //! The cart (tests/data/cart_torque_ramp.yaml, urdf/cart_tall_mass.urdf) is symmetric left to
 //! right, on a flat floor, starting at rest; both wheels get the same torque τ(t) = k t. It
@@ -27,7 +27,7 @@ use crate::common;
 
 use common::repo_dir;
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::constraints::{BreakKind, ContactLimits, SlipTest};
+use constraint_dynamics::constraints::{BreakKind, ContactLimits};
 use constraint_dynamics::predict::{PredictionRequest, Predictor, Trajectory};
 use constraint_dynamics::scene::SceneFile;
 use constraint_dynamics::{Scene, System};
@@ -143,17 +143,13 @@ fn a_torque_ramp_slips_the_wheels_when_the_closed_form_says() {
         "{got} vs {used}; N {}",
         b.normal_force
     );
-    // The forces node's judgement on the same forces flags the same contact at that sample and
-    // not at the one before (its fallback normal force is unused: the wheels have normal rows).
-    let slip = SlipTest {
-        friction_coefficient: MU,
-        fallback_normal_force: f64::NAN,
-    };
+    // Coulomb's rule |f_t| > μ N on the same sample's forces flags the same contact at that
+    // sample and not at the one before.
     let k = sample_at(&traj, b.t);
     let judged = |i: usize| {
         let forces = traj.samples[i].forces.as_ref().unwrap();
         let f = forces.iter().find(|f| f.name == b.contact).unwrap();
-        slip.judge(f).unwrap().slipping
+        f.tangential_force.unwrap() > MU * f.normal_force.unwrap()
     };
     assert!(judged(k) && !judged(k - 1));
     // Per sample: the caster has no friction to judge; both wheels use the same share.
@@ -288,13 +284,21 @@ fn a_planar_base_lists_its_wheels_unchecked_unless_the_caller_assumes_their_limi
         ]
     );
     assert!(check.first_break.is_none());
-    // The nodes' rule (SlipTest: μ = 0.8, N = m·|g| / 2): friction judged, lift-off still not,
-    // and every sample's verdict is the forces node's.
+    // The nodes' rule (μ = 0.8, N = m·|g| / 2 with urdf/diff_drive.urdf's m = 8 + 2 × 0.5 +
+    // 0.2 kg): friction judged, lift-off still not, and every sample's verdict is Coulomb's.
     let sys = System::from_scene(&scene).unwrap();
-    let slip = SlipTest::new(sys.model(), sys.constraints(), 0.8, 0.0);
-    let traj = p
-        .predict(&req.contact_limits(slip.contact_limits()))
-        .unwrap();
+    let limits = ContactLimits::assumed(sys.model(), sys.constraints(), 0.8, 0.0);
+    let weight_share = 9.2 * G / 2.0;
+    let n = limits.normal_force.unwrap();
+    assert!((n - weight_share).abs() <= 1e-14 * weight_share, "{n}");
+    assert_eq!(limits.friction, Some(0.8));
+    let given = ContactLimits::assumed(sys.model(), sys.constraints(), 0.8, 30.0);
+    assert_eq!(
+        given.normal_force,
+        Some(30.0),
+        "a positive planar normal force wins"
+    );
+    let traj = p.predict(&req.contact_limits(limits)).unwrap();
     let check = traj.contact_check.as_ref().unwrap();
     let lift_off_only = check.unchecked.iter().all(|u| u.kind == "lift_off");
     assert!(lift_off_only && check.unchecked.len() == 2);
@@ -304,11 +308,10 @@ fn a_planar_base_lists_its_wheels_unchecked_unless_the_caller_assumes_their_limi
         let states = s.contacts.as_ref().unwrap();
         for (state, name) in states.iter().zip(&check.contacts) {
             let forces = s.forces.as_ref().unwrap();
-            let verdict = slip
-                .judge(forces.iter().find(|f| &f.name == name).unwrap())
-                .unwrap();
-            assert_eq!(state.breaks.is_some(), verdict.slipping);
-            assert_eq!(state.normal_force, Some(verdict.normal_force));
+            let f = forces.iter().find(|f| &f.name == name).unwrap();
+            let slipping = f.tangential_force.unwrap() > 0.8 * n;
+            assert_eq!(state.breaks.is_some(), slipping);
+            assert_eq!(state.normal_force, Some(n));
         }
     }
 }

@@ -3,7 +3,7 @@
 //! At the latest state (or one the request gives) under the request's joint torques (or the
 //! measured efforts, or none) plus the scene's force elements, the core's
 //! [`constraint_forces_at`] gives q̈, λ and each constraint's wrench; this module names them
-//! for ROS and judges slip.
+//! for ROS and judges the contacts as a prediction does (slip and lift-off).
 
 pub mod ros;
 
@@ -11,6 +11,7 @@ use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::forces::ForceElements;
 use serde::{Deserialize, Serialize};
 
+use crate::convert::ForcesAt;
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::constraint_dynamics_msgs::srv::{
@@ -130,13 +131,16 @@ impl ForcesNode {
             (true, Some(s)) => s,
             _ => now,
         };
-        let msg = self.robot.forces_msg(
-            common,
-            &at.forces,
-            &at.generalized_force,
-            at.rank_deficiency,
-            stamp,
-        );
+        let limits = self.robot.contact_limits(common);
+        let states = self.robot.contact_judge().judge(&at.lambda, &limits);
+        let forces = ForcesAt {
+            forces: &at.forces,
+            lambda: &at.lambda,
+            generalized_force: &at.generalized_force,
+            rank_deficiency: at.rank_deficiency,
+            contacts: states.as_deref(),
+        };
+        let msg = self.robot.forces_msg(common, &forces, stamp);
         let slipping: Vec<&str> = msg
             .constraints
             .iter()

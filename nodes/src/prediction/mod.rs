@@ -10,7 +10,7 @@ pub mod ros;
 use constraint_dynamics::predict::{PredictionRequest, Predictor};
 use nalgebra::DMatrix;
 
-use crate::convert::{path_msg, time_plus};
+use crate::convert::{ForcesAt, path_msg, time_plus};
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::constraint_dynamics_msgs::srv::{
@@ -201,8 +201,8 @@ impl PredictionNode {
             horizon: Some(req.horizon),
             start_covariance: p0.as_ref(),
             forces: req.with_forces,
-            // μ where a contact declares none, N of a planar base's wheels: the slip test's.
-            contact_limits: self.robot.slip_test(common).contact_limits(),
+            // μ where a contact declares none, N of a planar base's wheels: the parameters'.
+            contact_limits: self.robot.contact_limits(common),
             ..PredictionRequest::new(&q, &v)
         };
         let traj = self
@@ -215,13 +215,8 @@ impl PredictionNode {
             .samples
             .iter()
             .filter_map(|s| {
-                let f = s.forces.as_ref()?;
-                let gf = s.generalized_force.as_deref().unwrap_or_default();
-                let rank = s.rank_deficiency.unwrap_or(0);
-                Some(
-                    self.robot
-                        .forces_msg(common, f, gf, rank, time_plus(now, s.t)),
-                )
+                let at = ForcesAt::of_sample(s)?;
+                Some(self.robot.forces_msg(common, &at, time_plus(now, s.t)))
             })
             .collect();
         let last = traj

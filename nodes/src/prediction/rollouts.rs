@@ -5,7 +5,7 @@ use constraint_dynamics::actuators::Command;
 use constraint_dynamics::predict::{IntegrationOverrides, PredictionRequest, RolloutOptions};
 
 use super::PredictionNode;
-use crate::convert::{pose_msg, time_plus, twist_msg};
+use crate::convert::{ForcesAt, pose_msg, time_plus, twist_msg};
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::constraint_dynamics_msgs::srv::{RolloutsRequest, RolloutsResponse};
@@ -108,6 +108,7 @@ impl PredictionNode {
                 ..IntegrationOverrides::default()
             },
             forces: req.with_forces,
+            contact_limits: self.robot.contact_limits(common),
             ..PredictionRequest::new(&q, &v)
         };
         let trajectories = self
@@ -132,13 +133,9 @@ impl PredictionNode {
             for s in traj.samples.iter().skip(1) {
                 reply.poses.push(pose_msg(&model.base_pose(&s.q)));
                 reply.twists.push(twist_msg(&model.base_twist(&s.v)));
-                if let Some(f) = &s.forces {
-                    let gf = s.generalized_force.as_deref().unwrap_or_default();
-                    let rank = s.rank_deficiency.unwrap_or(0);
+                if let Some(at) = ForcesAt::of_sample(s) {
                     let stamp = time_plus(now, s.t);
-                    reply
-                        .forces
-                        .push(self.robot.forces_msg(common, f, gf, rank, stamp));
+                    reply.forces.push(self.robot.forces_msg(common, &at, stamp));
                 }
             }
         }

@@ -1,12 +1,78 @@
-//! What `/diagnostics` says of the contacts along the last prediction: its first slip or
+//! What the predictor says of its contacts: on `/rosout`, each contact of the start state that
+//! starts to slip or lift off ([`BreakLog`]); on `/diagnostics`, the last prediction's first slip or
 //! lift-off as a WARN ("slip at t=0.42 s on left_wheel_contact (friction used 1.3 × μ)"), and the
 //! limits it could not check. The core judges every sample (`Trajectory::contact_check`); μ is a
 //! contact's own `friction:`, else `slip.friction_coefficient`, and a wheel without a normal row
-//! (planar base) takes the slip test's normal force (`SlipTest::contact_limits`, the one rule
-//! shared with `~/constraint_forces`).
+//! (planar base) takes `slip.planar_normal_force` or its share of the weight
+//! (`Robot::contact_limits`, the one rule shared with `~/constraint_forces`).
 
-use constraint_dynamics::constraints::BreakKind;
+use std::time::Instant;
+
+use constraint_dynamics::constraints::{BreakKind, Contact, ContactLimits, ContactState};
 use constraint_dynamics::predict::{ContactBreak, ContactCheck};
+
+use crate::msg::constraint_dynamics_msgs::ConstraintForces;
+use crate::ros::logging::NodeLog;
+
+/// How each constraint broke at the last start state, and when a break was last warned of.
+pub struct BreakLog {
+    last: Vec<Option<BreakKind>>,
+    warned: Option<Instant>,
+}
+
+impl BreakLog {
+    /// For `n` constraints, none broken.
+    pub fn new(n: usize) -> Self {
+        BreakLog {
+            last: vec![None; n],
+            warned: None,
+        }
+    }
+
+    /// Logs the transitions at a new start state: a WARN when a contact starts to slip or lift
+    /// off (and at most once a second while one does), an INFO when it holds again. `judged[k]`
+    /// is constraint k's contact and state under `limits`, `forces` their message.
+    pub fn update(
+        &mut self,
+        log: &NodeLog,
+        forces: &ConstraintForces,
+        judged: &[Option<(&Contact, ContactState)>],
+        limits: &ContactLimits,
+    ) {
+        let now = Instant::now();
+        let throttled = (self.warned).is_some_and(|t| now.duration_since(t).as_secs_f64() < 1.0);
+        for (k, c) in forces.constraints.iter().enumerate() {
+            let was = self.last.get(k).copied().flatten();
+            let judged = judged.get(k).copied().flatten();
+            let breaks = judged.and_then(|(_, s)| s.breaks);
+            match (breaks, judged) {
+                (Some(kind), Some((contact, _))) if was.is_none() || !throttled => {
+                    // A slip is judged only where μ is known: the 0 never shows.
+                    let mu = contact.friction_under(limits).unwrap_or(0.0);
+                    log.warn(&match kind {
+                        BreakKind::Slip => format!(
+                            "slip: contact '{}' needs a tangential force of {:.3} N > μ·N = {mu} × \
+                             {:.3} N",
+                            c.name, c.tangential_force, c.normal_force
+                        ),
+                        BreakKind::LiftOff => format!(
+                            "lift-off: contact '{}' would have to pull with {:.3} N",
+                            c.name, -c.normal_force
+                        ),
+                    });
+                    self.warned = Some(now);
+                }
+                (None, _) if was.is_some() => {
+                    log.info(&format!("contact '{}' holds again", c.name))
+                }
+                _ => {}
+            }
+            if let Some(s) = self.last.get_mut(k) {
+                *s = breaks;
+            }
+        }
+    }
+}
 
 /// The WARN of a predicted break.
 pub fn warning(b: &ContactBreak) -> String {

@@ -1,7 +1,7 @@
 //! What rviz2 shows of a prediction, as plain functions (data in, messages out):
 //! - an arrow per constraint force at its point of application, length = force × scale,
-//!   coloured by the slip test (rolling contacts green while they grip, red when slipping;
-//!   other constraints blue);
+//!   coloured by the contact judgement (contacts green while they hold, red where they slip or
+//!   lift off; other constraints blue);
 //! - the robot's footprint along the predicted path, one outline every `footprint_period`;
 //! - each constraint's wrench as a `WrenchStamped` in its own frame (rviz2's Wrench display).
 //!
@@ -10,7 +10,7 @@
 //! robot's links to place them. Nothing non-finite is emitted: a force or pose with a NaN or an
 //! infinity is left out.
 
-use constraint_dynamics::constraints::{ConstraintForce, SlipTest};
+use constraint_dynamics::constraints::{ConstraintForce, ContactState};
 
 use crate::msg::builtin_interfaces::{Duration, Time};
 use crate::msg::geometry_msgs::{Point, Vector3, Wrench, WrenchStamped};
@@ -40,9 +40,9 @@ pub const FORCES_NS: &str = "constraint_forces";
 /// Namespace of the footprint outlines (one marker, id 0).
 pub const FOOTPRINT_NS: &str = "predicted_footprint";
 
-/// Rolling contact that grips.
+/// Contact that holds (grips and pushes).
 pub const GRIP: ColorRGBA = rgba(0.1, 0.8, 0.1);
-/// Rolling contact that slips.
+/// Contact that breaks (slips or lifts off).
 pub const SLIP: ColorRGBA = rgba(1.0, 0.1, 0.1);
 /// Any other constraint.
 pub const OTHER: ColorRGBA = rgba(0.2, 0.4, 1.0);
@@ -95,10 +95,11 @@ fn world_force(
 }
 
 /// One arrow per constraint with a point of application (couplings have none), from that
-/// point along the force on the robot, in `header.frame_id` (the fixed frame).
+/// point along the force on the robot, in `header.frame_id` (the fixed frame); `contacts[k]`
+/// is constraint k's contact judged at the forces (`None`: not a contact).
 pub fn force_markers(
     forces: &[ConstraintForce],
-    slip: &SlipTest,
+    contacts: &[Option<ContactState>],
     rotation: &dyn Fn(&str) -> Option<Rotation>,
     header: &Header,
     style: &MarkerStyle,
@@ -116,8 +117,8 @@ pub fn force_markers(
         if !finite(&tip) || !finite(&p) {
             continue;
         }
-        let color = match slip.judge(f) {
-            Some(v) if v.slipping => SLIP,
+        let color = match contacts.get(k).copied().flatten() {
+            Some(s) if s.breaks.is_some() => SLIP,
             Some(_) => GRIP,
             None => OTHER,
         };

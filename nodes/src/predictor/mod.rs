@@ -1,7 +1,7 @@
 //! `cd_predictor`: at its rate, predicts from the latest state under the latest command and
 //! publishes the base at the horizon (`~/predicted_odom`), the path (`~/predicted_path`) and the
-//! constraint forces at the current state (`~/constraint_forces`), with slip transitions
-//! logged, and the acceleration envelope at that state (`~/acceleration_limits`, [`envelope`]),
+//! constraint forces at the current state (`~/constraint_forces`, the prediction's first
+//! sample), with its contacts' slips and lift-offs logged, and the acceleration envelope at that state (`~/acceleration_limits`, [`envelope`]),
 //! which may also drive a velocity smoother's limits ([`smoother`]). Everything the predictor decides to publish is decided in [`PredictorNode::periodic`].
 //!
 //! The predicted odometry carries the covariance the core propagates from the start covariance
@@ -21,14 +21,14 @@ use std::time::{Duration, Instant};
 
 use constraint_dynamics::Scene;
 use constraint_dynamics::algorithm::frame_placement;
-use constraint_dynamics::applied::constraint_forces_at;
+use constraint_dynamics::constraints::{ConstraintForce, ContactState};
 use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::predict::{
     ContactCheck, CovarianceSamples, PredictionRequest, Predictor, Trajectory,
 };
 use constraint_dynamics::system::System;
 
-use crate::convert::{path_msg, pose_msg, time_plus, twist_msg};
+use crate::convert::{ForcesAt, path_msg, pose_msg, time_plus, twist_msg};
 use crate::covariance::odometry_covariance;
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
@@ -78,8 +78,8 @@ pub enum PredictorInput {
 pub struct PredictorNode {
     robot: Robot,
     predictor: Predictor,
-    /// The system and force elements of the constraint forces at the start state (apart from
-    /// the predictor's, whose workspace its runs own).
+    /// The system and force elements of the envelope and the markers' frame rotations at the
+    /// start state (apart from the predictor's, whose workspace its runs own).
     start: (System, ForceElements),
     params: NodeParams<PredictorParams>,
     log: NodeLog,
@@ -87,10 +87,9 @@ pub struct PredictorNode {
     last_command: Option<([f64; 2], Time)>,
     /// One WARN per reason a command is only partly used, per window.
     command_log: DropLog,
-    /// Slip flags of the last prediction (to log transitions), and the last slip warning.
-    last_slip: Vec<bool>,
-    last_slip_log: Option<Instant>,
-    /// Rolling contacts slipping at the last prediction's start (for `/diagnostics`).
+    /// The contacts' breaks at the last prediction's start, logged as they change.
+    break_log: contact_break::BreakLog,
+    /// Contacts slipping or lifting off at the last prediction's start (for `/diagnostics`).
     slipping: Vec<String>,
     /// max |φ| at the last prediction's horizon [m or rad] (for `/diagnostics`).
     position_residual: f64,
@@ -154,8 +153,7 @@ impl NodeLogic for PredictorNode {
             log,
             last_command: None,
             command_log: DropLog::default(),
-            last_slip: vec![false; nc],
-            last_slip_log: None,
+            break_log: contact_break::BreakLog::new(nc),
             slipping: Vec::new(),
             position_residual: 0.0,
             start_covariance,
@@ -319,7 +317,7 @@ impl PredictorNode {
             // Every sample's contacts judged: no prediction drives past a slip or a lift-off
             // unsaid (`/diagnostics`).
             forces: true,
-            contact_limits: self.robot.slip_test(common).contact_limits(),
+            contact_limits: self.robot.contact_limits(common),
             ..PredictionRequest::new(&q, &v)
         };
         let traj = self
@@ -328,19 +326,17 @@ impl PredictorNode {
             .map_err(NodeError::core("prediction"))?;
         let odom = self.odometry_at_horizon(&traj, now)?;
         let path = path_msg(self.robot.model(), &traj, now, &common.frames.odom_frame);
-        // Forces at the start state, under the torques the controllers apply in the first tick.
-        let tau = &traj.samples[0].actuator_torque;
-        let (sys, force_elements) = &mut self.start;
-        let at = constraint_forces_at(sys, force_elements, (0.0, &q, &v), tau)
-            .map_err(NodeError::core("constraint forces"))?;
-        let forces = self.robot.forces_msg(
-            common,
-            &at.forces,
-            &at.generalized_force,
-            at.rank_deficiency,
-            now,
-        );
-        self.log_slip(&forces);
+        // Forces at the start state, under the torques the controllers apply in the first tick:
+        // the prediction's first sample, its contacts judged as every sample's are.
+        let zero = vec![0.0; self.robot.model().nv];
+        let at = ForcesAt::of_sample(&traj.samples[0]).unwrap_or(ForcesAt {
+            generalized_force: &zero, // no constraints: no forces
+            ..ForcesAt::default()
+        });
+        let forces = self.robot.forces_msg(common, &at, now);
+        let judged = at.judged(self.robot.contact_judge());
+        let states: Vec<Option<ContactState>> = judged.iter().map(|j| j.map(|(_, s)| s)).collect();
+        (self.break_log).update(&self.log, &forces, &judged, &request.contact_limits);
         self.slipping = forces
             .constraints
             .iter()
@@ -348,8 +344,7 @@ impl PredictorNode {
             .map(|c| c.name.clone())
             .collect();
         self.position_residual = traj.samples.last().map_or(0.0, |s| s.position_residual);
-        let (markers, wrenches) = self.markers(&at.forces, &path, now);
-        // Last: the envelope's kinematics pass replaces the start state's in `self.start`.
+        let (markers, wrenches) = self.markers(at.forces, &states, &q, &path, now);
         let limits = match self.params.node.envelope.enabled {
             true => {
                 let (sys, elements) = &mut self.start;
@@ -376,17 +371,22 @@ impl PredictorNode {
         })
     }
 
-    /// The rviz2 markers and wrenches of one prediction (forces at the start state, whose
-    /// kinematics the system still holds; the footprint along `path`).
+    /// The rviz2 markers and wrenches of one prediction: the forces at the start state `q`
+    /// with each constraint's contact judged there (`None`: not a contact), the footprint along
+    /// `path`.
     fn markers(
         &mut self,
-        forces: &[constraint_dynamics::constraints::ConstraintForce],
+        forces: &[ConstraintForce],
+        contacts: &[Option<ContactState>],
+        q: &[f64],
         path: &Path,
         now: Time,
     ) -> (Option<MarkerArray>, Vec<(String, WrenchStamped)>) {
         let p = &self.params.node.markers;
         let common = &self.params.common;
-        let sys = &self.start.0;
+        let sys = &mut self.start.0;
+        sys.placements_at(q);
+        let sys = &*sys;
         // Frame axes → world at the start state (the forces' state).
         let rotation = |frame: &str| -> Option<markers::Rotation> {
             let id = sys.model().frame_id(frame).ok()?;
@@ -405,8 +405,7 @@ impl PredictorNode {
                 stamp: now,
                 frame_id: common.frames.odom_frame.clone(),
             };
-            let slip = self.robot.slip_test(common);
-            let mut m = markers::force_markers(forces, &slip, &rotation, &header, &style);
+            let mut m = markers::force_markers(forces, contacts, &rotation, &header, &style);
             m.push(markers::footprint_marker(
                 path,
                 &p.polygon(),
@@ -465,30 +464,6 @@ impl PredictorNode {
         odom.twist.twist = twist_msg(&model.base_twist(&last.v));
         odom.twist.covariance = twist_cov;
         Ok(odom)
-    }
-
-    fn log_slip(&mut self, forces: &ConstraintForces) {
-        let now = Instant::now();
-        let throttled = self
-            .last_slip_log
-            .is_some_and(|t| now.duration_since(t).as_secs_f64() < 1.0);
-        let mu = self.params.common.slip.friction_coefficient;
-        for (k, c) in forces.constraints.iter().enumerate() {
-            let was = self.last_slip.get(k).copied().unwrap_or(false);
-            if c.slipping && (!was || !throttled) {
-                self.log.warn(&format!(
-                    "slip: rolling contact '{}' needs a tangential force of {:.3} N > μ·N = {} × {:.3} N",
-                    c.name, c.tangential_force, mu, c.normal_force
-                ));
-                self.last_slip_log = Some(now);
-            } else if !c.slipping && was {
-                self.log
-                    .info(&format!("slip: rolling contact '{}' grips again", c.name));
-            }
-            if let Some(s) = self.last_slip.get_mut(k) {
-                *s = c.slipping;
-            }
-        }
     }
 }
 

@@ -70,7 +70,8 @@ fn command_timeout_runs_on_the_ros_clock() {
 }
 
 /// The forces published at the start state: the two rolling contacts, in the odom frame, with
-/// Jᵀλ per coordinate; at rest on a level floor no tangential force is needed.
+/// Jᵀλ per coordinate; at rest on a level floor no tangential force is needed, and the planar
+/// base's wheels are each pressed by half the weight M g / 2 (urdf/diff_drive.urdf: M = 9.2 kg).
 #[test]
 fn forces_at_rest_need_no_friction() {
     let mut n = node("stop");
@@ -87,6 +88,11 @@ fn forces_at_rest_need_no_friction() {
             c.tangential_force
         );
         assert!(!c.slipping);
+        assert!(
+            (c.normal_force - 9.2 * 9.81 / 2.0).abs() < 1e-12,
+            "{}",
+            c.normal_force
+        );
     }
     assert_eq!(f.generalized_force.len(), f.v_names.len());
     assert_eq!(out.path.poses.len(), 51, "1 s at 0.02 s samples, both ends");
@@ -364,10 +370,29 @@ fn a_predicted_slip_is_a_diagnostics_warning() {
         ..Default::default()
     };
     n.handle(PredictorInput::Command(cmd), t0, &mut |_| {});
-    tick(&mut n, t0);
+    let out = tick(&mut n, t0);
     let (m, r, i_w, g, mu) = (9.2, 0.05, 0.000625, 9.81, 0.8);
     let a = 2.0 * 5.0 / (r * (m + 2.0 * i_w / (r * r)));
     let used = (m * a / 2.0) / (mu * m * g / 2.0);
+    // `~/constraint_forces` at the start state: each wheel needs M a / 2 > μ M g / 2.
+    for c in &out.forces.constraints {
+        let rel = (c.tangential_force - m * a / 2.0).abs() / (m * a / 2.0);
+        assert!(
+            c.slipping && rel < 1e-9,
+            "{}: {}",
+            c.name,
+            c.tangential_force
+        );
+        assert!(
+            (c.normal_force - m * g / 2.0).abs() < 1e-12,
+            "{}",
+            c.normal_force
+        );
+    }
+    assert_eq!(
+        value(&n, "slipping contacts"),
+        "left_wheel_contact, right_wheel_contact"
+    );
     let want = format!("slip at t=0.00 s on left_wheel_contact (friction used {used:.2} × μ)");
     assert_eq!(n.warnings(), std::slice::from_ref(&want));
     assert_eq!(value(&n, "predicted contact break"), want);

@@ -9,13 +9,13 @@ pub mod request;
 pub mod state;
 
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::constraints::{ConstraintForce, SlipTest};
+use constraint_dynamics::constraints::ContactLimits;
 use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::model::Payload;
-use constraint_dynamics::predict::drift;
+use constraint_dynamics::predict::{ContactJudge, drift};
 use constraint_dynamics::{Model, Scene, System};
 
-use crate::convert::{ForcesContext, base_twist_of, constraint_forces_msg};
+use crate::convert::{ForcesAt, ForcesContext, base_twist_of, constraint_forces_msg};
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::constraint_dynamics_msgs::ConstraintForces;
@@ -30,6 +30,8 @@ pub struct Robot {
     scene: Scene,
     /// Multiplier form, so λ is always there (forces, projection, state projection).
     sys: System,
+    /// The system's contacts: how every force this robot reports is judged.
+    contacts: ContactJudge,
     state: StateEstimate,
     /// Joints with position controllers in the scene, and their q index.
     held_joints: Vec<(String, usize)>,
@@ -78,6 +80,7 @@ impl Robot {
         let sys = System::from_scene(&scene)
             .map_err(NodeError::core("constraints"))?
             .with_formulation(Formulation::Multipliers);
+        let contacts = ContactJudge::new(&scene.model, sys.constraints());
         let state = StateEstimate::new(&scene.model, &scene.q0, &scene.v0);
         let held_joints = scene
             .file
@@ -98,6 +101,7 @@ impl Robot {
         Ok(Robot {
             scene,
             sys,
+            contacts,
             state,
             held_joints,
             base_frame,
@@ -233,9 +237,11 @@ impl Robot {
         Ok(vw)
     }
 
-    /// The slip test of the parameters for this robot.
-    pub fn slip_test(&self, common: &CommonParams) -> SlipTest {
-        SlipTest::new(
+    /// What the judgement of this robot's contacts assumes under the parameters: μ =
+    /// `slip.friction_coefficient` where a contact declares none, and a wheel without a normal
+    /// row pressed by `slip.planar_normal_force` (0: its share of the weight).
+    pub fn contact_limits(&self, common: &CommonParams) -> ContactLimits {
+        ContactLimits::assumed(
             &self.scene.model,
             self.sys.constraints(),
             common.slip.friction_coefficient,
@@ -243,24 +249,25 @@ impl Robot {
         )
     }
 
+    /// The system's contacts, judged as a prediction judges them.
+    pub fn contact_judge(&self) -> &ContactJudge {
+        &self.contacts
+    }
+
     /// A `ConstraintForces` message in the odom frame.
     pub fn forces_msg(
         &self,
         common: &CommonParams,
-        forces: &[ConstraintForce],
-        generalized_force: &[f64],
-        rank_deficiency: usize,
+        at: &ForcesAt,
         stamp: Time,
     ) -> ConstraintForces {
         let ctx = ForcesContext {
             stamp,
             world_frame: &common.frames.odom_frame,
             v_names: &self.scene.model.v_names,
-            generalized_force,
-            rank_deficiency,
-            slip: self.slip_test(common),
+            contacts: &self.contacts,
         };
-        constraint_forces_msg(forces, &ctx)
+        constraint_forces_msg(at, &ctx)
     }
 
     /// The start state of a request: the latest (projected per the parameters), or the

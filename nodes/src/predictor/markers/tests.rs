@@ -2,7 +2,7 @@
 //! footprint corners R(yaw)·c + o, wrench torques (p − o) × f.
 
 use super::*;
-use constraint_dynamics::constraints::ConstraintKind;
+use constraint_dynamics::constraints::{ConstraintKind, Contact, ContactLimits};
 
 use crate::msg::geometry_msgs::{Pose, PoseStamped, Quaternion};
 
@@ -48,6 +48,21 @@ fn rolling(name: &str, force_world: [f64; 3], normal: f64) -> ConstraintForce {
     f
 }
 
+/// A wheel's contact judged at λ = (t₁, t₂, n) under μ = 0.5 (declared by none).
+fn judged(lambda: [f64; 3]) -> Option<ContactState> {
+    let wheel = Contact {
+        name: "w".into(),
+        normal: Some(2),
+        tangential: vec![0, 1],
+        friction: None,
+    };
+    let limits = ContactLimits {
+        friction: Some(0.5),
+        normal_force: None,
+    };
+    Some(wheel.judge(&lambda, &limits, 1e-6))
+}
+
 fn rotations(frame: &str) -> Option<Rotation> {
     match frame {
         "gripper" | "left_wheel" => Some(RZ90),
@@ -66,12 +81,9 @@ fn assert_near(what: &str, a: [f64; 3], b: [f64; 3], tol: f64) {
 }
 
 #[test]
-fn arrows_start_at_the_point_of_application_and_are_coloured_by_slip() {
-    // μ = 0.5: the first contact needs 5 N of 0.5 × 50 N (grips), the second 30 N (slips).
-    let slip = SlipTest {
-        friction_coefficient: 0.5,
-        fallback_normal_force: 100.0,
-    };
+fn arrows_start_at_the_point_of_application_and_are_coloured_by_the_contacts() {
+    // μ = 0.5 on N = 50 N grips up to μ N = 25 N: the first contact needs ‖(3, 4)‖ = 5 N (grips),
+    // the second 30 N (slips); the third would have to pull with 10 N (lifts off).
     let mut weld = force("hold", ConstraintKind::Weld, "gripper", "gripper");
     weld.force = [2.0, 0.0, 0.0];
     weld.point_world = [1.0, 1.0, 1.0];
@@ -81,17 +93,26 @@ fn arrows_start_at_the_point_of_application_and_are_coloured_by_slip() {
     let forces = [
         rolling("grip", [3.0, 4.0, 50.0], 50.0),
         rolling("slip", [30.0, 0.0, 50.0], 50.0),
+        rolling("lift", [0.0, 0.0, -10.0], -10.0),
         weld,
         coupling,
         nan,
+    ];
+    let contacts = [
+        judged([3.0, 4.0, 50.0]),
+        judged([30.0, 0.0, 50.0]),
+        judged([0.0, 0.0, -10.0]),
+        None,
+        None,
+        judged([f64::NAN, 0.0, 1.0]),
     ];
     let header = Header {
         stamp: Time::from_nanos(5),
         frame_id: "odom".into(),
     };
-    let m = force_markers(&forces, &slip, &rotations, &header, &style());
-    assert_eq!(m.len(), 3, "the coupling and the NaN force are left out");
-    assert_eq!(m.iter().map(|m| m.id).collect::<Vec<_>>(), [0, 1, 2]);
+    let m = force_markers(&forces, &contacts, &rotations, &header, &style());
+    assert_eq!(m.len(), 4, "the coupling and the NaN force are left out");
+    assert_eq!(m.iter().map(|m| m.id).collect::<Vec<_>>(), [0, 1, 2, 3]);
     for a in &m {
         assert_eq!(
             (a.type_, a.action, a.ns.as_str()),
@@ -105,23 +126,18 @@ fn arrows_start_at_the_point_of_application_and_are_coloured_by_slip() {
     // tip = p + 0.01 m/N × f.
     assert_near("grip start", xyz(&m[0].points[0]), [0.0, 0.2, 0.0], 0.0);
     assert_near("grip tip", xyz(&m[0].points[1]), [0.03, 0.24, 0.5], TOL);
-    assert_eq!(m[0].color, GRIP);
-    assert_eq!(m[1].color, SLIP);
+    assert_eq!([m[0].color, m[1].color, m[2].color], [GRIP, SLIP, SLIP]);
     // Local axes rotated 90° about z: (2, 0, 0) in the gripper is (0, 2, 0) in the world.
-    assert_near("weld tip", xyz(&m[2].points[1]), [1.0, 1.02, 1.0], TOL);
-    assert_eq!(m[2].color, OTHER);
-    assert_eq!(m[2].text, "hold");
+    assert_near("weld tip", xyz(&m[3].points[1]), [1.0, 1.02, 1.0], TOL);
+    assert_eq!(m[3].color, OTHER);
+    assert_eq!(m[3].text, "hold");
 }
 
 #[test]
 fn a_force_in_axes_of_an_unknown_frame_is_left_out() {
-    let slip = SlipTest {
-        friction_coefficient: 0.5,
-        fallback_normal_force: 1.0,
-    };
     let mut f = force("x", ConstraintKind::Point, "elsewhere", "elsewhere");
     f.force = [1.0, 0.0, 0.0];
-    let m = force_markers(&[f], &slip, &rotations, &Header::default(), &style());
+    let m = force_markers(&[f], &[None], &rotations, &Header::default(), &style());
     assert!(m.is_empty());
 }
 
