@@ -16,7 +16,6 @@
 //!   described by the [`Integrator`] trait.
 //! - covariance/: the covariance carried through the integrator's own step linearization.
 
-mod advance;
 mod contacts;
 mod covariance;
 pub mod drift;
@@ -24,7 +23,6 @@ mod estimate;
 mod integrators;
 mod predictor;
 mod request;
-mod rhs;
 mod rollout;
 mod run;
 mod settings;

@@ -13,7 +13,7 @@ use super::covariance::worker::PipeSlot;
 use super::drift::DriftProjector;
 use super::estimate::{self, Lane, MAX_REFINEMENTS};
 use super::request::{IntegrationOverrides, PredictionBudget, PredictionRequest};
-use super::rhs::JacobianWork;
+use super::run::rhs::JacobianWork;
 use super::settings::{DriftControl, IntegrationSettings};
 use super::trajectory::Trajectory;
 use crate::actuators::Actuators;
@@ -93,10 +93,10 @@ pub(super) struct Workspace {
     pub(super) probe_t: Option<f64>,
     pub(super) probe_q: Vec<f64>,
     pub(super) probe_v: Vec<f64>,
-    /// The state the drift projection left with its rows evaluated (advance.rs, `RowsAt`).
+    /// The state the drift projection left with its rows evaluated (run/advance.rs, `RowsAt`).
     pub(super) rows_q: Vec<f64>,
     pub(super) rows_v: Vec<f64>,
-    /// The implicit methods' Jacobian (advance.rs).
+    /// The implicit methods' Jacobian (run/advance.rs).
     pub(super) jw: JacobianWork,
     /// Work units of one dynamics evaluation (`limits::evaluation_cost`).
     pub(super) cost: f64,

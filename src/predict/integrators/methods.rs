@@ -165,7 +165,7 @@ pub trait Integrator: Sync {
     fn linearized_as(&self) -> Option<Method>;
     /// A W-method (ROS2): its order holds with any F, so the prediction decides when F is
     /// refreshed, re-formed for the controllers or shared with the error estimate's companion
-    /// (run.rs), and the covariance linearizes each step with the F and increment it took.
+    /// (run/mod.rs), and the covariance linearizes each step with the F and increment it took.
     fn is_w_method(&self) -> bool {
         false
     }

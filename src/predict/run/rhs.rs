@@ -2,7 +2,6 @@
 //! evaluated at each stage) and force elements → constrained q̈, and its Jacobian F (analytic
 //! derivatives of the dynamics, the controllers' feedback through ∂q̈/∂τ).
 
-use super::drift::DriftProjector;
 use crate::actuators::Actuators;
 use crate::applied::applied_generalized_force;
 use crate::derivatives::DerivativeData;
@@ -11,6 +10,7 @@ use crate::error::{Error, Result};
 use crate::forces::ForceElements;
 use crate::model::Model;
 use crate::predict::covariance::linearize::dynamics_derivatives;
+use crate::predict::drift::DriftProjector;
 use crate::predict::integrators::{Accel, JacobianScratch, accel_jacobian_fd, stage};
 use crate::system::{DynamicsOptions, System};
 use nalgebra::DMatrix;
@@ -18,19 +18,19 @@ use nalgebra::DMatrix;
 /// Buffers of the right-hand side's Jacobian: the analytic derivatives of the dynamics and the
 /// force elements' generalized force differenced (kinematics only).
 #[derive(Clone, Debug, Default)]
-pub(super) struct JacobianWork {
+pub(in crate::predict) struct JacobianWork {
     /// None: finite differences of the whole right-hand side.
-    pub(super) dd: Option<DerivativeData>,
-    pub(super) tau_p: Vec<f64>,
-    pub(super) tau_m: Vec<f64>,
-    pub(super) dtau: Vec<f64>,
-    pub(super) dx: Vec<f64>,
-    pub(super) qs: Vec<f64>,
-    pub(super) vs: Vec<f64>,
+    pub(in crate::predict) dd: Option<DerivativeData>,
+    pub(in crate::predict) tau_p: Vec<f64>,
+    pub(in crate::predict) tau_m: Vec<f64>,
+    pub(in crate::predict) dtau: Vec<f64>,
+    pub(in crate::predict) dx: Vec<f64>,
+    pub(in crate::predict) qs: Vec<f64>,
+    pub(in crate::predict) vs: Vec<f64>,
 }
 
 impl JacobianWork {
-    pub(super) fn new(sys: &System) -> Self {
+    pub(in crate::predict) fn new(sys: &System) -> Self {
         let (nq, nv) = (sys.model.nq, sys.model.nv);
         Self {
             dd: Some(DerivativeData::new(&sys.model, sys.constraints.nrows)),
@@ -46,48 +46,54 @@ impl JacobianWork {
 
 /// The right-hand side: actuator torques (held, or continuous controllers evaluated at the
 /// stage) + force elements → constrained q̈.
-pub(super) struct Rhs<'a> {
-    pub(super) sys: &'a mut System,
+pub(in crate::predict) struct Rhs<'a> {
+    pub(in crate::predict) sys: &'a mut System,
     /// The run's Baumgarte gains.
-    pub(super) gains: Baumgarte,
-    pub(super) forces: &'a mut ForceElements,
-    pub(super) tau_act: &'a [f64],
+    pub(in crate::predict) gains: Baumgarte,
+    pub(in crate::predict) forces: &'a mut ForceElements,
+    pub(in crate::predict) tau_act: &'a [f64],
     /// Continuous controllers (`hold: continuous`), evaluated into `tau_ctl` at every stage
     /// instead of `tau_act`.
-    pub(super) control: Option<&'a Actuators>,
-    pub(super) tau_ctl: &'a mut [f64],
-    pub(super) tau: &'a mut [f64],
-    pub(super) zero: &'a [f64],
-    pub(super) ls: &'a mut DriftProjector,
-    pub(super) jw: &'a mut JacobianWork,
-    pub(super) rows: RowsAt<'a>,
-    pub(super) probe: Probe<'a>,
+    pub(in crate::predict) control: Option<&'a Actuators>,
+    pub(in crate::predict) tau_ctl: &'a mut [f64],
+    pub(in crate::predict) tau: &'a mut [f64],
+    pub(in crate::predict) zero: &'a [f64],
+    pub(in crate::predict) ls: &'a mut DriftProjector,
+    pub(in crate::predict) jw: &'a mut JacobianWork,
+    pub(in crate::predict) rows: RowsAt<'a>,
+    pub(in crate::predict) probe: Probe<'a>,
     /// The dynamics as a constant form, where the scene has one (`PredictorConfig::invariant`).
-    pub(super) invariant: Option<&'a InvariantDynamics>,
-    pub(super) evaluations: usize,
-    pub(super) least_squares: usize,
+    pub(in crate::predict) invariant: Option<&'a InvariantDynamics>,
+    pub(in crate::predict) evaluations: usize,
+    pub(in crate::predict) least_squares: usize,
 }
 
 /// Where the system's kinematics and constraint rows were last evaluated by the drift
 /// projection, when it left the state there: the next step's first stage, at that same
 /// (t, q, v), reuses them (`DynamicsOptions::rows_evaluated`) instead of a second pass.
-pub(super) struct RowsAt<'a> {
-    pub(super) t: Option<f64>,
-    pub(super) q: &'a mut [f64],
-    pub(super) v: &'a mut [f64],
+pub(in crate::predict) struct RowsAt<'a> {
+    pub(in crate::predict) t: Option<f64>,
+    pub(in crate::predict) q: &'a mut [f64],
+    pub(in crate::predict) v: &'a mut [f64],
 }
 
 /// A q̈ the run probed at (t, q, v) (`Predictor::probe_accel`), for the first evaluation there.
-pub(super) struct Probe<'a> {
-    pub(super) t: &'a mut Option<f64>,
-    pub(super) q: &'a [f64],
-    pub(super) v: &'a [f64],
-    pub(super) qdd: &'a [f64],
+pub(in crate::predict) struct Probe<'a> {
+    pub(in crate::predict) t: &'a mut Option<f64>,
+    pub(in crate::predict) q: &'a [f64],
+    pub(in crate::predict) v: &'a [f64],
+    pub(in crate::predict) qdd: &'a [f64],
 }
 
 impl Probe<'_> {
     /// True once, for the probed state (bitwise): its q̈ is copied into `qdd`.
-    pub(super) fn take(&mut self, t: f64, q: &[f64], v: &[f64], qdd: &mut [f64]) -> bool {
+    pub(in crate::predict) fn take(
+        &mut self,
+        t: f64,
+        q: &[f64],
+        v: &[f64],
+        qdd: &mut [f64],
+    ) -> bool {
         let hit = self.t.take() == Some(t) && self.q == q && self.v == v;
         if hit {
             qdd.copy_from_slice(self.qdd);
@@ -97,14 +103,14 @@ impl Probe<'_> {
 }
 
 impl RowsAt<'_> {
-    pub(super) fn mark(&mut self, t: f64, q: &[f64], v: &[f64]) {
+    pub(in crate::predict) fn mark(&mut self, t: f64, q: &[f64], v: &[f64]) {
         self.t = Some(t);
         self.q.copy_from_slice(q);
         self.v.copy_from_slice(v);
     }
 
     /// True once, for the marked state (bitwise the same q and v: anything else evaluates).
-    pub(super) fn take(&mut self, t: f64, q: &[f64], v: &[f64]) -> bool {
+    pub(in crate::predict) fn take(&mut self, t: f64, q: &[f64], v: &[f64]) -> bool {
         self.t.take() == Some(t) && *self.q == *q && *self.v == *v
     }
 }
@@ -112,7 +118,7 @@ impl RowsAt<'_> {
 impl Rhs<'_> {
     /// τ at (t, q, v) into `tau`; time reaches the constraints through their workspace
     /// (`velocity` rows may use t).
-    pub(super) fn apply(&mut self, t: f64, q: &[f64], v: &[f64]) {
+    pub(in crate::predict) fn apply(&mut self, t: f64, q: &[f64], v: &[f64]) {
         self.sys.cdata.t = t;
         let tau_act: &[f64] = match self.control {
             Some(a) => {

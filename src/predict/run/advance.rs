@@ -2,20 +2,20 @@
 //! estimate's companion) between two control ticks or samples, with drift control, covariance
 //! and the work bound after every step.
 
-use super::DriftControl;
-use super::IntegrationSettings;
-use super::estimate::Lane;
-use super::predictor::Predictor;
 use super::rhs::{Probe, Rhs, RowsAt};
 use crate::error::{Error, Result};
+use crate::predict::DriftControl;
+use crate::predict::IntegrationSettings;
 use crate::predict::covariance::worker::CovarianceFeed;
+use crate::predict::estimate::Lane;
 use crate::predict::integrators::{Accel, StepOutcome};
+use crate::predict::predictor::Predictor;
 
 impl Predictor {
     /// q̈ at the lane's state at t into `ws.probe_qdd` (one evaluation, counted in the lane's):
     /// where a frozen controller's torque is heading (`Actuators::saturation_exit`). The
     /// answer's next step starts there and takes it as its first evaluation.
-    pub(super) fn probe_accel(&mut self, lane: &mut Lane, t: f64) -> Result<()> {
+    pub(in crate::predict) fn probe_accel(&mut self, lane: &mut Lane, t: f64) -> Result<()> {
         let actuators = &self.actuators;
         let ws = &mut self.ws;
         ws.probe_t = None;
@@ -62,7 +62,7 @@ impl Predictor {
     /// span, so that it refines even where the span, not the tolerance, limits the step).
     /// `prior` evaluations of the other lane count toward `max_work`. Returns the largest step
     /// taken [s].
-    pub(super) fn advance(
+    pub(in crate::predict) fn advance(
         &mut self,
         lane: &mut Lane,
         cap: Option<f64>,
@@ -79,7 +79,7 @@ impl Predictor {
             sys: &mut self.sys,
             gains: ws.gains,
             forces: &mut self.forces,
-            // Each lane under the torque of its own controllers (run.rs, Workspace).
+            // Each lane under the torque of its own controllers (run/mod.rs, Workspace).
             tau_act: if cap.is_none() {
                 &ws.tau_act
             } else {
@@ -263,7 +263,7 @@ fn underflow(s: &IntegrationSettings, h: f64, least_squares: usize) -> Error {
 }
 
 /// An error of the companion run names it: its settings are not the user's.
-pub(super) fn companion_error(e: Error) -> Error {
+pub(in crate::predict) fn companion_error(e: Error) -> Error {
     let what = "in the error estimate's companion run (dt / 2, or dopri5's tolerances / 32)";
     match e {
         Error::Diverged { t, message } => Error::Diverged {

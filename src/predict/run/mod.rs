@@ -1,18 +1,22 @@
 //! The prediction loop of one run: control ticks, integration spans of the answer and its error
 //! estimate's companion, drift control, the covariance beside them, samples, and the energy
-//! check of fixed explicit steps on passive, conservative scenes.
+//! check of fixed explicit steps on passive, conservative scenes. `advance.rs` integrates one
+//! span of a lane, `rhs.rs` is the right-hand side its integrator evaluates.
 
-use super::advance::companion_error;
-use super::covariance::CovariancePropagator;
-use super::covariance::worker::with_worker;
-use super::estimate::{self, Lane};
-use super::predictor::Predictor;
-use super::request::{CovarianceSamples, PredictionRequest};
-use super::settings::IntegrationSettings;
-use super::trajectory::{Sample, Trajectory};
+mod advance;
+pub(in crate::predict) mod rhs;
+
 use crate::actuators::Command;
 use crate::constraints::ContactLimits;
 use crate::error::{Error, Result};
+use crate::predict::covariance::CovariancePropagator;
+use crate::predict::covariance::worker::with_worker;
+use crate::predict::estimate::{self, Lane};
+use crate::predict::predictor::Predictor;
+use crate::predict::request::{CovarianceSamples, PredictionRequest};
+use crate::predict::settings::IntegrationSettings;
+use crate::predict::trajectory::{Sample, Trajectory};
+use advance::companion_error;
 
 /// Pieces a span is cut into at most where frozen controllers come back inside their effort
 /// (two wheels, each once, and a retry for each prediction that came early).
@@ -49,7 +53,7 @@ struct Plan<'a> {
 impl Predictor {
     /// One run of `req` over `horizon` [s] under the resolved settings `s`, the controllers
     /// ticking every `control` [s].
-    pub(super) fn run(
+    pub(in crate::predict) fn run(
         &mut self,
         req: &PredictionRequest,
         horizon: f64,
