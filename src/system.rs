@@ -1,5 +1,7 @@
-//! A constrained system ready to evaluate: model, constraint set, stabilisation and every
-//! workspace, built once from a scene. The CLI, the predictor and the ROS nodes go through here.
+//! A constrained system ready to evaluate: what a scene declares (the shared robot model, the
+//! constraint set, the scene's gains and formulation) and the workspaces its evaluations write,
+//! built once from a scene. The CLI, the predictor and the ROS nodes go through here; each call
+//! says how it evaluates ([`DynamicsOptions`]) and nothing is set on the system around it.
 
 use crate::algorithm::{
     Data, center_of_mass, forward_kinematics, forward_kinematics_pos, kinetic_energy,

@@ -29,8 +29,10 @@ tools/ros2/netns_run.sh cargo test --workspace --locked --offline -- --include-i
 cargo_status=${PIPESTATUS[0]}
 tools/ros2/netns_run.sh .venv-ros2/bin/python tools/ros2/interop/interop.py 2>&1 | grep -v '^\[\(ERROR\|WARN\)\]' | tee /tmp/cd_interop.log
 interop_status=${PIPESTATUS[0]}
-# The same peer tests against Jazzy's rclpy (rmw_fastrtps_cpp 8.4 / Fast DDS 2.14).
-CD_ROS2_VENV="$PWD/.venv-ros2-jazzy" tools/ros2/netns_run.sh cargo test -p constraint_dynamics_nodes \
+# The same peer tests against Jazzy's rclpy (rmw_fastrtps_cpp 8.4 / Fast DDS 2.14). --workspace,
+# not -p: the features cargo unifies are then the first run's, so nothing is rebuilt (the other
+# crates' `it` targets match no filter and run nothing).
+CD_ROS2_VENV="$PWD/.venv-ros2-jazzy" tools/ros2/netns_run.sh cargo test --workspace \
     --locked --offline --test it -- --include-ignored suite_rclpy_peer:: suite_stack_rclpy:: \
     suite_covariance_rclpy:: suite_payload_rclpy:: suite_envelope_rclpy:: ros_smoke:: 2>&1 | tee /tmp/cd_cargo_test_jazzy.log
 jazzy_status=${PIPESTATUS[0]}
