@@ -9,12 +9,10 @@
 //! `Formulation::Auto` uses the embedded form unless constraint forces are asked for.
 
 mod embedded;
-mod invariant;
 mod multipliers;
 mod partition;
 
 pub use embedded::{EmbeddedWorkspace, embedded_forward_dynamics};
-pub use invariant::InvariantDynamics;
 pub use multipliers::{KktOptions, KktWorkspace, constrained_forward_dynamics};
 pub use partition::{
     Partition, PartitionWorkspace, partition, partition_into, partition_preferring,

@@ -9,10 +9,11 @@
 //! Everything lives in a [`DriftProjector`] sized once: a projection allocates nothing.
 
 use crate::algorithm::{bias_forces_after_kinematics, crba_after_kinematics};
-use crate::dynamics::{Baumgarte, InvariantDynamics};
+use crate::dynamics::Baumgarte;
 use crate::error::{Error, Result};
 use crate::linalg::cholesky_in_place;
 use crate::linalg::{semidefinite_cholesky, semidefinite_solve};
+use crate::predict::InvariantDynamics;
 use crate::system::System;
 use nalgebra::DMatrix;
 

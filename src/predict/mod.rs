@@ -21,6 +21,7 @@ mod covariance;
 pub mod drift;
 mod estimate;
 mod integrators;
+mod invariant;
 mod predictor;
 mod request;
 mod rollout;
@@ -33,6 +34,7 @@ pub use covariance::linearize::{Linearization, linearize_step};
 pub use covariance::{CovariancePropagator, UncertaintySpec};
 pub use drift::DriftProjector;
 pub use integrators::{ErrorEstimator, Integrator, Method};
+pub use invariant::InvariantDynamics;
 pub use predictor::{Predictor, PredictorConfig};
 pub use request::{
     CovarianceSamples, IntegrationOverrides, PredictionBudget, PredictionRequest, PredictionWork,

@@ -7,6 +7,7 @@
 //! configuration's at every call, and the drift gains a run uses are resolved from the
 //! configuration, never saved and restored around it.
 
+use super::InvariantDynamics;
 use super::contacts::ContactJudge;
 use super::covariance::UncertaintySpec;
 use super::covariance::worker::PipeSlot;
@@ -18,7 +19,7 @@ use super::settings::{DriftControl, IntegrationSettings};
 use super::trajectory::Trajectory;
 use crate::actuators::Actuators;
 use crate::algorithm::{crba, forward_kinematics};
-use crate::dynamics::{Baumgarte, InvariantDynamics};
+use crate::dynamics::Baumgarte;
 use crate::error::{Error, Result};
 use crate::forces::ForceElements;
 use crate::model::Model;

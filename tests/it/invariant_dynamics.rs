@@ -1,4 +1,4 @@
-//! The constant form of a scene's constrained dynamics (`dynamics::InvariantDynamics`): built
+//! The constant form of a scene's constrained dynamics (`predict::InvariantDynamics`): built
 //! where q̈ depends on no coordinate, held to the differential drive's closed forms, and refused
 //! where a coordinate matters.
 //!
@@ -11,7 +11,7 @@
 //! the body: the axle's lateral force m (v ω + d ω̇) turns the base about its centre of mass).
 
 use constraint_dynamics::Scene;
-use constraint_dynamics::dynamics::InvariantDynamics;
+use constraint_dynamics::predict::InvariantDynamics;
 use constraint_dynamics::system::System;
 use std::path::PathBuf;
 

@@ -5,10 +5,11 @@
 use crate::actuators::Actuators;
 use crate::applied::applied_generalized_force;
 use crate::derivatives::DerivativeData;
-use crate::dynamics::{Baumgarte, InvariantDynamics, disagree_beyond_rounding};
+use crate::dynamics::{Baumgarte, disagree_beyond_rounding};
 use crate::error::{Error, Result};
 use crate::forces::ForceElements;
 use crate::model::Model;
+use crate::predict::InvariantDynamics;
 use crate::predict::covariance::linearize::dynamics_derivatives;
 use crate::predict::drift::DriftProjector;
 use crate::predict::integrators::{Accel, JacobianScratch, accel_jacobian_fd, stage};
