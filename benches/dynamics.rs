@@ -51,7 +51,7 @@ fn bench(c: &mut Criterion) {
         c.bench_function(&id("constraint_terms"), |b| {
             b.iter(|| {
                 k.set
-                    .evaluate(m, &mut d, &mut cd, black_box(q), black_box(v))
+                    .evaluate(m, &mut d, &mut cd, 0.0, black_box(q), black_box(v))
             })
         });
         c.bench_function(&id("constrained_dynamics"), |b| {

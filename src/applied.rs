@@ -6,29 +6,26 @@
 //! `M q̈ + h = τ + Jᵀλ, J q̈ = −γ − K_d J v − K_p φ` under that τ. One function computes them for
 //! the predictor's samples, the forces service, the CLI and the tests.
 
-use crate::algorithm::forward_kinematics;
 use crate::constraints::ConstraintForce;
 use crate::dynamics::Formulation;
 use crate::error::Result;
 use crate::forces::ForceElements;
 use crate::system::{DynamicsOptions, System};
 
-/// Writes τ = τ_act + Q(t, q, v) into `tau` (nv). `zero` is nv zeros (the kinematics pass for
-/// the force elements needs no acceleration). Allocates nothing.
+/// Writes τ = τ_act + Q(t, q, v) into `tau` (nv). Allocates nothing.
 pub fn applied_generalized_force(
     sys: &mut System,
     elements: &mut ForceElements,
     (t, q, v): (f64, &[f64], &[f64]),
     tau_act: &[f64],
-    zero: &[f64],
     tau: &mut [f64],
 ) {
     tau.copy_from_slice(tau_act);
     if elements.needs_kinematics() {
-        forward_kinematics(&sys.model, &mut sys.data, q, v, zero);
+        sys.kinematics_at(q, v);
     }
     if !elements.is_empty() {
-        elements.add_generalized_force(&sys.model, &sys.data, t, q, v, tau);
+        elements.add_generalized_force(sys.model(), sys.data(), t, q, v, tau);
     }
 }
 
@@ -56,27 +53,26 @@ pub fn constraint_forces_at(
     (t, q, v): (f64, &[f64], &[f64]),
     tau_act: &[f64],
 ) -> Result<ForcesAtState> {
-    let nv = sys.model.nv;
+    let nv = sys.model().nv;
     crate::error::check_len("tau", tau_act, nv)?;
-    sys.model.check_state(q, v)?;
-    let zero = vec![0.0; nv];
+    sys.model().check_state(q, v)?;
     let mut tau = vec![0.0; nv];
-    applied_generalized_force(sys, elements, (t, q, v), tau_act, &zero, &mut tau);
+    applied_generalized_force(sys, elements, (t, q, v), tau_act, &mut tau);
     let opts = DynamicsOptions {
         formulation: Formulation::Multipliers,
+        t,
         ..Default::default()
     };
-    sys.cdata.t = t;
     let qdd = sys
         .forward_dynamics_with(q, v, &tau, opts)?
         .as_slice()
         .to_vec();
     let out = ForcesAtState {
         qdd,
-        lambda: sys.kkt.lambda.as_slice().to_vec(),
+        lambda: sys.lambda().as_slice().to_vec(),
         forces: sys.constraint_forces(),
-        generalized_force: sys.kkt.generalized_force.as_slice().to_vec(),
-        rank_deficiency: sys.kkt.rank_deficiency,
+        generalized_force: sys.multipliers().generalized_force.as_slice().to_vec(),
+        rank_deficiency: sys.multipliers().rank_deficiency,
     };
     // Nothing non-finite leaves: finite inputs can still overflow (v = 1e308 squared).
     let cause = || {

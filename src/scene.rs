@@ -305,8 +305,8 @@ impl System {
         if let Some(singular) = &scene.model.singular {
             // M is singular: only constraints can give that joint its dynamics (a massless rod
             // pinned by a loop closure). Refused at load unless the KKT form factors at q0.
-            let zero = vec![0.0; sys.model.nv];
-            if sys.constraints.is_empty()
+            let zero = vec![0.0; sys.model().nv];
+            if sys.constraints().is_empty()
                 || matches!(
                     sys.forward_dynamics_with(&scene.q0, &zero, &zero, DynamicsOptions::default()),
                     Err(crate::Error::SingularMass { .. })
@@ -323,7 +323,7 @@ impl crate::envelope::EnvelopeModel {
     /// The envelope of a system built from `scene`: its contacts and the scene's
     /// `passive_joints:`.
     pub fn from_scene(scene: &Scene, sys: &System) -> Result<Self> {
-        Self::new(&sys.model, &sys.constraints, &scene.file.passive_joints)
+        Self::new(sys.model(), sys.constraints(), &scene.file.passive_joints)
     }
 }
 
@@ -332,8 +332,8 @@ impl Predictor {
     /// `uncertainty:`.
     pub fn from_scene(scene: &Scene) -> Result<Self> {
         let sys = System::from_scene(scene)?;
-        let forces = ForceElements::new(&sys.model, &scene.file.forces)?;
-        let actuators = Actuators::new(&sys.model, &scene.file.actuators)?;
+        let forces = ForceElements::new(sys.model(), &scene.file.forces)?;
+        let actuators = Actuators::new(sys.model(), &scene.file.actuators)?;
         Ok(
             Self::new(sys, forces, actuators, scene.file.integration.clone())?
                 .with_uncertainty(scene.file.uncertainty.clone()),

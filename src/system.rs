@@ -4,7 +4,8 @@
 //! says how it evaluates ([`DynamicsOptions`]) and nothing is set on the system around it.
 
 use crate::algorithm::{
-    Data, center_of_mass, forward_kinematics, forward_kinematics_pos, kinetic_energy,
+    Data, bias_forces_after_kinematics, center_of_mass, crba, crba_after_kinematics,
+    forward_kinematics, forward_kinematics_bias, forward_kinematics_pos, kinetic_energy,
     potential_energy,
 };
 use crate::constraints::{ConstraintData, ConstraintForce, ConstraintSet, constraint_forces};
@@ -17,12 +18,14 @@ use crate::dynamics::{
 };
 use crate::error::{Result, check_len};
 use crate::model::Model;
-use nalgebra::DVector;
+use nalgebra::{DMatrix, DVector};
 use std::sync::Arc;
 
 /// How one dynamics evaluation is done (passed in, never toggled on the system around a call).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DynamicsOptions {
+    /// Time [s] of the evaluation: what `velocity` rows f(q, v, t) read (default 0).
+    pub t: f64,
     /// Multipliers (λ and the constraint forces) or the embedded, multiplier-free form;
     /// `Auto` means multipliers here.
     pub formulation: Formulation,
@@ -31,7 +34,7 @@ pub struct DynamicsOptions {
     /// λ = S⁺ r, instead of an error. The predictor's stages ask for it.
     pub allow_inconsistent: bool,
     /// Multiplier form: the kinematics in `data` and the rows in `cdata` are those of this
-    /// (q, v) at `cdata.t` — `ConstraintSet::evaluate` ran there and nothing has written them
+    /// (q, v) at `t` — `ConstraintSet::evaluate` ran there and nothing has written them
     /// since — so that pass is skipped. The predictor sets it for a step's first stage when its
     /// drift projection evaluated the rows at that state and left it unchanged. Default false.
     pub rows_evaluated: bool,
@@ -57,7 +60,13 @@ impl DynamicsOptions {
             allow_inconsistent: true,
             rows_evaluated: false,
             gains: None,
+            t: 0.0,
         }
+    }
+
+    /// The same options at time `t` [s].
+    pub fn at(self, t: f64) -> Self {
+        DynamicsOptions { t, ..self }
     }
 }
 
@@ -68,8 +77,23 @@ impl Default for DynamicsOptions {
             allow_inconsistent: false,
             rows_evaluated: false,
             gains: None,
+            t: 0.0,
         }
     }
+}
+
+/// [`System::parts`]: the immutable model and constraints beside the workspaces one call writes.
+pub struct Parts<'a> {
+    /// The robot model.
+    pub model: &'a Model,
+    /// The validated constraints.
+    pub constraints: &'a ConstraintSet,
+    /// Kinematics and dynamics workspace.
+    pub data: &'a mut Data,
+    /// Constraint rows.
+    pub rows: &'a mut ConstraintData,
+    /// The multiplier form's workspace.
+    pub multipliers: &'a mut KktWorkspace,
 }
 
 /// A constrained system: the immutable part a scene declares (the robot model, shared; the
@@ -78,20 +102,20 @@ impl Default for DynamicsOptions {
 /// evaluations; what one evaluation does is its arguments ([`DynamicsOptions`]).
 #[derive(Clone, Debug)]
 pub struct System {
-    pub(crate) model: Arc<Model>,
-    pub(crate) constraints: ConstraintSet,
+    model: Arc<Model>,
+    constraints: ConstraintSet,
     /// The scene's Baumgarte gains (`dynamics:`), used where an evaluation names none.
-    pub(crate) baumgarte: Baumgarte,
+    baumgarte: Baumgarte,
     /// The formulation the scene asks for.
-    pub(crate) formulation: Formulation,
+    formulation: Formulation,
     /// Kinematics and dynamics workspace.
-    pub(crate) data: Data,
+    data: Data,
     /// Constraint rows (J, φ, γ, J v) at the last evaluation.
-    pub(crate) cdata: ConstraintData,
+    cdata: ConstraintData,
     /// Multiplier-form workspace; λ of the last multiplier solve.
-    pub(crate) kkt: KktWorkspace,
+    kkt: KktWorkspace,
     /// Embedded-form workspace.
-    pub(crate) embedded: EmbeddedWorkspace,
+    embedded: EmbeddedWorkspace,
     /// Which formulation produced the last result.
     last_formulation: Formulation,
 }
@@ -137,17 +161,65 @@ impl System {
     /// The constraint rows (J, φ, γ, J v) at (t, q, v), kept as [`System::rows`] until the next
     /// evaluation.
     pub fn evaluate_rows(&mut self, t: f64, q: &[f64], v: &[f64]) -> &ConstraintData {
-        self.cdata.t = t;
         self.constraints
-            .evaluate(&self.model, &mut self.data, &mut self.cdata, q, v);
+            .evaluate(&self.model, &mut self.data, &mut self.cdata, t, q, v);
         &self.cdata
     }
 
-    /// (max |φ| over holonomic rows [m or rad], max |J v| [m/s or rad/s]) at (q, v), each row's
-    /// φ and J v kept as [`System::rows`] (`ConstraintSet::residuals`).
-    pub fn residuals(&mut self, q: &[f64], v: &[f64]) -> (f64, f64) {
+    /// M(q) [kg, kg·m, kg·m²] at the configuration of the last [`System::evaluate_rows`] (a
+    /// CRBA on its kinematics, no second pass), kept in [`System::data`].
+    pub fn mass_matrix_after_rows(&mut self) -> &DMatrix<f64> {
+        crba_after_kinematics(&self.model, &mut self.data)
+    }
+
+    /// h(q, v) = C(q, v) v + g(q) [N, N·m] at the state of the last [`System::evaluate_rows`],
+    /// kept in [`System::data`] (`tau`).
+    pub fn bias_after_rows(&mut self) -> &DVector<f64> {
+        bias_forces_after_kinematics(&self.model, &mut self.data);
+        &self.data.tau
+    }
+
+    /// The rows at (t, q, v) with M and h of the same kinematics pass, their entries checked
+    /// finite: what a solve in the mass metric reads (through [`System::data`] and
+    /// [`System::rows`]).
+    pub fn evaluate_rows_and_dynamics(&mut self, t: f64, q: &[f64], v: &[f64]) -> Result<()> {
+        self.evaluate_rows(t, q, v);
+        self.constraints.check_finite(&self.cdata)?;
+        crba_after_kinematics(&self.model, &mut self.data);
+        bias_forces_after_kinematics(&self.model, &mut self.data);
+        Ok(())
+    }
+
+    /// Placements, twists and bias accelerations at (q, v, q̈ = 0), kept in [`System::data`]
+    /// (what force elements read).
+    pub fn kinematics_at(&mut self, q: &[f64], v: &[f64]) -> &Data {
+        forward_kinematics_bias(&self.model, &mut self.data, q, v);
+        &self.data
+    }
+
+    /// M(q), kept in [`System::data`].
+    pub fn mass_matrix_at(&mut self, q: &[f64]) -> &DMatrix<f64> {
+        crba(&self.model, &mut self.data, q)
+    }
+
+    /// (max |φ| over holonomic rows [m or rad], max |J v| [m/s or rad/s]) at (t, q, v), each
+    /// row's φ and J v kept as [`System::rows`], and the placements and twists of (q, v) in
+    /// [`System::data`] (`ConstraintSet::residuals`).
+    pub fn residuals(&mut self, t: f64, q: &[f64], v: &[f64]) -> (f64, f64) {
         self.constraints
-            .residuals(&self.model, &mut self.data, &mut self.cdata, q, v)
+            .residuals(&self.model, &mut self.data, &mut self.cdata, t, q, v)
+    }
+
+    /// The model, the constraints and the kinematics and row workspaces, lent to one call of
+    /// an algorithm that takes them apart (`algo(model, data, …)`).
+    pub fn parts(&mut self) -> Parts<'_> {
+        Parts {
+            model: &self.model,
+            constraints: &self.constraints,
+            data: &mut self.data,
+            rows: &mut self.cdata,
+            multipliers: &mut self.kkt,
+        }
     }
 
     /// The body placements at q (positions only; frames through `algorithm::frame_placement`),
@@ -263,6 +335,7 @@ impl System {
                 v,
                 tau,
                 KktOptions {
+                    t: opts.t,
                     gains: opts.gains.unwrap_or(self.baumgarte),
                     allow_inconsistent: opts.allow_inconsistent,
                     rows_evaluated: opts.rows_evaluated,
@@ -280,6 +353,7 @@ impl System {
                 q,
                 v,
                 tau,
+                opts.t,
                 opts.gains.unwrap_or(self.baumgarte),
             )?;
             self.last_formulation = Formulation::Embedded;
@@ -287,11 +361,12 @@ impl System {
         }
     }
 
-    /// q̈ and ∂q̈/∂(q, v, τ) at (q, v, τ) into `dd` (and ∂λ/∂(q, v, τ) with constraints): the
-    /// multiplier form's with the scene's gains, ABA's without constraints.
+    /// q̈ and ∂q̈/∂(q, v, τ) at (q, v, τ) and time `t` [s] into `dd` (and ∂λ/∂(q, v, τ) with
+    /// constraints): the multiplier form's with the scene's gains, ABA's without constraints.
     pub fn dynamics_derivatives(
         &mut self,
         dd: &mut DerivativeData,
+        t: f64,
         q: &[f64],
         v: &[f64],
         tau: &[f64],
@@ -311,7 +386,10 @@ impl System {
                 q,
                 v,
                 tau,
-                self.baumgarte,
+                KktOptions {
+                    t,
+                    ..self.baumgarte.into()
+                },
             )
         }
     }

@@ -36,7 +36,6 @@ pub fn run(a: EnvelopeArgs) -> Result<Value> {
         &mut elements,
         (0.0, q.as_slice(), v.as_slice()),
         &zero,
-        &zero,
         &mut applied,
     );
     acceleration_envelope(&mut sys, &em, &mut ed, &q, &v, &applied)?;

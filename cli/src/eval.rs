@@ -54,14 +54,7 @@ pub fn run(a: EvalArgs) -> Result<Value> {
     } else {
         let nv = sys.model().nv;
         let mut applied = vec![0.0; nv];
-        applied_generalized_force(
-            &mut sys,
-            &mut elements,
-            (0.0, &q, &v),
-            &tau,
-            &vec![0.0; nv],
-            &mut applied,
-        );
+        applied_generalized_force(&mut sys, &mut elements, (0.0, &q, &v), &tau, &mut applied);
         (
             sys.forward_dynamics(&q, &v, &applied, false)?
                 .as_slice()
@@ -123,19 +116,12 @@ fn derivatives(
 ) -> Result<Value> {
     let nv = sys.model().nv;
     let mut applied = vec![0.0; nv];
-    applied_generalized_force(
-        sys,
-        elements,
-        (0.0, q, v),
-        tau,
-        &vec![0.0; nv],
-        &mut applied,
-    );
+    applied_generalized_force(sys, elements, (0.0, q, v), tau, &mut applied);
     let mut dd = DerivativeData::new(sys.model(), sys.constraints().nrows);
     let mut out = json!({
         "convention": "X[i][j] = d out_i / d in_j; d/dq along delta in q (+) delta (tangent, nv columns)",
     });
-    sys.dynamics_derivatives(&mut dd, q, v, &applied)?;
+    sys.dynamics_derivatives(&mut dd, 0.0, q, v, &applied)?;
     if !sys.constraints().is_empty() {
         out["lambda_unique"] = json!(dd.lambda_unique);
         if dd.lambda_unique {

@@ -41,7 +41,7 @@ pub fn run(a: LinearizeArgs) -> Result<Value> {
     };
     let dt = a.dt.unwrap_or(scene.file.integration.dt);
     let mut lin = Linearization::new(&sys);
-    linearize_step(&mut sys, &mut lin, method, &q, &v, &tau, dt)?;
+    linearize_step(&mut sys, &mut lin, method, 0.0, &q, &v, &tau, dt)?;
     let m = sys.model();
     Ok(json!({
         "scene": a.scene.display().to_string(),

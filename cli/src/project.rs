@@ -61,7 +61,6 @@ pub fn run(a: ProjectArgs) -> Result<Value> {
             &mut elements,
             (0.0, q.as_slice(), v.as_slice()),
             &zero,
-            &zero,
             &mut applied,
         );
         Some(EnvelopeModel::from_scene(&scene, &sys)?)

@@ -7,7 +7,7 @@ use crate::algorithm::{Data, forward_kinematics_vel};
 use crate::model::Model;
 
 impl ConstraintSet {
-    /// (max |φ| over holonomic rows [m or rad], max |J v| [m/s or rad/s]) at (q, v, `cd.t`),
+    /// (max |φ| over holonomic rows [m or rad], max |J v| [m/s or rad/s]) at (q, v, t),
     /// with each row's φ, J v and holonomic flag in `cd` and the placements and body twists of
     /// (q, v) in `data` (what the energies read). J and γ are left as they were when every kind
     /// has the shortcut; a kind without it costs one more kinematics pass ([`Self::evaluate`]).
@@ -16,9 +16,11 @@ impl ConstraintSet {
         model: &Model,
         data: &mut Data,
         cd: &mut ConstraintData,
+        t: f64,
         q: &[f64],
         v: &[f64],
     ) -> (f64, f64) {
+        cd.t = t;
         forward_kinematics_vel(model, data, q, v);
         let direct = self.items.iter().zip(&self.ranges).all(|(c, r)| {
             let out = RowResiduals {
@@ -29,7 +31,7 @@ impl ConstraintSet {
             c.rows().residuals(model, data, out)
         });
         if !direct {
-            self.evaluate(model, data, cd, q, v);
+            self.evaluate(model, data, cd, t, q, v);
         }
         let rows = 0..self.nrows;
         let position = (rows.clone().filter(|&k| cd.holonomic[k]))

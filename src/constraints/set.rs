@@ -82,8 +82,8 @@ pub struct ConstraintData {
     pub gamma: DVector<f64>,
     /// Velocity residual, nc: J v, or f(q, v, t) on `velocity` rows (nonlinear in v).
     pub jv: DVector<f64>,
-    /// Time of the evaluation [s], read by `velocity` constraints that use `t` (the caller sets
-    /// it; the predictor's right-hand side and drift control do; default 0).
+    /// Time [s] of the last evaluation, recorded by [`ConstraintSet::evaluate`] and
+    /// [`ConstraintSet::residuals`] from their argument (0 before any).
     pub t: f64,
     /// Rows whose kind wrote its own velocity residual.
     pub(crate) residual_given: Vec<bool>,
@@ -200,15 +200,18 @@ impl ConstraintSet {
         out
     }
 
-    /// Kinematics at (q, v, q̈ = 0), then J, φ, γ and J v of every row into `cd`.
+    /// Kinematics at (q, v, q̈ = 0), then J, φ, γ and J v of every row at time `t` [s] (what
+    /// `velocity` rows f(q, v, t) read) into `cd`, which records `t`.
     pub fn evaluate(
         &self,
         model: &Model,
         data: &mut Data,
         cd: &mut ConstraintData,
+        t: f64,
         q: &[f64],
         v: &[f64],
     ) {
+        cd.t = t;
         forward_kinematics_bias(model, data, q, v);
         self.fill_rows(model, data, cd, q, v);
         // J's column-major storage, entry (r, c) at c·nrows + r.

@@ -120,6 +120,7 @@ fn solve_dependent_velocities(
     set: &ConstraintSet,
     cd: &mut ConstraintData,
     ws: &mut EmbeddedWorkspace,
+    t: f64,
     q: &[f64],
     v: &[f64],
 ) -> Result<()> {
@@ -145,7 +146,7 @@ fn solve_dependent_velocities(
             .join(", ")
     };
     for _ in 0..NEWTON_ITERATIONS {
-        set.evaluate(model, data, cd, q, v_s);
+        set.evaluate(model, data, cd, t, q, v_s);
         set.check_finite(cd)?;
         let f = &mut ws.col[..n];
         for (a, &(row, _)) in decl.iter().enumerate() {
@@ -188,8 +189,9 @@ fn solve_dependent_velocities(
 const NEWTON_ITERATIONS: usize = 30;
 const NEWTON_TOL: f64 = 1e-14;
 
-/// q̈ of the constrained system without multipliers (into `ws.qdd`); `ws.partition` is chosen
-/// afresh at every call from the current J.
+/// q̈ of the constrained system without multipliers (into `ws.qdd`) at (q, v, τ) and time `t`
+/// [s] (what `velocity` rows read); `ws.partition` is chosen afresh at every call from the
+/// current J.
 #[allow(clippy::too_many_arguments)]
 pub fn embedded_forward_dynamics(
     model: &Model,
@@ -200,6 +202,7 @@ pub fn embedded_forward_dynamics(
     q: &[f64],
     v: &[f64],
     tau: &[f64],
+    t: f64,
     stab: Baumgarte,
 ) -> Result<()> {
     let (nv, nc) = (model.nv, set.nrows);
@@ -207,11 +210,11 @@ pub fn embedded_forward_dynamics(
     // Dependent velocities the scene names are functions of the others (eq. 2): solve them
     // from f first, so the equations below hold at a state that satisfies f = 0 exactly.
     declared_dependents(set, &mut ws.declared);
-    solve_dependent_velocities(model, data, set, cd, ws, q, v)?;
+    solve_dependent_velocities(model, data, set, cd, ws, t, q, v)?;
     // Taken out of the workspace while it is borrowed below (no allocation), put back after.
     let v_solved = std::mem::take(&mut ws.v_solved);
     let v = if ws.solved { v_solved.as_slice() } else { v };
-    let result = solve(model, data, set, cd, ws, q, v, tau, stab);
+    let result = solve(model, data, set, cd, ws, t, q, v, tau, stab);
     ws.v_solved = v_solved;
     result
 }
@@ -223,6 +226,7 @@ fn solve(
     set: &ConstraintSet,
     cd: &mut ConstraintData,
     ws: &mut EmbeddedWorkspace,
+    t: f64,
     q: &[f64],
     v: &[f64],
     tau: &[f64],
@@ -230,7 +234,7 @@ fn solve(
 ) -> Result<()> {
     let (nv, nc) = (model.nv, set.nrows);
     // One kinematics pass at (q, v, q̈ = 0) serves the constraints, M and h.
-    set.evaluate(model, data, cd, q, v);
+    set.evaluate(model, data, cd, t, q, v);
     set.check_finite(cd)?;
     crba_after_kinematics(model, data);
     bias_forces_after_kinematics(model, data);

@@ -93,6 +93,8 @@ impl KktWorkspace {
 /// the workspace between calls. A `Baumgarte` converts to the defaults with those gains.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct KktOptions {
+    /// Time [s] of the evaluation (what `velocity` rows f(q, v, t) read).
+    pub t: f64,
     /// Baumgarte stabilisation gains of this evaluation.
     pub gains: Baumgarte,
     /// Accept constraint rows that cannot all be met and return the least-squares λ = S⁺ r
@@ -146,7 +148,7 @@ pub fn constrained_forward_dynamics(
     }
     // One kinematics pass at (q, v, q̈ = 0) serves the constraints, M and h.
     if !opts.rows_evaluated {
-        set.evaluate(model, data, cd, q, v);
+        set.evaluate(model, data, cd, opts.t, q, v);
     }
     set.check_finite(cd)?;
     crba_after_kinematics(model, data);

@@ -50,7 +50,6 @@ pub use model::EnvelopeModel;
 pub(crate) use report::unchecked_limits;
 pub use report::{EnvelopeReport, LimitReport};
 
-use crate::algorithm::{bias_forces_after_kinematics, crba_after_kinematics};
 use crate::error::{Result, check_len};
 use crate::robot_limits::{active_limits, max_active_limits};
 use crate::system::System;
@@ -152,21 +151,19 @@ pub fn acceleration_envelope<'a>(
     v: &[f64],
     applied: &[f64],
 ) -> Result<&'a Envelope> {
-    let model = &sys.model;
-    model.check_state(q, v)?;
-    check_len("applied", applied, model.nv)?;
+    let nv = sys.model().nv;
+    sys.model().check_state(q, v)?;
+    check_len("applied", applied, nv)?;
     crate::error::check_finite("applied", applied)?;
-    // One kinematics pass at (q, v, q̈ = 0) serves J, γ, M and h.
-    sys.constraints
-        .evaluate(model, &mut sys.data, &mut sys.cdata, q, v);
-    sys.constraints.check_finite(&sys.cdata)?;
-    crba_after_kinematics(model, &mut sys.data);
-    bias_forces_after_kinematics(model, &mut sys.data);
-    for i in 0..model.nv {
-        ed.rhs[i] = applied[i] - sys.data.tau[i];
+    // One kinematics pass at (q, v, q̈ = 0) serves J, γ, M and h; the envelope is of the
+    // present, time-dependent rows at the rows' own last time.
+    sys.evaluate_rows_and_dynamics(sys.rows().t, q, v)?;
+    let (data, rows) = (sys.data(), sys.rows());
+    for i in 0..nv {
+        ed.rhs[i] = applied[i] - data.tau[i];
     }
-    let (m, j) = (&sys.data.mass_matrix, &sys.cdata.j);
-    ed.socp.load(em, m, j, &ed.rhs, &sys.cdata.gamma)?;
+    ed.socp
+        .load(em, &data.mass_matrix, &rows.j, &ed.rhs, &rows.gamma)?;
     let env = &mut ed.envelope;
     let cases = [
         (
@@ -189,6 +186,7 @@ pub fn acceleration_envelope<'a>(
             &mut env.yaw_acceleration_right,
         ),
     ];
+    let (m, j) = (&sys.data().mass_matrix, &sys.rows().j);
     for (direction, coordinate, sign, limit) in cases {
         let outcome = ed.socp.solve(m, j, direction, coordinate, sign)?;
         limit.binding.clear();

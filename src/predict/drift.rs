@@ -8,7 +8,6 @@
 //! uses the metric M + ρ AᵀA instead: the projected point is the same on the constraint's range.
 //! Everything lives in a [`DriftProjector`] sized once: a projection allocates nothing.
 
-use crate::algorithm::{bias_forces_after_kinematics, crba_after_kinematics};
 use crate::dynamics::Baumgarte;
 use crate::error::{Error, Result};
 use crate::linalg::cholesky_in_place;
@@ -57,7 +56,7 @@ pub struct DriftProjector {
 impl DriftProjector {
     /// Size the workspace for the system's model and constraint set.
     pub fn new(sys: &System) -> Self {
-        let (nv, nc, nq) = (sys.model.nv, sys.constraints.nrows, sys.model.nq);
+        let (nv, nc, nq) = (sys.model().nv, sys.constraints().nrows, sys.model().nq);
         Self {
             rows_h: Vec::with_capacity(nc),
             l: DMatrix::zeros(nv, nv),
@@ -73,20 +72,22 @@ impl DriftProjector {
         }
     }
 
-    /// Project (q, v) onto the constraint manifold in place (positions first when asked).
+    /// Project (q, v) at time `t` [s] onto the constraint manifold in place (positions first
+    /// when asked).
     /// Returns the largest holonomic residual after the position projection.
     /// `form`: the scene's constant form, if it has one — no position rows, and v left as it is
     /// while it stays in the rows' null space (dynamics/invariant.rs), judged without the rows.
     pub fn project(
         &mut self,
         sys: &mut System,
+        t: f64,
         q: &mut [f64],
         v: &mut [f64],
         positions: bool,
         form: Option<&InvariantDynamics>,
     ) -> Result<f64> {
         self.rows_current = false;
-        if sys.constraints.is_empty() {
+        if sys.constraints().is_empty() {
             return Ok(0.0);
         }
         let tol = VELOCITY_TOL * v.iter().fold(1.0f64, |m, x| m.max(x.abs()));
@@ -96,19 +97,18 @@ impl DriftProjector {
         let mut residual = 0.0;
         if positions {
             // Leaves the rows (and the kinematics) evaluated at the corrected q.
-            residual = self.project_positions(sys, q, v)?;
+            residual = self.project_positions(sys, t, q, v)?;
         } else {
-            sys.constraints
-                .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
+            sys.evaluate_rows(t, q, v);
         }
-        let nc = sys.constraints.nrows;
-        if sys.cdata.jv.iter().all(|x| x.abs() <= tol) {
+        let nc = sys.constraints().nrows;
+        if sys.rows().jv.iter().all(|x| x.abs() <= tol) {
             self.rows_current = true;
             return Ok(residual);
         }
         self.metric(sys, false)?;
         let rhs: &mut Vec<f64> = &mut self.mu[1];
-        rhs[..nc].copy_from_slice(sys.cdata.jv.as_slice());
+        rhs[..nc].copy_from_slice(sys.rows().jv.as_slice());
         self.rank_deficiency = nc - self.correction(sys, 1);
         for (vi, d) in v.iter_mut().zip(&self.dq) {
             *vi -= d;
@@ -117,27 +117,32 @@ impl DriftProjector {
     }
 
     /// Newton on the holonomic rows. Every correction is followed by an evaluation, so on return
-    /// `sys.cdata` and the kinematics in `sys.data` are those of the final (q, v).
-    fn project_positions(&mut self, sys: &mut System, q: &mut [f64], v: &[f64]) -> Result<f64> {
+    /// the system's rows and kinematics are those of the final (q, v).
+    fn project_positions(
+        &mut self,
+        sys: &mut System,
+        t: f64,
+        q: &mut [f64],
+        v: &[f64],
+    ) -> Result<f64> {
         let mut worst = 0.0;
+        let nv = sys.model().nv;
         for it in 0..=NEWTON_ITERATIONS {
-            sys.constraints
-                .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
+            let rows = sys.evaluate_rows(t, q, v);
             if it == 0 {
                 self.rows_h.clear();
-                let hol = &sys.cdata.holonomic;
-                self.rows_h
-                    .extend((0..sys.constraints.nrows).filter(|&k| hol[k]));
+                let hol = &rows.holonomic;
+                self.rows_h.extend((0..hol.len()).filter(|&k| hol[k]));
                 let nh = self.rows_h.len();
                 if self.s[0].nrows() != nh {
-                    self.y[0] = DMatrix::zeros(sys.model.nv, nh);
+                    self.y[0] = DMatrix::zeros(nv, nh);
                     self.s[0] = DMatrix::zeros(nh, nh);
                 }
             }
             worst = self
                 .rows_h
                 .iter()
-                .fold(0.0f64, |m, &k| m.max(sys.cdata.phi[k].abs()));
+                .fold(0.0f64, |m, &k| m.max(rows.phi[k].abs()));
             if self.rows_h.is_empty() || worst <= POSITION_TOL || it == NEWTON_ITERATIONS {
                 break;
             }
@@ -146,12 +151,12 @@ impl DriftProjector {
             }
             self.metric(sys, true)?;
             for (a, &k) in self.rows_h.iter().enumerate() {
-                self.mu[0][a] = sys.cdata.phi[k];
+                self.mu[0][a] = sys.rows().phi[k];
             }
             self.correction(sys, 0);
             self.dq.iter_mut().for_each(|x| *x = -*x);
             self.q_tmp.copy_from_slice(q);
-            sys.model.integrate(&self.q_tmp, &self.dq, 1.0, q);
+            sys.model().integrate(&self.q_tmp, &self.dq, 1.0, q);
         }
         if worst.is_nan() || worst > POSITION_FAIL {
             return Err(Error::Diverged {
@@ -165,24 +170,25 @@ impl DriftProjector {
         Ok(worst)
     }
 
-    /// Factor the metric: M (from a CRBA after `evaluate`), or M + ρ AᵀA when M is singular
+    /// Factor the metric: M (at the rows' last evaluation), or M + ρ AᵀA when M is singular
     /// (A = holonomic rows when `holonomic`, else all rows). Returns ρ (0 for M itself).
     fn metric(&mut self, sys: &mut System, holonomic: bool) -> Result<f64> {
-        let m = crba_after_kinematics(&sys.model, &mut sys.data);
-        self.l.copy_from(m);
-        if cholesky_in_place(&mut self.l, sys.model.nv, 1e-14).is_ok() {
+        let nv = sys.model().nv;
+        self.l.copy_from(sys.mass_matrix_after_rows());
+        if cholesky_in_place(&mut self.l, nv, 1e-14).is_ok() {
             return Ok(0.0);
         }
-        let nv = sys.model.nv;
+        let m = &sys.data().mass_matrix;
         let rho = (0..nv).map(|i| m[(i, i)]).fold(0.0, f64::max).max(1.0);
         self.l.copy_from(m);
-        let j = &sys.cdata.j;
-        let nc = sys.constraints.nrows;
+        let rows = sys.rows();
+        let j = &rows.j;
+        let nc = j.nrows();
         for a in 0..nv {
             for c in 0..nv {
                 let mut s = 0.0;
                 for k in 0..nc {
-                    if !holonomic || sys.cdata.holonomic[k] {
+                    if !holonomic || rows.holonomic[k] {
                         s += j[(k, a)] * j[(k, c)];
                     }
                 }
@@ -192,7 +198,7 @@ impl DriftProjector {
         cholesky_in_place(&mut self.l, nv, 1e-14).map_err(|i| Error::SingularMass {
             message: format!(
                 "projection: coordinate '{}' has no inertia and no constraint fixes it",
-                sys.model.v_names[i]
+                sys.model().v_names[i]
             ),
         })?;
         Ok(rho)
@@ -208,22 +214,19 @@ impl DriftProjector {
         &mut self,
         sys: &mut System,
         gains: Baumgarte,
-        q: &[f64],
-        v: &[f64],
+        (t, q, v): (f64, &[f64], &[f64]),
         tau: &[f64],
         qdd: &mut [f64],
     ) -> Result<usize> {
-        let (nv, nc) = (sys.model.nv, sys.constraints.nrows);
-        sys.constraints
-            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
+        let (nv, nc) = (sys.model().nv, sys.constraints().nrows);
+        sys.evaluate_rows(t, q, v);
         let rho = self.metric(sys, false)?;
-        bias_forces_after_kinematics(&sys.model, &mut sys.data);
-        let (cd, stab) = (&sys.cdata, gains);
+        sys.bias_after_rows();
+        let (cd, h, stab) = (sys.rows(), &sys.data().tau, gains);
         let b = |k: usize| -cd.gamma[k] - stab.kd * cd.jv[k] - stab.kp * cd.phi[k];
         // q̈_free = M̃⁻¹ (τ − h + ρ Jᵀ b)
         for i in 0..nv {
-            self.rhs[i] =
-                tau[i] - sys.data.tau[i] + rho * (0..nc).map(|k| cd.j[(k, i)] * b(k)).sum::<f64>();
+            self.rhs[i] = tau[i] - h[i] + rho * (0..nc).map(|k| cd.j[(k, i)] * b(k)).sum::<f64>();
         }
         for i in 0..nv {
             let mut s = self.rhs[i];
@@ -252,8 +255,8 @@ impl DriftProjector {
     /// `dq = L⁻ᵀ Y μ` with `(YᵀY) μ = r` (r in `mu[set]`), rows = holonomic (set 0) or all (set 1).
     /// Returns the rank of YᵀY.
     fn correction(&mut self, sys: &System, set: usize) -> usize {
-        let nv = sys.model.nv;
-        let j = &sys.cdata.j;
+        let nv = sys.model().nv;
+        let j = &sys.rows().j;
         let nr = self.s[set].nrows();
         let y = &mut self.y[set];
         for a in 0..nr {
@@ -298,9 +301,10 @@ impl DriftProjector {
     }
 }
 
-/// Project (q, v) onto the constraint manifold in place (convenience: a fresh workspace).
+/// Project (q, v) onto the constraint manifold in place (convenience: a fresh workspace), as a
+/// prediction's start: time-dependent rows at t = 0.
 pub fn project(sys: &mut System, q: &mut [f64], v: &mut [f64], positions: bool) -> Result<()> {
     DriftProjector::new(sys)
-        .project(sys, q, v, positions, None)
+        .project(sys, 0.0, q, v, positions, None)
         .map(|_| ())
 }

@@ -65,7 +65,7 @@ pub(super) struct Lane {
 
 impl Lane {
     pub fn new(sys: &System) -> Self {
-        let (nq, nv) = (sys.model.nq, sys.model.nv);
+        let (nq, nv) = (sys.model().nq, sys.model().nv);
         Self {
             q: vec![0.0; nq],
             v: vec![0.0; nv],

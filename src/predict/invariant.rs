@@ -47,14 +47,14 @@ impl InvariantDynamics {
     /// gains, and every one of [`CHECKS`] random states reproduced to [`TOLERANCE`]. Leaves
     /// `sys`'s workspaces at the last state it evaluated.
     pub fn fit(sys: &mut System, q0: &[f64]) -> Option<Self> {
-        let eligible = !sys.constraints.is_empty()
-            && (sys.constraints.items.iter())
+        let eligible = !sys.constraints().is_empty()
+            && (sys.constraints().items.iter())
                 .all(|c| matches!(c, Constraint::Rolling(_) | Constraint::NoSideSlip(_)))
-            && sys.baumgarte == Default::default();
+            && sys.baumgarte() == Default::default();
         if !eligible {
             return None;
         }
-        let nv = sys.model.nv;
+        let nv = sys.model().nv;
         let zero = vec![0.0; nv];
         let full = |sys: &mut System, q: &[f64], v: &[f64], tau: &[f64]| {
             (sys.forward_dynamics_with(q, v, tau, DynamicsOptions::default())
@@ -62,12 +62,12 @@ impl InvariantDynamics {
             .map(|qdd| qdd.as_slice().to_vec())
         };
         let a0 = full(sys, q0, &zero, &zero)?;
-        if sys.cdata.holonomic.iter().any(|&h| h) {
+        if sys.rows().holonomic.iter().any(|&h| h) {
             // A wheel's normal row (a floating base): positions drift, and the projection that
             // corrects them needs the rows.
             return None;
         }
-        let n = null_space(&sys.cdata.j)?;
+        let n = null_space(&sys.rows().j)?;
         let nu = n.ncols();
         if nu == 0 || nu > MAX_U {
             return None;
@@ -124,7 +124,7 @@ impl InvariantDynamics {
         let mut fast = vec![0.0; nv];
         for _ in 0..CHECKS {
             dq.iter_mut().for_each(|x| *x = 3.0 * rng.uniform());
-            sys.model.integrate(q0, &dq, 1.0, &mut q);
+            sys.model().integrate(q0, &dq, 1.0, &mut q);
             let u: Vec<f64> = (0..nu).map(|_| 10.0 * rng.uniform()).collect();
             tau.iter_mut().for_each(|x| *x = 10.0 * rng.uniform());
             let v = along(&u);

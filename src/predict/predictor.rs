@@ -18,7 +18,6 @@ use super::run::rhs::JacobianWork;
 use super::settings::{DriftControl, IntegrationSettings};
 use super::trajectory::Trajectory;
 use crate::actuators::Actuators;
-use crate::algorithm::{crba, forward_kinematics};
 use crate::dynamics::Baumgarte;
 use crate::error::{Error, Result};
 use crate::forces::ForceElements;
@@ -135,9 +134,9 @@ impl Predictor {
         settings: IntegrationSettings,
     ) -> Result<Self> {
         settings.validate()?;
-        let neutral = sys.model.neutral();
+        let neutral = sys.model().neutral();
         let invariant = InvariantDynamics::fit(&mut sys, &neutral);
-        let model = sys.model.clone();
+        let model = sys.model().clone();
         let (nq, nv) = (model.nq, model.nv);
         let ws = Workspace {
             lanes: [Lane::new(&sys), Lane::new(&sys)],
@@ -159,7 +158,7 @@ impl Predictor {
             rows_q: vec![0.0; nq],
             rows_v: vec![0.0; nv],
             cost: crate::limits::evaluation_cost(&model),
-            gains: sys.baumgarte,
+            gains: sys.baumgarte(),
             jw: JacobianWork::new(&sys),
             pipe: PipeSlot::default(),
         };
@@ -167,11 +166,11 @@ impl Predictor {
             settings,
             uncertainty: UncertaintySpec::default(),
             actuators: actuators.clone(),
-            gains: sys.baumgarte,
+            gains: sys.baumgarte(),
             parallel_covariance: true,
             invariant,
         };
-        let contact_judge = ContactJudge::new(&model, &sys.constraints);
+        let contact_judge = ContactJudge::new(&model, sys.constraints());
         Ok(Self {
             config,
             contact_judge,
@@ -290,14 +289,13 @@ impl Predictor {
         let Some(limit) = s.method.integrator().stability_limit() else {
             return Ok(());
         };
-        let zero = vec![0.0; v.len()];
-        forward_kinematics(&self.sys.model, &mut self.sys.data, q, v, &zero);
-        let m = crba(&self.sys.model, &mut self.sys.data, q).clone();
+        self.sys.kinematics_at(q, v);
+        let m = self.sys.mass_matrix_at(q).clone();
         let reg = m.diagonal().amax().max(1e-12) * 1e-12;
         let minv = (m + nalgebra::DMatrix::identity(v.len(), v.len()) * reg)
             .try_inverse()
             .unwrap_or_default();
-        let rate = self.forces.max_rate(&self.sys.model, &self.sys.data, &minv);
+        let rate = (self.forces).max_rate(self.sys.model(), self.sys.data(), &minv);
         if s.dt * rate > limit {
             return Err(Error::StepTooLarge {
                 message: format!(

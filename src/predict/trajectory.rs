@@ -141,7 +141,7 @@ impl Predictor {
     ) -> Result<Sample> {
         let sys = &mut self.sys;
         let at = match forces {
-            Some(_) if !sys.constraints.is_empty() => Some(constraint_forces_at(
+            Some(_) if !sys.constraints().is_empty() => Some(constraint_forces_at(
                 sys,
                 &mut self.forces,
                 (t, q, v),
@@ -149,13 +149,10 @@ impl Predictor {
             )?),
             _ => None,
         };
-        // Time reaches the constraints through their workspace (`velocity` rows may use t).
-        sys.cdata.t = t;
-        let (position_residual, velocity_residual) =
-            (sys.constraints).residuals(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
-        let ke = kinetic_energy(&sys.model, &sys.data);
-        let pe = potential_energy(&sys.model, &sys.data)
-            + self.forces.potential_energy(&sys.model, &sys.data, q);
+        let (position_residual, velocity_residual) = sys.residuals(t, q, v);
+        let (model, data) = (sys.model(), sys.data());
+        let ke = kinetic_energy(model, data);
+        let pe = potential_energy(model, data) + self.forces.potential_energy(model, data, q);
         let (contacts, lambda, forces, generalized_force, rank_deficiency) = match (at, forces) {
             (Some(f), Some(limits)) => (
                 // Reads λ only: the prediction is the same with or without the judgement.

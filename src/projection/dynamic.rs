@@ -38,7 +38,6 @@ use super::projector::{Outcome, SolvePath, Status, VelocityProjector};
 use super::qp::{IneqRow, inequality_rows};
 use super::report::{ActiveBound, ActiveInequality, NamedConflict, Projection};
 use super::request::{Mode, ProjectionRequest};
-use crate::algorithm::{bias_forces_after_kinematics, crba_after_kinematics};
 use crate::constraints::ConstraintSet;
 use crate::envelope::{EnvelopeModel, unchecked_limits};
 use crate::error::{Error, Result, check_finite, check_len};
@@ -151,39 +150,30 @@ impl DynamicProjector {
         period: f64,
     ) -> Result<Outcome> {
         if period == 0.0 {
-            return self.kinematic.project(
-                &sys.model,
-                &mut sys.data,
-                &sys.constraints,
-                &mut sys.cdata,
-                q,
-                problem,
-            );
+            let p = sys.parts();
+            return (self.kinematic).project(p.model, p.data, p.constraints, p.rows, q, problem);
         }
         let em = check_period(period, em)?;
-        let model = &sys.model;
-        model.check_state(q, v)?;
-        check_len("applied", applied, model.nv)?;
+        let (nv, nc) = (sys.model().nv, sys.constraints().nrows);
+        sys.model().check_state(q, v)?;
+        check_len("applied", applied, nv)?;
         check_finite("applied", applied)?;
-        problem.validate(model.nv)?;
-        if em.nv != model.nv || em.nc != sys.constraints.nrows {
+        problem.validate(nv)?;
+        if em.nv != nv || em.nc != nc {
             return Err(Error::Invalid(format!(
-                "the limits are sized for nv = {}, nc = {}; the system has nv = {}, nc = {}",
-                em.nv, em.nc, model.nv, sys.constraints.nrows
+                "the limits are sized for nv = {}, nc = {}; the system has nv = {nv}, nc = {nc}",
+                em.nv, em.nc
             )));
         }
-        sys.constraints
-            .evaluate(model, &mut sys.data, &mut sys.cdata, q, v);
-        sys.constraints.check_finite(&sys.cdata)?;
-        crba_after_kinematics(model, &mut sys.data);
-        bias_forces_after_kinematics(model, &mut sys.data);
-        let m = &sys.data.mass_matrix;
-        // rhs = M v + Δt (Q − h); sys.data.tau holds h(q, v).
-        for i in 0..model.nv {
-            let mv: f64 = (0..model.nv).map(|c| m[(i, c)] * v[c]).sum();
-            self.rhs[i] = mv + period * (applied[i] - sys.data.tau[i]);
+        // A projection is of the present: time-dependent rows at the rows' own last time.
+        sys.evaluate_rows_and_dynamics(sys.rows().t, q, v)?;
+        let (m, h) = (&sys.data().mass_matrix, &sys.data().tau);
+        // rhs = M v + Δt (Q − h)
+        for i in 0..nv {
+            let mv: f64 = (0..nv).map(|c| m[(i, c)] * v[c]).sum();
+            self.rhs[i] = mv + period * (applied[i] - h[i]);
         }
-        self.solve_evaluated(model, em, problem, period, sys)
+        self.solve_evaluated(sys.model(), em, problem, period, sys)
     }
 
     fn solve_evaluated(
@@ -229,8 +219,8 @@ impl DynamicProjector {
         }
         inequality_rows(&kin.bounds, p.a.nrows(), &mut self.ineq);
         let data = SocpData {
-            m: &sys.data.mass_matrix,
-            j: &sys.cdata.j,
+            m: &sys.data().mass_matrix,
+            j: &sys.rows().j,
             rhs: &self.rhs,
             v_des: &p.v_des,
             bounds: &kin.bounds,
@@ -345,11 +335,9 @@ impl DynamicProjector {
                     .into(),
             ));
         }
-        sys.model.check_state(q, v)?;
-        let model = &sys.model;
-        sys.constraints
-            .evaluate(model, &mut sys.data, &mut sys.cdata, q, v);
-        let problem = request.resolve(model, &sys.cdata.j, v)?;
+        sys.model().check_state(q, v)?;
+        sys.evaluate_rows(sys.rows().t, q, v);
+        let problem = request.resolve(sys.model(), &sys.rows().j, v)?;
         // The kinematics stay at (q, v) for the impulses' frames.
         self.project(sys, Some(em), q, v, applied, &problem, period)?;
         Ok(self.report(sys, em, &problem, period))
@@ -363,10 +351,10 @@ impl DynamicProjector {
         problem: &ProjectionProblem,
         period: f64,
     ) -> Projection {
-        let model = &sys.model;
+        let model = sys.model();
         let o = self.outcome;
         let ok = o.status == Status::Optimal;
-        let row_names = sys.constraints.row_names();
+        let row_names = sys.constraints().row_names();
         let named = |b: &Binding| NamedLimit {
             kind: b.kind.name(),
             name: em.binding_name(model, b).to_string(),
@@ -378,7 +366,7 @@ impl DynamicProjector {
                 DynamicConflict::Kinematic(k) => {
                     conflicts.push(self.kinematic.name_conflict(
                         model,
-                        &sys.constraints,
+                        sys.constraints(),
                         &row_names,
                         k,
                     ));
@@ -438,9 +426,9 @@ impl DynamicProjector {
             constraints: if ok {
                 super::report::impulses(
                     model,
-                    &sys.data,
-                    &sys.constraints,
-                    &sys.cdata,
+                    sys.data(),
+                    sys.constraints(),
+                    sys.rows(),
                     &self.lambda,
                 )
             } else {

@@ -71,11 +71,12 @@ pub fn project_system(
     v_current: &[f64],
     request: &ProjectionRequest,
 ) -> Result<Projection> {
+    let p = sys.parts();
     projector.project_request(
-        &sys.model,
-        &mut sys.data,
-        &sys.constraints,
-        &mut sys.cdata,
+        p.model,
+        p.data,
+        p.constraints,
+        p.rows,
         q,
         v_current,
         request,

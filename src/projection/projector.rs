@@ -165,7 +165,9 @@ impl VelocityProjector {
             Some(al) => al.v_current.as_slice(),
             None => self.zero_v.as_slice(),
         };
-        set.evaluate(model, data, cd, q, v_eval);
+        // A projection is of the present: time-dependent rows at the rows' own last time.
+        let t = cd.t;
+        set.evaluate(model, data, cd, t, q, v_eval);
         crba_after_kinematics(model, data);
         self.solve_evaluated(model, &data.mass_matrix, &cd.j, problem)
     }

@@ -176,7 +176,9 @@ impl VelocityProjector {
                 request.period
             )));
         }
-        set.evaluate(model, data, cd, q, v_current);
+        // A projection is of the present: time-dependent rows at the rows' own last time.
+        let t = cd.t;
+        set.evaluate(model, data, cd, t, q, v_current);
         crba_after_kinematics(model, data);
         let problem = request.resolve(model, &cd.j, v_current)?;
         let twist_done = request.effective_mode() == super::Mode::Twist

@@ -227,8 +227,14 @@ fn urdf_mimic_becomes_a_coupling_constraint() {
         TOL_GEARS,
     );
     let (mut data, mut cd, _) = workspaces(&sys);
-    sys.constraints()
-        .evaluate(sys.model(), &mut data, &mut cd, &[0.3, -0.5], &[0.0, 0.0]);
+    sys.constraints().evaluate(
+        sys.model(),
+        &mut data,
+        &mut cd,
+        0.0,
+        &[0.3, -0.5],
+        &[0.0, 0.0],
+    );
     assert_close(
         "gears: φ",
         &[cd.phi[0]],

@@ -153,7 +153,7 @@ fn sample_residuals_are_the_contact_gap_and_the_slip_speed() {
     let q = [0.2, -0.1, 0.13, 0.0, 0.0, 0.0, 1.0];
     let v = [0.3, -0.2, 0.05, 0.4, 2.0, -0.7];
     let mut sys = multiplier_system(model, &specs, &q);
-    let (position, velocity) = sys.residuals(&q, &v);
+    let (position, velocity) = sys.residuals(0.0, &q, &v);
     let rows = [0.1, -0.16, 0.05, -0.2];
     for (k, (got, want)) in sys.rows().jv.iter().zip(rows).enumerate() {
         assert!(

@@ -262,7 +262,7 @@ fn check_constrained_scene(name: &str, scene: &Scene, rng: &mut Rng) -> (f64, Ve
             // rows (two wheels on one axle) stay consistent.
             let q = perturbed(&model, &scene.q0, &rng.vec(nv, 0.05), 1.0);
             s.constraints()
-                .evaluate(&model, &mut data, &mut cd, &q, &vec![0.0; nv]);
+                .evaluate(&model, &mut data, &mut cd, 0.0, &q, &vec![0.0; nv]);
             let j = cd.j.clone();
             let kept = independent_rows(&j);
             let full_rank = kept.len() == nc;

@@ -39,7 +39,7 @@ fn step_out(
     (tau, dt): (&[f64], f64),
     q_ref: &[f64],
 ) -> DVector<f64> {
-    linearize_step(sys, lin, method, q, v, tau, dt).unwrap();
+    linearize_step(sys, lin, method, 0.0, q, v, tau, dt).unwrap();
     let nv = v.len();
     let mut d = vec![0.0; nv];
     sys.model().difference(q_ref, &lin.q_next, &mut d);
@@ -76,7 +76,7 @@ fn step_linearization_matches_finite_differences_on_every_bundled_scene() {
         let tau: Vec<f64> = (0..nv).map(|i| 0.3 * ((i + 1) as f64).sin()).collect();
         for method in [Method::SemiImplicitEuler, Method::Rk4, Method::Dopri5] {
             let tag = format!("{name} {method:?}");
-            if let Err(e) = linearize_step(&mut sys, &mut lin, method, &q, &v, &tau, dt) {
+            if let Err(e) = linearize_step(&mut sys, &mut lin, method, 0.0, &q, &v, &tau, dt) {
                 panic!("{tag}: {e}");
             }
             let q_ref = lin.q_next.clone();
@@ -210,6 +210,7 @@ fn linearized_step_is_the_predictors_step() {
                 &mut sys,
                 &mut lin,
                 method,
+                0.0,
                 &scene.q0,
                 &scene.v0,
                 &vec![0.0; nv],

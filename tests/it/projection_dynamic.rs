@@ -523,7 +523,8 @@ fn certificate(
     let m = crba(model, &mut d, q).clone();
     let h = nonlinear_effects(model, &mut d, q, v).clone();
     let mut cd = ConstraintData::new(model, sys.constraints());
-    sys.constraints().evaluate(model, &mut d, &mut cd, q, v);
+    sys.constraints()
+        .evaluate(model, &mut d, &mut cd, 0.0, q, v);
     let j = cd.j.clone();
     let vv = DVector::from_column_slice(v);
     let (vp, tau, lam, y) = (&proj.v, &proj.tau, &proj.lambda, &proj.y);

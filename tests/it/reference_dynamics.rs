@@ -68,7 +68,7 @@ fn check(name: &str, qdd_tol: f64) {
 
         let mut ew = EmbeddedWorkspace::default();
         embedded_forward_dynamics(
-            &model, &mut data, &set, &mut cd, &mut ew, &q, &v, &tau, stab,
+            &model, &mut data, &set, &mut cd, &mut ew, &q, &v, &tau, 0.0, stab,
         )
         .unwrap();
         // The two formulations against each other: ≤ 4.8e-15, Solo12 1.2e-12 (as q̈ above).

@@ -194,14 +194,7 @@ impl StartEnvelope {
         let (em, ed, _) = self.solver.as_mut()?;
         // The scene's force elements (springs, dampers, URDF damping) at (q, v) act as well, as
         // in the CLI's `envelope`.
-        applied_generalized_force(
-            sys,
-            elements,
-            (0.0, q, v),
-            &self.zero,
-            &self.zero,
-            &mut self.applied,
-        );
+        applied_generalized_force(sys, elements, (0.0, q, v), &self.zero, &mut self.applied);
         match acceleration_envelope(sys, em, ed, q, v, &self.applied) {
             Ok(env) => {
                 let msg = limits_msg(sys.model(), em, env, header);

@@ -550,7 +550,6 @@ fn the_envelope_may_check_a_floating_variant_of_the_robot() {
         &mut elements,
         (0.0, &q, &v),
         &zero,
-        &zero,
         &mut applied,
     );
     let e = acceleration_envelope(&mut sys, &em, &mut ed, &q, &v, &applied).unwrap();

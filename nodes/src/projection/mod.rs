@@ -189,7 +189,6 @@ impl ProjectionNode {
                 &mut self.elements,
                 (0.0, q, v),
                 &self.zero,
-                &self.zero,
                 &mut self.applied,
             );
         }

@@ -82,14 +82,7 @@ fn core_envelope(scene: &Scene, phase: &Value) -> ([Option<f64>; 4], EnvelopeRep
     let mut elements = ForceElements::new(sys.model(), &scene.file.forces).expect("forces");
     let zero = vec![0.0; model.nv];
     let mut applied = vec![0.0; model.nv];
-    applied_generalized_force(
-        &mut sys,
-        &mut elements,
-        (0.0, &q, &v),
-        &zero,
-        &zero,
-        &mut applied,
-    );
+    applied_generalized_force(&mut sys, &mut elements, (0.0, &q, &v), &zero, &mut applied);
     acceleration_envelope(&mut sys, &em, &mut ed, &q, &v, &applied).expect("envelope");
     let report = EnvelopeReport::new(sys.model(), &em, &ed.envelope);
     let max = |l: &LimitReport| {

@@ -98,7 +98,7 @@ pub(crate) struct StepRecord {
 
 impl StepRecord {
     pub(crate) fn new(sys: &System) -> Self {
-        let (nq, nv) = (sys.model.nq, sys.model.nv);
+        let (nq, nv) = (sys.model().nq, sys.model().nv);
         Self {
             q: vec![vec![0.0; nq]; CHUNK_CAPACITY + 1],
             v: vec![vec![0.0; nv]; CHUNK_CAPACITY + 1],
@@ -192,7 +192,7 @@ impl ChunkControl {
             refused: 0,
             wait: 0,
             patience: 0,
-            diff: vec![0.0; sys.model.nv],
+            diff: vec![0.0; sys.model().nv],
         }
     }
 
@@ -284,7 +284,7 @@ impl CovariancePropagator {
             self.apply_linearization(h, &rec.feedback[lo]);
             lo += 1;
             if lo == n {
-                self.project(sys, &rec.q[n], &rec.v[n])?;
+                self.project(sys, rec.t[n], &rec.q[n], &rec.v[n])?;
             }
         }
         while lo < n {
@@ -302,6 +302,7 @@ impl CovariancePropagator {
                 sys,
                 &mut self.lin,
                 chunk_method(method),
+                rec.t[lo],
                 &rec.q[lo],
                 &rec.v[lo],
                 &rec.tau[lo],
@@ -323,7 +324,7 @@ impl CovariancePropagator {
             };
             let order = f64::from(chunk_method(method).order());
             let ratio = if m > 1 {
-                hst.mismatch(&sys.model, rec, &self.lin, (lo, hi))
+                hst.mismatch(sys.model(), rec, &self.lin, (lo, hi))
             } else {
                 0.0
             };
@@ -341,7 +342,7 @@ impl CovariancePropagator {
             // brought onto the constraints there; between chunks the linearized flow keeps it
             // on them to the chunk's accuracy.
             if hi == n {
-                self.project(sys, &rec.q[hi], &rec.v[hi])?;
+                self.project(sys, rec.t[hi], &rec.q[hi], &rec.v[hi])?;
             }
             // An accepted chunk never shrinks the next: a piece shorter than `chunk` (the
             // rest before a sample) says nothing against the longer one.

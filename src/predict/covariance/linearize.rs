@@ -14,8 +14,8 @@
 pub(in crate::predict) mod ros2;
 mod stages;
 pub(in crate::predict) use ros2::ros2_with_step_jacobian;
-pub(in crate::predict) use stages::dynamics_derivatives;
 use stages::{dynamics, stage_acceleration};
+pub(in crate::predict) use stages::{dynamics_derivatives, stage_options};
 
 use crate::actuators::Feedback;
 use crate::derivatives::DerivativeData;
@@ -40,6 +40,8 @@ pub struct Linearization {
     /// Baumgarte gains of the step linearized: the system's own unless the prediction runs
     /// with others (`drift: baumgarte` without the scene's gains).
     pub gains: Baumgarte,
+    /// Time [s] at the start of the step being linearized (`linearize_step`'s argument).
+    t: f64,
     /// Joint spring-dampers (q index, v index, k, d, rest) recomputed at every stage instead of
     /// held in τ, so that A carries their stiffness and damping
     /// ([`Linearization::with_joint_springs`]), then the controllers' feedback of the step
@@ -82,6 +84,12 @@ pub struct Linearization {
 }
 
 impl Linearization {
+    /// How this step's stages are evaluated: at its start time (plus each stage's offset) with
+    /// the run's gains.
+    pub(super) fn stage_options(&self) -> crate::dynamics::KktOptions {
+        stages::stage_options(self.t, self.gains)
+    }
+
     /// The seed columns carried through the step: [δq | δv] and, with `inputs`, [δτ].
     fn columns(&self) -> usize {
         let nv = self.v_next.len();
@@ -151,20 +159,21 @@ impl Linearization {
 
     /// Size for a system (its model and constraint rows).
     pub fn new(sys: &System) -> Self {
-        let (nq, nv) = (sys.model.nq, sys.model.nv);
+        let (nq, nv) = (sys.model().nq, sys.model().nv);
         let cols = 3 * nv;
         let stages = crate::predict::integrators::MAX_STAGES;
         Self {
             a: DMatrix::zeros(2 * nv, 2 * nv),
             b: DMatrix::zeros(2 * nv, nv),
             inputs: true,
-            gains: sys.baumgarte,
+            gains: sys.baumgarte(),
+            t: 0.0,
             joint_springs: vec![],
             fixed_springs: 0,
             tau_stage: vec![0.0; nv],
             q_next: vec![0.0; nq],
             v_next: vec![0.0; nv],
-            dd: DerivativeData::new(&sys.model, sys.constraints.nrows),
+            dd: DerivativeData::new(sys.model(), sys.constraints().nrows),
             theta: vec![vec![0.0; nv]; stages],
             vel: vec![vec![0.0; nv]; stages],
             kth: vec![vec![0.0; nv]; stages],
@@ -188,7 +197,8 @@ impl Linearization {
     }
 }
 
-/// One step of `method` from (q, v) under the held generalized force τ with step `dt` [s],
+/// One step of `method` from (q, v) at time `t` [s] under the held generalized force τ with
+/// step `dt` [s],
 /// and its linearization, into `lin`. The methods of [`Method::linearizable`] (the embedded
 /// pairs as fixed steps); the others (the implicit SDIRK2 and Radau5) are refused. Drift
 /// projection and force elements are not part of this step.
@@ -197,12 +207,14 @@ pub fn linearize_step(
     sys: &mut System,
     lin: &mut Linearization,
     method: Method,
+    t: f64,
     q: &[f64],
     v: &[f64],
     tau: &[f64],
     dt: f64,
 ) -> Result<()> {
-    sys.model.check_state(q, v)?;
+    sys.model().check_state(q, v)?;
+    lin.t = t;
     if !(dt.is_finite() && dt > 0.0) {
         return Err(Error::Invalid(format!(
             "linearize: dt = {dt} s must be finite and > 0"
@@ -237,7 +249,7 @@ pub(in crate::predict) fn semi_implicit_euler(
     let springs = &lin.joint_springs;
     dynamics(
         sys,
-        lin.gains,
+        lin.stage_options(),
         &mut lin.dd,
         springs,
         &mut lin.tau_stage,
@@ -249,8 +261,8 @@ pub(in crate::predict) fn semi_implicit_euler(
         lin.v_next[i] = v[i] + dt * lin.dd.qdd[i];
         lin.theta_end[i] = dt * lin.v_next[i];
     }
-    sys.model.integrate(q, &lin.v_next, dt, &mut lin.q_next);
-    let model = &sys.model;
+    sys.model().integrate(q, &lin.v_next, dt, &mut lin.q_next);
+    let model = sys.model();
     for c in 0..lin.columns() {
         // δv⁺ = δv + dt (F_q δq + F_v δv + F_τ δτ)
         for i in 0..nv {
@@ -324,14 +336,14 @@ pub(in crate::predict) fn explicit(
             lin.vel[st][i] = ve;
         }
         combine_variations(lin, tab.a[st], dt);
-        sys.model.integrate(q, &lin.theta[st], 1.0, &mut lin.qs);
+        sys.model().integrate(q, &lin.theta[st], 1.0, &mut lin.qs);
         let springs = &lin.joint_springs;
         // The stage's time offset c_i dt (c_i = Σ_j a_ij).
         let ds = dt * tab.a[st].iter().sum::<f64>();
         let stage = (&lin.qs[..], &lin.vel[st][..], ds);
         dynamics(
             sys,
-            lin.gains,
+            lin.stage_options(),
             &mut lin.dd,
             springs,
             &mut lin.tau_stage,
@@ -340,9 +352,9 @@ pub(in crate::predict) fn explicit(
             tau,
         )?;
         lin.kv[st].copy_from_slice(lin.dd.qdd.as_slice());
-        dexp_inv(&sys.model, &lin.theta[st], &lin.vel[st], &mut lin.kth[st]);
+        dexp_inv(sys.model(), &lin.theta[st], &lin.vel[st], &mut lin.kth[st]);
         lin.maps
-            .build(&sys.model, &lin.theta[st], Some(&lin.vel[st]));
+            .build(sys.model(), &lin.theta[st], Some(&lin.vel[st]));
         // δq_i = Ad(Exp(−Θ_i)) δq + J_r(Θ_i) δΘ_i (tangent at q_i); δΘ_i = 0 at a first stage.
         let first = tab.a[st].is_empty();
         tangent_variation(lin, cols, first);
@@ -379,9 +391,10 @@ pub(in crate::predict) fn explicit(
         lin.theta_end[i] = th;
         lin.v_next[i] = ve;
     }
-    sys.model.integrate(q, &lin.theta_end, 1.0, &mut lin.q_next);
+    sys.model()
+        .integrate(q, &lin.theta_end, 1.0, &mut lin.q_next);
     combine_variations(lin, b, dt);
-    lin.maps.build(&sys.model, &lin.theta_end, None);
+    lin.maps.build(sys.model(), &lin.theta_end, None);
     tangent_variation(lin, cols, false);
     for c in 0..cols {
         let (out, col) = if c < 2 * nv {

@@ -35,7 +35,6 @@ pub(in crate::predict) mod linearize;
 pub(in crate::predict) mod worker;
 
 use crate::actuators::Feedback;
-use crate::algorithm::crba;
 use crate::dynamics::Baumgarte;
 use crate::error::{Error, Result, check_finite};
 use crate::forces::ForceElements;
@@ -186,10 +185,10 @@ impl CovariancePropagator {
     /// linearizing the joint spring-dampers of `forces` (point springs are not: the caller
     /// refuses them).
     pub fn new(sys: &System, forces: &ForceElements, spec: &UncertaintySpec) -> Result<Self> {
-        let nv = sys.model.nv;
+        let nv = sys.model().nv;
         let mut noise = vec![0.0; nv];
         for (name, &sigma) in &spec.acceleration_noise {
-            let i = sys.model.v_index(name)?;
+            let i = sys.model().v_index(name)?;
             if !(sigma.is_finite() && sigma >= 0.0) {
                 return Err(Error::Invalid(format!(
                     "uncertainty.acceleration_noise.{name} = {sigma}: must be finite and ≥ 0"
@@ -215,18 +214,18 @@ impl CovariancePropagator {
             minv: DMatrix::zeros(nv, nv),
             chol: DMatrix::zeros(nv, nv),
             col: vec![0.0; nv],
-            n_jv: DMatrix::zeros(sys.constraints.nrows, nv),
-            n_tq: DMatrix::zeros(sys.constraints.nrows, nv),
-            jv_at_q: vec![0.0; sys.constraints.nrows],
-            q_pert: vec![0.0; sys.model.nq],
+            n_jv: DMatrix::zeros(sys.constraints().nrows, nv),
+            n_tq: DMatrix::zeros(sys.constraints().nrows, nv),
+            jv_at_q: vec![0.0; sys.constraints().nrows],
+            q_pert: vec![0.0; sys.model().nq],
             e_k: vec![0.0; nv],
             blocks: None,
             integral: None,
         })
     }
 
-    /// A propagator for a prediction from (q, v): sized for `sys`, started at `p0` kept on the
-    /// constraints, with the controllers of `feedback` (`Actuators::feedback`).
+    /// A propagator for a prediction from (t, q, v): sized for `sys`, started at `p0` kept on
+    /// the constraints, with the controllers of `feedback` (`Actuators::feedback`).
     #[allow(clippy::too_many_arguments)]
     pub fn start(
         sys: &mut System,
@@ -235,13 +234,12 @@ impl CovariancePropagator {
         feedback: &[Feedback],
         spec: &UncertaintySpec,
         p0: &DMatrix<f64>,
-        q: &[f64],
-        v: &[f64],
+        (t, q, v): (f64, &[f64], &[f64]),
     ) -> Result<Self> {
         let mut c = Self::new(sys, forces, spec)?;
         c.record.reserve_feedback(feedback.len());
         c.reset(p0)?;
-        c.project(sys, q, v)?;
+        c.project(sys, t, q, v)?;
         c.integral = IntegralOffsets::start(&c.p, feedback);
         c.lin.inputs = c.integral.is_some();
         c.lin.gains = gains;
@@ -300,21 +298,19 @@ impl CovariancePropagator {
         }
     }
 
-    /// Keep P on the constraints at (q, v): `P ← T P Tᵀ` (module doc).
-    pub fn project(&mut self, sys: &mut System, q: &[f64], v: &[f64]) -> Result<()> {
+    /// Keep P on the constraints at (t, q, v): `P ← T P Tᵀ` (module doc).
+    pub fn project(&mut self, sys: &mut System, t: f64, q: &[f64], v: &[f64]) -> Result<()> {
         let nv = v.len();
-        if sys.constraints.is_empty() {
+        if sys.constraints().is_empty() {
             return Ok(());
         }
-        self.velocity_row_variation(sys, q, v);
-        crba(&sys.model, &mut sys.data, q);
-        self.chol
-            .view_mut((0, 0), (nv, nv))
-            .copy_from(&sys.data.mass_matrix);
+        self.velocity_row_variation(sys, t, q, v);
+        let m = sys.mass_matrix_after_rows();
+        self.chol.view_mut((0, 0), (nv, nv)).copy_from(m);
         cholesky_in_place(&mut self.chol, nv, 1e-14).map_err(|i| Error::SingularMass {
             message: format!(
                 "coordinate '{}': the covariance's constraint projection needs M⁻¹",
-                sys.model.v_names[i]
+                sys.model().v_names[i]
             ),
         })?;
         for c in 0..nv {
@@ -330,15 +326,16 @@ impl CovariancePropagator {
             self.proj[(i, i)] = 1.0;
         }
         let blocks = self.blocks.get_or_insert_with(|| {
-            let cd = &sys.cdata;
+            let cd = sys.rows();
             let holonomic = (0..cd.j.nrows()).filter(|&r| cd.holonomic[r]).collect();
             [
                 RowProjector::new(holonomic, nv),
                 RowProjector::new((0..cd.j.nrows()).collect(), nv),
             ]
         });
-        blocks[0].apply(&sys.cdata.j, &self.minv, &mut self.proj, 0);
-        blocks[1].apply(&sys.cdata.j, &self.minv, &mut self.proj, nv);
+        let j = &sys.rows().j;
+        blocks[0].apply(j, &self.minv, &mut self.proj, 0);
+        blocks[1].apply(j, &self.minv, &mut self.proj, nv);
         // N T_q, then the lower-left block −G N T_q.
         let nc = self.n_jv.nrows();
         for r in 0..nc {
@@ -364,23 +361,20 @@ impl CovariancePropagator {
     }
 
     /// N = ∂(J(q) v)/∂δq by forward differences (module doc), into `n_jv`; leaves the
-    /// constraints evaluated at (q, v).
-    fn velocity_row_variation(&mut self, sys: &mut System, q: &[f64], v: &[f64]) {
+    /// constraints and the kinematics evaluated at (t, q, v).
+    fn velocity_row_variation(&mut self, sys: &mut System, t: f64, q: &[f64], v: &[f64]) {
         const EPS: f64 = 1e-7;
-        sys.constraints
-            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
-        self.jv_at_q.copy_from_slice(sys.cdata.jv.as_slice());
+        let jv = &sys.evaluate_rows(t, q, v).jv;
+        self.jv_at_q.copy_from_slice(jv.as_slice());
         for k in 0..v.len() {
             self.e_k.iter_mut().for_each(|x| *x = 0.0);
             self.e_k[k] = EPS;
-            sys.model.integrate(q, &self.e_k, 1.0, &mut self.q_pert);
-            sys.constraints
-                .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, &self.q_pert, v);
+            sys.model().integrate(q, &self.e_k, 1.0, &mut self.q_pert);
+            let jv = &sys.evaluate_rows(t, &self.q_pert, v).jv;
             for r in 0..self.jv_at_q.len() {
-                self.n_jv[(r, k)] = (sys.cdata.jv[r] - self.jv_at_q[r]) / EPS;
+                self.n_jv[(r, k)] = (jv[r] - self.jv_at_q[r]) / EPS;
             }
         }
-        sys.constraints
-            .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
+        sys.evaluate_rows(t, q, v);
     }
 }

@@ -154,10 +154,7 @@ impl CovarianceFeed<'_> {
             return Ok(());
         }
         match self {
-            Self::Inline(c) => {
-                sys.cdata.t = t;
-                c.flush(sys, method)
-            }
+            Self::Inline(c) => c.flush(sys, method),
             Self::Worker(p) => p.handoff(t, None),
         }
     }
@@ -243,7 +240,6 @@ pub(in crate::predict) fn with_worker<R>(
                 };
                 drop(g);
                 if done.error.is_none() {
-                    worker_sys.cdata.t = t;
                     let c = &mut done.propagator;
                     let flushed = c
                         .flush_record(&mut worker_sys, method, &mut record)
@@ -287,14 +283,15 @@ mod tests {
         let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"));
         let scene = Scene::load(root.join("params/diff_drive.yaml")).unwrap();
         let mut sys = System::from_scene(&scene).unwrap();
-        let forces = ForceElements::new(&sys.model, &scene.file.forces).unwrap();
-        let n = 2 * sys.model.nv;
+        let forces = ForceElements::new(sys.model(), &scene.file.forces).unwrap();
+        let n = 2 * sys.model().nv;
         let p0 = DMatrix::identity(n, n) * 1e-6;
         let (q, v) = (&scene.q0, &scene.v0);
         let spec = Default::default();
-        let gains = sys.baumgarte;
+        let gains = sys.baumgarte();
         let prop =
-            CovariancePropagator::start(&mut sys, gains, &forces, &[], &spec, &p0, q, v).unwrap();
+            CovariancePropagator::start(&mut sys, gains, &forces, &[], &spec, &p0, (0.0, q, v))
+                .unwrap();
         let kept = Mutex::new(None);
         let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             with_worker(prop, sys.clone(), Method::Rk4, |pipe| {

@@ -27,7 +27,6 @@ impl Predictor {
             control: actuators.is_continuous().then_some(actuators),
             tau_ctl: &mut ws.tau_ctl,
             tau: &mut ws.tau,
-            zero: &ws.zero,
             ls: &mut ws.ls,
             jw: &mut ws.jw,
             rows: RowsAt {
@@ -88,7 +87,6 @@ impl Predictor {
             control: actuators.is_continuous().then_some(actuators),
             tau_ctl: &mut ws.tau_ctl,
             tau: &mut ws.tau,
-            zero: &ws.zero,
             ls: &mut ws.ls,
             jw: &mut ws.jw,
             rows: RowsAt {
@@ -194,8 +192,7 @@ impl Predictor {
                     });
                 }
                 if s.drift == DriftControl::Projection {
-                    rhs.sys.cdata.t = t;
-                    proj.project(rhs.sys, q, v, true, rhs.invariant)?;
+                    proj.project(rhs.sys, t, q, v, true, rhs.invariant)?;
                     // The covariance's linearization below evaluates elsewhere.
                     if proj.rows_current && cov.is_none() {
                         rhs.rows.mark(t, q, v);

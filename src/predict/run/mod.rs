@@ -120,8 +120,7 @@ impl Predictor {
                 &self.actuators.feedback().collect::<Vec<_>>(),
                 &self.config.uncertainty,
                 p0,
-                &lanes[0].q,
-                &lanes[0].v,
+                (0.0, &lanes[0].q, &lanes[0].v),
             )?),
             None => None,
         };
@@ -183,7 +182,7 @@ impl Predictor {
         )?;
         let springs = self
             .forces
-            .potential_energy(&self.sys.model, &self.sys.data, &lanes[0].q);
+            .potential_energy(self.sys.model(), self.sys.data(), &lanes[0].q);
         let mut guard = EnergyGuard::new(&first, springs, self.energy_guard_applies(s));
         traj.samples.push(first);
         let plan = Plan {
@@ -346,7 +345,6 @@ impl Predictor {
                 // them).
                 let read_p = covariance_every_sample || t >= horizon - 1e-12;
                 if let Some(cov) = self.covariance.as_mut().filter(|_| read_p) {
-                    self.sys.cdata.t = t;
                     cov.flush(&mut self.sys, s.method)?;
                 } else if let Some(pipe) = self.ws.pipe.get_mut().filter(|_| read_p) {
                     pipe.handoff(t, Some(traj.samples.len()))?;
@@ -362,7 +360,7 @@ impl Predictor {
                 let sample = self.sample(t, &a.q, &a.v, e, (forces, read_p))?;
                 let springs = self
                     .forces
-                    .potential_energy(&self.sys.model, &self.sys.data, &a.q);
+                    .potential_energy(self.sys.model(), self.sys.data(), &a.q);
                 guard.check(&sample, springs, a.steps, s)?;
                 traj.samples.push(sample);
                 if let Some(e) = e.filter(|&e| e > s.max_error) {

@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use crate::forces::ForceElements;
 use crate::model::Model;
 use crate::predict::InvariantDynamics;
-use crate::predict::covariance::linearize::dynamics_derivatives;
+use crate::predict::covariance::linearize::{dynamics_derivatives, stage_options};
 use crate::predict::drift::DriftProjector;
 use crate::predict::integrators::{Accel, JacobianScratch, accel_jacobian_fd, stage};
 use crate::system::{DynamicsOptions, System};
@@ -32,9 +32,9 @@ pub(in crate::predict) struct JacobianWork {
 
 impl JacobianWork {
     pub(in crate::predict) fn new(sys: &System) -> Self {
-        let (nq, nv) = (sys.model.nq, sys.model.nv);
+        let (nq, nv) = (sys.model().nq, sys.model().nv);
         Self {
-            dd: Some(DerivativeData::new(&sys.model, sys.constraints.nrows)),
+            dd: Some(DerivativeData::new(sys.model(), sys.constraints().nrows)),
             tau_p: vec![0.0; nv],
             tau_m: vec![0.0; nv],
             dtau: vec![0.0; nv],
@@ -58,7 +58,6 @@ pub(in crate::predict) struct Rhs<'a> {
     pub(in crate::predict) control: Option<&'a Actuators>,
     pub(in crate::predict) tau_ctl: &'a mut [f64],
     pub(in crate::predict) tau: &'a mut [f64],
-    pub(in crate::predict) zero: &'a [f64],
     pub(in crate::predict) ls: &'a mut DriftProjector,
     pub(in crate::predict) jw: &'a mut JacobianWork,
     pub(in crate::predict) rows: RowsAt<'a>,
@@ -117,10 +116,8 @@ impl RowsAt<'_> {
 }
 
 impl Rhs<'_> {
-    /// τ at (t, q, v) into `tau`; time reaches the constraints through their workspace
-    /// (`velocity` rows may use t).
+    /// τ at (t, q, v) into `tau`.
     pub(in crate::predict) fn apply(&mut self, t: f64, q: &[f64], v: &[f64]) {
-        self.sys.cdata.t = t;
         let tau_act: &[f64] = match self.control {
             Some(a) => {
                 a.continuous_torque(t, q, v, self.tau_ctl);
@@ -128,14 +125,7 @@ impl Rhs<'_> {
             }
             None => self.tau_act,
         };
-        applied_generalized_force(
-            self.sys,
-            self.forces,
-            (t, q, v),
-            tau_act,
-            self.zero,
-            self.tau,
-        );
+        applied_generalized_force(self.sys, self.forces, (t, q, v), tau_act, self.tau);
     }
 
     /// ∂q̈/∂τ · ∂τ/∂(δq, v) of the force elements other than joint spring-dampers (central
@@ -166,7 +156,6 @@ impl Rhs<'_> {
                     self.forces,
                     (t, &jw.qs, &jw.vs),
                     self.tau_act,
-                    self.zero,
                     out,
                 );
             }
@@ -204,13 +193,14 @@ impl Accel for Rhs<'_> {
         let opts = DynamicsOptions {
             rows_evaluated,
             gains: Some(self.gains),
-            ..DynamicsOptions::stage(self.sys.formulation)
+            t,
+            ..DynamicsOptions::stage(self.sys.formulation())
         };
         let result = self
             .sys
             .forward_dynamics_with(q, v, self.tau, opts)
             .map(|a| qdd.copy_from_slice(a.as_slice()));
-        let kkt = &self.sys.kkt;
+        let kkt = self.sys.multipliers();
         if result.is_ok() && disagree_beyond_rounding(kkt.inconsistency, kkt.b.amax()) {
             self.least_squares += 1;
         }
@@ -221,7 +211,7 @@ impl Accel for Rhs<'_> {
                 // satisfy the independent ones (counted in `Trajectory::least_squares_evaluations`).
                 self.least_squares += 1;
                 self.ls
-                    .least_squares_accel(self.sys, self.gains, q, v, self.tau, qdd)
+                    .least_squares_accel(self.sys, self.gains, (t, q, v), self.tau, qdd)
                     .map(|_| ())
             }
             Err(e) => Err(e),
@@ -257,7 +247,7 @@ impl Accel for Rhs<'_> {
                 form.derivatives(v, &mut dd.dqdd_dq, &mut dd.dqdd_dv, &mut dd.dqdd_dtau);
                 Ok(())
             }
-            _ => dynamics_derivatives(self.sys, self.gains, dd, q, v, self.tau),
+            _ => dynamics_derivatives(self.sys, stage_options(t, self.gains), dd, q, v, self.tau),
         };
         if analytic.is_err() {
             accel_jacobian_fd(self, model, (t, q, v), qdd, jac, scratch)?;

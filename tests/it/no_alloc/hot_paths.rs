@@ -133,9 +133,9 @@ fn step_linearization_does_not_allocate() {
         let tau = vec![0.1; sys.model().nv];
         let (q, v) = (scene.q0.clone(), scene.v0.clone());
         for method in [Method::SemiImplicitEuler, Method::Rk4, Method::Dopri5] {
-            linearize_step(&mut sys, &mut lin, method, &q, &v, &tau, 0.01).unwrap();
+            linearize_step(&mut sys, &mut lin, method, 0.0, &q, &v, &tau, 0.01).unwrap();
             let n = allocations(|| {
-                linearize_step(&mut sys, &mut lin, method, &q, &v, &tau, 0.01).unwrap();
+                linearize_step(&mut sys, &mut lin, method, 0.0, &q, &v, &tau, 0.01).unwrap();
             });
             assert_eq!(n, 0, "{file} {method:?}: linearize_step allocates");
         }

@@ -72,7 +72,7 @@ pub(in crate::predict) fn ros2(
     let springs = &lin.joint_springs;
     dynamics(
         sys,
-        lin.gains,
+        lin.stage_options(),
         &mut lin.dd,
         springs,
         &mut lin.tau_stage,
@@ -186,6 +186,7 @@ fn nominal(
 ) -> Result<()> {
     let nv = v.len();
     let n = 2 * nv;
+    let at = lin.stage_options();
     let springs = &lin.joint_springs;
     let r = &mut lin.ros2;
     let gdt = GAMMA * dt;
@@ -198,11 +199,11 @@ fn nominal(
         lin.theta[0][i] = dt * r.k1[i];
         lin.vel[0][i] = v[i] + dt * r.k1[nv + i];
     }
-    sys.model.integrate(q, &lin.theta[0], 1.0, &mut lin.qs);
+    sys.model().integrate(q, &lin.theta[0], 1.0, &mut lin.qs);
     // The second stage's q̈ only (F is held): a plain evaluation.
     stage_acceleration(
         sys,
-        lin.gains,
+        at,
         springs,
         &mut lin.tau_stage,
         (q, v),
@@ -210,7 +211,7 @@ fn nominal(
         tau,
         &mut r.k2[nv..],
     )?;
-    dexp_inv(&sys.model, &lin.theta[0], &lin.vel[0], &mut r.k2[..nv]);
+    dexp_inv(sys.model(), &lin.theta[0], &lin.vel[0], &mut r.k2[..nv]);
     for i in 0..n {
         r.k2[i] -= 2.0 * r.k1[i];
     }
@@ -230,8 +231,9 @@ fn finish(sys: &mut System, lin: &mut Linearization, q: &[f64]) {
     let nv = lin.v_next.len();
     let n = 2 * nv;
     let cols = lin.columns();
-    sys.model.integrate(q, &lin.theta_end, 1.0, &mut lin.q_next);
-    lin.maps.build(&sys.model, &lin.theta_end, None);
+    sys.model()
+        .integrate(q, &lin.theta_end, 1.0, &mut lin.q_next);
+    lin.maps.build(sys.model(), &lin.theta_end, None);
     tangent_variation(lin, cols, false);
     for c in 0..cols {
         let (out, col) = if c < n {

@@ -2,7 +2,7 @@
 //! generalized force, with the joint springs' and controllers' share moved to the stage.
 
 use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
-use crate::dynamics::{Baumgarte, KktOptions};
+use crate::dynamics::{Baumgarte, Formulation, KktOptions};
 use crate::error::Result;
 use crate::system::{DynamicsOptions, System};
 
@@ -13,7 +13,7 @@ use crate::system::{DynamicsOptions, System};
 #[allow(clippy::too_many_arguments)]
 pub(super) fn dynamics(
     sys: &mut System,
-    gains: Baumgarte,
+    at: KktOptions,
     dd: &mut DerivativeData,
     springs: &[(usize, usize, f64, f64, f64)],
     tau_stage: &mut [f64],
@@ -22,7 +22,8 @@ pub(super) fn dynamics(
     tau: &[f64],
 ) -> Result<()> {
     stage_torque(springs, tau_stage, (q0, v0), (q, v, ds), tau);
-    dynamics_derivatives(sys, gains, dd, q, v, tau_stage)?;
+    let at = KktOptions { t: at.t + ds, ..at };
+    dynamics_derivatives(sys, at, dd, q, v, tau_stage)?;
     let nv = v.len();
     for &(_, iv, k, d, _) in springs {
         for i in 0..nv {
@@ -58,7 +59,7 @@ fn stage_torque(
 #[allow(clippy::too_many_arguments)]
 pub(super) fn stage_acceleration(
     sys: &mut System,
-    gains: Baumgarte,
+    at: KktOptions,
     springs: &[(usize, usize, f64, f64, f64)],
     tau_stage: &mut [f64],
     (q0, v0): (&[f64], &[f64]),
@@ -68,44 +69,51 @@ pub(super) fn stage_acceleration(
 ) -> Result<()> {
     stage_torque(springs, tau_stage, (q0, v0), (q, v, ds), tau);
     let opts = DynamicsOptions {
-        gains: Some(gains),
-        ..DynamicsOptions::stage(sys.formulation)
+        gains: Some(at.gains),
+        t: at.t + ds,
+        ..DynamicsOptions::stage(sys.formulation())
     };
     qdd.copy_from_slice(sys.forward_dynamics_with(q, v, tau_stage, opts)?.as_slice());
     Ok(())
 }
 
-/// q̈ and ∂q̈/∂(q, v, τ) at (q, v, τ) into `dd`: the multiplier form's (its Baumgarte gains
-/// included) with constraints, ABA's without. (q, v) is a stage of a step, and its rows are
-/// solved as the prediction solves a stage's (`DynamicsOptions::stage`): redundant rows that
-/// disagree there get the least-squares λ, whose derivatives `derivatives::kkt` takes.
+/// How a stage is evaluated at time `t` [s] with Baumgarte `gains`: its rows solved as the
+/// prediction solves a stage's (`DynamicsOptions::stage`): redundant rows that disagree there
+/// get the least-squares λ, whose derivatives `derivatives::kkt` takes.
+pub(in crate::predict) fn stage_options(t: f64, gains: Baumgarte) -> KktOptions {
+    KktOptions {
+        t,
+        gains,
+        allow_inconsistent: DynamicsOptions::stage(Formulation::Multipliers).allow_inconsistent,
+        rows_evaluated: false,
+    }
+}
+
+/// q̈ and ∂q̈/∂(q, v, τ) at (q, v, τ) into `dd` under `at` ([`stage_options`]): the multiplier
+/// form's (its Baumgarte gains included) with constraints, ABA's without.
 pub(in crate::predict) fn dynamics_derivatives(
     sys: &mut System,
-    gains: Baumgarte,
+    at: KktOptions,
     dd: &mut DerivativeData,
     q: &[f64],
     v: &[f64],
     tau: &[f64],
 ) -> Result<()> {
-    if sys.constraints.is_empty() {
-        aba_derivatives(&sys.model, &mut sys.data, dd, q, v, tau)
+    let p = sys.parts();
+    if p.constraints.is_empty() {
+        aba_derivatives(p.model, p.data, dd, q, v, tau)
     } else {
-        let stage = DynamicsOptions::stage(sys.formulation);
         constrained_dynamics_derivatives(
-            &sys.model,
-            &mut sys.data,
-            &sys.constraints,
-            &mut sys.cdata,
-            &mut sys.kkt,
+            p.model,
+            p.data,
+            p.constraints,
+            p.rows,
+            p.multipliers,
             dd,
             q,
             v,
             tau,
-            KktOptions {
-                gains,
-                allow_inconsistent: stage.allow_inconsistent,
-                rows_evaluated: false,
-            },
+            at,
         )
     }
 }
