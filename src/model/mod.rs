@@ -12,6 +12,7 @@ mod check;
 mod inertial;
 mod joint;
 mod payload;
+mod state_map;
 mod urdf_text;
 
 pub use base::{BasePose, BaseTwist, TWIST_TOLERANCE};
@@ -19,6 +20,7 @@ pub use build::{BaseType, InertiaPolicy, ModelOptions};
 pub use check::{MIN_PIVOT_RATIO, pivot_ratios};
 pub use joint::JointKind;
 pub use payload::Payload;
+pub use state_map::StateMap;
 pub use urdf_text::MAX_URDF_MAGNITUDE;
 
 use crate::error::{Error, Result};

@@ -59,6 +59,7 @@ mod rollouts;
 mod rollouts_planner;
 mod sdirk2_steps;
 mod seeds;
+mod state_map;
 mod stiff_extreme;
 mod velocity_constraints;
 mod velocity_dependent;

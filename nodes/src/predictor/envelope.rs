@@ -15,7 +15,7 @@ use constraint_dynamics::envelope::{
     Envelope, EnvelopeData, EnvelopeModel, Limit, Reach, acceleration_envelope,
 };
 use constraint_dynamics::forces::ForceElements;
-use constraint_dynamics::model::Model;
+use constraint_dynamics::model::{Model, StateMap};
 use constraint_dynamics::system::System;
 
 use crate::msg::builtin_interfaces::Time;
@@ -30,10 +30,8 @@ use crate::ros::logging::{DropLog, NodeLog};
 pub struct EnvelopeScene {
     sys: System,
     elements: ForceElements,
-    /// (envelope q index, predictor q index) and (envelope v index, predictor v index) of every
-    /// joint coordinate; the base goes through its pose and twist.
-    q_map: Vec<(usize, usize)>,
-    v_map: Vec<(usize, usize)>,
+    /// The predictor's state in this scene's coordinates.
+    map: StateMap,
     /// The state in the envelope scene's coordinates (its initial state where the predictor
     /// says nothing: the base's height on a floating base).
     q: Vec<f64>,
@@ -47,50 +45,22 @@ impl EnvelopeScene {
         let sys = System::from_scene(scene).map_err(|e| e.to_string())?;
         let elements =
             ForceElements::new(sys.model(), &scene.file.forces).map_err(|e| e.to_string())?;
-        let m = sys.model();
-        let map = |names: &[String], theirs: &[String], skip: usize, what: &str| {
-            names
-                .iter()
-                .enumerate()
-                .skip(skip)
-                .map(|(i, n)| match theirs.iter().position(|t| t == n) {
-                    Some(j) => Ok((i, j)),
-                    None => Err(format!(
-                        "its {what} coordinate '{n}' is not one of the predictor's robot"
-                    )),
-                })
-                .collect::<Result<Vec<_>, String>>()
-        };
-        let q_map = map(&m.q_names, &model.q_names, m.base.nq(), "position")?;
-        let v_map = map(&m.v_names, &model.v_names, m.base.nv(), "velocity")?;
+        let map = StateMap::new(model, sys.model())
+            .map_err(|e| format!("against the predictor's robot: {e}"))?;
         Ok(EnvelopeScene {
             q: scene.q0.clone(),
             v: scene.v0.clone(),
             sys,
             elements,
-            q_map,
-            v_map,
+            map,
         })
     }
 
-    /// The predictor's state (q, v) of `model` in this scene's coordinates.
+    /// The predictor's state (q, v) of `model` in this scene's coordinates (a planar base says
+    /// nothing of the height: the scene's own stays).
     fn map(&mut self, model: &Model, (q, v): (&[f64], &[f64])) {
-        let mut pose = model.base_pose(q);
-        let twist = model.base_twist(v);
-        // A planar base says nothing of the height: the scene's own.
-        if model.base.nq() < self.sys.model().base.nq() {
-            pose.position[2] = self.sys.model().base_pose(&self.q).position[2];
-        }
-        self.v.iter_mut().for_each(|x| *x = 0.0);
-        self.sys
-            .model()
-            .set_base(&pose, &twist, &mut self.q, &mut self.v);
-        for &(i, j) in &self.q_map {
-            self.q[i] = q[j];
-        }
-        for &(i, j) in &self.v_map {
-            self.v[i] = v[j];
-        }
+        let target = self.sys.model();
+        (self.map).apply((model, target), (q, v), (&mut self.q, &mut self.v));
     }
 }
 
