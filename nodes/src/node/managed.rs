@@ -19,6 +19,7 @@ use std::thread::JoinHandle;
 
 use ros2_client::{Context, Publisher};
 
+use super::failure::Failure;
 use super::wiring::{
     Followed, GRAPH_PERIOD, RosWiring, Wiring, wire_diagnostics, wire_set_payload,
     wire_state_inputs,
@@ -93,6 +94,9 @@ pub struct Managed<N: RosWiring> {
     events: Publisher<TransitionEvent>,
     configured: Option<Configured<N>>,
     active: Option<Active>,
+    /// The last failed configuration or activation, on `/diagnostics` until a transition
+    /// succeeds.
+    failure: Option<Failure>,
     requests: (Sender<Request>, Receiver<Request>),
     /// The lifecycle servers.
     servers: Vec<smol::Task<()>>,
@@ -185,6 +189,7 @@ impl<N: RosWiring> Managed<N> {
             events,
             configured: None,
             active: None,
+            failure: None,
             requests,
             servers,
         })
@@ -237,6 +242,9 @@ impl<N: RosWiring> Managed<N> {
             if let Err(e) = self.follow_graph() {
                 self.log.warn(&format!("following the graph: {e}"));
             }
+            if let Some(f) = self.failure.as_mut() {
+                f.report(&self.log);
+            }
         }
         // Stop in order: the kind's endpoints, the worker and inputs, the lifecycle servers,
         // then the ROS node (dropped with `self`).
@@ -281,7 +289,45 @@ impl<N: RosWiring> Managed<N> {
             self.machine.state().label()
         ));
         self.publish(event);
+        self.failure = match &result {
+            Err(e) if matches!(t, Transition::Configure | Transition::Activate) => {
+                self.failure_report(t.label(), e)
+            }
+            _ => None,
+        };
         result
+    }
+
+    /// The `/diagnostics` report of a failed transition (published at once), at the node's
+    /// `diagnostics.period`.
+    fn failure_report(&mut self, what: &str, e: &NodeError) -> Option<Failure> {
+        let period = self
+            .params
+            .0
+            .lock()
+            .ok()
+            .and_then(|c| NodeParams::<N::Params>::from_parameters(&c).ok())
+            .map_or(1.0, |p| p.common.diagnostics.period);
+        let state = self.machine.state().label();
+        let made = Failure::new(
+            &mut self.ros,
+            &self.fqn,
+            what,
+            state,
+            e,
+            std::time::Duration::from_secs_f64(period),
+        );
+        match made {
+            Ok(mut f) => {
+                f.report(&self.log);
+                Some(f)
+            }
+            Err(err) => {
+                self.log
+                    .warn(&format!("/diagnostics for the failure: {err}"));
+                None
+            }
+        }
     }
 
     fn publish(&self, event: TransitionEvent) {

@@ -93,12 +93,19 @@ impl KindParams for ProjectionParams {
         let a = &self.acceleration_limits;
         if a.names.len() != a.values.len() {
             return Err(ParamsError::invalid(
-                "acceleration_limits",
-                format!(": {} names but {} values", a.names.len(), a.values.len()),
+                "acceleration_limits.values",
+                format!(
+                    "= {:?} must hold one a_max per name of acceleration_limits.names = {:?} \
+                     ({} values for {} names; change both in one request)",
+                    a.values,
+                    a.names,
+                    a.values.len(),
+                    a.names.len()
+                ),
             ));
         }
         for (n, v) in a.names.iter().zip(&a.values) {
-            positive(&format!("acceleration_limits ({n})"), *v)?;
+            positive(&format!("acceleration_limits.values ({n})"), *v)?;
         }
         nonneg("filter.accel_limit_dt", self.filter.accel_limit_dt)?;
         nonneg("filter.control_period", self.filter.control_period)?;
