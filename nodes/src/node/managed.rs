@@ -40,6 +40,7 @@ use crate::ros::args::{Parameters, RosArgs};
 use crate::ros::context::{RosNode, qos};
 use crate::ros::io::{Reply, serve};
 use crate::ros::logging::NodeLog;
+use constraint_dynamics::model::Model;
 
 /// The parameters as the ROS node holds them, and the slot through which run-time changes
 /// reach the worker (empty while there is none).
@@ -51,8 +52,9 @@ pub struct WorkerLink<N: NodeLogic> {
     pub tx: SyncSender<Event<N>>,
     /// The scene's work limits, which the values that size work must respect.
     pub budget: WorkBudget,
-    /// The model's frame names, which `payload.frame` must be one of.
-    pub frames: Vec<String>,
+    /// The model, which the parameters naming its parts must fit (`payload.frame`,
+    /// [`crate::params::KindParams::check_model`]).
+    pub model: Arc<Model>,
 }
 
 /// What the lifecycle servers ask the supervisor.
@@ -343,6 +345,7 @@ impl<N: RosWiring> Managed<N> {
         let robot = Robot::load(&params.common)?;
         let budget = WorkBudget::of(robot.scene());
         params.node.check_work(&budget)?;
+        params.check_model(robot.model())?;
         let logic = N::new(robot, params.clone(), self.log.clone())?;
         let summary = {
             let (r, m) = (logic.robot(), logic.robot().model());
@@ -358,13 +361,7 @@ impl<N: RosWiring> Managed<N> {
             )
         };
         let constraints = logic.robot().constraint_names().to_vec();
-        let frames = logic
-            .robot()
-            .model()
-            .frames
-            .iter()
-            .map(|f| f.name.clone())
-            .collect();
+        let model = Arc::new(logic.robot().model().clone());
         let (out_tx, outputs) = smol::channel::bounded::<N::Output>(16);
         let (diag_tx, statuses) = smol::channel::bounded::<(Time, DiagnosticStatus)>(4);
         let worker = WorkerHandle::spawn(logic, self.ros.name(), &self.fqn, out_tx, diag_tx)?;
@@ -381,7 +378,7 @@ impl<N: RosWiring> Managed<N> {
             *self.params.1.lock().map_err(|_| poisoned())? = Some(WorkerLink {
                 tx: sender,
                 budget,
-                frames,
+                model,
             });
         }
         let mut c = Configured {

@@ -155,7 +155,7 @@ pub fn start_node<N: RosWiring>(
             let budget = budget_of(&link);
             let next = NodeParams::<N::Params>::updated(&c, changes, budget.as_ref())
                 .map_err(|e| e.to_string())?;
-            check_payload_frame(&next, &link)
+            check_model(&next, &link)
         }));
     }
     {
@@ -168,7 +168,7 @@ pub fn start_node<N: RosWiring>(
             let budget = budget_of(&link);
             let next = NodeParams::<N::Params>::updated(&c, changes, budget.as_ref())
                 .map_err(|e| e.to_string())?;
-            check_payload_frame(&next, &link)?;
+            check_model(&next, &link)?;
             // A set is acknowledged only once the worker has it: with its queue full the set is
             // refused (the caller can retry), never dropped after a success reply.
             let tx = link
@@ -262,22 +262,19 @@ pub(crate) fn wire_set_payload<N: NodeLogic>(w: &mut Wiring<N>) -> Result<(), No
     Ok(())
 }
 
-/// A `payload.frame` the model does not have, refused when the parameter is set (the frames
-/// are the configured model's; none before the node is configured, when `configure` checks).
-fn check_payload_frame<N: NodeLogic>(
+/// The parameters that name parts of the model checked against it (none before the node is
+/// configured, when `configure` checks them).
+fn check_model<N: NodeLogic>(
     params: &NodeParams<N::Params>,
     link: &Mutex<Option<WorkerLink<N>>>,
 ) -> Result<(), String> {
-    let frame = params.common.payload.frame.as_str();
-    let Ok(link) = link.lock() else {
-        return Ok(());
-    };
-    match link.as_ref() {
-        Some(l) if !frame.is_empty() && !l.frames.iter().any(|f| f == frame) => Err(format!(
-            "payload.frame = '{frame}' is not a frame of the model (known frames: {})",
-            l.frames.join(", ")
-        )),
-        _ => Ok(()),
+    let model = link
+        .lock()
+        .ok()
+        .and_then(|l| l.as_ref().map(|l| l.model.clone()));
+    match model {
+        Some(m) => params.check_model(&m).map_err(|e| e.to_string()),
+        None => Ok(()),
     }
 }
 

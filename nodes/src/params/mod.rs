@@ -19,6 +19,7 @@ pub mod work;
 
 use std::path::{Path, PathBuf};
 
+use constraint_dynamics::model::Model;
 use ros2_client::{Parameter, ParameterValue};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
@@ -84,6 +85,12 @@ pub trait KindParams:
     /// configured and on every run-time set), naming the parameter and its limit. Default:
     /// nothing sizes work.
     fn check_work(&self, _budget: &WorkBudget) -> Result<(), ParamsError> {
+        Ok(())
+    }
+
+    /// Checks the values that name parts of the model (coordinates) against it, when the
+    /// node is configured and on every run-time set. Default: none do.
+    fn check_model(&self, _model: &Model) -> Result<(), ParamsError> {
         Ok(())
     }
 }
@@ -226,6 +233,23 @@ impl<K: KindParams> NodeParams<K> {
         }
         out.sort_by(|a, b| a.0.cmp(&b.0));
         out
+    }
+
+    /// Checks the values that name parts of `model`: `payload.frame` and the kind's own
+    /// ([`KindParams::check_model`]).
+    pub fn check_model(&self, model: &Model) -> Result<(), ParamsError> {
+        let frame = self.common.payload.frame.as_str();
+        if !frame.is_empty() && !model.frames.iter().any(|f| f.name == frame) {
+            let known: Vec<&str> = model.frames.iter().map(|f| f.name.as_str()).collect();
+            return Err(ParamsError::invalid(
+                "payload.frame",
+                format!(
+                    "= '{frame}' is not a frame of the model (known frames: {})",
+                    known.join(", ")
+                ),
+            ));
+        }
+        self.node.check_model(model)
     }
 
     /// Whether this kind has parameter `name`: one of the names it declares, or a key of a

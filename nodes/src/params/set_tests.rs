@@ -165,3 +165,42 @@ fn a_kind_has_its_declared_names_and_the_keys_of_its_maps() {
         assert!(Pred::has(&name), "{name}");
     }
 }
+
+#[test]
+fn names_of_model_parts_are_checked_against_the_model() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let scene = constraint_dynamics::Scene::load(root.join("params/suite_mobile_manipulator.yaml"))
+        .expect("scene");
+    let system = constraint_dynamics::System::from_scene(&scene).expect("system");
+    let model = system.model();
+    let c = current::<ProjectionParams>();
+    type P = NodeParams<ProjectionParams>;
+    let set = |changes: &[Parameter]| {
+        P::updated(&c, changes, None)
+            .unwrap()
+            .check_model(model)
+            .map_err(|e| e.to_string())
+    };
+    // The defaults (base aliases vx, wz) fit the planar base.
+    set(&[]).unwrap();
+    let names = |n: &[&str]| {
+        p(
+            "acceleration_limits.names",
+            ParameterValue::StringArray(n.iter().map(|s| s.to_string()).collect()),
+        )
+    };
+    set(&[names(&["vx", "arm_elbow"])]).unwrap_or_else(|e| panic!("{e}"));
+    let e = set(&[names(&["vx", "elbow"])]).unwrap_err();
+    assert!(
+        e.starts_with(
+            "acceleration_limits.names = [\"vx\", \"elbow\"]: unknown velocity coordinate 'elbow'"
+        ),
+        "{e}"
+    );
+    let e = set(&[p("payload.frame", ParameterValue::String("gripper".into()))]).unwrap_err();
+    assert!(
+        e.starts_with("payload.frame = 'gripper' is not a frame of the model (known frames: "),
+        "{e}"
+    );
+    set(&[p("payload.frame", ParameterValue::String("tool0".into()))]).unwrap();
+}

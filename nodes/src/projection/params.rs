@@ -1,5 +1,7 @@
 //! `cd_projection`'s own parameters.
 
+use constraint_dynamics::model::Model;
+use constraint_dynamics::projection::coordinate_index;
 use serde::{Deserialize, Serialize};
 
 use crate::params::{KindParams, ParamsError, nonempty, nonneg, positive};
@@ -112,6 +114,18 @@ impl KindParams for ProjectionParams {
         if self.filter.enabled {
             nonempty("filter.input_topic", &self.filter.input_topic)?;
             nonempty("filter.output_topic", &self.filter.output_topic)?;
+        }
+        Ok(())
+    }
+
+    /// Every name of `acceleration_limits.names` a velocity coordinate of the model (or a base
+    /// alias).
+    fn check_model(&self, model: &Model) -> Result<(), ParamsError> {
+        let names = &self.acceleration_limits.names;
+        for n in names {
+            coordinate_index(model, n).map_err(|e| {
+                ParamsError::invalid("acceleration_limits.names", format!("= {names:?}: {e}"))
+            })?;
         }
         Ok(())
     }
