@@ -24,30 +24,39 @@ pub struct Failure {
 }
 
 impl Failure {
-    /// The status of node `fqn`, now in lifecycle state `state`, after `what` (`configure`)
-    /// failed with `error`; published at once and then every `period`.
-    pub fn new(
+    /// The status of node `fqn` after transition `what.0` (`configure`) failed with `what.2`,
+    /// leaving it in lifecycle state `what.1`; published at once and then every `period` [s]
+    /// (1 s if unknown). `None` (with a warning) if the publisher cannot be made.
+    pub fn start(
         ros: &mut RosNode,
         fqn: &str,
-        what: &str,
-        state: &str,
-        error: &NodeError,
-        period: Duration,
-    ) -> Result<Failure, NodeError> {
-        let publisher = ros.publisher::<DiagnosticArray>("/diagnostics", &qos::reliable(10))?;
+        what: (&str, &str, &NodeError),
+        period: Option<f64>,
+        log: &NodeLog,
+    ) -> Option<Failure> {
+        let (transition, state, error) = what;
+        let publisher = match ros.publisher::<DiagnosticArray>("/diagnostics", &qos::reliable(10)) {
+            Ok(p) => p,
+            Err(e) => {
+                log.warn(&format!("/diagnostics for the failed {transition}: {e}"));
+                return None;
+            }
+        };
         let status = DiagnosticStatus {
             level: DiagnosticStatus::ERROR,
             name: fqn.to_string(),
-            message: format!("{what} failed: {error}"),
+            message: format!("{transition} failed: {error}"),
             hardware_id: String::new(),
             values: vec![kv("lifecycle state", state)],
         };
-        Ok(Failure {
+        let mut f = Failure {
             status,
             publisher,
-            period,
+            period: Duration::from_secs_f64(period.unwrap_or(1.0)),
             next: Instant::now(),
-        })
+        };
+        f.report(log);
+        Some(f)
     }
 
     /// Publishes the status when it is due.

@@ -293,43 +293,19 @@ impl<N: RosWiring> Managed<N> {
         self.publish(event);
         self.failure = match &result {
             Err(e) if matches!(t, Transition::Configure | Transition::Activate) => {
-                self.failure_report(t.label(), e)
+                // At the node's diagnostics.period (the parameters were checked at start).
+                let period = self.params.0.lock().ok().and_then(|c| {
+                    NodeParams::<N::Params>::from_parameters(&c)
+                        .ok()
+                        .map(|p| p.common.diagnostics.period)
+                });
+                let state = self.machine.state().label();
+                let what = (t.label(), state, e);
+                Failure::start(&mut self.ros, &self.fqn, what, period, &self.log)
             }
             _ => None,
         };
         result
-    }
-
-    /// The `/diagnostics` report of a failed transition (published at once), at the node's
-    /// `diagnostics.period`.
-    fn failure_report(&mut self, what: &str, e: &NodeError) -> Option<Failure> {
-        let period = self
-            .params
-            .0
-            .lock()
-            .ok()
-            .and_then(|c| NodeParams::<N::Params>::from_parameters(&c).ok())
-            .map_or(1.0, |p| p.common.diagnostics.period);
-        let state = self.machine.state().label();
-        let made = Failure::new(
-            &mut self.ros,
-            &self.fqn,
-            what,
-            state,
-            e,
-            std::time::Duration::from_secs_f64(period),
-        );
-        match made {
-            Ok(mut f) => {
-                f.report(&self.log);
-                Some(f)
-            }
-            Err(err) => {
-                self.log
-                    .warn(&format!("/diagnostics for the failure: {err}"));
-                None
-            }
-        }
     }
 
     fn publish(&self, event: TransitionEvent) {

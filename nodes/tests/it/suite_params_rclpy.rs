@@ -11,6 +11,8 @@
 //!   afterwards succeeds; `SetParametersAtomically` is judged as a whole (a mass with its frame
 //!   in one request is accepted, a valid mass with a bad inertia stores neither).
 //!
+//! Then the same failure with `--exit-on-failure` (one node alone) ends the process.
+//!
 //! Needs root (a loopback-only network namespace) and the peer venv
 //! (`tools/ros2/setup_peer_venv.sh`; `CD_ROS2_VENV`, default `<repo>/.venv-ros2`): `#[ignore]`d
 //! in a plain `cargo test`, run by `tools/test.sh`; a missing prerequisite fails the test.
@@ -173,6 +175,42 @@ fn rclpy_sets_are_checked_whole_overrides_reach_their_node_and_a_failure_stays_l
     );
     assert!(!log.contains("unknown field"), "{log}");
     assert!(suite.stop(), "{}", suite.log());
+
+    // --exit-on-failure: the same failure ends the process, naming the scene.
+    let mut alone = SuiteProcess::spawn(
+        env!("CARGO_BIN_EXE_constraint_dynamics_suite"),
+        &[
+            "--node",
+            "forces",
+            "--exit-on-failure",
+            "--ros-args",
+            "--params-file",
+            "params/default.yaml",
+            "-p",
+            "model.scene_file:=params/no_such_scene.yaml",
+        ],
+        "params_exit",
+    );
+    let status = block_on_timeout(WAIT, async {
+        loop {
+            if let Ok(Some(s)) = alone.child.try_wait() {
+                return s;
+            }
+            smol::Timer::after(Duration::from_millis(20)).await;
+        }
+    })
+    .unwrap_or_else(|| panic!("still running with --exit-on-failure:\n{}", alone.log()));
+    let log = alone.log();
+    assert!(
+        status.code() == Some(1)
+            && log.contains("error: cd_forces")
+            && log.contains("no_such_scene.yaml"),
+        "{status}: {log}"
+    );
+    println!(
+        "{TEST}: achieved: --exit-on-failure exited ({status}) after {:.2} s",
+        alone.started.elapsed().as_secs_f64()
+    );
 }
 
 fn refused(r: &Value, needle: &str) {
