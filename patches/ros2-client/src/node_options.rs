@@ -2,7 +2,8 @@
 //!
 //! The builder surface (`enable_rosout`, `read_rosout`,
 //! `start_parameter_services`, `declare_parameter`, `parameter_validator`,
-//! `parameter_set_action`) is
+//! `parameter_set_action`; patched: `parameters_validator`,
+//! `parameters_set_action`) is
 //! unchanged, but fields are `pub(crate)` so each backend's `Node::new` can
 //! read/consume them directly (DDS keeps the whole struct; Zenoh wires
 //! `enable_rosout` / `enable_rosout_reading` / `start_parameter_services` /
