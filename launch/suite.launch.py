@@ -20,6 +20,8 @@ Arguments:
   use_sim_time    'true' to run every stamp, rate and timeout on /clock
   log_level       debug, info, warn, error
   allow_external  'true' to allow DDS on non-loopback interfaces (a robot network)
+  exit_on_failure 'true' to end the process when a node fails to configure (default: that node
+                  stays unconfigured and the others run)
 """
 
 import os
@@ -48,7 +50,8 @@ def _suite(context, *args, **kwargs):
         package=PACKAGE,
         executable='constraint_dynamics_suite',
         namespace=get('namespace').strip('/'),
-        arguments=['--node', get('node')] if get('node') else [],
+        arguments=(['--node', get('node')] if get('node') else [])
+        + (['--exit-on-failure'] if get('exit_on_failure').lower() == 'true' else []),
         parameters=parameters,
         ros_arguments=['--log-level', get('log_level')],
         output='screen',
@@ -66,5 +69,6 @@ def generate_launch_description():
         DeclareLaunchArgument('use_sim_time', default_value='false'),
         DeclareLaunchArgument('log_level', default_value='info'),
         DeclareLaunchArgument('allow_external', default_value='false'),
+        DeclareLaunchArgument('exit_on_failure', default_value='false'),
         OpaqueFunction(function=_suite),
     ])

@@ -19,6 +19,7 @@ use std::thread::JoinHandle;
 
 use ros2_client::{Context, Publisher};
 
+use super::failure::Failure;
 use super::wiring::{
     Followed, GRAPH_PERIOD, RosWiring, Wiring, wire_diagnostics, wire_set_payload,
     wire_state_inputs,
@@ -39,6 +40,7 @@ use crate::ros::args::{Parameters, RosArgs};
 use crate::ros::context::{RosNode, qos};
 use crate::ros::io::{Reply, serve};
 use crate::ros::logging::NodeLog;
+use constraint_dynamics::model::Model;
 
 /// The parameters as the ROS node holds them, and the slot through which run-time changes
 /// reach the worker (empty while there is none).
@@ -50,8 +52,9 @@ pub struct WorkerLink<N: NodeLogic> {
     pub tx: SyncSender<Event<N>>,
     /// The scene's work limits, which the values that size work must respect.
     pub budget: WorkBudget,
-    /// The model's frame names, which `payload.frame` must be one of.
-    pub frames: Vec<String>,
+    /// The model, which the parameters naming its parts must fit (`payload.frame`,
+    /// [`crate::params::KindParams::check_model`]).
+    pub model: Arc<Model>,
 }
 
 /// What the lifecycle servers ask the supervisor.
@@ -93,6 +96,9 @@ pub struct Managed<N: RosWiring> {
     events: Publisher<TransitionEvent>,
     configured: Option<Configured<N>>,
     active: Option<Active>,
+    /// The last failed configuration or activation, on `/diagnostics` until a transition
+    /// succeeds.
+    failure: Option<Failure>,
     requests: (Sender<Request>, Receiver<Request>),
     /// The lifecycle servers.
     servers: Vec<smol::Task<()>>,
@@ -185,6 +191,7 @@ impl<N: RosWiring> Managed<N> {
             events,
             configured: None,
             active: None,
+            failure: None,
             requests,
             servers,
         })
@@ -237,6 +244,9 @@ impl<N: RosWiring> Managed<N> {
             if let Err(e) = self.follow_graph() {
                 self.log.warn(&format!("following the graph: {e}"));
             }
+            if let Some(f) = self.failure.as_mut() {
+                f.report(&self.log);
+            }
         }
         // Stop in order: the kind's endpoints, the worker and inputs, the lifecycle servers,
         // then the ROS node (dropped with `self`).
@@ -281,6 +291,20 @@ impl<N: RosWiring> Managed<N> {
             self.machine.state().label()
         ));
         self.publish(event);
+        self.failure = match &result {
+            Err(e) if matches!(t, Transition::Configure | Transition::Activate) => {
+                // At the node's diagnostics.period (the parameters were checked at start).
+                let period = self.params.0.lock().ok().and_then(|c| {
+                    NodeParams::<N::Params>::from_parameters(&c)
+                        .ok()
+                        .map(|p| p.common.diagnostics.period)
+                });
+                let state = self.machine.state().label();
+                let what = (t.label(), state, e);
+                Failure::start(&mut self.ros, &self.fqn, what, period, &self.log)
+            }
+            _ => None,
+        };
         result
     }
 
@@ -297,6 +321,7 @@ impl<N: RosWiring> Managed<N> {
         let robot = Robot::load(&params.common)?;
         let budget = WorkBudget::of(robot.scene());
         params.node.check_work(&budget)?;
+        params.check_model(robot.model())?;
         let logic = N::new(robot, params.clone(), self.log.clone())?;
         let summary = {
             let (r, m) = (logic.robot(), logic.robot().model());
@@ -312,13 +337,7 @@ impl<N: RosWiring> Managed<N> {
             )
         };
         let constraints = logic.robot().constraint_names().to_vec();
-        let frames = logic
-            .robot()
-            .model()
-            .frames
-            .iter()
-            .map(|f| f.name.clone())
-            .collect();
+        let model = Arc::new(logic.robot().model().clone());
         let (out_tx, outputs) = smol::channel::bounded::<N::Output>(16);
         let (diag_tx, statuses) = smol::channel::bounded::<(Time, DiagnosticStatus)>(4);
         let worker = WorkerHandle::spawn(logic, self.ros.name(), &self.fqn, out_tx, diag_tx)?;
@@ -335,7 +354,7 @@ impl<N: RosWiring> Managed<N> {
             *self.params.1.lock().map_err(|_| poisoned())? = Some(WorkerLink {
                 tx: sender,
                 budget,
-                frames,
+                model,
             });
         }
         let mut c = Configured {

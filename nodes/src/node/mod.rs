@@ -2,6 +2,7 @@
 //! thread by a [`worker::WorkerHandle`], and its ROS side behind [`wiring::RosWiring`], started
 //! by [`wiring::start_node`]. The kinds (`crate::predictor`, …) implement both traits.
 
+mod failure;
 pub mod health;
 pub mod managed;
 mod timer;

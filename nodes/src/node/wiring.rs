@@ -122,8 +122,10 @@ pub fn forward<N: NodeLogic>(tx: &SyncSender<Event<N>>, ev: Event<N>) {
 }
 
 /// Starts node `name` of kind `N` in `namespace` with its parameters: its ROS node, its
-/// lifecycle services and, with `autostart` (the default), configured and active at once (a
-/// configuration error is then returned, as before lifecycles existed).
+/// lifecycle services and, with `autostart` (the default), configured and active at once. A
+/// failed configuration or activation leaves the node unconfigured (or inactive) with an
+/// ERROR on `/rosout` and `/diagnostics`, so the other nodes of the process run on; with
+/// `exit_on_failure` it is returned instead (the process exits).
 pub fn start_node<N: RosWiring>(
     context: &Context,
     args: &RosArgs,
@@ -131,10 +133,11 @@ pub fn start_node<N: RosWiring>(
     name: &str,
     ros_params: Parameters,
     params: NodeParams<N::Params>,
+    exit_on_failure: bool,
 ) -> Result<Box<dyn RunningNode>, NodeError> {
     let log = NodeLog::new(name);
-    // Parameters: declared with their values, validated on set; dynamic ones reach the worker
-    // (when there is one: the node is configured).
+    // Parameters: declared with their values; each set request is validated as a whole (the
+    // combination it would make), and reaches the worker when there is one (configured).
     let ready = Arc::new(AtomicBool::new(false));
     let current = Arc::new(Mutex::new(ros_params));
     let link: Arc<Mutex<Option<WorkerLink<N>>>> = Arc::new(Mutex::new(None));
@@ -144,28 +147,28 @@ pub fn start_node<N: RosWiring>(
     }
     {
         let (ready, current, link) = (ready.clone(), current.clone(), link.clone());
-        options = options.parameter_validator(Box::new(move |pname, value| {
+        options = options.parameters_validator(Box::new(move |changes| {
             if !ready.load(Ordering::SeqCst) {
                 return Ok(());
             }
             let c = current.lock().map_err(|e| e.to_string())?;
             let budget = budget_of(&link);
-            let next = NodeParams::<N::Params>::updated(&c, pname, value, budget.as_ref())
+            let next = NodeParams::<N::Params>::updated(&c, changes, budget.as_ref())
                 .map_err(|e| e.to_string())?;
-            check_payload_frame(&next, &link)
+            check_model(&next, &link)
         }));
     }
     {
         let (ready, current, link) = (ready.clone(), current.clone(), link.clone());
-        options = options.parameter_set_action(Box::new(move |pname, value| {
+        options = options.parameters_set_action(Box::new(move |changes| {
             if !ready.load(Ordering::SeqCst) {
                 return Ok(());
             }
             let mut c = current.lock().map_err(|e| e.to_string())?;
             let budget = budget_of(&link);
-            let next = NodeParams::<N::Params>::updated(&c, pname, value, budget.as_ref())
+            let next = NodeParams::<N::Params>::updated(&c, changes, budget.as_ref())
                 .map_err(|e| e.to_string())?;
-            check_payload_frame(&next, &link)?;
+            check_model(&next, &link)?;
             // A set is acknowledged only once the worker has it: with its queue full the set is
             // refused (the caller can retry), never dropped after a success reply.
             let tx = link
@@ -174,10 +177,12 @@ pub fn start_node<N: RosWiring>(
                 .and_then(|l| l.as_ref().map(|l| l.tx.clone()));
             if let Some(tx) = tx {
                 tx.try_send(Event::Params(Box::new(next))).map_err(|_| {
-                    format!("{pname}: the node is busy (request queue full); not set, try again")
+                    "the node is busy (request queue full); nothing set, try again".to_string()
                 })?;
             }
-            c.values.insert(pname.to_string(), value.clone());
+            for p in changes {
+                c.values.insert(p.name.clone(), p.value.clone());
+            }
             Ok(())
         }));
     }
@@ -195,7 +200,15 @@ pub fn start_node<N: RosWiring>(
         log.clone(),
     )?;
     if autostart {
-        managed.autostart()?;
+        if let Err(e) = managed.autostart() {
+            if exit_on_failure {
+                return Err(e);
+            }
+            log.error(&format!(
+                "{name} is not running ({e}); the process's other nodes run on (a lifecycle \
+                 manager may configure it again; --exit-on-failure exits instead)"
+            ));
+        }
     } else {
         log.info(&format!(
             "{name} unconfigured (autostart: false): waiting for ~/change_state"
@@ -249,22 +262,19 @@ pub(crate) fn wire_set_payload<N: NodeLogic>(w: &mut Wiring<N>) -> Result<(), No
     Ok(())
 }
 
-/// A `payload.frame` the model does not have, refused when the parameter is set (the frames
-/// are the configured model's; none before the node is configured, when `configure` checks).
-fn check_payload_frame<N: NodeLogic>(
+/// The parameters that name parts of the model checked against it (none before the node is
+/// configured, when `configure` checks them).
+fn check_model<N: NodeLogic>(
     params: &NodeParams<N::Params>,
     link: &Mutex<Option<WorkerLink<N>>>,
 ) -> Result<(), String> {
-    let frame = params.common.payload.frame.as_str();
-    let Ok(link) = link.lock() else {
-        return Ok(());
-    };
-    match link.as_ref() {
-        Some(l) if !frame.is_empty() && !l.frames.iter().any(|f| f == frame) => Err(format!(
-            "payload.frame = '{frame}' is not a frame of the model (known frames: {})",
-            l.frames.join(", ")
-        )),
-        _ => Ok(()),
+    let model = link
+        .lock()
+        .ok()
+        .and_then(|l| l.as_ref().map(|l| l.model.clone()));
+    match model {
+        Some(m) => params.check_model(&m).map_err(|e| e.to_string()),
+        None => Ok(()),
     }
 }
 

@@ -19,7 +19,8 @@ pub mod work;
 
 use std::path::{Path, PathBuf};
 
-use ros2_client::ParameterValue;
+use constraint_dynamics::model::Model;
+use ros2_client::{Parameter, ParameterValue};
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
@@ -84,6 +85,12 @@ pub trait KindParams:
     /// configured and on every run-time set), naming the parameter and its limit. Default:
     /// nothing sizes work.
     fn check_work(&self, _budget: &WorkBudget) -> Result<(), ParamsError> {
+        Ok(())
+    }
+
+    /// Checks the values that name parts of the model (coordinates) against it, when the
+    /// node is configured and on every run-time set. Default: none do.
+    fn check_model(&self, _model: &Model) -> Result<(), ParamsError> {
         Ok(())
     }
 }
@@ -228,26 +235,72 @@ impl<K: KindParams> NodeParams<K> {
         out
     }
 
-    /// The parameters with `name` set to `value`, if that name may change at run time and the
-    /// result is valid — within the scene's work limits too when the node has a scene
-    /// (`budget`). `current` holds every parameter's present value.
+    /// Checks the values that name parts of `model`: `payload.frame` and the kind's own
+    /// ([`KindParams::check_model`]).
+    pub fn check_model(&self, model: &Model) -> Result<(), ParamsError> {
+        let frame = self.common.payload.frame.as_str();
+        if !frame.is_empty() && !model.frames.iter().any(|f| f.name == frame) {
+            let known: Vec<&str> = model.frames.iter().map(|f| f.name.as_str()).collect();
+            return Err(ParamsError::invalid(
+                "payload.frame",
+                format!(
+                    "= '{frame}' is not a frame of the model (known frames: {})",
+                    known.join(", ")
+                ),
+            ));
+        }
+        self.node.check_model(model)
+    }
+
+    /// Whether this kind has parameter `name`: one of the names it declares, or a key of a
+    /// map-valued group (`state.joint_noise.joints.<joint>`, empty by default).
+    pub fn has(name: &str) -> bool {
+        fn walk(m: &serde_yaml::Mapping, prefix: &str, name: &str) -> bool {
+            m.iter().any(|(k, v)| {
+                let full = format!("{prefix}{}", k.as_str().unwrap_or_default());
+                match v {
+                    // An empty group in the defaults is a map whose keys the user chooses.
+                    serde_yaml::Value::Mapping(m) if m.is_empty() => name
+                        .strip_prefix(&full)
+                        .and_then(|rest| rest.strip_prefix('.'))
+                        .is_some_and(|key| !key.is_empty()),
+                    serde_yaml::Value::Mapping(m) => walk(m, &format!("{full}."), name),
+                    _ => full == name,
+                }
+            })
+        }
+        let d = Self::default();
+        [
+            serde_yaml::to_value(&d.common),
+            serde_yaml::to_value(&d.node),
+        ]
+        .iter()
+        .any(|v| matches!(v, Ok(serde_yaml::Value::Mapping(m)) if walk(m, "", name)))
+    }
+
+    /// The parameters with every parameter of one set request applied (`changes`), if each
+    /// name may change at run time and the combination is valid — within the scene's work
+    /// limits too when the node has a scene (`budget`). `current` holds every parameter's
+    /// present value. Rules between parameters (`payload.*`, `acceleration_limits.*`) are
+    /// judged on the combination, so a request may change several together.
     pub fn updated(
         current: &Parameters,
-        name: &str,
-        value: &ParameterValue,
+        changes: &[Parameter],
         budget: Option<&WorkBudget>,
     ) -> Result<Self, ParamsError> {
-        let dynamic = |d: &&str| name == *d || (d.ends_with('.') && name.starts_with(d));
-        let mut allowed = K::DYNAMIC.iter().chain(COMMON_DYNAMIC.iter());
-        if NEVER_DYNAMIC.contains(&name) || !allowed.any(dynamic) {
-            let all: Vec<&str> = K::DYNAMIC.iter().chain(&COMMON_DYNAMIC).copied().collect();
-            return Err(ParamsError::Fixed {
-                name: name.to_string(),
-                detail: format!(" (run-time changes: {})", all.join(", ")),
-            });
-        }
         let mut params = current.clone();
-        params.values.insert(name.to_string(), value.clone());
+        for Parameter { name, value } in changes {
+            let dynamic = |d: &&str| name == *d || (d.ends_with('.') && name.starts_with(d));
+            let mut allowed = K::DYNAMIC.iter().chain(COMMON_DYNAMIC.iter());
+            if NEVER_DYNAMIC.contains(&name.as_str()) || !allowed.any(dynamic) {
+                let all: Vec<&str> = K::DYNAMIC.iter().chain(&COMMON_DYNAMIC).copied().collect();
+                return Err(ParamsError::Fixed {
+                    name: name.to_string(),
+                    detail: format!(" (run-time changes: {})", all.join(", ")),
+                });
+            }
+            params.values.insert(name.to_string(), value.clone());
+        }
         let p = Self::from_parameters(&params)?;
         if let Some(b) = budget {
             p.node.check_work(b)?;
@@ -328,5 +381,7 @@ pub fn resolve_path(path: &str, params_files: &[PathBuf]) -> PathBuf {
     p.to_path_buf()
 }
 
+#[cfg(test)]
+mod set_tests;
 #[cfg(test)]
 mod tests;

@@ -38,20 +38,9 @@ impl Default for PayloadParams {
 
 impl PayloadParams {
     /// The payload these parameters ask for: `None` = the scene's; errors name the parameter.
+    /// Every value is checked, also while `frame` is empty and the values unused: a value
+    /// accepted now must not block a later set of another `payload.*` parameter.
     pub fn payload(&self) -> Result<Option<Payload>, ParamsError> {
-        if self.frame.trim().is_empty() {
-            if self.mass != 0.0 {
-                return Err(ParamsError::invalid(
-                    "payload.frame",
-                    format!(
-                        "is empty but payload.mass = {} kg: name the frame that carries the \
-                         payload first",
-                        self.mass
-                    ),
-                ));
-            }
-            return Ok(None);
-        }
         let com = fixed::<3>("payload.com", &self.com, "[x, y, z] [m]")?;
         let inertia = fixed::<6>(
             "payload.inertia",
@@ -72,6 +61,19 @@ impl PayloadParams {
                 None => ParamsError::invalid("payload", text),
             }
         })?;
+        if self.frame.trim().is_empty() {
+            if self.mass != 0.0 {
+                return Err(ParamsError::invalid(
+                    "payload.frame",
+                    format!(
+                        "is empty but payload.mass = {} kg: name the frame that carries the \
+                         payload first (or set both in one request)",
+                        self.mass
+                    ),
+                ));
+            }
+            return Ok(None);
+        }
         Ok(Some(p))
     }
 

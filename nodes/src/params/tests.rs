@@ -6,6 +6,14 @@ use crate::predictor::PredictorParams;
 use crate::projection::ProjectionParams;
 use crate::ros::args::parse_params_yaml;
 
+/// A set request of one parameter.
+pub(crate) fn one(name: &str, value: ParameterValue) -> [Parameter; 1] {
+    [Parameter {
+        name: name.into(),
+        value,
+    }]
+}
+
 #[test]
 fn defaults_validate_once_a_scene_is_given() {
     let mut p = NodeParams::<ProjectionParams>::default();
@@ -136,16 +144,14 @@ fn run_time_changes_only_of_dynamic_parameters() {
     current.values.extend(p.to_ros());
     let next = NodeParams::<PredictorParams>::updated(
         &current,
-        "horizon",
-        &ParameterValue::Double(2.0),
+        &one("horizon", ParameterValue::Double(2.0)),
         None,
     )
     .unwrap();
     assert_eq!(next.node.horizon, 2.0);
     let e = NodeParams::<PredictorParams>::updated(
         &current,
-        "rate",
-        &ParameterValue::Double(5.0),
+        &one("rate", ParameterValue::Double(5.0)),
         None,
     )
     .unwrap_err()
@@ -156,8 +162,7 @@ fn run_time_changes_only_of_dynamic_parameters() {
     );
     let e = NodeParams::<PredictorParams>::updated(
         &current,
-        "use_sim_time",
-        &ParameterValue::Boolean(true),
+        &one("use_sim_time", ParameterValue::Boolean(true)),
         None,
     )
     .unwrap_err()
@@ -166,8 +171,7 @@ fn run_time_changes_only_of_dynamic_parameters() {
     // Dynamic, but out of range: refused with the name.
     let e = NodeParams::<PredictorParams>::updated(
         &current,
-        "covariance.twist_floor",
-        &ParameterValue::Double(-1.0),
+        &one("covariance.twist_floor", ParameterValue::Double(-1.0)),
         None,
     )
     .unwrap_err()
@@ -278,8 +282,7 @@ fn payload_group_is_typed_named_and_changeable_on_every_kind() {
     current.values.extend(p.to_ros());
     let next = NodeParams::<ProjectionParams>::updated(
         &current,
-        "payload.frame",
-        &ParameterValue::String("tool0".into()),
+        &one("payload.frame", ParameterValue::String("tool0".into())),
         None,
     )
     .unwrap();
@@ -291,8 +294,7 @@ fn payload_group_is_typed_named_and_changeable_on_every_kind() {
     );
     let next = NodeParams::<ProjectionParams>::updated(
         &current,
-        "payload.mass",
-        &ParameterValue::Double(2.0),
+        &one("payload.mass", ParameterValue::Double(2.0)),
         None,
     )
     .unwrap();

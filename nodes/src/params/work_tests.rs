@@ -6,6 +6,7 @@ use ros2_client::ParameterValue;
 
 use super::*;
 use crate::params::NodeParams;
+use crate::params::tests::one;
 use crate::prediction::PredictionParams;
 use crate::predictor::PredictorParams;
 use crate::ros::args::Parameters;
@@ -170,7 +171,7 @@ fn run_time_sets_respect_the_scene() {
     p.common.model.scene_file = "s.yaml".into();
     let c = current(&p);
     let set = |name: &str, x: f64| {
-        NodeParams::<PredictorParams>::updated(&c, name, &ParameterValue::Double(x), Some(&b))
+        NodeParams::<PredictorParams>::updated(&c, &one(name, ParameterValue::Double(x)), Some(&b))
     };
     assert_eq!(set("horizon", 50.0).unwrap().node.horizon, 50.0);
     for (h, needle) in [
@@ -186,8 +187,11 @@ fn run_time_sets_respect_the_scene() {
     }
     // Without a scene (not configured yet) only the static range applies; configure checks
     // the rest.
-    let unconfigured =
-        NodeParams::<PredictorParams>::updated(&c, "horizon", &ParameterValue::Double(500.0), None);
+    let unconfigured = NodeParams::<PredictorParams>::updated(
+        &c,
+        &one("horizon", ParameterValue::Double(500.0)),
+        None,
+    );
     assert_eq!(unconfigured.unwrap().node.horizon, 500.0);
     // 0 = the scene's horizon (1 s), within the limits.
     assert!(set("horizon", 0.0).is_ok());
@@ -198,8 +202,7 @@ fn run_time_sets_respect_the_scene() {
     let set = |x: f64| {
         NodeParams::<PredictionParams>::updated(
             &c,
-            "max_horizon",
-            &ParameterValue::Double(x),
+            &one("max_horizon", ParameterValue::Double(x)),
             Some(&b),
         )
     };

@@ -1,5 +1,7 @@
 //! `cd_projection`'s own parameters.
 
+use constraint_dynamics::model::Model;
+use constraint_dynamics::projection::coordinate_index;
 use serde::{Deserialize, Serialize};
 
 use crate::params::{KindParams, ParamsError, nonempty, nonneg, positive};
@@ -93,18 +95,37 @@ impl KindParams for ProjectionParams {
         let a = &self.acceleration_limits;
         if a.names.len() != a.values.len() {
             return Err(ParamsError::invalid(
-                "acceleration_limits",
-                format!(": {} names but {} values", a.names.len(), a.values.len()),
+                "acceleration_limits.values",
+                format!(
+                    "= {:?} must hold one a_max per name of acceleration_limits.names = {:?} \
+                     ({} values for {} names; change both in one request)",
+                    a.values,
+                    a.names,
+                    a.values.len(),
+                    a.names.len()
+                ),
             ));
         }
         for (n, v) in a.names.iter().zip(&a.values) {
-            positive(&format!("acceleration_limits ({n})"), *v)?;
+            positive(&format!("acceleration_limits.values ({n})"), *v)?;
         }
         nonneg("filter.accel_limit_dt", self.filter.accel_limit_dt)?;
         nonneg("filter.control_period", self.filter.control_period)?;
         if self.filter.enabled {
             nonempty("filter.input_topic", &self.filter.input_topic)?;
             nonempty("filter.output_topic", &self.filter.output_topic)?;
+        }
+        Ok(())
+    }
+
+    /// Every name of `acceleration_limits.names` a velocity coordinate of the model (or a base
+    /// alias).
+    fn check_model(&self, model: &Model) -> Result<(), ParamsError> {
+        let names = &self.acceleration_limits.names;
+        for n in names {
+            coordinate_index(model, n).map_err(|e| {
+                ParamsError::invalid("acceleration_limits.names", format!("= {names:?}: {e}"))
+            })?;
         }
         Ok(())
     }

@@ -28,6 +28,7 @@ pub fn main(only: Option<NodeKind>) -> std::process::ExitCode {
         }
     };
     let mut only = only;
+    let mut exit_on_failure = false;
     let mut user = args.user_args.iter();
     while let Some(a) = user.next() {
         match a.as_str() {
@@ -45,6 +46,7 @@ pub fn main(only: Option<NodeKind>) -> std::process::ExitCode {
                     return ExitCode::from(2);
                 }
             },
+            "--exit-on-failure" => exit_on_failure = true,
             other => {
                 eprintln!("error: unknown argument {other:?}\n\n{}", usage());
                 return ExitCode::from(2);
@@ -57,7 +59,7 @@ pub fn main(only: Option<NodeKind>) -> std::process::ExitCode {
         libc::signal(libc::SIGINT, on_signal as *const () as libc::sighandler_t);
         libc::signal(libc::SIGTERM, on_signal as *const () as libc::sighandler_t);
     }
-    let suite = match start(&args, only) {
+    let suite = match start(&args, only, exit_on_failure) {
         Ok(s) => s,
         Err(e) => {
             eprintln!("error: {e}");
@@ -82,13 +84,15 @@ pub fn main(only: Option<NodeKind>) -> std::process::ExitCode {
 /// The command-line help.
 pub fn usage() -> String {
     "usage: constraint_dynamics_suite [--node predictor|forces|projection|prediction] \
-     --ros-args --params-file FILE [-p NAME:=VALUE] [-r __ns:=/NS] [-r __node:=NAME (with --node)] \
+     [--exit-on-failure] --ros-args --params-file FILE [-p NAME:=VALUE] [-r __ns:=/NS] [-r __node:=NAME (with --node)] \
      [-r FROM:=TO] [--log-level LEVEL]\n\
      \n\
      Starts the constraint_dynamics ROS 2 nodes (docs/nodes.md): cd_predictor (predicted odometry, \
      path, constraint forces), cd_forces (~/get_constraint_forces), cd_projection \
      (~/project_velocity, command filter), cd_prediction (~/predict). Without --node every node \
-     whose `enabled` parameter is true runs in this process.\n\
+     whose `enabled` parameter is true runs in this process. A node that fails to configure \
+     stays unconfigured (ERROR on /rosout and /diagnostics) while the others run; \
+     --exit-on-failure exits instead.\n\
      ROS_DOMAIN_ID selects the domain; network.interfaces / CD_ROS_INTERFACES the interfaces."
         .to_string()
 }

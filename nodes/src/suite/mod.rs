@@ -66,6 +66,7 @@ type StartNode = Box<
         &str,
         String,
         Parameters,
+        bool,
     ) -> Result<Box<dyn RunningNode>, NodeError>,
 >;
 
@@ -78,21 +79,38 @@ struct Plan {
     start: StartNode,
 }
 
+/// What planning one node found: the node to start (`None` when it is disabled), the shared
+/// parameters it ignored (set for every node, not one of its own), and whether its kind has a
+/// parameter.
+struct Planned {
+    plan: Option<Plan>,
+    ignored: Vec<String>,
+    has: fn(&str) -> bool,
+}
+
 /// The plan for one node of kind `N`, or `None` when it is disabled (and not asked for alone).
-fn plan_kind<N: RosWiring>(
-    args: &RosArgs,
-    name: String,
-    only: bool,
-) -> Result<Option<Plan>, NodeError> {
+fn plan_kind<N: RosWiring>(args: &RosArgs, name: String, only: bool) -> Result<Planned, NodeError> {
     let namespace = args.namespace_or("/");
     let in_node = |e: NodeError| e.in_node(&name);
     let mut ros_params = args
         .parameters(&fqn(namespace, &name))
         .map_err(|e| in_node(e.into()))?;
+    let has = NodeParams::<N::Params>::has;
+    let ignored = ros_params.drop_shared(has);
+    let log = crate::ros::logging::NodeLog::new(&name);
+    for key in &ignored {
+        log.debug(&format!(
+            "ignoring parameter {key} (set for every node; not a parameter of {name})"
+        ));
+    }
     let mut params =
         NodeParams::<N::Params>::from_parameters(&ros_params).map_err(|e| in_node(e.into()))?;
     if !only && !params.common.enabled {
-        return Ok(None);
+        return Ok(Planned {
+            plan: None,
+            ignored,
+            has,
+        });
     }
     let scene = resolve_path(&params.common.model.scene_file, &args.params_files);
     let scene = scene.display().to_string();
@@ -101,20 +119,40 @@ fn plan_kind<N: RosWiring>(
         ParameterValue::String(scene.clone()),
     );
     params.common.model.scene_file = scene;
-    Ok(Some(Plan {
+    let plan = Plan {
         name,
         network: params.common.network.clone(),
         ros_params,
-        start: Box::new(move |context, args, namespace, name, ros_params| {
-            start_node::<N>(context, args, namespace, &name, ros_params, params)
+        start: Box::new(move |context, args, namespace, name, ros_params, exit| {
+            start_node::<N>(context, args, namespace, &name, ros_params, params, exit)
                 .map_err(|e| e.in_node(&name))
         }),
-    }))
+    };
+    Ok(Planned {
+        plan: Some(plan),
+        ignored,
+        has,
+    })
+}
+
+/// The shared parameters (set for every node) that no node to be started has: a WARN each
+/// names them, as they change nothing.
+fn unused_shared(planned: &[Planned]) -> Vec<String> {
+    let started: Vec<&Planned> = planned.iter().filter(|p| p.plan.is_some()).collect();
+    let mut unused: Vec<String> = planned
+        .iter()
+        .flat_map(|p| p.ignored.iter())
+        .filter(|key| !started.iter().any(|p| (p.has)(key)))
+        .cloned()
+        .collect();
+    unused.sort();
+    unused.dedup();
+    unused
 }
 
 /// Reads and checks the parameters of the nodes to start: `only` one kind, or every kind whose
-/// `enabled` is true.
-fn plan(args: &RosArgs, only: Option<NodeKind>) -> Result<Vec<Plan>, NodeError> {
+/// `enabled` is true. Also returns the parameters set for every node that none of them has.
+fn plan(args: &RosArgs, only: Option<NodeKind>) -> Result<(Vec<Plan>, Vec<String>), NodeError> {
     if only.is_none() && args.node_name.is_some() {
         return Err(NodeError::Suite(
             "-r __node:=NAME names a single node: use it with --node predictor|forces|projection|prediction \
@@ -127,27 +165,28 @@ fn plan(args: &RosArgs, only: Option<NodeKind>) -> Result<Vec<Plan>, NodeError> 
         Some(k) => vec![k],
         None => NodeKind::ALL.to_vec(),
     };
-    let mut plans = Vec::new();
+    let mut planned = Vec::new();
     for kind in kinds {
         let name = match only {
             Some(_) => args.node_name_or(kind.default_node_name()).to_string(),
             None => kind.default_node_name().to_string(),
         };
         let alone = only.is_some();
-        let plan = match kind {
+        planned.push(match kind {
             NodeKind::Predictor => plan_kind::<PredictorNode>(args, name, alone)?,
             NodeKind::Forces => plan_kind::<ForcesNode>(args, name, alone)?,
             NodeKind::Projection => plan_kind::<ProjectionNode>(args, name, alone)?,
             NodeKind::Prediction => plan_kind::<PredictionNode>(args, name, alone)?,
-        };
-        plans.extend(plan);
+        });
     }
+    let unused = unused_shared(&planned);
+    let plans: Vec<Plan> = planned.into_iter().filter_map(|p| p.plan).collect();
     if plans.is_empty() {
         return Err(NodeError::Suite(
             "no node is enabled (set enabled: true for at least one node)".into(),
         ));
     }
-    Ok(plans)
+    Ok((plans, unused))
 }
 
 /// The participant's network settings, refusing all interfaces outside a loopback-only
@@ -174,9 +213,22 @@ fn network(plans: &[Plan]) -> Result<NetworkConfig, NodeError> {
     Ok(net)
 }
 
-/// Starts the nodes (see [`plan`]) on one participant.
-pub fn start(args: &RosArgs, only: Option<NodeKind>) -> Result<Suite, NodeError> {
-    let plans = plan(args, only)?;
+/// Starts the nodes (see [`plan`]) on one participant. A node whose automatic configuration
+/// fails stays unconfigured while the others run, unless `exit_on_failure` (then its error is
+/// returned).
+pub fn start(
+    args: &RosArgs,
+    only: Option<NodeKind>,
+    exit_on_failure: bool,
+) -> Result<Suite, NodeError> {
+    let (plans, unused) = plan(args, only)?;
+    for key in unused {
+        log::warn!(
+            target: "constraint_dynamics_nodes",
+            "parameter {key} (from a /** section or -p without a node name) is not a parameter \
+             of any node in this process: ignored"
+        );
+    }
     let net = network(&plans)?;
     let context = net.create_context()?;
     let namespace = args.namespace_or("/").to_string();
@@ -185,8 +237,18 @@ pub fn start(args: &RosArgs, only: Option<NodeKind>) -> Result<Suite, NodeError>
         _context: context.clone(),
     };
     for p in plans {
-        let node = (p.start)(&context, args, &namespace, p.name, p.ros_params)?;
+        let node = (p.start)(
+            &context,
+            args,
+            &namespace,
+            p.name,
+            p.ros_params,
+            exit_on_failure,
+        )?;
         suite.nodes.push(node);
     }
     Ok(suite)
 }
+
+#[cfg(test)]
+mod tests;

@@ -589,7 +589,11 @@ impl Node {
       options.parameter_validator.take(),
       options.parameter_set_action.take(),
     )
-    .map_err(NodeCreateError::BadParameter)?;
+    .map_err(NodeCreateError::BadParameter)?
+    .with_request_callbacks(
+      options.parameters_validator.take(),
+      options.parameters_set_action.take(),
+    );
 
     // Shared by the Context's Nodes (patched): see `context::SharedGraph`.
     let graph = ros_context.shared_graph();

@@ -2,7 +2,8 @@
 //!
 //! The builder surface (`enable_rosout`, `read_rosout`,
 //! `start_parameter_services`, `declare_parameter`, `parameter_validator`,
-//! `parameter_set_action`) is
+//! `parameter_set_action`; patched: `parameters_validator`,
+//! `parameters_set_action`) is
 //! unchanged, but fields are `pub(crate)` so each backend's `Node::new` can
 //! read/consume them directly (DDS keeps the whole struct; Zenoh wires
 //! `enable_rosout` / `enable_rosout_reading` / `start_parameter_services` /
@@ -23,6 +24,12 @@ use crate::parameters::{Parameter, ParameterValue, SetParametersResult};
 /// `debug` level if set).
 pub(crate) type ParameterFunc = dyn Fn(&str, &ParameterValue) -> SetParametersResult + Send + Sync;
 
+/// Signature of a whole-request parameter validator / set action (see
+/// [`NodeOptions::parameters_validator`]): every parameter of one set
+/// request at once (patched, constraint_dynamics: cross-parameter rules need
+/// the combination a request would make). DDS backend only.
+pub(crate) type ParametersFunc = dyn Fn(&[Parameter]) -> SetParametersResult + Send + Sync;
+
 /// Configuration of a [`Node`](crate::Node). This is a builder-like struct.
 ///
 /// The NodeOptions struct does not contain
@@ -37,6 +44,8 @@ pub struct NodeOptions {
   pub(crate) allow_undeclared_parameters: bool,
   pub(crate) parameter_validator: Option<Box<ParameterFunc>>,
   pub(crate) parameter_set_action: Option<Box<ParameterFunc>>,
+  pub(crate) parameters_validator: Option<Box<ParametersFunc>>,
+  pub(crate) parameters_set_action: Option<Box<ParametersFunc>>,
 }
 
 impl NodeOptions {
@@ -52,6 +61,8 @@ impl NodeOptions {
       allow_undeclared_parameters: false,
       parameter_validator: None,
       parameter_set_action: None,
+      parameters_validator: None,
+      parameters_set_action: None,
     }
   }
   pub fn enable_rosout(self, enable_rosout: bool) -> NodeOptions {
@@ -113,6 +124,27 @@ impl NodeOptions {
 
   pub fn parameter_set_action(mut self, action: Box<ParameterFunc>) -> NodeOptions {
     self.parameter_set_action = Some(action);
+    self
+  }
+
+  /// A validator of whole set requests (patched): called with every
+  /// parameter of one request — one for `set_parameters` and the local
+  /// `set_parameter` (which set one parameter at a time, as rclcpp does),
+  /// all of them for `set_parameters_atomically` — after the built-in rules
+  /// and [`parameter_validator`](Self::parameter_validator) accepted each, and
+  /// before anything is applied. Not called for declared values.
+  pub fn parameters_validator(mut self, validator: Box<ParametersFunc>) -> NodeOptions {
+    self.parameters_validator = Some(validator);
+    self
+  }
+
+  /// A set action of whole set requests (patched): called with every
+  /// parameter of a request that every validator accepted, before the
+  /// per-parameter [`parameter_set_action`](Self::parameter_set_action)s run
+  /// and the values are stored; an error leaves every value as it was. Not
+  /// called for declared values.
+  pub fn parameters_set_action(mut self, action: Box<ParametersFunc>) -> NodeOptions {
+    self.parameters_set_action = Some(action);
     self
   }
 }

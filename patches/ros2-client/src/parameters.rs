@@ -16,7 +16,10 @@ use std::{
   },
 };
 
-use crate::{node_options::ParameterFunc, rcl_interfaces::ListParametersResult};
+use crate::{
+  node_options::{ParameterFunc, ParametersFunc},
+  rcl_interfaces::ListParametersResult,
+};
 
 /// Named parameter
 #[derive(Debug, Clone)]
@@ -350,6 +353,10 @@ pub(crate) struct ParameterStore {
   // Not held at the same time as `values`, as the callbacks may be slow.
   validator: Option<Mutex<Box<ParameterFunc>>>,
   set_action: Option<Mutex<Box<ParameterFunc>>>,
+  // Patched (constraint_dynamics): whole-request callbacks, see
+  // `NodeOptions::parameters_validator`.
+  request_validator: Option<Mutex<Box<ParametersFunc>>>,
+  request_action: Option<Mutex<Box<ParametersFunc>>>,
   use_sim_time: AtomicBool,
 }
 
@@ -383,6 +390,8 @@ impl ParameterStore {
       allow_undeclared,
       validator: validator.map(Mutex::new),
       set_action: set_action.map(Mutex::new),
+      request_validator: None,
+      request_action: None,
       use_sim_time: AtomicBool::new(false),
     };
     for (name, value) in &initial {
@@ -390,6 +399,18 @@ impl ParameterStore {
       store.run_set_action(name, value)?;
     }
     Ok(store)
+  }
+
+  /// The store with whole-request callbacks (patched, see
+  /// `NodeOptions::parameters_validator`); declared values do not reach them.
+  pub fn with_request_callbacks(
+    mut self,
+    validator: Option<Box<ParametersFunc>>,
+    action: Option<Box<ParametersFunc>>,
+  ) -> Self {
+    self.request_validator = validator.map(Mutex::new);
+    self.request_action = action.map(Mutex::new);
+    self
   }
 
   pub fn allow_undeclared(&self) -> bool {
@@ -479,10 +500,10 @@ impl ParameterStore {
 
   /// Set one parameter, subject to the rules.
   pub fn set(&self, name: &str, value: ParameterValue) -> Result<ParameterChanges, String> {
-    self.validate(name, &value)?;
-    let mut changes = ParameterChanges::default();
-    self.apply(name.to_string(), value, &mut changes)?;
-    Ok(changes)
+    self.set_atomically(vec![Parameter {
+      name: name.to_string(),
+      value,
+    }])
   }
 
   /// Set several parameters as one all-or-nothing transaction.
@@ -493,6 +514,12 @@ impl ParameterStore {
   pub fn set_atomically(&self, params: Vec<Parameter>) -> Result<ParameterChanges, String> {
     for Parameter { name, value } in &params {
       self.validate(name, value)?;
+    }
+    if let Some(v) = &self.request_validator {
+      v.lock().unwrap()(&params)?;
+    }
+    if let Some(a) = &self.request_action {
+      a.lock().unwrap()(&params)?;
     }
     let mut changes = ParameterChanges::default();
     for Parameter { name, value } in params {
@@ -806,6 +833,60 @@ mod tests {
     assert!(s.set("rate", ParameterValue::Integer(10)).is_ok());
     // Once for the declared value, once for the accepted set.
     assert_eq!(*applied.lock().unwrap(), vec!["rate", "rate"]);
+  }
+
+  #[test]
+  fn request_callbacks_see_the_whole_request() {
+    // Patched: a rule on two parameters together ("lo" < "hi") holds for the
+    // combination an atomic request would make, not for each value alone.
+    let store = ParameterStore::new(
+      vec![
+        param("lo", ParameterValue::Integer(0)),
+        param("hi", ParameterValue::Integer(1)),
+      ],
+      false,
+      None,
+      None,
+    )
+    .unwrap();
+    let current = Arc::new(Mutex::new((0_i64, 1_i64)));
+    let next = |c: (i64, i64), ps: &[Parameter]| {
+      ps.iter().fold(c, |(lo, hi), p| match (p.name.as_str(), &p.value) {
+        ("lo", ParameterValue::Integer(i)) => (*i, hi),
+        ("hi", ParameterValue::Integer(i)) => (lo, *i),
+        _ => (lo, hi),
+      })
+    };
+    let (c1, c2) = (Arc::clone(&current), Arc::clone(&current));
+    let s = store.with_request_callbacks(
+      Some(Box::new(move |ps| match next(*c1.lock().unwrap(), ps) {
+        (lo, hi) if lo < hi => Ok(()),
+        (lo, hi) => Err(format!("lo = {lo} must be below hi = {hi}")),
+      })),
+      Some(Box::new(move |ps| {
+        let n = next(*c2.lock().unwrap(), ps);
+        *c2.lock().unwrap() = n;
+        Ok(())
+      })),
+    );
+    // Alone, lo = 5 is refused; with hi = 10 in the same request it is not.
+    assert!(s.set("lo", ParameterValue::Integer(5)).is_err());
+    assert_eq!(s.get("lo"), Some(ParameterValue::Integer(0)));
+    let both = vec![
+      param("lo", ParameterValue::Integer(5)),
+      param("hi", ParameterValue::Integer(10)),
+    ];
+    assert!(s.set_atomically(both).is_ok());
+    assert_eq!(*current.lock().unwrap(), (5, 10));
+    assert_eq!(s.get("hi"), Some(ParameterValue::Integer(10)));
+    // A refused request stores nothing.
+    let bad = vec![
+      param("hi", ParameterValue::Integer(20)),
+      param("lo", ParameterValue::Integer(30)),
+    ];
+    assert!(s.set_atomically(bad).is_err());
+    assert_eq!(s.get("hi"), Some(ParameterValue::Integer(10)));
+    assert_eq!(*current.lock().unwrap(), (5, 10));
   }
 
   #[test]

@@ -34,6 +34,11 @@
 //! within one file wildcard keys before node-specific keys (node-specific wins);
 //! then `-p` values in command-line order.
 //!
+//! Wildcard sections and `-p` without a node name address every node: a node that does not
+//! have such a parameter ignores it, as rclcpp ignores overrides a node does not declare
+//! ([`Parameters::shared`]). A node's own section and `-p NODE:NAME` are its own: a name it
+//! does not have there is an error.
+//!
 //! Scalars follow the YAML 1.2 core schema of `serde_yaml` (`true`/`false`
 //! are booleans; `yes`/`on` stay strings). An empty sequence becomes an
 //! empty `StringArray`. Integers mixed with doubles in a sequence become doubles.
@@ -268,11 +273,12 @@ impl RosArgs {
         }
         let node_name = node_fqn.rsplit('/').next().unwrap_or(node_fqn);
         for p in &self.params {
-            if p.node
-                .as_deref()
-                .is_none_or(|n| n == node_name || n == node_fqn)
-            {
-                params.values.insert(p.name.clone(), p.value.clone());
+            match p.node.as_deref() {
+                None => params.set(p.name.clone(), p.value.clone(), true),
+                Some(n) if n == node_name || n == node_fqn => {
+                    params.set(p.name.clone(), p.value.clone(), false)
+                }
+                Some(_) => {}
             }
         }
         Ok(params)

@@ -1,7 +1,7 @@
 //! ROS parameter files (`node: ros__parameters: {...}`, `/**` wildcards) and the typed
 //! values they hold; the rules are in the parent module's documentation.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 use ros2_client::ParameterValue;
@@ -15,12 +15,44 @@ use super::RosArgsError;
 pub struct Parameters {
     /// The values.
     pub values: BTreeMap<String, ParameterValue>,
+    /// The names set only for every node: by wildcard sections (`/**`, `/ns/*`) and `-p`
+    /// without a node name. As in rclcpp, a node ignores such a parameter when it does not
+    /// have it; a name its own section or `-p NODE:NAME` sets is its own (see
+    /// [`Parameters::drop_shared`]).
+    pub shared: BTreeSet<String>,
 }
 
 impl Parameters {
+    /// Sets `name`; `shared` when the source addresses every node (a wildcard section, `-p`
+    /// without a node name). A name once set by the node's own source stays its own.
+    pub fn set(&mut self, name: String, value: ParameterValue, shared: bool) {
+        let own = self.values.contains_key(&name) && !self.shared.contains(&name);
+        if shared && !own {
+            self.shared.insert(name.clone());
+        } else {
+            self.shared.remove(&name);
+        }
+        self.values.insert(name, value);
+    }
+
     /// Overlays `other` on `self` (`other` wins).
     pub fn merge(&mut self, other: Parameters) {
-        self.values.extend(other.values);
+        for (name, value) in other.values {
+            let shared = other.shared.contains(&name);
+            self.set(name, value, shared);
+        }
+    }
+
+    /// Removes the shared names (set for every node) for which `has` is false, and returns
+    /// them: a node ignores the parameters of other nodes given to all (rclcpp ignores
+    /// overrides a node does not declare). Its own names stay, so a misspelt one is refused.
+    pub fn drop_shared(&mut self, has: impl Fn(&str) -> bool) -> Vec<String> {
+        let foreign: Vec<String> = self.shared.iter().filter(|n| !has(n)).cloned().collect();
+        for name in &foreign {
+            self.values.remove(name);
+            self.shared.remove(name);
+        }
+        foreign
     }
 
     /// A value by dotted name.
@@ -104,7 +136,11 @@ pub fn parse_params_yaml(text: &str, node_fqn: &str) -> Result<Parameters, RosAr
     for wildcard in [true, false] {
         for (key, body) in &sections {
             if key.contains('*') == wildcard && node_key_matches(key, node_fqn) {
-                flatten_params(body, "", &mut params.values)?;
+                let mut section = BTreeMap::new();
+                flatten_params(body, "", &mut section)?;
+                for (name, value) in section {
+                    params.set(name, value, wildcard);
+                }
             }
         }
     }

@@ -254,3 +254,39 @@ fn files_then_overrides_and_typed_struct() {
     ));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn wildcard_sections_and_unqualified_overrides_are_shared() {
+    let yaml = "
+/**:
+  ros__parameters:
+    a: 1
+    b: 1
+/cd_x:
+  ros__parameters:
+    b: 2
+    c: 2
+";
+    let p = parse_params_yaml(yaml, "/cd_x").unwrap();
+    // `b` is set by the node's own section too, so it is the node's own.
+    assert_eq!(p.shared.iter().collect::<Vec<_>>(), vec!["a"]);
+    assert_eq!(p.get("b"), Some(&ParameterValue::Integer(2)));
+    let a = RosArgs::parse(args(
+        "--ros-args -p d:=1 -p cd_x:e:=1 -p /cd_x:f:=1 -p cd_y:g:=1",
+    ))
+    .unwrap();
+    let mut q = a.parameters("/cd_x").unwrap();
+    assert_eq!(q.shared.iter().collect::<Vec<_>>(), vec!["d"]);
+    assert_eq!(q.get("g"), None);
+    // A later shared value of an own name keeps it own; its value wins.
+    q.merge(p);
+    let mut over = Parameters::default();
+    over.set("c".into(), ParameterValue::Integer(3), true);
+    q.merge(over);
+    assert_eq!(q.get("c"), Some(&ParameterValue::Integer(3)));
+    assert_eq!(q.shared.iter().collect::<Vec<_>>(), vec!["a", "d"]);
+    let dropped = q.drop_shared(|n| n == "a");
+    assert_eq!(dropped, vec!["d"]);
+    assert_eq!(q.get("d"), None);
+    assert!(q.get("a").is_some() && q.get("e").is_some() && q.get("f").is_some());
+}
