@@ -62,15 +62,16 @@ setup)
 build)
     rm -rf "$WS/install" "$WS/log"
     mkdir -p "$WS/build"
-    # The package's cargo target directory is the repository's own: `cargo build` of the tests
-    # already compiled these binaries with the same profile, so colcon reuses them instead of
-    # building the workspace a second time (gigabytes of CI disk, minutes of CPU).
+    # The package's cargo target directory is the repository's own, and its cargo build is the
+    # tests' (`--workspace --all-targets`): the package built alone resolves its dependencies'
+    # features differently and compiles the core and the nodes a second time (minutes of CPU,
+    # gigabytes of CI disk); this way colcon finds every binary built and installs it.
     ln -sfn "$REPO/target" "$WS/build/$PKG"
     # colcon-ros-cargo writes .cargo/config.toml into colcon's working directory: keep it in $WS.
     # colcon-cargo echoes `cargo metadata`'s JSON: keep colcon's output in a log, shown on failure.
     (cd "$WS" && PATH="$VENV/bin:$PATH" "$VENV/bin/colcon" --log-base log build \
         --paths "$REPO/nodes" --build-base build --install-base install \
-        --cargo-args --locked --offline) > "$WS/colcon_build.log" 2>&1 \
+        --cargo-args --locked --offline --workspace --all-targets) > "$WS/colcon_build.log" 2>&1 \
         || { tail -c 3000 "$WS/colcon_build.log" >&2; echo "colcon: 0 passed, 1 failed"; exit 1; }
     grep -E '^(Finished|Summary)' "$WS/colcon_build.log" || true
     check "package in the ament index" \
