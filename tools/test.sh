@@ -13,11 +13,17 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 cargo fetch --locked
-bash tools/ros2/setup_peer_venv.sh
-bash tools/ros2/setup_peer_venv.sh --distro jazzy
-bash tools/robots/setup_venv.sh     # Pinocchio + example-robot-data (tests/it/example_robot_data.rs)
-bash tools/ros2/check_colcon_install.sh setup   # colcon + colcon-ros-cargo + cargo-ament-build
+# The pinned venvs download (network) while cargo builds (CPU); their log is shown on failure.
+{
+    bash tools/ros2/setup_peer_venv.sh
+    bash tools/ros2/setup_peer_venv.sh --distro jazzy
+    bash tools/robots/setup_venv.sh     # Pinocchio + example-robot-data (tests/it/example_robot_data.rs)
+    bash tools/ros2/check_colcon_install.sh setup   # colcon + colcon-ros-cargo + cargo-ament-build
+} > /tmp/cd_venvs.log 2>&1 &
+venvs=$!
 cargo build --workspace --all-targets --locked --offline
+wait "$venvs" || { cat /tmp/cd_venvs.log >&2; echo "the venv setup failed" >&2; exit 1; }
+cat /tmp/cd_venvs.log
 
 # Rust tests, then the rclpy/Cyclone interop suite, in one private namespace each. The DDS tests
 # are #[ignore]d in a plain `cargo test` (they need root and the peer venv, both set up here):
