@@ -3,6 +3,7 @@
 
 use super::contacts::ContactCheck;
 use super::covariance::worker::covariance_rows;
+use super::error_kinds::ByKind;
 use super::predictor::Predictor;
 use crate::algorithm::{kinetic_energy, potential_energy};
 use crate::applied::constraint_forces_at;
@@ -56,6 +57,12 @@ pub struct Sample {
     /// when `integration.error_estimate` is false.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error_estimate: Option<f64>,
+    /// The same estimate by kind of coordinate, each in its own unit and checked against its
+    /// bound (`IntegrationSettings::error_bounds`): the base's position [m] and orientation
+    /// [rad], the joints' angles [rad] and displacements [m]; `error_estimate` is their
+    /// largest. None when `integration.error_estimate` is false.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_estimate_by_kind: Option<ByKind>,
     /// Propagated covariance of (δq, δv), 2nv × 2nv row-major, tangent space (δq a right
     /// perturbation, velocity order) [m², rad², (m/s)², …], when a start covariance was given
     /// (`PredictionRequest::covariance_samples`: in every sample or in the last).
@@ -136,7 +143,7 @@ impl Predictor {
         t: f64,
         q: &[f64],
         v: &[f64],
-        err: Option<f64>,
+        err: Option<ByKind>,
         (forces, covariance): (Option<&ContactLimits>, bool),
     ) -> Result<Sample> {
         let sys = &mut self.sys;
@@ -172,7 +179,7 @@ impl Predictor {
             pe,
             position_residual,
             velocity_residual,
-            err.unwrap_or(0.0),
+            err.map_or(0.0, |e| e.largest()),
         ];
         if let Some((what, x)) = [
             ("q", q),
@@ -207,7 +214,8 @@ impl Predictor {
             velocity_residual,
             kinetic_energy: ke,
             potential_energy: pe,
-            error_estimate: err,
+            error_estimate: err.map(|e| e.largest()),
+            error_estimate_by_kind: err,
             covariance,
         })
     }
