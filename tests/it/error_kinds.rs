@@ -96,7 +96,7 @@ fn the_brisk_planner_prediction_meets_every_bound_with_the_scene_defaults() {
         .unwrap();
     let bounds = live.config().settings().error_bounds();
     assert!(
-        bounds.base_m <= 1e-3 && bounds.base_rad <= 1e-3,
+        bounds.base_m <= 5e-3 && bounds.base_rad <= 5e-3,
         "{bounds:?}"
     );
     for s in &answer.samples {
