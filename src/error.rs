@@ -177,7 +177,7 @@ pub enum Error {
     /// have fewer correct digits than asked for.
     #[error(
         "the integration error estimate of {kind} {estimate:.3e} at t = {t} s exceeds \
-         {bound} = {max_error:e}: {hint}"
+         {bound} = {max_error:e} (unit: the kind's suffix): {hint}"
     )]
     ErrorEstimateExceeded {
         /// Time of the first sample over the bound [s].
@@ -186,10 +186,10 @@ pub enum Error {
         estimate: f64,
         /// That kind's bound [m or rad].
         max_error: f64,
-        /// The kind of coordinate and its unit, e.g. `joint_rad [rad]` (predict/error_kinds.rs).
-        kind: String,
+        /// The kind of coordinate, e.g. `joint_rad` (predict/error_kinds.rs).
+        kind: &'static str,
         /// The setting that bounds it, e.g. `integration.max_error_joint_rad`.
-        bound: String,
+        bound: &'static str,
         /// The largest estimate / bound over the kinds at that sample (> 1).
         excess: f64,
         /// A step or tolerance that would meet the bound, from the method's order.

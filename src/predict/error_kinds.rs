@@ -23,8 +23,13 @@ pub struct ByKind {
 /// The kinds' names, as in [`ByKind`]'s fields and the settings' `max_error_<name>` keys.
 pub const KIND_NAMES: [&str; 4] = ["base_m", "base_rad", "joint_rad", "joint_m"];
 
-/// The kinds' units.
-const UNITS: [&str; 4] = ["m", "rad", "rad", "m"];
+/// The settings that bound each kind when given (`integration.max_error_<name>`).
+pub const KIND_KEYS: [&str; 4] = [
+    "integration.max_error_base_m",
+    "integration.max_error_base_rad",
+    "integration.max_error_joint_rad",
+    "integration.max_error_joint_m",
+];
 
 impl ByKind {
     /// The same value for every kind.
@@ -74,13 +79,13 @@ impl ByKind {
         Self::from_array(w.map(|x| factor * x))
     }
 
-    /// The first kind over its bound in `bounds`, as (name, value, bound, unit); a NaN value
-    /// counts as over.
-    pub fn first_over(&self, bounds: &ByKind) -> Option<(&'static str, f64, f64, &'static str)> {
+    /// The first kind over its bound in `bounds`, as (index in [`KIND_NAMES`], value, bound); a
+    /// NaN value counts as over.
+    pub fn first_over(&self, bounds: &ByKind) -> Option<(usize, f64, f64)> {
         let (e, b) = (self.to_array(), bounds.to_array());
         (0..4)
-            .find(|&k| !(e[k] <= b[k]))
-            .map(|k| (KIND_NAMES[k], e[k], b[k], UNITS[k]))
+            .find(|&k| e[k] > b[k] || e[k].is_nan())
+            .map(|k| (k, e[k], b[k]))
     }
 
     /// max over the kinds of value / bound (0 where the bound is infinite): how far the

@@ -29,7 +29,7 @@
 
 use super::IntegrationSettings;
 use super::drift::DriftProjector;
-use super::error_kinds::ByKind;
+use super::error_kinds::{ByKind, KIND_KEYS, KIND_NAMES};
 use crate::error::Error;
 use crate::model::Model;
 use crate::predict::integrators::radau::RadauWorkspace;
@@ -133,14 +133,8 @@ pub(super) fn estimate(
 /// The typed error of a sample whose estimate `e` at `t` exceeds a kind's bound, or None.
 pub(super) fn check(s: &IntegrationSettings, e: &ByKind, t: f64, horizon: f64) -> Option<Error> {
     let bounds = s.error_bounds();
-    let (kind, estimate, max_error, unit) = e.first_over(&bounds)?;
-    Some(exceeded(
-        s,
-        (kind, estimate, max_error, unit),
-        e.excess(&bounds),
-        t,
-        horizon,
-    ))
+    let over = e.first_over(&bounds)?;
+    Some(exceeded(s, over, e.excess(&bounds), t, horizon))
 }
 
 /// Settings expected to meet every bound over `horizon` after an estimate `excess` times its
@@ -171,7 +165,7 @@ pub(super) fn refined(
 /// largest estimate / bound over the kinds), naming the setting that would meet every bound.
 fn exceeded(
     s: &IntegrationSettings,
-    (kind, estimate, max_error, unit): (&str, f64, f64, &str),
+    (kind, estimate, max_error): (usize, f64, f64),
     excess: f64,
     t: f64,
     horizon: f64,
@@ -192,16 +186,16 @@ fn exceeded(
         ),
     };
     // The key that set the bound: the kind's own, else max_error.
-    let key = match s.error_bounds() == ByKind::uniform(s.max_error) {
-        true => "max_error".to_string(),
-        false => format!("max_error_{kind}"),
+    let bound = match s.error_bounds() == ByKind::uniform(s.max_error) {
+        true => "integration.max_error",
+        false => KIND_KEYS[kind],
     };
     Error::ErrorEstimateExceeded {
         t,
         estimate,
         max_error,
-        kind: format!("{kind} [{unit}]"),
-        bound: format!("integration.{key}"),
+        kind: KIND_NAMES[kind],
+        bound,
         excess,
         hint,
     }

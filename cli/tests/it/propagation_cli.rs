@@ -315,7 +315,7 @@ fn predict_hold_joints_and_per_kind_bounds() {
     assert!(!free.status.success());
     let msg = String::from_utf8_lossy(&free.stderr);
     assert!(
-        msg.contains("joint_rad [rad]") && msg.contains("integration.max_error_joint_rad"),
+        msg.contains("of joint_rad") && msg.contains("integration.max_error_joint_rad"),
         "{msg}"
     );
     let off = run(&["--max-error", "inf"]);
