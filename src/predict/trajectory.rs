@@ -71,10 +71,17 @@ pub struct Sample {
 }
 
 impl Sample {
-    /// The configuration's error estimate at this sample [m or rad]: the integration error
-    /// estimate (0 when none was made) plus the holonomic residual.
+    /// The base position's error estimate at this sample [m]: its integration error estimate
+    /// (`base_m`; 0 when none was made or the base is fixed) plus the holonomic residual. The
+    /// joints' angles (a wheel's is 1/r × the travel) are not in it.
     pub fn position_error_estimate(&self) -> f64 {
-        self.error_estimate.unwrap_or(0.0) + self.position_residual
+        self.error_estimate_by_kind.map_or(0.0, |e| e.base_m) + self.position_residual
+    }
+
+    /// The base orientation's error estimate at this sample [rad]: `base_rad` plus the
+    /// holonomic residual.
+    pub fn orientation_error_estimate(&self) -> f64 {
+        self.error_estimate_by_kind.map_or(0.0, |e| e.base_rad) + self.position_residual
     }
 }
 
