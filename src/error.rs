@@ -173,11 +173,11 @@ pub enum Error {
         message: String,
     },
 
-    /// A prediction's global error estimate exceeded `integration.max_error`: the answer would
-    /// have fewer correct digits than asked for.
+    /// A prediction's global error estimate of one kind of coordinate (its name ends in its unit)
+    /// exceeded its bound: the answer would have fewer correct digits than asked for.
     #[error(
         "the integration error estimate of {kind} {estimate:.3e} at t = {t} s exceeds \
-         {bound} = {max_error:e} (unit: the kind's suffix): {hint}"
+         {bound} = {max_error:e}: {hint}"
     )]
     ErrorEstimateExceeded {
         /// Time of the first sample over the bound [s].

@@ -29,7 +29,7 @@
 
 use super::IntegrationSettings;
 use super::drift::DriftProjector;
-use super::error_kinds::{ByKind, KIND_KEYS, KIND_NAMES};
+use super::error_kinds::{ByKind, KIND_NAMES};
 use crate::error::Error;
 use crate::model::Model;
 use crate::predict::integrators::radau::RadauWorkspace;
@@ -185,11 +185,7 @@ fn exceeded(
             m.order()
         ),
     };
-    // The key that set the bound: the kind's own, else max_error.
-    let bound = match s.error_bounds() == ByKind::uniform(s.max_error) {
-        true => "integration.max_error",
-        false => KIND_KEYS[kind],
-    };
+    let bound = s.error_bound_key(kind);
     Error::ErrorEstimateExceeded {
         t,
         estimate,

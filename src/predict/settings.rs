@@ -1,7 +1,7 @@
 //! `integration:` of a scene: the integration settings a predictor is configured with, and the
 //! drift control they choose.
 
-use super::error_kinds::{ByKind, KIND_NAMES};
+use super::error_kinds::{ByKind, KIND_KEYS, KIND_NAMES};
 use super::integrators::Method;
 use serde::{Deserialize, Serialize};
 
@@ -205,6 +205,15 @@ impl IntegrationSettings {
         self.max_error_base_rad = None;
         self.max_error_joint_rad = None;
         self.max_error_joint_m = None;
+    }
+
+    /// The setting that bounds kind `k` (index in `error_kinds::KIND_NAMES`): its own key when
+    /// given, else `max_error`.
+    pub(super) fn error_bound_key(&self, k: usize) -> &'static str {
+        match self.per_kind_max_error()[k] {
+            Some(_) => KIND_KEYS[k],
+            None => "integration.max_error",
+        }
     }
 
     /// The per-kind keys in the order of `error_kinds::KIND_NAMES`.
