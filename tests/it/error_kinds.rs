@@ -188,6 +188,26 @@ fn per_kind_bounds_refuse_by_name_and_inf_turns_them_off() {
         .predict(&req)
         .unwrap();
     assert!(answer.samples.last().unwrap().error_estimate.unwrap() > 0.0);
+    // A kind without its own key is bounded by max_error, and named so.
+    let e = Predictor::from_scene(&scene)
+        .unwrap()
+        .with_settings(|s| {
+            s.max_error = 1e-9;
+            s.max_error_base_m = Some(1.0);
+            s.max_error_base_rad = Some(1.0);
+            s.max_error_joint_rad = None;
+        })
+        .unwrap()
+        .predict(&req)
+        .unwrap_err();
+    let Error::ErrorEstimateExceeded { kind, bound, .. } = &e else {
+        panic!("expected ErrorEstimateExceeded, got {e}");
+    };
+    assert_eq!(
+        (*kind, *bound),
+        ("joint_rad", "integration.max_error"),
+        "{e}"
+    );
     // `set_max_error` bounds every kind with the one number.
     let mut s = scene.file.integration.clone();
     s.set_max_error(0.02);
