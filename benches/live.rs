@@ -1,8 +1,10 @@
 //! Criterion benchmark of the live prediction on the suite's default scene
 //! (params/suite_mobile_manipulator.yaml) with continuous controllers and ROS2 at 20 ms, error
 //! estimate on: the predictor node's tick (1 s with a start covariance, as /odom gives one) and a
-//! planner's 2 s `Predict` under a turning command with its arm held. Their accuracy against the
-//! held reference is asserted in tests/it/live_prediction.rs.
+//! planner's 2 s `Predict` under a turning command with its arm held; and `predict/2s_brisk`, the
+//! 2 s prediction under brisk turning commands — (0.4, 0), (0.5, 0.6) at 0.5 s, (0.3, −0.8) at
+//! 1.2 s, (0, 0.3) at 1.7 s — arm held, a sample every 0.1 s. Their accuracy against the held
+//! reference is asserted in tests/it/live_prediction.rs and tests/it/error_kinds.rs.
 
 use constraint_dynamics::Scene;
 use constraint_dynamics::actuators::Command;
@@ -55,6 +57,31 @@ fn bench(c: &mut Criterion) {
                 .commands(&cmds)
                 .horizon(2.0);
             predictor.predict(&req).unwrap()
+        })
+    });
+    let brisk: Vec<(f64, Command)> = [
+        (0.0, [0.4, 0.0]),
+        (0.5, [0.5, 0.6]),
+        (1.2, [0.3, -0.8]),
+        (1.7, [0.0, 0.3]),
+    ]
+    .into_iter()
+    .map(|(t, tw)| {
+        let mut c = cmds[0].1.clone();
+        c.base_twist = Some(tw);
+        (t, c)
+    })
+    .collect();
+    let mut sparse = Predictor::from_scene(&scene)
+        .expect("predictor")
+        .with_settings(|s| s.sample_period = 0.1)
+        .expect("settings");
+    group.bench_function("predict/2s_brisk", |b| {
+        b.iter(|| {
+            let req = PredictionRequest::new(black_box(&scene.q0), &scene.v0)
+                .commands(&brisk)
+                .horizon(2.0);
+            sparse.predict(&req).unwrap()
         })
     });
     group.finish();

@@ -173,19 +173,25 @@ pub enum Error {
         message: String,
     },
 
-    /// A prediction's global error estimate exceeded `integration.max_error`: the answer would
-    /// have fewer correct digits than asked for.
+    /// A prediction's global error estimate of one kind of coordinate (its name ends in its unit)
+    /// exceeded its bound: the answer would have fewer correct digits than asked for.
     #[error(
-        "the integration error estimate {estimate:.3e} (m or rad) at t = {t} s exceeds \
-         integration.max_error = {max_error:e}: {hint}"
+        "the integration error estimate of {kind} {estimate:.3e} at t = {t} s exceeds \
+         {bound} = {max_error:e}: {hint}"
     )]
     ErrorEstimateExceeded {
         /// Time of the first sample over the bound [s].
         t: f64,
-        /// The estimate there [m or rad].
+        /// The estimate there of the first kind over its bound [m or rad].
         estimate: f64,
-        /// The bound in force [m or rad].
+        /// That kind's bound [m or rad].
         max_error: f64,
+        /// The kind of coordinate, e.g. `joint_rad` (predict/error_kinds.rs).
+        kind: &'static str,
+        /// The setting that bounds it, e.g. `integration.max_error_joint_rad`.
+        bound: &'static str,
+        /// The largest estimate / bound over the kinds at that sample (> 1).
+        excess: f64,
         /// A step or tolerance that would meet the bound, from the method's order.
         hint: String,
     },

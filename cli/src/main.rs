@@ -36,7 +36,8 @@ enum Command {
     /// Linearize one integrator step: A = ∂x⁺/∂x, B = ∂x⁺/∂τ (x = (q, v), tangent space).
     Linearize(linearize::LinearizeArgs),
     /// Propagate a scene over a horizon: samples of q, v (λ with --forces), residuals, energy.
-    Predict(predict::PredictArgs),
+    // Boxed: its options make it several times the size of the other variants.
+    Predict(Box<predict::PredictArgs>),
     /// Work-precision report of every integrator on the benchmark scenes (CSV, PNG, README).
     Report(report::ReportArgs),
     /// Velocity projection: the feasible velocity closest to a desired one, with bounds.
@@ -49,7 +50,7 @@ fn main() -> ExitCode {
         Command::Envelope(a) => envelope::run(a),
         Command::Eval(a) => eval::run(a),
         Command::Linearize(a) => linearize::run(a),
-        Command::Predict(a) => predict::run(a),
+        Command::Predict(a) => predict::run(*a),
         Command::Report(a) => report::run(a),
         Command::Project(a) => project::run(a),
     };

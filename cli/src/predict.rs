@@ -43,10 +43,33 @@ pub struct PredictArgs {
     /// Output sample period [s] (default: the scene's).
     #[arg(long)]
     sample_period: Option<f64>,
-    /// Bound on every sample's `error_estimate` [m or rad] (default: the scene's
-    /// integration.max_error, 1e-3; `inf`: no check).
+    /// Bound on every sample's error estimate, every kind of coordinate in its own unit [m or
+    /// rad] (default: the scene's integration.max_error, 1e-3, and its per-kind keys, which
+    /// this replaces; `inf`: no check).
     #[arg(long)]
     max_error: Option<f64>,
+    /// Bound on the estimate of the base's position [m] (default: the scene's
+    /// integration.max_error_base_m, else max_error).
+    #[arg(long)]
+    max_error_base_m: Option<f64>,
+    /// Bound on the estimate of the base's orientation [rad] (default: the scene's
+    /// integration.max_error_base_rad, else max_error).
+    #[arg(long)]
+    max_error_base_rad: Option<f64>,
+    /// Bound on the estimate of the revolute joints' angles, wheels included [rad] (default:
+    /// the scene's integration.max_error_joint_rad, else max_error).
+    #[arg(long)]
+    max_error_joint_rad: Option<f64>,
+    /// Bound on the estimate of the prismatic joints' displacements [m] (default: the scene's
+    /// integration.max_error_joint_m, else max_error).
+    #[arg(long)]
+    max_error_joint_m: Option<f64>,
+    /// Hold every position-controlled joint at its start position wherever the commands do not
+    /// set it (from t = 0, also without a commands file), as the predictor node does
+    /// (`command.hold_joints`); without it such a joint's controller has no target and the
+    /// joint moves freely.
+    #[arg(long)]
+    hold_joints: bool,
     /// Refine dt or the tolerances and rerun when the estimate exceeds max_error.
     #[arg(long)]
     adapt: bool,
@@ -155,7 +178,13 @@ pub fn run(a: PredictArgs) -> Result<Value> {
         s.rtol = a.rtol.unwrap_or(s.rtol);
         s.atol = a.atol.unwrap_or(s.atol);
         s.sample_period = a.sample_period.unwrap_or(s.sample_period);
-        s.max_error = a.max_error.unwrap_or(s.max_error);
+        if let Some(x) = a.max_error {
+            s.set_max_error(x);
+        }
+        s.max_error_base_m = a.max_error_base_m.or(s.max_error_base_m);
+        s.max_error_base_rad = a.max_error_base_rad.or(s.max_error_base_rad);
+        s.max_error_joint_rad = a.max_error_joint_rad.or(s.max_error_joint_rad);
+        s.max_error_joint_m = a.max_error_joint_m.or(s.max_error_joint_m);
         s.adapt |= a.adapt;
         s.error_estimate &= !a.no_error_estimate;
     })?;
@@ -167,10 +196,13 @@ pub fn run(a: PredictArgs) -> Result<Value> {
                 .into(),
         ));
     }
-    let commands = match &a.commands {
+    let mut commands = match &a.commands {
         Some(path) => load_commands(path)?,
         None => vec![],
     };
+    if a.hold_joints {
+        hold_joints(&scene, p.model(), &q, &mut commands)?;
+    }
     let p0 = match &a.covariance {
         Some(path) => Some(super::covariance::load(p.model(), path)?),
         None => None,
@@ -190,13 +222,39 @@ pub fn run(a: PredictArgs) -> Result<Value> {
         serde_json::to_value(configured).map_err(|e| Error::Invalid(e.to_string()))?;
     // `.inf` turns these checks off; JSON has no infinity (serde_json would write null).
     for (key, x) in [
-        ("max_error", configured.max_error),
-        ("max_energy_error", configured.max_energy_error),
+        ("max_error", Some(configured.max_error)),
+        ("max_energy_error", Some(configured.max_energy_error)),
+        ("max_error_base_m", configured.max_error_base_m),
+        ("max_error_base_rad", configured.max_error_base_rad),
+        ("max_error_joint_rad", configured.max_error_joint_rad),
+        ("max_error_joint_m", configured.max_error_joint_m),
     ] {
+        let Some(x) = x else { continue };
         if x == f64::INFINITY {
             settings[key] = Value::String("inf".into());
         }
     }
     out["settings"] = settings;
     Ok(out)
+}
+
+/// `--hold-joints`: every command (one at t = 0 when none starts there) targets each
+/// position-controlled joint it does not set at its start position `q`.
+fn hold_joints(
+    scene: &constraint_dynamics::Scene,
+    model: &constraint_dynamics::model::Model,
+    q: &[f64],
+    commands: &mut Vec<(f64, Command)>,
+) -> Result<()> {
+    if commands.first().is_none_or(|(t, _)| *t > 0.0) {
+        commands.insert(0, (0.0, Command::default()));
+    }
+    for spec in &scene.file.actuators.position {
+        let b = model.joint_body(&spec.joint)?;
+        let at = q[model.bodies[b].joint.idx_q];
+        for (_, c) in commands.iter_mut() {
+            c.joint_position.entry(spec.joint.clone()).or_insert(at);
+        }
+    }
+    Ok(())
 }

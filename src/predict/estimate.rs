@@ -24,10 +24,12 @@
 //! nonlinear dynamics, projection and constraints as they are; it is asymptotically exact and
 //! measured against closed forms and far tighter runs in `tests/it/error_estimate.rs` (table in
 //! docs/propagation.md). The estimate reported is the largest entry of the tangent-space
-//! difference of q [m or rad].
+//! difference of q of each kind of coordinate, in its unit (error_kinds.rs), each checked
+//! against its bound (`IntegrationSettings::error_bounds`).
 
 use super::IntegrationSettings;
 use super::drift::DriftProjector;
+use super::error_kinds::{ByKind, KIND_NAMES};
 use crate::error::Error;
 use crate::model::Model;
 use crate::predict::integrators::radau::RadauWorkspace;
@@ -115,30 +117,38 @@ pub(super) fn richardson_factor(method: Method) -> f64 {
     r / (r - 1.0)
 }
 
-/// The estimate: factor × max_i |(q ⊖ q_c)_i| (`diff`: nv scratch).
+/// The estimate by kind of coordinate: factor × the largest |(q ⊖ q_c)_i| of each kind (`diff`:
+/// nv scratch).
 pub(super) fn estimate(
     model: &Model,
     q: &[f64],
     q_c: &[f64],
     factor: f64,
     diff: &mut [f64],
-) -> f64 {
+) -> ByKind {
     model.difference(q_c, q, diff);
-    factor * diff.iter().fold(0.0f64, |m, x| m.max(x.abs()))
+    ByKind::of_tangent(model, diff, factor)
 }
 
-/// Settings expected to meet `max_error` over `horizon` after an estimate `e` at time `t`: the
-/// error is taken to grow linearly in time (e · horizon / t at the horizon) and to scale as
-/// dt^p (fixed steps) or the tolerance (DOPRI5); aimed at half of `max_error`, and at least a
-/// 10 % refinement.
+/// The typed error of a sample whose estimate `e` at `t` exceeds a kind's bound, or None.
+pub(super) fn check(s: &IntegrationSettings, e: &ByKind, t: f64, horizon: f64) -> Option<Error> {
+    let bounds = s.error_bounds();
+    let over = e.first_over(&bounds)?;
+    Some(exceeded(s, over, e.excess(&bounds), t, horizon))
+}
+
+/// Settings expected to meet every bound over `horizon` after an estimate `excess` times its
+/// bound (the largest over the kinds, [`ByKind::excess`]) at time `t`: the error is taken to grow
+/// linearly in time (excess · horizon / t at the horizon) and to scale as dt^p (fixed steps) or
+/// the tolerance (DOPRI5); aimed at half of the bound, and at least a 10 % refinement.
 pub(super) fn refined(
     s: &IntegrationSettings,
-    e: f64,
+    excess: f64,
     t: f64,
     horizon: f64,
 ) -> IntegrationSettings {
-    let at_horizon = e * (horizon / t.max(f64::MIN_POSITIVE)).max(1.0);
-    let ratio = (SAFETY * s.max_error / at_horizon).min(1.0);
+    let at_horizon = excess * (horizon / t.max(f64::MIN_POSITIVE)).max(1.0);
+    let ratio = (SAFETY / at_horizon).min(1.0);
     let mut r = s.clone();
     match s.method {
         m if m.is_adaptive() => {
@@ -151,10 +161,16 @@ pub(super) fn refined(
     r
 }
 
-/// The typed error of a run whose estimate `e` at `t` exceeds `max_error`, naming the setting that
-/// would meet it.
-pub(super) fn exceeded(s: &IntegrationSettings, e: f64, t: f64, horizon: f64) -> Error {
-    let r = refined(s, e, t, horizon);
+/// The typed error of a run whose estimate of `kind` at `t` exceeds its bound (`excess`: the
+/// largest estimate / bound over the kinds), naming the setting that would meet every bound.
+fn exceeded(
+    s: &IntegrationSettings,
+    (kind, estimate, max_error): (usize, f64, f64),
+    excess: f64,
+    t: f64,
+    horizon: f64,
+) -> Error {
+    let r = refined(s, excess, t, horizon);
     let hint = match s.method {
         m if m.is_adaptive() => format!(
             "rtol = {:.2e}, atol = {:.2e} should meet it (the error is about proportional to the \
@@ -169,10 +185,14 @@ pub(super) fn exceeded(s: &IntegrationSettings, e: f64, t: f64, horizon: f64) ->
             m.order()
         ),
     };
+    let bound = s.error_bound_key(kind);
     Error::ErrorEstimateExceeded {
         t,
-        estimate: e,
-        max_error: s.max_error,
+        estimate,
+        max_error,
+        kind: KIND_NAMES[kind],
+        bound,
+        excess,
         hint,
     }
 }

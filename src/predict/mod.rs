@@ -2,7 +2,7 @@
 //! over time, what to record — returns a [`Trajectory`]: samples of q, v, the actuator torques,
 //! λ and the constraint forces when asked, constraint residuals (position and velocity),
 //! energies, a global error estimate of q (estimate.rs: Richardson against a companion run,
-//! every method) and, from a start covariance, the propagated covariance (covariance/).
+//! every method; by kind of coordinate in error_kinds.rs) and, from a start covariance, the propagated covariance (covariance/).
 //!
 //! - [`Predictor`] (predictor.rs): an immutable configuration built from the scene (model,
 //!   constraints, force elements, controllers, `integration:`, `uncertainty:`) and the
@@ -19,6 +19,7 @@
 mod contacts;
 mod covariance;
 pub mod drift;
+pub mod error_kinds;
 mod estimate;
 mod integrators;
 mod invariant;

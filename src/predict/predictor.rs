@@ -250,10 +250,10 @@ impl Predictor {
             self.ws.gains = self.drift_gains(&s);
             match self.run(req, horizon, &s, control) {
                 // `adapt`: rerun with the step or tolerance the estimate asks for, bounded.
-                Err(Error::ErrorEstimateExceeded { t, estimate, .. })
+                Err(Error::ErrorEstimateExceeded { t, excess, .. })
                     if s.adapt && refinements < MAX_REFINEMENTS =>
                 {
-                    s = estimate::refined(&s, estimate, t, horizon);
+                    s = estimate::refined(&s, excess, t, horizon);
                     PredictionBudget::new(s.clone(), control)
                         .with_model(&self.model)
                         .check(horizon)?;

@@ -130,7 +130,8 @@ pub struct IntegrationOverrides {
     pub sample_period: Option<f64>,
     /// The controllers' control period [s]; a scene without controllers has none to change.
     pub control_period: Option<f64>,
-    /// Bound on the global error estimate of q [m or rad] (`f64::INFINITY`: no check).
+    /// Bound on the global error estimate of q, every kind in its own unit [m or rad]
+    /// (`f64::INFINITY`: no check); it replaces the scene's per-kind bounds.
     pub max_error: Option<f64>,
     /// Refine the step or tolerances and rerun when the estimate exceeds `max_error`.
     pub adapt: Option<bool>,
@@ -148,7 +149,9 @@ impl IntegrationOverrides {
         s.atol = self.atol.unwrap_or(s.atol);
         s.drift = self.drift.unwrap_or(s.drift);
         s.sample_period = self.sample_period.unwrap_or(s.sample_period);
-        s.max_error = self.max_error.unwrap_or(s.max_error);
+        if let Some(x) = self.max_error {
+            s.set_max_error(x);
+        }
         s.adapt = self.adapt.unwrap_or(s.adapt);
         s.error_estimate = self.error_estimate.unwrap_or(s.error_estimate);
         s

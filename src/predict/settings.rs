@@ -1,6 +1,7 @@
 //! `integration:` of a scene: the integration settings a predictor is configured with, and the
 //! drift control they choose.
 
+use super::error_kinds::{ByKind, KIND_KEYS, KIND_NAMES};
 use super::integrators::Method;
 use serde::{Deserialize, Serialize};
 
@@ -63,11 +64,28 @@ pub struct IntegrationSettings {
     /// evaluations × (bodies + Σ depth² of the coordinates), see `limits::evaluation_cost`.
     #[serde(default = "default_max_work")]
     pub max_work: f64,
-    /// `max_error:` bound on the global error estimate of q [m or rad] (every sample's
-    /// `error_estimate`, see `estimate.rs`; default 1e-3, `.inf` turns the check off): a run
-    /// over it stops with `Error::ErrorEstimateExceeded` naming a step or tolerance that meets it.
+    /// `max_error:` bound on the global error estimate of q, every kind of coordinate in its
+    /// own unit [m or rad] (every sample's `error_estimate_by_kind`, see `estimate.rs`; default
+    /// 1e-3, `.inf` turns the check off): a run over it stops with
+    /// `Error::ErrorEstimateExceeded` naming the kind and a step or tolerance that meets it.
     #[serde(default = "default_max_error")]
     pub max_error: f64,
+    /// `max_error_base_m`, `max_error_base_rad`, `max_error_joint_rad`, `max_error_joint_m`:
+    /// the bound on one kind of coordinate's estimate in its own unit (error_kinds.rs: the
+    /// base's position [m] and orientation [rad], the joints' angles [rad] and displacements
+    /// [m]); each kind not given is bounded by `max_error`, and `max_error: .inf` turns every
+    /// check off. [`IntegrationSettings::error_bounds`] resolves them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_error_base_m: Option<f64>,
+    /// See `max_error_base_m`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_error_base_rad: Option<f64>,
+    /// See `max_error_base_m`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_error_joint_rad: Option<f64>,
+    /// See `max_error_base_m`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_error_joint_m: Option<f64>,
     /// `adapt:` when the estimate exceeds `max_error`, refine dt (fixed-step methods) or the
     /// tolerances (dopri5) from the method's order and rerun, at most 4 times (default false).
     #[serde(default)]
@@ -151,6 +169,10 @@ impl Default for IntegrationSettings {
             max_samples: default_max_samples(),
             max_work: default_max_work(),
             max_error: default_max_error(),
+            max_error_base_m: None,
+            max_error_base_rad: None,
+            max_error_joint_rad: None,
+            max_error_joint_m: None,
             adapt: false,
             error_estimate: true,
             jacobian_spans: default_jacobian_spans(),
@@ -159,6 +181,51 @@ impl Default for IntegrationSettings {
 }
 
 impl IntegrationSettings {
+    /// The bound on each kind's error estimate: its own key, else `max_error`; every bound
+    /// infinite when `max_error` is (`.inf` turns the check off).
+    pub fn error_bounds(&self) -> ByKind {
+        if self.max_error == f64::INFINITY {
+            return ByKind::uniform(f64::INFINITY);
+        }
+        let [base_m, base_rad, joint_rad, joint_m] = self.per_kind_max_error();
+        let or = |x: Option<f64>| x.unwrap_or(self.max_error);
+        ByKind {
+            base_m: or(base_m),
+            base_rad: or(base_rad),
+            joint_rad: or(joint_rad),
+            joint_m: or(joint_m),
+        }
+    }
+
+    /// `max_error = x` bounding every kind in its own unit: the per-kind keys are dropped (the
+    /// command line's `--max-error` and a request's override).
+    pub fn set_max_error(&mut self, x: f64) {
+        self.max_error = x;
+        self.max_error_base_m = None;
+        self.max_error_base_rad = None;
+        self.max_error_joint_rad = None;
+        self.max_error_joint_m = None;
+    }
+
+    /// The setting that bounds kind `k` (index in `error_kinds::KIND_NAMES`): its own key when
+    /// given, else `max_error`.
+    pub(super) fn error_bound_key(&self, k: usize) -> &'static str {
+        match self.per_kind_max_error()[k] {
+            Some(_) => KIND_KEYS[k],
+            None => "integration.max_error",
+        }
+    }
+
+    /// The per-kind keys in the order of `error_kinds::KIND_NAMES`.
+    fn per_kind_max_error(&self) -> [Option<f64>; 4] {
+        [
+            self.max_error_base_m,
+            self.max_error_base_rad,
+            self.max_error_joint_rad,
+            self.max_error_joint_m,
+        ]
+    }
+
     /// Refuse settings that cannot work, naming the field, and a scene horizon over the work
     /// limits ([`PredictionBudget`](super::PredictionBudget)).
     pub fn validate(&self) -> crate::Result<()> {
@@ -196,6 +263,13 @@ impl IntegrationSettings {
                 "integration.max_error = {} must be positive (.inf: no check)",
                 self.max_error
             )));
+        }
+        for (name, x) in KIND_NAMES.iter().zip(self.per_kind_max_error()) {
+            if let Some(x) = x.filter(|x| x.is_nan() || *x <= 0.0) {
+                return Err(crate::Error::Invalid(format!(
+                    "integration.max_error_{name} = {x} must be positive (.inf: no check)"
+                )));
+            }
         }
         if self.jacobian_spans == 0 {
             return Err(crate::Error::Invalid(

@@ -3,6 +3,7 @@
 
 use super::contacts::ContactCheck;
 use super::covariance::worker::covariance_rows;
+use super::error_kinds::ByKind;
 use super::predictor::Predictor;
 use crate::algorithm::{kinetic_energy, potential_energy};
 use crate::applied::constraint_forces_at;
@@ -56,6 +57,12 @@ pub struct Sample {
     /// when `integration.error_estimate` is false.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error_estimate: Option<f64>,
+    /// The same estimate by kind of coordinate, each in its own unit and checked against its
+    /// bound (`IntegrationSettings::error_bounds`): the base's position [m] and orientation
+    /// [rad], the joints' angles [rad] and displacements [m]; `error_estimate` is their
+    /// largest. None when `integration.error_estimate` is false.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_estimate_by_kind: Option<ByKind>,
     /// Propagated covariance of (δq, δv), 2nv × 2nv row-major, tangent space (δq a right
     /// perturbation, velocity order) [m², rad², (m/s)², …], when a start covariance was given
     /// (`PredictionRequest::covariance_samples`: in every sample or in the last).
@@ -64,10 +71,17 @@ pub struct Sample {
 }
 
 impl Sample {
-    /// The configuration's error estimate at this sample [m or rad]: the integration error
-    /// estimate (0 when none was made) plus the holonomic residual.
+    /// The base position's error estimate at this sample [m]: its integration error estimate
+    /// (`base_m`; 0 when none was made or the base is fixed) plus the holonomic residual. The
+    /// joints' angles (a wheel's is 1/r × the travel) are not in it.
     pub fn position_error_estimate(&self) -> f64 {
-        self.error_estimate.unwrap_or(0.0) + self.position_residual
+        self.error_estimate_by_kind.map_or(0.0, |e| e.base_m) + self.position_residual
+    }
+
+    /// The base orientation's error estimate at this sample [rad]: `base_rad` plus the
+    /// holonomic residual.
+    pub fn orientation_error_estimate(&self) -> f64 {
+        self.error_estimate_by_kind.map_or(0.0, |e| e.base_rad) + self.position_residual
     }
 }
 
@@ -136,7 +150,7 @@ impl Predictor {
         t: f64,
         q: &[f64],
         v: &[f64],
-        err: Option<f64>,
+        err: Option<ByKind>,
         (forces, covariance): (Option<&ContactLimits>, bool),
     ) -> Result<Sample> {
         let sys = &mut self.sys;
@@ -169,7 +183,7 @@ impl Predictor {
             pe,
             position_residual,
             velocity_residual,
-            err.unwrap_or(0.0),
+            err.map_or(0.0, |e| e.largest()),
         ];
         if let Some((what, x)) = [
             ("q", q),
@@ -204,7 +218,8 @@ impl Predictor {
             velocity_residual,
             kinetic_energy: ke,
             potential_energy: pe,
-            error_estimate: err,
+            error_estimate: err.map(|e| e.largest()),
+            error_estimate_by_kind: err,
             covariance,
         })
     }

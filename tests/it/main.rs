@@ -31,6 +31,7 @@ mod derivatives;
 mod derivatives_fd;
 mod envelope;
 mod error_estimate;
+mod error_kinds;
 mod example_robot_data;
 mod invariant_dynamics;
 mod linearize;

@@ -428,10 +428,11 @@ impl PredictorNode {
             .samples
             .last()
             .ok_or_else(|| NodeError::request("horizon", "the prediction has no samples"))?;
-        let err = last.position_error_estimate();
+        // The base's own estimates, in m and rad (not the joints': a wheel's angle is 1/r × the
+        // travel).
         let c = &self.params.node.covariance;
-        let sp = err.hypot(c.position_floor);
-        let so = err.hypot(c.orientation_floor);
+        let sp = last.position_error_estimate().hypot(c.position_floor);
+        let so = last.orientation_error_estimate().hypot(c.orientation_floor);
         let st = c.twist_floor;
         let (mut pose_cov, mut twist_cov) = match &last.covariance {
             Some(p) => odometry_covariance(model, &last.q, p),

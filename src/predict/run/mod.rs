@@ -11,6 +11,7 @@ use crate::constraints::ContactLimits;
 use crate::error::{Error, Result};
 use crate::predict::covariance::CovariancePropagator;
 use crate::predict::covariance::worker::with_worker;
+use crate::predict::error_kinds::ByKind;
 use crate::predict::estimate::{self, Lane};
 use crate::predict::predictor::Predictor;
 use crate::predict::request::{CovarianceSamples, PredictionRequest};
@@ -177,7 +178,7 @@ impl Predictor {
             0.0,
             &lanes[0].q,
             &lanes[0].v,
-            s.error_estimate.then_some(0.0),
+            s.error_estimate.then(ByKind::default),
             (forces, every || horizon <= 0.0),
         )?;
         let springs = self
@@ -363,8 +364,8 @@ impl Predictor {
                     .potential_energy(self.sys.model(), self.sys.data(), &a.q);
                 guard.check(&sample, springs, a.steps, s)?;
                 traj.samples.push(sample);
-                if let Some(e) = e.filter(|&e| e > s.max_error) {
-                    return Err(estimate::exceeded(s, e, t, horizon));
+                if let Some(over) = e.and_then(|e| estimate::check(s, &e, t, horizon)) {
+                    return Err(over);
                 }
                 while next_sample <= t + 1e-9 {
                     next_sample += s.sample_period;

@@ -218,7 +218,7 @@ pub fn suite_held_scene() -> Scene {
     let s = &mut scene.file.integration;
     s.method = constraint_dynamics::predict::Method::Rk4;
     s.dt = 1e-3;
-    s.max_error = constraint_dynamics::predict::IntegrationSettings::default().max_error;
+    s.set_max_error(constraint_dynamics::predict::IntegrationSettings::default().max_error);
     scene
 }
 
