@@ -332,7 +332,7 @@ impl DriftProjector {
         sys.constraints
             .evaluate(&sys.model, &mut sys.data, &mut sys.cdata, q, v);
         let cd = &sys.cdata;
-        let norm = |x: &mut dyn Iterator<Item = f64>| x.map(|y| y * y).sum::<f64>().sqrt();
+        let norm = |x: &mut dyn Iterator<Item = f64>| x.fold(0.0, |s, y| s + y * y).sqrt();
         let position_residual = norm(
             &mut (0..sys.constraints.nrows)
                 .filter(|&k| cd.holonomic[k])

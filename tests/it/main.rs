@@ -60,7 +60,7 @@ mod rollouts_planner;
 mod sdirk2_steps;
 mod seeds;
 mod stiff_extreme;
-mod turning_resistance;
 mod velocity_constraints;
 mod velocity_dependent;
 mod velocity_determined;
+mod wheel_contacts;

@@ -1,5 +1,6 @@
-//! The turning resistance of wide tyres (`forces.turning_resistance`, src/forces/turning.rs,
-//! docs/contacts.md) against closed forms. The diff drive of tests/data/diff_drive_centred.urdf
+//! What a scene can say of a real tyre (docs/contacts.md) against closed forms: the turning
+//! resistance of wide tyres (`forces.turning_resistance`, src/forces/turning.rs), and an
+//! effective rolling radius and track (a rolling contact's `radius:` and `axle_offset:`). The diff drive of tests/data/diff_drive_centred.urdf
 //! (centre of mass on the axle midpoint: a spin in place stays one) spinning under constant
 //! wheel torques ±τ obeys, along its spin mode (wheel rates ∓Ω b/r),
 //!   a₂ Ω̇ = 2 τ b/r − 2 M_max tanh(Ω/ω₀),  a₂ = I_A + 2 I_s b²/r²,  M_max = μ N w / 4,
@@ -291,4 +292,57 @@ fn a_bad_turning_resistance_names_its_field() {
     assert_has(&e, &["normal_force"]);
     let e = with("{wheel: left_wheel, width: 0.03, friction: 0.8, normal_force: 44, mu: 1}");
     assert_has(&e, &["mu"]);
+}
+
+/// The bundled diff drive's PI controllers convert commands with the nominal r = 0.05 m and
+/// b = 0.17 m; with the contacts at an effective radius r' and half-track b' (`axle_offset` ±s
+/// outward) the robot goes at v r'/r and turns at ω (r'/r)(b/b'), the wheels at their targets.
+#[test]
+fn an_effective_radius_and_track_scale_what_the_controllers_achieve() {
+    let urdf = repo_dir().join("urdf/diff_drive.urdf");
+    let (r_eff, s) = (0.049, 0.01);
+    let yaml = format!(
+        "urdf: {:?}\nbase: planar\nconstraints:\n\
+         \x20 - {{name: l, kind: rolling, wheel: left_wheel, axis: [0, 1, 0], radius: {r_eff}, axle_offset: {s}}}\n\
+         \x20 - {{name: r, kind: rolling, wheel: right_wheel, axis: [0, 1, 0], radius: {r_eff}, axle_offset: {}}}\n\
+         forces: {{urdf_damping: true}}\n\
+         actuators:\n  control_period: 0.001\n  diff_drive: {{left_joint: left_wheel_joint, \
+         right_joint: right_wheel_joint, wheel_radius: 0.05, wheel_separation: 0.34, kp: 1.0, \
+         ki: 20.0}}\n\
+         integration: {{method: rk4, dt: 0.001, drift: projection, horizon: 3.0, sample_period: 0.02}}\n",
+        urdf.display().to_string(),
+        -s
+    );
+    let scene = load(&yaml).unwrap();
+    let mut p = Predictor::from_scene(&scene).unwrap();
+    let (v_cmd, w_cmd) = (0.4, 0.8);
+    let commands = [(
+        0.0,
+        Command {
+            base_twist: Some([v_cmd, w_cmd]),
+            ..Default::default()
+        },
+    )];
+    let (q, v) = (scene.q0.clone(), scene.v0.clone());
+    let traj = p
+        .predict(&PredictionRequest {
+            commands: &commands,
+            ..PredictionRequest::new(&q, &v)
+        })
+        .unwrap();
+    let last = traj.samples.last().unwrap();
+    let speed = v_cmd * r_eff / R;
+    let turn = w_cmd * (r_eff / R) * B / (B + s);
+    println!(
+        "achieved v {} vs {speed} m/s, ω {} vs {turn} rad/s",
+        last.v[0], last.v[2]
+    );
+    // Achieved 1e-14: the PI's integral has settled by 3 s.
+    assert!((last.v[0] - speed).abs() < 1e-12, "{}", last.v[0]);
+    assert!((last.v[2] - turn).abs() < 1e-12, "{}", last.v[2]);
+    let bad = load(&yaml.replace("axle_offset: 0.01}", "axle_offset: .inf}"))
+        .and_then(|s| constraint_dynamics::System::from_scene(&s).map(|_| ()))
+        .expect_err("an infinite offset")
+        .to_string();
+    assert_has(&bad, &["axle_offset", "'l'"]);
 }
