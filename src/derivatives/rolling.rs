@@ -139,8 +139,7 @@ impl RollingState {
         let d_a_dot = s.ang.cross(&self.a);
         let dw_dot = self.w_dot_variation(&Vector3::zeros(), &d_a_dot);
         let d_u_dot = self.u_dot_variation(&Vector3::zeros(), &dw_dot);
-        let dpc_dot =
-            s.lin + s.ang.cross(&self.c) + d_u_dot * self.radius + d_a_dot * self.offset;
+        let dpc_dot = s.lin + s.ang.cross(&self.c) + d_u_dot * self.radius + d_a_dot * self.offset;
         let dg = da.lin + da.ang.cross(&self.pc) + s.ang.cross(&self.pc_dot) + w.cross(&dpc_dot);
         let dvmat = s.lin + s.ang.cross(&self.pc);
         dg + dvmat * kd

@@ -5,8 +5,8 @@
 
 mod turning;
 
-pub use turning::TurningResistanceSpec;
 use turning::TurningResistance;
+pub use turning::TurningResistanceSpec;
 
 use crate::algorithm::{
     Data, ReferenceFrame, frame_jacobian, point_jacobian, point_position, point_velocity,

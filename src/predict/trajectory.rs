@@ -151,7 +151,11 @@ impl Predictor {
             Some(_) if !sys.constraints.is_empty() => Some(constraint_forces_at(
                 sys,
                 &mut self.forces,
-                (t, forces_at.map_or(q, |s| s.0), forces_at.map_or(v, |s| s.1)),
+                (
+                    t,
+                    forces_at.map_or(q, |s| s.0),
+                    forces_at.map_or(v, |s| s.1),
+                ),
                 &self.ws.tau_act,
             )?),
             _ => None,

@@ -423,8 +423,14 @@ fn distance_knife_edge_and_weld_derivatives_match_finite_differences() {
             "mobile_manipulator_floating_axle_offset",
             std::fs::read_to_string(repo_dir().join("params/mobile_manipulator_floating.yaml"))
                 .unwrap()
-                .replace("../urdf/mobile_manipulator.urdf", &urdf("mobile_manipulator.urdf"))
-                .replace("    radius: 0.05\n", "    radius: 0.05\n    axle_offset: 0.012\n"),
+                .replace(
+                    "../urdf/mobile_manipulator.urdf",
+                    &urdf("mobile_manipulator.urdf"),
+                )
+                .replace(
+                    "    radius: 0.05\n",
+                    "    radius: 0.05\n    axle_offset: 0.012\n",
+                ),
         ),
     ];
     let mut rng = Rng(0x1234_5678_9abc_def1);

@@ -372,8 +372,9 @@ impl PredictorNode {
                 // the prediction's start forces took.
                 let (mut qe, mut ve) = (q.clone(), v.clone());
                 if !self.params.common.state.project_to_constraints {
-                    (DriftProjector::new(sys).project_measured(sys, &mut qe, &mut ve))
-                        .map_err(NodeError::core("start state: projection onto the constraints"))?;
+                    (DriftProjector::new(sys).project_measured(sys, &mut qe, &mut ve)).map_err(
+                        NodeError::core("start state: projection onto the constraints"),
+                    )?;
                 }
                 let frame = self.robot.base_frame();
                 let mu = self.params.common.slip.friction_coefficient;
@@ -495,6 +496,6 @@ impl PredictorNode {
 }
 
 #[cfg(test)]
-mod tests;
-#[cfg(test)]
 mod start_state_tests;
+#[cfg(test)]
+mod tests;

@@ -49,7 +49,12 @@ fn robot_in_a_turn() -> (Sample, Sample) {
         .unwrap();
     let (q, v) = (scene.q0.clone(), scene.v0.clone());
     // The arm held where it starts, as the node holds it (`command.hold_joints`).
-    let arm = ["arm_shoulder_yaw", "arm_shoulder_pitch", "arm_elbow", "arm_wrist"];
+    let arm = [
+        "arm_shoulder_yaw",
+        "arm_shoulder_pitch",
+        "arm_elbow",
+        "arm_wrist",
+    ];
     let held = arm.map(|j| (j.to_string(), q[scene.model.q_index(j).unwrap()]));
     let commands = [(
         0.0,
