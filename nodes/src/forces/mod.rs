@@ -164,7 +164,9 @@ impl ForcesNode {
         if !slipping.is_empty() {
             said.push(format!("slipping: {}", slipping.join(", ")));
         }
-        if let Some(o) = off.filter(|o| o.position_residual > 0.0 || o.velocity_residual > 0.0) {
+        // Said when the projection moved the state (not when its rows were zero to rounding).
+        if let Some(o) = off.filter(|o| o.position_correction > 0.0 || o.velocity_correction > 0.0)
+        {
             said.push(format!(
                 "state projected onto the constraints from |φ| {:.3e} m or rad, |J v| {:.3e} \
                  m/s or rad/s",
@@ -179,3 +181,6 @@ impl ForcesNode {
         })
     }
 }
+
+#[cfg(test)]
+mod tests;
