@@ -1,7 +1,8 @@
 //! Rolling without slipping: a wheel (frame W, spin axis a_W, radius r, centre at W's origin) on
 //! the plane n·x = h.
 //!
-//! Contact: u = −(n − (n·a)a)/|n − (n·a)a| (a = R_W a_W), p_c = c + r u. The material point of the
+//! Contact: u = −(n − (n·a)a)/|n − (n·a)a| (a = R_W a_W), p_c = c + r u + s a (s the axle
+//! offset: an effective track). The material point of the
 //! wheel at p_c has zero velocity: `J v = v_c + ω × (p_c − c) = 0`, expressed on the basis
 //! (t₁, t₂, n) — two nonholonomic tangential rows and one normal row. The normal row is left out
 //! when the model cannot move the contact along n (a planar base already fixes the height).
@@ -24,6 +25,8 @@ pub struct RollingConstraint {
     pub axis: Vector3<f64>,
     /// Radius [m].
     pub radius: f64,
+    /// The contact point's offset along the spin axis [m] (an effective track).
+    pub axle_offset: f64,
     /// Columns t₁, t₂, n (world).
     pub basis: Matrix3<f64>,
     /// Plane height along n [m].
@@ -74,7 +77,7 @@ impl RollingConstraint {
         let w = n - a * n.dot(&a);
         let u = -w / w.norm().max(f64::MIN_POSITIVE);
         Contact {
-            point: o_m_w.translation + u * self.radius,
+            point: o_m_w.translation + u * self.radius + a * self.axle_offset,
             centre: o_m_w.translation,
             axis: a,
         }
@@ -109,14 +112,14 @@ impl ConstraintRows for RollingConstraint {
         let vp = vb.lin + vb.ang.cross(&pb);
         let v_mat = rb * vp;
         let a_mat = rb * (ab.lin + ab.ang.cross(&pb) + vb.ang.cross(&vp));
-        // ṗ_c = v_c + r u̇, u = −w/|w|, w = n − (n·a)a, ȧ = ω × a.
+        // ṗ_c = v_c + r u̇ + s ȧ, u = −w/|w|, w = n − (n·a)a, ȧ = ω × a.
         let n = self.normal();
         let adot = omega.cross(&a);
         let w = n - a * n.dot(&a);
         let wdot = -(a * n.dot(&adot) + adot * n.dot(&a));
         let wn = w.norm().max(f64::MIN_POSITIVE);
         let udot = -(wdot / wn - w * (w.dot(&wdot) / (wn * wn * wn)));
-        let pc_dot = v_c + udot * self.radius;
+        let pc_dot = v_c + udot * self.radius + adot * self.axle_offset;
         let gamma_w = a_mat + omega.cross(&(pc_dot - v_mat));
         let phi_n = n.dot(&pc) - self.height;
         for (k, (&row, dir)) in self.rows.iter().zip(dirs).enumerate() {

@@ -455,6 +455,7 @@ fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Result<Constr
             wheel,
             axis,
             radius,
+            axle_offset,
             plane_normal,
             plane_height,
             friction,
@@ -465,6 +466,12 @@ fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Result<Constr
                 return Err(cerr(format!(
                     "wheel radius {} m must be positive and at most {:e} m",
                     crate::limits::show(*radius),
+                    crate::limits::MAX_LENGTH
+                )));
+            }
+            if !axle_offset.is_finite() || axle_offset.abs() > crate::limits::MAX_LENGTH {
+                return Err(cerr(format!(
+                    "axle_offset {axle_offset} m must be finite and at most {:e} m",
                     crate::limits::MAX_LENGTH
                 )));
             }
@@ -481,6 +488,7 @@ fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Result<Constr
                 wheel,
                 axis,
                 radius: *radius,
+                axle_offset: *axle_offset,
                 basis: RollingConstraint::basis_for(&n),
                 height: *plane_height,
                 rows: vec![0, 1, 2],

@@ -167,8 +167,14 @@ pub enum ConstraintSpec {
         wheel: String,
         /// `axis:` spin axis in the wheel frame (normalized; must not be parallel to the normal).
         axis: [f64; 3],
-        /// `radius:` wheel radius [m], positive; no default.
+        /// `radius:` wheel radius [m], positive; no default. The effective rolling radius
+        /// goes here (the contact point lies at it).
         radius: f64,
+        /// `axle_offset:` the contact point moved along `axis` by this much [m] (default 0):
+        /// an effective track. On a diff drive whose wheels both spin about +y, a positive
+        /// offset widens the track at the left wheel and narrows it at the right one.
+        #[serde(default)]
+        axle_offset: f64,
         /// `plane_normal:` ground-plane normal, world axes (normalized; default `[0, 0, 1]`).
         #[serde(default = "up")]
         plane_normal: [f64; 3],

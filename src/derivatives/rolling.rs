@@ -2,9 +2,10 @@
 //! velocity coordinate, and of its contact point.
 //!
 //! World axes; wheel body twist (v₀, ω) and spatial acceleration (a₀, α); centre c, spin axis
-//! a, plane normal n, w = n − (n·a) a, ŵ = w/|w|, u = −ŵ, contact p_c = c + r u. The rows are
+//! a, plane normal n, w = n − (n·a) a, ŵ = w/|w|, u = −ŵ, contact p_c = c + r u + s a (s the
+//! axle offset). The rows are
 //! t·(g + K_d v_mat) (+ K_p n·p_c on the normal row) with g = J q̈ + γ = a₀ + α × p_c + ω × ṗ_c,
-//! v_mat = v₀ + ω × p_c and ṗ_c = v₀ + ω × c + r u̇, u̇ = −(ẇ − ŵ(ŵ·ẇ))/|w|,
+//! v_mat = v₀ + ω × p_c and ṗ_c = v₀ + ω × c + r u̇ + s ȧ, u̇ = −(ẇ − ŵ(ŵ·ẇ))/|w|,
 //! ẇ = −(ȧ (n·a) + a (n·ȧ)), ȧ = ω × a. A perturbation moves the body (its twist and
 //! acceleration as in rnea.rs) and with it c and a; the contact point slides over the rim.
 
@@ -30,6 +31,7 @@ pub(crate) struct RollingState {
     w_dot: Vector3<f64>,
     pc_dot: Vector3<f64>,
     radius: f64,
+    offset: f64,
 }
 
 /// Variations of one column: the 3-vector `g + K_d v_mat` and n·p_c.
@@ -47,12 +49,12 @@ impl RollingState {
         let w_norm = w.norm().max(f64::MIN_POSITIVE);
         let w_hat = w / w_norm;
         let u = -w_hat;
-        let pc = c + u * rc.radius;
+        let pc = c + u * rc.radius + a * rc.axle_offset;
         let vk = dd.o_v[body];
         let a_dot = vk.ang.cross(&a);
         let w_dot = -(a_dot * n.dot(&a) + a * n.dot(&a_dot));
         let u_dot = -(w_dot - w_hat * w_hat.dot(&w_dot)) / w_norm;
-        let pc_dot = vk.lin + vk.ang.cross(&c) + u_dot * rc.radius;
+        let pc_dot = vk.lin + vk.ang.cross(&c) + u_dot * rc.radius + a_dot * rc.axle_offset;
         Self {
             body,
             c,
@@ -65,6 +67,7 @@ impl RollingState {
             w_dot,
             pc_dot,
             radius: rc.radius,
+            offset: rc.axle_offset,
         }
     }
 
@@ -88,11 +91,12 @@ impl RollingState {
         -(d_a_dot * n.dot(a) + ad * n.dot(d_a) + d_a * n.dot(ad) + a * n.dot(d_a_dot))
     }
 
-    /// Variation of the contact point for the body motion S (q-column): dc + r du.
+    /// Variation of the contact point for the body motion S (q-column): dc + r du + s da.
     pub fn contact_variation(&self, s: &Motion) -> Vector3<f64> {
-        let dw = self.w_variation(&s.ang.cross(&self.a));
+        let d_a = s.ang.cross(&self.a);
+        let dw = self.w_variation(&d_a);
         let du = -(dw - self.w_hat * self.w_hat.dot(&dw)) / self.w_norm;
-        s.lin + s.ang.cross(&self.c) + du * self.radius
+        s.lin + s.ang.cross(&self.c) + du * self.radius + d_a * self.offset
     }
 
     /// Along q-column S with body variations (dv, da) and K_d.
@@ -112,7 +116,11 @@ impl RollingState {
         let dpc = self.contact_variation(s);
         let d_a_dot = dv.ang.cross(&self.a) + w.cross(&d_a);
         let d_u_dot = self.u_dot_variation(&dw, &self.w_dot_variation(&d_a, &d_a_dot));
-        let dpc_dot = dv.lin + dv.ang.cross(&self.c) + w.cross(&dc) + d_u_dot * self.radius;
+        let dpc_dot = dv.lin
+            + dv.ang.cross(&self.c)
+            + w.cross(&dc)
+            + d_u_dot * self.radius
+            + d_a_dot * self.offset;
         let dg = da.lin
             + da.ang.cross(&self.pc)
             + alpha.cross(&dpc)
@@ -131,7 +139,7 @@ impl RollingState {
         let d_a_dot = s.ang.cross(&self.a);
         let dw_dot = self.w_dot_variation(&Vector3::zeros(), &d_a_dot);
         let d_u_dot = self.u_dot_variation(&Vector3::zeros(), &dw_dot);
-        let dpc_dot = s.lin + s.ang.cross(&self.c) + d_u_dot * self.radius;
+        let dpc_dot = s.lin + s.ang.cross(&self.c) + d_u_dot * self.radius + d_a_dot * self.offset;
         let dg = da.lin + da.ang.cross(&self.pc) + s.ang.cross(&self.pc_dot) + w.cross(&dpc_dot);
         let dvmat = s.lin + s.ang.cross(&self.pc);
         dg + dvmat * kd

@@ -15,6 +15,7 @@ use crate::linalg::{semidefinite_cholesky, semidefinite_solve};
 use crate::predict::InvariantDynamics;
 use crate::system::System;
 use nalgebra::DMatrix;
+use serde::Serialize;
 
 /// Position tolerance of the Newton projection [m or rad].
 pub const POSITION_TOL: f64 = 1e-12;
@@ -298,6 +299,58 @@ impl DriftProjector {
             self.dq[i] = s / self.l[(i, i)];
         }
         rank
+    }
+}
+
+/// How far a measured state lay off the constraints, and how far its projection moved it
+/// ([`DriftProjector::project_measured`]). Norms mix the rows' units (m and rad; m/s and rad/s).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct OffConstraints {
+    /// ‖φₕ(q)‖₂ over the holonomic rows before the projection [m or rad].
+    pub position_residual: f64,
+    /// ‖J(q) v‖₂ before the projection [m/s or rad/s].
+    pub velocity_residual: f64,
+    /// ‖Δq‖₂ of the projection, tangent space [m or rad].
+    pub position_correction: f64,
+    /// ‖Δv‖₂ of the projection [m/s or rad/s].
+    pub velocity_correction: f64,
+}
+
+impl DriftProjector {
+    /// A measured (q, v) — odometry and joint states of slightly different instants, never
+    /// exactly on the constraints — projected onto them in place, positions and velocities, as
+    /// the drift control projects a step's end; returns how far off it was. Off the constraints
+    /// redundant rows stop agreeing: two wheels on one axle hold one lateral row twice, and
+    /// their γ agree only where J v = 0 (d/dt (Nᵀ J) = 0 gives Nᵀ γ = −Ṅᵀ J v for the
+    /// rows' left null vector N).
+    pub fn project_measured(
+        &mut self,
+        sys: &mut System,
+        q: &mut [f64],
+        v: &mut [f64],
+    ) -> Result<OffConstraints> {
+        if sys.constraints().is_empty() {
+            return Ok(OffConstraints::default());
+        }
+        // A measured start is a prediction's: time-dependent rows at t = 0.
+        let cd = sys.evaluate_rows(0.0, q, v);
+        let norm = |x: &mut dyn Iterator<Item = f64>| x.fold(0.0, |s, y| s + y * y).sqrt();
+        let position_residual = norm(
+            &mut (0..cd.holonomic.len())
+                .filter(|&k| cd.holonomic[k])
+                .map(|k| cd.phi[k]),
+        );
+        let velocity_residual = norm(&mut cd.jv.iter().copied());
+        let (q0, v0) = (q.to_vec(), v.to_vec());
+        self.project(sys, 0.0, q, v, true, None)?;
+        let mut dq = vec![0.0; sys.model().nv];
+        sys.model().difference(&q0, q, &mut dq);
+        Ok(OffConstraints {
+            position_residual,
+            velocity_residual,
+            position_correction: norm(&mut dq.into_iter()),
+            velocity_correction: norm(&mut v.iter().zip(&v0).map(|(a, b)| a - b)),
+        })
     }
 }
 

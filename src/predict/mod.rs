@@ -33,7 +33,7 @@ mod trajectory;
 pub use contacts::{ContactBreak, ContactCheck, ContactJudge};
 pub use covariance::linearize::{Linearization, linearize_step};
 pub use covariance::{CovariancePropagator, UncertaintySpec};
-pub use drift::DriftProjector;
+pub use drift::{DriftProjector, OffConstraints};
 pub use integrators::{ErrorEstimator, Integrator, Method};
 pub use invariant::InvariantDynamics;
 pub use predictor::{Predictor, PredictorConfig};

@@ -3,6 +3,7 @@
 
 use super::contacts::ContactCheck;
 use super::covariance::worker::covariance_rows;
+use super::drift::OffConstraints;
 use super::error_kinds::ByKind;
 use super::predictor::Predictor;
 use crate::algorithm::{kinetic_energy, potential_energy};
@@ -107,6 +108,11 @@ pub struct Trajectory {
     /// lift-off, and the limits left unchecked.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub contact_check: Option<ContactCheck>,
+    /// How far the start state lay off the constraints (when forces were asked for): the
+    /// first sample keeps the start as given, and its forces are those of its projection onto
+    /// the constraints (`DriftProjector::project_measured`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start_off_constraints: Option<OffConstraints>,
     /// Accepted steps and right-hand-side evaluations.
     pub steps: usize,
     /// Right-hand-side (forward dynamics) evaluations.
@@ -143,13 +149,14 @@ impl Trajectory {
 
 impl Predictor {
     /// The output sample at (t, q, v): residuals, energies, λ and the constraint forces when
-    /// `forces` (the contacts judged under its limits), the covariance when one is propagated
-    /// inline and `covariance`; `err` the error estimate.
+    /// `forces` (the contacts judged under its limits) — at `forces_at`, the state's
+    /// projection onto the constraints, where it is given —, the covariance when one is
+    /// propagated inline and `covariance`; `err` the error estimate.
     pub(super) fn sample(
         &mut self,
         t: f64,
-        q: &[f64],
-        v: &[f64],
+        (q, v): (&[f64], &[f64]),
+        forces_at: Option<(&[f64], &[f64])>,
         err: Option<ByKind>,
         (forces, covariance): (Option<&ContactLimits>, bool),
     ) -> Result<Sample> {
@@ -158,7 +165,11 @@ impl Predictor {
             Some(_) if !sys.constraints().is_empty() => Some(constraint_forces_at(
                 sys,
                 &mut self.forces,
-                (t, q, v),
+                (
+                    t,
+                    forces_at.map_or(q, |s| s.0),
+                    forces_at.map_or(v, |s| s.1),
+                ),
                 &self.ws.tau_act,
             )?),
             _ => None,

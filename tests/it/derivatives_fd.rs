@@ -417,6 +417,21 @@ fn distance_knife_edge_and_weld_derivatives_match_finite_differences() {
                 ur5()
             ),
         ),
+        (
+            // The contact points moved along the axles (an effective track): the sliding
+            // contact's ȧ-term on a floating base, where the wheels tilt.
+            "mobile_manipulator_floating_axle_offset",
+            std::fs::read_to_string(repo_dir().join("params/mobile_manipulator_floating.yaml"))
+                .unwrap()
+                .replace(
+                    "../urdf/mobile_manipulator.urdf",
+                    &urdf("mobile_manipulator.urdf"),
+                )
+                .replace(
+                    "    radius: 0.05\n",
+                    "    radius: 0.05\n    axle_offset: 0.012\n",
+                ),
+        ),
     ];
     let mut rng = Rng(0x1234_5678_9abc_def1);
     let mut kinds = Vec::new();

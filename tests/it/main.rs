@@ -65,3 +65,4 @@ mod stiff_extreme;
 mod velocity_constraints;
 mod velocity_dependent;
 mod velocity_determined;
+mod wheel_contacts;

@@ -338,3 +338,46 @@ fn predict_hold_joints_and_per_kind_bounds() {
     assert!(msg.contains("integration.max_error_base_m = 1e-9"), "{msg}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `predict --forces` from a measured state off the constraints: the mobile manipulator turning
+/// at wz = 0.05 rad/s with both wheels at 4 rad/s (a joint state from the straight drive before
+/// the turn). Its rolling rows' acceleration disagree there (rank 3 of 4) and were refused; the
+/// start forces are now those of the state's projection, and `start_off_constraints` gives
+/// ‖J v‖ = √2 · 0.17 · 0.05 m/s: each wheel's contact slides at vx ∓ b wz − r ω = ∓0.0085 m/s
+/// along x (b = 0.17 m, r = 0.05 m; the wheels sit on the base's y axis, so the lateral rows hold).
+#[test]
+fn predict_with_forces_takes_a_measured_state_off_the_constraints() {
+    let dir = std::env::temp_dir().join(format!("cd_predict_off_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let state = dir.join("state.json");
+    std::fs::write(
+        &state,
+        r#"{"q": [0, 0, 0, 0, 0, 0, 0.5, 1.0, 0.5], "v": [0.2, 0, 0.05, 4.0, 4.0, 0, 0, 0, 0]}"#,
+    )
+    .unwrap();
+    let out = cli()
+        .args(["predict", "--scene", "params/suite_mobile_manipulator.yaml"])
+        .args(["--horizon", "0.1", "--forces", "--state"])
+        .arg(&state)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let off = &v["start_off_constraints"];
+    let residual = off["velocity_residual"].as_f64().unwrap();
+    let want = 2f64.sqrt() * 0.17 * 0.05;
+    println!("achieved ‖J v‖ {residual} vs {want} m/s; {off}");
+    assert!((residual - want).abs() < 1e-15, "{off}");
+    assert_eq!(off["position_residual"].as_f64(), Some(0.0), "{off}");
+    // The first sample keeps the state as given (its max |J v| is one wheel's slide) and carries
+    // forces; the samples after it are on the constraints.
+    let samples = v["samples"].as_array().unwrap();
+    let first = samples[0]["velocity_residual"].as_f64().unwrap();
+    assert!((first - 0.17 * 0.05).abs() < 1e-15, "{first}");
+    assert_eq!(samples[0]["lambda"].as_array().unwrap().len(), 4);
+    assert!(samples[1]["velocity_residual"].as_f64().unwrap() < 1e-12);
+}

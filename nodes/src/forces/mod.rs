@@ -3,12 +3,15 @@
 //! At the latest state (or one the request gives) under the request's joint torques (or the
 //! measured efforts, or none) plus the scene's force elements, the core's
 //! [`constraint_forces_at`] gives q̈, λ and each constraint's wrench; this module names them
-//! for ROS and judges the contacts as a prediction does (slip and lift-off).
+//! for ROS and judges the contacts as a prediction does (slip and lift-off). A state off the
+//! constraints (a measured one, never exactly on them) is projected onto them first, as a
+//! prediction's start is, and the reply says how far off it was.
 
 pub mod ros;
 
 use constraint_dynamics::applied::constraint_forces_at;
 use constraint_dynamics::forces::ForceElements;
+use constraint_dynamics::predict::DriftProjector;
 use serde::{Deserialize, Serialize};
 
 use crate::convert::ForcesAt;
@@ -108,12 +111,22 @@ impl ForcesNode {
         now: Time,
     ) -> Result<GetConstraintForcesResponse, NodeError> {
         let common = &self.params.common;
-        let (q, v) = self.robot.request_state(
+        let (mut q, mut v) = self.robot.request_state(
             common,
             req.use_latest_state,
             (&req.q_names, &req.q),
             (&req.v_names, &req.v),
         )?;
+        // The latest state is projected already when the parameters say so.
+        let off = match req.use_latest_state && common.state.project_to_constraints {
+            true => None,
+            false => {
+                let sys = self.robot.system();
+                let off = (DriftProjector::new(sys).project_measured(sys, &mut q, &mut v))
+                    .map_err(NodeError::core("state: projection onto the constraints"))?;
+                Some(off)
+            }
+        };
         let model = self.robot.model();
         let tau = if req.tau.is_empty() {
             if req.use_latest_state && common.state.use_measured_effort {
@@ -147,15 +160,27 @@ impl ForcesNode {
             .filter(|c| c.slipping)
             .map(|c| c.name.as_str())
             .collect();
+        let mut said = Vec::new();
+        if !slipping.is_empty() {
+            said.push(format!("slipping: {}", slipping.join(", ")));
+        }
+        // Said when the projection moved the state (not when its rows were zero to rounding).
+        if let Some(o) = off.filter(|o| o.position_correction > 0.0 || o.velocity_correction > 0.0)
+        {
+            said.push(format!(
+                "state projected onto the constraints from |φ| {:.3e} m or rad, |J v| {:.3e} \
+                 m/s or rad/s",
+                o.position_residual, o.velocity_residual
+            ));
+        }
         Ok(GetConstraintForcesResponse {
             success: true,
-            message: if slipping.is_empty() {
-                String::new()
-            } else {
-                format!("slipping: {}", slipping.join(", "))
-            },
+            message: said.join("; "),
             forces: msg,
             qdd: at.qdd,
         })
     }
 }
+
+#[cfg(test)]
+mod tests;

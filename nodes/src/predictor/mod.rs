@@ -24,7 +24,8 @@ use constraint_dynamics::algorithm::frame_placement;
 use constraint_dynamics::constraints::{ConstraintForce, ContactState};
 use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::predict::{
-    ContactCheck, CovarianceSamples, PredictionRequest, Predictor, Trajectory,
+    ContactCheck, CovarianceSamples, DriftProjector, OffConstraints, PredictionRequest, Predictor,
+    Trajectory,
 };
 use constraint_dynamics::system::System;
 
@@ -93,6 +94,9 @@ pub struct PredictorNode {
     slipping: Vec<String>,
     /// max |φ| at the last prediction's horizon [m or rad] (for `/diagnostics`).
     position_residual: f64,
+    /// How far the last start state lay off the constraints before its projection (for
+    /// `/diagnostics`).
+    start_off_constraints: Option<OffConstraints>,
     /// How the inputs' covariances become the start covariance.
     start_covariance: StartCovariance,
     /// The stale inputs at the last tick ("odom 0.62 s"), empty when fresh.
@@ -156,6 +160,7 @@ impl NodeLogic for PredictorNode {
             break_log: contact_break::BreakLog::new(nc),
             slipping: Vec::new(),
             position_residual: 0.0,
+            start_off_constraints: None,
             start_covariance,
             stale: Vec::new(),
             work: None,
@@ -236,6 +241,15 @@ impl NodeLogic for PredictorNode {
                 &format!("{:.3e}", self.position_residual),
             ),
         ];
+        if let Some(o) = &self.start_off_constraints {
+            values.push(kv(
+                "start state off the constraints",
+                &format!(
+                    "|φ| {:.3e} m or rad, |J v| {:.3e} m/s or rad/s (projected onto them)",
+                    o.position_residual, o.velocity_residual
+                ),
+            ));
+        }
         values.extend(self.work.iter().flat_map(|w| w.key_values()));
         let contacts = self.contacts.iter().flat_map(contact_break::values);
         values.extend(contacts.map(|(key, value)| kv(key, &value)));
@@ -344,14 +358,28 @@ impl PredictorNode {
             .map(|c| c.name.clone())
             .collect();
         self.position_residual = traj.samples.last().map_or(0.0, |s| s.position_residual);
+        // Projected here (`state.project_to_constraints`), else by the prediction for its forces.
+        self.start_off_constraints = match common.state.project_to_constraints {
+            true => self.robot.off_constraints(),
+            false => traj.start_off_constraints,
+        };
         let (markers, wrenches) = self.markers(at.forces, &states, &q, &path, now);
         let limits = match self.params.node.envelope.enabled {
             true => {
                 let (sys, elements) = &mut self.start;
+                // The envelope holds the rows as equalities, which a state off the constraints
+                // cannot meet: without `state.project_to_constraints` it takes the projection
+                // the prediction's start forces took.
+                let (mut qe, mut ve) = (q.clone(), v.clone());
+                if !self.params.common.state.project_to_constraints {
+                    (DriftProjector::new(sys).project_measured(sys, &mut qe, &mut ve)).map_err(
+                        NodeError::core("start state: projection onto the constraints"),
+                    )?;
+                }
                 let frame = self.robot.base_frame();
                 let mu = self.params.common.slip.friction_coefficient;
                 self.envelope
-                    .at(sys, elements, (&q, &v), mu, (now, frame), &self.log)
+                    .at(sys, elements, (&qe, &ve), mu, (now, frame), &self.log)
             }
             false => None,
         };
@@ -468,5 +496,7 @@ impl PredictorNode {
     }
 }
 
+#[cfg(test)]
+mod start_state_tests;
 #[cfg(test)]
 mod tests;

@@ -12,7 +12,7 @@ use constraint_dynamics::actuators::Command;
 use constraint_dynamics::constraints::ContactLimits;
 use constraint_dynamics::dynamics::Formulation;
 use constraint_dynamics::model::Payload;
-use constraint_dynamics::predict::{ContactJudge, drift};
+use constraint_dynamics::predict::{ContactJudge, DriftProjector, OffConstraints};
 use constraint_dynamics::{Model, Scene, System};
 
 use crate::convert::{ForcesAt, ForcesContext, base_twist_of, constraint_forces_msg};
@@ -36,6 +36,8 @@ pub struct Robot {
     /// Joints with position controllers in the scene, and their q index.
     held_joints: Vec<(String, usize)>,
     base_frame: String,
+    /// How far the last projected latest state lay off the constraints (None before one).
+    off_constraints: Option<OffConstraints>,
 }
 
 impl Robot {
@@ -105,6 +107,7 @@ impl Robot {
             state,
             held_joints,
             base_frame,
+            off_constraints: None,
         })
     }
 
@@ -176,16 +179,26 @@ impl Robot {
     }
 
     /// The latest state (normalised), projected onto the constraints when `project` (as the
-    /// predictor's drift control does, mass-weighted).
+    /// predictor's drift control does, mass-weighted; how far off it was is
+    /// [`Robot::off_constraints`]). Odometry and joint states of slightly different instants
+    /// are never exactly on the constraints.
     pub fn latest_state(&mut self, project: bool) -> Result<(Vec<f64>, Vec<f64>), NodeError> {
         let (mut q, mut v) = (self.state.q.clone(), self.state.v.clone());
         self.scene.model.normalize(&mut q);
         if project {
-            drift::project(&mut self.sys, &mut q, &mut v, true).map_err(NodeError::core(
-                "latest state: projection onto the constraints",
-            ))?;
+            let off = DriftProjector::new(&self.sys)
+                .project_measured(&mut self.sys, &mut q, &mut v)
+                .map_err(NodeError::core(
+                    "latest state: projection onto the constraints",
+                ))?;
+            self.off_constraints = Some(off);
         }
         Ok((q, v))
+    }
+
+    /// How far the last projected latest state lay off the constraints.
+    pub fn off_constraints(&self) -> Option<OffConstraints> {
+        self.off_constraints
     }
 
     /// True if the scene has a differential drive that follows base twists.

@@ -141,6 +141,7 @@ impl Predictor {
                 (horizon / s.sample_period).min(s.max_samples).max(0.0) as usize + 2,
             ),
             contact_check: None,
+            start_off_constraints: None,
             steps: 0,
             evaluations: 0,
             least_squares_evaluations: 0,
@@ -174,10 +175,21 @@ impl Predictor {
         }
         let every = req.covariance_samples == CovarianceSamples::Every;
         let forces = req.forces.then_some(&req.contact_limits);
+        // A measured start is never exactly on the constraints: its forces are those of its
+        // projection (the drift control's, as the steps end), not of rows that disagree there.
+        let projected = match forces {
+            Some(_) if !self.sys.constraints().is_empty() => {
+                let (mut q, mut v) = (lanes[0].q.clone(), lanes[0].v.clone());
+                let off = (self.ws.ls).project_measured(&mut self.sys, &mut q, &mut v)?;
+                traj.start_off_constraints = Some(off);
+                Some((q, v))
+            }
+            _ => None,
+        };
         let first = self.sample(
             0.0,
-            &lanes[0].q,
-            &lanes[0].v,
+            (&lanes[0].q, &lanes[0].v),
+            projected.as_ref().map(|(q, v)| (&q[..], &v[..])),
             s.error_estimate.then(ByKind::default),
             (forces, every || horizon <= 0.0),
         )?;
@@ -358,7 +370,7 @@ impl Predictor {
                 let e = s.error_estimate.then(|| {
                     estimate::estimate(&self.model, &a.q, &c.q, factor, &mut self.ws.diff)
                 });
-                let sample = self.sample(t, &a.q, &a.v, e, (forces, read_p))?;
+                let sample = self.sample(t, (&a.q, &a.v), None, e, (forces, read_p))?;
                 let springs = self
                     .forces
                     .potential_energy(self.sys.model(), self.sys.data(), &a.q);

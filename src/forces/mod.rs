@@ -1,6 +1,12 @@
 //! Force elements a scene adds to the dynamics (the generalized force Q(t, q, v) that joins τ):
 //! joint spring-dampers (and URDF `<dynamics damping>`), point-to-point spring-dampers between
-//! frames, joint torques (constant or piecewise-linear in time) and frame forces (world axes).
+//! frames, joint torques (constant or piecewise-linear in time), frame forces (world axes) and
+//! the turning resistance of wide tyres (`turning.rs`).
+
+mod turning;
+
+use turning::TurningResistance;
+pub use turning::TurningResistanceSpec;
 
 use crate::algorithm::{
     Data, ReferenceFrame, frame_jacobian, point_jacobian, point_position, point_velocity,
@@ -29,6 +35,10 @@ pub struct ForcesSpec {
     /// `frame_forces:` constant world-axes forces and torques on frames (default none).
     #[serde(default)]
     pub frame_forces: Vec<FrameForceSpec>,
+    /// `turning_resistance:` a wide tyre's scrub about its contact normal, per wheel (default
+    /// none).
+    #[serde(default)]
+    pub turning_resistance: Vec<TurningResistanceSpec>,
 }
 
 /// τ = −k (q − rest) − d q̇ on a 1-DOF joint.
@@ -133,6 +143,7 @@ pub struct ForceElements {
     /// (v index, profile) per joint torque; a constant is a one-point profile.
     torques: Vec<(usize, Vec<[f64; 2]>)>,
     frame_forces: Vec<FrameForce>,
+    turning: Vec<TurningResistance>,
     j3: DMatrix<f64>,
     j6: DMatrix<f64>,
 }
@@ -228,6 +239,9 @@ impl ForceElements {
                 torque: Vector3::from(f.torque),
             });
         }
+        for t in &spec.turning_resistance {
+            fe.turning.push(TurningResistance::new(model, t)?);
+        }
         Ok(fe)
     }
 
@@ -237,6 +251,7 @@ impl ForceElements {
             && self.springs.is_empty()
             && self.torques.is_empty()
             && self.frame_forces.is_empty()
+            && self.turning.is_empty()
     }
 
     /// Joint spring-dampers (q index, v index, k [N/m or N·m/rad], d [N·s/m or N·m·s/rad],
@@ -249,13 +264,14 @@ impl ForceElements {
     /// spring-dampers (joint torques depend on t alone): its Jacobian is then (−k, −d) on
     /// those joints, with no kinematics.
     pub fn depends_on_state_by_joints_only(&self) -> bool {
-        self.springs.is_empty() && self.frame_forces.is_empty()
+        self.springs.is_empty() && self.frame_forces.is_empty() && self.turning.is_empty()
     }
 
-    /// True when the generalized force needs the kinematics at (q, v): point springs and frame
-    /// forces act at frames; joint spring-dampers and joint torques act on coordinates.
+    /// True when the generalized force needs the kinematics at (q, v): point springs, frame
+    /// forces and turning resistances act at frames; joint spring-dampers and joint torques act
+    /// on coordinates.
     pub fn needs_kinematics(&self) -> bool {
-        !self.springs.is_empty() || !self.frame_forces.is_empty()
+        !self.springs.is_empty() || !self.frame_forces.is_empty() || !self.turning.is_empty()
     }
 
     /// True when there are point-to-point spring-dampers (whose direction turns with q).
@@ -327,10 +343,14 @@ impl ForceElements {
                     .sum::<f64>();
             }
         }
+        for tr in &self.turning {
+            tr.add(model, data, v, &mut self.j6, tau);
+        }
     }
 
     /// The fastest rate among the elements [1/s]: max over joint elements of √(k (M⁻¹)_ii) and
-    /// d (M⁻¹)_ii, and over point springs of √(k w) and c w with w = n̂ᵀ J M⁻¹ Jᵀ n̂ (kinematics at q).
+    /// d (M⁻¹)_ii, over point springs of √(k w) and c w with w = n̂ᵀ J M⁻¹ Jᵀ n̂, and over
+    /// turning resistances of M_max/ω₀ gᵀ M⁻¹ g with g = J_ωᵀ n (kinematics at q).
     pub fn max_rate(&mut self, model: &Model, data: &Data, minv: &DMatrix<f64>) -> f64 {
         let mut rate: f64 = 0.0;
         for &(_, iv, k, d, _) in &self.joint_springs {
@@ -347,6 +367,9 @@ impl ForceElements {
             let jrel = ja - n.transpose() * &self.j3;
             let w = (&jrel * minv * jrel.transpose())[(0, 0)];
             rate = rate.max((s.k * w).sqrt()).max(s.c * w);
+        }
+        for tr in &self.turning {
+            rate = rate.max(tr.max_rate(model, data, minv, &mut self.j6));
         }
         rate
     }
@@ -377,6 +400,7 @@ impl ForceElements {
             && self.springs.iter().all(|s| s.c == 0.0)
             && self.torques.is_empty()
             && self.frame_forces.is_empty()
+            && self.turning.is_empty()
     }
 }
 
