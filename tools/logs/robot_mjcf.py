@@ -3,8 +3,11 @@ URDF's own numbers, with what its scene (params/suite_mobile_manipulator.yaml) d
 
 - a heavier chassis (its mass and inertia scaled by CHASSIS_MASS_FACTOR),
 - worn tyres: the wheels' rolling radius WORN_RADIUS_FACTOR of the nominal one,
-- wide tyres: the wheels are cylinders TYRE_WIDTH_M wide on soft contacts with Coulomb friction
-  TYRE_MU and a little torsional and rolling friction, so a turn scrubs the tyres' width,
+- wide tyres: TYRE_WIDTH_M wide on soft contacts with Coulomb friction TYRE_MU and a little
+  torsional and rolling friction, so a turn scrubs the tyres' width. MuJoCo's cylinder touches a
+  plane at its two rims; a tyre's patch of uniform pressure carries each half of its load at a
+  quarter of its width from the middle, so the collision cylinder is half the tyre's width long
+  (its rims where the patch's halves push),
 - a low-friction ball caster (a sphere sliding with CASTER_MU), and a front anti-tip skid of the
   same kind ANTI_TIP_CLEARANCE_M above the floor: with the arm leaning forward (the scene's
   initial pose) the robot's centre of mass is within millimetres of the wheel axle, and without
@@ -111,7 +114,7 @@ def mjcf(urdf_path, timestep):
             body.append(f'<joint name="{name}" type="hinge" axis="{_vec(j["axis"])}" '
                         f'damping="{j["damping"]:.12g}"/>')
             body.append(f'<geom name="{j["child"]}_tyre" type="cylinder" '
-                        f'size="{wheel_r:.12g} {0.5 * TYRE_WIDTH_M:.12g}" euler="1.5707963267948966 0 0" '
+                        f'size="{wheel_r:.12g} {0.25 * TYRE_WIDTH_M:.12g}" euler="1.5707963267948966 0 0" '
                         f'condim="6" friction="{TYRE_MU} {TYRE_TORSIONAL_M} {TYRE_ROLLING_M}" mass="0"/>')
             body.append("</body>")
         elif j["type"] == "fixed" and j["child"] == "caster_link":
