@@ -13,6 +13,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use constraint_dynamics::replay::{Recording, Series, show_stamp};
+use mcap::sans_io::{LinearReaderOptions, MessageReadEvent, MessageReader};
 use serde::Deserialize;
 
 pub use decode::{Kind, cdr, odometry_sample};
@@ -219,9 +220,8 @@ pub fn read_recording(path: &Path, topics: &BagTopics) -> Result<Recording, BagE
             }),
             message: e.to_string(),
         };
-        let stream = mcap::MessageStream::new(&bytes).map_err(|e| corrupt(0, None, e))?;
         let (mut count, mut last) = (0usize, None);
-        for m in stream {
+        for m in messages(&bytes) {
             let m = m.map_err(|e| corrupt(count, last, e))?;
             count += 1;
             last = Some(m.log_time);
@@ -295,6 +295,38 @@ pub fn read_recording(path: &Path, topics: &BagTopics) -> Result<Recording, BagE
         });
     }
     Ok(rec)
+}
+
+/// The longest record or chunk a file of `len` bytes may hold: 64 × its length (a chunk's
+/// compression rarely reaches 10×), at most 1 GiB, so that a damaged length field is an error
+/// and not an allocation of petabytes.
+fn record_limit(len: usize) -> usize {
+    len.saturating_mul(64).saturating_add(1 << 20).min(1 << 30)
+}
+
+/// The messages of one MCAP file in file order, chunk CRCs checked, every record and chunk
+/// bounded by [`record_limit`]. (`mcap::MessageStream` decompresses chunks without a bound: a
+/// flipped length byte aborted the process on an allocation of 3·10¹⁶ bytes.)
+fn messages(bytes: &[u8]) -> impl Iterator<Item = mcap::McapResult<mcap::Message<'static>>> + '_ {
+    let options = LinearReaderOptions::default()
+        .with_record_length_limit(record_limit(bytes.len()))
+        .with_validate_chunk_crcs(true);
+    let mut reader = MessageReader::new_with_options(options);
+    let mut rest = bytes;
+    std::iter::from_fn(move || {
+        loop {
+            match reader.next_event()? {
+                Ok(MessageReadEvent::ReadRequest(need)) => {
+                    let n = need.min(rest.len());
+                    reader.insert(n).copy_from_slice(&rest[..n]);
+                    reader.notify_read(n);
+                    rest = &rest[n..];
+                }
+                Ok(MessageReadEvent::Message(m)) => return Some(Ok(m)),
+                Err(e) => return Some(Err(e)),
+            }
+        }
+    })
 }
 
 /// The message kind a topic of `role` with this schema and encoding is read as.
