@@ -76,8 +76,7 @@ pub fn run(a: EvaluateArgs) -> Result<Value> {
         cmd_vel: a.cmd_vel_topic,
         reference: a.truth_topic,
     };
-    let recording =
-        read_recording(&a.bag, &topics).map_err(|e| Error::Invalid(e.to_string()))?;
+    let recording = read_recording(&a.bag, &topics).map_err(|e| Error::Invalid(e.to_string()))?;
     warn_without_covariance(&recording);
     let joint_noise = match a.joint_noise.as_deref() {
         Some([position, velocity]) => JointSigma {
@@ -97,9 +96,8 @@ pub fn run(a: EvaluateArgs) -> Result<Value> {
         max_gap_s: a.max_gap,
         ..EvaluationSettings::default()
     };
-    let ev = evaluate(&scene, &recording, &settings).map_err(|e| {
-        Error::Invalid(format!("{}: {e}", a.bag.display()))
-    })?;
+    let ev = evaluate(&scene, &recording, &settings)
+        .map_err(|e| Error::Invalid(format!("{}: {e}", a.bag.display())))?;
     let mut out = serde_json::to_value(&ev).map_err(|e| Error::Invalid(e.to_string()))?;
     out["scene"] = json!(a.scene.display().to_string());
     out["bag"] = json!(a.bag.display().to_string());

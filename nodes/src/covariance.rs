@@ -2,15 +2,15 @@
 //! their REP-103 layout and the core's tangent space are the core's
 //! (`constraint_dynamics::model::base_covariance`), re-exported here.
 
+use constraint_dynamics::BaseType;
 pub use constraint_dynamics::model::base_covariance::{
     JointSigma, add_age_noise, odometry_covariance, rep103_indices, start_covariance,
 };
-use constraint_dynamics::BaseType;
 
 #[cfg(test)]
-use constraint_dynamics::model::base_covariance::{covariance_block as block, world_to_body};
-#[cfg(test)]
 use constraint_dynamics::Model;
+#[cfg(test)]
+use constraint_dynamics::model::base_covariance::{covariance_block as block, world_to_body};
 
 use crate::error::NodeError;
 

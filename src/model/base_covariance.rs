@@ -103,7 +103,8 @@ pub fn start_covariance(
         // Exactly symmetric (rounding differs above and below the diagonal; the core checks).
         let body = (&body + body.transpose()) * 0.5;
         p.view_mut((0, 0), (nb, nb)).copy_from(&body);
-        p.view_mut((nv, nv), (nb, nb)).copy_from(&covariance_block(twist, idx));
+        p.view_mut((nv, nv), (nb, nb))
+            .copy_from(&covariance_block(twist, idx));
     }
     for &(iv, s) in joints {
         p[(iv, iv)] = s.position * s.position;
@@ -149,4 +150,3 @@ pub fn odometry_covariance(model: &Model, q: &[f64], p: &[Vec<f64>]) -> ([f64; 3
     }
     (pose, twist)
 }
-

@@ -8,10 +8,10 @@
 //! integration error estimate and the floors in quadrature (nodes/src/predictor/mod.rs). Each
 //! prediction's NEES is taken against it plus the reference's own covariance (stats.rs).
 
+use super::ReplayError;
 use super::series::{Nanos, Odometry, Recording, show_stamp};
 use super::start::StartAssembler;
 use super::stats::{Coverage, Spread, nees};
-use super::ReplayError;
 use crate::actuators::Command;
 use crate::model::base_covariance::{JointSigma, odometry_covariance};
 use crate::model::{BasePose, Model};
@@ -233,7 +233,10 @@ pub fn evaluate(
         let at = |t: Nanos| (t - t0) as f64 * 1e-9;
         let command = |twist: [f64; 2]| Command {
             base_twist: drive.then_some(twist),
-            joint_position: held.iter().map(|(n, iq)| (n.clone(), start.q[*iq])).collect(),
+            joint_position: held
+                .iter()
+                .map(|(n, iq)| (n.clone(), start.q[*iq]))
+                .collect(),
             ..Default::default()
         };
         let in_force = recording
@@ -251,7 +254,10 @@ pub fn evaluate(
                 (recording.commands.between(t0, t_end).iter())
                     .map(|(tc, c)| (at(*tc), command(*c))),
             );
-            let p0 = start.covariance.as_ref().filter(|_| settings.propagate_covariance);
+            let p0 = start
+                .covariance
+                .as_ref()
+                .filter(|_| settings.propagate_covariance);
             let request = PredictionRequest {
                 commands: &commands,
                 horizon: Some(h),
@@ -278,16 +284,19 @@ pub fn evaluate(
                 }
                 r => (r.map_err(failed)?, false),
             };
-            let last = (traj.samples.last()).ok_or_else(|| failed(Error::Invalid(
-                "the prediction has no samples".into(),
-            )))?;
+            let last = (traj.samples.last())
+                .ok_or_else(|| failed(Error::Invalid("the prediction has no samples".into())))?;
             let (t_ref, reference) = recording
                 .reference
                 .at_or_before(t_end)
                 .expect("the reference spans t_end: t_end ≤ its last stamp, t0 after its first");
             let record = score(
                 &scene.model,
-                (&last.q, last.covariance.as_deref(), last.position_error_estimate()),
+                (
+                    &last.q,
+                    last.covariance.as_deref(),
+                    last.position_error_estimate(),
+                ),
                 reference,
                 settings.floors,
             )
@@ -330,7 +339,11 @@ fn score(
     }
     let r = planar(&reference.pose);
     let rc = planar_block(&reference.pose_covariance);
-    let e = [r[0] - predicted[0], r[1] - predicted[1], wrap(r[2] - predicted[2])];
+    let e = [
+        r[0] - predicted[0],
+        r[1] - predicted[1],
+        wrap(r[2] - predicted[2]),
+    ];
     let sum = [0, 1, 2].map(|i| [0, 1, 2].map(|j| p[i][j] + rc[i][j]));
     Some(PredictionRecord {
         t0_s: 0.0,

@@ -217,7 +217,9 @@ fn odometry_fault(o: &Odometry) -> Option<String> {
         .chain(&o.pose_covariance)
         .chain(&o.twist_covariance);
     if let Some(x) = values.into_iter().find(|x| !x.is_finite()) {
-        return Some(format!("a pose, twist or covariance value is not finite ({x})"));
+        return Some(format!(
+            "a pose, twist or covariance value is not finite ({x})"
+        ));
     }
     let n2: f64 = o.pose.orientation_xyzw.iter().map(|x| x * x).sum();
     if n2 < 1e-12 {
@@ -235,8 +237,11 @@ fn odometry_fault(o: &Odometry) -> Option<String> {
 /// come in separate messages.
 #[derive(Clone, Debug, Default)]
 pub struct JointTracks {
-    tracks: HashMap<String, Vec<(Nanos, Option<f64>, Option<f64>)>>,
+    tracks: HashMap<String, Vec<JointPoint>>,
 }
+
+/// One joint at one time: (time, position if given, velocity if given).
+pub type JointPoint = (Nanos, Option<f64>, Option<f64>);
 
 impl JointTracks {
     /// The tracks of `series` (checked by [`Recording::check`]).
@@ -253,7 +258,7 @@ impl JointTracks {
     }
 
     /// The last (time, position, velocity) of joint `name` at or before `t`.
-    pub fn at_or_before(&self, name: &str, t: Nanos) -> Option<(Nanos, Option<f64>, Option<f64>)> {
+    pub fn at_or_before(&self, name: &str, t: Nanos) -> Option<JointPoint> {
         let track = self.tracks.get(name)?;
         let n = track.partition_point(|(ts, _, _)| *ts <= t);
         n.checked_sub(1).map(|i| track[i])

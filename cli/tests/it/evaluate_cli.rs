@@ -21,7 +21,11 @@ fn evaluate(args: &[&str]) -> (bool, Value, String) {
         .unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout).to_string();
     let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    (out.status.success(), serde_json::from_str(&stdout).unwrap_or_default(), stderr)
+    (
+        out.status.success(),
+        serde_json::from_str(&stdout).unwrap_or_default(),
+        stderr,
+    )
 }
 
 #[derive(Deserialize)]
@@ -45,8 +49,7 @@ fn odometry(data: &[u8]) -> (i64, [f64; 3], [[f64; 3]; 3]) {
         orientation: [f64; 4],
         covariance: [[f64; 6]; 6],
     }
-    let (h, _): (Head, usize) =
-        cdr_encoding::from_bytes::<Head, LittleEndian>(&data[4..]).unwrap();
+    let (h, _): (Head, usize) = cdr_encoding::from_bytes::<Head, LittleEndian>(&data[4..]).unwrap();
     let [x, y, z, w] = h.orientation;
     let yaw = (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z));
     let idx = [0, 1, 5];
@@ -95,7 +98,11 @@ fn chi2_3_quantile(p: f64) -> f64 {
     let (mut lo, mut hi) = (0.0, 50.0);
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);
-        if chi2_3_cdf(mid) < p { lo = mid } else { hi = mid }
+        if chi2_3_cdf(mid) < p {
+            lo = mid
+        } else {
+            hi = mid
+        }
     }
     0.5 * (lo + hi)
 }
@@ -104,8 +111,9 @@ fn nees(e: [f64; 3], s: [[f64; 3]; 3]) -> f64 {
     let c = |i: usize, j: usize| {
         let rows: Vec<usize> = (0..3).filter(|&a| a != i).collect();
         let cols: Vec<usize> = (0..3).filter(|&b| b != j).collect();
-        let m = s[rows[0]][cols[0]] * s[rows[1]][cols[1]] - s[rows[0]][cols[1]] * s[rows[1]][cols[0]];
-        if (i + j) % 2 == 0 { m } else { -m }
+        let m =
+            s[rows[0]][cols[0]] * s[rows[1]][cols[1]] - s[rows[0]][cols[1]] * s[rows[1]][cols[0]];
+        if (i + j).is_multiple_of(2) { m } else { -m }
     };
     let det: f64 = (0..3).map(|j| s[0][j] * c(0, j)).sum();
     // S⁻¹ = adj(S) / det, adj(S)[i][j] = cofactor(j, i).
@@ -120,11 +128,18 @@ fn percentile(v: &[f64], p: f64) -> f64 {
     s.sort_by(f64::total_cmp);
     let r = p / 100.0 * (s.len() - 1) as f64;
     let (i, f) = (r.floor() as usize, r.fract());
-    if i + 1 < s.len() { s[i] * (1.0 - f) + s[i + 1] * f } else { s[i] }
+    if i + 1 < s.len() {
+        s[i] * (1.0 - f) + s[i + 1] * f
+    } else {
+        s[i]
+    }
 }
 
 fn close(what: &str, got: f64, want: f64, tol: f64) {
-    assert!((got - want).abs() <= tol * want.abs().max(1.0), "{what}: printed {got}, recomputed {want}");
+    assert!(
+        (got - want).abs() <= tol * want.abs().max(1.0),
+        "{what}: printed {got}, recomputed {want}"
+    );
 }
 
 #[test]
@@ -137,7 +152,13 @@ fn figures_agree_with_a_recomputation_from_the_bag() {
         ("validation_smooth.mcap", "/odom"),
     ] {
         let path = logs.join(bag);
-        let mut args = vec!["--scene", scene.to_str().unwrap(), "--bag", path.to_str().unwrap(), "--records"];
+        let mut args = vec![
+            "--scene",
+            scene.to_str().unwrap(),
+            "--bag",
+            path.to_str().unwrap(),
+            "--records",
+        ];
         if topic != "/odom" {
             args.extend(["--truth-topic", topic]);
         }
@@ -155,23 +176,39 @@ fn figures_agree_with_a_recomputation_from_the_bag() {
             let t_end = origin + ((t0 + h) * 1e9).round() as i64;
             let k = refs.iter().rposition(|x| x.0 <= t_end).unwrap();
             let (t_ref, pose, cov) = refs[k];
-            close("reference time", f(&r["reference_t_s"]), (t_ref - origin) as f64 * 1e-9, 1e-9);
+            close(
+                "reference time",
+                f(&r["reference_t_s"]),
+                (t_ref - origin) as f64 * 1e-9,
+                1e-9,
+            );
             let pred: Vec<f64> = r["predicted"].as_array().unwrap().iter().map(f).collect();
             let pc: Vec<Vec<f64>> = (r["predicted_covariance"].as_array().unwrap().iter())
                 .map(|row| row.as_array().unwrap().iter().map(f).collect())
                 .collect();
             let mut e = [pose[0] - pred[0], pose[1] - pred[1], pose[2] - pred[2]];
-            e[2] = (e[2] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+            e[2] = (e[2] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI;
             let s = [0, 1, 2].map(|i| [0, 1, 2].map(|j| pc[i][j] + cov[i][j]));
             let n = nees(e, s);
-            close("position error", f(&r["position_error_m"]), e[0].hypot(e[1]), 1e-9);
+            close(
+                "position error",
+                f(&r["position_error_m"]),
+                e[0].hypot(e[1]),
+                1e-9,
+            );
             close("yaw error", f(&r["yaw_error_rad"]), e[2], 1e-9);
             close("nees", f(&r["nees"]), n, 1e-7);
-            by_h.entry(format!("{h}")).or_default().push([e[0].hypot(e[1]), e[2].abs(), n]);
+            by_h.entry(format!("{h}"))
+                .or_default()
+                .push([e[0].hypot(e[1]), e[2].abs(), n]);
         }
         // Starts every 0.5 s.
         t0s.dedup();
-        assert!(t0s.windows(2).all(|w| (w[1] - w[0] - 0.5).abs() < 1e-9), "{bag}: {t0s:?}");
+        assert!(
+            t0s.windows(2).all(|w| (w[1] - w[0] - 0.5).abs() < 1e-9),
+            "{bag}: {t0s:?}"
+        );
         assert_eq!(out["starts"].as_u64().unwrap() as usize, t0s.len());
         assert_eq!(out["predictions"].as_u64().unwrap() as usize, records.len());
         for h in out["horizons"].as_array().unwrap() {
@@ -187,7 +224,12 @@ fn figures_agree_with_a_recomputation_from_the_bag() {
             let inside = |b: f64| rows.iter().filter(|r| r[2] <= b).count() as f64 / n;
             close("coverage p50", f(&h["coverage"]["p50"]), inside(b50), 1e-12);
             close("coverage p95", f(&h["coverage"]["p95"]), inside(b95), 1e-12);
-            close("nees_mean", f(&h["nees_mean"]), rows.iter().map(|r| r[2]).sum::<f64>() / n, 1e-7);
+            close(
+                "nees_mean",
+                f(&h["nees_mean"]),
+                rows.iter().map(|r| r[2]).sum::<f64>() / n,
+                1e-7,
+            );
         }
     }
 }
@@ -204,15 +246,33 @@ fn bad_input_is_a_clear_error() {
     std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
     let t = truncated.to_str().unwrap();
     for (args, want) in [
-        (vec!["--scene", s, "--bag", b, "--odom-topic", "/nope"], "no odometry topic '/nope'"),
-        (vec!["--scene", s, "--bag", b, "--cmd-vel-topic", "/odom"], "topic '/odom' is nav_msgs/msg/Odometry (cdr); expected geometry_msgs/msg/Twist"),
+        (
+            vec!["--scene", s, "--bag", b, "--odom-topic", "/nope"],
+            "no odometry topic '/nope'",
+        ),
+        (
+            vec!["--scene", s, "--bag", b, "--cmd-vel-topic", "/odom"],
+            "topic '/odom' is nav_msgs/msg/Odometry (cdr); expected geometry_msgs/msg/Twist",
+        ),
         (vec!["--scene", s, "--bag", t], "truncated or corrupt after"),
-        (vec!["--scene", s, "--bag", b, "--horizons", "0.25,-1"], "horizon [s] = -1"),
-        (vec!["--scene", s, "--bag", b, "--horizons", "25"], "horizon 25 s"),
-        (vec!["--scene", s, "--bag", "/nonexistent/bag.mcap"], "/nonexistent/bag.mcap"),
+        (
+            vec!["--scene", s, "--bag", b, "--horizons", "0.25,-1"],
+            "horizon [s] = -1",
+        ),
+        (
+            vec!["--scene", s, "--bag", b, "--horizons", "25"],
+            "horizon 25 s",
+        ),
+        (
+            vec!["--scene", s, "--bag", "/nonexistent/bag.mcap"],
+            "/nonexistent/bag.mcap",
+        ),
     ] {
         let (ok, _, err) = evaluate(&args);
-        assert!(!ok && err.contains(want) && !err.contains("panicked"), "{args:?}: {err}");
+        assert!(
+            !ok && err.contains(want) && !err.contains("panicked"),
+            "{args:?}: {err}"
+        );
     }
     std::fs::remove_file(&truncated).ok();
 }

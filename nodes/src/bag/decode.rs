@@ -38,8 +38,8 @@ impl Kind {
 /// A decoded message as a replay sample, with its time [ns] (header stamp, or for a Twist the
 /// log time given).
 pub enum Decoded {
-    /// An odometry sample.
-    Odometry(i64, OdometrySample),
+    /// An odometry sample (boxed: its covariances are 600 bytes).
+    Odometry(i64, Box<OdometrySample>),
     /// A joint-state sample.
     JointStates(i64, JointStates),
     /// A base command (v, ω).
@@ -65,7 +65,7 @@ pub fn decode(kind: Kind, data: &[u8], log_time: i64) -> Result<Decoded, String>
     Ok(match kind {
         Kind::Odometry => {
             let od: Odometry = cdr(data)?;
-            Decoded::Odometry(od.header.stamp.to_nanos(), odometry_sample(&od))
+            Decoded::Odometry(od.header.stamp.to_nanos(), Box::new(odometry_sample(&od)))
         }
         Kind::JointState => {
             let js: JointState = cdr(data)?;

@@ -16,8 +16,8 @@ use constraint_dynamics::replay::{Recording, Series, show_stamp};
 use mcap::sans_io::{LinearReaderOptions, MessageReadEvent, MessageReader};
 use serde::Deserialize;
 
-pub use decode::{Kind, cdr, odometry_sample};
 use decode::{Decoded, decode};
+pub use decode::{Kind, cdr, odometry_sample};
 
 /// The topics a recording is read from.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -174,7 +174,9 @@ pub fn bag_files(path: &Path) -> Result<Vec<PathBuf>, BagError> {
     if info.relative_file_paths.is_empty() {
         return Err(err("relative_file_paths lists no file".into()));
     }
-    Ok((info.relative_file_paths.iter()).map(|f| path.join(f)).collect())
+    Ok((info.relative_file_paths.iter())
+        .map(|f| path.join(f))
+        .collect())
 }
 
 /// What one topic becomes.
@@ -192,7 +194,11 @@ pub fn read_recording(path: &Path, topics: &BagTopics) -> Result<Recording, BagE
     let reference = topics.reference.as_deref().unwrap_or(&topics.odom);
     let wanted = [
         (Role::Odometry, topics.odom.as_str(), "odometry"),
-        (Role::JointStates, topics.joint_states.as_str(), "joint-state"),
+        (
+            Role::JointStates,
+            topics.joint_states.as_str(),
+            "joint-state",
+        ),
         (Role::Commands, topics.cmd_vel.as_str(), "command"),
         (Role::Reference, reference, "reference odometry"),
     ];
@@ -252,9 +258,11 @@ pub fn read_recording(path: &Path, topics: &BagTopics) -> Result<Recording, BagE
                 match (role, decoded) {
                     (Role::Odometry, Decoded::Odometry(t, o)) => {
                         odom_clock_offset.get_or_insert(t - log_time);
-                        rec.odometry.samples.push((t, o));
+                        rec.odometry.samples.push((t, *o));
                     }
-                    (Role::Reference, Decoded::Odometry(t, o)) => rec.reference.samples.push((t, o)),
+                    (Role::Reference, Decoded::Odometry(t, o)) => {
+                        rec.reference.samples.push((t, *o))
+                    }
                     (Role::JointStates, Decoded::JointStates(t, j)) => {
                         rec.joint_states.samples.push((t, j))
                     }

@@ -25,8 +25,10 @@ fn logs() -> PathBuf {
 }
 
 fn scene() -> Scene {
-    Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("../params/suite_mobile_manipulator.yaml"))
-        .unwrap()
+    Scene::load(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../params/suite_mobile_manipulator.yaml"),
+    )
+    .unwrap()
 }
 
 /// The generator's drives: 20 s; /odom and the truth at 50 Hz from 0 s (1001), /joint_states at
@@ -53,17 +55,29 @@ fn recorded_logs_read_in_both_bag_forms() {
         assert_eq!(o.pose_covariance[0], 0.002 * 0.002);
         assert_eq!(o.pose_covariance[35], 0.002 * 0.002);
         assert_eq!(o.twist_covariance[35], 0.01 * 0.01);
-        assert!(rec.reference.samples.iter().all(|(_, r)| r.pose_covariance == [0.0; 36]));
+        assert!(
+            rec.reference
+                .samples
+                .iter()
+                .all(|(_, r)| r.pose_covariance == [0.0; 36])
+        );
         let js = &rec.joint_states.samples[0].1;
         assert_eq!(js.name[..2], ["left_wheel_joint", "right_wheel_joint"]);
-        assert_eq!((js.position.len(), js.velocity.len(), js.effort.len()), (6, 6, 6));
+        assert_eq!(
+            (js.position.len(), js.velocity.len(), js.effort.len()),
+            (6, 6, 6)
+        );
         // The odometry is the truth plus noise of σ 2 mm: its rms difference says so.
         let n = rec.odometry.samples.len() as f64;
         let rms = (rec.odometry.samples.iter().zip(&rec.reference.samples))
             .map(|((_, o), (_, r))| (o.pose.position[0] - r.pose.position[0]).powi(2))
             .sum::<f64>()
             / n;
-        assert!((0.0017..0.0023).contains(&rms.sqrt()), "{bag}: rms {}", rms.sqrt());
+        assert!(
+            (0.0017..0.0023).contains(&rms.sqrt()),
+            "{bag}: rms {}",
+            rms.sqrt()
+        );
     }
 }
 
@@ -75,25 +89,46 @@ fn err(path: &Path, topics: &BagTopics) -> String {
 fn missing_topics_wrong_types_and_bad_paths_are_named() {
     let _group = crate::common::exclusive_group(module_path!());
     let bag = logs().join("calibration.mcap");
-    let e = err(&bag, &BagTopics {
-        odom: "/wheel/odom".into(),
-        ..BagTopics::default()
-    });
-    assert!(e.contains("no odometry topic '/wheel/odom'") && e.contains("/odom [nav_msgs/msg/Odometry]"), "{e}");
-    let e = err(&bag, &BagTopics {
-        odom: "/cmd_vel".into(),
-        ..BagTopics::default()
-    });
-    assert!(e.contains("topic '/cmd_vel' is geometry_msgs/msg/Twist (cdr); expected nav_msgs/msg/Odometry"), "{e}");
+    let e = err(
+        &bag,
+        &BagTopics {
+            odom: "/wheel/odom".into(),
+            ..BagTopics::default()
+        },
+    );
+    assert!(
+        e.contains("no odometry topic '/wheel/odom'")
+            && e.contains("/odom [nav_msgs/msg/Odometry]"),
+        "{e}"
+    );
+    let e = err(
+        &bag,
+        &BagTopics {
+            odom: "/cmd_vel".into(),
+            ..BagTopics::default()
+        },
+    );
+    assert!(
+        e.contains(
+            "topic '/cmd_vel' is geometry_msgs/msg/Twist (cdr); expected nav_msgs/msg/Odometry"
+        ),
+        "{e}"
+    );
     let e = err(&logs().join("nothing_here.mcap"), &BagTopics::default());
-    assert!(e.contains("nothing_here.mcap") && e.contains("No such file"), "{e}");
+    assert!(
+        e.contains("nothing_here.mcap") && e.contains("No such file"),
+        "{e}"
+    );
     let dir = std::env::temp_dir().join(format!("cd_bag_nometa_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let e = err(&dir, &BagTopics::default());
     assert!(e.contains("metadata.yaml"), "{e}");
     std::fs::write(dir.join("metadata.yaml"), "rosbag2_bagfile_information:\n  version: 9\n  storage_identifier: sqlite3\n  relative_file_paths: [a.db3]\n").unwrap();
     let e = err(&dir, &BagTopics::default());
-    assert!(e.contains("storage 'sqlite3': only mcap bags are read"), "{e}");
+    assert!(
+        e.contains("storage 'sqlite3': only mcap bags are read"),
+        "{e}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -123,7 +158,9 @@ fn truncated_and_byte_flipped_files_are_refused_clearly() {
     assert!(truncated_refused > 300);
     let mut seed: u64 = 0x5eed;
     let mut next = move || {
-        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         (seed >> 33) as usize
     };
     let (mut read, mut refused) = (0, 0);
@@ -187,7 +224,10 @@ fn write_bag(path: &Path, w: &Written) {
     let mut messages: Vec<(i64, i64, u16, Vec<u8>)> = Vec::new();
     for (k, &t) in w.odom.iter().enumerate() {
         let mut od = Odometry {
-            header: Header { stamp: Time::from_nanos(t), frame_id: "odom".into() },
+            header: Header {
+                stamp: Time::from_nanos(t),
+                frame_id: "odom".into(),
+            },
             ..Default::default()
         };
         for i in [0, 7, 35] {
@@ -197,7 +237,10 @@ fn write_bag(path: &Path, w: &Written) {
     }
     for (k, &t) in w.joints.iter().enumerate() {
         let js = JointState {
-            header: Header { stamp: Time::from_nanos(t), frame_id: String::new() },
+            header: Header {
+                stamp: Time::from_nanos(t),
+                frame_id: String::new(),
+            },
             name: vec!["left_wheel_joint".into(), "right_wheel_joint".into()],
             position: vec![0.0, 0.0],
             velocity: vec![0.0, 0.0],
@@ -227,7 +270,9 @@ fn write_bag(path: &Path, w: &Written) {
 
 /// Stamps every `period` ms over `n` samples, from `start` ms.
 fn stamps(start: i64, period: i64, n: i64) -> Vec<i64> {
-    (0..n).map(|k| 1_000_000_000_000 + (start + k * period) * 1_000_000).collect()
+    (0..n)
+        .map(|k| 1_000_000_000_000 + (start + k * period) * 1_000_000)
+        .collect()
 }
 
 #[test]
@@ -255,9 +300,18 @@ fn time_jumps_gaps_clocks_and_missing_covariance() {
     let ev = evaluate(&scene, &rec, &quick).unwrap();
     assert_eq!(ev.starts, 6);
     let h = &ev.horizons[0];
-    assert!(h.position_error_m.max < 2e-5 && h.yaw_error_rad.max < 1e-12, "{h:?}");
+    assert!(
+        h.position_error_m.max < 2e-5 && h.yaw_error_rad.max < 1e-12,
+        "{h:?}"
+    );
     // No covariance at all: still evaluated, on the floors.
-    write_bag(&path, &Written { covariance: 0.0, ..base() });
+    write_bag(
+        &path,
+        &Written {
+            covariance: 0.0,
+            ..base()
+        },
+    );
     let rec = read_recording(&path, &BagTopics::default()).unwrap();
     assert_eq!(evaluate(&scene, &rec, &quick).unwrap().starts, 6);
     // /odom going back 60 ms at 1.000 s.
@@ -266,7 +320,10 @@ fn time_jumps_gaps_clocks_and_missing_covariance() {
     write_bag(&path, &Written { odom, ..base() });
     let rec = read_recording(&path, &BagTopics::default()).unwrap();
     let e = evaluate(&scene, &rec, &quick).unwrap_err().to_string();
-    assert_eq!(e, "/odom: time goes back by 0.060 s at 0.920 s (stamp 1000.920000000)");
+    assert_eq!(
+        e,
+        "/odom: time goes back by 0.060 s at 0.920 s (stamp 1000.920000000)"
+    );
     // /joint_states silent for 0.8 s after 1.005 s.
     let joints: Vec<i64> = (stamps(5, 20, 150).into_iter())
         .filter(|t| !(1_001_010_000_000..1_001_800_000_000).contains(t))
@@ -274,10 +331,22 @@ fn time_jumps_gaps_clocks_and_missing_covariance() {
     write_bag(&path, &Written { joints, ..base() });
     let rec = read_recording(&path, &BagTopics::default()).unwrap();
     let e = evaluate(&scene, &rec, &quick).unwrap_err().to_string();
-    assert!(e.starts_with("/joint_states: no message for 0.800 s after 1.005 s (stamp 1001.005000000)"), "{e}");
+    assert!(
+        e.starts_with("/joint_states: no message for 0.800 s after 1.005 s (stamp 1001.005000000)"),
+        "{e}"
+    );
     // Unstamped commands timed by a log clock 3 s off the stamps.
-    write_bag(&path, &Written { log_offset: 3_000_000_000, ..base() });
+    write_bag(
+        &path,
+        &Written {
+            log_offset: 3_000_000_000,
+            ..base()
+        },
+    );
     let e = err(&path, &BagTopics::default());
-    assert!(e.contains("'/cmd_vel' is geometry_msgs/msg/Twist (no stamp)") && e.contains("-3.000 s"), "{e}");
+    assert!(
+        e.contains("'/cmd_vel' is geometry_msgs/msg/Twist (no stamp)") && e.contains("-3.000 s"),
+        "{e}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
