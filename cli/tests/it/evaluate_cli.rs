@@ -276,3 +276,53 @@ fn bad_input_is_a_clear_error() {
     }
     std::fs::remove_file(&truncated).ok();
 }
+
+/// A scene whose error bound refuses every start: each is rerun without the bound and counted,
+/// and its figures are those of the same scene with no bound at all.
+#[test]
+fn refused_starts_are_rerun_without_the_bound_and_counted() {
+    let text =
+        std::fs::read_to_string(repo_dir().join("params/suite_mobile_manipulator.yaml")).unwrap();
+    let urdf = repo_dir().join("urdf/mobile_manipulator.urdf");
+    let dir = std::env::temp_dir().join(format!("cd_eval_refused_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bag = repo_dir().join("tests/data/logs/validation_smooth.mcap");
+    let mut figures = Vec::new();
+    for (name, bound) in [("tight", "1.0e-9"), ("none", ".inf")] {
+        let scene = dir.join(format!("{name}.yaml"));
+        let yaml = text
+            .replace(
+                "urdf: ../urdf/mobile_manipulator.urdf",
+                &format!("urdf: {}", urdf.display()),
+            )
+            .replace("max_error: 0.05", &format!("max_error: {bound}"));
+        assert!(yaml.contains(&format!("max_error: {bound}")));
+        std::fs::write(&scene, yaml).unwrap();
+        let args = [
+            "--scene",
+            scene.to_str().unwrap(),
+            "--bag",
+            bag.to_str().unwrap(),
+            "--horizons",
+            "0.5",
+            "--every",
+            "2",
+        ];
+        let (ok, out, err) = evaluate(&args);
+        assert!(ok, "{name}: {err}");
+        figures.push(out);
+    }
+    let (tight, none) = (&figures[0], &figures[1]);
+    assert!(tight["predictions"].as_u64().unwrap() >= 9);
+    assert_eq!(tight["refused"], tight["predictions"]);
+    assert_eq!(none["refused"], 0);
+    assert_eq!(
+        tight["horizons"][0]["position_error_m"],
+        none["horizons"][0]["position_error_m"]
+    );
+    assert_eq!(
+        tight["horizons"][0]["yaw_error_rad"],
+        none["horizons"][0]["yaw_error_rad"]
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
