@@ -206,17 +206,19 @@ pub fn evaluate(
     check_settings(settings)?;
     recording.check(to_nanos(settings.max_gap_s))?;
     let origin = recording.origin();
-    let (_, end) = recording.reference.span()?;
-    // The first odometry once the joint states have begun: the starts fall on odometry stamps.
+    let (reference_begin, end) = recording.reference.span()?;
+    // The first odometry once the joint states and the reference have begun: the starts fall
+    // on odometry stamps, and every one has a reference at or before its horizons.
     let (joints_begin, _) = recording.joint_states.span()?;
+    let begin = joints_begin.max(reference_begin);
     let odom = &recording.odometry;
-    let first = odom.samples[odom.samples.partition_point(|(t, _)| *t < joints_begin)..]
+    let first = odom.samples[odom.samples.partition_point(|(t, _)| *t < begin)..]
         .first()
         .map(|s| s.0)
         .ok_or_else(|| ReplayError::NoStart {
             series: odom.name.clone(),
-            at_s: (joints_begin - origin) as f64 * 1e-9,
-            stamp: show_stamp(joints_begin),
+            at_s: (begin - origin) as f64 * 1e-9,
+            stamp: show_stamp(begin),
         })?;
     let mut predictor = Predictor::from_scene(scene)?;
     let mut assembler = StartAssembler::new(scene, recording, settings.joint_noise)?;
@@ -286,10 +288,15 @@ pub fn evaluate(
             };
             let last = (traj.samples.last())
                 .ok_or_else(|| failed(Error::Invalid("the prediction has no samples".into())))?;
-            let (t_ref, reference) = recording
-                .reference
-                .at_or_before(t_end)
-                .expect("the reference spans t_end: t_end ≤ its last stamp, t0 after its first");
+            let (t_ref, reference) =
+                recording
+                    .reference
+                    .at_or_before(t_end)
+                    .ok_or_else(|| ReplayError::NoStart {
+                        series: recording.reference.name.clone(),
+                        at_s: (t_end - origin) as f64 * 1e-9,
+                        stamp: show_stamp(t_end),
+                    })?;
             let record = score(
                 &scene.model,
                 (

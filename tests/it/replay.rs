@@ -58,11 +58,12 @@ fn lookups_are_exact_at_nanosecond_instants() {
 
 #[test]
 fn a_recording_names_the_series_and_time_it_refuses() {
-    let mut rec = Recording::default();
-    rec.odometry = Series::new("/odom");
-    rec.reference = Series::new("/odom");
-    rec.joint_states = Series::new("/joint_states");
-    rec.commands = Series::new("/cmd_vel");
+    let mut rec = Recording {
+        odometry: Series::new("/odom"),
+        reference: Series::new("/odom"),
+        joint_states: Series::new("/joint_states"),
+        commands: Series::new("/cmd_vel"),
+    };
     let e = rec.check(500_000_000).unwrap_err().to_string();
     assert_eq!(e, "/odom: no messages");
     let js = |names: usize, pos: Vec<f64>| JointStates {
