@@ -24,6 +24,7 @@ pub mod linalg;
 pub mod model;
 pub mod predict;
 pub mod projection;
+pub mod replay;
 pub mod robot_limits;
 pub mod scene;
 mod scene_errors;

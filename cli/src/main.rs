@@ -3,6 +3,7 @@
 mod covariance;
 mod envelope;
 mod eval;
+mod evaluate;
 #[cfg(test)]
 mod fuzz_tests;
 mod json;
@@ -33,6 +34,9 @@ enum Command {
     Envelope(envelope::EnvelopeArgs),
     /// Constrained forward dynamics at one state: q̈, multipliers and constraint forces.
     Eval(eval::EvalArgs),
+    /// How well a scene predicts a recorded drive (rosbag2 MCAP): errors per horizon against the
+    /// recorded odometry (or a ground truth), and the predicted covariance's coverage.
+    Evaluate(evaluate::EvaluateArgs),
     /// Linearize one integrator step: A = ∂x⁺/∂x, B = ∂x⁺/∂τ (x = (q, v), tangent space).
     Linearize(linearize::LinearizeArgs),
     /// Propagate a scene over a horizon: samples of q, v (λ with --forces), residuals, energy.
@@ -49,6 +53,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Envelope(a) => envelope::run(a),
         Command::Eval(a) => eval::run(a),
+        Command::Evaluate(a) => evaluate::run(a),
         Command::Linearize(a) => linearize::run(a),
         Command::Predict(a) => predict::run(*a),
         Command::Report(a) => report::run(a),

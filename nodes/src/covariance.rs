@@ -1,77 +1,18 @@
-//! Covariances between ROS messages and the core's tangent space (pure functions, no ROS
-//! handles).
-//!
-//! The core propagates P over x = [δq; δv] (2nv × 2nv, velocity order), δq a **right**
-//! perturbation q ⊕ δq: for the base, δq is expressed in the **base** frame
-//! (`src/predict/covariance.rs`, `src/predict/integrators/lie.rs`). ROS states it differently (REP-103,
-//! REP-105, `nav_msgs/Odometry`):
-//! - the pose covariance is over (x, y, z, rotation about X, Y, Z) of the **odom** frame — a
-//!   small displacement of the position and a small rotation about the fixed odom axes;
-//! - the twist covariance is over (vx, vy, vz, ωx, ωy, ωz) in the **child (base)** frame.
-//!
-//! To first order a right perturbation (ρ, φ) of the base pose (p, R) moves it to
-//! (p + R ρ, R Exp(φ)) = (p + R ρ, Exp(R φ) R): the odom-frame displacement is R ρ and the
-//! odom-frame rotation R φ. So with G = diag(Rᵀ, Rᵀ) (planar: diag(R₂ᵀ, 1) over x, y, yaw),
-//! `P_qq(base) = G Σ_pose Gᵀ` on the way in and `Σ_pose = Gᵀ P_qq(base) G` on the way out.
-//! The twist is in the base frame on both sides and the core's v is too: copied as is.
-//! A planar base uses the x, y, yaw and vx, vy, ωz entries; a floating base all six.
+//! Odometry covariances in ROS messages: the check of what arrives. The conversions between
+//! their REP-103 layout and the core's tangent space are the core's
+//! (`constraint_dynamics::model::base_covariance`), re-exported here.
 
-use constraint_dynamics::{BaseType, Model};
-use nalgebra::{DMatrix, Matrix3, Quaternion, UnitQuaternion};
+use constraint_dynamics::BaseType;
+pub use constraint_dynamics::model::base_covariance::{
+    JointSigma, add_age_noise, odometry_covariance, rep103_indices, start_covariance,
+};
+
+#[cfg(test)]
+use constraint_dynamics::Model;
+#[cfg(test)]
+use constraint_dynamics::model::base_covariance::{covariance_block as block, world_to_body};
 
 use crate::error::NodeError;
-
-/// Indices of the planar base's (x, y, yaw) in a REP-103 6×6 covariance.
-const PLANAR: [usize; 3] = [0, 1, 5];
-
-/// The odom-frame → base-frame rotation block G of the base's configuration coordinates at q
-/// (nb × nb, nb = 3 planar / 6 floating / 0 fixed): a world displacement d is the right
-/// perturbation G d.
-fn world_to_body(model: &Model, q: &[f64]) -> DMatrix<f64> {
-    match model.base {
-        BaseType::Fixed => DMatrix::zeros(0, 0),
-        BaseType::Planar => {
-            let (s, c) = q[2].sin_cos();
-            DMatrix::from_row_slice(3, 3, &[c, s, 0.0, -s, c, 0.0, 0.0, 0.0, 1.0])
-        }
-        BaseType::Floating => {
-            let quat = UnitQuaternion::from_quaternion(Quaternion::new(q[6], q[3], q[4], q[5]));
-            let rt: Matrix3<f64> = quat.to_rotation_matrix().into_inner().transpose();
-            let mut g = DMatrix::zeros(6, 6);
-            g.view_mut((0, 0), (3, 3)).copy_from(&rt);
-            g.view_mut((3, 3), (3, 3)).copy_from(&rt);
-            g
-        }
-    }
-}
-
-/// The REP-103 indices (of x, y, z, rx, ry, rz) the base's coordinates use.
-fn rep103_indices(base: BaseType) -> &'static [usize] {
-    match base {
-        BaseType::Fixed => &[],
-        BaseType::Planar => &PLANAR,
-        BaseType::Floating => &[0, 1, 2, 3, 4, 5],
-    }
-}
-
-/// The block of a row-major 6×6 covariance over `idx`, symmetrised (ROS publishers round
-/// differently above and below the diagonal) and with negative eigenvalues clipped to 0 (a
-/// covariance that is not positive semidefinite would grow negative variances).
-fn block(c: &[f64; 36], idx: &[usize]) -> DMatrix<f64> {
-    let n = idx.len();
-    let m = DMatrix::from_fn(n, n, |i, j| {
-        0.5 * (c[6 * idx[i] + idx[j]] + c[6 * idx[j] + idx[i]])
-    });
-    if n == 0 {
-        return m;
-    }
-    let eig = m.clone().symmetric_eigen();
-    if eig.eigenvalues.iter().all(|&l| l >= 0.0) {
-        return m;
-    }
-    let d = DMatrix::from_diagonal(&eig.eigenvalues.map(|l| l.max(0.0)));
-    &eig.eigenvectors * d * eig.eigenvectors.transpose()
-}
 
 /// Checks the entries of an odometry covariance the base uses: finite, diagonal ≥ 0.
 pub fn check_odometry_covariance(
@@ -92,84 +33,6 @@ pub fn check_odometry_covariance(
         }
     }
     Ok(())
-}
-
-/// Joint-state noise of one 1-DOF joint: standard deviations of its position [rad or m] and
-/// velocity [rad/s or m/s].
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct JointSigma {
-    /// σ of the position [rad or m].
-    pub position: f64,
-    /// σ of the velocity [rad/s or m/s].
-    pub velocity: f64,
-}
-
-/// The start covariance in the core's tangent space (2nv × 2nv, [δq; δv]) at configuration q:
-/// the odometry's pose covariance (odom frame) turned into the base's right perturbation, its
-/// twist covariance (base frame) as is, and `joints` (v index, σ) on the diagonal. Pose and
-/// twist are independent (`nav_msgs/Odometry` has no cross term).
-pub fn start_covariance(
-    model: &Model,
-    q: &[f64],
-    pose: &[f64; 36],
-    twist: &[f64; 36],
-    joints: &[(usize, JointSigma)],
-) -> DMatrix<f64> {
-    let nv = model.nv;
-    let mut p = DMatrix::zeros(2 * nv, 2 * nv);
-    let idx = rep103_indices(model.base);
-    let nb = idx.len();
-    if nb > 0 {
-        let g = world_to_body(model, q);
-        let body = &g * block(pose, idx) * g.transpose();
-        // Exactly symmetric (rounding differs above and below the diagonal; the core checks).
-        let body = (&body + body.transpose()) * 0.5;
-        p.view_mut((0, 0), (nb, nb)).copy_from(&body);
-        p.view_mut((nv, nv), (nb, nb)).copy_from(&block(twist, idx));
-    }
-    for &(iv, s) in joints {
-        p[(iv, iv)] = s.position * s.position;
-        p[(nv + iv, nv + iv)] = s.velocity * s.velocity;
-    }
-    p
-}
-
-/// Adds the process noise of `age` [s] to P: white acceleration noise of density σᵢ per
-/// velocity coordinate (`noise[i] = σᵢ²`) integrated as the core does over a step (a double
-/// integrator), `σᵢ² [a³/3, a²/2; a²/2, a]` on (δqᵢ, δvᵢ). What the state may have drifted by
-/// since it was measured, the motion over the age aside.
-pub fn add_age_noise(p: &mut DMatrix<f64>, noise: &[f64], age: f64) {
-    let nv = noise.len();
-    let a = age.max(0.0);
-    for (i, &s2) in noise.iter().enumerate() {
-        p[(i, i)] += s2 * a * a * a / 3.0;
-        p[(i, nv + i)] += s2 * a * a / 2.0;
-        p[(nv + i, i)] += s2 * a * a / 2.0;
-        p[(nv + i, nv + i)] += s2 * a;
-    }
-}
-
-/// The odometry covariances (pose in the odom frame, twist in the base frame, REP-103 6×6
-/// row-major) of a tangent-space covariance P (2nv × 2nv) at configuration q. Axes the base
-/// does not have (a planar base's z, roll, pitch) are left 0 here; the caller adds its floors.
-pub fn odometry_covariance(model: &Model, q: &[f64], p: &[Vec<f64>]) -> ([f64; 36], [f64; 36]) {
-    let nv = model.nv;
-    let idx = rep103_indices(model.base);
-    let nb = idx.len();
-    let (mut pose, mut twist) = ([0.0; 36], [0.0; 36]);
-    if nb == 0 {
-        return (pose, twist);
-    }
-    let g = world_to_body(model, q);
-    let body = DMatrix::from_fn(nb, nb, |i, j| p[i][j]);
-    let world = g.transpose() * body * &g;
-    for (a, &i) in idx.iter().enumerate() {
-        for (b, &j) in idx.iter().enumerate() {
-            pose[6 * i + j] = 0.5 * (world[(a, b)] + world[(b, a)]);
-            twist[6 * i + j] = 0.5 * (p[nv + a][nv + b] + p[nv + b][nv + a]);
-        }
-    }
-    (pose, twist)
 }
 
 #[cfg(test)]

@@ -3,6 +3,7 @@
 
 use super::*;
 use constraint_dynamics::Scene;
+use nalgebra::{DMatrix, Matrix3, Quaternion, UnitQuaternion};
 use std::sync::Arc;
 
 fn model(scene: &str) -> Arc<Model> {

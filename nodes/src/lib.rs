@@ -17,6 +17,7 @@
 
 #![warn(missing_docs)]
 
+pub mod bag;
 pub mod convert;
 pub mod covariance;
 pub mod error;

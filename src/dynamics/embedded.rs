@@ -114,6 +114,7 @@ fn declared_dependents(set: &ConstraintSet, out: &mut Vec<(usize, usize)>) {
 /// The seed's eq. (2): the declared dependent velocities solved from f(q, v_i, v_d, t) = 0 by
 /// Newton's method, the other velocities held, into `ws.v_solved` (`ws.solved` false when
 /// nothing is declared). Leaves `cd` evaluated at the corrected state.
+#[allow(clippy::too_many_arguments)]
 fn solve_dependent_velocities(
     model: &Model,
     data: &mut Data,

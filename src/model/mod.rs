@@ -7,6 +7,7 @@
 //! coordinates follow the same order (base coordinates first).
 
 mod base;
+pub mod base_covariance;
 mod build;
 mod check;
 mod inertial;

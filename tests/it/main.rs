@@ -56,6 +56,7 @@ mod radau;
 mod reference_dynamics;
 mod reference_terms;
 mod refusals;
+mod replay;
 mod rollouts;
 mod rollouts_planner;
 mod sdirk2_steps;

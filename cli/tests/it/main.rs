@@ -6,6 +6,7 @@ mod common;
 mod covariance_cli;
 mod envelope_cli;
 mod eval_cli;
+mod evaluate_cli;
 mod hostile_cli;
 mod linearize_cli;
 mod project_cli;

@@ -11,6 +11,7 @@ mod counting_alloc;
 mod fuzz_support;
 mod suite_fixture;
 
+mod bag_reader;
 mod fuzz_requests;
 mod golden_messages;
 mod large_replies;
