@@ -55,9 +55,13 @@ pub struct PredictedSample<'a> {
 /// [m/s], ωz [rad/s]).
 #[derive(Clone, Copy, Debug)]
 pub struct MeasuredOdometry {
+    /// Its stamp [s].
     pub t: f64,
+    /// The base's pose in the odom frame.
     pub pose: PlanarPose,
+    /// The pose's covariance (the odometry's own).
     pub covariance: PlanarCovariance,
+    /// The base's twist in its own frame.
     pub twist: [f64; 3],
 }
 
@@ -108,8 +112,9 @@ pub struct HorizonReport {
     pub position_median: f64,
     /// Median |dyaw| [rad].
     pub yaw_median: f64,
-    /// Median and mean NEES (χ²₃ under a consistent model: median 2.366, mean 3).
+    /// Median NEES (χ²₃ under a consistent model: median 2.366).
     pub nees_median: f64,
+    /// Mean NEES (χ²₃: 3).
     pub nees_mean: f64,
     /// Joint state samples in the window (of the joint with the most).
     pub effort_samples: usize,

@@ -26,23 +26,35 @@ pub enum Cause {
     /// Joint `joint`'s effort is off by `error` (median, measured − predicted) at `horizon`
     /// [s] while the poses match.
     Efforts {
+        /// v index of the joint.
         joint: usize,
+        /// [N·m or N]
         error: f64,
+        /// [s]
         horizon: f64,
     },
     /// The poses are off beyond their covariance at `horizon`: median position error [m], yaw
     /// error [rad] and NEES.
     Poses {
+        /// [s]
         horizon: f64,
+        /// [m]
         position: f64,
+        /// [rad]
         yaw: f64,
+        /// Median NEES.
         nees: f64,
     },
-    /// Both.
+    /// Both: the joint whose efforts are most off and its median error, the horizon whose
+    /// poses are most off and its median NEES.
     Both {
+        /// v index of the joint.
         joint: usize,
+        /// [N·m or N]
         error: f64,
+        /// [s]
         horizon: f64,
+        /// Median NEES.
         nees: f64,
     },
 }

@@ -45,7 +45,10 @@ fn the_tool_frame_is_where_both_models_of_the_robot_put_it() {
     let (p0, v0, w0, r0) = tool(src, &q, &v);
     let (p1, v1, w1, r1) = tool(dst, &qf, &vf);
     let dp = p1 - p0;
-    assert!(v0.norm() > 0.1 && w0.norm() > 0.1, "a state that moves the tool");
+    assert!(
+        v0.norm() > 0.1 && w0.norm() > 0.1,
+        "a state that moves the tool"
+    );
     // The floating base keeps its own height; the planar base sits at z = 0.
     assert!(
         (dp.x.abs()).max(dp.y.abs()) <= TOL,

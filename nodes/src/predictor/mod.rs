@@ -11,6 +11,8 @@
 pub(crate) mod contact_break;
 pub mod envelope;
 pub mod markers;
+mod monitor;
+mod monitor_params;
 pub mod params;
 pub mod ros;
 pub mod smoother;
@@ -33,9 +35,10 @@ use crate::covariance::odometry_covariance;
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::constraint_dynamics_msgs::{AccelerationLimits, ConstraintForces};
-use crate::msg::diagnostic_msgs::KeyValue;
+use crate::msg::diagnostic_msgs::{DiagnosticArray, KeyValue};
 use crate::msg::geometry_msgs::{Twist, WrenchStamped};
 use crate::msg::nav_msgs::{Odometry, Path};
+use crate::msg::sensor_msgs::JointState;
 use crate::msg::std_msgs::Header;
 use crate::msg::visualization_msgs::MarkerArray;
 use crate::node::health::kv;
@@ -64,6 +67,8 @@ pub struct PeriodicOutput {
     /// The base's forward speed at the start state [m/s] (which envelope limits bound a
     /// velocity smoother's acceleration and deceleration).
     pub forward_speed: f64,
+    /// The past predictions scored against what arrived (`monitor.enabled`).
+    pub residuals: Option<DiagnosticArray>,
     /// Time spent computing [s].
     pub compute_s: f64,
 }
@@ -103,6 +108,8 @@ pub struct PredictorNode {
     contacts: Option<ContactCheck>,
     /// The acceleration envelope at the start state (with its own model and workspace).
     envelope: envelope::StartEnvelope,
+    /// Scores past predictions against the odometry and joint states (`monitor.enabled`).
+    monitor: Option<monitor::OnlineMonitor>,
 }
 
 impl NodeLogic for PredictorNode {
@@ -145,7 +152,11 @@ impl NodeLogic for PredictorNode {
             &params.common.state,
             &robot.scene().file.uncertainty,
         )?;
+        let p = &params.node;
+        let monitor = (p.monitor.enabled)
+            .then(|| monitor::OnlineMonitor::new(&p.monitor, p.rate, robot.model().nv));
         Ok(PredictorNode {
+            monitor,
             robot,
             predictor,
             start: (sys, forces),
@@ -189,6 +200,16 @@ impl NodeLogic for PredictorNode {
         }
         self.last_command = finite.then_some(([t.linear.x, t.angular.z], now));
     }
+    fn odometry_applied(&mut self, od: &Odometry) {
+        if let Some(m) = &mut self.monitor {
+            m.odometry(od);
+        }
+    }
+    fn joint_state_applied(&mut self, js: &JointState) {
+        if let Some(m) = &mut self.monitor {
+            m.joint_state(js, self.robot.state());
+        }
+    }
     fn tick_period(&self) -> Option<Duration> {
         Some(Duration::from_secs_f64(1.0 / self.params.node.rate))
     }
@@ -221,6 +242,7 @@ impl NodeLogic for PredictorNode {
             .into_iter()
             .chain(first_break.map(contact_break::warning))
             .chain(self.envelope.warning())
+            .chain(self.monitor.as_ref().and_then(|m| m.warning()))
             .collect()
     }
     fn diagnostics(&self) -> Vec<KeyValue> {
@@ -240,6 +262,7 @@ impl NodeLogic for PredictorNode {
         let contacts = self.contacts.iter().flat_map(contact_break::values);
         values.extend(contacts.map(|(key, value)| kv(key, &value)));
         values.extend(self.envelope.key_values());
+        values.extend(self.monitor.iter().flat_map(|m| m.key_values().iter().cloned()));
         values
     }
     fn rate_shortfall(&self) -> Option<String> {
@@ -312,8 +335,11 @@ impl PredictorNode {
             commands: &commands,
             horizon: self.params.node.horizon(),
             start_covariance: p0.as_ref(),
-            // The odometry carries P at the horizon only.
-            covariance_samples: CovarianceSamples::Last,
+            // The odometry carries P at the horizon only; the monitor scores earlier samples.
+            covariance_samples: match self.monitor {
+                Some(_) => CovarianceSamples::Every,
+                None => CovarianceSamples::Last,
+            },
             // Every sample's contacts judged: no prediction drives past a slip or a lift-off
             // unsaid (`/diagnostics`).
             forces: true,
@@ -356,6 +382,11 @@ impl PredictorNode {
             false => None,
         };
         let forward_speed = self.robot.model().base_twist(&v).linear[0];
+        let residuals = self.monitor.as_mut().map(|m| {
+            let floors = &self.params.node.covariance;
+            m.record(self.robot.model(), &traj, now, floors);
+            m.tick(now, &self.log)
+        });
         let compute_s = t0.elapsed().as_secs_f64();
         self.work = Some(work::PredictionWork::of(&traj, compute_s));
         self.contacts = traj.contact_check;
@@ -367,6 +398,7 @@ impl PredictorNode {
             wrenches,
             limits,
             forward_speed,
+            residuals,
             compute_s,
         })
     }
