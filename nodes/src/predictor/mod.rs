@@ -262,7 +262,11 @@ impl NodeLogic for PredictorNode {
         let contacts = self.contacts.iter().flat_map(contact_break::values);
         values.extend(contacts.map(|(key, value)| kv(key, &value)));
         values.extend(self.envelope.key_values());
-        values.extend(self.monitor.iter().flat_map(|m| m.key_values().iter().cloned()));
+        values.extend(
+            self.monitor
+                .iter()
+                .flat_map(|m| m.key_values().iter().cloned()),
+        );
         values
     }
     fn rate_shortfall(&self) -> Option<String> {
@@ -384,7 +388,7 @@ impl PredictorNode {
         let forward_speed = self.robot.model().base_twist(&v).linear[0];
         let residuals = self.monitor.as_mut().map(|m| {
             let floors = &self.params.node.covariance;
-            m.record(self.robot.model(), &traj, now, floors);
+            m.record(self.robot.model(), &traj, floors);
             m.tick(now, &self.log)
         });
         let compute_s = t0.elapsed().as_secs_f64();

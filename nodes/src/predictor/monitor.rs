@@ -35,6 +35,9 @@ pub struct OnlineMonitor {
     epoch: Option<i64>,
     /// The last odometry's stamp [s after epoch]: the start of the next prediction.
     odom_t: Option<f64>,
+    /// Whether a joint state with efforts came: predictions before it start from the scene's
+    /// initial joints, and their efforts are not scored.
+    efforts_seen: bool,
     /// Which joints (v index) the current joint state gave an effort for.
     measured: Vec<bool>,
     /// Joint names by v index (learned from joint states; "" until seen).
@@ -55,6 +58,7 @@ impl OnlineMonitor {
             core: PredictionMonitor::new(p.settings(rate), nv),
             epoch: None,
             odom_t: None,
+            efforts_seen: false,
             measured: vec![false; nv],
             names: vec![String::new(); nv],
             verdict: None,
@@ -68,19 +72,13 @@ impl OnlineMonitor {
         (ns - epoch) as f64 * 1e-9
     }
 
-    /// Records `traj`'s samples at the monitored horizons, started from the last odometry (or
-    /// at `now` without one). Their covariance is the predicted odometry's: propagated (when
+    /// Records `traj`'s samples at the monitored horizons, started from the last odometry. Their covariance is the predicted odometry's: propagated (when
     /// the samples carry it) plus the integration error estimate and `floors`.
-    pub fn record(
-        &mut self,
-        model: &Model,
-        traj: &Trajectory,
-        now: Time,
-        floors: &CovarianceParams,
-    ) {
-        let t0 = match self.odom_t {
-            Some(t) => t,
-            None => self.seconds(now),
+    pub fn record(&mut self, model: &Model, traj: &Trajectory, floors: &CovarianceParams) {
+        // Before the first odometry the prediction starts from the scene's initial state, not
+        // from anything measured: nothing to score.
+        let Some(t0) = self.odom_t else {
+            return;
         };
         let Some(last_t) = traj.samples.last().map(|s| s.t) else {
             return;
@@ -98,7 +96,10 @@ impl OnlineMonitor {
                 continue;
             };
             let err = s.position_error_estimate();
-            let (sp, so) = (err.hypot(floors.position_floor), err.hypot(floors.orientation_floor));
+            let (sp, so) = (
+                err.hypot(floors.position_floor),
+                err.hypot(floors.orientation_floor),
+            );
             let pose6 = match &s.covariance {
                 Some(p) => odometry_covariance(model, &s.q, p).0,
                 None => [0.0; 36],
@@ -121,7 +122,10 @@ impl OnlineMonitor {
                     t: t0 + s.t,
                     pose: [pose.position[0], pose.position[1], yaw],
                     covariance,
-                    effort: &s.actuator_torque,
+                    effort: match self.efforts_seen {
+                        true => &s.actuator_torque,
+                        false => &[],
+                    },
                 },
             );
         }
@@ -159,6 +163,7 @@ impl OnlineMonitor {
                 }
             }
         }
+        self.efforts_seen = true;
         let t = self.seconds(js.header.stamp);
         self.core.efforts(t, &state.effort, &self.measured);
     }
@@ -187,7 +192,10 @@ impl OnlineMonitor {
         let warning = self.warning();
         let names = self.names.clone();
         let reports = self.core.reports();
-        let status = reports.iter().map(|r| status(r, &warning, &names)).collect();
+        let status = reports
+            .iter()
+            .map(|r| status(r, &warning, &names))
+            .collect();
         self.values = reports.last().map_or(Vec::new(), |r| values(r, &names));
         DiagnosticArray {
             header: Header {
@@ -228,9 +236,15 @@ fn values(r: &HorizonReport, names: &[String]) -> Vec<KeyValue> {
     vec![
         kv("horizon [s]", &format!("{h}")),
         kv("odometry samples", &r.odometry_samples.to_string()),
-        kv("position error median [m]", &format!("{:.3e}", r.position_median)),
+        kv(
+            "position error median [m]",
+            &format!("{:.3e}", r.position_median),
+        ),
         kv("yaw error median [rad]", &format!("{:.3e}", r.yaw_median)),
-        kv("NEES median (chi2 3: 2.37)", &format!("{:.3}", r.nees_median)),
+        kv(
+            "NEES median (chi2 3: 2.37)",
+            &format!("{:.3}", r.nees_median),
+        ),
         kv("NEES mean (chi2 3: 3)", &format!("{:.3}", r.nees_mean)),
         kv("effort samples", &r.effort_samples.to_string()),
         kv("worst effort error median [N m or N]", &effort),
