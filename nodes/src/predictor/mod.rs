@@ -17,6 +17,7 @@ pub mod params;
 pub mod ros;
 pub mod smoother;
 mod smoother_ros;
+mod stale;
 mod work;
 
 use std::time::{Duration, Instant};
@@ -275,35 +276,6 @@ impl NodeLogic for PredictorNode {
 }
 
 impl PredictorNode {
-    /// "odom stale (odom 0.62 s > state.timeout 0.5 s): predictions stopped".
-    fn stale_message(&self, stale: &[String]) -> String {
-        let state = &self.params.common.state;
-        let what = match state.stale_behaviour {
-            StaleBehaviour::Warn => "predicting from the last state, covariance grown",
-            StaleBehaviour::Stop => "predictions stopped",
-        };
-        let names: Vec<&str> = stale.iter().filter_map(|s| s.split(' ').next()).collect();
-        format!(
-            "{} stale ({} > state.timeout {} s): {what}",
-            names.join(", "),
-            stale.join(", "),
-            state.timeout
-        )
-    }
-
-    /// Logs the transitions between fresh and stale inputs (a WARN when they go stale, an INFO
-    /// when they return), not every tick.
-    fn log_stale(&mut self, stale: Vec<String>) {
-        match (self.stale.is_empty(), stale.is_empty()) {
-            (true, false) => self.log.warn(&self.stale_message(&stale)),
-            (false, true) => self
-                .log
-                .info("state inputs fresh again: predicting from them"),
-            _ => {}
-        }
-        self.stale = stale;
-    }
-
     /// One periodic prediction from the latest state under `command` (v, ω) — `None` = no
     /// fresh command (the fallback applies) — from a state `age` [s] old.
     pub fn periodic(
