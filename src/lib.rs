@@ -22,6 +22,7 @@ pub mod forces;
 pub mod limits;
 pub mod linalg;
 pub mod model;
+pub mod monitor;
 pub mod predict;
 pub mod projection;
 pub mod replay;

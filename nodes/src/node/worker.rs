@@ -62,6 +62,10 @@ pub trait NodeLogic: Sized + Send + 'static {
     fn tick(&mut self, _now: Time, _out: &mut dyn FnMut(Self::Output)) -> Result<(), NodeError> {
         Ok(())
     }
+    /// A `joint_states` message, just applied to the robot's state.
+    fn joint_state_applied(&mut self, _js: &JointState) {}
+    /// An `odom` message, just applied to the robot's state.
+    fn odometry_applied(&mut self, _od: &Odometry) {}
     /// Kind-specific values for the node's `/diagnostics` status.
     fn diagnostics(&self) -> Vec<KeyValue> {
         Vec::new()
@@ -417,6 +421,7 @@ impl<N: NodeLogic> Worker<N> {
                     Ok(report) => {
                         self.health.input(Input::JointStates, now);
                         self.logic.robot_mut().state_mut().joint_states_at = Some(now);
+                        self.logic.joint_state_applied(&js);
                         if !report.unknown.is_empty() && !self.warned.unknown_joints {
                             self.warned.unknown_joints = true;
                             self.log.info(&format!(
@@ -439,6 +444,7 @@ impl<N: NodeLogic> Worker<N> {
                     Ok(()) => {
                         self.health.input(Input::Odometry, now);
                         self.logic.robot_mut().state_mut().odom_at = Some(now);
+                        self.logic.odometry_applied(&od);
                     }
                     Err(e) => {
                         let e = e.to_string();

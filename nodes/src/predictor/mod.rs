@@ -11,10 +11,13 @@
 pub(crate) mod contact_break;
 pub mod envelope;
 pub mod markers;
+mod monitor;
+mod monitor_params;
 pub mod params;
 pub mod ros;
 pub mod smoother;
 mod smoother_ros;
+mod stale;
 mod work;
 
 use std::time::{Duration, Instant};
@@ -34,9 +37,10 @@ use crate::covariance::odometry_covariance;
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::constraint_dynamics_msgs::{AccelerationLimits, ConstraintForces};
-use crate::msg::diagnostic_msgs::KeyValue;
+use crate::msg::diagnostic_msgs::{DiagnosticArray, KeyValue};
 use crate::msg::geometry_msgs::{Twist, WrenchStamped};
 use crate::msg::nav_msgs::{Odometry, Path};
+use crate::msg::sensor_msgs::JointState;
 use crate::msg::std_msgs::Header;
 use crate::msg::visualization_msgs::MarkerArray;
 use crate::node::health::kv;
@@ -65,6 +69,8 @@ pub struct PeriodicOutput {
     /// The base's forward speed at the start state [m/s] (which envelope limits bound a
     /// velocity smoother's acceleration and deceleration).
     pub forward_speed: f64,
+    /// The past predictions scored against what arrived (`monitor.enabled`).
+    pub residuals: Option<DiagnosticArray>,
     /// Time spent computing [s].
     pub compute_s: f64,
 }
@@ -107,6 +113,8 @@ pub struct PredictorNode {
     contacts: Option<ContactCheck>,
     /// The acceleration envelope at the start state (with its own model and workspace).
     envelope: envelope::StartEnvelope,
+    /// Scores past predictions against the odometry and joint states (`monitor.enabled`).
+    monitor: Option<monitor::OnlineMonitor>,
 }
 
 impl NodeLogic for PredictorNode {
@@ -149,7 +157,11 @@ impl NodeLogic for PredictorNode {
             &params.common.state,
             &robot.scene().file.uncertainty,
         )?;
+        let p = &params.node;
+        let monitor = (p.monitor.enabled)
+            .then(|| monitor::OnlineMonitor::new(&p.monitor, p.rate, robot.model().nv));
         Ok(PredictorNode {
+            monitor,
             robot,
             predictor,
             start: (sys, forces),
@@ -194,6 +206,16 @@ impl NodeLogic for PredictorNode {
         }
         self.last_command = finite.then_some(([t.linear.x, t.angular.z], now));
     }
+    fn odometry_applied(&mut self, od: &Odometry) {
+        if let Some(m) = &mut self.monitor {
+            m.odometry(od);
+        }
+    }
+    fn joint_state_applied(&mut self, js: &JointState) {
+        if let Some(m) = &mut self.monitor {
+            m.joint_state(js, self.robot.state());
+        }
+    }
     fn tick_period(&self) -> Option<Duration> {
         Some(Duration::from_secs_f64(1.0 / self.params.node.rate))
     }
@@ -226,6 +248,7 @@ impl NodeLogic for PredictorNode {
             .into_iter()
             .chain(first_break.map(contact_break::warning))
             .chain(self.envelope.warning())
+            .chain(self.monitor.as_ref().and_then(|m| m.warning()))
             .collect()
     }
     fn diagnostics(&self) -> Vec<KeyValue> {
@@ -254,6 +277,11 @@ impl NodeLogic for PredictorNode {
         let contacts = self.contacts.iter().flat_map(contact_break::values);
         values.extend(contacts.map(|(key, value)| kv(key, &value)));
         values.extend(self.envelope.key_values());
+        values.extend(
+            self.monitor
+                .iter()
+                .flat_map(|m| m.key_values().iter().cloned()),
+        );
         values
     }
     fn rate_shortfall(&self) -> Option<String> {
@@ -262,35 +290,6 @@ impl NodeLogic for PredictorNode {
 }
 
 impl PredictorNode {
-    /// "odom stale (odom 0.62 s > state.timeout 0.5 s): predictions stopped".
-    fn stale_message(&self, stale: &[String]) -> String {
-        let state = &self.params.common.state;
-        let what = match state.stale_behaviour {
-            StaleBehaviour::Warn => "predicting from the last state, covariance grown",
-            StaleBehaviour::Stop => "predictions stopped",
-        };
-        let names: Vec<&str> = stale.iter().filter_map(|s| s.split(' ').next()).collect();
-        format!(
-            "{} stale ({} > state.timeout {} s): {what}",
-            names.join(", "),
-            stale.join(", "),
-            state.timeout
-        )
-    }
-
-    /// Logs the transitions between fresh and stale inputs (a WARN when they go stale, an INFO
-    /// when they return), not every tick.
-    fn log_stale(&mut self, stale: Vec<String>) {
-        match (self.stale.is_empty(), stale.is_empty()) {
-            (true, false) => self.log.warn(&self.stale_message(&stale)),
-            (false, true) => self
-                .log
-                .info("state inputs fresh again: predicting from them"),
-            _ => {}
-        }
-        self.stale = stale;
-    }
-
     /// One periodic prediction from the latest state under `command` (v, ω) — `None` = no
     /// fresh command (the fallback applies) — from a state `age` [s] old.
     pub fn periodic(
@@ -326,8 +325,11 @@ impl PredictorNode {
             commands: &commands,
             horizon: self.params.node.horizon(),
             start_covariance: p0.as_ref(),
-            // The odometry carries P at the horizon only.
-            covariance_samples: CovarianceSamples::Last,
+            // The odometry carries P at the horizon only; the monitor scores earlier samples.
+            covariance_samples: match self.monitor {
+                Some(_) => CovarianceSamples::Every,
+                None => CovarianceSamples::Last,
+            },
             // Every sample's contacts judged: no prediction drives past a slip or a lift-off
             // unsaid (`/diagnostics`).
             forces: true,
@@ -384,6 +386,11 @@ impl PredictorNode {
             false => None,
         };
         let forward_speed = self.robot.model().base_twist(&v).linear[0];
+        let residuals = self.monitor.as_mut().map(|m| {
+            let floors = &self.params.node.covariance;
+            m.record(self.robot.model(), &traj, floors);
+            m.tick(now, &self.log)
+        });
         let compute_s = t0.elapsed().as_secs_f64();
         self.work = Some(work::PredictionWork::of(&traj, compute_s));
         self.contacts = traj.contact_check;
@@ -395,6 +402,7 @@ impl PredictorNode {
             wrenches,
             limits,
             forward_speed,
+            residuals,
             compute_s,
         })
     }

@@ -2,6 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
+pub use super::monitor_params::MonitorParams;
 use crate::params::work::{MAX_FOOTPRINT_VERTICES, MAX_HORIZON, RATE, in_range};
 use crate::params::{CommandParams, KindParams, ParamsError, WorkBudget, nonempty, positive};
 
@@ -25,6 +26,8 @@ pub struct PredictorParams {
     pub markers: MarkerParams,
     /// The acceleration envelope (`~/acceleration_limits`) and its velocity smoother bridge.
     pub envelope: EnvelopeParams,
+    /// Scoring past predictions against what arrives (`~/prediction_residuals`).
+    pub monitor: MonitorParams,
 }
 
 impl Default for PredictorParams {
@@ -38,6 +41,7 @@ impl Default for PredictorParams {
             publish_forces: true,
             markers: MarkerParams::default(),
             envelope: EnvelopeParams::default(),
+            monitor: MonitorParams::default(),
         }
     }
 }
@@ -73,7 +77,8 @@ impl KindParams for PredictorParams {
         positive("covariance.orientation_floor", c.orientation_floor)?;
         positive("covariance.twist_floor", c.twist_floor)?;
         self.markers.validate()?;
-        self.envelope.validate()
+        self.envelope.validate()?;
+        self.monitor.validate()
     }
 
     /// The horizon (the scene's when 0) within the scene's limits, at `rate`.

@@ -10,6 +10,7 @@ use super::markers::topic_token;
 use super::{PredictorInput, PredictorNode};
 use crate::error::NodeError;
 use crate::msg::constraint_dynamics_msgs::{AccelerationLimits, ConstraintForces};
+use crate::msg::diagnostic_msgs::DiagnosticArray;
 use crate::msg::geometry_msgs::{Twist, TwistStamped, WrenchStamped};
 use crate::msg::nav_msgs::{Odometry, Path};
 use crate::msg::visualization_msgs::MarkerArray;
@@ -132,6 +133,13 @@ impl RosWiring for PredictorNode {
             )?),
             false => None,
         };
+        let residuals_pub = match p.monitor.enabled {
+            true => Some(w.ros.publisher::<DiagnosticArray>(
+                &(w.topic)("~/prediction_residuals"),
+                &qos::reliable(10),
+            )?),
+            false => None,
+        };
         let bridge = match p.envelope.velocity_smoother.is_empty() {
             true => None,
             false => {
@@ -173,6 +181,11 @@ impl RosWiring for PredictorNode {
                     && let Err(e) = p.async_publish(m).await
                 {
                     log.warn(&format!("publish acceleration_limits: {e:?}"));
+                }
+                if let (Some(p), Some(m)) = (&residuals_pub, out.residuals)
+                    && let Err(e) = p.async_publish(m).await
+                {
+                    log.warn(&format!("publish prediction_residuals: {e:?}"));
                 }
                 for (name, msg) in out.wrenches {
                     if let Some(p) = wrench_pubs.get(&name)

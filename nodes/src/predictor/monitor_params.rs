@@ -1,0 +1,166 @@
+//! `monitor.*`: how the predictor scores its own past predictions against the odometry and
+//! joint states that arrive (`~/prediction_residuals`, `/diagnostics`, a WARN naming the likely
+//! cause). Fixed while the node runs.
+
+use serde::{Deserialize, Serialize};
+
+use constraint_dynamics::monitor::{MonitorSettings, Thresholds};
+
+use crate::params::{ParamsError, positive};
+
+/// The most horizons scored, and the longest window: bound the monitor's memory and work.
+pub const MAX_HORIZONS: usize = 16;
+pub const MAX_WINDOW: u32 = 10_000;
+
+/// `monitor.*` (see the module's documentation).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MonitorParams {
+    /// Score the predictions, publish `~/prediction_residuals` and WARN on a mismatch.
+    pub enabled: bool,
+    /// The horizons scored [s] (each > 0; those beyond the prediction's horizon are skipped).
+    pub horizons: Vec<f64>,
+    /// Samples per statistic window (per horizon; [1, 10000]).
+    pub window: u32,
+    /// Samples a window needs before a cause is called ([1, window]).
+    pub min_samples: u32,
+    /// The latest a measurement may arrive after a prediction's due time and still be its
+    /// measurement [s] (> 0).
+    pub max_lag: f64,
+    /// Median NEES of (x, y, yaw) above which the odometry is called off the model (> 0;
+    /// χ²₃'s median is 2.37).
+    pub nees_threshold: f64,
+    /// |Median effort error| of a joint above which its efforts are called off [N·m or N] (> 0).
+    pub effort_threshold: f64,
+    /// A called cause clears below this fraction of its threshold (in (0, 1]).
+    pub clear_ratio: f64,
+}
+
+impl Default for MonitorParams {
+    fn default() -> Self {
+        MonitorParams {
+            enabled: true,
+            horizons: vec![0.25, 0.5, 1.0],
+            window: 50,
+            min_samples: 20,
+            max_lag: 0.1,
+            nees_threshold: 9.0,
+            effort_threshold: 2.0,
+            clear_ratio: 0.5,
+        }
+    }
+}
+
+impl MonitorParams {
+    /// Checks every value, naming the one that is wrong.
+    pub fn validate(&self) -> Result<(), ParamsError> {
+        let h = &self.horizons;
+        if h.is_empty() || h.len() > MAX_HORIZONS || h.iter().any(|x| !(x.is_finite() && *x > 0.0))
+        {
+            return Err(ParamsError::invalid(
+                "monitor.horizons",
+                format!("= {h:?} must be 1 to {MAX_HORIZONS} positive finite times [s]"),
+            ));
+        }
+        if !(1..=MAX_WINDOW).contains(&self.window) {
+            return Err(ParamsError::invalid(
+                "monitor.window",
+                format!("= {} must be in [1, {MAX_WINDOW}]", self.window),
+            ));
+        }
+        if !(1..=self.window).contains(&self.min_samples) {
+            return Err(ParamsError::invalid(
+                "monitor.min_samples",
+                format!("= {} must be in [1, monitor.window]", self.min_samples),
+            ));
+        }
+        positive("monitor.max_lag", self.max_lag)?;
+        positive("monitor.nees_threshold", self.nees_threshold)?;
+        positive("monitor.effort_threshold", self.effort_threshold)?;
+        let c = self.clear_ratio;
+        if !(c > 0.0 && c <= 1.0) {
+            return Err(ParamsError::invalid(
+                "monitor.clear_ratio",
+                format!("= {c} must be in (0, 1]"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The core's settings, for predictions at `rate` [Hz].
+    pub fn settings(&self, rate: f64) -> MonitorSettings {
+        let longest = self.horizons.iter().copied().fold(0.0, f64::max);
+        MonitorSettings {
+            horizons: self.horizons.clone(),
+            window: self.window as usize,
+            // Every prediction pending until its measurement, with room for a late one.
+            pending: ((longest + self.max_lag) * rate).ceil().clamp(1.0, 1e5) as usize + 2,
+            max_lag: self.max_lag,
+            thresholds: Thresholds {
+                min_samples: self.min_samples as usize,
+                nees: self.nees_threshold,
+                effort: self.effort_threshold,
+                clear_ratio: self.clear_ratio,
+            },
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_values_are_named() {
+        let bad = |p: MonitorParams, name: &str| {
+            let e = p.validate().unwrap_err().to_string();
+            assert!(e.contains(name), "{e}");
+        };
+        let d = MonitorParams::default();
+        assert!(d.validate().is_ok());
+        bad(
+            MonitorParams {
+                horizons: vec![0.5, -1.0],
+                ..d.clone()
+            },
+            "monitor.horizons",
+        );
+        bad(
+            MonitorParams {
+                horizons: vec![],
+                ..d.clone()
+            },
+            "monitor.horizons",
+        );
+        bad(
+            MonitorParams {
+                window: 0,
+                ..d.clone()
+            },
+            "monitor.window",
+        );
+        bad(
+            MonitorParams {
+                min_samples: 51,
+                ..d.clone()
+            },
+            "monitor.min_samples",
+        );
+        bad(
+            MonitorParams {
+                clear_ratio: 0.0,
+                ..d.clone()
+            },
+            "monitor.clear_ratio",
+        );
+        bad(
+            MonitorParams {
+                nees_threshold: f64::NAN,
+                ..d.clone()
+            },
+            "monitor.nees_threshold",
+        );
+        // 1 s + 0.1 s at 10 Hz: 11 pending, and 2 spare.
+        assert_eq!(d.settings(10.0).pending, 13);
+    }
+}

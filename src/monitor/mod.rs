@@ -1,0 +1,359 @@
+//! Scoring a predictor's own past predictions against the measurements that arrive.
+//!
+//! Each periodic prediction leaves, per monitored horizon h, one predicted sample: the planar
+//! base pose (x, y, yaw) in the odom frame with its covariance P, and the joints' efforts, due
+//! at t₀ + h. The first odometry (and joint state) at or after that time is its measurement
+//! (no interpolation; a measurement more than `max_lag` late is not one). The odometry's pose
+//! is carried back to the due time along its own twist (the lag is a fraction of the
+//! odometry's period, and at 0.5 m/s even 10 ms are 5 mm, more than the errors scored). Per
+//! horizon the monitor keeps, over its last `window` samples, the median position error
+//! |(dx, dy)| [m], yaw error |dyaw| [rad], the NEES eᵀ (P + R)⁻¹ e of e = (dx, dy, dyaw) with R
+//! the odometry's own covariance, and each joint's median signed effort error
+//! (measured − predicted) [N·m or N]. [`verdict`] turns these into a verdict with hysteresis.
+//!
+//! Everything is allocated at construction: recording a prediction and scoring a measurement
+//! allocate nothing.
+
+mod stats;
+pub mod verdict;
+
+pub use stats::{PlanarCovariance, PlanarPose, Window, nees, yaw_difference};
+pub use verdict::{Cause, Thresholds, Verdict};
+
+/// How the monitor scores.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MonitorSettings {
+    /// The horizons scored [s] (> 0).
+    pub horizons: Vec<f64>,
+    /// Samples per statistic window (≥ 1).
+    pub window: usize,
+    /// Predictions awaiting their measurement, per horizon (≥ 1): at least the prediction
+    /// rate × the longest horizon, or the oldest are dropped.
+    pub pending: usize,
+    /// The latest a measurement may arrive after a predicted sample's time and still be its
+    /// measurement [s].
+    pub max_lag: f64,
+    /// When the verdict calls the model off.
+    pub thresholds: Thresholds,
+}
+
+/// What one periodic prediction predicts at one horizon.
+#[derive(Clone, Copy, Debug)]
+pub struct PredictedSample<'a> {
+    /// When it is due (the prediction's start + the sample's time) [s].
+    pub t: f64,
+    /// The base's pose in the odom frame.
+    pub pose: PlanarPose,
+    /// Its covariance (the propagated one and the node's floors).
+    pub covariance: PlanarCovariance,
+    /// The joints' efforts (actuator torques) [N·m or N], one per joint the monitor was built
+    /// with.
+    pub effort: &'a [f64],
+}
+
+/// A measured odometry: time [s], pose, covariance and twist in the base frame (vx [m/s], vy
+/// [m/s], ωz [rad/s]).
+#[derive(Clone, Copy, Debug)]
+pub struct MeasuredOdometry {
+    /// Its stamp [s].
+    pub t: f64,
+    /// The base's pose in the odom frame.
+    pub pose: PlanarPose,
+    /// The pose's covariance (the odometry's own).
+    pub covariance: PlanarCovariance,
+    /// The base's twist in its own frame.
+    pub twist: [f64; 3],
+}
+
+/// A pending predicted sample's odometry part.
+#[derive(Clone, Copy, Debug, Default)]
+struct PendingPose {
+    t: f64,
+    pose: PlanarPose,
+    covariance: PlanarCovariance,
+}
+
+/// A ring of pending samples, ordered by due time, its efforts in a flat array beside it.
+#[derive(Clone, Debug)]
+struct Pending {
+    poses: Vec<PendingPose>,
+    /// Slot i's efforts at [i·ne, (i+1)·ne).
+    efforts: Vec<f64>,
+    /// Oldest slot awaiting its odometry, and how many; the same for the joint states.
+    pose_head: usize,
+    pose_len: usize,
+    effort_head: usize,
+    effort_len: usize,
+    next: usize,
+}
+
+/// One horizon's statistics.
+#[derive(Clone, Debug)]
+struct Track {
+    horizon: f64,
+    pending: Pending,
+    position: Window,
+    yaw: Window,
+    nees: Window,
+    /// One window of signed effort errors per joint.
+    effort: Vec<Window>,
+    /// Predictions whose measurement came too late or never (overwritten while pending).
+    unmatched: usize,
+}
+
+/// One horizon's figures (NaN where there are no samples yet).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HorizonReport {
+    /// [s]
+    pub horizon: f64,
+    /// Odometry samples in the window.
+    pub odometry_samples: usize,
+    /// Median |(dx, dy)| [m].
+    pub position_median: f64,
+    /// Median |dyaw| [rad].
+    pub yaw_median: f64,
+    /// Median NEES (χ²₃ under a consistent model: median 2.366).
+    pub nees_median: f64,
+    /// Mean NEES (χ²₃: 3).
+    pub nees_mean: f64,
+    /// Joint state samples in the window (of the joint with the most).
+    pub effort_samples: usize,
+    /// The joint whose median signed effort error is largest in magnitude, and that median
+    /// [N·m or N] (None before any joint state).
+    pub effort_worst: Option<(usize, f64)>,
+    /// Predictions not matched by a measurement in time.
+    pub unmatched: usize,
+}
+
+/// Scores past predictions (see the module's documentation).
+#[derive(Clone, Debug)]
+pub struct PredictionMonitor {
+    settings: MonitorSettings,
+    joints: usize,
+    tracks: Vec<Track>,
+    scratch: Vec<f64>,
+    reports: Vec<HorizonReport>,
+    verdict: verdict::Hysteresis,
+}
+
+impl PredictionMonitor {
+    /// A monitor of `joints` efforts (0: poses only).
+    pub fn new(settings: MonitorSettings, joints: usize) -> Self {
+        let cap = settings.pending.max(1);
+        let window = settings.window.max(1);
+        let tracks = settings
+            .horizons
+            .iter()
+            .map(|&horizon| Track {
+                horizon,
+                pending: Pending {
+                    poses: vec![PendingPose::default(); cap],
+                    efforts: vec![0.0; cap * joints],
+                    pose_head: 0,
+                    pose_len: 0,
+                    effort_head: 0,
+                    effort_len: 0,
+                    next: 0,
+                },
+                position: Window::new(window),
+                yaw: Window::new(window),
+                nees: Window::new(window),
+                effort: vec![Window::new(window); joints],
+                unmatched: 0,
+            })
+            .collect();
+        let reports = Vec::with_capacity(settings.horizons.len());
+        PredictionMonitor {
+            scratch: vec![0.0; window],
+            verdict: verdict::Hysteresis::default(),
+            settings,
+            joints,
+            tracks,
+            reports,
+        }
+    }
+
+    /// The settings it scores with.
+    pub fn settings(&self) -> &MonitorSettings {
+        &self.settings
+    }
+
+    /// Forgets every pending prediction and statistic (a new model, a jump in time).
+    pub fn reset(&mut self) {
+        for tr in &mut self.tracks {
+            let p = &mut tr.pending;
+            (p.pose_len, p.effort_len) = (0, 0);
+            tr.position.clear();
+            tr.yaw.clear();
+            tr.nees.clear();
+            tr.effort.iter_mut().for_each(Window::clear);
+            tr.unmatched = 0;
+        }
+        self.verdict = verdict::Hysteresis::default();
+    }
+
+    /// Records the predicted sample of horizon `index` (in `settings.horizons`). A sample due
+    /// before one already pending (time went back) restarts that horizon's queue.
+    pub fn record(&mut self, index: usize, s: &PredictedSample) {
+        let ne = self.joints;
+        let Some(tr) = self.tracks.get_mut(index) else {
+            return;
+        };
+        let p = &mut tr.pending;
+        let cap = p.poses.len();
+        let newest = (p.next + cap - 1) % cap;
+        if (p.pose_len > 0 || p.effort_len > 0) && s.t < p.poses[newest].t {
+            (p.pose_len, p.effort_len) = (0, 0);
+        }
+        // A full ring drops its oldest (an unmatched prediction).
+        if p.pose_len == cap {
+            p.pose_head = (p.pose_head + 1) % cap;
+            p.pose_len -= 1;
+            tr.unmatched += 1;
+        }
+        if p.effort_len == cap {
+            p.effort_head = (p.effort_head + 1) % cap;
+            p.effort_len -= 1;
+        }
+        let i = p.next;
+        p.poses[i] = PendingPose {
+            t: s.t,
+            pose: s.pose,
+            covariance: s.covariance,
+        };
+        if ne > 0 && s.effort.len() == ne {
+            p.efforts[i * ne..(i + 1) * ne].copy_from_slice(s.effort);
+        } else if ne > 0 {
+            p.efforts[i * ne..(i + 1) * ne].fill(f64::NAN);
+        }
+        if p.pose_len == 0 {
+            p.pose_head = i;
+        }
+        if p.effort_len == 0 {
+            p.effort_head = i;
+        }
+        p.pose_len += 1;
+        p.effort_len += 1;
+        p.next = (i + 1) % cap;
+    }
+
+    /// Scores the pending predictions due at or before `m.t` against the odometry `m`.
+    pub fn odometry(&mut self, m: &MeasuredOdometry) {
+        let max_lag = self.settings.max_lag;
+        for tr in &mut self.tracks {
+            let p = &mut tr.pending;
+            let cap = p.poses.len();
+            while p.pose_len > 0 && p.poses[p.pose_head].t <= m.t {
+                let due = p.poses[p.pose_head];
+                p.pose_head = (p.pose_head + 1) % cap;
+                p.pose_len -= 1;
+                let lag = m.t - due.t;
+                if lag > max_lag {
+                    tr.unmatched += 1;
+                    continue;
+                }
+                let back = pose_back_along(&m.pose, &m.twist, lag);
+                let e = [
+                    back[0] - due.pose[0],
+                    back[1] - due.pose[1],
+                    yaw_difference(back[2], due.pose[2]),
+                ];
+                if !e.iter().all(|x| x.is_finite()) {
+                    continue;
+                }
+                tr.position.push(e[0].hypot(e[1]));
+                tr.yaw.push(e[2].abs());
+                let mut s = due.covariance;
+                for (r, mr) in s.iter_mut().zip(&m.covariance) {
+                    for (x, mx) in r.iter_mut().zip(mr) {
+                        *x += mx;
+                    }
+                }
+                if let Some(n) = nees(e, &s) {
+                    tr.nees.push(n);
+                }
+            }
+        }
+    }
+
+    /// Scores the pending predictions due at or before `t` [s] against the joints' measured
+    /// efforts `effort` (one per joint; `measured[j]` false: joint j has no effort in this
+    /// message).
+    pub fn efforts(&mut self, t: f64, effort: &[f64], measured: &[bool]) {
+        let (ne, max_lag) = (self.joints, self.settings.max_lag);
+        if ne == 0 || effort.len() != ne || measured.len() != ne {
+            return;
+        }
+        for tr in &mut self.tracks {
+            let p = &mut tr.pending;
+            let cap = p.poses.len();
+            while p.effort_len > 0 && p.poses[p.effort_head].t <= t {
+                let i = p.effort_head;
+                p.effort_head = (i + 1) % cap;
+                p.effort_len -= 1;
+                if t - p.poses[i].t > max_lag {
+                    continue;
+                }
+                let predicted = &p.efforts[i * ne..(i + 1) * ne];
+                for (j, w) in tr.effort.iter_mut().enumerate() {
+                    let e = effort[j] - predicted[j];
+                    if measured[j] && e.is_finite() {
+                        w.push(e);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Each horizon's figures, computed now (no allocation after the first call).
+    pub fn reports(&mut self) -> &[HorizonReport] {
+        self.reports.clear();
+        let s = &mut self.scratch;
+        for tr in &self.tracks {
+            let worst = tr
+                .effort
+                .iter()
+                .enumerate()
+                .filter(|(_, w)| !w.is_empty())
+                .map(|(j, w)| (j, w.median(s)))
+                .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
+            self.reports.push(HorizonReport {
+                horizon: tr.horizon,
+                odometry_samples: tr.position.len(),
+                position_median: tr.position.median(s),
+                yaw_median: tr.yaw.median(s),
+                nees_median: tr.nees.median(s),
+                nees_mean: tr.nees.mean(),
+                effort_samples: tr.effort.iter().map(Window::len).max().unwrap_or(0),
+                effort_worst: worst,
+                unmatched: tr.unmatched,
+            });
+        }
+        &self.reports
+    }
+
+    /// The verdict on the latest figures, with hysteresis: a cause is called once its figure
+    /// passes its threshold over at least `min_samples` samples, and cleared once it falls
+    /// below `clear_ratio` × the threshold. Returns it and whether it changed.
+    pub fn assess(&mut self) -> (Verdict, bool) {
+        self.reports();
+        let t = &self.settings.thresholds;
+        self.verdict.update(&self.reports, t)
+    }
+}
+
+/// `pose` carried back by `lag` [s] along `twist` (base frame; first order).
+fn pose_back_along(pose: &PlanarPose, twist: &[f64; 3], lag: f64) -> PlanarPose {
+    if lag <= 0.0 || !twist.iter().all(|x| x.is_finite()) {
+        return *pose;
+    }
+    let (s, c) = pose[2].sin_cos();
+    [
+        pose[0] - lag * (c * twist[0] - s * twist[1]),
+        pose[1] - lag * (s * twist[0] + c * twist[1]),
+        pose[2] - lag * twist[2],
+    ]
+}
+
+#[cfg(test)]
+mod tests;

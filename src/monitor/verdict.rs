@@ -1,0 +1,160 @@
+//! The monitor's verdict: whether the model still matches what arrives, and if not, the likely
+//! cause — the efforts off while the odometry matches (a load the model does not have: a
+//! payload added without telling the node), the poses off beyond their covariance (the base
+//! does not move as modelled: a slippery floor, wrong wheel radius or track), or both.
+
+use super::HorizonReport;
+
+/// When the verdict calls the model off.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Thresholds {
+    /// Samples a horizon's window needs before it may call anything (≥ 1).
+    pub min_samples: usize,
+    /// The median NEES above which the poses are off (χ²₃'s median is 2.37; its 99.9th
+    /// percentile 16.3).
+    pub nees: f64,
+    /// The |median signed effort error| of a joint above which its efforts are off [N·m or N].
+    pub effort: f64,
+    /// A called cause clears once its figure falls below this fraction of its threshold (in
+    /// (0, 1]).
+    pub clear_ratio: f64,
+}
+
+/// What is off, with the figures that show it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Cause {
+    /// Joint `joint`'s effort is off by `error` (median, measured − predicted) at `horizon`
+    /// [s] while the poses match.
+    Efforts {
+        /// v index of the joint.
+        joint: usize,
+        /// [N·m or N]
+        error: f64,
+        /// [s]
+        horizon: f64,
+    },
+    /// The poses are off beyond their covariance at `horizon`: median position error [m], yaw
+    /// error [rad] and NEES.
+    Poses {
+        /// [s]
+        horizon: f64,
+        /// [m]
+        position: f64,
+        /// [rad]
+        yaw: f64,
+        /// Median NEES.
+        nees: f64,
+    },
+    /// Both: the joint whose efforts are most off and its median error, the horizon whose
+    /// poses are most off and its median NEES.
+    Both {
+        /// v index of the joint.
+        joint: usize,
+        /// [N·m or N]
+        error: f64,
+        /// [s]
+        horizon: f64,
+        /// Median NEES.
+        nees: f64,
+    },
+}
+
+impl Cause {
+    /// One sentence naming the likely cause, `joint_name` naming joint indices.
+    pub fn describe(&self, joint_name: &dyn Fn(usize) -> String) -> String {
+        match *self {
+            Cause::Efforts {
+                joint,
+                error,
+                horizon,
+            } => format!(
+                "{}'s effort is off by {error:+.2} (median, measured − predicted) at {horizon} s \
+                 while the odometry matches: a payload added without ~/set_payload?",
+                joint_name(joint)
+            ),
+            Cause::Poses {
+                horizon,
+                position,
+                yaw,
+                nees,
+            } => format!(
+                "the odometry is off the prediction at {horizon} s (median {:.1} mm, {:.1} mrad, \
+                 NEES {nees:.1} ≫ 3): a slippery floor or wrong wheel parameters (radius, track)?",
+                position * 1e3,
+                yaw * 1e3
+            ),
+            Cause::Both {
+                joint,
+                error,
+                horizon,
+                nees,
+            } => format!(
+                "the odometry (NEES {nees:.1} ≫ 3) and {}'s effort ({error:+.2}) are off the \
+                 prediction at {horizon} s: the robot's mass, payload or wheels differ from the \
+                 model",
+                joint_name(joint)
+            ),
+        }
+    }
+}
+
+/// Matching, or off with a cause.
+pub type Verdict = Option<Cause>;
+
+/// Which causes are called (the hysteresis state).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Hysteresis {
+    poses: bool,
+    efforts: bool,
+}
+
+impl Hysteresis {
+    /// The verdict on `reports` under `t`, and whether it changed what is called.
+    pub(super) fn update(&mut self, reports: &[HorizonReport], t: &Thresholds) -> (Verdict, bool) {
+        let enough = |n: usize| n >= t.min_samples.max(1);
+        let clear = t.clear_ratio;
+        // The horizon whose poses are most off, and the joint whose efforts are most off.
+        let poses = reports
+            .iter()
+            .filter(|r| enough(r.odometry_samples) && r.nees_median.is_finite())
+            .max_by(|a, b| a.nees_median.total_cmp(&b.nees_median));
+        let efforts = reports
+            .iter()
+            .filter(|r| enough(r.effort_samples))
+            .filter_map(|r| r.effort_worst.map(|(j, e)| (r.horizon, j, e)))
+            .max_by(|a, b| a.2.abs().total_cmp(&b.2.abs()));
+        let before = (self.poses, self.efforts);
+        let nees = poses.map_or(0.0, |r| r.nees_median);
+        self.poses = match self.poses {
+            false => nees > t.nees,
+            true => nees >= clear * t.nees,
+        };
+        let error = efforts.map_or(0.0, |e| e.2.abs());
+        self.efforts = match self.efforts {
+            false => error > t.effort,
+            true => error >= clear * t.effort,
+        };
+        let changed = before != (self.poses, self.efforts);
+        let verdict = match (poses, efforts, self.poses, self.efforts) {
+            (Some(p), Some((_, joint, error)), true, true) => Some(Cause::Both {
+                joint,
+                error,
+                horizon: p.horizon,
+                nees: p.nees_median,
+            }),
+            (Some(p), _, true, _) => Some(Cause::Poses {
+                horizon: p.horizon,
+                position: p.position_median,
+                yaw: p.yaw_median,
+                nees: p.nees_median,
+            }),
+            (_, Some((horizon, joint, error)), _, true) => Some(Cause::Efforts {
+                joint,
+                error,
+                horizon,
+            }),
+            _ => None,
+        };
+        (verdict, changed)
+    }
+}
