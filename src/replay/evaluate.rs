@@ -267,11 +267,11 @@ pub fn evaluate(
                 covariance_samples: CovarianceSamples::Last,
                 ..PredictionRequest::new(&start.q, &start.v)
             };
-            let failed = |source| ReplayError::Prediction {
+            let failed = |source: Error| ReplayError::Prediction {
                 at_s: (t0 - origin) as f64 * 1e-9,
                 stamp: show_stamp(t0),
                 horizon_s: h,
-                source,
+                source: Box::new(source),
             };
             let (traj, refused) = match predictor.predict(&request) {
                 Err(Error::ErrorEstimateExceeded { .. }) => {

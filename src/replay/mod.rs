@@ -90,7 +90,7 @@ pub enum ReplayError {
         /// Its stamp.
         stamp: String,
         /// The core's reason.
-        source: crate::Error,
+        source: Box<crate::Error>,
     },
     /// A prediction failed (other than by its error bound, which is rerun without it).
     #[error("prediction from {at_s:.3} s (stamp {stamp}) over {horizon_s} s: {source}")]
@@ -102,7 +102,7 @@ pub enum ReplayError {
         /// The horizon [s].
         horizon_s: f64,
         /// The core's reason.
-        source: crate::Error,
+        source: Box<crate::Error>,
     },
     /// The evaluation's settings cannot be used.
     #[error("{0}")]

@@ -110,7 +110,7 @@ impl StartAssembler {
             ReplayError::Start {
                 at_s,
                 stamp: show_stamp(t0),
-                source,
+                source: Box::new(source),
             }
         })?;
         let age_s = (t0 - oldest) as f64 * 1e-9;
