@@ -281,7 +281,7 @@ impl System {
     }
 
     /// Constrained forward dynamics at (q, v, τ); `want_forces` forces the multiplier form under
-    /// `Formulation::Auto`. Returns q̈ (nv); λ is in `self.kkt.lambda` when multipliers were used.
+    /// `Formulation::Auto`. Returns q̈ (nv); λ is [`System::lambda`] when multipliers were used.
     pub fn forward_dynamics(
         &mut self,
         q: &[f64],
@@ -308,7 +308,7 @@ impl System {
     }
 
     /// Constrained forward dynamics at (q, v, τ) with the options of this one call (the
-    /// system's own `formulation` is not consulted). Returns q̈ (nv); λ is in `self.kkt.lambda`
+    /// system's own `formulation` is not consulted). Returns q̈ (nv); λ is [`System::lambda`]
     /// when multipliers were used.
     pub fn forward_dynamics_with(
         &mut self,
