@@ -3,21 +3,12 @@
 
 use crate::common;
 use common::*;
-use std::process::Command;
 
 fn eval(args: &[&str]) -> (bool, serde_json::Value, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_constraint_dynamics"))
-        .arg("eval")
-        .args(args)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    (
-        out.status.success(),
-        serde_json::from_str(&stdout).unwrap_or_default(),
-        stderr,
-    )
+    let args: Vec<&str> = std::iter::once("eval")
+        .chain(args.iter().copied())
+        .collect();
+    crate::run_cli(None, &args)
 }
 
 #[test]

@@ -10,22 +10,12 @@ use crate::common::repo_dir;
 use byteorder::LittleEndian;
 use serde::Deserialize;
 use serde_json::Value;
-use std::process::Command;
 
 fn evaluate(args: &[&str]) -> (bool, Value, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_constraint_dynamics"))
-        .current_dir(std::env::temp_dir())
-        .arg("evaluate")
-        .args(args)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    (
-        out.status.success(),
-        serde_json::from_str(&stdout).unwrap_or_default(),
-        stderr,
-    )
+    let args: Vec<&str> = std::iter::once("evaluate")
+        .chain(args.iter().copied())
+        .collect();
+    crate::run_cli(Some(&std::env::temp_dir()), &args)
 }
 
 #[derive(Deserialize)]
