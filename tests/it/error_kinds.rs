@@ -40,6 +40,25 @@ fn brisk(scene: &Scene, p: &Predictor) -> Vec<(f64, Command)> {
         .collect()
 }
 
+/// The suite's scene with its defaults (a sample every 0.1 s), the brisk commands and its 2 s
+/// answer to them.
+fn brisk_with_defaults() -> (Scene, Predictor, Vec<(f64, Command)>, Trajectory) {
+    let scene = common::scene(SCENE);
+    let mut live = Predictor::from_scene(&scene)
+        .unwrap()
+        .with_settings(|s| s.sample_period = 0.1)
+        .unwrap();
+    let cmds = brisk(&scene, &live);
+    let answer = live
+        .predict(
+            &PredictionRequest::new(&scene.q0, &scene.v0)
+                .commands(&cmds)
+                .horizon(2.0),
+        )
+        .unwrap();
+    (scene, live, cmds, answer)
+}
+
 fn q_index(p: &Predictor, name: &str) -> usize {
     p.model().q_names.iter().position(|x| x == name).unwrap()
 }
@@ -81,19 +100,7 @@ fn gaps(p: &Predictor, a: &Trajectory, b: &Trajectory) -> (f64, f64, f64) {
 /// controllers (its time: benches/live.rs `live/predict/2s_brisk`).
 #[test]
 fn the_brisk_planner_prediction_meets_every_bound_with_the_scene_defaults() {
-    let scene = common::scene(SCENE);
-    let mut live = Predictor::from_scene(&scene)
-        .unwrap()
-        .with_settings(|s| s.sample_period = 0.1)
-        .unwrap();
-    let cmds = brisk(&scene, &live);
-    let answer = live
-        .predict(
-            &PredictionRequest::new(&scene.q0, &scene.v0)
-                .commands(&cmds)
-                .horizon(2.0),
-        )
-        .unwrap();
+    let (_, live, cmds, answer) = brisk_with_defaults();
     let bounds = live.config().settings().error_bounds();
     assert!(
         bounds.base_m <= 5e-3 && bounds.base_rad <= 5e-3,
@@ -119,19 +126,7 @@ fn the_brisk_planner_prediction_meets_every_bound_with_the_scene_defaults() {
 /// the base's metres and radians apart from the joints' (the wheels' angles, 20 × the travel).
 #[test]
 fn each_kind_estimate_tracks_its_true_error() {
-    let scene = common::scene(SCENE);
-    let mut live = Predictor::from_scene(&scene)
-        .unwrap()
-        .with_settings(|s| s.sample_period = 0.1)
-        .unwrap();
-    let cmds = brisk(&scene, &live);
-    let answer = live
-        .predict(
-            &PredictionRequest::new(&scene.q0, &scene.v0)
-                .commands(&cmds)
-                .horizon(2.0),
-        )
-        .unwrap();
+    let (scene, live, cmds, answer) = brisk_with_defaults();
     let exact = fine(&scene, &cmds);
     let model = live.model();
     let mut diff = vec![0.0; model.nv];
