@@ -114,6 +114,12 @@ pub struct DiffDriveSpec {
     /// `ki:` wheel-speed PI integral gain [N·m/rad] (default 0).
     #[serde(default)]
     pub ki: f64,
+    /// `traction_torque:` the largest wheel torque the floor takes before the tyre skids
+    /// [N·m], μ N r; each wheel's torque is clamped to the lesser of it and the URDF effort
+    /// (default: the URDF effort alone). A skidding tyre passes μ N to the floor whatever the
+    /// motor gives, so the base accelerates as under this clamp (docs/contacts.md).
+    #[serde(default)]
+    pub traction_torque: Option<f64>,
 }
 
 /// What a prediction is asked to follow from a time on (piecewise constant).
@@ -279,9 +285,17 @@ impl Actuators {
                         .into(),
                 ));
             }
+            if let Some(t) = d.traction_torque
+                && !(t.is_finite() && t > 0.0)
+            {
+                return Err(Error::Invalid(format!(
+                    "actuators.diff_drive.traction_torque = {t}: must be positive and finite [N·m]"
+                )));
+            }
             let mut idx = [0; 2];
             for (k, name) in [&d.left_joint, &d.right_joint].into_iter().enumerate() {
                 let (iq, iv, effort) = joint(name)?;
+                let effort = d.traction_torque.map_or(effort, |t| effort.min(t));
                 a.velocity.push(Pi {
                     iq,
                     iv,

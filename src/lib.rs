@@ -13,6 +13,7 @@
 pub mod actuators;
 pub mod algorithm;
 pub mod applied;
+pub mod calibrate;
 pub mod constraints;
 pub mod derivatives;
 pub mod dynamics;

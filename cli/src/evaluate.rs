@@ -7,7 +7,7 @@ use constraint_dynamics::replay::{CovarianceFloors, EvaluationSettings, Recordin
 use constraint_dynamics::{Error, Result};
 use constraint_dynamics_nodes::bag::{BagTopics, read_recording};
 use serde_json::{Value, json};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args)]
 pub struct EvaluateArgs {
@@ -20,40 +20,89 @@ pub struct EvaluateArgs {
     /// Horizons [s], comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "0.25,0.5,1,2")]
     horizons: Vec<f64>,
-    /// Period of the start times [s].
-    #[arg(long, default_value_t = 0.5)]
-    every: f64,
-    /// Odometry topic (nav_msgs/Odometry): the start states' base.
-    #[arg(long, default_value = "/odom")]
-    odom_topic: String,
-    /// Joint-state topic (sensor_msgs/JointState): the start states' joints.
-    #[arg(long, default_value = "/joint_states")]
-    joint_states_topic: String,
-    /// Command topic (geometry_msgs/Twist or TwistStamped).
-    #[arg(long, default_value = "/cmd_vel")]
-    cmd_vel_topic: String,
-    /// Score against this nav_msgs/Odometry topic (e.g. a simulator's ground truth) instead of
-    /// the odometry topic.
-    #[arg(long)]
-    truth_topic: Option<String>,
-    /// σ added to the predicted x and y in quadrature [m] (the predictor node's
-    /// covariance.position_floor).
-    #[arg(long, default_value_t = 1e-3)]
-    position_floor: f64,
-    /// σ added to the predicted yaw in quadrature [rad] (covariance.orientation_floor).
-    #[arg(long, default_value_t = 1e-3)]
-    orientation_floor: f64,
-    /// Every joint's state noise "σ_position,σ_velocity" [rad or m, rad/s or m/s] (the node's
-    /// state.joint_noise; default 0).
-    #[arg(long, value_delimiter = ',', num_args = 2)]
-    joint_noise: Option<Vec<f64>>,
-    /// The longest gap allowed in the odometry, joint states and reference [s].
-    #[arg(long, default_value_t = 0.5)]
-    max_gap: f64,
+    #[command(flatten)]
+    replay: ReplayArgs,
     /// Also print every prediction (`records`: start, horizon, predicted and reference pose with
     /// their covariances, errors, NEES).
     #[arg(long)]
     records: bool,
+}
+
+/// How a recorded drive is read and replayed (shared by `evaluate` and `calibrate`).
+#[derive(clap::Args)]
+pub struct ReplayArgs {
+    /// Period of the start times [s].
+    #[arg(long, default_value_t = 0.5)]
+    pub every: f64,
+    /// Odometry topic (nav_msgs/Odometry): the start states' base.
+    #[arg(long, default_value = "/odom")]
+    pub odom_topic: String,
+    /// Joint-state topic (sensor_msgs/JointState): the start states' joints.
+    #[arg(long, default_value = "/joint_states")]
+    pub joint_states_topic: String,
+    /// Command topic (geometry_msgs/Twist or TwistStamped).
+    #[arg(long, default_value = "/cmd_vel")]
+    pub cmd_vel_topic: String,
+    /// Score against this nav_msgs/Odometry topic (e.g. a simulator's ground truth) instead of
+    /// the odometry topic.
+    #[arg(long)]
+    pub truth_topic: Option<String>,
+    /// σ added to the predicted x and y in quadrature [m] (the predictor node's
+    /// covariance.position_floor).
+    #[arg(long, default_value_t = 1e-3)]
+    pub position_floor: f64,
+    /// σ added to the predicted yaw in quadrature [rad] (covariance.orientation_floor).
+    #[arg(long, default_value_t = 1e-3)]
+    pub orientation_floor: f64,
+    /// Every joint's state noise "σ_position,σ_velocity" [rad or m, rad/s or m/s] (the node's
+    /// state.joint_noise; default 0).
+    #[arg(long, value_delimiter = ',', num_args = 2)]
+    pub joint_noise: Option<Vec<f64>>,
+    /// The longest gap allowed in the odometry, joint states and reference [s].
+    #[arg(long, default_value_t = 0.5)]
+    pub max_gap: f64,
+}
+
+impl ReplayArgs {
+    /// The topics to read.
+    pub fn topics(&self) -> BagTopics {
+        BagTopics {
+            odom: self.odom_topic.clone(),
+            joint_states: self.joint_states_topic.clone(),
+            cmd_vel: self.cmd_vel_topic.clone(),
+            reference: self.truth_topic.clone(),
+        }
+    }
+
+    /// The replay's settings over `horizons_s`.
+    pub fn settings(&self, horizons_s: Vec<f64>) -> EvaluationSettings {
+        let joint_noise = match self.joint_noise.as_deref() {
+            Some([position, velocity]) => JointSigma {
+                position: *position,
+                velocity: *velocity,
+            },
+            _ => JointSigma::default(),
+        };
+        EvaluationSettings {
+            horizons_s,
+            every_s: self.every,
+            floors: CovarianceFloors {
+                position_m: self.position_floor,
+                orientation_rad: self.orientation_floor,
+            },
+            joint_noise,
+            max_gap_s: self.max_gap,
+            ..EvaluationSettings::default()
+        }
+    }
+
+    /// The recording of `bag` (a stderr warning if its odometry carries no covariance).
+    pub fn read(&self, bag: &Path) -> Result<Recording> {
+        let recording =
+            read_recording(bag, &self.topics()).map_err(|e| Error::Invalid(e.to_string()))?;
+        warn_without_covariance(&recording);
+        Ok(recording)
+    }
 }
 
 /// A stderr line for what the evaluation assumes of an odometry without covariance.
@@ -70,32 +119,8 @@ fn warn_without_covariance(rec: &Recording) {
 
 pub fn run(a: EvaluateArgs) -> Result<Value> {
     let scene = super::state::load_scene(&a.scene)?;
-    let topics = BagTopics {
-        odom: a.odom_topic,
-        joint_states: a.joint_states_topic,
-        cmd_vel: a.cmd_vel_topic,
-        reference: a.truth_topic,
-    };
-    let recording = read_recording(&a.bag, &topics).map_err(|e| Error::Invalid(e.to_string()))?;
-    warn_without_covariance(&recording);
-    let joint_noise = match a.joint_noise.as_deref() {
-        Some([position, velocity]) => JointSigma {
-            position: *position,
-            velocity: *velocity,
-        },
-        _ => JointSigma::default(),
-    };
-    let settings = EvaluationSettings {
-        horizons_s: a.horizons,
-        every_s: a.every,
-        floors: CovarianceFloors {
-            position_m: a.position_floor,
-            orientation_rad: a.orientation_floor,
-        },
-        joint_noise,
-        max_gap_s: a.max_gap,
-        ..EvaluationSettings::default()
-    };
+    let recording = a.replay.read(&a.bag)?;
+    let settings = a.replay.settings(a.horizons);
     let ev = evaluate(&scene, &recording, &settings)
         .map_err(|e| Error::Invalid(format!("{}: {e}", a.bag.display())))?;
     let mut out = serde_json::to_value(&ev).map_err(|e| Error::Invalid(e.to_string()))?;

@@ -1,5 +1,6 @@
 //! `constraint_dynamics`: inspect a scene from the command line (JSON on stdout).
 
+mod calibrate;
 mod covariance;
 mod envelope;
 mod eval;
@@ -29,6 +30,9 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Fit what a scene does not know (effective rolling radius and track, a heavier chassis,
+    /// turning friction, process noise) to recorded drives, and write the calibrated scene.
+    Calibrate(calibrate::CalibrateArgs),
     /// The base's acceleration envelope at one state: forward acceleration and deceleration,
     /// yaw acceleration left and right, each with what binds it (effort, friction, lift_off).
     Envelope(envelope::EnvelopeArgs),
@@ -51,6 +55,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Calibrate(a) => calibrate::run(a),
         Command::Envelope(a) => envelope::run(a),
         Command::Eval(a) => eval::run(a),
         Command::Evaluate(a) => evaluate::run(a),

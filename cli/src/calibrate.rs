@@ -1,0 +1,148 @@
+//! `calibrate`: fits what a team does not know of its robot to recorded drives (docs/logs.md),
+//! prints the fitted values with their standard errors and each drive's errors before and after
+//! (`evaluate`'s figures), and writes the calibrated scene.
+
+use super::evaluate::ReplayArgs;
+use constraint_dynamics::calibrate::{CalibrationSettings, FitParameter, SceneSource, calibrate};
+use constraint_dynamics::replay::{EvaluationSettings, Recording, evaluate};
+use constraint_dynamics::{Error, Result};
+use serde_json::{Value, json};
+use std::path::{Component, Path, PathBuf};
+use std::time::Instant;
+
+#[derive(clap::Args)]
+pub struct CalibrateArgs {
+    /// Scene file (YAML) to calibrate.
+    #[arg(long)]
+    scene: PathBuf,
+    /// A recorded drive (rosbag2 `.mcap` file or bag directory); repeat for several.
+    #[arg(long, required = true)]
+    bag: Vec<PathBuf>,
+    /// What to fit, comma-separated: rolling_radius, track_offset, base_mass, turning_friction
+    /// (default: every one the scene can take).
+    #[arg(long, value_delimiter = ',')]
+    fit: Vec<String>,
+    /// Do not fit the process noise (the scene's `uncertainty:` stays as it is).
+    #[arg(long)]
+    no_process_noise: bool,
+    /// The horizons the fit weighs [s], comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "0.5,1,2")]
+    horizons: Vec<f64>,
+    /// The horizons of the before/after figures [s], comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "0.25,0.5,1,2")]
+    report_horizons: Vec<f64>,
+    #[command(flatten)]
+    replay: ReplayArgs,
+    /// Where to write the calibrated scene (its `urdf:` rewritten to resolve from there).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// `to` relative to the directory `from` (both absolute).
+fn relative(to: &Path, from: &Path) -> PathBuf {
+    let a: Vec<Component> = to.components().collect();
+    let b: Vec<Component> = from.components().collect();
+    let common = a.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    let mut out = PathBuf::new();
+    for _ in common..b.len() {
+        out.push("..");
+    }
+    for c in &a[common..] {
+        out.push(c.as_os_str());
+    }
+    out
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> Error + '_ {
+    move |source| Error::Io {
+        path: path.display().to_string(),
+        source,
+    }
+}
+
+/// Each drive's figures (evaluate's `horizons`) with `scene`.
+fn figures(
+    scene: &constraint_dynamics::Scene,
+    recordings: &[Recording],
+    settings: &EvaluationSettings,
+) -> Result<Vec<Value>> {
+    recordings
+        .iter()
+        .map(|r| {
+            let ev = evaluate(scene, r, settings).map_err(|e| Error::Invalid(e.to_string()))?;
+            serde_json::to_value(&ev.horizons).map_err(|e| Error::Invalid(e.to_string()))
+        })
+        .collect()
+}
+
+pub fn run(a: CalibrateArgs) -> Result<Value> {
+    let began = Instant::now();
+    let fit = (a.fit.iter())
+        .map(|n| FitParameter::parse(n.trim()).map_err(|e| Error::Invalid(format!("--fit: {e}"))))
+        .collect::<Result<Vec<_>>>()?;
+    let text = std::fs::read_to_string(&a.scene).map_err(io(&a.scene))?;
+    let yaml: serde_yaml::Value = serde_yaml::from_str(&text).map_err(|e| Error::Scene {
+        file: a.scene.display().to_string(),
+        message: e.to_string(),
+    })?;
+    // Loading it as every command does first: the scene's own errors, as they read there.
+    let scene = super::state::load_scene(&a.scene)?;
+    let urdf_rel = yaml
+        .get("urdf")
+        .and_then(|u| u.as_str())
+        .unwrap_or_default();
+    let urdf_path = a.scene.parent().unwrap_or(Path::new(".")).join(urdf_rel);
+    let urdf_text = std::fs::read_to_string(&urdf_path).map_err(io(&urdf_path))?;
+    let urdf_name = urdf_path.display().to_string();
+    let recordings = (a.bag.iter())
+        .map(|b| a.replay.read(b))
+        .collect::<Result<Vec<_>>>()?;
+    let source = SceneSource {
+        yaml: &yaml,
+        path: &a.scene,
+        urdf: (&urdf_text, &urdf_name),
+    };
+    let settings = CalibrationSettings {
+        fit,
+        replay: a.replay.settings(a.horizons.clone()),
+        fit_process_noise: !a.no_process_noise,
+        ..CalibrationSettings::default()
+    };
+    let cal = calibrate(&source, &recordings, &settings)
+        .map_err(|e| Error::Invalid(format!("{}: {e}", a.scene.display())))?;
+
+    // The calibrated scene, its URDF path resolving from where it is written.
+    let mut out_yaml = cal.scene.clone();
+    let out_dir = a.out.parent().filter(|p| !p.as_os_str().is_empty());
+    let out_dir = std::fs::canonicalize(out_dir.unwrap_or(Path::new(".")))
+        .map_err(io(out_dir.unwrap_or(Path::new("."))))?;
+    let urdf_abs = std::fs::canonicalize(&urdf_path).map_err(io(&urdf_path))?;
+    if let Some(m) = out_yaml.as_mapping_mut() {
+        let rel = relative(&urdf_abs, &out_dir).display().to_string();
+        m.insert("urdf".into(), rel.into());
+    }
+    let body = serde_yaml::to_string(&out_yaml).map_err(|e| Error::Invalid(e.to_string()))?;
+    let bags: Vec<String> = a.bag.iter().map(|b| b.display().to_string()).collect();
+    let header = format!(
+        "# {} calibrated by `constraint_dynamics calibrate` on {} (docs/logs.md).\n",
+        a.scene.display(),
+        bags.join(", ")
+    );
+    std::fs::write(&a.out, header + &body).map_err(io(&a.out))?;
+
+    // Before and after on every drive, read back as every other command reads a scene.
+    let calibrated = super::state::load_scene(&a.out)?;
+    let report = a.replay.settings(a.report_horizons.clone());
+    let before = figures(&scene, &recordings, &report)?;
+    let after = figures(&calibrated, &recordings, &report)?;
+    let per_bag: Vec<Value> = (bags.iter().zip(before).zip(after))
+        .map(|((bag, before), after)| json!({"bag": bag, "before": before, "after": after}))
+        .collect();
+    let mut out = serde_json::to_value(&cal).map_err(|e| Error::Invalid(e.to_string()))?;
+    out["bags"] = Value::Array(per_bag);
+    out["scene"] = json!(a.scene.display().to_string());
+    out["out"] = json!(a.out.display().to_string());
+    out["reference_topic"] = json!(recordings.first().map(|r| r.reference.name.clone()));
+    out["run_time_s"] = json!(began.elapsed().as_secs_f64());
+    Ok(out)
+}

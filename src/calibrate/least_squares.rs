@@ -1,0 +1,128 @@
+//! The fit: Levenberg–Marquardt (the `levenberg-marquardt` crate, MINPACK's algorithm) on the
+//! replayed predictions' errors, over parameters scaled to the size a change must reach to
+//! matter ([`SceneParameters::scale`]).
+//!
+//! A residual is one error of one prediction — Δx, Δy [m] or Δyaw [rad] between the reference
+//! and the prediction at its horizon — divided by that kind's RMS at that horizon at the scene's
+//! own values, so that every horizon and both kinds weigh alike. The Jacobian is taken by
+//! central differences of the whole replay: a fitted value changes the model, the controllers'
+//! response and the start's projection at once, which no analytic derivative of the core
+//! covers.
+
+use super::Problem;
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use std::cell::Cell;
+
+/// A replay that failed for a trial value (e.g. a radius the model refuses) counts as an error
+/// this many times its kind's RMS: the step is rejected and the trust region shrinks.
+const FAILED_RESIDUAL: f64 = 1e3;
+/// The central difference's step, in scaled units (a twentieth of a parameter's scale).
+const STEP: f64 = 0.05;
+
+/// The least-squares problem the crate minimizes: `x` the scaled offsets from the scene's
+/// values.
+pub(super) struct Fit<'a> {
+    pub problem: &'a Problem<'a>,
+    pub x: DVector<f64>,
+    /// Residual vectors computed (replays of every recording).
+    pub evaluations: Cell<usize>,
+}
+
+impl Fit<'_> {
+    /// The residuals at scaled offsets `x`; `None` if the replay fails.
+    pub fn residuals_at(&self, x: &DVector<f64>) -> Option<DVector<f64>> {
+        self.evaluations.set(self.evaluations.get() + 1);
+        self.problem.residuals(x.as_slice()).ok()
+    }
+
+    /// ∂r/∂x by central differences; a failed side falls back to a one-sided difference.
+    pub fn jacobian_at(&self, x: &DVector<f64>) -> Option<DMatrix<f64>> {
+        let mut j = DMatrix::zeros(self.problem.residual_count(), x.len());
+        let center = self.residuals_at(x);
+        for k in 0..x.len() {
+            let mut plus = x.clone();
+            plus[k] += STEP;
+            let mut minus = x.clone();
+            minus[k] -= STEP;
+            let col = match (self.residuals_at(&plus), self.residuals_at(&minus)) {
+                (Some(p), Some(m)) => (p - m) / (2.0 * STEP),
+                (Some(p), None) => (p - center.clone()?) / STEP,
+                (None, Some(m)) => (center.clone()? - m) / STEP,
+                (None, None) => return None,
+            };
+            j.set_column(k, &col);
+        }
+        Some(j)
+    }
+}
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for Fit<'_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, x: &DVector<f64>) {
+        self.x.copy_from(x);
+    }
+
+    fn params(&self) -> DVector<f64> {
+        self.x.clone()
+    }
+
+    fn residuals(&self) -> Option<DVector<f64>> {
+        Some(self.residuals_at(&self.x).unwrap_or_else(|| {
+            DVector::from_element(self.problem.residual_count(), FAILED_RESIDUAL)
+        }))
+    }
+
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        self.jacobian_at(&self.x)
+    }
+}
+
+/// The minimum near the scene's values: (scaled offsets, termination as text, replays).
+pub(super) fn minimize(problem: &Problem, max_iterations: usize) -> (DVector<f64>, String, usize) {
+    let n = problem.fitted.len();
+    let fit = Fit {
+        problem,
+        x: DVector::zeros(n),
+        evaluations: Cell::new(0),
+    };
+    // ftol 1e-4: a relative change of the cost below that is below what the recordings'
+    // noise determines; the crate's default (30 ε) would spend replays on round-off.
+    let lm = LevenbergMarquardt::new()
+        .with_ftol(1e-4)
+        .with_xtol(1e-4)
+        .with_gtol(1e-8)
+        .with_patience(max_iterations.max(1));
+    let (fit, report) = lm.minimize(fit);
+    (
+        fit.x.clone(),
+        format!("{:?}", report.termination),
+        fit.evaluations.get(),
+    )
+}
+
+/// Standard errors of scaled offsets at `x` from the Jacobian J and residuals r there:
+/// cov = s² (JᵀJ)⁻¹ with s² = |r|² / (m − p) (the Gauss–Newton covariance). `None` for a
+/// parameter along which JᵀJ is singular (nothing in the recordings determines it).
+pub(super) fn standard_errors(j: &DMatrix<f64>, r: &DVector<f64>) -> Vec<Option<f64>> {
+    let (m, p) = j.shape();
+    let dof = m.saturating_sub(p).max(1) as f64;
+    let s2 = r.norm_squared() / dof;
+    let jtj = j.transpose() * j;
+    let svd = jtj.clone().svd(true, true);
+    let top = svd.singular_values.max();
+    let inv = svd.pseudo_inverse(1e-10 * top.max(f64::MIN_POSITIVE));
+    (0..p)
+        .map(|k| {
+            let determined = jtj[(k, k)] > 1e-10 * top;
+            match inv {
+                Ok(ref inv) if determined => Some((s2 * inv[(k, k)]).max(0.0).sqrt()),
+                _ => None,
+            }
+            .filter(|s| s.is_finite())
+        })
+        .collect()
+}

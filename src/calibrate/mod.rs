@@ -1,0 +1,350 @@
+//! Calibration: the values of a scene that make its predictions match recorded drives
+//! (docs/logs.md). ROS-free: a log reader fills the [`Recording`]s.
+//!
+//! - `parameters.rs`: what can be fitted and where it goes in the scene file;
+//! - `least_squares.rs`: Levenberg–Marquardt on the replayed predictions' errors, and the
+//!   fitted values' standard errors;
+//! - `noise.rs`: the process noise that makes the predicted covariance cover what the model
+//!   still misses.
+//!
+//! The replay is [`crate::replay::evaluate`]'s: the same starts, commands and predictions the
+//! `evaluate` command scores.
+
+mod least_squares;
+mod noise;
+mod parameters;
+
+pub use noise::ProcessNoise;
+pub use parameters::{FitParameter, SceneParameters};
+
+use crate::replay::{EvaluationSettings, Recording, ReplayError, evaluate};
+use crate::scene::{Scene, SceneFile};
+use nalgebra::DVector;
+use serde::Serialize;
+use serde_yaml::Value;
+use std::path::Path;
+
+/// What a calibration fits and how.
+#[derive(Clone, Debug)]
+pub struct CalibrationSettings {
+    /// The parameters to fit; empty: every one the scene can take
+    /// ([`SceneParameters::unavailable`]).
+    pub fit: Vec<FitParameter>,
+    /// The replay: horizons, start period, the node's covariance settings.
+    pub replay: EvaluationSettings,
+    /// Also fit the process noise (`uncertainty.acceleration_noise` of the wheels' joints).
+    pub fit_process_noise: bool,
+    /// The coverage of the 95 % region the process noise is fitted to.
+    pub target_coverage_p95: f64,
+    /// Levenberg–Marquardt's budget: at most this many times (parameters + 1) replays.
+    pub max_iterations: usize,
+}
+
+impl Default for CalibrationSettings {
+    fn default() -> Self {
+        CalibrationSettings {
+            fit: Vec::new(),
+            replay: EvaluationSettings {
+                horizons_s: vec![0.5, 1.0, 2.0],
+                ..EvaluationSettings::default()
+            },
+            fit_process_noise: true,
+            target_coverage_p95: 0.95,
+            max_iterations: 30,
+        }
+    }
+}
+
+/// One fitted value.
+#[derive(Clone, Debug, Serialize)]
+pub struct FittedParameter {
+    /// Its name ([`FitParameter::name`]).
+    pub name: &'static str,
+    /// Its unit.
+    pub unit: &'static str,
+    /// The scene's value.
+    pub scene_value: f64,
+    /// The calibrated value (the scene's when not determined).
+    pub value: f64,
+    /// Its standard error (Gauss–Newton; absent where the recordings do not move the
+    /// predictions at all along it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub std_error: Option<f64>,
+    /// Whether the recordings determine it: its change is at least twice its standard error.
+    /// Otherwise it stays at the scene's value.
+    pub determined: bool,
+}
+
+/// A calibration's result.
+#[derive(Clone, Debug, Serialize)]
+pub struct Calibration {
+    /// The fitted values, in [`FitParameter::ALL`]'s order.
+    pub parameters: Vec<FittedParameter>,
+    /// The fitted process noise (absent when not asked for).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub process_noise: Option<ProcessNoise>,
+    /// RMS of the normalised residuals at the scene's values and at the calibrated ones
+    /// (1 = as large as the scene's errors).
+    pub residual_rms: [f64; 2],
+    /// Replays of every recording the fit took.
+    pub replays: usize,
+    /// How Levenberg–Marquardt ended.
+    pub termination: String,
+    /// The calibrated scene file (the input's YAML with the fitted values written in).
+    #[serde(skip)]
+    pub scene: Value,
+}
+
+/// Why a calibration failed.
+#[derive(Debug, thiserror::Error)]
+pub enum CalibrationError {
+    /// A parameter cannot be fitted on this scene.
+    #[error("--fit {name}: {why}")]
+    Unavailable {
+        /// The parameter.
+        name: &'static str,
+        /// Why.
+        why: String,
+    },
+    /// The scene file's YAML does not build a scene.
+    #[error("{0}")]
+    Scene(String),
+    /// A recording cannot be replayed at the scene's own values.
+    #[error(transparent)]
+    Replay(#[from] ReplayError),
+}
+
+/// The scene to calibrate: its file's YAML, where it came from, and its URDF.
+pub struct SceneSource<'a> {
+    /// The scene file's YAML.
+    pub yaml: &'a Value,
+    /// The scene file's path (for errors).
+    pub path: &'a Path,
+    /// The URDF's text and name.
+    pub urdf: (&'a str, &'a str),
+}
+
+impl SceneSource<'_> {
+    /// The scene of `yaml` (this source's file with values written in).
+    pub fn build(&self, yaml: &Value) -> Result<Scene, CalibrationError> {
+        let file: SceneFile = serde_yaml::from_value(yaml.clone())
+            .map_err(|e| CalibrationError::Scene(format!("{}: {e}", self.path.display())))?;
+        Scene::from_parts(self.path, file, self.urdf.0, self.urdf.1)
+            .map_err(|e| CalibrationError::Scene(e.to_string()))
+    }
+}
+
+/// The fit's residual function over the fitted parameters.
+pub(crate) struct Problem<'a> {
+    source: &'a SceneSource<'a>,
+    places: SceneParameters,
+    recordings: &'a [Recording],
+    replay: EvaluationSettings,
+    /// The fitted parameters with their scene values and scales.
+    fitted: Vec<(FitParameter, f64, f64)>,
+    /// Per horizon, the RMS of the position and the yaw errors at the scene's values.
+    norms: Vec<[f64; 2]>,
+    count: usize,
+}
+
+impl Problem<'_> {
+    /// The scene file with scaled offsets `x` written in.
+    fn yaml_at(&self, x: &[f64]) -> Value {
+        let mut yaml = self.source.yaml.clone();
+        for ((p, value, scale), xi) in self.fitted.iter().zip(x) {
+            self.places.set(&mut yaml, *p, value + scale * xi);
+        }
+        yaml
+    }
+
+    /// Every prediction's (horizon index, Δx, Δy, Δyaw) at scaled offsets `x`.
+    fn errors(&self, x: &[f64]) -> Result<Vec<(usize, [f64; 3])>, CalibrationError> {
+        let scene = self.source.build(&self.yaml_at(x))?;
+        let mut out = Vec::new();
+        for recording in self.recordings {
+            let ev = evaluate(&scene, recording, &self.replay)?;
+            for r in &ev.records {
+                let k = (self.replay.horizons_s.iter())
+                    .position(|&h| h == r.horizon_s)
+                    .unwrap_or(0);
+                let e = [
+                    r.reference[0] - r.predicted[0],
+                    r.reference[1] - r.predicted[1],
+                    r.yaw_error_rad,
+                ];
+                out.push((k, e));
+            }
+        }
+        Ok(out)
+    }
+
+    fn residual_count(&self) -> usize {
+        self.count
+    }
+
+    /// The normalised residuals at scaled offsets `x`.
+    fn residuals(&self, x: &[f64]) -> Result<DVector<f64>, CalibrationError> {
+        let errors = self.errors(x)?;
+        if 3 * errors.len() != self.count {
+            return Err(CalibrationError::Scene(format!(
+                "the replay scored {} predictions at a trial value, {} at the scene's",
+                errors.len(),
+                self.count / 3
+            )));
+        }
+        let mut r = DVector::zeros(self.count);
+        for (i, (k, e)) in errors.iter().enumerate() {
+            let [np, ny] = self.norms[*k];
+            r[3 * i] = e[0] / np;
+            r[3 * i + 1] = e[1] / np;
+            r[3 * i + 2] = e[2] / ny;
+        }
+        Ok(r)
+    }
+}
+
+/// Calibrates `source` on `recordings` (module documentation).
+pub fn calibrate(
+    source: &SceneSource,
+    recordings: &[Recording],
+    settings: &CalibrationSettings,
+) -> Result<Calibration, CalibrationError> {
+    let scene = source.build(source.yaml)?;
+    let places =
+        SceneParameters::new(source.yaml, &scene.model).map_err(CalibrationError::Scene)?;
+    let asked: Vec<FitParameter> = if settings.fit.is_empty() {
+        (FitParameter::ALL.into_iter())
+            .filter(|p| places.unavailable(*p).is_none())
+            .collect()
+    } else {
+        let mut asked = settings.fit.clone();
+        asked.sort();
+        asked.dedup();
+        for p in &asked {
+            if let Some(why) = places.unavailable(*p) {
+                return Err(CalibrationError::Unavailable {
+                    name: p.name(),
+                    why,
+                });
+            }
+        }
+        asked
+    };
+    let replay = EvaluationSettings {
+        propagate_covariance: false,
+        ..settings.replay.clone()
+    };
+    let mut problem = Problem {
+        source,
+        places,
+        recordings,
+        replay,
+        fitted: Vec::new(),
+        norms: vec![[1.0, 1.0]; settings.replay.horizons_s.len()],
+        count: 0,
+    };
+    // The normalisation: each kind's RMS per horizon at the scene's values.
+    let base = problem.errors(&[])?;
+    problem.count = 3 * base.len();
+    let mut sums = vec![[0.0, 0.0, 0.0]; problem.norms.len()];
+    for (k, e) in &base {
+        sums[*k][0] += e[0] * e[0] + e[1] * e[1];
+        sums[*k][1] += e[2] * e[2];
+        sums[*k][2] += 1.0;
+    }
+    for (n, s) in problem.norms.iter_mut().zip(&sums) {
+        let c = s[2].max(1.0);
+        *n = [
+            (s[0] / (2.0 * c)).sqrt().max(1e-4),
+            (s[1] / c).sqrt().max(1e-4),
+        ];
+    }
+    let rms = |r: &DVector<f64>| (r.norm_squared() / r.len().max(1) as f64).sqrt();
+    let before = rms(&problem.residuals(&[])?);
+
+    // Fit; a parameter the recordings do not determine goes back to the scene's value and the
+    // others are fitted again without it.
+    let mut fitted: Vec<FitParameter> = asked.clone();
+    // Parameters sent back to the scene's value, with their standard error [their unit].
+    let mut dropped: Vec<(FitParameter, Option<f64>)> = Vec::new();
+    let mut replays = 1;
+    let (x, termination, std_errors) = loop {
+        problem.fitted = fitted
+            .iter()
+            .map(|&p| {
+                let value = problem.places.value(source.yaml, p);
+                (p, value, problem.places.scale(p, &scene.model))
+            })
+            .collect();
+        if fitted.is_empty() {
+            break (DVector::zeros(0), "nothing to fit".to_string(), Vec::new());
+        }
+        let (x, termination, n) = least_squares::minimize(&problem, settings.max_iterations);
+        replays += n;
+        let fit = least_squares::Fit {
+            problem: &problem,
+            x: x.clone(),
+            evaluations: std::cell::Cell::new(0),
+        };
+        let (Some(j), Some(r)) = (fit.jacobian_at(&x), fit.residuals_at(&x)) else {
+            return Err(CalibrationError::Scene(
+                "the replay fails at the fitted values".into(),
+            ));
+        };
+        replays += fit.evaluations.get();
+        let se = least_squares::standard_errors(&j, &r);
+        let keep: Vec<bool> = (0..fitted.len())
+            .map(|k| se[k].is_some_and(|s| x[k].abs() >= 2.0 * s))
+            .collect();
+        if keep.iter().all(|&k| k) {
+            break (x, termination, se);
+        }
+        for (k, f) in problem.fitted.iter().enumerate() {
+            if !keep[k] {
+                dropped.push((f.0, se[k].map(|s| s * f.2)));
+            }
+        }
+        fitted = (fitted.iter().zip(&keep))
+            .filter(|(_, k)| **k)
+            .map(|(p, _)| *p)
+            .collect();
+        if fitted.is_empty() {
+            problem.fitted.clear();
+            break (DVector::zeros(0), termination, Vec::new());
+        }
+    };
+    let after = rms(&problem.residuals(x.as_slice())?);
+    let mut yaml = problem.yaml_at(x.as_slice());
+    let mut parameters = Vec::new();
+    for p in asked {
+        let scene_value = problem.places.value(source.yaml, p);
+        let scale = problem.places.scale(p, &scene.model);
+        let k = problem.fitted.iter().position(|f| f.0 == p);
+        parameters.push(FittedParameter {
+            name: p.name(),
+            unit: p.unit(),
+            scene_value,
+            value: k.map_or(scene_value, |k| scene_value + scale * x[k]),
+            std_error: match k {
+                Some(k) => std_errors[k].map(|s| s * scale),
+                None => dropped.iter().find(|d| d.0 == p).and_then(|d| d.1),
+            },
+            determined: k.is_some(),
+        });
+    }
+    let process_noise = if settings.fit_process_noise {
+        let fitted = noise::fit(&problem, &mut yaml, settings)?;
+        replays += fitted.replays;
+        Some(fitted)
+    } else {
+        None
+    };
+    Ok(Calibration {
+        parameters,
+        process_noise,
+        residual_rms: [before, after],
+        replays,
+        termination,
+        scene: yaml,
+    })
+}

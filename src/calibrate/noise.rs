@@ -1,0 +1,109 @@
+//! The process noise: what the model still misses after the fit, stated as the wheels'
+//! acceleration noise so that the predicted covariance covers it.
+//!
+//! One density σ [(rad/s²)/√Hz] on every wheel joint (`uncertainty.acceleration_noise`,
+//! docs/propagation.md): through the rolling constraints it spreads the base's position along
+//! the travel and its yaw, growing with the horizon. σ is the smallest value whose predicted
+//! covariance (the node's: propagated, error estimate and floors, plus the reference's own)
+//! holds the target fraction of the replayed errors inside its 95 % region, pooled over every
+//! horizon and recording; found by doubling, then bisection of log σ.
+
+use super::{CalibrationError, CalibrationSettings, Problem};
+use crate::replay::{EvaluationSettings, evaluate, stats::CHI2_3_P95};
+use serde::Serialize;
+use serde_yaml::Value;
+
+/// The fitted process noise.
+#[derive(Clone, Debug, Serialize)]
+pub struct ProcessNoise {
+    /// The joints it is on (the wheels').
+    pub joints: Vec<String>,
+    /// σ [(rad/s²)/√Hz].
+    pub acceleration_noise: f64,
+    /// The fraction of the replayed errors inside the 95 % region with it.
+    pub coverage_p95: f64,
+    /// Replays it took.
+    pub replays: usize,
+}
+
+/// Bisection steps of log σ after the bracket: the bracket's factor 2 to 2^(1/64).
+const BISECTIONS: usize = 6;
+/// The largest and smallest σ tried [(rad/s²)/√Hz].
+const LARGEST: f64 = 1e4;
+const SMALLEST: f64 = 1e-4;
+
+/// Fits σ for the scene `yaml` (the fitted one) and writes it in.
+pub(super) fn fit(
+    problem: &Problem,
+    yaml: &mut Value,
+    settings: &CalibrationSettings,
+) -> Result<ProcessNoise, CalibrationError> {
+    let replay = EvaluationSettings {
+        propagate_covariance: true,
+        ..settings.replay.clone()
+    };
+    let mut replays = 0;
+    let mut coverage = |sigma: f64| -> Result<f64, CalibrationError> {
+        let mut trial = yaml.clone();
+        if sigma > 0.0 {
+            problem.places.set_wheel_noise(&mut trial, sigma);
+        }
+        let scene = problem.source.build(&trial)?;
+        let (mut inside, mut all) = (0usize, 0usize);
+        for recording in problem.recordings {
+            let ev = evaluate(&scene, recording, &replay)?;
+            inside += ev.records.iter().filter(|r| r.nees <= CHI2_3_P95).count();
+            all += ev.records.len();
+        }
+        replays += 1;
+        Ok(inside as f64 / all.max(1) as f64)
+    };
+    let target = settings.target_coverage_p95;
+    let joints = problem.places.wheel_joints().to_vec();
+    let c0 = coverage(0.0)?;
+    if c0 >= target || joints.is_empty() {
+        return Ok(ProcessNoise {
+            joints,
+            acceleration_noise: 0.0,
+            coverage_p95: c0,
+            replays,
+        });
+    }
+    // A bracket [lo, hi] with coverage(lo) < target ≤ coverage(hi), by factors of 2 from
+    // 0.1 (wheel accelerations of a tenth of a rad/s² over a second's horizon).
+    let (mut lo, mut hi) = (0.0, 0.1);
+    let mut c_hi = coverage(hi)?;
+    if c_hi >= target {
+        lo = hi / 2.0;
+        while lo > SMALLEST {
+            let c = coverage(lo)?;
+            if c < target {
+                break;
+            }
+            (hi, c_hi) = (lo, c);
+            lo /= 2.0;
+        }
+    } else {
+        while c_hi < target && hi < LARGEST {
+            lo = hi;
+            hi *= 2.0;
+            c_hi = coverage(hi)?;
+        }
+    }
+    for _ in 0..BISECTIONS {
+        let mid = (lo * hi).sqrt();
+        let c = coverage(mid)?;
+        if c >= target {
+            (hi, c_hi) = (mid, c);
+        } else {
+            lo = mid;
+        }
+    }
+    problem.places.set_wheel_noise(yaml, hi);
+    Ok(ProcessNoise {
+        joints,
+        acceleration_noise: hi,
+        coverage_p95: c_hi,
+        replays,
+    })
+}
