@@ -41,3 +41,44 @@ fn first_sample_forces_include_the_saturated_wheel_torques() {
     let f = traj.samples[0].forces.clone().unwrap();
     assert!(f.iter().all(|c| c.force[0] > 1.0), "{f:?}");
 }
+
+/// `traction_torque` clamps each wheel to the lesser of it and the URDF effort: 3 N·m under the
+/// 5 N·m effort drives both wheels with exactly 3 N·m over the first period; 7 N·m leaves the
+/// URDF's 5.
+#[test]
+fn traction_torque_clamps_the_wheels_below_the_urdf_effort() {
+    let loaded = Scene::load(repo_dir().join("params/suite_diff_drive.yaml")).unwrap();
+    for (traction, applied) in [(3.0, 3.0), (7.0, 5.0)] {
+        let mut scene = loaded.clone();
+        if let Some(d) = scene.file.actuators.diff_drive.as_mut() {
+            d.traction_torque = Some(traction);
+        }
+        let mut p = Predictor::from_scene(&scene).unwrap();
+        let cmd = Command {
+            base_twist: Some([0.5, 0.4]),
+            ..Default::default()
+        };
+        let commands = [(0.0, cmd)];
+        let req = PredictionRequest::new(&scene.q0, &scene.v0)
+            .commands(&commands)
+            .horizon(0.02)
+            .forces(true);
+        let got = p.predict(&req).unwrap().samples[0].lambda.clone().unwrap();
+        let mut sys = System::from_scene(&scene).unwrap();
+        let tau = [0.0, 0.0, 0.0, applied, applied];
+        sys.forward_dynamics(&scene.q0, &scene.v0, &tau, true)
+            .unwrap();
+        assert_close(
+            &format!("λ at t = 0, traction_torque {traction} N·m"),
+            &got,
+            sys.multipliers().lambda.as_slice(),
+            1e-15,
+        );
+    }
+    let mut bad = loaded.clone();
+    if let Some(d) = bad.file.actuators.diff_drive.as_mut() {
+        d.traction_torque = Some(-1.0);
+    }
+    let e = Predictor::from_scene(&bad).err().unwrap().to_string();
+    assert!(e.contains("traction_torque"), "{e}");
+}

@@ -3,6 +3,7 @@
 #[path = "../../../tests/it/common/mod.rs"]
 mod common;
 
+mod calibrate_cli;
 mod covariance_cli;
 mod envelope_cli;
 mod eval_cli;

@@ -1,0 +1,86 @@
+#!/usr/bin/env python3
+"""Calibrates params/suite_mobile_manipulator.yaml on tests/data/logs/calibration.mcap and
+writes docs/logs.md's before/after table (between its `calibration:begin` / `calibration:end`
+markers): `evaluate` against the simulator's true pose on every bundled drive, with the scene as
+it is and as calibrated, and the fitted values.
+
+    python3 tools/logs/calibration_table.py
+"""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+DOC = os.path.join(ROOT, "docs", "logs.md")
+BEGIN = "<!-- calibration:begin -->"
+END = "<!-- calibration:end -->"
+SCENE = os.path.join(ROOT, "params", "suite_mobile_manipulator.yaml")
+LOGS = os.path.join(ROOT, "tests", "data", "logs")
+DRIVES = ["calibration.mcap", "validation_smooth.mcap", "validation_steps"]
+HORIZONS = "0.25,0.5,1,2"
+
+
+def cli(*args):
+    out = subprocess.run(
+        ["cargo", "run", "--quiet", "--locked", "-p", "constraint_dynamics_cli",
+         "--", *args], cwd=ROOT, check=True, stdout=subprocess.PIPE, text=True)
+    return json.loads(out.stdout)
+
+
+def evaluate(scene, drive):
+    return cli("evaluate", "--scene", scene, "--bag", os.path.join(LOGS, drive),
+               "--truth-topic", "/ground_truth/odom", "--horizons", HORIZONS)
+
+
+def cell(h):
+    p, y = h["position_error_m"], h["yaw_error_rad"]
+    return (f"{1e3 * p['median']:.1f} / {1e3 * p['max']:.1f} mm, "
+            f"{1e3 * y['median']:.1f} / {1e3 * y['max']:.0f} mrad")
+
+
+def main():
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "calibrated.yaml")
+        cal = cli("calibrate", "--scene", SCENE, "--bag", os.path.join(LOGS, DRIVES[0]),
+                  "--out", out)
+        rows = []
+        for drive in DRIVES:
+            for label, scene in (("scene", SCENE), ("calibrated", out)):
+                ev = evaluate(scene, drive)
+                hs = ev["horizons"]
+                cov = " / ".join(f"{h['coverage']['p95']:.2f}" for h in hs
+                                 if h["horizon_s"] in (1.0, 2.0))
+                rows.append(f"| {drive.split('.')[0]} | {label} | "
+                            + " | ".join(cell(h) for h in hs) + f" | {cov} |")
+    lines = [BEGIN, "<!-- written by python3 tools/logs/calibration_table.py: do not edit -->", ""]
+    lines.append("Fitted on calibration.mcap against its `/odom` "
+                 f"({cal['run_time_s']:.0f} s, {cal['replays']} replays of the drive):")
+    lines.append("")
+    lines.append("| parameter | scene | calibrated | standard error | determined |")
+    lines.append("|---|---|---|---|---|")
+    for p in cal["parameters"]:
+        se = p.get("std_error")
+        lines.append(f"| `{p['name']}` [{p['unit']}] | {p['scene_value']:.5g} | "
+                     f"{p['value']:.5g} | {'—' if se is None else f'{se:.2g}'} | "
+                     f"{'yes' if p['determined'] else 'no'} |")
+    pn = cal.get("process_noise")
+    if pn:
+        lines.append(f"| process noise on {', '.join(pn['joints'])} [(rad/s²)/√Hz] | 0 | "
+                     f"{pn['acceleration_noise']:.3g} | — | coverage p95 "
+                     f"{pn['coverage_p95']:.2f} |")
+    lines += ["", "Position / yaw error against the true pose, median / worst, and the coverage "
+              "p95 at 1 s / 2 s:", "",
+              "| drive | scene | 0.25 s | 0.5 s | 1 s | 2 s | coverage p95 at 1 s / 2 s |",
+              "|---|---|---|---|---|---|---|", *rows, "", END]
+    text = open(DOC).read()
+    if BEGIN not in text or END not in text:
+        sys.exit(f"{DOC}: no {BEGIN} ... {END} markers")
+    head, rest = text.split(BEGIN, 1)
+    _, tail = rest.split(END, 1)
+    open(DOC, "w").write(head + "\n".join(lines) + tail)
+
+
+if __name__ == "__main__":
+    main()
