@@ -22,6 +22,11 @@ pub struct EvaluateArgs {
     horizons: Vec<f64>,
     #[command(flatten)]
     replay: ReplayArgs,
+    /// Write plots into this directory: the errors against the horizon
+    /// (errors_vs_horizon.png) and, per horizon, the predicted 95 % position ellipses over the
+    /// reference path (ellipses_<h>s.png).
+    #[arg(long)]
+    plot: Option<PathBuf>,
     /// Also print every prediction (`records`: start, horizon, predicted and reference pose with
     /// their covariances, errors, NEES).
     #[arg(long)]
@@ -127,6 +132,10 @@ pub fn run(a: EvaluateArgs) -> Result<Value> {
     out["scene"] = json!(a.scene.display().to_string());
     out["bag"] = json!(a.bag.display().to_string());
     out["reference_topic"] = json!(recording.reference.name);
+    if let Some(dir) = &a.plot {
+        let written = super::evaluate_plot::write(dir, &ev, &recording).map_err(Error::Invalid)?;
+        out["plots"] = json!(written);
+    }
     if a.records {
         out["records"] =
             serde_json::to_value(&ev.records).map_err(|e| Error::Invalid(e.to_string()))?;

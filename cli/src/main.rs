@@ -5,6 +5,7 @@ mod covariance;
 mod envelope;
 mod eval;
 mod evaluate;
+mod evaluate_plot;
 #[cfg(test)]
 mod fuzz_tests;
 mod json;

@@ -7,7 +7,7 @@ mod closed_forms;
 mod measure;
 mod output;
 mod peers;
-mod plot;
+pub(crate) mod plot;
 mod scenes;
 mod tables;
 

@@ -9,7 +9,7 @@ use std::sync::Once;
 
 static FONT: Once = Once::new();
 
-fn register() {
+pub(crate) fn register() {
     FONT.call_once(|| {
         // The family plotters asks for by default.
         let _ = register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular());

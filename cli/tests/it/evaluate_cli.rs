@@ -321,3 +321,35 @@ fn refused_starts_are_rerun_without_the_bound_and_counted() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `--plot DIR` writes PNG files (errors against the horizon; the ellipses per horizon) and
+/// lists them.
+#[test]
+fn plots_are_written_where_asked() {
+    let dir = std::env::temp_dir().join(format!("cd_evaluate_plots_{}", std::process::id()));
+    let root = repo_dir();
+    let (ok, out, err) = evaluate(&[
+        "--scene",
+        &root
+            .join("params/suite_mobile_manipulator.yaml")
+            .display()
+            .to_string(),
+        "--bag",
+        &root
+            .join("tests/data/logs/validation_smooth.mcap")
+            .display()
+            .to_string(),
+        "--horizons",
+        "0.5,1",
+        "--plot",
+        &dir.display().to_string(),
+    ]);
+    assert!(ok, "{err}");
+    let plots: Vec<String> = serde_json::from_value(out["plots"].clone()).unwrap();
+    assert_eq!(plots.len(), 3, "{plots:?}");
+    for p in &plots {
+        let bytes = std::fs::read(p).unwrap();
+        assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000, "{p}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
