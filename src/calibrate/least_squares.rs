@@ -81,12 +81,15 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Fit<'_> {
     }
 }
 
-/// The minimum near the scene's values: (scaled offsets, termination as text, replays).
-pub(super) fn minimize(problem: &Problem, max_iterations: usize) -> (DVector<f64>, String, usize) {
-    let n = problem.fitted.len();
+/// The minimum near scaled offsets `x0`: (scaled offsets, termination as text, replays).
+pub(super) fn minimize(
+    problem: &Problem,
+    x0: DVector<f64>,
+    max_iterations: usize,
+) -> (DVector<f64>, String, usize) {
     let fit = Fit {
         problem,
-        x: DVector::zeros(n),
+        x: x0,
         evaluations: Cell::new(0),
     };
     // ftol 1e-4: a relative change of the cost below that is below what the recordings'

@@ -203,6 +203,32 @@ impl Problem<'_> {
     }
 }
 
+/// Where the fit starts (scaled offsets) and the replays it took to find out: the scene's
+/// values, except a clamp (the traction torque) that only acts below where it is. A clamp the
+/// drives never reach has no slope to follow, so its start is the best of a coarse scan down
+/// to a quarter of its value.
+fn start(problem: &Problem) -> Result<(DVector<f64>, usize), CalibrationError> {
+    let mut x0 = DVector::zeros(problem.fitted.len());
+    let mut replays = 0;
+    for (k, (p, value, scale)) in problem.fitted.iter().enumerate() {
+        if *p != FitParameter::TractionTorque {
+            continue;
+        }
+        let mut best = (f64::INFINITY, 0.0);
+        for fraction in [1.0, 0.8, 0.6, 0.45, 0.35, 0.25] {
+            let mut x = x0.clone();
+            x[k] = (fraction - 1.0) * value / scale;
+            replays += 1;
+            let cost = problem.residuals(x.as_slice())?.norm_squared();
+            if cost < best.0 {
+                best = (cost, x[k]);
+            }
+        }
+        x0[k] = best.1;
+    }
+    Ok((x0, replays))
+}
+
 /// Calibrates `source` on `recordings` (module documentation).
 pub fn calibrate(
     source: &SceneSource,
@@ -279,7 +305,9 @@ pub fn calibrate(
         if fitted.is_empty() {
             break (DVector::zeros(0), "nothing to fit".to_string(), Vec::new());
         }
-        let (x, termination, n) = least_squares::minimize(&problem, settings.max_iterations);
+        let (x0, n) = start(&problem)?;
+        replays += n;
+        let (x, termination, n) = least_squares::minimize(&problem, x0, settings.max_iterations);
         replays += n;
         let fit = least_squares::Fit {
             problem: &problem,
