@@ -68,6 +68,12 @@ def level(s):
     return int.from_bytes(s.level, "little") if isinstance(s.level, bytes) else int(s.level)
 
 
+def finite_or_none(text):
+    """A report's number, None when it is not finite (JSON has no NaN)."""
+    x = float(text)
+    return x if math.isfinite(x) else None
+
+
 def message_class(schema):
     """The rclpy class of a schema named pkg/msg/Type (or pkg/Type)."""
     pkg, *_, name = schema.split("/")
@@ -203,7 +209,7 @@ def main():
                 if (t - t0) * 1e-9 >= next_t:
                     next_t += 1.0
                     timeline.append([round((t - t0) * 1e-9, 2), max(level(s) for s in m.status)]
-                                    + [[float(v.value) for v in s.values if v.key.startswith(
+                                    + [[finite_or_none(v.value) for v in s.values if v.key.startswith(
                                         ("NEES median", "worst effort error"))] for s in m.status])
             FIGURES["each second: t [s], level, per horizon [NEES median, worst effort]"] = timeline
             FIGURES["last"] = {s.name: {"level": level(s), "message": s.message,
