@@ -240,12 +240,20 @@ fn predictions_whose_command_changed_before_they_were_due_are_not_scored() {
         }
         if next_change <= t_pred.min(t_meas) {
             m.command_changed(next_change);
-            next_change = if next_change < 30.0 { 30.0 } else { next_change + 1.0 };
+            next_change = if next_change < 30.0 {
+                30.0
+            } else {
+                next_change + 1.0
+            };
         }
         if t_pred <= t_meas {
             for (i, h) in HORIZONS.iter().enumerate() {
                 // The pose the held command leads to: off the truth where a change comes.
-                let off = if changes(t_pred, t_pred + h) { 0.05 } else { 0.0 };
+                let off = if changes(t_pred, t_pred + h) {
+                    0.05
+                } else {
+                    0.0
+                };
                 let p = truth(t_pred + h);
                 let sample = PredictedSample {
                     start: t_pred,

@@ -110,7 +110,11 @@ impl OnlineMonitor {
         let planar = |q: &[f64]| {
             let pose = model.base_pose(q);
             let [x, y, z, w] = pose.orientation_xyzw;
-            [pose.position[0], pose.position[1], yaw(&Quaternion { x, y, z, w })]
+            [
+                pose.position[0],
+                pose.position[1],
+                yaw(&Quaternion { x, y, z, w }),
+            ]
         };
         let start = planar(&first.q);
         for i in 0..self.core.settings().horizons.len() {
@@ -299,7 +303,10 @@ fn status(r: &HorizonReport, warning: &Option<String>, names: &[String]) -> Diag
 fn values(r: &HorizonReport, names: &[String]) -> Vec<KeyValue> {
     let h = r.horizon;
     let worst = |w: Option<(usize, f64)>, digits: usize| match w {
-        Some((j, e)) => (names.get(j).cloned().unwrap_or_default(), format!("{e:.digits$}")),
+        Some((j, e)) => (
+            names.get(j).cloned().unwrap_or_default(),
+            format!("{e:.digits$}"),
+        ),
         None => (String::new(), "nan".to_string()),
     };
     let (joint, effort) = worst(r.effort_worst, 3);
@@ -320,7 +327,10 @@ fn values(r: &HorizonReport, names: &[String]) -> Vec<KeyValue> {
         kv("effort samples", &r.effort_samples.to_string()),
         kv("worst effort error median [N m or N]", &effort),
         kv("worst effort joint", &joint),
-        kv("joint position samples", &r.joint_position_samples.to_string()),
+        kv(
+            "joint position samples",
+            &r.joint_position_samples.to_string(),
+        ),
         kv("worst joint position error median [rad or m]", &position),
         kv("worst joint position joint", &position_joint),
         kv("unmatched predictions", &r.unmatched.to_string()),

@@ -11,9 +11,11 @@
 //!   library function) of the same log, its predictions whose command held over the horizon,
 //!   the last `monitor.window` of them due by the log's end, the NEES recomputed here with the
 //!   monitor's documented motion allowance;
-//! - payload_3kg.mcap (10 s, the robot carrying 3 kg at tool0 the suite is not told of): one
-//!   WARN naming the shoulder pitch's effort and a payload, the shoulder's median effort error
-//!   the closed form −M·g·d at the logged arm pose (the peer's) within 0.5 N·m.
+//! - payload_3kg.mcap (10 s, the robot carrying 3 kg at tool0 the suite is not told of, its arm
+//!   holding the tool above the wheel axle): one WARN naming the shoulder pitch's effort and a
+//!   payload, the shoulder's median effort error the closed form −M·g·d at the logged arm pose
+//!   (the peer's) within 0.75 N·m. The 23 % heavier robot also accelerates and turns otherwise
+//!   than its model, so the odometry is off too: the WARN calls both.
 //!
 //! Needs root and the peer venv (`CD_ROS2_VENV`): `#[ignore]`d in a plain `cargo test`, run by
 //! `tools/test.sh`; a missing prerequisite fails the test.
@@ -99,7 +101,10 @@ fn rclpy_replayed_logs_are_scored_and_a_payload_named() {
 fn normal_drive() {
     let (report, mut suite) = replay("normal drive", "validation_smooth.mcap", &[]);
     let expected = offline_figures(&repo_root().join("tests/data/logs/validation_smooth.mcap"));
-    for (s, (h, e)) in last_statuses(&report).iter().zip(HORIZONS.iter().zip(expected)) {
+    for (s, (h, e)) in last_statuses(&report)
+        .iter()
+        .zip(HORIZONS.iter().zip(expected))
+    {
         println!("{TEST}: {h} s: offline (position, yaw, NEES) medians: {e:?}");
         assert_eq!(s["level"], 0, "{h} s: {s:#}");
         assert_eq!(number(s, "odometry samples"), WINDOW as f64, "{h} s: {s:#}");
@@ -112,9 +117,13 @@ fn normal_drive() {
         // 0.1 s; the first odometry after the due time carried back against the last before;
         // the held command against the recorded ones. A 50-sample median spreads by ~20 %,
         // a NEES median by ~30 %.
-        for (i, (n, o, factor)) in [(node[0], e[0], 2.0), (node[1], e[1], 2.0), (node[2], e[2], 3.0)]
-            .into_iter()
-            .enumerate()
+        for (i, (n, o, factor)) in [
+            (node[0], e[0], 2.0),
+            (node[1], e[1], 2.0),
+            (node[2], e[2], 3.0),
+        ]
+        .into_iter()
+        .enumerate()
         {
             assert!(
                 n / o < factor && o / n < factor,
@@ -128,7 +137,10 @@ fn normal_drive() {
     }
     assert_eq!(report["figures"]["highest level"], 0, "{report:#}");
     let log = suite.log();
-    assert!(!log.contains(WARN), "a monitor WARN on a normal drive:\n{log}");
+    assert!(
+        !log.contains(WARN),
+        "a monitor WARN on a normal drive:\n{log}"
+    );
     assert!(suite.stop(), "the suite did not stop cleanly:\n{log}");
 }
 
@@ -145,11 +157,16 @@ fn unannounced_payload() {
         .expect("the peer's closed form");
     for (h, s) in HORIZONS.iter().zip(last_statuses(&report)) {
         assert_eq!(s["level"], 1, "{h} s: {s:#}");
-        assert_eq!(s["values"]["worst effort joint"], "arm_shoulder_pitch", "{s:#}");
+        assert_eq!(
+            s["values"]["worst effort joint"], "arm_shoulder_pitch",
+            "{s:#}"
+        );
         let e = number(&s, "worst effort error median [N m or N]");
-        // The base's accelerations and its forward tilt onto the anti-tip skid (not in the
-        // planar closed form) move the median by ~0.1 N·m.
-        assert!((e - hold).abs() < 0.5, "{h} s: {e} against {hold}: {s:#}");
+        // The closed form is static: the base's accelerations swing the payload too (3 kg ×
+        // 1 m/s² × its 0.3 m above the shoulder ≈ 0.9 N·m while accelerating), and the 1 s
+        // window, the shortest (its predictions' commands change most often), keeps more of
+        // them. Measured 0.02, 0.36 and 0.45 N·m off at 0.25, 0.5 and 1 s.
+        assert!((e - hold).abs() < 0.75, "{h} s: {e} against {hold}: {s:#}");
     }
     let log = suite.log();
     let warns: Vec<&str> = log.lines().filter(|l| l.contains(WARN)).collect();
