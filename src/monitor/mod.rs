@@ -84,7 +84,10 @@ struct PendingPose {
     command_changed: bool,
 }
 
-/// A ring of pending samples, ordered by due time, its joints in flat arrays beside it.
+/// A ring of pending samples, ordered by due time, its joints in flat arrays beside it. The
+/// n-th sample recorded (n from 0) sits in slot n mod capacity; the odometry, and each joint's
+/// position and effort apart (joint states may each give some joints only), keep the number
+/// of the next sample they score.
 #[derive(Clone, Debug)]
 struct Pending {
     poses: Vec<PendingPose>,
@@ -92,12 +95,24 @@ struct Pending {
     efforts: Vec<f64>,
     /// Slot i's joint positions at [i·ne, (i+1)·ne).
     positions: Vec<f64>,
-    /// Oldest slot awaiting its odometry, and how many; the same for the joint states.
-    pose_head: usize,
-    pose_len: usize,
-    joint_head: usize,
-    joint_len: usize,
-    next: usize,
+    /// Samples recorded.
+    recorded: u64,
+    /// The next sample the odometry scores.
+    pose_next: u64,
+    /// The next sample each joint's position (j) and effort (ne + j) scores.
+    joint_next: Vec<u64>,
+}
+
+impl Pending {
+    fn slot(&self, n: u64) -> usize {
+        (n % self.poses.len() as u64) as usize
+    }
+
+    /// Forgets every pending sample.
+    fn clear(&mut self) {
+        self.pose_next = self.recorded;
+        self.joint_next.fill(self.recorded);
+    }
 }
 
 /// One horizon's statistics.
@@ -174,11 +189,9 @@ impl PredictionMonitor {
                     poses: vec![PendingPose::default(); cap],
                     efforts: vec![0.0; cap * joints],
                     positions: vec![0.0; cap * joints],
-                    pose_head: 0,
-                    pose_len: 0,
-                    joint_head: 0,
-                    joint_len: 0,
-                    next: 0,
+                    recorded: 0,
+                    pose_next: 0,
+                    joint_next: vec![0; 2 * joints],
                 },
                 position: Window::new(window),
                 yaw: Window::new(window),
@@ -208,8 +221,7 @@ impl PredictionMonitor {
     /// Forgets every pending prediction and statistic (a new model, a jump in time).
     pub fn reset(&mut self) {
         for tr in &mut self.tracks {
-            let p = &mut tr.pending;
-            (p.pose_len, p.joint_len) = (0, 0);
+            tr.pending.clear();
             tr.position.clear();
             tr.yaw.clear();
             tr.nees.clear();
@@ -229,22 +241,20 @@ impl PredictionMonitor {
             return;
         };
         let p = &mut tr.pending;
-        let cap = p.poses.len();
-        let newest = (p.next + cap - 1) % cap;
-        if (p.pose_len > 0 || p.joint_len > 0) && s.t < p.poses[newest].t {
-            (p.pose_len, p.joint_len) = (0, 0);
+        let cap = p.poses.len() as u64;
+        if p.recorded > 0 && s.t < p.poses[p.slot(p.recorded - 1)].t {
+            p.clear();
         }
         // A full ring drops its oldest (an unmatched prediction).
-        if p.pose_len == cap {
-            p.pose_head = (p.pose_head + 1) % cap;
-            p.pose_len -= 1;
+        let oldest_kept = (p.recorded + 1).saturating_sub(cap);
+        if p.pose_next < oldest_kept {
+            p.pose_next = oldest_kept;
             tr.unmatched += 1;
         }
-        if p.joint_len == cap {
-            p.joint_head = (p.joint_head + 1) % cap;
-            p.joint_len -= 1;
+        for n in &mut p.joint_next {
+            *n = (*n).max(oldest_kept);
         }
-        let i = p.next;
+        let i = p.slot(p.recorded);
         p.poses[i] = PendingPose {
             start: s.start,
             t: s.t,
@@ -259,15 +269,7 @@ impl PredictionMonitor {
                 false => slot.fill(f64::NAN),
             }
         }
-        if p.pose_len == 0 {
-            p.pose_head = i;
-        }
-        if p.joint_len == 0 {
-            p.joint_head = i;
-        }
-        p.pose_len += 1;
-        p.joint_len += 1;
-        p.next = (i + 1) % cap;
+        p.recorded += 1;
     }
 
     /// The command changed at `t` [s]: the pending predictions that started before `t` and are
@@ -287,11 +289,9 @@ impl PredictionMonitor {
         let max_lag = self.settings.max_lag;
         for tr in &mut self.tracks {
             let p = &mut tr.pending;
-            let cap = p.poses.len();
-            while p.pose_len > 0 && p.poses[p.pose_head].t <= m.t {
-                let due = p.poses[p.pose_head];
-                p.pose_head = (p.pose_head + 1) % cap;
-                p.pose_len -= 1;
+            while p.pose_next < p.recorded && p.poses[p.slot(p.pose_next)].t <= m.t {
+                let due = p.poses[p.slot(p.pose_next)];
+                p.pose_next += 1;
                 let lag = m.t - due.t;
                 if lag > max_lag {
                     tr.unmatched += 1;
@@ -327,8 +327,9 @@ impl PredictionMonitor {
 
     /// Scores the pending predictions due at or before `t` [s] against the joints' measured
     /// positions [rad or m] and efforts [N·m or N], one of each per joint (NaN: not in this
-    /// joint state). Position errors are wrapped to (−π, π]: a revolute joint reported modulo
-    /// 2π scores its true error, and a prismatic joint's errors are far below π m.
+    /// joint state, whose predictions wait for one that gives it). Position errors are wrapped
+    /// to (−π, π]: a revolute joint reported modulo 2π scores its true error, and a prismatic
+    /// joint's errors are far below π m.
     pub fn joint_states(&mut self, t: f64, position: &[f64], effort: &[f64]) {
         let (ne, max_lag) = (self.joints, self.settings.max_lag);
         if ne == 0 || effort.len() != ne || position.len() != ne {
@@ -336,28 +337,31 @@ impl PredictionMonitor {
         }
         for tr in &mut self.tracks {
             let p = &mut tr.pending;
-            let cap = p.poses.len();
-            while p.joint_len > 0 && p.poses[p.joint_head].t <= t {
-                let i = p.joint_head;
-                p.joint_head = (i + 1) % cap;
-                p.joint_len -= 1;
-                if t - p.poses[i].t > max_lag || p.poses[i].command_changed {
+            let measured = position.iter().chain(effort);
+            for (k, (&m, next)) in measured.zip(p.joint_next.iter_mut()).enumerate() {
+                if !m.is_finite() {
                     continue;
                 }
-                let slot = i * ne..(i + 1) * ne;
-                let pairs = [
-                    (effort, &p.efforts[slot.clone()], &mut tr.effort, false),
-                    (position, &p.positions[slot], &mut tr.position_joint, true),
-                ];
-                for (measured, predicted, windows, wrap) in pairs {
-                    for ((w, m), pr) in windows.iter_mut().zip(measured).zip(predicted) {
-                        let e = match wrap {
-                            true => yaw_difference(*m, *pr),
-                            false => m - pr,
-                        };
-                        if e.is_finite() {
-                            w.push(e);
-                        }
+                let (j, is_position) = (k % ne, k < ne);
+                let (predicted, window) = match is_position {
+                    true => (&p.positions, &mut tr.position_joint[j]),
+                    false => (&p.efforts, &mut tr.effort[j]),
+                };
+                let cap = p.poses.len() as u64;
+                while *next < p.recorded && p.poses[(*next % cap) as usize].t <= t {
+                    let i = (*next % cap) as usize;
+                    *next += 1;
+                    let due = &p.poses[i];
+                    if t - due.t > max_lag || due.command_changed {
+                        continue;
+                    }
+                    let pr = predicted[i * ne + j];
+                    let e = match is_position {
+                        true => yaw_difference(m, pr),
+                        false => m - pr,
+                    };
+                    if e.is_finite() {
+                        window.push(e);
                     }
                 }
             }

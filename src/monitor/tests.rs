@@ -389,3 +389,37 @@ fn nothing_is_called_before_min_samples() {
     // The 0.25 s horizon reaches 20 samples first.
     assert_eq!(called_at, Some(Some(20)));
 }
+
+#[test]
+fn joint_states_that_each_give_some_joints_score_every_joint() {
+    // As a robot with two drivers publishes: joint 0's position alone, then joint 1's position
+    // and both efforts, 1 ms later, every 20 ms. Each joint is scored by the message that
+    // gives it: 1 rad and 2 N·m off on joint 0, −1 mrad and 0.5 N·m on joint 1.
+    let mut m = PredictionMonitor::new(settings(), 2);
+    let (predicted_q, predicted_e) = ([0.0, 0.0], [1.0, 1.0]);
+    let nan = f64::NAN;
+    for k in 0..400 {
+        let t = k as f64 * 0.02;
+        if k % 5 == 0 {
+            for (i, h) in HORIZONS.iter().enumerate() {
+                let sample = PredictedSample {
+                    start: t,
+                    t: t + h,
+                    pose: truth(t + h),
+                    covariance: P,
+                    effort: &predicted_e,
+                    position: &predicted_q,
+                };
+                m.record(i, &sample);
+            }
+        }
+        m.joint_states(t, &[1.0, nan], &[nan, nan]);
+        m.joint_states(t + 0.001, &[nan, -1e-3], &[3.0, 1.5]);
+    }
+    for r in m.reports() {
+        assert_eq!(r.joint_position_samples, WINDOW, "{r:?}");
+        assert_eq!(r.effort_samples, WINDOW, "{r:?}");
+        assert_eq!(r.joint_position_worst, Some((0, 1.0)), "{r:?}");
+        assert_eq!(r.effort_worst, Some((0, 2.0)), "{r:?}");
+    }
+}
