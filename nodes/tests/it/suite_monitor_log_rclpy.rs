@@ -248,12 +248,12 @@ fn nees_with_motion_error(r: &PredictionRecord, start: [f64; 3], start_yaw: f64)
         MOTION_ERROR[0] * travelled,
         MOTION_ERROR[1] * turned,
     ];
-    let mut s = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            s[i][j] = r.predicted_covariance[i][j] + r.reference_covariance[i][j];
+    let mut s = r.predicted_covariance;
+    for (i, row) in s.iter_mut().enumerate() {
+        for (x, y) in row.iter_mut().zip(&r.reference_covariance[i]) {
+            *x += y;
         }
-        s[i][i] += extra[i] * extra[i];
+        row[i] += extra[i] * extra[i];
     }
     let e = [
         r.reference[0] - p[0],
