@@ -221,7 +221,7 @@ def main():
         ex.shutdown()
         peer.destroy_node()
         rclpy.try_shutdown()
-    print(json.dumps({"ok": not ERRORS, "errors": ERRORS, "figures": FIGURES}))
+    print(json.dumps({"ok": not ERRORS, "errors": ERRORS, "figures": FIGURES}), flush=True)
     sys.exit(0 if not ERRORS else 1)
 
 
