@@ -9,13 +9,15 @@
 //!   OK, and each horizon's medians (position, yaw, NEES) the same as those of an independent
 //!   computation within a factor 2 (NEES 3): the offline replay (`constraint_dynamics evaluate`'s
 //!   library function) of the same log, its predictions whose command held over the horizon,
-//!   the last `monitor.window` of them due by the log's end, the NEES recomputed here with the
-//!   monitor's documented motion allowance;
+//!   the last of them due by the log's end, as many as the node's window holds (≤
+//!   `monitor.window`: the node ticks on /clock as fast as it keeps up), the NEES recomputed
+//!   here with the monitor's documented motion allowance;
 //! - payload_3kg.mcap (10 s, the robot carrying 3 kg at tool0 the suite is not told of, its arm
 //!   holding the tool above the wheel axle): one WARN naming the shoulder pitch's effort and a
 //!   payload, the shoulder's median effort error the closed form −M·g·d at the logged arm pose
 //!   (the peer's) within 0.75 N·m. The 23 % heavier robot also accelerates and turns otherwise
-//!   than its model, so the odometry is off too: the WARN calls both.
+//!   than its model, so the odometry is off too: a WARN calls both (or the efforts first, then
+//!   both, when the efforts' window fills first).
 //!
 //! Needs root and the peer venv (`CD_ROS2_VENV`): `#[ignore]`d in a plain `cargo test`, run by
 //! `tools/test.sh`; a missing prerequisite fails the test.
@@ -35,6 +37,7 @@ const TEST: &str = "rclpy_replayed_logs_are_scored_and_a_payload_named";
 const HORIZONS: [f64; 3] = [0.25, 0.5, 1.0];
 /// The monitor's defaults (docs/nodes.md, `monitor.*`) that define what it scores.
 const WINDOW: usize = 50;
+const MIN_SAMPLES: usize = 20;
 const COMMAND_TOLERANCE: [f64; 2] = [0.005, 0.01];
 const MOTION_ERROR: [f64; 2] = [0.02, 0.05];
 const WARN: &str = "predictions off what arrives";
@@ -100,14 +103,20 @@ fn rclpy_replayed_logs_are_scored_and_a_payload_named() {
 
 fn normal_drive() {
     let (report, mut suite) = replay("normal drive", "validation_smooth.mcap", &[]);
-    let expected = offline_figures(&repo_root().join("tests/data/logs/validation_smooth.mcap"));
-    for (s, (h, e)) in last_statuses(&report)
+    let statuses = last_statuses(&report);
+    let samples: Vec<usize> = (statuses.iter())
+        .map(|s| number(s, "odometry samples") as usize)
+        .collect();
+    let bag = repo_root().join("tests/data/logs/validation_smooth.mcap");
+    let expected = offline_figures(&bag, &samples);
+    let each = statuses
         .iter()
-        .zip(HORIZONS.iter().zip(expected))
-    {
-        println!("{TEST}: {h} s: offline (position, yaw, NEES) medians: {e:?}");
+        .zip(&samples)
+        .zip(HORIZONS.iter().zip(expected));
+    for ((s, n), (h, e)) in each {
+        println!("{TEST}: {h} s: offline (position, yaw, NEES) medians of {n}: {e:?}");
         assert_eq!(s["level"], 0, "{h} s: {s:#}");
-        assert_eq!(number(s, "odometry samples"), WINDOW as f64, "{h} s: {s:#}");
+        assert!((MIN_SAMPLES..=WINDOW).contains(n), "{h} s: {s:#}");
         let node = [
             number(s, "position error median [m]"),
             number(s, "yaw error median [rad]"),
@@ -169,19 +178,24 @@ fn unannounced_payload() {
         assert!((e - hold).abs() < 0.75, "{h} s: {e} against {hold}: {s:#}");
     }
     let log = suite.log();
+    // One WARN per cause's onset, the efforts' and the odometry's: together (both in one
+    // window) or one after the other as their windows fill; never cleared meanwhile.
     let warns: Vec<&str> = log.lines().filter(|l| l.contains(WARN)).collect();
-    assert_eq!(warns.len(), 1, "one WARN per onset:\n{log}");
+    assert!((1..=2).contains(&warns.len()), "one WARN per onset:\n{log}");
+    for w in &warns {
+        let named = w.contains("arm_shoulder_pitch's effort") && w.contains("payload");
+        assert!(named, "{w}");
+    }
     assert!(
-        warns[0].contains("arm_shoulder_pitch's effort") && warns[0].contains("payload"),
-        "{}",
-        warns[0]
+        !log.contains("predictions match what arrives again"),
+        "{log}"
     );
     assert!(suite.stop(), "the suite did not stop cleanly:\n{log}");
 }
 
 /// Per horizon, the medians of position error [m], |yaw error| [rad] and NEES over the last
-/// `WINDOW` offline predictions due by the log's end whose command held over the horizon.
-fn offline_figures(bag: &Path) -> Vec<[f64; 3]> {
+/// `samples` offline predictions due by the log's end whose command held over the horizon.
+fn offline_figures(bag: &Path, samples: &[usize]) -> Vec<[f64; 3]> {
     let scene = Scene::load(repo_root().join("params/suite_mobile_manipulator.yaml")).unwrap();
     let topics = BagTopics {
         odom: "/odom".into(),
@@ -210,11 +224,12 @@ fn offline_figures(bag: &Path) -> Vec<[f64; 3]> {
     };
     HORIZONS
         .iter()
-        .map(|&h| {
+        .zip(samples)
+        .map(|(&h, &n)| {
             let scored: Vec<&PredictionRecord> = (ev.records.iter())
                 .filter(|r| r.horizon_s == h && ns(r.t0_s + h) <= end && held(r))
                 .collect();
-            let window = &scored[scored.len().saturating_sub(WINDOW)..];
+            let window = &scored[scored.len().saturating_sub(n)..];
             let nees = window.iter().map(|r| {
                 let start = &rec.odometry.at_or_before(ns(r.t0_s)).unwrap().1.pose;
                 nees_with_motion_error(r, start.position, yaw_of(start.orientation_xyzw))
