@@ -40,8 +40,8 @@ interop_status=${PIPESTATUS[0]}
 # crates' `it` targets match no filter and run nothing).
 CD_ROS2_VENV="$PWD/.venv-ros2-jazzy" tools/ros2/netns_run.sh cargo test --workspace \
     --locked --offline --test it -- --include-ignored suite_rclpy_peer:: suite_stack_rclpy:: \
-    suite_covariance_rclpy:: suite_payload_rclpy:: suite_params_rclpy:: suite_monitor_rclpy:: suite_envelope_rclpy:: \
-    ros_smoke:: 2>&1 | tee /tmp/cd_cargo_test_jazzy.log
+    suite_covariance_rclpy:: suite_payload_rclpy:: suite_params_rclpy:: suite_monitor_rclpy:: \
+    suite_monitor_log_rclpy:: suite_envelope_rclpy:: ros_smoke:: 2>&1 | tee /tmp/cd_cargo_test_jazzy.log
 jazzy_status=${PIPESTATUS[0]}
 tools/ros2/netns_run.sh .venv-ros2-jazzy/bin/python tools/ros2/interop/interop.py 2>&1 | grep -v '^\[\(ERROR\|WARN\)\]' | tee /tmp/cd_interop_jazzy.log
 interop_jazzy_status=${PIPESTATUS[0]}

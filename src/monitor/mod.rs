@@ -1,15 +1,19 @@
 //! Scoring a predictor's own past predictions against the measurements that arrive.
 //!
 //! Each periodic prediction leaves, per monitored horizon h, one predicted sample: the planar
-//! base pose (x, y, yaw) in the odom frame with its covariance P, and the joints' efforts, due
-//! at t₀ + h. The first odometry (and joint state) at or after that time is its measurement
-//! (no interpolation; a measurement more than `max_lag` late is not one). The odometry's pose
+//! base pose (x, y, yaw) in the odom frame with its covariance P, and the joints' positions and
+//! efforts, due at t₀ + h. The first odometry (and joint state) at or after that time is its
+//! measurement (no interpolation; a measurement more than `max_lag` late is not one). A
+//! prediction holds the command of its start over its horizon: one whose command changed
+//! within (t₀, t₀ + h] ([`PredictionMonitor::command_changed`]) predicted another drive than
+//! the one measured, and is not scored (counted apart). The odometry's pose
 //! is carried back to the due time along its own twist (the lag is a fraction of the
 //! odometry's period, and at 0.5 m/s even 10 ms are 5 mm, more than the errors scored). Per
 //! horizon the monitor keeps, over its last `window` samples, the median position error
 //! |(dx, dy)| [m], yaw error |dyaw| [rad], the NEES eᵀ (P + R)⁻¹ e of e = (dx, dy, dyaw) with R
-//! the odometry's own covariance, and each joint's median signed effort error
-//! (measured − predicted) [N·m or N]. [`verdict`] turns these into a verdict with hysteresis.
+//! the odometry's own covariance, and each joint's median signed position error [rad or m]
+//! and effort error [N·m or N] (measured − predicted). [`verdict`] turns these into a verdict
+//! with hysteresis (the poses and the efforts; the joint positions are reported).
 //!
 //! Everything is allocated at construction: recording a prediction and scoring a measurement
 //! allocate nothing.
@@ -40,6 +44,8 @@ pub struct MonitorSettings {
 /// What one periodic prediction predicts at one horizon.
 #[derive(Clone, Copy, Debug)]
 pub struct PredictedSample<'a> {
+    /// When the prediction started (its start state's time) [s].
+    pub start: f64,
     /// When it is due (the prediction's start + the sample's time) [s].
     pub t: f64,
     /// The base's pose in the odom frame.
@@ -47,8 +53,10 @@ pub struct PredictedSample<'a> {
     /// Its covariance (the propagated one and the node's floors).
     pub covariance: PlanarCovariance,
     /// The joints' efforts (actuator torques) [N·m or N], one per joint the monitor was built
-    /// with.
+    /// with (or none: not scored).
     pub effort: &'a [f64],
+    /// The joints' positions [rad or m], one per joint (NaN: not scored; or none).
+    pub position: &'a [f64],
 }
 
 /// A measured odometry: time [s], pose, covariance and twist in the base frame (vx [m/s], vy
@@ -68,23 +76,43 @@ pub struct MeasuredOdometry {
 /// A pending predicted sample's odometry part.
 #[derive(Clone, Copy, Debug, Default)]
 struct PendingPose {
+    start: f64,
     t: f64,
     pose: PlanarPose,
     covariance: PlanarCovariance,
+    /// Its command changed before it was due.
+    command_changed: bool,
 }
 
-/// A ring of pending samples, ordered by due time, its efforts in a flat array beside it.
+/// A ring of pending samples, ordered by due time, its joints in flat arrays beside it. The
+/// n-th sample recorded (n from 0) sits in slot n mod capacity; the odometry, and each joint's
+/// position and effort apart (joint states may each give some joints only), keep the number
+/// of the next sample they score.
 #[derive(Clone, Debug)]
 struct Pending {
     poses: Vec<PendingPose>,
     /// Slot i's efforts at [i·ne, (i+1)·ne).
     efforts: Vec<f64>,
-    /// Oldest slot awaiting its odometry, and how many; the same for the joint states.
-    pose_head: usize,
-    pose_len: usize,
-    effort_head: usize,
-    effort_len: usize,
-    next: usize,
+    /// Slot i's joint positions at [i·ne, (i+1)·ne).
+    positions: Vec<f64>,
+    /// Samples recorded.
+    recorded: u64,
+    /// The next sample the odometry scores.
+    pose_next: u64,
+    /// The next sample each joint's position (j) and effort (ne + j) scores.
+    joint_next: Vec<u64>,
+}
+
+impl Pending {
+    fn slot(&self, n: u64) -> usize {
+        (n % self.poses.len() as u64) as usize
+    }
+
+    /// Forgets every pending sample.
+    fn clear(&mut self) {
+        self.pose_next = self.recorded;
+        self.joint_next.fill(self.recorded);
+    }
 }
 
 /// One horizon's statistics.
@@ -97,8 +125,12 @@ struct Track {
     nees: Window,
     /// One window of signed effort errors per joint.
     effort: Vec<Window>,
+    /// One window of signed position errors per joint.
+    position_joint: Vec<Window>,
     /// Predictions whose measurement came too late or never (overwritten while pending).
     unmatched: usize,
+    /// Predictions not scored: their command changed before they were due.
+    command_changed: usize,
 }
 
 /// One horizon's figures (NaN where there are no samples yet).
@@ -121,8 +153,15 @@ pub struct HorizonReport {
     /// The joint whose median signed effort error is largest in magnitude, and that median
     /// [N·m or N] (None before any joint state).
     pub effort_worst: Option<(usize, f64)>,
+    /// Joint position samples in the window (of the joint with the most).
+    pub joint_position_samples: usize,
+    /// The joint whose median signed position error is largest in magnitude, and that median
+    /// [rad or m] (None before any joint state with positions).
+    pub joint_position_worst: Option<(usize, f64)>,
     /// Predictions not matched by a measurement in time.
     pub unmatched: usize,
+    /// Predictions not scored because their command changed before they were due.
+    pub command_changed: usize,
 }
 
 /// Scores past predictions (see the module's documentation).
@@ -149,17 +188,18 @@ impl PredictionMonitor {
                 pending: Pending {
                     poses: vec![PendingPose::default(); cap],
                     efforts: vec![0.0; cap * joints],
-                    pose_head: 0,
-                    pose_len: 0,
-                    effort_head: 0,
-                    effort_len: 0,
-                    next: 0,
+                    positions: vec![0.0; cap * joints],
+                    recorded: 0,
+                    pose_next: 0,
+                    joint_next: vec![0; 2 * joints],
                 },
                 position: Window::new(window),
                 yaw: Window::new(window),
                 nees: Window::new(window),
                 effort: vec![Window::new(window); joints],
+                position_joint: vec![Window::new(window); joints],
                 unmatched: 0,
+                command_changed: 0,
             })
             .collect();
         let reports = Vec::with_capacity(settings.horizons.len());
@@ -181,13 +221,14 @@ impl PredictionMonitor {
     /// Forgets every pending prediction and statistic (a new model, a jump in time).
     pub fn reset(&mut self) {
         for tr in &mut self.tracks {
-            let p = &mut tr.pending;
-            (p.pose_len, p.effort_len) = (0, 0);
+            tr.pending.clear();
             tr.position.clear();
             tr.yaw.clear();
             tr.nees.clear();
             tr.effort.iter_mut().for_each(Window::clear);
+            tr.position_joint.iter_mut().for_each(Window::clear);
             tr.unmatched = 0;
+            tr.command_changed = 0;
         }
         self.verdict = verdict::Hysteresis::default();
     }
@@ -200,41 +241,47 @@ impl PredictionMonitor {
             return;
         };
         let p = &mut tr.pending;
-        let cap = p.poses.len();
-        let newest = (p.next + cap - 1) % cap;
-        if (p.pose_len > 0 || p.effort_len > 0) && s.t < p.poses[newest].t {
-            (p.pose_len, p.effort_len) = (0, 0);
+        let cap = p.poses.len() as u64;
+        if p.recorded > 0 && s.t < p.poses[p.slot(p.recorded - 1)].t {
+            p.clear();
         }
         // A full ring drops its oldest (an unmatched prediction).
-        if p.pose_len == cap {
-            p.pose_head = (p.pose_head + 1) % cap;
-            p.pose_len -= 1;
+        let oldest_kept = (p.recorded + 1).saturating_sub(cap);
+        if p.pose_next < oldest_kept {
+            p.pose_next = oldest_kept;
             tr.unmatched += 1;
         }
-        if p.effort_len == cap {
-            p.effort_head = (p.effort_head + 1) % cap;
-            p.effort_len -= 1;
+        for n in &mut p.joint_next {
+            *n = (*n).max(oldest_kept);
         }
-        let i = p.next;
+        let i = p.slot(p.recorded);
         p.poses[i] = PendingPose {
+            start: s.start,
             t: s.t,
             pose: s.pose,
             covariance: s.covariance,
+            command_changed: false,
         };
-        if ne > 0 && s.effort.len() == ne {
-            p.efforts[i * ne..(i + 1) * ne].copy_from_slice(s.effort);
-        } else if ne > 0 {
-            p.efforts[i * ne..(i + 1) * ne].fill(f64::NAN);
+        for (from, to) in [(s.effort, &mut p.efforts), (s.position, &mut p.positions)] {
+            let slot = &mut to[i * ne..(i + 1) * ne];
+            match from.len() == ne {
+                true => slot.copy_from_slice(from),
+                false => slot.fill(f64::NAN),
+            }
         }
-        if p.pose_len == 0 {
-            p.pose_head = i;
+        p.recorded += 1;
+    }
+
+    /// The command changed at `t` [s]: the pending predictions that started before `t` and are
+    /// due at or after it held another command than the robot had, and are not scored.
+    pub fn command_changed(&mut self, t: f64) {
+        for tr in &mut self.tracks {
+            for p in &mut tr.pending.poses {
+                if p.start < t && t <= p.t {
+                    p.command_changed = true;
+                }
+            }
         }
-        if p.effort_len == 0 {
-            p.effort_head = i;
-        }
-        p.pose_len += 1;
-        p.effort_len += 1;
-        p.next = (i + 1) % cap;
     }
 
     /// Scores the pending predictions due at or before `m.t` against the odometry `m`.
@@ -242,14 +289,16 @@ impl PredictionMonitor {
         let max_lag = self.settings.max_lag;
         for tr in &mut self.tracks {
             let p = &mut tr.pending;
-            let cap = p.poses.len();
-            while p.pose_len > 0 && p.poses[p.pose_head].t <= m.t {
-                let due = p.poses[p.pose_head];
-                p.pose_head = (p.pose_head + 1) % cap;
-                p.pose_len -= 1;
+            while p.pose_next < p.recorded && p.poses[p.slot(p.pose_next)].t <= m.t {
+                let due = p.poses[p.slot(p.pose_next)];
+                p.pose_next += 1;
                 let lag = m.t - due.t;
                 if lag > max_lag {
                     tr.unmatched += 1;
+                    continue;
+                }
+                if due.command_changed {
+                    tr.command_changed += 1;
                     continue;
                 }
                 let back = pose_back_along(&m.pose, &m.twist, lag);
@@ -277,28 +326,42 @@ impl PredictionMonitor {
     }
 
     /// Scores the pending predictions due at or before `t` [s] against the joints' measured
-    /// efforts `effort` (one per joint; `measured[j]` false: joint j has no effort in this
-    /// message).
-    pub fn efforts(&mut self, t: f64, effort: &[f64], measured: &[bool]) {
+    /// positions [rad or m] and efforts [N·m or N], one of each per joint (NaN: not in this
+    /// joint state, whose predictions wait for one that gives it). Position errors are wrapped
+    /// to (−π, π]: a revolute joint reported modulo 2π scores its true error, and a prismatic
+    /// joint's errors are far below π m.
+    pub fn joint_states(&mut self, t: f64, position: &[f64], effort: &[f64]) {
         let (ne, max_lag) = (self.joints, self.settings.max_lag);
-        if ne == 0 || effort.len() != ne || measured.len() != ne {
+        if ne == 0 || effort.len() != ne || position.len() != ne {
             return;
         }
         for tr in &mut self.tracks {
             let p = &mut tr.pending;
-            let cap = p.poses.len();
-            while p.effort_len > 0 && p.poses[p.effort_head].t <= t {
-                let i = p.effort_head;
-                p.effort_head = (i + 1) % cap;
-                p.effort_len -= 1;
-                if t - p.poses[i].t > max_lag {
+            let measured = position.iter().chain(effort);
+            for (k, (&m, next)) in measured.zip(p.joint_next.iter_mut()).enumerate() {
+                if !m.is_finite() {
                     continue;
                 }
-                let predicted = &p.efforts[i * ne..(i + 1) * ne];
-                for (j, w) in tr.effort.iter_mut().enumerate() {
-                    let e = effort[j] - predicted[j];
-                    if measured[j] && e.is_finite() {
-                        w.push(e);
+                let (j, is_position) = (k % ne, k < ne);
+                let (predicted, window) = match is_position {
+                    true => (&p.positions, &mut tr.position_joint[j]),
+                    false => (&p.efforts, &mut tr.effort[j]),
+                };
+                let cap = p.poses.len() as u64;
+                while *next < p.recorded && p.poses[(*next % cap) as usize].t <= t {
+                    let i = (*next % cap) as usize;
+                    *next += 1;
+                    let due = &p.poses[i];
+                    if t - due.t > max_lag || due.command_changed {
+                        continue;
+                    }
+                    let pr = predicted[i * ne + j];
+                    let e = match is_position {
+                        true => yaw_difference(m, pr),
+                        false => m - pr,
+                    };
+                    if e.is_finite() {
+                        window.push(e);
                     }
                 }
             }
@@ -310,13 +373,15 @@ impl PredictionMonitor {
         self.reports.clear();
         let s = &mut self.scratch;
         for tr in &self.tracks {
-            let worst = tr
-                .effort
-                .iter()
-                .enumerate()
-                .filter(|(_, w)| !w.is_empty())
-                .map(|(j, w)| (j, w.median(s)))
-                .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
+            let worst = |windows: &[Window], s: &mut [f64]| {
+                windows
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, w)| !w.is_empty())
+                    .map(|(j, w)| (j, w.median(s)))
+                    .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            };
+            let most = |windows: &[Window]| windows.iter().map(Window::len).max().unwrap_or(0);
             self.reports.push(HorizonReport {
                 horizon: tr.horizon,
                 odometry_samples: tr.position.len(),
@@ -324,9 +389,12 @@ impl PredictionMonitor {
                 yaw_median: tr.yaw.median(s),
                 nees_median: tr.nees.median(s),
                 nees_mean: tr.nees.mean(),
-                effort_samples: tr.effort.iter().map(Window::len).max().unwrap_or(0),
-                effort_worst: worst,
+                effort_samples: most(&tr.effort),
+                effort_worst: worst(&tr.effort, s),
+                joint_position_samples: most(&tr.position_joint),
+                joint_position_worst: worst(&tr.position_joint, s),
                 unmatched: tr.unmatched,
+                command_changed: tr.command_changed,
             });
         }
         &self.reports

@@ -69,8 +69,10 @@ fn chol_s() -> [[f64; 3]; 3] {
 
 /// A drive of `seconds`: predictions at 10 Hz (t₀ = k/10 + 3 ms, so measurements lag), odometry
 /// and joint states at 50 Hz. Each measurement is the truth at its time plus `pose_error(t)`;
-/// each effort the predicted 2.4 N·m (joint 0) and 0 (joint 1) plus `effort_error(t)`. Calls
-/// `each(monitor, t)` after every assessment (one per prediction).
+/// each effort the predicted 2.4 N·m (joint 0) and 0 (joint 1) plus `effort_error(t)`; each
+/// joint position the predicted 0.5 rad (joint 0) and π (joint 1, measured as −π + 1 mrad: a
+/// revolute joint reported modulo 2π, 1 mrad off). Calls `each(monitor, t)` after every
+/// assessment (one per prediction).
 fn drive(
     m: &mut PredictionMonitor,
     seconds: f64,
@@ -79,6 +81,8 @@ fn drive(
     each: &mut dyn FnMut(&mut PredictionMonitor, (Verdict, bool)),
 ) {
     let predicted_effort = [2.4, 0.0];
+    let predicted_position = [0.5, std::f64::consts::PI];
+    let measured_position = [0.5, -std::f64::consts::PI + 1e-3];
     let (mut k, mut j) = (0usize, 0usize);
     loop {
         let t_pred = k as f64 * 0.1 + 0.003;
@@ -89,10 +93,12 @@ fn drive(
         if t_pred <= t_meas {
             for (i, h) in HORIZONS.iter().enumerate() {
                 let sample = PredictedSample {
+                    start: t_pred,
                     t: t_pred + h,
                     pose: truth(t_pred + h),
                     covariance: P,
                     effort: &predicted_effort,
+                    position: &predicted_position,
                 };
                 m.record(i, &sample);
             }
@@ -110,7 +116,7 @@ fn drive(
             });
             let de = effort_error(t_meas);
             let effort = [2.4 + de[0], de[1]];
-            m.efforts(t_meas, &effort, &[true, true]);
+            m.joint_states(t_meas, &measured_position, &effort);
             j += 1;
         }
     }
@@ -204,6 +210,85 @@ fn a_known_bias_gives_its_median_and_nees() {
         // 50 samples, σ 0.3: the median's σ ≈ 1.25 · 0.3/√50 = 0.05.
         assert_eq!(joint, 0);
         assert!((e - 1.5).abs() < 0.2, "{r:?}");
+        // Joint 1 measured at −π + 1 mrad, predicted at π: 1 mrad off across the wrap.
+        assert_eq!(r.joint_position_samples, WINDOW);
+        let (joint, e) = r.joint_position_worst.unwrap();
+        assert_eq!(joint, 1);
+        assert!((e - 1e-3).abs() < 1e-12, "{r:?}");
+        assert_eq!(r.command_changed, 0);
+    }
+}
+
+#[test]
+fn predictions_whose_command_changed_before_they_were_due_are_not_scored() {
+    let mut m = PredictionMonitor::new(settings(), 2);
+    // The command changes at 10.0 s, and at every second from 30 s on (each prediction's
+    // 1 s horizon then spans a change); the poses are 5 cm off whenever a prediction spans a
+    // change (what the held command did not foresee), exact otherwise.
+    let changes = |t0: f64, t1: f64| {
+        let spans = |c: f64| t0 < c && c <= t1;
+        spans(10.0) || (30..40).any(|c| spans(c as f64))
+    };
+    let mut next_change = 10.0;
+    let mut scored_off = 0;
+    let (mut k, mut j) = (0usize, 0usize);
+    loop {
+        let t_pred = k as f64 * 0.1 + 0.003;
+        let t_meas = j as f64 * 0.02;
+        if t_pred.min(t_meas) > 40.0 {
+            break;
+        }
+        if next_change <= t_pred.min(t_meas) {
+            m.command_changed(next_change);
+            next_change = if next_change < 30.0 {
+                30.0
+            } else {
+                next_change + 1.0
+            };
+        }
+        if t_pred <= t_meas {
+            for (i, h) in HORIZONS.iter().enumerate() {
+                // The pose the held command leads to: off the truth where a change comes.
+                let off = if changes(t_pred, t_pred + h) {
+                    0.05
+                } else {
+                    0.0
+                };
+                let p = truth(t_pred + h);
+                let sample = PredictedSample {
+                    start: t_pred,
+                    t: t_pred + h,
+                    pose: [p[0] + off, p[1], p[2]],
+                    covariance: P,
+                    effort: &[0.0, 0.0],
+                    position: &[],
+                };
+                m.record(i, &sample);
+            }
+            if m.assess().0.is_some() {
+                scored_off += 1;
+            }
+            k += 1;
+        } else {
+            m.odometry(&MeasuredOdometry {
+                t: t_meas,
+                pose: truth(t_meas),
+                covariance: R,
+                twist: TWIST,
+            });
+            m.joint_states(t_meas, &[f64::NAN; 2], &[0.0, 0.0]);
+            j += 1;
+        }
+    }
+    assert_eq!(scored_off, 0, "a prediction spanning a change was scored");
+    // A change at c spans the predictions started in [c − h, c), at k/10 + 3 ms: 2, 5 and 10
+    // of them at 0.25, 0.5 and 1 s (disjoint for changes 1 s apart); 11 changes, all due by
+    // 40 s.
+    for (r, per_change) in m.reports().iter().zip([2, 5, 10]) {
+        assert_eq!(r.command_changed, 11 * per_change, "{r:?}");
+        // The exact poses, carried back along the arc to first order: v·ω·lag²/2 ≤ 1.5e-5 m.
+        assert!(r.position_median < 2e-5, "{r:?}");
+        assert_eq!(r.joint_position_samples, 0, "{r:?}");
     }
 }
 
@@ -303,4 +388,38 @@ fn nothing_is_called_before_min_samples() {
     );
     // The 0.25 s horizon reaches 20 samples first.
     assert_eq!(called_at, Some(Some(20)));
+}
+
+#[test]
+fn joint_states_that_each_give_some_joints_score_every_joint() {
+    // As a robot with two drivers publishes: joint 0's position alone, then joint 1's position
+    // and both efforts, 1 ms later, every 20 ms. Each joint is scored by the message that
+    // gives it: 1 rad and 2 N·m off on joint 0, −1 mrad and 0.5 N·m on joint 1.
+    let mut m = PredictionMonitor::new(settings(), 2);
+    let (predicted_q, predicted_e) = ([0.0, 0.0], [1.0, 1.0]);
+    let nan = f64::NAN;
+    for k in 0..400 {
+        let t = k as f64 * 0.02;
+        if k % 5 == 0 {
+            for (i, h) in HORIZONS.iter().enumerate() {
+                let sample = PredictedSample {
+                    start: t,
+                    t: t + h,
+                    pose: truth(t + h),
+                    covariance: P,
+                    effort: &predicted_e,
+                    position: &predicted_q,
+                };
+                m.record(i, &sample);
+            }
+        }
+        m.joint_states(t, &[1.0, nan], &[nan, nan]);
+        m.joint_states(t + 0.001, &[nan, -1e-3], &[3.0, 1.5]);
+    }
+    for r in m.reports() {
+        assert_eq!(r.joint_position_samples, WINDOW, "{r:?}");
+        assert_eq!(r.effort_samples, WINDOW, "{r:?}");
+        assert_eq!(r.joint_position_worst, Some((0, 1.0)), "{r:?}");
+        assert_eq!(r.effort_worst, Some((0, 2.0)), "{r:?}");
+    }
 }

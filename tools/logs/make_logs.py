@@ -8,7 +8,12 @@ at 1 kHz by the scene's own controllers, read from params/suite_mobile_manipulat
 diff drive's wheel-speed PI (torque clamped to the URDF effort, no integration while clamped)
 and the arm's PD, held at the scene's initial arm pose. Each drive follows ~20 s of Nav2-like
 cmd_vel at 20 Hz (arcs, spins, reverses, stops), smoothed to 1 m/s² and 2 rad/s² as a velocity
-smoother would, or raw steps. Topics:
+smoother would, or raw steps. One shorter drive carries a payload on the tool that the scene is
+not told of (payload_3kg.mcap: 3 kg at tool0, robot_mjcf.py), its arm held with the tool above
+the wheel axle (shoulder pitch −0.1, elbow −0.15 rad): with the scene's forward-leaning pose the
+robot's centre of mass lies within a millimetre of the axle, and any mass at the tool (0.51 m
+ahead of it there) tips the robot onto its anti-tip skid (3 kg: ~145 N on the skid, ~11 N on
+each wheel, and the wheels spin). Topics:
 
     /cmd_vel            geometry_msgs/Twist (TwistStamped in the drive with raw steps), 20 Hz
     /odom               nav_msgs/Odometry, 50 Hz: the true base pose and twist plus white noise
@@ -58,12 +63,18 @@ class Drive:
     stamped: bool
     bag_directory: bool
     duration_s: float = 20.0
+    payload_kg: float = 0.0
+    arm_pose: dict = None  # {joint: rad} the arm's PD holds instead of the scene's initial pose
 
 
 DRIVES = [
     Drive("calibration", seed=11, smoothed=True, stamped=False, bag_directory=False),
     Drive("validation_smooth", seed=22, smoothed=True, stamped=False, bag_directory=False),
     Drive("validation_steps", seed=33, smoothed=False, stamped=True, bag_directory=True),
+    Drive("payload_3kg", seed=44, smoothed=True, stamped=False, bag_directory=False,
+          duration_s=10.0, payload_kg=3.0,
+          arm_pose={"arm_shoulder_yaw": 0.0, "arm_shoulder_pitch": -0.1, "arm_elbow": -0.15,
+                    "arm_wrist": 0.0}),
 ]
 
 
@@ -113,11 +124,13 @@ def smooth(prev, target, dt):
 class Robot:
     """The MuJoCo model and its controllers, ticked at the control period."""
 
-    def __init__(self, scene_path, urdf_path):
-        xml, self.effort, self.wheel_radius, self.base_height = mjcf(urdf_path, CONTROL_PERIOD_S / SIM_SUBSTEPS)
+    def __init__(self, scene_path, urdf_path, payload_kg=0.0, arm_pose=None):
+        xml, self.effort, self.wheel_radius, self.base_height = mjcf(
+            urdf_path, CONTROL_PERIOD_S / SIM_SUBSTEPS, payload_kg)
         self.m = mujoco.MjModel.from_xml_string(xml)
         self.d = mujoco.MjData(self.m)
         (self.r, self.b, self.kp, self.ki), self.pd, self.arm_q0 = read_scene_controllers(scene_path)
+        self.arm_q0.update(arm_pose or {})
         names = ["left_wheel_joint", "right_wheel_joint", *ARM_JOINTS]
         self.joints = [(n, self.m.joint(n).qposadr[0], self.m.joint(n).dofadr[0]) for n in names]
         self.integral = [0.0, 0.0]
@@ -199,7 +212,7 @@ def record(drive, out_path, scene_path, urdf_path):
     """Simulate one drive and write its MCAP file; returns {topic: (type, count)} and the span."""
     rng = np.random.default_rng(drive.seed)
     plan = command_plan(rng, drive.duration_s)
-    robot = Robot(scene_path, urdf_path)
+    robot = Robot(scene_path, urdf_path, drive.payload_kg, drive.arm_pose)
     for _ in range(int(SETTLE_S / CONTROL_PERIOD_S)):
         robot.tick((0.0, 0.0))
     # ROS pose covariance over (x, y, z, rot x, rot y, rot z): what the noise is, and large

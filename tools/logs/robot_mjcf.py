@@ -13,6 +13,9 @@ URDF's own numbers, with what its scene (params/suite_mobile_manipulator.yaml) d
   initial pose) the robot's centre of mass is within millimetres of the wheel axle, and without
   it a braking robot pitches onto its nose, which the URDF leaves without a collision shape.
 
+A drive may also carry a payload the scene is not told of: a solid sphere of PAYLOAD_RADIUS_M
+with its centre at tool0's origin (`mjcf(..., payload_kg=M)`).
+
 The base is a free body (it may pitch and roll on the soft contacts); the arm's joints and the
 wheels are hinges with the URDF's damping. The controllers are not part of the model: the
 simulation applies their torques (make_logs.py).
@@ -29,6 +32,7 @@ TYRE_ROLLING_M = 1e-4      # rolling friction [m]
 CASTER_MU = 0.02
 ANTI_TIP_X_M = 0.15
 ANTI_TIP_CLEARANCE_M = 0.004
+PAYLOAD_RADIUS_M = 0.05
 
 WHEELS = ("left_wheel", "right_wheel")
 ARM_JOINTS = ("arm_shoulder_yaw", "arm_shoulder_pitch", "arm_elbow", "arm_wrist")
@@ -89,9 +93,9 @@ def _inertial(link, factor=1.0):
             f'diaginertia="{_vec([x * factor for x in link["inertia"]])}"/>')
 
 
-def mjcf(urdf_path, timestep):
-    """The MJCF text of the robot on a floor, the effort limits {joint: N·m}, the worn wheels'
-    radius [m] and base_link's height above base_footprint [m]."""
+def mjcf(urdf_path, timestep, payload_kg=0.0):
+    """The MJCF text of the robot on a floor (with `payload_kg` on tool0), the effort limits
+    {joint: N·m}, the worn wheels' radius [m] and base_link's height above base_footprint [m]."""
     u = Urdf(urdf_path)
     _, base_joint = u.joint_to("base_link")
     z0 = base_joint["xyz"][2]
@@ -129,7 +133,7 @@ def mjcf(urdf_path, timestep):
                         f'condim="3" friction="{CASTER_MU} 0 0" mass="0"/>')
         elif j["type"] == "fixed" and j["child"] == "arm_mount":
             body.append(f'<body name="arm_mount" pos="{_vec(j["xyz"])}">')
-            body.extend(_arm(u, "arm_mount"))
+            body.extend(_arm(u, "arm_mount", payload_kg))
             body.append("</body>")
     body.append("</body>")
     effort = {n: j["effort"] for n, j in u.joints.items() if j["type"] != "fixed"}
@@ -145,7 +149,7 @@ def mjcf(urdf_path, timestep):
     return xml, effort, wheel_r, z0
 
 
-def _arm(u, parent):
+def _arm(u, parent, payload_kg):
     out = []
     for name, j in u.children(parent):
         child = u.links[j["child"]]
@@ -153,9 +157,12 @@ def _arm(u, parent):
         out.append(f'<body name="{j["child"]}" pos="{_vec(j["xyz"])}">')
         if child is not None:
             out.append(_inertial(child))
+        elif j["child"] == "tool0" and payload_kg > 0.0:
+            i = 0.4 * payload_kg * PAYLOAD_RADIUS_M**2  # a solid sphere's
+            out.append(f'<inertial pos="0 0 0" mass="{payload_kg:.12g}" diaginertia="{_vec([i] * 3)}"/>')
         if j["type"] == "revolute":
             out.append(f'<joint name="{name}" type="hinge" axis="{_vec(j["axis"])}" '
                        f'damping="{j["damping"]:.12g}"/>')
-        out.extend(_arm(u, j["child"]))
+        out.extend(_arm(u, j["child"], payload_kg))
         out.append("</body>")
     return out

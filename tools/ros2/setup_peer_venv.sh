@@ -25,6 +25,10 @@ fi
 PYTHON=${PYTHON:-python3}
 IFACE="$REPO/interfaces/constraint_dynamics_msgs"
 
+# The MCAP reader (zstd chunks) with which a peer replays a recorded log (the pins of
+# tools/logs/setup_venv.sh); rclpy decodes its CDR messages.
+LOG_PINS=(mcap==1.6.0 zstandard==0.25.0)
+
 # Pins: see shared notes/ros2.md. Unpinned ros-rclpy resolves to an older distro, so pin; the
 # jazzy set is what pip resolves for rclpy 7.1.6 / rmw_fastrtps_cpp 8.4.3.
 case "$DISTRO" in
@@ -41,6 +45,7 @@ case "$DISTRO" in
             ros-diagnostic-msgs==5.5.1
             ros-lifecycle-msgs==2.3.0
             cyclonedds==11.0.1
+            "${LOG_PINS[@]}"
         )
         BUILD_PINS=(
             cmake
@@ -66,6 +71,7 @@ case "$DISTRO" in
             ros-diagnostic-msgs==5.3.6
             ros-lifecycle-msgs==2.0.3
             cyclonedds==11.0.1
+            "${LOG_PINS[@]}"
         )
         BUILD_PINS=(
             cmake
@@ -156,7 +162,7 @@ PATH="$VENV/bin:$PATH" "$VENV/bin/cmake" --build "$BUILD" -j2 > "$BUILD/build.lo
 "$VENV/bin/cmake" --install "$BUILD" > /dev/null
 
 # Check that the venv's python can import it (no DDS participant is opened).
-"$VENV/bin/python" -c 'from constraint_dynamics_msgs.msg import ConstraintForces, AccelerationLimits, AccelerationLimit; from constraint_dynamics_msgs.srv import GetConstraintForces, ProjectVelocity, Predict, Rollouts, SetPayload; from geometry_msgs.msg import Inertia; import rclpy, cyclonedds; from visualization_msgs.msg import MarkerArray; from lifecycle_msgs.srv import ChangeState; from diagnostic_msgs.msg import DiagnosticArray'
+"$VENV/bin/python" -c 'from constraint_dynamics_msgs.msg import ConstraintForces, AccelerationLimits, AccelerationLimit; from constraint_dynamics_msgs.srv import GetConstraintForces, ProjectVelocity, Predict, Rollouts, SetPayload; from geometry_msgs.msg import Inertia; import rclpy, cyclonedds, mcap.reader, zstandard; from visualization_msgs.msg import MarkerArray; from lifecycle_msgs.srv import ChangeState; from diagnostic_msgs.msg import DiagnosticArray'
 
 printf '%s\n' "$WANT" > "$STAMP"
 t1=$(date +%s.%N)

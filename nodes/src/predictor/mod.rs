@@ -205,6 +205,9 @@ impl NodeLogic for PredictorNode {
             );
         }
         self.last_command = finite.then_some(([t.linear.x, t.angular.z], now));
+        if let (Some(m), Some((c, _))) = (&mut self.monitor, self.last_command) {
+            m.command(now, c);
+        }
     }
     fn odometry_applied(&mut self, od: &Odometry) {
         if let Some(m) = &mut self.monitor {

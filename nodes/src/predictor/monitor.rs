@@ -1,7 +1,9 @@
 //! The predictor scoring its own past predictions (the core's [`PredictionMonitor`]): each
 //! periodic prediction's samples at `monitor.horizons` are recorded, due at the start state's
 //! odometry stamp + the sample's time; each `odom` and `joint_states` that arrives scores the
-//! ones due (no allocation per message). Every tick the figures go out on
+//! ones due (no allocation per message); a command that moves off the last one by more than
+//! `monitor.command_tolerance` (at its arrival on the ROS clock) unscores the predictions it
+//! falls within. Every tick the figures go out on
 //! `~/prediction_residuals` (`diagnostic_msgs/DiagnosticArray`, one status per horizon), the
 //! verdict into the node's `/diagnostics` status, and a WARN naming the likely cause once per
 //! onset (an INFO when it clears).
@@ -9,6 +11,7 @@
 use constraint_dynamics::model::Model;
 use constraint_dynamics::monitor::{
     HorizonReport, MeasuredOdometry, PlanarCovariance, PredictedSample, PredictionMonitor, Verdict,
+    yaw_difference,
 };
 use constraint_dynamics::predict::Trajectory;
 
@@ -35,13 +38,23 @@ pub struct OnlineMonitor {
     epoch: Option<i64>,
     /// The last odometry's stamp [s after epoch]: the start of the next prediction.
     odom_t: Option<f64>,
-    /// Whether a joint state with efforts came: predictions before it start from the scene's
-    /// initial joints, and their efforts are not scored.
+    /// Whether a joint state with positions, and one with efforts, came: predictions before
+    /// them start from the scene's initial joints, and those are not scored.
+    positions_seen: bool,
     efforts_seen: bool,
-    /// Which joints (v index) the current joint state gave an effort for.
-    measured: Vec<bool>,
-    /// Joint names by v index (learned from joint states; "" until seen).
+    /// The current joint state's positions and efforts by v index (NaN: not in it).
+    measured_position: Vec<f64>,
+    measured_effort: Vec<f64>,
+    /// A prediction's joint positions by v index (NaN: not a joint the joint states give).
+    predicted_position: Vec<f64>,
+    /// Joint names and q indices by v index (learned from joint states; "", None until seen).
     names: Vec<String>,
+    q_index: Vec<Option<usize>>,
+    /// The command (v [m/s], ω [rad/s]) the last change was judged from, and the tolerance.
+    command: Option<[f64; 2]>,
+    command_tolerance: [f64; 2],
+    /// The model error's σ per metre travelled and per radian turned over a horizon.
+    motion_error: [f64; 2],
     verdict: Verdict,
     /// The longest horizon's figures at the last tick, for `/diagnostics`.
     values: Vec<KeyValue>,
@@ -58,9 +71,16 @@ impl OnlineMonitor {
             core: PredictionMonitor::new(p.settings(rate), nv),
             epoch: None,
             odom_t: None,
+            positions_seen: false,
             efforts_seen: false,
-            measured: vec![false; nv],
+            measured_position: vec![f64::NAN; nv],
+            measured_effort: vec![f64::NAN; nv],
+            predicted_position: vec![f64::NAN; nv],
             names: vec![String::new(); nv],
+            q_index: vec![None; nv],
+            command: None,
+            command_tolerance: p.command_tolerance(),
+            motion_error: p.motion_error(),
             verdict: None,
             values: Vec::new(),
         }
@@ -72,17 +92,31 @@ impl OnlineMonitor {
         (ns - epoch) as f64 * 1e-9
     }
 
-    /// Records `traj`'s samples at the monitored horizons, started from the last odometry. Their covariance is the predicted odometry's: propagated (when
-    /// the samples carry it) plus the integration error estimate and `floors`.
+    /// Records `traj`'s samples at the monitored horizons, started from the last odometry.
+    /// Their covariance is the predicted odometry's: propagated (when the samples carry it)
+    /// plus the integration error estimate and `floors`, plus the model error the motion
+    /// brings (`monitor.motion_error` × the distance travelled and the angle turned from the
+    /// start).
     pub fn record(&mut self, model: &Model, traj: &Trajectory, floors: &CovarianceParams) {
         // Before the first odometry the prediction starts from the scene's initial state, not
         // from anything measured: nothing to score.
         let Some(t0) = self.odom_t else {
             return;
         };
-        let Some(last_t) = traj.samples.last().map(|s| s.t) else {
+        let (Some(first), Some(last_t)) = (traj.samples.first(), traj.samples.last().map(|s| s.t))
+        else {
             return;
         };
+        let planar = |q: &[f64]| {
+            let pose = model.base_pose(q);
+            let [x, y, z, w] = pose.orientation_xyzw;
+            [
+                pose.position[0],
+                pose.position[1],
+                yaw(&Quaternion { x, y, z, w }),
+            ]
+        };
+        let start = planar(&first.q);
         for i in 0..self.core.settings().horizons.len() {
             let h = self.core.settings().horizons[i];
             if h > last_t + 1e-9 {
@@ -110,20 +144,32 @@ impl OnlineMonitor {
                     covariance[a][b] = pose6[6 * ia + ib];
                 }
             }
-            covariance[0][0] += sp * sp;
-            covariance[1][1] += sp * sp;
-            covariance[2][2] += so * so;
-            let pose = model.base_pose(&s.q);
-            let [x, y, z, w] = pose.orientation_xyzw;
-            let yaw = yaw(&Quaternion { x, y, z, w });
+            let pose = planar(&s.q);
+            let travelled = (pose[0] - start[0]).hypot(pose[1] - start[1]);
+            let turned = yaw_difference(pose[2], start[2]).abs();
+            let (mt, mr) = (
+                self.motion_error[0] * travelled,
+                self.motion_error[1] * turned,
+            );
+            covariance[0][0] += sp * sp + mt * mt;
+            covariance[1][1] += sp * sp + mt * mt;
+            covariance[2][2] += so * so + mr * mr;
+            for (p, iq) in self.predicted_position.iter_mut().zip(&self.q_index) {
+                *p = iq.and_then(|iq| s.q.get(iq).copied()).unwrap_or(f64::NAN);
+            }
             self.core.record(
                 i,
                 &PredictedSample {
+                    start: t0,
                     t: t0 + s.t,
-                    pose: [pose.position[0], pose.position[1], yaw],
+                    pose,
                     covariance,
                     effort: match self.efforts_seen {
                         true => &s.actuator_torque,
+                        false => &[],
+                    },
+                    position: match self.positions_seen {
+                        true => &self.predicted_position,
                         false => &[],
                     },
                 },
@@ -146,26 +192,53 @@ impl OnlineMonitor {
         });
     }
 
-    /// Scores the predictions due by `js`'s stamp against the efforts it gave (already applied
-    /// to `state`).
+    /// Scores the predictions due by `js`'s stamp against the positions and efforts it gave
+    /// (already applied to `state`, and read from there: one value per joint).
     pub fn joint_state(&mut self, js: &JointState, state: &StateEstimate) {
-        if js.effort.len() != js.name.len() || js.effort.is_empty() {
+        let has_position = js.position.len() == js.name.len() && !js.name.is_empty();
+        let has_effort = js.effort.len() == js.name.len() && !js.name.is_empty();
+        if !(has_position || has_effort) {
             return;
         }
-        self.measured.fill(false);
+        self.measured_position.fill(f64::NAN);
+        self.measured_effort.fill(f64::NAN);
         for name in &js.name {
-            if let Some((_, iv)) = state.joint(name)
-                && iv < self.measured.len()
-            {
-                self.measured[iv] = true;
-                if self.names[iv].is_empty() {
-                    self.names[iv] = name.clone();
-                }
+            let Some((iq, iv)) = state.joint(name) else {
+                continue;
+            };
+            if iv >= self.names.len() {
+                continue;
+            }
+            if self.names[iv].is_empty() {
+                self.names[iv] = name.clone();
+                self.q_index[iv] = Some(iq);
+            }
+            if has_position {
+                self.measured_position[iv] = state.q.get(iq).copied().unwrap_or(f64::NAN);
+            }
+            if has_effort {
+                self.measured_effort[iv] = state.effort[iv];
             }
         }
-        self.efforts_seen = true;
+        self.positions_seen |= has_position;
+        self.efforts_seen |= has_effort;
         let t = self.seconds(js.header.stamp);
-        self.core.efforts(t, &state.effort, &self.measured);
+        (self.core).joint_states(t, &self.measured_position, &self.measured_effort);
+    }
+
+    /// A command (v [m/s], ω [rad/s]) arrived at `now`: one off the last by more than the
+    /// tolerance changes what the pending predictions assumed.
+    pub fn command(&mut self, now: Time, command: [f64; 2]) {
+        let tol = self.command_tolerance;
+        let changed = match self.command {
+            None => true,
+            Some(c) => (0..2).any(|i| (command[i] - c[i]).abs() > tol[i]),
+        };
+        if changed {
+            self.command = Some(command);
+            let t = self.seconds(now);
+            self.core.command_changed(t);
+        }
     }
 
     /// The verdict's sentence (None while the model matches).
@@ -229,10 +302,15 @@ fn status(r: &HorizonReport, warning: &Option<String>, names: &[String]) -> Diag
 
 fn values(r: &HorizonReport, names: &[String]) -> Vec<KeyValue> {
     let h = r.horizon;
-    let (joint, effort) = match r.effort_worst {
-        Some((j, e)) => (names.get(j).cloned().unwrap_or_default(), format!("{e:.3}")),
+    let worst = |w: Option<(usize, f64)>, digits: usize| match w {
+        Some((j, e)) => (
+            names.get(j).cloned().unwrap_or_default(),
+            format!("{e:.digits$}"),
+        ),
         None => (String::new(), "nan".to_string()),
     };
+    let (joint, effort) = worst(r.effort_worst, 3);
+    let (position_joint, position) = worst(r.joint_position_worst, 5);
     vec![
         kv("horizon [s]", &format!("{h}")),
         kv("odometry samples", &r.odometry_samples.to_string()),
@@ -249,6 +327,16 @@ fn values(r: &HorizonReport, names: &[String]) -> Vec<KeyValue> {
         kv("effort samples", &r.effort_samples.to_string()),
         kv("worst effort error median [N m or N]", &effort),
         kv("worst effort joint", &joint),
+        kv(
+            "joint position samples",
+            &r.joint_position_samples.to_string(),
+        ),
+        kv("worst joint position error median [rad or m]", &position),
+        kv("worst joint position joint", &position_joint),
         kv("unmatched predictions", &r.unmatched.to_string()),
+        kv(
+            "command changed (not scored)",
+            &r.command_changed.to_string(),
+        ),
     ]
 }

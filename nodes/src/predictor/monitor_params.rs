@@ -34,6 +34,13 @@ pub struct MonitorParams {
     pub effort_threshold: f64,
     /// A called cause clears below this fraction of its threshold (in (0, 1]).
     pub clear_ratio: f64,
+    /// A command whose v [m/s] or ω [rad/s] moves off the last by more than this changes what
+    /// the pending predictions assumed: they are not scored ([v, ω], each ≥ 0).
+    pub command_tolerance: Vec<f64>,
+    /// The model error a prediction's covariance is widened by: σ per metre travelled [m/m]
+    /// on x and y and per radian turned [rad/rad] on yaw, over each horizon ([translation,
+    /// rotation], each ≥ 0).
+    pub motion_error: Vec<f64>,
 }
 
 impl Default for MonitorParams {
@@ -47,6 +54,8 @@ impl Default for MonitorParams {
             nees_threshold: 9.0,
             effort_threshold: 2.0,
             clear_ratio: 0.5,
+            command_tolerance: vec![0.005, 0.01],
+            motion_error: vec![0.02, 0.05],
         }
     }
 }
@@ -77,6 +86,25 @@ impl MonitorParams {
         positive("monitor.max_lag", self.max_lag)?;
         positive("monitor.nees_threshold", self.nees_threshold)?;
         positive("monitor.effort_threshold", self.effort_threshold)?;
+        let pair = |name: &str, x: &[f64], what: &str| match x.len() == 2
+            && x.iter().all(|x| x.is_finite() && *x >= 0.0)
+        {
+            true => Ok(()),
+            false => Err(ParamsError::invalid(
+                name,
+                format!("= {x:?} must be {what}, finite and ≥ 0"),
+            )),
+        };
+        pair(
+            "monitor.command_tolerance",
+            &self.command_tolerance,
+            "[v [m/s], ω [rad/s]]",
+        )?;
+        pair(
+            "monitor.motion_error",
+            &self.motion_error,
+            "[per metre [m/m], per radian [rad/rad]]",
+        )?;
         let c = self.clear_ratio;
         if !(c > 0.0 && c <= 1.0) {
             return Err(ParamsError::invalid(
@@ -85,6 +113,16 @@ impl MonitorParams {
             ));
         }
         Ok(())
+    }
+
+    /// The command tolerance [v [m/s], ω [rad/s]] (validated: two values).
+    pub fn command_tolerance(&self) -> [f64; 2] {
+        pair(&self.command_tolerance)
+    }
+
+    /// The model error per metre travelled and per radian turned (validated: two values).
+    pub fn motion_error(&self) -> [f64; 2] {
+        pair(&self.motion_error)
     }
 
     /// The core's settings, for predictions at `rate` [Hz].
@@ -104,6 +142,10 @@ impl MonitorParams {
             },
         }
     }
+}
+
+fn pair(x: &[f64]) -> [f64; 2] {
+    [x.first(), x.get(1)].map(|x| x.copied().unwrap_or(0.0))
 }
 
 #[cfg(test)]
@@ -152,6 +194,20 @@ mod tests {
                 ..d.clone()
             },
             "monitor.clear_ratio",
+        );
+        bad(
+            MonitorParams {
+                command_tolerance: vec![0.01, -1.0],
+                ..d.clone()
+            },
+            "monitor.command_tolerance",
+        );
+        bad(
+            MonitorParams {
+                motion_error: vec![0.02],
+                ..d.clone()
+            },
+            "monitor.motion_error",
         );
         bad(
             MonitorParams {

@@ -1,5 +1,5 @@
 //! The prediction monitor allocates nothing after construction: recording predictions,
-//! scoring odometry and efforts, the reports and the verdict (the predictor calls these per
+//! scoring odometry and joint states, command changes, the reports and the verdict (the predictor calls these per
 //! message and per tick).
 
 use constraint_dynamics::monitor::{
@@ -25,16 +25,17 @@ fn recording_scoring_and_assessing_allocate_nothing() {
     let mut m = PredictionMonitor::new(settings, 4);
     let p = [[1e-6, 0.0, 0.0], [0.0, 1e-6, 0.0], [0.0, 0.0, 1e-6]];
     let effort = [0.0, 1.0, 2.0, 3.0];
-    let measured = [true, true, false, true];
     let run = |m: &mut PredictionMonitor, k0: usize| {
         for k in k0..k0 + 200 {
             let t = k as f64 * 0.1;
             for (i, h) in [0.25, 0.5, 1.0].into_iter().enumerate() {
                 let s = PredictedSample {
+                    start: t,
                     t: t + h,
                     pose: [0.3 * (t + h), 0.0, 0.0],
                     covariance: p,
                     effort: &effort,
+                    position: &effort,
                 };
                 m.record(i, &s);
             }
@@ -46,7 +47,10 @@ fn recording_scoring_and_assessing_allocate_nothing() {
                     covariance: p,
                     twist: [0.3, 0.0, 0.0],
                 });
-                m.efforts(tm, &[0.5, 1.0, 2.0, 6.0], &measured);
+                m.joint_states(tm, &[0.0, 1.0, 2.0, 3.5], &[0.5, 1.0, f64::NAN, 6.0]);
+            }
+            if k % 20 == 0 {
+                m.command_changed(t + 0.05);
             }
             let _ = m.assess();
         }
