@@ -13,8 +13,9 @@ use crate::derivatives::{
     DerivativeData, aba_derivatives, constrained_dynamics_derivatives, rnea_derivatives,
 };
 use crate::dynamics::{
-    Baumgarte, EmbeddedWorkspace, Formulation, KktOptions, KktWorkspace, LINEAR_MIN_NV,
-    TreeWorkspace, constrained_forward_dynamics, embedded_forward_dynamics, tree_forward_dynamics,
+    Baumgarte, EmbeddedWorkspace, Formulation, KktOptions, KktWorkspace, TreeWorkspace,
+    constrained_forward_dynamics, embedded_forward_dynamics, takes_linear_path,
+    tree_forward_dynamics,
 };
 use crate::error::{Result, check_len};
 use crate::model::Model;
@@ -116,8 +117,9 @@ pub struct System {
     kkt: KktWorkspace,
     /// Embedded-form workspace.
     embedded: EmbeddedWorkspace,
-    /// The linear-time path's workspace (no constraint rows, at least `LINEAR_MIN_NV`
-    /// coordinates).
+    /// Without constraint rows, whether the forward dynamics go by ABA in O(n)
+    /// (`dynamics::takes_linear_path`), and that path's workspace.
+    linear: bool,
     tree: TreeWorkspace,
     /// Which formulation produced the last result.
     last_formulation: Formulation,
@@ -137,6 +139,7 @@ impl System {
         let kkt = KktWorkspace::new(&model, &constraints);
         let embedded = EmbeddedWorkspace::new(&model, &constraints);
         let tree = TreeWorkspace::new(&model);
+        let linear = constraints.is_empty() && takes_linear_path(&model);
         Self {
             model,
             constraints,
@@ -146,6 +149,7 @@ impl System {
             cdata,
             kkt,
             embedded,
+            linear,
             tree,
             last_formulation: Formulation::Multipliers,
         }
@@ -329,8 +333,7 @@ impl System {
             Formulation::Multipliers | Formulation::Auto => true,
             Formulation::Embedded => false,
         };
-        if self.constraints.is_empty()
-            && self.model.nv >= LINEAR_MIN_NV
+        if self.linear
             && tree_forward_dynamics(&self.model, &mut self.data, &mut self.tree, q, v, tau)
         {
             return Ok(self.unconstrained_result(opts.t, use_multipliers));

@@ -94,9 +94,7 @@ impl EmbeddedWorkspace {
         self.col = vec![0.0; nc.max(nv)];
         self.z = vec![0.0; nv];
     }
-}
 
-impl EmbeddedWorkspace {
     /// Size N, N_B, M N and the reduced matrix to nv × nv when they are not (a large
     /// model's first embedded solve: its unconstrained evaluations never hold them).
     fn size_square(&mut self, nv: usize) {

@@ -19,7 +19,7 @@ pub use multipliers::{KktOptions, KktWorkspace, constrained_forward_dynamics};
 pub use partition::{
     Partition, PartitionWorkspace, partition, partition_into, partition_preferring,
 };
-pub use tree::{LINEAR_MIN_NV, TreeWorkspace, tree_forward_dynamics};
+pub use tree::{LINEAR_MIN_MEAN_DEPTH, TreeWorkspace, takes_linear_path, tree_forward_dynamics};
 
 use serde::{Deserialize, Serialize};
 

@@ -1,8 +1,8 @@
 //! Forward dynamics of a tree without constraint rows in O(n) time and memory: q̈ = M⁻¹(τ − h)
 //! by the articulated-body algorithm, with no n × n matrix. The dense path (CRBA, bias forces,
 //! the sparse LTL factor of M and its solves) costs O(Σ depth²) time and n² memory — cubic and
-//! quadratic on a chain — but fewer operations per coordinate, so it stays below
-//! [`LINEAR_MIN_NV`] coordinates (docs/performance.md measures the crossover).
+//! quadratic on a chain — but fewer operations per coordinate, so it stays where
+//! [`takes_linear_path`] says it is the faster (docs/performance.md measures the crossover).
 //!
 //! Both paths accept the same models: ABA's pivots D_k are the LTL factor's (L_kk² of
 //! M = LᵀL, the joint's inertia with the joints below it free), so the same checks — each
@@ -10,13 +10,35 @@
 //! check fails the caller takes the dense path, which errs or takes its augmented form as
 //! before.
 
-use crate::algorithm::{Data, aba, mass_diagonal_after_kinematics};
+use crate::algorithm::{DENSE_EAGER_NV, Data, aba, mass_diagonal_after_kinematics};
+use crate::linalg::NO_PARENT;
 use crate::model::{MIN_PIVOT_RATIO, Model};
 use nalgebra::Matrix6;
 
-/// From this many velocity coordinates on, a system without constraint rows evaluates its
-/// forward dynamics by ABA (`System::forward_dynamics_with`).
-pub const LINEAR_MIN_NV: usize = 64;
+/// The mean depth of a velocity coordinate in the tree (its ancestors, itself included) from
+/// which ABA is the faster: the dense path's work per coordinate grows with it (M's entries in
+/// its column, the LTL factor's products), ABA's does not. Measured on chains (mean depth
+/// (n + 1)/2): dense/linear time 0.87 at n = 24, 1.07 at n = 32; the four example robots, mean
+/// depth ≤ 10, are 1.4–1.7× faster dense.
+pub const LINEAR_MIN_MEAN_DEPTH: f64 = 15.0;
+
+/// Whether a system on `model` without constraint rows evaluates its forward dynamics by ABA
+/// (`System::forward_dynamics_with`): where it is the faster (mean depth at least
+/// [`LINEAR_MIN_MEAN_DEPTH`]), and above `DENSE_EAGER_NV` coordinates whatever the shape, so
+/// that no n × n matrix is held unless asked for.
+pub fn takes_linear_path(model: &Model) -> bool {
+    let nv = model.nv;
+    if nv > DENSE_EAGER_NV {
+        return true;
+    }
+    // Coordinates are numbered depth-first: a parent comes before its children.
+    let mut depth = vec![0usize; nv];
+    for k in 0..nv {
+        let p = model.v_parent[k];
+        depth[k] = if p == NO_PARENT { 1 } else { depth[p] + 1 };
+    }
+    nv > 0 && depth.iter().sum::<usize>() as f64 >= LINEAR_MIN_MEAN_DEPTH * nv as f64
+}
 
 /// The LTL factor's pivot tolerance relative to max diag(M) (`multipliers::factor_mass`).
 const LTL_REL_TOL: f64 = 1e-14;

@@ -19,8 +19,8 @@ use crate::common::*;
 use constraint_dynamics::algorithm::Data;
 use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
 use constraint_dynamics::dynamics::{
-    Baumgarte, Formulation, KktWorkspace, LINEAR_MIN_NV, TreeWorkspace,
-    constrained_forward_dynamics, tree_forward_dynamics,
+    Baumgarte, Formulation, KktWorkspace, TreeWorkspace, constrained_forward_dynamics,
+    takes_linear_path, tree_forward_dynamics,
 };
 use constraint_dynamics::system::DynamicsOptions;
 use constraint_dynamics::{BaseType, Model, ModelOptions, Scene, System};
@@ -105,6 +105,8 @@ fn linear_and_dense_agree_on_the_robots() {
     }
     let mut draw = Draw(0x9E37_79B9_7F4A_7C15);
     for (name, m) in &models {
+        // Shallow trees: the dense path is the faster there, and `System` keeps it.
+        assert!(!takes_linear_path(m), "{name}");
         for k in 0..5 {
             let (q, v, tau) = draw.state(m, 10.0);
             let dense = dense_qdd(m, &q, &v, &tau);
@@ -117,7 +119,6 @@ fn linear_and_dense_agree_on_the_robots() {
 #[test]
 fn a_long_chain_takes_the_linear_path_and_agrees_with_the_dense_one() {
     let n = 200;
-    assert!(n >= LINEAR_MIN_NV);
     // The chain's scene file, as the benchmark writes it, read back: its start state by name.
     let dir = std::env::temp_dir().join(format!("linear_dynamics_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -132,6 +133,7 @@ fn a_long_chain_takes_the_linear_path_and_agrees_with_the_dense_one() {
     assert_eq!(scene.q0, chain::chain_q0(n));
     let m = (*scene.model).clone();
     assert_eq!(m.nv, n);
+    assert!(takes_linear_path(&m));
     let mut sys = System::from_scene(&scene).unwrap();
     let mut draw = Draw(7);
     for k in 0..4 {
@@ -227,7 +229,7 @@ fn a_singular_tree_is_left_to_the_dense_path() {
     // A massless leaf link on its own joint: M is singular, ABA's pivot there is 0. The model
     // alone loads (a scene refuses it unless constraints fix that joint); its dynamics err
     // through `System` as the dense path does.
-    let urdf = chain::chain_urdf(LINEAR_MIN_NV).replace(
+    let urdf = chain::chain_urdf(64).replace(
         "</robot>",
         r#"<link name="tip"/><joint name="tip_joint" type="revolute"><parent link="link1"/>
   <child link="tip"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/>
