@@ -10,6 +10,8 @@
 
 #[path = "robots/chain.rs"]
 mod chain;
+// Their contact sets and accelerations serve benches/dynamics.rs, not this bench.
+#[allow(dead_code)]
 mod robots;
 
 use constraint_dynamics::algorithm::Data;

@@ -4,11 +4,12 @@
 //!
 //! - Both paths agree on q̈ at random states of the bundled and reference robots (fixed and
 //!   floating bases, multi-DOF joints) and of a 200-link chain, where `System` itself takes the
-//!   linear path. Achieved: ≤ 1.6e-12 relative to max(1, max |q̈|) on the robots (solo12; the
-//!   fixed-base arms ≤ 2.5e-15), and on the chain 3.9e-12 at its coiled start and ≤ 5.1e-11 at
-//!   random states, where M's conditioning sets both paths' rounding (tolerance 1e-10).
+//!   linear path. Achieved, relative to max(1, max |q̈|): ≤ 1.3e-12 on the robots (the floating
+//!   mobile manipulator; the fixed-base arms ≤ 8e-16), on the chain 3.9e-12 at its coiled start
+//!   and ≤ 5.7e-11 at random states, where M's conditioning sets both paths' rounding
+//!   (tolerance 1e-10).
 //! - A double pendulum of point masses (Lagrange's equations in the absolute angles, written
-//!   here) gives q̈ to 9e-16 (tolerance 1e-13).
+//!   here) gives q̈ to 1.2e-15 (tolerance 1e-13).
 //! - Where M is singular to working precision (a massless leaf), the linear path declines and
 //!   `System` reports what the dense path reports.
 
@@ -24,6 +25,7 @@ use constraint_dynamics::dynamics::{
 };
 use constraint_dynamics::system::DynamicsOptions;
 use constraint_dynamics::{BaseType, Model, ModelOptions, Scene, System};
+use std::f64::consts::PI;
 
 /// A reproducible uniform draw in [−1, 1) (xorshift64*).
 struct Draw(u64);
@@ -40,7 +42,7 @@ impl Draw {
     /// A random state: q = neutral ⊕ δ (δ within ±π per coordinate), v and τ in ±1 (±`scale`
     /// for τ).
     fn state(&mut self, m: &Model, tau_scale: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-        let delta: Vec<f64> = (0..m.nv).map(|_| 3.14 * self.next()).collect();
+        let delta: Vec<f64> = (0..m.nv).map(|_| PI * self.next()).collect();
         let mut q = vec![0.0; m.nq];
         m.integrate(&m.neutral(), &delta, 1.0, &mut q);
         let v = (0..m.nv).map(|_| self.next()).collect();
