@@ -1,6 +1,6 @@
 //! Forward dynamics without constraint rows, the linear-time path (`dynamics::tree`: ABA) beside
 //! the dense one (CRBA, bias forces, the LTL factor of M and its solves: the multiplier form with
-//! no rows), on generated chains of n revolute links (`robots/chain.rs`) and on the four
+//! no rows), on generated chains of n revolute links (`tests/it/common/chain.rs`) and on the four
 //! example-robot-data robots unconstrained (`robots/mod.rs`). Ids `chain/<path>/<n>` and
 //! `robot/<path>/<name>` (path `linear` or `dense`); `tools/chain_cost.py` runs it and writes the tables of
 //! docs/performance.md ("Cost against the size of the tree").
@@ -8,7 +8,7 @@
 //! With `CHAIN_SCENES_DIR` set, the chains' URDF and scene files (`chain_<n>.urdf`,
 //! `chain_<n>.yaml`) are written there first, for the tool to time the whole `eval` process on.
 
-#[path = "robots/chain.rs"]
+#[path = "../tests/it/common/chain.rs"]
 mod chain;
 // Their contact sets and accelerations serve benches/dynamics.rs, not this bench.
 #[allow(dead_code)]

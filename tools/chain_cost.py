@@ -8,8 +8,8 @@ docs/performance.md ("Cost against the size of the tree") between its `chain:beg
 What it runs, in order:
 - `cargo bench --bench chain` (criterion; needs the example-robot-data venv of
   tools/robots/setup_venv.sh, or CD_ROBOTS_DIR): forward dynamics alone, linear-time path (ABA)
-  and dense path (CRBA + LTL), on generated chains of n revolute links (benches/robots/chain.rs,
-  which also writes their URDF and scene files here) and on the four robots without contacts;
+  and dense path (CRBA + LTL), on generated chains of n revolute links (tests/it/common/chain.rs;
+  the bench also writes their URDF and scene files here) and on the four robots without contacts;
 - the release CLI's whole `eval --scene` process on each chain scene (URDF reading, model
   building, the scene's checks, the dynamics, the JSON output): wall time (best of `--repeats`)
   and peak RSS (the process's own, from wait4).

@@ -13,9 +13,7 @@
 //! - Where M is singular to working precision (a massless leaf), the linear path declines and
 //!   `System` reports what the dense path reports.
 
-#[path = "../../benches/robots/chain.rs"]
-mod chain;
-
+use crate::chain;
 use crate::common::*;
 use constraint_dynamics::algorithm::Data;
 use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};

@@ -1,6 +1,8 @@
 //! The core library's integration tests: one target (one link), one module per subject.
 //! `cargo test --test it <module>` runs one subject, e.g. `cargo test --test it projection`.
 
+#[path = "common/chain.rs"]
+mod chain;
 #[path = "common/closed_forms.rs"]
 mod closed_forms;
 #[path = "common/command_sequences.rs"]

@@ -4,9 +4,10 @@
 //!
 //! Link k (1-based) is a 0.1 m rod of 0.1 kg hanging along its −z, centre of mass at its middle,
 //! on a joint about y at the end of link k − 1 — every other joint about x, so that the chain is
-//! spatial. The scene starts it coiled: q_k = 0.3 + 0.1 sin k rad (a straight chain has the
-//! inertia of its whole length about its top joint and the pivots of its free links, ratio
-//! ≈ 3/n³, below what the loader accepts from n ≈ 1 500 on).
+//! spatial. The scene starts it coiled: q_k = 0.3 + 0.1 sin k rad. Straight, the chain has the
+//! inertia of its whole length about its top joints against the pivots of its free links
+//! (ratio ≈ 3/n³), which falls below `MIN_PIVOT_RATIO` near n = 1 500: M is refused as
+//! singular to working precision there.
 
 use std::fmt::Write;
 
