@@ -14,7 +14,7 @@ use crate::predict::{IntegrationSettings, PredictionBudget, Predictor};
 use crate::system::{DynamicsOptions, System};
 use nalgebra::Vector3;
 use serde::Deserialize;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -225,16 +225,32 @@ impl Scene {
             .map_err(|e| scene_err(e.to_string()))?;
         let mut q0 = model.neutral();
         let mut v0 = vec![0.0; model.nv];
+        // Names looked up through one map each (a search per name is quadratic in the
+        // robot's size); an unknown name gets the model's own message.
+        let index = |names: &[String]| -> HashMap<String, usize> {
+            names
+                .iter()
+                .enumerate()
+                .map(|(i, n)| (n.clone(), i))
+                .collect()
+        };
+        let (q_at, v_at) = (index(&model.q_names), index(&model.v_names));
         for (name, value) in &file.initial_state.q {
-            let i = model
-                .q_index(name)
-                .map_err(|e| scene_err(format!("initial_state.q: {e}")))?;
+            let i = match q_at.get(name) {
+                Some(&i) => i,
+                None => model
+                    .q_index(name)
+                    .map_err(|e| scene_err(format!("initial_state.q: {e}")))?,
+            };
             q0[i] = *value;
         }
         for (name, value) in &file.initial_state.v {
-            let i = model
-                .v_index(name)
-                .map_err(|e| scene_err(format!("initial_state.v: {e}")))?;
+            let i = match v_at.get(name) {
+                Some(&i) => i,
+                None => model
+                    .v_index(name)
+                    .map_err(|e| scene_err(format!("initial_state.v: {e}")))?,
+            };
             v0[i] = *value;
         }
         model.normalize(&mut q0);

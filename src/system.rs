@@ -13,8 +13,9 @@ use crate::derivatives::{
     DerivativeData, aba_derivatives, constrained_dynamics_derivatives, rnea_derivatives,
 };
 use crate::dynamics::{
-    Baumgarte, EmbeddedWorkspace, Formulation, KktOptions, KktWorkspace,
-    constrained_forward_dynamics, embedded_forward_dynamics,
+    Baumgarte, EmbeddedWorkspace, Formulation, KktOptions, KktWorkspace, TreeWorkspace,
+    constrained_forward_dynamics, embedded_forward_dynamics, takes_linear_path,
+    tree_forward_dynamics,
 };
 use crate::error::{Result, check_len};
 use crate::model::Model;
@@ -116,6 +117,10 @@ pub struct System {
     kkt: KktWorkspace,
     /// Embedded-form workspace.
     embedded: EmbeddedWorkspace,
+    /// Without constraint rows, whether the forward dynamics go by ABA in O(n)
+    /// (`dynamics::takes_linear_path`), and that path's workspace.
+    linear: bool,
+    tree: TreeWorkspace,
     /// Which formulation produced the last result.
     last_formulation: Formulation,
 }
@@ -133,6 +138,8 @@ impl System {
         let cdata = ConstraintData::new(&model, &constraints);
         let kkt = KktWorkspace::new(&model, &constraints);
         let embedded = EmbeddedWorkspace::new(&model, &constraints);
+        let tree = TreeWorkspace::new(&model);
+        let linear = constraints.is_empty() && takes_linear_path(&model);
         Self {
             model,
             constraints,
@@ -142,6 +149,8 @@ impl System {
             cdata,
             kkt,
             embedded,
+            linear,
+            tree,
             last_formulation: Formulation::Multipliers,
         }
     }
@@ -324,6 +333,11 @@ impl System {
             Formulation::Multipliers | Formulation::Auto => true,
             Formulation::Embedded => false,
         };
+        if self.linear
+            && tree_forward_dynamics(&self.model, &mut self.data, &mut self.tree, q, v, tau)
+        {
+            return Ok(self.unconstrained_result(opts.t, use_multipliers));
+        }
         if use_multipliers {
             constrained_forward_dynamics(
                 &self.model,
@@ -359,6 +373,42 @@ impl System {
             self.last_formulation = Formulation::Embedded;
             Ok(&self.embedded.qdd)
         }
+    }
+
+    /// The linear-time path's q̈ (in `data.qdd`) as the result of the form asked for: λ empty,
+    /// no generalized constraint force, every velocity independent. M and h are not computed
+    /// ([`System::terms_at`] computes them).
+    fn unconstrained_result(&mut self, t: f64, use_multipliers: bool) -> &DVector<f64> {
+        self.cdata.t = t;
+        if use_multipliers {
+            let ws = &mut self.kkt;
+            ws.qdd.copy_from(&self.data.qdd);
+            ws.generalized_force.fill(0.0);
+            ws.rank_deficiency = 0;
+            ws.augmented = false;
+            ws.inconsistency = 0.0;
+            self.last_formulation = Formulation::Multipliers;
+            &self.kkt.qdd
+        } else {
+            let ws = &mut self.embedded;
+            ws.qdd.copy_from(&self.data.qdd);
+            ws.partition.independent.clear();
+            ws.partition.independent.extend(0..self.model.nv);
+            ws.partition.dependent.clear();
+            ws.partition.rows.clear();
+            self.last_formulation = Formulation::Embedded;
+            &self.embedded.qdd
+        }
+    }
+
+    /// M(q) and h(q, v) = C(q, v) v + g(q) at (q, v), kept in [`System::data`]
+    /// (`mass_matrix`, `tau`): what a dense evaluation computes on the way, asked for
+    /// separately since the linear-time path does not form them.
+    pub fn terms_at(&mut self, q: &[f64], v: &[f64]) -> (&DMatrix<f64>, &DVector<f64>) {
+        forward_kinematics_bias(&self.model, &mut self.data, q, v);
+        crba_after_kinematics(&self.model, &mut self.data);
+        bias_forces_after_kinematics(&self.model, &mut self.data);
+        (&self.data.mass_matrix, &self.data.tau)
     }
 
     /// q̈ and ∂q̈/∂(q, v, τ) at (q, v, τ) and time `t` [s] into `dd` (and ∂λ/∂(q, v, τ) with

@@ -90,9 +90,10 @@ pub fn run(a: EvalArgs) -> Result<Value> {
         }
     }
     if a.terms {
-        // h = C v + g (data.tau holds the bias forces after the dynamics call)
-        out["M"] = matrix_rows(&sys.data().mass_matrix);
-        out["h"] = json!(sys.data().tau.as_slice());
+        // Formed here: a large tree's dynamics (O(n)) never forms M.
+        let (mass, h) = sys.terms_at(&q, &v);
+        out["M"] = matrix_rows(mass);
+        out["h"] = json!(h.as_slice());
     }
     if a.derivatives {
         out["derivatives"] = derivatives(&mut sys, &mut elements, &q, &v, &tau, &qdd, a.terms)?;

@@ -28,6 +28,7 @@ pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a DMatrix<f64
 
 /// CRBA reusing the placements `o_m_i` of a kinematics pass at the same q.
 pub(crate) fn crba_after_kinematics<'a>(model: &Model, data: &'a mut Data) -> &'a DMatrix<f64> {
+    data.size_mass_matrix(model.nv);
     let free_flyer = matches!(
         model.bodies.get(1).map(|b| (&b.joint.kind, b.joint.idx_v)),
         Some((JointKind::FreeFlyer, 0))
@@ -57,6 +58,25 @@ fn sweeps<const FREE_FLYER: bool>(model: &Model, data: &mut Data) {
     backward(model, data, base_nv);
     if FREE_FLYER {
         base_rows(model, data);
+    }
+}
+
+/// M's diagonal into `diag` (nv) from the placements `o_m_i` of a kinematics pass at q: the
+/// composite inertias' sweep alone, O(nb), without M's off-diagonal entries (whose count grows
+/// with the depth of the tree: n²/2 on a chain). `M_kk = ᵒS_kᵀ ᵒY_i ᵒS_k` with i k's body.
+pub(crate) fn mass_diagonal_after_kinematics(model: &Model, data: &mut Data, diag: &mut [f64]) {
+    for i in 1..model.nbodies() {
+        forward(model, data, i);
+    }
+    for i in (1..model.nbodies()).rev() {
+        let b = &model.bodies[i];
+        let y = data.ycrb[i];
+        for c in b.joint.idx_v..b.joint.idx_v + b.joint.kind.nv() {
+            diag[c] = data.o_s[c].dot(&y.mul_motion(&data.o_s[c]));
+        }
+        if b.parent != 0 {
+            data.ycrb[b.parent] += y;
+        }
     }
 }
 

@@ -4,6 +4,10 @@ use crate::model::Model;
 use crate::spatial::{Force, Motion, OriginInertia, SE3};
 use nalgebra::{DMatrix, DVector, Matrix6, Vector6};
 
+/// Up to this many velocity coordinates the workspaces hold their nv × nv matrices from the
+/// start (no allocation on the first evaluation); above it they are sized when first needed.
+pub const DENSE_EAGER_NV: usize = 256;
+
 /// Every result and intermediate of the algorithms, sized once for a model.
 #[derive(Clone, Debug)]
 pub struct Data {
@@ -26,7 +30,9 @@ pub struct Data {
     /// Per velocity coordinate c, ᵒY_i ᵒS_c with i its body (CRBA), world axes, nv (a
     /// free-flyer robot's, but for the base's own six, in the base frame after CRBA).
     pub f_crb: Vec<Force>,
-    /// Joint-space inertia matrix M(q), nv × nv, symmetric.
+    /// Joint-space inertia matrix M(q), nv × nv, symmetric. Sized by `Data::new` up to
+    /// [`DENSE_EAGER_NV`] coordinates; a larger model's is sized by the first call that
+    /// computes it (CRBA, RNEA's derivatives), so that its O(n) paths never hold n² entries.
     pub mass_matrix: DMatrix<f64>,
     /// RNEA output τ (or bias h = C v + g when called with q̈ = 0), nv.
     pub tau: DVector<f64>,
@@ -58,7 +64,11 @@ impl Data {
             o_s: vec![Motion::zero(); nv],
             ycrb: vec![OriginInertia::default(); nb],
             f_crb: vec![Force::zero(); nv],
-            mass_matrix: DMatrix::zeros(nv, nv),
+            mass_matrix: if nv <= DENSE_EAGER_NV {
+                DMatrix::zeros(nv, nv)
+            } else {
+                DMatrix::zeros(0, 0)
+            },
             tau: DVector::zeros(nv),
             qdd: DVector::zeros(nv),
             jacobian: DMatrix::zeros(6, nv),
@@ -68,6 +78,15 @@ impl Data {
             d_inv: vec![Matrix6::zeros(); nb],
             u_vec: vec![Vector6::zeros(); nb],
             c: vec![Motion::zero(); nb],
+        }
+    }
+}
+
+impl Data {
+    /// Size `mass_matrix` to nv × nv when it is not (a large model's first CRBA).
+    pub(crate) fn size_mass_matrix(&mut self, nv: usize) {
+        if self.mass_matrix.shape() != (nv, nv) {
+            self.mass_matrix = DMatrix::zeros(nv, nv);
         }
     }
 }

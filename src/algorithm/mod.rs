@@ -13,8 +13,8 @@ mod rnea;
 
 pub use aba::aba;
 pub use crba::crba;
-pub(crate) use crba::crba_after_kinematics;
-pub use data::Data;
+pub(crate) use crba::{crba_after_kinematics, mass_diagonal_after_kinematics};
+pub use data::{DENSE_EAGER_NV, Data};
 pub use energy::{center_of_mass, kinetic_energy, potential_energy};
 pub use jacobian::{ReferenceFrame, frame_jacobian, point_jacobian, point_jacobian_rows};
 pub use kinematics::{

@@ -159,6 +159,7 @@ fn applied_force_variation(dd: &DerivativeData, k: usize) -> Matrix6<f64> {
 /// of its subtree.
 #[inline(always)]
 fn backward_pass(model: &Model, data: &mut Data, dd: &mut DerivativeData) {
+    data.size_mass_matrix(model.nv);
     let m = &mut data.mass_matrix;
     dd.dtau_dq.as_mut_slice().fill(0.0);
     dd.dtau_dv.as_mut_slice().fill(0.0);

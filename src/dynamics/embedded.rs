@@ -15,7 +15,7 @@
 
 use super::Baumgarte;
 use super::partition::{Partition, PartitionWorkspace, partition_into};
-use crate::algorithm::{Data, bias_forces_after_kinematics, crba_after_kinematics};
+use crate::algorithm::{DENSE_EAGER_NV, Data, bias_forces_after_kinematics, crba_after_kinematics};
 use crate::constraints::{Constraint, ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
 use crate::linalg::{cholesky_in_place, cholesky_solve, lu_in_place, lu_solve};
@@ -83,10 +83,9 @@ impl EmbeddedWorkspace {
         self.declared = Vec::with_capacity(nc);
         self.preferred = Vec::with_capacity(nc);
         self.v_solved = vec![0.0; nv];
-        self.n = DMatrix::zeros(nv, nv);
-        self.nb = DMatrix::zeros(nv, nv);
-        self.mn = DMatrix::zeros(nv, nv);
-        self.reduced = DMatrix::zeros(nv, nv);
+        if nv <= DENSE_EAGER_NV {
+            self.size_square(nv);
+        }
         self.jd = DMatrix::zeros(nc.max(r), nc.max(r));
         self.piv = vec![0; nc.max(nv)];
         self.b = vec![0.0; nc];
@@ -94,6 +93,17 @@ impl EmbeddedWorkspace {
         self.rhs = vec![0.0; nv];
         self.col = vec![0.0; nc.max(nv)];
         self.z = vec![0.0; nv];
+    }
+
+    /// Size N, N_B, M N and the reduced matrix to nv × nv when they are not (a large
+    /// model's first embedded solve: its unconstrained evaluations never hold them).
+    fn size_square(&mut self, nv: usize) {
+        if self.n.shape() != (nv, nv) {
+            self.n = DMatrix::zeros(nv, nv);
+            self.nb = DMatrix::zeros(nv, nv);
+            self.mn = DMatrix::zeros(nv, nv);
+            self.reduced = DMatrix::zeros(nv, nv);
+        }
     }
 }
 
@@ -234,6 +244,7 @@ fn solve(
     stab: Baumgarte,
 ) -> Result<()> {
     let (nv, nc) = (model.nv, set.nrows);
+    ws.size_square(nv);
     // One kinematics pass at (q, v, q̈ = 0) serves the constraints, M and h.
     set.evaluate(model, data, cd, t, q, v);
     set.check_finite(cd)?;

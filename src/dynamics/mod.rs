@@ -6,17 +6,20 @@
 //! - [`embedded`]: Voronets' multiplier-free form, dependent velocities solved from the
 //!   constraints, `(NᵀMN) q̈_i = Nᵀ(τ − h − M q̈_p)` in the independent coordinates only.
 //!
-//! `Formulation::Auto` uses the embedded form unless constraint forces are asked for.
+//! `Formulation::Auto` uses the embedded form unless constraint forces are asked for. Without
+//! constraint rows both are q̈ = M⁻¹(τ − h), which [`tree`] computes in O(n) for large trees.
 
 mod embedded;
 mod multipliers;
 mod partition;
+mod tree;
 
 pub use embedded::{EmbeddedWorkspace, embedded_forward_dynamics};
 pub use multipliers::{KktOptions, KktWorkspace, constrained_forward_dynamics};
 pub use partition::{
     Partition, PartitionWorkspace, partition, partition_into, partition_preferring,
 };
+pub use tree::{LINEAR_MIN_MEAN_DEPTH, TreeWorkspace, takes_linear_path, tree_forward_dynamics};
 
 use serde::{Deserialize, Serialize};
 

@@ -11,7 +11,7 @@
 //! the augmented matrix M + ρ JᵀJ replaces M and ρ Jᵀb joins the right side: same q̈ and λ.
 
 use super::{Baumgarte, disagree_beyond_rounding};
-use crate::algorithm::{Data, bias_forces_after_kinematics, crba_after_kinematics};
+use crate::algorithm::{DENSE_EAGER_NV, Data, bias_forces_after_kinematics, crba_after_kinematics};
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
 use crate::linalg::{
@@ -68,7 +68,12 @@ impl KktWorkspace {
     pub fn new(model: &Model, set: &ConstraintSet) -> Self {
         let (nv, nc) = (model.nv, set.nrows);
         Self {
-            l: DMatrix::zeros(nv, nv),
+            // A large model's is sized by its first dense factor (`factor_mass`).
+            l: if nv <= DENSE_EAGER_NV {
+                DMatrix::zeros(nv, nv)
+            } else {
+                DMatrix::zeros(0, 0)
+            },
             l_inv_diag: DVector::zeros(nv),
             y: DMatrix::zeros(nv, nc),
             y_rows: vec![0.0; nv * nc],
@@ -171,6 +176,9 @@ fn factor_mass(
     cd: &ConstraintData,
     ws: &mut KktWorkspace,
 ) -> Result<()> {
+    if ws.l.shape() != data.mass_matrix.shape() {
+        ws.l = DMatrix::zeros(model.nv, model.nv);
+    }
     ws.l.copy_from(&data.mass_matrix);
     ws.augmented = false;
     let m = &data.mass_matrix;

@@ -2,6 +2,7 @@
 //! which velocities are dependent (v_d = B v_i), chosen from J at the current state by
 //! column-pivoted QR, allocation-free on a reusable [`PartitionWorkspace`].
 
+use crate::algorithm::DENSE_EAGER_NV;
 use crate::linalg::ColumnPivotedQr;
 use nalgebra::DMatrix;
 
@@ -36,7 +37,12 @@ impl PartitionWorkspace {
     pub fn new(nc: usize, nv: usize) -> Self {
         let n = nc.max(nv);
         Self {
-            qr: ColumnPivotedQr::new(n, n),
+            // A large model's QR is sized by its first use.
+            qr: if n > DENSE_EAGER_NV {
+                ColumnPivotedQr::default()
+            } else {
+                ColumnPivotedQr::new(n, n)
+            },
             selected: Vec::with_capacity(n),
             others: Vec::with_capacity(nv),
             u: DMatrix::zeros(nc, nv),

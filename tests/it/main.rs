@@ -1,6 +1,8 @@
 //! The core library's integration tests: one target (one link), one module per subject.
 //! `cargo test --test it <module>` runs one subject, e.g. `cargo test --test it projection`.
 
+#[path = "common/chain.rs"]
+mod chain;
 #[path = "common/closed_forms.rs"]
 mod closed_forms;
 #[path = "common/command_sequences.rs"]
@@ -34,6 +36,7 @@ mod error_estimate;
 mod error_kinds;
 mod example_robot_data;
 mod invariant_dynamics;
+mod linear_dynamics;
 mod linearize;
 mod live_prediction;
 mod moving_frames;

@@ -18,6 +18,7 @@
 //! fast (θ ≤ 1e-3) and the factorization while the step changes by less than 20 %.
 
 use super::radau_tableau::RadauCoefficients;
+use crate::algorithm::DENSE_EAGER_NV;
 use crate::error::{Error, Result};
 use crate::linalg::{lu_in_place, lu_solve};
 use crate::model::Model;
@@ -89,9 +90,6 @@ impl RadauWorkspace {
         let v3 = || [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
         let mut ws = Self {
             co: RadauCoefficients::new(),
-            jac: DMatrix::zeros(n, n),
-            e1: DMatrix::zeros(n, n),
-            e2: DMatrix::zeros(2 * n, 2 * n),
             piv1: vec![0; n],
             piv2: vec![0; 2 * n],
             z: v3(),
@@ -108,8 +106,21 @@ impl RadauWorkspace {
             scratch: JacobianScratch::new(nq, nv),
             ..Default::default()
         };
+        if nv <= DENSE_EAGER_NV {
+            ws.size_matrices(n);
+        }
         ws.reset();
         ws
+    }
+
+    /// Size J and the two factorizations for n = 2 nv states when they are not: a large
+    /// model's are sized by its first Radau step (other methods never hold their 24 n² entries).
+    fn size_matrices(&mut self, n: usize) {
+        if self.jac.nrows() != n {
+            self.jac = DMatrix::zeros(n, n);
+            self.e1 = DMatrix::zeros(n, n);
+            self.e2 = DMatrix::zeros(2 * n, 2 * n);
+        }
     }
 
     /// Forget the Jacobian, factorizations and step history (a new run, or the state jumped).
@@ -150,6 +161,7 @@ pub fn radau5_step<F: Accel>(
 ) -> Result<StepOutcome> {
     let nv = v.len();
     let n = 2 * nv;
+    ws.size_matrices(n);
     let (rtol, atol) = internal_tolerances(rtol, atol);
     ws.tol = (rtol, atol);
     let fnewt = (10.0 * f64::EPSILON / rtol).max(0.03f64.min(rtol.sqrt()));

@@ -1,0 +1,178 @@
+#!/usr/bin/env python3
+"""Measure how the cost of an unconstrained tree grows with its size, and write the tables of
+docs/performance.md ("Cost against the size of the tree") between its `chain:begin` /
+`chain:end` markers.
+
+    python3 tools/chain_cost.py [--repeats N] [--no-write]
+
+What it runs, in order:
+- `cargo bench --bench chain` (criterion; needs the example-robot-data venv of
+  tools/robots/setup_venv.sh, or CD_ROBOTS_DIR): forward dynamics alone, linear-time path (ABA)
+  and dense path (CRBA + LTL), on generated chains of n revolute links (tests/it/common/chain.rs;
+  the bench also writes their URDF and scene files here) and on the four robots without contacts;
+- the release CLI's whole `eval --scene` process on each chain scene (URDF reading, model
+  building, the scene's checks, the dynamics, the JSON output): wall time (best of `--repeats`)
+  and peak RSS (the process's own, from wait4).
+The exponent is the least-squares slope of log(cost) against log(n) over n >= 1000.
+"""
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+DOC = os.path.join(ROOT, "docs", "performance.md")
+BEGIN = "<!-- chain:begin -->"
+END = "<!-- chain:end -->"
+TABLE_N = [100, 300, 1000, 3000, 5000]
+FIT_FROM = 1000
+
+
+def target_dir():
+    return os.environ.get("CARGO_TARGET_DIR", os.path.join(ROOT, "target"))
+
+
+def run(cmd, **kw):
+    print("+", " ".join(cmd), file=sys.stderr)
+    return subprocess.run(cmd, cwd=ROOT, check=True, text=True, **kw)
+
+
+def criterion_median_s(group, path, param):
+    p = os.path.join(target_dir(), "criterion", group, path, param, "new", "estimates.json")
+    with open(p) as f:
+        return json.load(f)["median"]["point_estimate"] * 1e-9
+
+
+def timed_process(cmd):
+    """(wall seconds, peak RSS in MB) of one run of `cmd`, its output discarded."""
+    t0 = time.perf_counter()
+    p = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(p.pid, 0)
+    wall = time.perf_counter() - t0
+    if status != 0:
+        sys.exit(f"chain_cost.py: {' '.join(cmd)} failed: {p.stderr.read().decode()[-2000:]}")
+    return wall, usage.ru_maxrss / 1024.0
+
+
+def exponent(ns, values):
+    pts = [(math.log(n), math.log(v)) for n, v in zip(ns, values) if n >= FIT_FROM]
+    mx = sum(x for x, _ in pts) / len(pts)
+    my = sum(y for _, y in pts) / len(pts)
+    return sum((x - mx) * (y - my) for x, y in pts) / sum((x - mx) ** 2 for x, _ in pts)
+
+
+def measure(repeats):
+    scenes = os.path.join(target_dir(), "chain_scenes")
+    run(["cargo", "build", "--release", "-p", "constraint_dynamics_cli"])
+    run(["cargo", "bench", "--bench", "chain"], env={**os.environ, "CHAIN_SCENES_DIR": scenes})
+    cli = os.path.join(target_dir(), "release", "constraint_dynamics")
+    rows = []
+    for n in TABLE_N:
+        scene = os.path.join(scenes, f"chain_{n}.yaml")
+        runs = [timed_process([cli, "eval", "--scene", scene]) for _ in range(repeats)]
+        rows.append({
+            "n": n,
+            "eval_s": min(w for w, _ in runs),
+            "rss_mb": max(r for _, r in runs),
+            "dynamics_s": criterion_median_s("chain", "linear", str(n)),
+        })
+    sizes = sorted(int(d) for d in os.listdir(os.path.join(target_dir(), "criterion", "chain",
+                                                              "dense")) if d.isdigit())
+    paths = [(n, criterion_median_s("chain", "linear", str(n)),
+              criterion_median_s("chain", "dense", str(n))) for n in sizes]
+    robots = []
+    for name in ["ur5", "panda", "solo12", "talos_reduced"]:
+        robots.append((name, criterion_median_s("robot", "linear", name),
+                       criterion_median_s("robot", "dense", name)))
+    return rows, paths, robots
+
+
+def fmt_time(s):
+    if s >= 0.1:
+        return f"{s:.2f} s"
+    if s >= 1e-3:
+        return f"{s * 1e3:.2f} ms"
+    return f"{s * 1e6:.2f} µs"
+
+
+def crossover(paths):
+    """The smallest n from which on the linear path is the faster on every chain timed."""
+    best = None
+    for n, lin, dense in reversed(paths):
+        if lin >= dense:
+            break
+        best = n
+    return best
+
+
+def table(rows, paths, robots):
+    ns = [r["n"] for r in rows]
+    fit = {k: exponent(ns, [r[k] for r in rows]) for k in ("eval_s", "dynamics_s", "rss_mb")}
+    cpu = ""
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next(l.split(":", 1)[1].strip() for l in f if l.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    out = [
+        BEGIN,
+        "<!-- written by python3 tools/chain_cost.py: do not edit -->",
+        "",
+        f"Measured on {cpu}, {os.cpu_count()} cores, "
+        f"{time.strftime('%Y-%m-%d', time.gmtime())}.",
+        "",
+        "| n (links = nv) | `eval --scene` process, URDF reading included | peak RSS | "
+        "forward dynamics alone (ABA) |",
+        "|---|---|---|---|",
+    ]
+    for r in rows:
+        out.append(f"| {r['n']} | {fmt_time(r['eval_s'])} | {r['rss_mb']:.0f} MB "
+                   f"| {fmt_time(r['dynamics_s'])} |")
+    out.append(f"| exponent (n ≥ {FIT_FROM}) | {fit['eval_s']:.2f} | {fit['rss_mb']:.2f} "
+               f"| {fit['dynamics_s']:.2f} |")
+    out += [
+        "",
+        "Forward dynamics alone, both paths (criterion medians):",
+        "",
+        "| model | nv | linear (ABA) | dense (CRBA + LTL) | dense / linear |",
+        "|---|---|---|---|---|",
+    ]
+    for n, lin, dense in paths:
+        out.append(f"| chain | {n} | {fmt_time(lin)} | {fmt_time(dense)} | {dense / lin:.2f} |")
+    nvs = {"ur5": 6, "panda": 7, "solo12": 18, "talos_reduced": 38}
+    for name, lin, dense in robots:
+        out.append(f"| {name} | {nvs[name]} | {fmt_time(lin)} | {fmt_time(dense)} "
+                   f"| {dense / lin:.2f} |")
+    x = crossover(paths)
+    out += [
+        "",
+        f"Crossover on a chain: the linear path is the faster from n = {x} on." if x else
+        "Crossover on a chain: none among the sizes timed.",
+        "",
+        END,
+    ]
+    return "\n".join(out)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3, help="eval processes per size")
+    ap.add_argument("--no-write", action="store_true", help="print the tables only")
+    args = ap.parse_args()
+    t = table(*measure(args.repeats))
+    print(t)
+    if args.no_write:
+        return
+    doc = open(DOC).read()
+    a, b = doc.find(BEGIN), doc.find(END)
+    if a < 0 or b < a:
+        sys.exit(f"{DOC}: no {BEGIN} ... {END} block")
+    open(DOC, "w").write(doc[:a] + t + doc[b + len(END):])
+
+
+if __name__ == "__main__":
+    main()
