@@ -8,7 +8,8 @@ What it runs, in order:
 - the release suite, fed at 20 Hz inside a private network namespace (tools/ros2/live_cpu.py,
   the peer venv of tools/ros2/setup_peer_venv.sh): CPU share and predicted-odometry rate,
   `--runs` times;
-- the live-prediction and covariance tests (tests/it/live_prediction.rs, tests/it/covariance.rs):
+- the live-prediction and covariance tests (tests/it/live_prediction.rs, tests/it/covariance.rs,
+  in the core's one `it` target):
   the base pose against the controllers' 1 ms hold integrated at 0.1 ms, the error estimate
   against the true error, the tick's work, the covariance against Monte Carlo.
 The machine should be otherwise idle: a CPU share is only as good as the quiet around it.
@@ -45,8 +46,8 @@ def suite_cpu(runs):
 
 
 def accuracy():
-    r = run(["cargo", "test", "--locked", "-p", "constraint_dynamics", "--test", "live_prediction",
-             "--test", "covariance", "--", "--nocapture", "live"],
+    r = run(["cargo", "test", "--locked", "-p", "constraint_dynamics", "--test", "it", "--",
+             "--nocapture", "live_prediction::", "covariance::live"],
             stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     text = r.stdout
     base = [(float(a), float(b)) for a, b in
