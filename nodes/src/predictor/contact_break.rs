@@ -14,6 +14,11 @@ use constraint_dynamics::predict::{ContactBreak, ContactCheck};
 use crate::msg::constraint_dynamics_msgs::ConstraintForces;
 use crate::ros::logging::NodeLog;
 
+/// A measured start further off the velocity constraints than this [m/s or rad/s] is quoted
+/// by a slip WARN: five times the velocity noise of the bundled logs' odometry (σ 0.01 m/s),
+/// a third of the skids they record (0.12–0.17 m/s, docs/logs.md).
+pub const MEASURED_SLIP: f64 = 0.05;
+
 /// How each constraint broke at the last start state, and when a break was last warned of.
 pub struct BreakLog {
     last: Vec<Option<BreakKind>>,
@@ -31,14 +36,25 @@ impl BreakLog {
 
     /// Logs the transitions at a new start state: a WARN when a contact starts to slip or lift
     /// off (and at most once a second while one does), an INFO when it holds again. `judged[k]`
-    /// is constraint k's contact and state under `limits`, `forces` their message.
+    /// is constraint k's contact and state under `limits`, `forces` their message;
+    /// `measured_off` how far off the velocity constraints the measured start lay [m/s or
+    /// rad/s], which a slip WARN quotes when it is above [`MEASURED_SLIP`]: wheels and odometry
+    /// that disagree are a slip the robot had, not one the prediction made up.
     pub fn update(
         &mut self,
         log: &NodeLog,
         forces: &ConstraintForces,
         judged: &[Option<(&Contact, ContactState)>],
         limits: &ContactLimits,
+        measured_off: Option<f64>,
     ) {
+        let measured = match measured_off {
+            Some(off) if off > MEASURED_SLIP => format!(
+                "; the measured start lay {off:.3} m/s off the constraints (wheels and \
+                 odometry disagree: the robot was slipping)"
+            ),
+            _ => String::new(),
+        };
         let now = Instant::now();
         let throttled = (self.warned).is_some_and(|t| now.duration_since(t).as_secs_f64() < 1.0);
         for (k, c) in forces.constraints.iter().enumerate() {
@@ -52,7 +68,7 @@ impl BreakLog {
                     log.warn(&match kind {
                         BreakKind::Slip => format!(
                             "slip: contact '{}' needs a tangential force of {:.3} N > μ·N = {mu} × \
-                             {:.3} N",
+                             {:.3} N{measured}",
                             c.name, c.tangential_force, c.normal_force
                         ),
                         BreakKind::LiftOff => format!(

@@ -355,7 +355,17 @@ impl PredictorNode {
         let forces = self.robot.forces_msg(common, &at, now);
         let judged = at.judged(self.robot.contact_judge());
         let states: Vec<Option<ContactState>> = judged.iter().map(|j| j.map(|(_, s)| s)).collect();
-        (self.break_log).update(&self.log, &forces, &judged, &request.contact_limits);
+        let measured_off = match common.state.project_to_constraints {
+            true => self.robot.off_constraints().map(|o| o.velocity_residual),
+            false => traj.start_off_constraints.map(|o| o.velocity_residual),
+        };
+        (self.break_log).update(
+            &self.log,
+            &forces,
+            &judged,
+            &request.contact_limits,
+            measured_off,
+        );
         self.slipping = forces
             .constraints
             .iter()
