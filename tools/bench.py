@@ -24,6 +24,8 @@ Standard library only; opens no network connection besides the venv's pip (first
 """
 import argparse, datetime, json, os, pathlib, platform, re, subprocess, sys, time
 
+from doc_block import write_block
+
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 CPP = ROOT.parent / "shared" / "tools" / "anchors" / "cpp"
 VENV = pathlib.Path(os.environ.get("CD_ANCHORS_VENV", ROOT / ".venv-anchors"))
@@ -231,14 +233,8 @@ def readme_table(fig):
 
 def write_readme(path, bench_text):
     """Replace what lies between README's two bench markers; returns the new table."""
-    path = pathlib.Path(path)
-    text = path.read_text()
-    if text.count(BEGIN) != 1 or text.count(END) != 1 or text.index(BEGIN) > text.index(END):
-        sys.exit(f"{path}: needs one line {BEGIN} followed by one line {END}")
     lines = readme_table(parse_bench(bench_text))
-    before, rest = text.split(BEGIN, 1)
-    after = rest.split(END, 1)[1]
-    path.write_text(before + BEGIN + "\n" + "\n".join(lines) + "\n" + END + after)
+    write_block(path, BEGIN, END, "\n".join(lines))
     return "\n".join(lines)
 
 

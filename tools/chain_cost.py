@@ -24,6 +24,8 @@ import subprocess
 import sys
 import time
 
+from doc_block import write_block
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DOC = os.path.join(ROOT, "docs", "performance.md")
 BEGIN = "<!-- chain:begin -->"
@@ -119,7 +121,6 @@ def table(rows, paths, robots):
     except (OSError, StopIteration):
         pass
     out = [
-        BEGIN,
         "<!-- written by python3 tools/chain_cost.py: do not edit -->",
         "",
         f"Measured on {cpu}, {os.cpu_count()} cores, "
@@ -153,7 +154,6 @@ def table(rows, paths, robots):
         f"Crossover on a chain: the linear path is the faster from n = {x} on." if x else
         "Crossover on a chain: none among the sizes timed.",
         "",
-        END,
     ]
     return "\n".join(out)
 
@@ -167,11 +167,7 @@ def main():
     print(t)
     if args.no_write:
         return
-    doc = open(DOC).read()
-    a, b = doc.find(BEGIN), doc.find(END)
-    if a < 0 or b < a:
-        sys.exit(f"{DOC}: no {BEGIN} ... {END} block")
-    open(DOC, "w").write(doc[:a] + t + doc[b + len(END):])
+    write_block(DOC, BEGIN, END, t)
 
 
 if __name__ == "__main__":

@@ -22,6 +22,8 @@ import re
 import subprocess
 import sys
 
+from doc_block import write_block
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DOC = os.path.join(ROOT, "docs", "performance.md")
 BEGIN = "<!-- live:begin -->"
@@ -81,7 +83,6 @@ def table(cpu, acc):
     ev, est, jac, lin = acc["work"]
     ratio = span(acc["ratio"], ".2f")
     return "\n".join([
-        BEGIN,
         "<!-- written by python3 tools/live_cost.py: do not edit -->",
         "",
         "| suite CPU share [cores] | predicted_odom [Hz] | with covariance | evaluations per tick "
@@ -92,7 +93,6 @@ def table(cpu, acc):
         f"| {acc['position_m']:.1e} m | {acc['yaw_rad']:.1e} rad | {ratio} "
         f"| {100 * acc['mc']:.1f} % |",
         "",
-        END,
     ])
 
 
@@ -107,11 +107,7 @@ def main():
     print(t)
     if args.no_write:
         return
-    doc = open(DOC).read()
-    a, b = doc.find(BEGIN), doc.find(END)
-    if a < 0 or b < a:
-        sys.exit(f"{DOC}: no {BEGIN} ... {END} block")
-    open(DOC, "w").write(doc[:a] + t + doc[b + len(END):])
+    write_block(DOC, BEGIN, END, t)
 
 
 if __name__ == "__main__":

@@ -39,7 +39,9 @@ impl Fit<'_> {
     /// ∂r/∂x by central differences; a failed side falls back to a one-sided difference.
     pub fn jacobian_at(&self, x: &DVector<f64>) -> Option<DMatrix<f64>> {
         let mut j = DMatrix::zeros(self.problem.residual_count(), x.len());
-        let center = self.residuals_at(x);
+        // The residuals at x itself only where a side fails: LM has them already.
+        let at_x = std::cell::OnceCell::new();
+        let center = || at_x.get_or_init(|| self.residuals_at(x)).clone();
         for k in 0..x.len() {
             let mut plus = x.clone();
             plus[k] += STEP;
@@ -47,8 +49,8 @@ impl Fit<'_> {
             minus[k] -= STEP;
             let col = match (self.residuals_at(&plus), self.residuals_at(&minus)) {
                 (Some(p), Some(m)) => (p - m) / (2.0 * STEP),
-                (Some(p), None) => (p - center.clone()?) / STEP,
-                (None, Some(m)) => (center.clone()? - m) / STEP,
+                (Some(p), None) => (p - center()?) / STEP,
+                (None, Some(m)) => (center()? - m) / STEP,
                 (None, None) => return None,
             };
             j.set_column(k, &col);

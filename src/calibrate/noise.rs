@@ -9,7 +9,7 @@
 //! horizon and recording; found by doubling, then bisection of log σ.
 
 use super::{CalibrationError, CalibrationSettings, Problem};
-use crate::replay::{EvaluationSettings, evaluate, stats::CHI2_3_P95};
+use crate::replay::{EvaluationSettings, evaluate, stats::Coverage};
 use serde::Serialize;
 use serde_yaml::Value;
 
@@ -49,14 +49,17 @@ pub(super) fn fit(
             problem.places.set_wheel_noise(&mut trial, sigma);
         }
         let scene = problem.source.build(&trial)?;
-        let (mut inside, mut all) = (0usize, 0usize);
+        let mut nees = Vec::new();
         for recording in problem.recordings {
             let ev = evaluate(&scene, recording, &replay)?;
-            inside += ev.records.iter().filter(|r| r.nees <= CHI2_3_P95).count();
-            all += ev.records.len();
+            nees.extend(ev.records.iter().map(|r| r.nees));
         }
         replays += 1;
-        Ok(inside as f64 / all.max(1) as f64)
+        Ok(if nees.is_empty() {
+            0.0
+        } else {
+            Coverage::of(&nees).p95
+        })
     };
     let target = settings.target_coverage_p95;
     let joints = problem.places.wheel_joints().to_vec();

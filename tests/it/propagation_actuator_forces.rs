@@ -11,10 +11,14 @@ use constraint_dynamics::actuators::Command;
 use constraint_dynamics::predict::{PredictionRequest, Predictor};
 use constraint_dynamics::{Scene, System};
 
-#[test]
-fn first_sample_forces_include_the_saturated_wheel_torques() {
-    let scene = Scene::load(repo_dir().join("params/suite_diff_drive.yaml")).unwrap();
-    let mut p = Predictor::from_scene(&scene).unwrap();
+/// The first sample of a prediction from rest under (0.5 m/s, 0.4 rad/s), and λ of the
+/// constrained dynamics at rest under the wheel torques `applied` [N·m] — what the controllers
+/// give over the first control period.
+fn first_sample_and_lambda_at(
+    scene: &Scene,
+    applied: f64,
+) -> (constraint_dynamics::predict::Sample, Vec<f64>) {
+    let mut p = Predictor::from_scene(scene).unwrap();
     let cmd = Command {
         base_twist: Some([0.5, 0.4]),
         ..Default::default()
@@ -24,21 +28,28 @@ fn first_sample_forces_include_the_saturated_wheel_torques() {
         .commands(&commands)
         .horizon(0.02)
         .forces(true);
-    let traj = p.predict(&req).unwrap();
-    let got = traj.samples[0].lambda.clone().unwrap();
-    let mut sys = System::from_scene(&scene).unwrap();
-    sys.forward_dynamics(&scene.q0, &scene.v0, &[0.0, 0.0, 0.0, 5.0, 5.0], true)
+    let first = p.predict(&req).unwrap().samples[0].clone();
+    let mut sys = System::from_scene(scene).unwrap();
+    let tau = [0.0, 0.0, 0.0, applied, applied];
+    sys.forward_dynamics(&scene.q0, &scene.v0, &tau, true)
         .unwrap();
+    (first, sys.multipliers().lambda.as_slice().to_vec())
+}
+
+#[test]
+fn first_sample_forces_include_the_saturated_wheel_torques() {
+    let scene = Scene::load(repo_dir().join("params/suite_diff_drive.yaml")).unwrap();
+    let (first, lambda) = first_sample_and_lambda_at(&scene, 5.0);
     assert_close(
         "λ at t = 0 with the held wheel torques",
-        &got,
-        sys.multipliers().lambda.as_slice(),
+        first.lambda.as_deref().unwrap(),
+        &lambda,
         // The predictor's first sample and a direct evaluation at the same state and torques
         // run the same arithmetic: achieved 0; floor 1e-15.
         1e-15,
     );
     // The wheels push the base forward: the longitudinal contact forces are positive.
-    let f = traj.samples[0].forces.clone().unwrap();
+    let f = first.forces.clone().unwrap();
     assert!(f.iter().all(|c| c.force[0] > 1.0), "{f:?}");
 }
 
@@ -53,25 +64,11 @@ fn traction_torque_clamps_the_wheels_below_the_urdf_effort() {
         if let Some(d) = scene.file.actuators.diff_drive.as_mut() {
             d.traction_torque = Some(traction);
         }
-        let mut p = Predictor::from_scene(&scene).unwrap();
-        let cmd = Command {
-            base_twist: Some([0.5, 0.4]),
-            ..Default::default()
-        };
-        let commands = [(0.0, cmd)];
-        let req = PredictionRequest::new(&scene.q0, &scene.v0)
-            .commands(&commands)
-            .horizon(0.02)
-            .forces(true);
-        let got = p.predict(&req).unwrap().samples[0].lambda.clone().unwrap();
-        let mut sys = System::from_scene(&scene).unwrap();
-        let tau = [0.0, 0.0, 0.0, applied, applied];
-        sys.forward_dynamics(&scene.q0, &scene.v0, &tau, true)
-            .unwrap();
+        let (first, lambda) = first_sample_and_lambda_at(&scene, applied);
         assert_close(
             &format!("λ at t = 0, traction_torque {traction} N·m"),
-            &got,
-            sys.multipliers().lambda.as_slice(),
+            first.lambda.as_deref().unwrap(),
+            &lambda,
             1e-15,
         );
     }

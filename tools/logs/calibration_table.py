@@ -12,6 +12,9 @@ import subprocess
 import sys
 import tempfile
 
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from doc_block import write_block  # noqa: E402
+
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 DOC = os.path.join(ROOT, "docs", "logs.md")
 BEGIN = "<!-- calibration:begin -->"
@@ -54,7 +57,7 @@ def main():
                                  if h["horizon_s"] in (1.0, 2.0))
                 rows.append(f"| {drive.split('.')[0]} | {label} | "
                             + " | ".join(cell(h) for h in hs) + f" | {cov} |")
-    lines = [BEGIN, "<!-- written by python3 tools/logs/calibration_table.py: do not edit -->", ""]
+    lines = ["<!-- written by python3 tools/logs/calibration_table.py: do not edit -->", ""]
     lines.append("Fitted on calibration.mcap against its `/odom` "
                  f"({cal['run_time_s']:.0f} s, {cal['replays']} replays of the drive):")
     lines.append("")
@@ -73,14 +76,8 @@ def main():
     lines += ["", "Position / yaw error against the true pose, median / worst, and the coverage "
               "p95 at 1 s / 2 s:", "",
               "| drive | scene | 0.25 s | 0.5 s | 1 s | 2 s | coverage p95 at 1 s / 2 s |",
-              "|---|---|---|---|---|---|---|", *rows, "", END]
-    text = open(DOC).read()
-    if BEGIN not in text or END not in text:
-        sys.exit(f"{DOC}: no {BEGIN} ... {END} markers")
-    head, rest = text.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
-    open(DOC, "w").write(head + "\n".join(lines) + tail)
-
+              "|---|---|---|---|---|---|---|", *rows, ""]
+    write_block(DOC, BEGIN, END, "\n".join(lines))
 
 if __name__ == "__main__":
     main()
