@@ -15,7 +15,8 @@
 //! - payload_3kg.mcap (10 s, the robot carrying 3 kg at tool0 the suite is not told of, its arm
 //!   holding the tool above the wheel axle): one WARN naming the shoulder pitch's effort and a
 //!   payload, the shoulder's median effort error the closed form −M·g·d at the logged arm pose
-//!   (the peer's) within 0.75 N·m. The 23 % heavier robot also accelerates and turns otherwise
+//!   (the peer's) within 0.75 N·m at 0.25 and 0.5 s, and at 1 s between 0.75 N·m below it and
+//!   1.5 N·m above (the heavier robot's lagging accelerations swing arm and payload). The 23 % heavier robot also accelerates and turns otherwise
 //!   than its model, so the odometry is off too: a WARN calls both (or the efforts first, then
 //!   both, when the efforts' window fills first).
 //!
@@ -171,11 +172,18 @@ fn unannounced_payload() {
             "{s:#}"
         );
         let e = number(&s, "worst effort error median [N m or N]");
-        // The closed form is static: the base's accelerations swing the payload too (3 kg ×
-        // 1 m/s² × its 0.3 m above the shoulder ≈ 0.9 N·m while accelerating), and the 1 s
-        // window, the shortest (its predictions' commands change most often), keeps more of
-        // them. Measured 0.02, 0.36 and 0.45 N·m off at 0.25, 0.5 and 1 s.
-        assert!((e - hold).abs() < 0.75, "{h} s: {e} against {hold}: {s:#}");
+        // The closed form is static. Over a longer horizon the 23 % heavier robot's speed
+        // lags the model's more, and the lag's acceleration swings the arm and its payload
+        // about the shoulder (first moment about 2 kg·m; the log's drive accelerates by up to
+        // 1 m/s², so up to 2 N·m while accelerating). The 1 s window is also the shortest (its
+        // predictions' commands change most often) and keeps the most such samples.
+        // Measured off the closed form: 0.02–0.05, 0.36–0.42 and 0.45–0.90 N·m at 0.25,
+        // 0.5 and 1 s, on an idle machine and on CI's.
+        let (below, above) = if *h < 1.0 { (0.75, 0.75) } else { (0.75, 1.5) };
+        assert!(
+            e > hold - below && e < hold + above,
+            "{h} s: {e} against {hold}: {s:#}"
+        );
     }
     let log = suite.log();
     // One WARN per cause's onset, the efforts' and the odometry's: together (both in one
