@@ -1,12 +1,15 @@
 //! Forward dynamics without constraint rows, the linear-time path (`dynamics::tree`: ABA) beside
 //! the dense one (CRBA, bias forces, the LTL factor of M and its solves: the multiplier form with
 //! no rows), on generated chains of n revolute links (`tests/it/common/chain.rs`) and on the four
-//! example-robot-data robots unconstrained (`robots/mod.rs`). Ids `chain/<path>/<n>` and
-//! `robot/<path>/<name>` (path `linear` or `dense`); `tools/chain_cost.py` runs it and writes the tables of
-//! docs/performance.md ("Cost against the size of the tree").
+//! example-robot-data robots unconstrained (`robots/mod.rs`); and the multiplier form of the
+//! chains held at both ends (three rows), without M (`dynamics::tree_multipliers`) and dense.
+//! Ids `chain/<path>/<n>`, `robot/<path>/<name>` and `chain_loop/<path>/<n>` (path `linear` or
+//! `dense`); `tools/chain_cost.py` runs it and writes the tables of docs/performance.md ("Cost
+//! against the size of the tree").
 //!
 //! With `CHAIN_SCENES_DIR` set, the chains' URDF and scene files (`chain_<n>.urdf`,
-//! `chain_<n>.yaml`) are written there first, for the tool to time the whole `eval` process on.
+//! `chain_<n>.yaml`, `chain_loop_<n>.yaml`) are written there first, for the tool to time the
+//! whole `eval` process on.
 
 #[path = "../tests/it/common/chain.rs"]
 mod chain;
@@ -17,9 +20,10 @@ mod robots;
 use constraint_dynamics::algorithm::Data;
 use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
 use constraint_dynamics::dynamics::{
-    Baumgarte, KktWorkspace, TreeWorkspace, constrained_forward_dynamics, tree_forward_dynamics,
+    Baumgarte, KktWorkspace, TreeKktWorkspace, TreeWorkspace, constrained_forward_dynamics,
+    tree_constrained_forward_dynamics, tree_forward_dynamics,
 };
-use constraint_dynamics::{BaseType, Model, ModelOptions};
+use constraint_dynamics::{BaseType, Model, ModelOptions, Scene, System};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 
@@ -28,6 +32,8 @@ const SIZES: [usize; 15] = [
     4, 8, 12, 16, 24, 32, 48, 64, 100, 128, 300, 1000, 2000, 3000, 5000,
 ];
 const DENSE_MAX: usize = 1000;
+/// The chains held at both ends that are timed.
+const LOOP_SIZES: [usize; 5] = [100, 300, 1000, 3000, 5000];
 
 fn chain_model(n: usize) -> Model {
     let opts = ModelOptions {
@@ -51,7 +57,73 @@ fn write_scenes() {
             chain::chain_scene_yaml(n, &urdf),
         )
         .expect("chain scene written");
+        std::fs::write(
+            dir.join(format!("chain_loop_{n}.yaml")),
+            chain::chain_loop_scene_yaml(n, &urdf),
+        )
+        .expect("chain loop scene written");
     }
+}
+
+/// The chain of n links held at both ends, as its scene file declares it.
+fn chain_loop(n: usize) -> (Model, ConstraintSet) {
+    let dir = std::env::temp_dir().join(format!("chain_loop_bench_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a temporary directory");
+    std::fs::write(dir.join("chain.urdf"), chain::chain_urdf(n)).expect("chain URDF written");
+    let scene_path = dir.join("loop.yaml");
+    std::fs::write(&scene_path, chain::chain_loop_scene_yaml(n, "chain.urdf"))
+        .expect("chain loop scene written");
+    let scene = Scene::load(&scene_path).expect("the chain loop loads");
+    let _ = std::fs::remove_dir_all(&dir);
+    let sys = System::from_scene(&scene).expect("the chain loop's system");
+    ((*scene.model).clone(), sys.constraints().clone())
+}
+
+/// Times the multiplier form of the held chain without M and (up to `DENSE_MAX`) dense.
+fn loop_paths(c: &mut Criterion, n: usize) {
+    let (m, set) = chain_loop(n);
+    let q = chain::chain_q0(n);
+    let v: Vec<f64> = (0..n).map(|k| (0.7 * k as f64).sin()).collect();
+    let tau: Vec<f64> = (0..n).map(|k| 0.1 * (1.3 * k as f64).cos()).collect();
+    let mut g = c.benchmark_group("chain_loop");
+    if n >= 1000 {
+        g.sample_size(10);
+    }
+    let mut data = Data::new(&m);
+    let mut cd = ConstraintData::new(&m, &set);
+    let mut ws = KktWorkspace::new(&m, &set);
+    let mut tree = TreeKktWorkspace::new(&m);
+    let opts = Baumgarte::default().into();
+    let mut linear = || {
+        tree_constrained_forward_dynamics(
+            &m, &mut data, &set, &mut cd, &mut ws, &mut tree, &q, &v, &tau, opts,
+        )
+        .unwrap()
+    };
+    assert!(linear(), "the held chain takes the linear path");
+    g.bench_function(BenchmarkId::new("linear", n), |b| b.iter(&mut linear));
+    if n <= DENSE_MAX {
+        let mut data = Data::new(&m);
+        let mut cd = ConstraintData::new(&m, &set);
+        let mut ws = KktWorkspace::new(&m, &set);
+        g.bench_function(BenchmarkId::new("dense", n), |b| {
+            b.iter(|| {
+                constrained_forward_dynamics(
+                    &m,
+                    &mut data,
+                    &set,
+                    &mut cd,
+                    &mut ws,
+                    black_box(&q),
+                    &v,
+                    &tau,
+                    opts,
+                )
+                .unwrap()
+            })
+        });
+    }
+    g.finish();
 }
 
 /// Times both paths on `m` at (q, v, τ) under `group/<path>/<param>`.
@@ -115,6 +187,9 @@ fn bench(c: &mut Criterion) {
     }
     for k in &robots::all() {
         both_paths(c, "robot", k.name, &k.model, (&k.q, &k.v, &k.tau), true);
+    }
+    for n in LOOP_SIZES {
+        loop_paths(c, n);
     }
 }
 

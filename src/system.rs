@@ -13,9 +13,9 @@ use crate::derivatives::{
     DerivativeData, aba_derivatives, constrained_dynamics_derivatives, rnea_derivatives,
 };
 use crate::dynamics::{
-    Baumgarte, EmbeddedWorkspace, Formulation, KktOptions, KktWorkspace, TreeWorkspace,
+    Baumgarte, EmbeddedWorkspace, Formulation, KktOptions, KktWorkspace, TreeKktWorkspace,
     constrained_forward_dynamics, embedded_forward_dynamics, takes_linear_path,
-    tree_forward_dynamics,
+    tree_constrained_forward_dynamics, tree_forward_dynamics,
 };
 use crate::error::{Result, check_len};
 use crate::model::Model;
@@ -117,10 +117,11 @@ pub struct System {
     kkt: KktWorkspace,
     /// Embedded-form workspace.
     embedded: EmbeddedWorkspace,
-    /// Without constraint rows, whether the forward dynamics go by ABA in O(n)
-    /// (`dynamics::takes_linear_path`), and that path's workspace.
+    /// Whether the forward dynamics go by ABA (`dynamics::takes_linear_path`): in O(n)
+    /// without constraint rows, in O(n·m + m³) in the multiplier form with m rows; and that
+    /// path's workspace.
     linear: bool,
-    tree: TreeWorkspace,
+    tree: TreeKktWorkspace,
     /// Which formulation produced the last result.
     last_formulation: Formulation,
 }
@@ -138,8 +139,8 @@ impl System {
         let cdata = ConstraintData::new(&model, &constraints);
         let kkt = KktWorkspace::new(&model, &constraints);
         let embedded = EmbeddedWorkspace::new(&model, &constraints);
-        let tree = TreeWorkspace::new(&model);
-        let linear = constraints.is_empty() && takes_linear_path(&model);
+        let tree = TreeKktWorkspace::new(&model);
+        let linear = takes_linear_path(&model);
         Self {
             model,
             constraints,
@@ -289,8 +290,8 @@ impl System {
         &self.embedded
     }
 
-    /// Constrained forward dynamics at (q, v, τ); `want_forces` forces the multiplier form under
-    /// `Formulation::Auto`. Returns q̈ (nv); λ is [`System::lambda`] when multipliers were used.
+    /// Constrained forward dynamics at (q, v, τ); `want_forces`, and a tree that takes the linear
+    /// path, choose the multiplier form under `Formulation::Auto`. Returns q̈ (nv); λ is [`System::lambda`] when multipliers were used.
     pub fn forward_dynamics(
         &mut self,
         q: &[f64],
@@ -299,7 +300,9 @@ impl System {
         want_forces: bool,
     ) -> Result<&DVector<f64>> {
         let formulation = match self.formulation {
-            Formulation::Auto if want_forces || self.constraints.is_empty() => {
+            // On a large tree the multiplier form goes without M (O(n)); the embedded form
+            // forms and factors the independent block of M.
+            Formulation::Auto if want_forces || self.constraints.is_empty() || self.linear => {
                 Formulation::Multipliers
             }
             Formulation::Auto => Formulation::Embedded,
@@ -333,10 +336,34 @@ impl System {
             Formulation::Multipliers | Formulation::Auto => true,
             Formulation::Embedded => false,
         };
-        if self.linear
-            && tree_forward_dynamics(&self.model, &mut self.data, &mut self.tree, q, v, tau)
+        let kkt_options = KktOptions {
+            t: opts.t,
+            gains: opts.gains.unwrap_or(self.baumgarte),
+            allow_inconsistent: opts.allow_inconsistent,
+            rows_evaluated: opts.rows_evaluated,
+        };
+        if self.linear && self.constraints.is_empty() {
+            let tree = self.tree.tree();
+            if tree_forward_dynamics(&self.model, &mut self.data, tree, q, v, tau) {
+                return Ok(self.unconstrained_result(opts.t, use_multipliers));
+            }
+        } else if self.linear
+            && use_multipliers
+            && tree_constrained_forward_dynamics(
+                &self.model,
+                &mut self.data,
+                &self.constraints,
+                &mut self.cdata,
+                &mut self.kkt,
+                &mut self.tree,
+                q,
+                v,
+                tau,
+                kkt_options,
+            )?
         {
-            return Ok(self.unconstrained_result(opts.t, use_multipliers));
+            self.last_formulation = Formulation::Multipliers;
+            return Ok(&self.kkt.qdd);
         }
         if use_multipliers {
             constrained_forward_dynamics(
@@ -348,12 +375,7 @@ impl System {
                 q,
                 v,
                 tau,
-                KktOptions {
-                    t: opts.t,
-                    gains: opts.gains.unwrap_or(self.baumgarte),
-                    allow_inconsistent: opts.allow_inconsistent,
-                    rows_evaluated: opts.rows_evaluated,
-                },
+                kkt_options,
             )?;
             self.last_formulation = Formulation::Multipliers;
             Ok(&self.kkt.qdd)

@@ -10,9 +10,11 @@ What it runs, in order:
   tools/robots/setup_venv.sh, or CD_ROBOTS_DIR): forward dynamics alone, linear-time path (ABA)
   and dense path (CRBA + LTL), on generated chains of n revolute links (tests/it/common/chain.rs;
   the bench also writes their URDF and scene files here) and on the four robots without contacts;
-- the release CLI's whole `eval --scene` process on each chain scene (URDF reading, model
-  building, the scene's checks, the dynamics, the JSON output): wall time (best of `--repeats`)
-  and peak RSS (the process's own, from wait4).
+- the same bench's multiplier form of the chains held at both ends (three rows): without M
+  (`dynamics/tree_multipliers.rs`) and dense;
+- the release CLI's whole `eval --scene` process on each chain scene, free and held (URDF
+  reading, model building, the scene's checks, the dynamics, the constraint forces, the JSON
+  output): wall time (best of `--repeats`) and peak RSS (the process's own, from wait4).
 The exponent is the least-squares slope of log(cost) against log(n) over n >= 1000.
 """
 
@@ -82,6 +84,19 @@ def measure(repeats):
             "rss_mb": max(r for _, r in runs),
             "dynamics_s": criterion_median_s("chain", "linear", str(n)),
         })
+    loops = []
+    for n in TABLE_N:
+        scene = os.path.join(scenes, f"chain_loop_{n}.yaml")
+        runs = [timed_process([cli, "eval", "--scene", scene]) for _ in range(repeats)]
+        dense_dir = os.path.join(target_dir(), "criterion", "chain_loop", "dense", str(n))
+        loops.append({
+            "n": n,
+            "eval_s": min(w for w, _ in runs),
+            "rss_mb": max(r for _, r in runs),
+            "dynamics_s": criterion_median_s("chain_loop", "linear", str(n)),
+            "dense_s": criterion_median_s("chain_loop", "dense", str(n))
+            if os.path.isdir(dense_dir) else None,
+        })
     sizes = sorted(int(d) for d in os.listdir(os.path.join(target_dir(), "criterion", "chain",
                                                               "dense")) if d.isdigit())
     paths = [(n, criterion_median_s("chain", "linear", str(n)),
@@ -90,7 +105,7 @@ def measure(repeats):
     for name in ["ur5", "panda", "solo12", "talos_reduced"]:
         robots.append((name, criterion_median_s("robot", "linear", name),
                        criterion_median_s("robot", "dense", name)))
-    return rows, paths, robots
+    return rows, paths, robots, loops
 
 
 def fmt_time(s):
@@ -111,7 +126,7 @@ def crossover(paths):
     return best
 
 
-def table(rows, paths, robots):
+def table(rows, paths, robots, loops):
     ns = [r["n"] for r in rows]
     fit = {k: exponent(ns, [r[k] for r in rows]) for k in ("eval_s", "dynamics_s", "rss_mb")}
     cpu = ""
@@ -153,6 +168,23 @@ def table(rows, paths, robots):
         "",
         f"Crossover on a chain: the linear path is the faster from n = {x} on." if x else
         "Crossover on a chain: none among the sizes timed.",
+        "",
+        "The chain held at both ends (its last link's end held at its start point: three rows), "
+        "multiplier form with its forces:",
+        "",
+        "| n | `eval --scene` process | peak RSS | constrained dynamics without M "
+        "| dense (CRBA + LTL + Schur) | dense / without M |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in loops:
+        dense = (f"{fmt_time(r['dense_s'])} | {r['dense_s'] / r['dynamics_s']:.0f}"
+                 if r["dense_s"] else "— | —")
+        out.append(f"| {r['n']} | {fmt_time(r['eval_s'])} | {r['rss_mb']:.0f} MB "
+                   f"| {fmt_time(r['dynamics_s'])} | {dense} |")
+    lfit = {k: exponent(ns, [r[k] for r in loops]) for k in ("eval_s", "dynamics_s", "rss_mb")}
+    out += [
+        f"| exponent (n ≥ {FIT_FROM}) | {lfit['eval_s']:.2f} | {lfit['rss_mb']:.2f} "
+        f"| {lfit['dynamics_s']:.2f} | | |",
         "",
     ]
     return "\n".join(out)

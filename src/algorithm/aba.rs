@@ -131,3 +131,104 @@ pub fn aba<'a>(
     }
     &data.qdd
 }
+
+/// The innovations u = Ψ b of ABA's factorization M⁻¹ = Ψᵀ D⁻¹ Ψ (Rodriguez, Jain and
+/// Kreutz-Delgado) with the articulated-body factors of the last [`aba`] call at q (U = IA S,
+/// D⁻¹ and the joint placements in `data`): ABA's force pass at zero velocity and gravity,
+/// O(nb), allocation-free. `p` is a workspace of nb spatial vectors. With the rows of a
+/// constraint Jacobian as `b`, the Schur complement J M⁻¹ Jᵀ is a Gram matrix of the u's in
+/// the D⁻¹ metric ([`innovations_product`]): positive semi-definite to rounding, as the dense
+/// path's Yᵀ Y is, so a dependent row's pivot comes out at rounding level.
+pub fn aba_innovations(
+    model: &Model,
+    data: &Data,
+    b: &[f64],
+    u: &mut [f64],
+    p: &mut [Vector6<f64>],
+) {
+    let nb = model.nbodies();
+    p[..nb].fill(Vector6::zeros());
+    // Each joint's u = b − Sᵀ p; its subtree passes p + U D⁻¹ u to the parent.
+    for i in (1..nb).rev() {
+        let body = &model.bodies[i];
+        let j = &body.joint;
+        let nvj = j.kind.nv();
+        let mut passed = p[i];
+        if nvj == 1 {
+            let ui = b[j.idx_v] - j.subspace[0].to_vector().dot(&p[i]);
+            u[j.idx_v] = ui;
+            passed += data.u_mat[i].column(0) * (data.d_inv[i][(0, 0)] * ui);
+        } else {
+            let mut ui = Vector6::zeros();
+            for k in 0..nvj {
+                ui[k] = b[j.idx_v + k] - j.subspace[k].to_vector().dot(&p[i]);
+                u[j.idx_v + k] = ui[k];
+            }
+            passed += data.u_mat[i] * (data.d_inv[i] * ui);
+        }
+        if body.parent != 0 {
+            let f = data.li_m_i[i].act_force(&Force::from_vector(&passed));
+            p[body.parent] += f.to_vector();
+        }
+    }
+}
+
+/// x = Ψᵀ D⁻¹ u, so that x = M⁻¹ b for u = [`aba_innovations`] of b: ABA's acceleration pass
+/// at zero velocity and gravity, O(nb). `acc` is a workspace of nb spatial vectors.
+pub fn aba_from_innovations(
+    model: &Model,
+    data: &Data,
+    u: &[f64],
+    x: &mut [f64],
+    acc: &mut [Vector6<f64>],
+) {
+    let nb = model.nbodies();
+    acc[0] = Vector6::zeros();
+    for i in 1..nb {
+        let body = &model.bodies[i];
+        let j = &body.joint;
+        let nvj = j.kind.nv();
+        let ap = data.li_m_i[i]
+            .act_inv_motion(&Motion::from_vector(&acc[body.parent]))
+            .to_vector();
+        let mut ai = ap;
+        if nvj == 1 {
+            let um = data.u_mat[i].column(0);
+            let qdd = data.d_inv[i][(0, 0)] * (u[j.idx_v] - um.dot(&ap));
+            x[j.idx_v] = qdd;
+            ai += j.subspace[0].to_vector() * qdd;
+        } else {
+            let mut rhs = Vector6::zeros();
+            let utap = data.u_mat[i].transpose() * ap;
+            for k in 0..nvj {
+                rhs[k] = u[j.idx_v + k] - utap[k];
+            }
+            let qdd = data.d_inv[i] * rhs;
+            for k in 0..nvj {
+                x[j.idx_v + k] = qdd[k];
+                ai += j.subspace[k].to_vector() * qdd[k];
+            }
+        }
+        acc[i] = ai;
+    }
+}
+
+/// aᵀ D⁻¹ b over the joints for two innovation vectors (nv each) of the last [`aba`]:
+/// J M⁻¹ Jᵀ's entry for two rows of J.
+pub fn innovations_product(model: &Model, data: &Data, a: &[f64], b: &[f64]) -> f64 {
+    let mut sum = 0.0;
+    for (i, body) in model.bodies.iter().enumerate().skip(1) {
+        let j = &body.joint;
+        let (k0, nvj) = (j.idx_v, j.kind.nv());
+        if nvj == 1 {
+            sum += a[k0] * data.d_inv[i][(0, 0)] * b[k0];
+            continue;
+        }
+        for r in 0..nvj {
+            for c in 0..nvj {
+                sum += a[k0 + r] * data.d_inv[i][(r, c)] * b[k0 + c];
+            }
+        }
+    }
+    sum
+}

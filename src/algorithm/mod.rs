@@ -11,7 +11,7 @@ mod jacobian;
 mod kinematics;
 mod rnea;
 
-pub use aba::aba;
+pub use aba::{aba, aba_from_innovations, aba_innovations, innovations_product};
 pub use crba::crba;
 pub(crate) use crba::{crba_after_kinematics, mass_diagonal_after_kinematics};
 pub use data::{DENSE_EAGER_NV, Data};

@@ -7,12 +7,14 @@
 //!   constraints, `(NᵀMN) q̈_i = Nᵀ(τ − h − M q̈_p)` in the independent coordinates only.
 //!
 //! `Formulation::Auto` uses the embedded form unless constraint forces are asked for. Without
-//! constraint rows both are q̈ = M⁻¹(τ − h), which [`tree`] computes in O(n) for large trees.
+//! constraint rows both are q̈ = M⁻¹(τ − h), which [`tree`] computes in O(n) for large trees;
+//! with m rows, [`tree_multipliers`] computes the multiplier form there in O(n·m + m³).
 
 mod embedded;
 mod multipliers;
 mod partition;
 mod tree;
+mod tree_multipliers;
 
 pub use embedded::{EmbeddedWorkspace, embedded_forward_dynamics};
 pub use multipliers::{KktOptions, KktWorkspace, constrained_forward_dynamics};
@@ -20,6 +22,7 @@ pub use partition::{
     Partition, PartitionWorkspace, partition, partition_into, partition_preferring,
 };
 pub use tree::{LINEAR_MIN_MEAN_DEPTH, TreeWorkspace, takes_linear_path, tree_forward_dynamics};
+pub use tree_multipliers::{TreeKktWorkspace, tree_constrained_forward_dynamics};
 
 use serde::{Deserialize, Serialize};
 

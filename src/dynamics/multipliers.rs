@@ -34,19 +34,19 @@ pub struct KktWorkspace {
     pub l: DMatrix<f64>,
     /// Reciprocals of the LTL factor's diagonal (nv).
     pub l_inv_diag: DVector<f64>,
-    y: DMatrix<f64>,
+    pub(super) y: DMatrix<f64>,
     /// Yᵀ by rows while it is solved for (nv × nc, row i at `i·nc`).
     y_rows: Vec<f64>,
     /// First and one-past-last non-zero row of each column of Y.
     support: Vec<(usize, usize)>,
     /// S's lower triangle.
-    s: DMatrix<f64>,
+    pub(super) s: DMatrix<f64>,
     /// τ − h (nv).
     pub rhs: DVector<f64>,
     /// Acceleration-level right side b = −γ − K_d J v − K_p φ (nc).
     pub b: DVector<f64>,
-    r: DVector<f64>,
-    tmp: DVector<f64>,
+    pub(super) r: DVector<f64>,
+    pub(super) tmp: DVector<f64>,
     /// q̈ (nv).
     pub qdd: DVector<f64>,
     /// λ (nc), in the rows' units (N, N·m, …): force ON the robot.
@@ -60,7 +60,7 @@ pub struct KktWorkspace {
     /// Part of r outside range(S) at the last solve (0 when consistent).
     pub inconsistency: f64,
     /// The factor of S and its solves.
-    min_norm: MinNormSolver,
+    pub(super) min_norm: MinNormSolver,
 }
 
 impl KktWorkspace {
@@ -380,7 +380,7 @@ fn schur_lower(ws: &mut KktWorkspace, nv: usize, nc: usize) {
 /// ([`disagree_beyond_rounding`] against r) unless `allow_inconsistent`. λ = S⁺ r varies
 /// smoothly with the state whichever independent set was picked. Allocation-free (only the
 /// error message allocates).
-fn min_norm_solve(
+pub(super) fn min_norm_solve(
     set: &ConstraintSet,
     ws: &mut KktWorkspace,
     allow_inconsistent: bool,

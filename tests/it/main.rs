@@ -36,6 +36,7 @@ mod error_estimate;
 mod error_kinds;
 mod example_robot_data;
 mod invariant_dynamics;
+mod linear_constrained_dynamics;
 mod linear_dynamics;
 mod linearize;
 mod live_prediction;

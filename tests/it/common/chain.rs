@@ -1,6 +1,7 @@
-//! An unconstrained chain of n revolute links, generated (a rope, a cable, a tether): what the
-//! linear-time dynamics are measured on (`benches/chain.rs`, `tools/chain_cost.py`) and tested
-//! against the dense path (`tests/it/linear_dynamics.rs`).
+//! A chain of n revolute links, generated (a rope, a cable, a tether), free or held at both
+//! ends: what the linear-time dynamics are measured on (`benches/chain.rs`,
+//! `tools/chain_cost.py`) and tested against the dense path (`tests/it/linear_dynamics.rs`,
+//! `tests/it/linear_constrained_dynamics.rs`).
 //!
 //! Link k (1-based) is a 0.1 m rod of 0.1 kg hanging along its −z, centre of mass at its middle,
 //! on a joint about y at the end of link k − 1 — every other joint about x, so that the chain is
@@ -49,5 +50,57 @@ pub fn chain_scene_yaml(n: usize, urdf: &str) -> String {
         let _ = writeln!(s, "    joint{}: {q:.17e}", k + 1);
     }
     s.push_str("  v: {}\n");
+    s
+}
+
+/// Where the end of link n (0.1 m below its joint) is [m, world] at q: the chain's own
+/// geometry composed here (each joint 0.1 m below the last along its parent's −z, about y for
+/// odd k and x for even k), not read from the model.
+pub fn chain_tip(q: &[f64]) -> [f64; 3] {
+    let mut r = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let mut p = [0.0; 3];
+    let below = |r: &[[f64; 3]; 3], p: &mut [f64; 3]| {
+        for (i, x) in p.iter_mut().enumerate() {
+            *x -= 0.1 * r[i][2];
+        }
+    };
+    for (k, &qk) in q.iter().enumerate() {
+        if k > 0 {
+            below(&r, &mut p);
+        }
+        let (s, c) = qk.sin_cos();
+        // R ← R · Rot(axis, q): about y for joint 1, 3, …; about x for joint 2, 4, ….
+        let rot = if k % 2 == 0 {
+            [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]
+        } else {
+            [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]
+        };
+        let mut out = [[0.0; 3]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                out[i][j] = (0..3).map(|l| r[i][l] * rot[l][j]).sum();
+            }
+        }
+        r = out;
+    }
+    below(&r, &mut p);
+    p
+}
+
+/// The chain's scene with its free end held where it is at the coiled start (a `point`
+/// constraint, three rows): a rope fixed at both ends, closed into a loop through the world.
+pub fn chain_loop_scene_yaml(n: usize, urdf: &str) -> String {
+    let tip = chain_tip(&chain_q0(n));
+    let mut s = chain_scene_yaml(n, urdf).replacen(
+        "# An unconstrained chain",
+        "# A chain held at both ends",
+        1,
+    );
+    let _ = writeln!(
+        s,
+        "constraints:\n  - {{name: held_end, kind: point, frame_a: link{n}, point_a: [0.0, 0.0, \
+         -0.1], frame_b: world, point_b: [{:.17e}, {:.17e}, {:.17e}], rows: [x, y, z]}}",
+        tip[0], tip[1], tip[2]
+    );
     s
 }
