@@ -22,14 +22,15 @@ use crate::linalg::mat_tr_vec;
 use crate::model::Model;
 use nalgebra::Vector6;
 
-/// Workspace of the linear-time multiplier form: two spatial vectors per body and one row of
-/// J (nv).
+/// Workspace of the linear-time multiplier form: two spatial vectors per body, one row of J
+/// and a zero vector (nv each).
 #[derive(Clone, Debug, Default)]
 pub struct TreeKktWorkspace {
     tree: TreeWorkspace,
     forces: Vec<Vector6<f64>>,
     accelerations: Vec<Vector6<f64>>,
     row: Vec<f64>,
+    zeros: Vec<f64>,
 }
 
 impl TreeKktWorkspace {
@@ -40,12 +41,34 @@ impl TreeKktWorkspace {
             forces: vec![Vector6::zeros(); model.nbodies()],
             accelerations: vec![Vector6::zeros(); model.nbodies()],
             row: vec![0.0; model.nv],
+            zeros: vec![0.0; model.nv],
         }
     }
 
     /// The unconstrained path's workspace (M's diagonal and ABA's pivots).
     pub fn tree(&mut self) -> &mut TreeWorkspace {
         &mut self.tree
+    }
+
+    /// ABA's factors of M at q into `data` (at zero velocity and torque), for the mass metric
+    /// of a projection ([`Self::innovations`], [`Self::from_innovations`]). False where a pivot
+    /// fails the dense path's checks: the dense metric decides there.
+    pub fn factor_metric(&mut self, model: &Model, data: &mut Data, q: &[f64]) -> bool {
+        if self.zeros.len() != model.nv || self.forces.len() != model.nbodies() {
+            *self = Self::new(model);
+        }
+        let zeros = &self.zeros;
+        tree_forward_dynamics(model, data, &mut self.tree, q, zeros, zeros)
+    }
+
+    /// u = Ψ b on the factors in `data` ([`crate::algorithm::aba_innovations`]).
+    pub fn innovations(&mut self, model: &Model, data: &Data, b: &[f64], u: &mut [f64]) {
+        aba_innovations(model, data, b, u, &mut self.forces);
+    }
+
+    /// x = Ψᵀ D⁻¹ u on the factors in `data`: M⁻¹ b for u = Ψ b.
+    pub fn from_innovations(&mut self, model: &Model, data: &Data, u: &[f64], x: &mut [f64]) {
+        aba_from_innovations(model, data, u, x, &mut self.accelerations);
     }
 }
 

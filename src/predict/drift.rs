@@ -8,6 +8,7 @@
 //! uses the metric M + ρ AᵀA instead: the projected point is the same on the constraint's range.
 //! Everything lives in a [`DriftProjector`] sized once: a projection allocates nothing.
 
+use crate::algorithm::DENSE_EAGER_NV;
 use crate::dynamics::Baumgarte;
 use crate::error::{Error, Result};
 use crate::linalg::cholesky_in_place;
@@ -60,7 +61,12 @@ impl DriftProjector {
         let (nv, nc, nq) = (sys.model().nv, sys.constraints().nrows, sys.model().nq);
         Self {
             rows_h: Vec::with_capacity(nc),
-            l: DMatrix::zeros(nv, nv),
+            // A large tree's is sized by its first dense metric (the tree path needs none).
+            l: if nv <= DENSE_EAGER_NV {
+                DMatrix::zeros(nv, nv)
+            } else {
+                DMatrix::zeros(0, 0)
+            },
             y: [DMatrix::zeros(nv, 0), DMatrix::zeros(nv, nc)],
             s: [DMatrix::zeros(0, 0), DMatrix::zeros(nc, nc)],
             dropped: [vec![false; nc], vec![false; nc]],
@@ -107,10 +113,9 @@ impl DriftProjector {
             self.rows_current = true;
             return Ok(residual);
         }
-        self.metric(sys, false)?;
         let rhs: &mut Vec<f64> = &mut self.mu[1];
         rhs[..nc].copy_from_slice(sys.rows().jv.as_slice());
-        self.rank_deficiency = nc - self.correction(sys, 1);
+        self.rank_deficiency = nc - self.correct(sys, q, 1)?;
         for (vi, d) in v.iter_mut().zip(&self.dq) {
             *vi -= d;
         }
@@ -150,11 +155,10 @@ impl DriftProjector {
             if !worst.is_finite() {
                 break;
             }
-            self.metric(sys, true)?;
             for (a, &k) in self.rows_h.iter().enumerate() {
                 self.mu[0][a] = sys.rows().phi[k];
             }
-            self.correction(sys, 0);
+            self.correct(sys, q, 0)?;
             self.dq.iter_mut().for_each(|x| *x = -*x);
             self.q_tmp.copy_from_slice(q);
             sys.model().integrate(&self.q_tmp, &self.dq, 1.0, q);
@@ -171,10 +175,66 @@ impl DriftProjector {
         Ok(worst)
     }
 
+    /// `dq` = M⁻¹ Aᵀ μ with (A M⁻¹ Aᵀ) μ = `mu[set]` (the rows of `set`: 0 holonomic, 1 all) at
+    /// the configuration q of the rows' last evaluation; returns the rank of A M⁻¹ Aᵀ. On a
+    /// large tree by ABA's factors, without M ([`System::tree_metric`]); elsewhere through the
+    /// dense metric.
+    fn correct(&mut self, sys: &mut System, q: &[f64], set: usize) -> Result<usize> {
+        if let Some(rank) = self.tree_correction(sys, q, set) {
+            return Ok(rank);
+        }
+        self.metric(sys, set == 0)?;
+        Ok(self.correction(sys, set))
+    }
+
+    /// [`Self::correct`] on ABA's factorization M⁻¹ = Ψᵀ D⁻¹ Ψ: Y's columns are the rows'
+    /// innovations Ψ aᵀ, S = Yᵀ D⁻¹ Y (a Gram matrix, as the dense LᵀY's), dq = Ψᵀ D⁻¹ (Y μ).
+    /// None where the system does not take the linear path or ABA's pivots fail there.
+    fn tree_correction(&mut self, sys: &mut System, q: &[f64], set: usize) -> Option<usize> {
+        let nv = sys.model().nv;
+        let nr = self.s[set].nrows();
+        // The rows of A first: the metric borrows the system.
+        let j = &sys.rows().j;
+        for a in 0..nr {
+            let row = if set == 0 { self.rows_h[a] } else { a };
+            for i in 0..nv {
+                self.y[set][(i, a)] = j[(row, i)];
+            }
+        }
+        let mut metric = sys.tree_metric(q)?;
+        let y = self.y[set].as_mut_slice();
+        for a in 0..nr {
+            self.rhs.copy_from_slice(&y[a * nv..(a + 1) * nv]);
+            metric.innovations(&self.rhs, &mut y[a * nv..(a + 1) * nv]);
+        }
+        let s = &mut self.s[set];
+        for a in 0..nr {
+            for b in 0..=a {
+                let x = metric.product(&y[a * nv..(a + 1) * nv], &y[b * nv..(b + 1) * nv]);
+                s[(a, b)] = x;
+                s[(b, a)] = x;
+            }
+        }
+        let rank = semidefinite_cholesky(s, RANK_TOL, &mut self.dropped[set]);
+        semidefinite_solve(s, &self.dropped[set], &mut self.mu[set][..nr]);
+        self.rhs.fill(0.0);
+        for a in 0..nr {
+            let m = self.mu[set][a];
+            for (x, ya) in self.rhs.iter_mut().zip(&y[a * nv..(a + 1) * nv]) {
+                *x += m * ya;
+            }
+        }
+        metric.from_innovations(&self.rhs, &mut self.dq);
+        Some(rank)
+    }
+
     /// Factor the metric: M (at the rows' last evaluation), or M + ρ AᵀA when M is singular
     /// (A = holonomic rows when `holonomic`, else all rows). Returns ρ (0 for M itself).
     fn metric(&mut self, sys: &mut System, holonomic: bool) -> Result<f64> {
         let nv = sys.model().nv;
+        if self.l.nrows() != nv {
+            self.l = DMatrix::zeros(nv, nv);
+        }
         self.l.copy_from(sys.mass_matrix_after_rows());
         if cholesky_in_place(&mut self.l, nv, 1e-14).is_ok() {
             return Ok(0.0);

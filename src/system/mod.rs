@@ -3,6 +3,10 @@
 //! built once from a scene. The CLI, the predictor and the ROS nodes go through here; each call
 //! says how it evaluates ([`DynamicsOptions`]) and nothing is set on the system around it.
 
+mod metric;
+
+pub use metric::TreeMetric;
+
 use crate::algorithm::{
     Data, bias_forces_after_kinematics, center_of_mass, crba, crba_after_kinematics,
     forward_kinematics, forward_kinematics_bias, forward_kinematics_pos, kinetic_energy,
