@@ -167,3 +167,26 @@ fn sample_residuals_are_the_contact_gap_and_the_slip_speed() {
     assert!((position - 0.03).abs() < 1e-15, "{position}");
     assert!((velocity - 0.2).abs() < 1e-15, "{velocity}");
 }
+
+/// `dynamics.baumgarte_time_constant: T` means a critically damped residual decaying as
+/// e^{−t/T}: φ̈ + K_d φ̇ + K_p φ = 0 with s² + K_d s + K_p = (s + 1/T)², a double root at −1/T.
+#[test]
+fn a_baumgarte_time_constant_gives_a_double_root_at_minus_one_over_t() {
+    use constraint_dynamics::dynamics::Baumgarte;
+    for t in [0.003, 0.05, 0.1, 2.5] {
+        let b = Baumgarte::from_time_constant(t);
+        let (kp, kd) = (b.kp, b.kd);
+        // The roots (−K_d ± √(K_d² − 4 K_p)) / 2: the discriminant vanishes to rounding.
+        assert!(
+            (kd * kd - 4.0 * kp).abs() <= 1e-15 * kd * kd,
+            "T = {t}: K_d² − 4 K_p = {}",
+            kd * kd - 4.0 * kp
+        );
+        let root = -kd / 2.0;
+        assert!(
+            (root + 1.0 / t).abs() <= 1e-15 / t,
+            "T = {t}: root {root} against {}",
+            -1.0 / t
+        );
+    }
+}
