@@ -177,8 +177,9 @@ def table(rows, paths, robots, loops):
         "|---|---|---|---|---|---|",
     ]
     for r in loops:
-        dense = (f"{fmt_time(r['dense_s'])} | {r['dense_s'] / r['dynamics_s']:.0f}"
-                 if r["dense_s"] else "— | —")
+        ratio = r["dense_s"] / r["dynamics_s"] if r["dense_s"] else None
+        dense = (f"{fmt_time(r['dense_s'])} | {ratio:.{1 if ratio < 10 else 0}f}"
+                 if ratio else "— | —")
         out.append(f"| {r['n']} | {fmt_time(r['eval_s'])} | {r['rss_mb']:.0f} MB "
                    f"| {fmt_time(r['dynamics_s'])} | {dense} |")
     lfit = {k: exponent(ns, [r[k] for r in loops]) for k in ("eval_s", "dynamics_s", "rss_mb")}
