@@ -12,18 +12,36 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# Wall time per phase: a `phase NAME: N s` line as each ends, and all of them again at the end.
+phases=()
+phase_start=$SECONDS
+phase() {
+    phases+=("phase $1: $((SECONDS - phase_start)) s")
+    echo "${phases[-1]}"
+    phase_start=$SECONDS
+}
+
 cargo fetch --locked
+phase fetch
 # The pinned venvs download (network) while cargo builds (CPU); their log is shown on failure.
 {
+    venvs_start=$SECONDS
     bash tools/ros2/setup_peer_venv.sh
     bash tools/ros2/setup_peer_venv.sh --distro jazzy
     bash tools/robots/setup_venv.sh     # Pinocchio + example-robot-data (tests/it/example_robot_data.rs)
     bash tools/ros2/check_colcon_install.sh setup   # colcon + colcon-ros-cargo + cargo-ament-build
+    echo "phase venvs (beside the build): $((SECONDS - venvs_start)) s"
 } > /tmp/cd_venvs.log 2>&1 &
 venvs=$!
-cargo build --workspace --all-targets --locked --offline
+# What the tests run: the libraries, the binaries and every test target (the criterion benches
+# are left out: clippy --all-targets compiles them, and no test runs them). The colcon build
+# (tools/ros2/check_colcon_install.sh) asks for the same targets, so it finds them built.
+cargo build --workspace --bins --tests --locked --offline
+phase build
 wait "$venvs" || { cat /tmp/cd_venvs.log >&2; echo "the venv setup failed" >&2; exit 1; }
 cat /tmp/cd_venvs.log
+phases+=("$(tail -1 /tmp/cd_venvs.log)")
+phase "venvs (after the build)"
 
 # Rust tests, then the rclpy/Cyclone interop suite, in one private namespace each. The DDS tests
 # are #[ignore]d in a plain `cargo test` (they need root and the peer venv, both set up here):
@@ -33,8 +51,10 @@ cat /tmp/cd_venvs.log
 set +e
 tools/ros2/netns_run.sh cargo test --workspace --locked --offline -- --include-ignored 2>&1 | tee /tmp/cd_cargo_test.log
 cargo_status=${PIPESTATUS[0]}
+phase "cargo test (Kilted peers)"
 tools/ros2/netns_run.sh .venv-ros2/bin/python tools/ros2/interop/interop.py 2>&1 | grep -v '^\[\(ERROR\|WARN\)\]' | tee /tmp/cd_interop.log
 interop_status=${PIPESTATUS[0]}
+phase "interop (Kilted)"
 # The same peer tests against Jazzy's rclpy (rmw_fastrtps_cpp 8.4 / Fast DDS 2.14). --workspace,
 # not -p: the features cargo unifies are then the first run's, so nothing is rebuilt (the other
 # crates' `it` targets match no filter and run nothing).
@@ -43,12 +63,15 @@ CD_ROS2_VENV="$PWD/.venv-ros2-jazzy" tools/ros2/netns_run.sh cargo test --worksp
     suite_covariance_rclpy:: suite_payload_rclpy:: suite_params_rclpy:: suite_monitor_rclpy:: \
     suite_monitor_log_rclpy:: suite_envelope_rclpy:: ros_smoke:: 2>&1 | tee /tmp/cd_cargo_test_jazzy.log
 jazzy_status=${PIPESTATUS[0]}
+phase "cargo test (Jazzy peers)"
 tools/ros2/netns_run.sh .venv-ros2-jazzy/bin/python tools/ros2/interop/interop.py 2>&1 | grep -v '^\[\(ERROR\|WARN\)\]' | tee /tmp/cd_interop_jazzy.log
 interop_jazzy_status=${PIPESTATUS[0]}
+phase "interop (Jazzy)"
 # The node package as colcon installs it (nodes/package.xml), and the installed suite started.
 { bash tools/ros2/check_colcon_install.sh build && tools/ros2/netns_run.sh \
     tools/ros2/check_colcon_install.sh run; } 2>&1 | tee /tmp/cd_colcon.log
 colcon_status=${PIPESTATUS[0]}
+phase colcon
 set -e
 
 # One closing line over everything: cargo's test counts plus the interop checks. With
@@ -69,6 +92,7 @@ read -r colcon_passed colcon_failed < <(grep -E '^colcon: [0-9]+ passed' /tmp/cd
 [[ $colcon_status -eq 0 ]] || colcon_failed=$((colcon_failed > 0 ? colcon_failed : 1))
 py_passed=$((py_passed + colcon_passed))
 py_failed=$((py_failed + colcon_failed))
+printf '%s\n' "${phases[@]}" "phase total: $SECONDS s"
 echo "cargo ignored $rust_ignored tests (0 expected: every test runs with --include-ignored)"
 echo "all: $((rust_passed + py_passed)) passed, $((rust_failed + py_failed)) failed, $rust_ignored skipped"
 if [[ $cargo_status -ne 0 || $interop_status -ne 0 || $jazzy_status -ne 0 \

@@ -63,7 +63,7 @@ build)
     rm -rf "$WS/install" "$WS/log"
     mkdir -p "$WS/build"
     # The package's cargo target directory is the repository's own, and its cargo build is the
-    # tests' (`--workspace --all-targets`): the package built alone resolves its dependencies'
+    # tests' (`--workspace --bins --tests`): the package built alone resolves its dependencies'
     # features differently and compiles the core and the nodes a second time (minutes of CPU,
     # gigabytes of CI disk); this way colcon finds every binary built and installs it.
     ln -sfn "$REPO/target" "$WS/build/$PKG"
@@ -71,7 +71,7 @@ build)
     # colcon-cargo echoes `cargo metadata`'s JSON: keep colcon's output in a log, shown on failure.
     (cd "$WS" && PATH="$VENV/bin:$PATH" "$VENV/bin/colcon" --log-base log build \
         --paths "$REPO/nodes" --build-base build --install-base install \
-        --cargo-args --locked --offline --workspace --all-targets) > "$WS/colcon_build.log" 2>&1 \
+        --cargo-args --locked --offline --workspace --bins --tests) > "$WS/colcon_build.log" 2>&1 \
         || { tail -c 3000 "$WS/colcon_build.log" >&2; echo "colcon: 0 passed, 1 failed"; exit 1; }
     grep -E '^(Finished|Summary)' "$WS/colcon_build.log" || true
     check "package in the ament index" \

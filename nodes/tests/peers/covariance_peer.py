@@ -103,6 +103,12 @@ class Peer(Node):
                                  lambda m: self.keep(self.odom, m), 50)
         self.create_subscription(DiagnosticArray, "/diagnostics",
                                  lambda m: self.keep(self.diags, m), 50)
+        # The service clients are made here, seconds before their first request: a client made
+        # just before its request races the suite's discovery of it, and a lost request waits
+        # for Fast DDS's next heartbeat (up to 3 s).
+        self.predict_client = self.create_client(Predict, "/cd_prediction/predict")
+        self.set_parameters_client = self.create_client(SetParameters,
+                                                        "/cd_predictor/set_parameters")
         self.create_timer(0.02, self.tick)
 
     def keep(self, store, msg):
@@ -198,7 +204,7 @@ def check_service(peer):
     tw = Twist()
     tw.linear.x, tw.angular.z = V, W
     req.commands = [tw]
-    r = call(peer, peer.create_client(Predict, "/cd_prediction/predict"), req)
+    r = call(peer, peer.predict_client, req)
     if not check("~/predict succeeds", r.success, r.message):
         return
     n = r.covariance_dimension
@@ -260,10 +266,9 @@ def check_stop(peer):
 
 
 def set_string(peer, name, value):
-    client = peer.create_client(SetParameters, "/cd_predictor/set_parameters")
     p = Parameter(name=name, value=ParameterValue(type=ParameterType.PARAMETER_STRING,
                                                   string_value=value))
-    r = call(peer, client, SetParameters.Request(parameters=[p]))
+    r = call(peer, peer.set_parameters_client, SetParameters.Request(parameters=[p]))
     return r.results[0].successful, r.results[0].reason
 
 

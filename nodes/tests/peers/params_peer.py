@@ -84,6 +84,12 @@ def main():
         get = node.create_client(GetParameters, pred + "/get_parameters")
         setp = node.create_client(SetParameters, pred + "/set_parameters")
         atomic = node.create_client(SetParametersAtomically, pred + "/set_parameters_atomically")
+        # Every client is made here, seconds before its first request: a client made just before
+        # its request races the suite's discovery of it, and a lost request waits for Fast DDS's
+        # next heartbeat (up to 3 s).
+        smoother_get = {n: node.create_client(GetParameters, f"/{n}/get_parameters")
+                        for n in NODES}
+        state_get = {n: node.create_client(GetState, f"/{n}/get_state") for n in NODES}
 
         def read():
             r = call(node, get, GetParameters.Request(names=PAYLOAD))
@@ -112,13 +118,12 @@ def main():
 
         out["velocity_smoother"] = {}
         for n in NODES:
-            c = node.create_client(GetParameters, f"/{n}/get_parameters")
-            r = call(node, c, GetParameters.Request(names=["envelope.velocity_smoother"]))
+            r = call(node, smoother_get[n],
+                     GetParameters.Request(names=["envelope.velocity_smoother"]))
             out["velocity_smoother"][n] = value(r.values[0])
         out["states"] = {}
         for n in NODES:
-            c = node.create_client(GetState, f"/{n}/get_state")
-            out["states"][n] = call(node, c, GetState.Request()).current_state.id
+            out["states"][n] = call(node, state_get[n], GetState.Request()).current_state.id
 
         deadline = time.monotonic() + TIMEOUT
         out["forces_status"] = None

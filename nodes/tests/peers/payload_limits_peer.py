@@ -90,10 +90,13 @@ def main():
         deadline = time.monotonic() + TIMEOUT
         while not peer.window(0.0, 1e9) and time.monotonic() < deadline:
             time.sleep(0.05)
+        # Made before the 1.5 s window, not just before its request: a client made just before
+        # its request races the suite's discovery of it, and a lost request waits for Fast
+        # DDS's next heartbeat (up to 3 s).
+        client = peer.create_client(SetPayload, "/cd_predictor/set_payload")
         t0 = time.monotonic()
         time.sleep(1.5)
         out["before"] = peer.window(t0, 1.5)
-        client = peer.create_client(SetPayload, "/cd_predictor/set_payload")
         if not client.wait_for_service(timeout_sec=TIMEOUT):
             raise RuntimeError("/cd_predictor/set_payload not available")
         fut = client.call_async(fill(SetPayload.Request(), good))

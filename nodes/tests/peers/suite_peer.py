@@ -81,6 +81,18 @@ def main():
     node = Node("cd_suite_peer")
     try:
         received = {}
+        # Every client is made here, while the topics arrive, seconds before its first request:
+        # a client made just before its request races the suite's discovery of it, and a lost
+        # request waits for Fast DDS's next heartbeat (up to 3 s).
+        services = [
+            ("forces", GetConstraintForces, "/cd_forces/get_constraint_forces"),
+            ("project", ProjectVelocity, "/cd_projection/project_velocity"),
+            ("predict", Predict, "/cd_prediction/predict"),
+        ]
+        clients = {key: node.create_client(srv, name) for key, srv, name in services}
+        lstc = node.create_client(ListParameters, "/cd_predictor/list_parameters")
+        getc = node.create_client(GetParameters, "/cd_predictor/get_parameters")
+        setc = node.create_client(SetParameters, "/cd_predictor/set_parameters")
         for topic, mtype, key in [
             ("/cd_predictor/predicted_odom", Odometry, "odom"),
             ("/cd_predictor/predicted_path", Path, "path"),
@@ -95,22 +107,15 @@ def main():
                 out["errors"].append(f"no message on the predictor's {k} topic")
         out["topics"] = {k: to_plain(v) for k, v in received.items()}
 
-        for key, srv, name in [
-            ("forces", GetConstraintForces, "/cd_forces/get_constraint_forces"),
-            ("project", ProjectVelocity, "/cd_projection/project_velocity"),
-            ("predict", Predict, "/cd_prediction/predict"),
-        ]:
-            client = node.create_client(srv, name)
-            resp = call(node, client, fill(srv.Request(), requests[key]))
+        for key, srv, _ in services:
+            resp = call(node, clients[key], fill(srv.Request(), requests[key]))
             out[key] = to_plain(resp)
 
-        lst = call(node, node.create_client(ListParameters, "/cd_predictor/list_parameters"),
-                   ListParameters.Request())
+        lst = call(node, lstc, ListParameters.Request())
         out["parameter_names"] = list(lst.result.names)
-        get = call(node, node.create_client(GetParameters, "/cd_predictor/get_parameters"),
+        get = call(node, getc,
                    GetParameters.Request(names=["rate", "model.scene_file", "command.fallback"]))
         out["parameters"] = [to_plain(v) for v in get.values]
-        setc = node.create_client(SetParameters, "/cd_predictor/set_parameters")
 
         def set_double(name, x):
             p = Parameter(name=name, value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
@@ -120,8 +125,7 @@ def main():
 
         out["set_rate"] = set_double("rate", 50.0)
         out["set_mu"] = set_double("slip.friction_coefficient", 0.5)
-        get = call(node, node.create_client(GetParameters, "/cd_predictor/get_parameters"),
-                   GetParameters.Request(names=["slip.friction_coefficient"]))
+        get = call(node, getc, GetParameters.Request(names=["slip.friction_coefficient"]))
         out["mu_after"] = get.values[0].double_value
         out["ok"] = not out["errors"]
     except Exception as e:  # noqa: BLE001 - report everything as JSON

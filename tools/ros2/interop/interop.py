@@ -82,6 +82,17 @@ class User(Node):
                                  lambda m: self._keep(self.forces, m), 10)
         self.feed = None
         self.create_timer(0.05, self._publish_feed)
+        # One client per service, made here and kept, as a user's node keeps its clients: a
+        # client made just before its first request races the suite's discovery of it, and a
+        # lost request waits for Fast DDS's next heartbeat (up to 3 s).
+        self.service_clients = {name: self.create_client(srv_type, name) for srv_type, name in [
+            (GetParameters, "/cd_predictor/get_parameters"),
+            (SetParameters, "/cd_predictor/set_parameters"),
+            (GetConstraintForces, "/cd_forces/get_constraint_forces"),
+            (ProjectVelocity, "/cd_projection/project_velocity"),
+            (Predict, "/cd_prediction/predict"),
+            (Rollouts, "/cd_prediction/rollouts"),
+        ]}
 
     def _keep(self, store, msg):
         with self.lock:
@@ -145,7 +156,10 @@ class User(Node):
         return after
 
     def call(self, srv_type, name, request, timeout=10.0):
-        client = self.create_client(srv_type, name)
+        if name not in self.service_clients:
+            self.service_clients[name] = self.create_client(srv_type, name)
+        client = self.service_clients[name]
+        assert client.srv_type is srv_type, (name, srv_type)
         if not client.wait_for_service(timeout_sec=timeout):
             return None
         for _ in range(3):  # the first request after discovery can be slow to match
@@ -182,7 +196,7 @@ def check_odom_arc(name, msg, start, t, tol=3e-3):
 
 def measure_round_trip(user, req, n=200):
     """rclpy's round trip to get_constraint_forces [ms]: p50, p99 over n calls."""
-    client = user.create_client(GetConstraintForces, "/cd_forces/get_constraint_forces")
+    client = user.service_clients["/cd_forces/get_constraint_forces"]
     client.wait_for_service(timeout_sec=10)
     times = []
     for _ in range(n):
