@@ -10,12 +10,13 @@
 //!   (tolerance 1e-10).
 //! - A double pendulum of point masses (Lagrange's equations in the absolute angles, written
 //!   here) gives q̈ to 1.2e-15 (tolerance 1e-13).
-//! - Where M is singular to working precision (a massless leaf), the linear path declines and
-//!   `System` reports what the dense path reports.
+//! - Where M is singular (a massless leaf) or singular to working precision (a leaf of 1e-20
+//!   kg, whose ABA q̈ is finite), the linear path declines and `System` reports what the dense
+//!   path reports.
 
 use crate::chain;
 use crate::common::*;
-use constraint_dynamics::algorithm::Data;
+use constraint_dynamics::algorithm::{Data, aba};
 use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
 use constraint_dynamics::dynamics::{
     Baumgarte, Formulation, KktWorkspace, TreeWorkspace, constrained_forward_dynamics,
@@ -251,5 +252,43 @@ fn a_singular_tree_is_left_to_the_dense_path() {
         Formulation::Multipliers,
     );
     let err = sys.forward_dynamics(&q, &zero, &zero, false).unwrap_err();
+    assert_has(&err.to_string(), &["tip_joint", "no inertia"]);
+}
+
+#[test]
+fn a_nearly_singular_tree_is_left_to_the_dense_path() {
+    // A leaf link of 1e-20 kg on its own joint: ABA's pivot there is finite (its inertia,
+    // 1e-22 kg·m²) but 1e-14 of M's largest entry is above it, so M is singular to working
+    // precision: the linear path declines on the pivot check (q̈ itself comes out finite,
+    // about 1e20 times the torque) and `System` reports what the dense path reports.
+    let urdf = chain::chain_urdf(64).replace(
+        "</robot>",
+        r#"<link name="tip"><inertial><origin xyz="0 0 0"/><mass value="1e-20"/>
+  <inertia ixx="1e-22" ixy="0" ixz="0" iyy="1e-22" iyz="0" izz="1e-22"/></inertial></link>
+  <joint name="tip_joint" type="revolute"><parent link="link1"/>
+  <child link="tip"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/>
+  </joint></robot>"#,
+    );
+    let m = fixed(&urdf, "chain_with_light_tip.urdf");
+    let q = m.neutral();
+    let zero = vec![0.0; m.nv];
+    let tau: Vec<f64> = (0..m.nv).map(|k| 0.1 * (k as f64).cos()).collect();
+    let mut data = Data::new(&m);
+    aba(&m, &mut data, &q, &zero, &tau);
+    assert!(
+        data.qdd.iter().all(|x| x.is_finite()),
+        "ABA's q̈ is finite here"
+    );
+    let mut ws = TreeWorkspace::new(&m);
+    assert!(!tree_forward_dynamics(
+        &m, &mut data, &mut ws, &q, &zero, &tau
+    ));
+    let mut sys = System::new(
+        m.clone(),
+        ConstraintSet::default(),
+        Baumgarte::default(),
+        Formulation::Multipliers,
+    );
+    let err = sys.forward_dynamics(&q, &zero, &tau, false).unwrap_err();
     assert_has(&err.to_string(), &["tip_joint", "no inertia"]);
 }
