@@ -6,8 +6,8 @@ docs/performance.md ("The live cost") between its `live:begin` / `live:end` mark
 
 What it runs, in order:
 - the release suite, fed at 20 Hz inside a private network namespace (tools/ros2/live_cpu.py,
-  the peer venv of tools/ros2/setup_peer_venv.sh): CPU share and predicted-odometry rate,
-  `--runs` times;
+  the peer venv of tools/ros2/setup_peer_venv.sh), under a steady command and under one that
+  changes at every message: CPU share and predicted-odometry rate, `--runs` times each;
 - the live-prediction and covariance tests (tests/it/live_prediction.rs, tests/it/covariance.rs,
   in the core's one `it` target):
   the base pose against the controllers' 1 ms hold integrated at 0.1 ms, the error estimate
@@ -41,9 +41,11 @@ def suite_cpu(runs):
     run(["bash", "tools/ros2/setup_peer_venv.sh"])
     out = []
     for _ in range(runs):
-        r = run(["tools/ros2/netns_run.sh", ".venv-ros2/bin/python", "tools/ros2/live_cpu.py",
-                 "--suite", "target/release/constraint_dynamics_suite"], stdout=subprocess.PIPE)
-        out.append(json.loads(r.stdout.strip().splitlines()[-1]))
+        for feed in ("steady", "changing"):
+            r = run(["tools/ros2/netns_run.sh", ".venv-ros2/bin/python", "tools/ros2/live_cpu.py",
+                     "--suite", "target/release/constraint_dynamics_suite", "--feed", feed],
+                    stdout=subprocess.PIPE)
+            out.append(json.loads(r.stdout.strip().splitlines()[-1]))
     return out
 
 
@@ -77,7 +79,10 @@ def span(values, fmt):
 
 
 def table(cpu, acc):
-    share = span([c["cpu_share"] for c in cpu], ".3f")
+    steady = [c for c in cpu if c["feed"] == "steady"]
+    changing = [c for c in cpu if c["feed"] == "changing"]
+    share = span([c["cpu_share"] for c in steady], ".3f")
+    share_changing = span([c["cpu_share"] for c in changing], ".3f")
     rate = span([c["predicted_odom_hz"] for c in cpu], ".1f")
     cov = "yes" if all(c["covariance"] for c in cpu) else "**no**"
     ev, est, jac, lin = acc["work"]
@@ -85,11 +90,13 @@ def table(cpu, acc):
     return "\n".join([
         "<!-- written by python3 tools/live_cost.py: do not edit -->",
         "",
-        "| suite CPU share [cores] | predicted_odom [Hz] | with covariance | evaluations per tick "
-        "(answer + estimate) | Jacobians | covariance linearizations | base position vs held "
+        "| suite CPU share, steady command [cores] | changing commands [cores] "
+        "| predicted_odom [Hz] | with covariance | evaluations per tick (answer + estimate) "
+        "| Jacobians | covariance linearizations | base position vs held "
         "| yaw vs held | estimate / true error | covariance vs Monte Carlo |",
-        "|---|---|---|---|---|---|---|---|---|---|",
-        f"| {share} ({len(cpu)} runs) | {rate} | {cov} | {ev} + {est} | {jac} | {lin} "
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+        f"| {share} ({len(steady)} runs) | {share_changing} ({len(changing)} runs) | {rate} "
+        f"| {cov} | {ev} + {est} | {jac} | {lin} "
         f"| {acc['position_m']:.1e} m | {acc['yaw_rad']:.1e} rad | {ratio} "
         f"| {100 * acc['mc']:.1f} % |",
         "",

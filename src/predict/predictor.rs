@@ -204,6 +204,11 @@ impl Predictor {
         self
     }
 
+    /// [`Self::with_parallel_covariance`] on this predictor, for its next predictions.
+    pub fn set_parallel_covariance(&mut self, parallel: bool) {
+        self.config.parallel_covariance = parallel;
+    }
+
     /// The configuration.
     pub fn config(&self) -> &PredictorConfig {
         &self.config

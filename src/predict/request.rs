@@ -41,7 +41,7 @@ pub struct PredictionRequest<'a> {
     /// row (default: nothing; those limits are listed unchecked). Read only with `forces`.
     pub contact_limits: ContactLimits,
     /// Which samples carry the propagated covariance (with a start covariance).
-    pub covariance_samples: CovarianceSamples,
+    pub covariance_samples: CovarianceSamples<'a>,
 }
 
 /// Which samples of a prediction carry the propagated covariance.
@@ -49,14 +49,31 @@ pub struct PredictionRequest<'a> {
 /// P is brought onto the constraints and read only at those samples; between them its
 /// linearized chunks may span several samples (covariance/chunks.rs), so a caller that reads P
 /// only at the horizon (a predicted odometry) asks for [`CovarianceSamples::Last`] and pays for
-/// a few long chunks instead of one or more per sample.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum CovarianceSamples {
+/// a few long chunks instead of one or more per sample. Each projection costs nv + 2
+/// constraint evaluations and a factorization of M.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum CovarianceSamples<'a> {
     /// Every sample.
     #[default]
     Every,
     /// The last sample only (the horizon); the others carry none.
     Last,
+    /// The samples within one sample period of any of these times [s] (so the sample nearest
+    /// each, on either side), and the last; the others carry none.
+    Near(&'a [f64]),
+}
+
+impl CovarianceSamples<'_> {
+    /// Whether the sample at `t` [s] carries P, with samples every `period` [s] up to
+    /// `horizon` [s].
+    pub(crate) fn at(&self, t: f64, period: f64, horizon: f64) -> bool {
+        t >= horizon - 1e-12
+            || match self {
+                Self::Every => true,
+                Self::Last => false,
+                Self::Near(times) => times.iter().any(|&h| (t - h).abs() <= period + 1e-9),
+            }
+    }
 }
 
 impl<'a> PredictionRequest<'a> {
@@ -100,7 +117,7 @@ impl<'a> PredictionRequest<'a> {
     }
 
     /// With the covariance in `which` samples.
-    pub fn covariance_samples(mut self, which: CovarianceSamples) -> Self {
+    pub fn covariance_samples(mut self, which: CovarianceSamples<'a>) -> Self {
         self.covariance_samples = which;
         self
     }

@@ -315,7 +315,8 @@ fn controlled_mobile_manipulator_covariance_matches_monte_carlo() {
 
 /// The predictor node's live settings (tests/it/live_prediction.rs): continuous controllers, ROS2
 /// at the 20 ms sample period, each step linearized with its own F; over the node's 1 s horizon,
-/// P brought onto the constraints at every sample and, as the node asks, at the horizon only.
+/// P brought onto the constraints at every sample, at the horizon only, and (as the node asks
+/// with its monitor on) near the monitor's horizons.
 #[test]
 fn live_mobile_manipulator_covariance_matches_monte_carlo() {
     let mut scene = Scene::load(repo_dir().join("params/suite_mobile_manipulator.yaml")).unwrap();
@@ -354,9 +355,28 @@ fn live_mobile_manipulator_covariance_matches_monte_carlo() {
         &mc,
         N_SLOW,
     );
+    // As the node asks with its monitor on: P at the samples within one sample period (20 ms)
+    // of the monitor's horizons 0.25, 0.5 and 1 s, and nowhere else.
+    let near = [0.25, 0.5, 1.0];
+    let traj = at_end
+        .predict(&req.covariance_samples(CovarianceSamples::Near(&near)))
+        .unwrap();
+    let with_p: Vec<f64> = (traj.samples.iter())
+        .filter(|s| s.covariance.is_some())
+        .map(|s| (s.t * 100.0).round() / 100.0)
+        .collect();
+    assert_eq!(with_p, [0.24, 0.26, 0.48, 0.5, 0.52, 0.98, 1.0]);
+    let p_near = rows_to_matrix(traj.samples.last().unwrap().covariance.as_ref().unwrap());
+    let rel_near = relative_difference(
+        "live mobile manipulator, P near the monitor's horizons",
+        &p_near,
+        &mc,
+        N_SLOW,
+    );
     assert!(
-        rel <= TOL && rel_last <= TOL,
-        "covariance differs from Monte Carlo by {rel:.3} (every sample) and {rel_last:.3} (horizon only)"
+        rel <= TOL && rel_last <= TOL && rel_near <= TOL,
+        "covariance differs from Monte Carlo by {rel:.3} (every sample), {rel_last:.3} (horizon \
+         only) and {rel_near:.3} (near the monitor's horizons)"
     );
 }
 

@@ -1,8 +1,10 @@
 """The default suite's CPU share as a robot stack feeds it (docs/performance.md, "The live cost").
 
 Starts the suite (params/default.yaml), feeds it at 20 Hz what a robot gives it -- /odom with a
-covariance (sigma 1 cm, 0.01 rad, 0.01 m/s), /joint_states and cmd_vel (0.3 m/s, 0.5 rad/s) --
-and, after `--settle` seconds of feed, reads the suite process's user + system time from
+covariance (sigma 1 cm, 0.01 rad, 0.01 m/s), /joint_states and cmd_vel: (0.3 m/s, 0.5 rad/s)
+steady, or with `--feed changing` a command that changes at every message as a Nav2 controller's
+does (v = 0.3 + 0.1 sin(1.3 t) m/s, w = 0.5 sin(0.7 t) rad/s, the odometry and wheels following
+it) -- and, after `--settle` seconds of feed, reads the suite process's user + system time from
 /proc/PID/stat over `--window` seconds. Prints one JSON line: the CPU share (cores), the rate of
 /cd_predictor/predicted_odom over the window [Hz], and whether its covariance came through.
 
@@ -13,6 +15,7 @@ Opens DDS participants: run it only inside tools/ros2/netns_run.sh, with the pee
 
 import argparse
 import json
+import math
 import os
 import signal
 import subprocess
@@ -26,7 +29,14 @@ from sensor_msgs.msg import JointState
 
 # The suite's mobile manipulator (params/suite_mobile_manipulator.yaml): wheel radius and track [m].
 RADIUS, TRACK = 0.05, 0.34
-V, W = 0.3, 0.5  # the fed command and odometry twist [m/s, rad/s]
+V, W = 0.3, 0.5  # the steady command and odometry twist [m/s, rad/s]
+
+
+def command(feed, t):
+    """The fed command and odometry twist (v [m/s], w [rad/s]) at `t` [s] into the feed."""
+    if feed == "steady":
+        return V, W
+    return V + 0.1 * math.sin(1.3 * t), W * math.sin(0.7 * t)
 ARM = {"arm_shoulder_yaw": 0.0, "arm_shoulder_pitch": 0.5, "arm_elbow": 1.0, "arm_wrist": 0.5}
 
 
@@ -51,6 +61,8 @@ def main():
     ap.add_argument("--params", default="params/default.yaml")
     ap.add_argument("--settle", type=float, default=10.0, help="[s] of feed before the window")
     ap.add_argument("--window", type=float, default=8.0, help="[s] of CPU time read")
+    ap.add_argument("--feed", choices=["steady", "changing"], default="steady",
+                    help="a steady command, or one that changes at every message")
     args = ap.parse_args()
     if os.environ.get("CD_NETNS") != "1":
         sys.exit("live_cpu.py opens DDS participants: run it inside tools/ros2/netns_run.sh")
@@ -74,17 +86,18 @@ def main():
     )
     pose_cov = covariance([0.01, 0.01, 1e6, 1e6, 1e6, 0.01])
     twist_cov = covariance([0.01, 0.01, 1e6, 1e6, 1e6, 0.01])
-    wheel = [(V - W * TRACK / 2) / RADIUS, (V + W * TRACK / 2) / RADIUS]
     start = time.monotonic()
     window = None
     try:
         while time.monotonic() - start < args.settle + args.window:
+            v, w = command(args.feed, time.monotonic() - start)
+            wheel = [(v - w * TRACK / 2) / RADIUS, (v + w * TRACK / 2) / RADIUS]
             now = node.get_clock().now().to_msg()
             o = Odometry()
             o.header.stamp = now
             o.header.frame_id = "odom"
             o.child_frame_id = "base_footprint"
-            o.twist.twist.linear.x, o.twist.twist.angular.z = V, W
+            o.twist.twist.linear.x, o.twist.twist.angular.z = v, w
             o.pose.covariance, o.twist.covariance = pose_cov, twist_cov
             odom.publish(o)
             j = JointState()
@@ -95,7 +108,7 @@ def main():
             j.effort = [0.0] * len(j.name)
             joints.publish(j)
             c = Twist()
-            c.linear.x, c.angular.z = V, W
+            c.linear.x, c.angular.z = v, w
             cmd.publish(c)
             if window is None and time.monotonic() - start >= args.settle:
                 window = (time.monotonic(), cpu_seconds(suite.pid))
@@ -121,6 +134,7 @@ def main():
                 "predicted_odom_hz": rate,
                 "covariance": bool(late and late[-1][1] > 0.0),
                 "window_s": t1 - t0,
+                "feed": args.feed,
             }
         )
     )

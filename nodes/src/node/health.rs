@@ -105,6 +105,48 @@ impl Health {
         (self.ticks.len() >= 2 && span > 0.0).then(|| (self.ticks.len() - 1) as f64 / span)
     }
 
+    /// The achieved rate [Hz] when it is below `params.min_rate_fraction` of `requested`.
+    fn low_rate(&self, requested: f64, params: &DiagnosticsParams) -> Option<f64> {
+        self.achieved_rate()
+            .filter(|r| *r < params.min_rate_fraction * requested)
+    }
+
+    /// The age of `input` at ROS time `now` [s], None before it first arrived.
+    fn input_age(&self, input: Input, now: Time) -> Option<f64> {
+        let at = match input {
+            Input::JointStates => self.joint_states_at,
+            Input::Odometry => self.odom_at,
+        };
+        at.map(|t| secs(now, t))
+    }
+
+    /// The level [`Self::status`] gives at ROS time `now` (with `kind_warns` for a kind's own
+    /// warnings), without building its values and messages: a worker asks after every event
+    /// whether the level changed, and builds the status only when it did or one is due.
+    pub fn level(
+        &self,
+        now: Time,
+        requested_rate: Option<f64>,
+        subscribed: &[Input],
+        params: &DiagnosticsParams,
+        kind_warns: bool,
+    ) -> u8 {
+        let stale = |i: &Input| {
+            self.input_age(*i, now)
+                .is_none_or(|a| a > params.input_timeout)
+        };
+        if self.tick_failing {
+            DiagnosticStatus::ERROR
+        } else if kind_warns
+            || requested_rate.is_some_and(|r| self.low_rate(r, params).is_some())
+            || subscribed.iter().any(stale)
+        {
+            DiagnosticStatus::WARN
+        } else {
+            DiagnosticStatus::OK
+        }
+    }
+
     /// The status at ROS time `now`.
     pub fn status(&self, now: Time, ctx: StatusContext) -> DiagnosticStatus {
         let mut values = vec![kv("model", ctx.model)];
@@ -112,17 +154,15 @@ impl Health {
         if let Some(requested) = ctx.requested_rate {
             values.push(kv("requested rate [Hz]", &format!("{requested:.3}")));
             match self.achieved_rate() {
-                Some(r) => {
-                    values.push(kv("achieved rate [Hz]", &format!("{r:.3}")));
-                    if r < ctx.params.min_rate_fraction * requested {
-                        let why = match &ctx.rate_shortfall {
-                            Some(why) => format!(": {why}"),
-                            None => String::new(),
-                        };
-                        warnings.push(format!("rate {r:.2} Hz < requested {requested} Hz{why}"));
-                    }
-                }
+                Some(r) => values.push(kv("achieved rate [Hz]", &format!("{r:.3}"))),
                 None => values.push(kv("achieved rate [Hz]", "-")),
+            }
+            if let Some(r) = self.low_rate(requested, ctx.params) {
+                let why = match &ctx.rate_shortfall {
+                    Some(why) => format!(": {why}"),
+                    None => String::new(),
+                };
+                warnings.push(format!("rate {r:.2} Hz < requested {requested} Hz{why}"));
             }
         }
         if !self.compute_ms.is_empty() {
@@ -137,14 +177,13 @@ impl Health {
                 &format!("{:.3}", sorted[sorted.len() - 1]),
             ));
         }
-        for input in ctx.subscribed {
-            let (name, at) = match input {
-                Input::JointStates => ("joint_states", self.joint_states_at),
-                Input::Odometry => ("odom", self.odom_at),
+        for &input in ctx.subscribed {
+            let name = match input {
+                Input::JointStates => "joint_states",
+                Input::Odometry => "odom",
             };
-            match at {
-                Some(t) => {
-                    let age = secs(now, t);
+            match self.input_age(input, now) {
+                Some(age) => {
                     values.push(kv(&format!("{name} age [s]"), &format!("{age:.3}")));
                     if age > ctx.params.input_timeout {
                         warnings.push(format!("{name} stale ({age:.1} s old)"));
@@ -279,6 +318,42 @@ mod tests {
             .find(|v| v.key == "compute p50 [ms]")
             .unwrap();
         assert_eq!(p50.value, "150.000");
+    }
+
+    /// The level a worker checks after every event is the one the status would give: OK,
+    /// each reason for a WARN alone, and a failed tick's ERROR.
+    #[test]
+    fn the_level_is_the_status_level() {
+        let p = DiagnosticsParams::default();
+        let subs = [Input::Odometry, Input::JointStates];
+        let check = |h: &Health, t: f64, kind: bool, want: u8| {
+            let mut c = ctx(&p, &subs);
+            if kind {
+                c.warnings = vec!["odom stale (odom 0.62 s > state.timeout 0.5 s)".into()];
+            }
+            let s = h.status(at(t), c);
+            assert_eq!(s.level, want, "{s:?}");
+            assert_eq!(h.level(at(t), Some(10.0), &subs, &p, kind), want);
+        };
+        let mut h = Health::default();
+        check(&h, 0.0, false, DiagnosticStatus::WARN); // nothing received yet
+        for k in 0..20 {
+            h.input(Input::Odometry, at(0.1 * k as f64));
+            h.input(Input::JointStates, at(0.1 * k as f64));
+            h.tick(at(0.1 * k as f64), 0.002, None);
+        }
+        check(&h, 1.95, false, DiagnosticStatus::OK);
+        check(&h, 1.95, true, DiagnosticStatus::WARN); // the kind's own warning
+        check(&h, 3.1, false, DiagnosticStatus::WARN); // stale inputs (and a low rate)
+        let mut slow = Health::default();
+        for k in 0..5 {
+            slow.input(Input::Odometry, at(0.8));
+            slow.input(Input::JointStates, at(0.8));
+            slow.tick(at(0.2 * k as f64), 0.15, None); // 5 Hz against 10 requested
+        }
+        check(&slow, 0.8, false, DiagnosticStatus::WARN);
+        h.tick(at(2.0), 0.001, Some("prediction: step size".into()));
+        check(&h, 2.0, false, DiagnosticStatus::ERROR);
     }
 
     /// The kind's reason for a low rate joins the rate warning, and only when the rate is low.

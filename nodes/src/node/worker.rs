@@ -360,29 +360,41 @@ impl<N: NodeLogic> Worker<N> {
     }
 
     /// Sends the node's status when `scheduled` or when its level (or the kind's warning)
-    /// changed.
+    /// changed. Called after every event: the status itself is built only when it is sent.
     fn publish_status(&mut self, scheduled: bool) {
         let now = self.now();
         let params = self.logic.params();
+        let requested_rate = self.logic.tick_period().map(|p| 1.0 / p.as_secs_f64());
+        let warnings = self.logic.warnings();
+        let kind_warns = !warnings.is_empty();
+        let diagnostics = &params.common.diagnostics;
+        let level = (self.health).level(
+            now,
+            requested_rate,
+            &self.subscribed,
+            diagnostics,
+            kind_warns,
+        );
+        let level = Some((level, kind_warns));
+        if !scheduled && self.last_level == level {
+            return;
+        }
         let mut extra = vec![self.payload_status()];
         extra.extend(self.logic.diagnostics());
         let ctx = StatusContext {
             name: &self.fqn,
             model: &self.logic.robot().model().name,
-            requested_rate: self.logic.tick_period().map(|p| 1.0 / p.as_secs_f64()),
+            requested_rate,
             subscribed: &self.subscribed,
-            params: &params.common.diagnostics,
+            params: diagnostics,
             extra,
-            warnings: self.logic.warnings(),
+            warnings,
             rate_shortfall: self.logic.rate_shortfall(),
         };
-        let kind_warns = !ctx.warnings.is_empty();
         let status = self.health.status(now, ctx);
-        let level = Some((status.level, kind_warns));
-        if scheduled || self.last_level != level {
-            self.last_level = level;
-            let _ = self.diagnostics.try_send((now, status));
-        }
+        debug_assert_eq!(Some((status.level, kind_warns)), level);
+        self.last_level = level;
+        let _ = self.diagnostics.try_send((now, status));
     }
 
     /// Runs `f`, catching a panic: logs it and rebuilds the logic.

@@ -51,6 +51,12 @@ use crate::robot::inputs::{InputAges, StartCovariance};
 use crate::ros::logging::{DropLog, NodeLog};
 pub use params::{CovarianceParams, EnvelopeParams, MarkerParams, PredictorParams};
 
+/// The fraction of the tick period above which the last tick's covariance propagation moves
+/// the next one to a second thread (`Predictor::with_parallel_covariance`). Below it, inline
+/// costs less CPU: the default suite's covariance takes about 1 % of its 100 ms period, and a
+/// worker thread per tick (its start and hand-offs) cost 0.004–0.007 of a core more.
+const PARALLEL_COVARIANCE: f64 = 0.1;
+
 /// What one periodic prediction publishes.
 #[derive(Clone, Debug)]
 pub struct PeriodicOutput {
@@ -328,9 +334,10 @@ impl PredictorNode {
             commands: &commands,
             horizon: self.params.node.horizon(),
             start_covariance: p0.as_ref(),
-            // The odometry carries P at the horizon only; the monitor scores earlier samples.
-            covariance_samples: match self.monitor {
-                Some(_) => CovarianceSamples::Every,
+            // The odometry carries P at the horizon only; the monitor reads the samples nearest
+            // its horizons.
+            covariance_samples: match &self.monitor {
+                Some(m) => CovarianceSamples::Near(m.horizons()),
                 None => CovarianceSamples::Last,
             },
             // Every sample's contacts judged: no prediction drives past a slip or a lift-off
@@ -339,6 +346,11 @@ impl PredictorNode {
             contact_limits: self.robot.contact_limits(common),
             ..PredictionRequest::new(&q, &v)
         };
+        // The covariance on a second thread only where it is a large part of the period: a
+        // worker started every tick costs more CPU than it saves when the covariance is light.
+        let period = 1.0 / self.params.node.rate;
+        let heavy = |w: &work::PredictionWork| w.covariance_s > PARALLEL_COVARIANCE * period;
+        (self.predictor).set_parallel_covariance(self.work.as_ref().is_some_and(heavy));
         let traj = self
             .predictor
             .predict(&request)

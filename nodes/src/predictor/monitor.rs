@@ -97,6 +97,12 @@ impl OnlineMonitor {
     /// plus the integration error estimate and `floors`, plus the model error the motion
     /// brings (`monitor.motion_error` × the distance travelled and the angle turned from the
     /// start).
+    /// The horizons scored [s]: [`Self::record`] reads the covariance of the sample nearest
+    /// each.
+    pub fn horizons(&self) -> &[f64] {
+        &self.core.settings().horizons
+    }
+
     pub fn record(&mut self, model: &Model, traj: &Trajectory, floors: &CovarianceParams) {
         // Before the first odometry the prediction starts from the scene's initial state, not
         // from anything measured: nothing to score.

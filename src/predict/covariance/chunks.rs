@@ -40,8 +40,9 @@
 //!
 //! A ROS2 step hands over the F it stepped with, q̈ at its start and ∂q̈/∂t
 //! (`StepRecord::push`): such steps are linearized one by one with them (linearize/ros2.rs, no
-//! derivatives of their own), which costs less than one refused chunk, and a chunk of them would
-//! not pass the check where the step damps stiff modes rather than resolving them.
+//! derivatives of their own; steps with the same F and size share one sensitivity), which costs
+//! less than one refused chunk, and a chunk of them would not pass the check where the step
+//! damps stiff modes rather than resolving them.
 //!
 //! P is brought onto the constraints (`project`) where the flush ends — a sample, where P is
 //! read, or a full record — not after every chunk: the linearized flow keeps it on them to

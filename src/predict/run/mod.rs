@@ -47,8 +47,8 @@ struct Plan<'a> {
     factor: f64,
     /// Record forces in the samples, judging the contacts under these limits.
     forces: Option<&'a ContactLimits>,
-    /// Bring P up to every sample (else only to the horizon).
-    covariance_every_sample: bool,
+    /// The samples P is brought up to (always the horizon's).
+    covariance_samples: CovarianceSamples<'a>,
 }
 
 impl Predictor {
@@ -173,7 +173,7 @@ impl Predictor {
                     .update(cmd, &c.q, &c.v, dt, &mut ws.tau_companion);
             }
         }
-        let every = req.covariance_samples == CovarianceSamples::Every;
+        let read_p = |t: f64| req.covariance_samples.at(t, s.sample_period, horizon);
         let forces = req.forces.then_some(&req.contact_limits);
         // A measured start is never exactly on the constraints: its forces are those of its
         // projection (the drift control's, as the steps end), not of rows that disagree there.
@@ -191,7 +191,7 @@ impl Predictor {
             (&lanes[0].q, &lanes[0].v),
             projected.as_ref().map(|(q, v)| (&q[..], &v[..])),
             s.error_estimate.then(ByKind::default),
-            (forces, every || horizon <= 0.0),
+            (forces, read_p(0.0)),
         )?;
         let springs = self
             .forces
@@ -206,7 +206,7 @@ impl Predictor {
             companion,
             factor,
             forces,
-            covariance_every_sample: every,
+            covariance_samples: req.covariance_samples,
         };
         let parallel = self.config.parallel_covariance
             && std::thread::available_parallelism().is_ok_and(|n| n.get() > 1);
@@ -268,7 +268,7 @@ impl Predictor {
             companion,
             factor,
             forces,
-            covariance_every_sample,
+            covariance_samples,
         } = *plan;
         let idle = Command::default();
         let command_at = |t: f64| command_at(commands, &idle, t);
@@ -356,7 +356,7 @@ impl Predictor {
                 // Where P is read, the recorded steps are linearized now (a chunk may span
                 // control ticks and samples; covariance/chunks.rs checks that it reproduces
                 // them).
-                let read_p = covariance_every_sample || t >= horizon - 1e-12;
+                let read_p = covariance_samples.at(t, s.sample_period, horizon);
                 if let Some(cov) = self.covariance.as_mut().filter(|_| read_p) {
                     cov.flush(&mut self.sys, s.method)?;
                 } else if let Some(pipe) = self.ws.pipe.get_mut().filter(|_| read_p) {

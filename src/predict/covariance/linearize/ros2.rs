@@ -33,6 +33,13 @@ pub(super) struct Ros2Buffers {
     k2: Vec<f64>,
     /// ∂q̈/∂t at the start (nv).
     ft: Vec<f64>,
+    /// The increment's variation (`d_theta`, `d_vel`) that `f` gave at this dt [s], when it
+    /// came from a recorded step: the next recorded step with the same F (one F serves
+    /// `jacobian_spans` steps) and dt takes it without a factorization. "The same dt" is to
+    /// [`SAME_DT`]: the recorded sizes of equal steps differ by the rounding of their times.
+    sensitivity_dt: Option<f64>,
+    d_theta: DMatrix<f64>,
+    d_vel: DMatrix<f64>,
 }
 
 impl Ros2Buffers {
@@ -47,9 +54,16 @@ impl Ros2Buffers {
             k1: vec![0.0; n],
             k2: vec![0.0; n],
             ft: vec![0.0; nv],
+            sensitivity_dt: None,
+            d_theta: DMatrix::zeros(nv, 3 * nv),
+            d_vel: DMatrix::zeros(nv, 3 * nv),
         }
     }
 }
+
+/// Step sizes within this fraction of each other share a sensitivity (one F per
+/// `jacobian_spans` steps of a fixed dt, whose recorded sizes differ by a few ulps of the times).
+const SAME_DT: f64 = 1e-12;
 
 /// Solve W x = b for columns 0..cols of `m` in place.
 fn solve_columns(w: &ShiftedFactor, m: &mut DMatrix<f64>, cols: usize) {
@@ -81,6 +95,7 @@ pub(in crate::predict) fn ros2(
         tau,
     )?;
     let r = &mut lin.ros2;
+    r.sensitivity_dt = None;
     r.f.fill(0.0);
     for i in 0..nv {
         r.f[(i, nv + i)] = 1.0;
@@ -118,8 +133,24 @@ pub(in crate::predict) fn ros2_with_step_jacobian(
 ) -> Result<()> {
     let nv = v.len();
     debug_assert!(!lin.inputs);
-    lin.ros2.f.copy_from(jac);
-    sensitivity(lin, dt)?;
+    let r = &mut lin.ros2;
+    let same_f =
+        (r.f.as_slice().iter().zip(jac.as_slice())).all(|(a, b)| a.to_bits() == b.to_bits());
+    let same_dt = r
+        .sensitivity_dt
+        .is_some_and(|h| (h - dt).abs() <= SAME_DT * dt);
+    if same_dt && same_f {
+        lin.d_theta.copy_from(&r.d_theta);
+        lin.d_vel.copy_from(&r.d_vel);
+    } else {
+        r.sensitivity_dt = None;
+        r.f.copy_from(jac);
+        sensitivity(lin, dt)?;
+        let r = &mut lin.ros2;
+        r.d_theta.copy_from(&lin.d_theta);
+        r.d_vel.copy_from(&lin.d_vel);
+        r.sensitivity_dt = Some(dt);
+    }
     lin.theta_end.copy_from_slice(&dx[..nv]);
     for i in 0..nv {
         lin.v_next[i] = v[i] + dx[nv + i];
