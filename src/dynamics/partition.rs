@@ -98,6 +98,7 @@ pub fn partition_into(
         ws.others
             .extend((0..nv).filter(|c| !p.dependent.contains(c)));
         let (nd, no) = (p.dependent.len(), ws.others.len());
+        // Grown when too small (`<=` would only reallocate more often: an equivalent mutation).
         if ws.u.nrows() < nr || ws.u.ncols() < nv {
             ws.u = DMatrix::zeros(nr.max(nc), nv);
             ws.rest = DMatrix::zeros(nr.max(nc), nv);
@@ -145,4 +146,22 @@ pub fn partition_into(
     p.independent.clear();
     let dep = &p.dependent;
     p.independent.extend((0..nv).filter(|c| !dep.contains(c)));
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two rows, the first column preferred. The others' parts outside its span are (0, 0.1)
+    /// and (0, 0.5): the second completes the dependent set although the first column is
+    /// the longer (‖(1, 0.1)‖ > 0.5), because only the part outside the preferred span counts.
+    #[test]
+    fn the_completion_is_judged_outside_the_preferred_span() {
+        let j = DMatrix::from_row_slice(2, 3, &[1.0, 1.0, 0.0, 0.0, 0.1, 0.5]);
+        let p = partition_preferring(&j, &[0]);
+        let mut dependent = p.dependent.clone();
+        dependent.sort_unstable();
+        assert_eq!(dependent, [0, 2]);
+        assert_eq!(p.independent, [1]);
+    }
 }
