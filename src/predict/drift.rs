@@ -191,6 +191,9 @@ impl DriftProjector {
     /// innovations Ψ aᵀ, S = Yᵀ D⁻¹ Y (a Gram matrix, as the dense LᵀY's), dq = Ψᵀ D⁻¹ (Y μ).
     /// None where the system does not take the linear path or ABA's pivots fail there.
     fn tree_correction(&mut self, sys: &mut System, q: &[f64], set: usize) -> Option<usize> {
+        if !sys.takes_linear_path() {
+            return None;
+        }
         let nv = sys.model().nv;
         let nr = self.s[set].nrows();
         // The rows of A first: the metric borrows the system.

@@ -11,6 +11,11 @@ pub struct TreeMetric<'a> {
 }
 
 impl System {
+    /// Whether this system's dynamics go by ABA ([`crate::dynamics::takes_linear_path`]).
+    pub fn takes_linear_path(&self) -> bool {
+        self.linear
+    }
+
     /// On a tree that takes the linear path ([`crate::dynamics::takes_linear_path`]): ABA's
     /// factors of M at q. None elsewhere, and where a pivot fails the dense path's checks (a
     /// link with no inertia of its own): the dense metric decides there. The factors stay valid
