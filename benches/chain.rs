@@ -23,7 +23,7 @@ use constraint_dynamics::dynamics::{
     Baumgarte, KktWorkspace, TreeKktWorkspace, TreeWorkspace, constrained_forward_dynamics,
     tree_constrained_forward_dynamics, tree_forward_dynamics,
 };
-use constraint_dynamics::{BaseType, Model, ModelOptions, Scene, System};
+use constraint_dynamics::{BaseType, Model, ModelOptions, System};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 
@@ -67,14 +67,7 @@ fn write_scenes() {
 
 /// The chain of n links held at both ends, as its scene file declares it.
 fn chain_loop(n: usize) -> (Model, ConstraintSet) {
-    let dir = std::env::temp_dir().join(format!("chain_loop_bench_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("a temporary directory");
-    std::fs::write(dir.join("chain.urdf"), chain::chain_urdf(n)).expect("chain URDF written");
-    let scene_path = dir.join("loop.yaml");
-    std::fs::write(&scene_path, chain::chain_loop_scene_yaml(n, "chain.urdf"))
-        .expect("chain loop scene written");
-    let scene = Scene::load(&scene_path).expect("the chain loop loads");
-    let _ = std::fs::remove_dir_all(&dir);
+    let scene = chain::load_chain_scene(n, true);
     let sys = System::from_scene(&scene).expect("the chain loop's system");
     ((*scene.model).clone(), sys.constraints().clone())
 }

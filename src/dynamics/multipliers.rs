@@ -137,10 +137,7 @@ pub fn constrained_forward_dynamics(
 ) -> Result<()> {
     let opts = opts.into();
     let stab = opts.gains;
-    // A velocity-determined row's force is not along its J row (non-symmetric KKT).
-    if let Some(k) = set.items.iter().position(
-        |c| matches!(c, crate::constraints::Constraint::Velocity(vc) if vc.velocity_determined),
-    ) {
+    if let Some(k) = velocity_determined(set) {
         return Err(Error::Unsupported {
             what: format!(
                 "the multiplier form with velocity_determined constraint '{}'",
@@ -166,6 +163,14 @@ pub fn constrained_forward_dynamics(
     }
     factor_mass(model, data, cd, ws)?;
     solve_kkt(model, set, cd, ws, opts.allow_inconsistent)
+}
+
+/// The first velocity-determined constraint of `set`: its force is not along its J row (a
+/// non-symmetric KKT system), so the multiplier form does not take it.
+pub(super) fn velocity_determined(set: &ConstraintSet) -> Option<usize> {
+    set.items.iter().position(
+        |c| matches!(c, crate::constraints::Constraint::Velocity(vc) if vc.velocity_determined),
+    )
 }
 
 /// Factor M (sparse LTL, `M = LᵀL`), or the augmented M + ρ JᵀJ (dense Cholesky, `L Lᵀ`) when

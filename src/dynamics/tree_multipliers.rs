@@ -13,10 +13,10 @@
 //! dense path and its augmented form. M and h are not formed; λ, q̈, the generalized force,
 //! the rank deficiency and the inconsistency are those the dense path reports.
 
-use super::multipliers::{KktOptions, KktWorkspace, min_norm_solve};
+use super::multipliers::{KktOptions, KktWorkspace, min_norm_solve, velocity_determined};
 use super::tree::{TreeWorkspace, tree_forward_dynamics};
 use crate::algorithm::{Data, aba_from_innovations, aba_innovations, innovations_product};
-use crate::constraints::{Constraint, ConstraintData, ConstraintSet};
+use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::Result;
 use crate::linalg::mat_tr_vec;
 use crate::model::Model;
@@ -90,11 +90,7 @@ pub fn tree_constrained_forward_dynamics(
     opts: KktOptions,
 ) -> Result<bool> {
     let (nv, nc) = (model.nv, set.nrows);
-    if set
-        .items
-        .iter()
-        .any(|c| matches!(c, Constraint::Velocity(vc) if vc.velocity_determined))
-    {
+    if velocity_determined(set).is_some() {
         return Ok(false);
     }
     if ws.row.len() != nv || ws.forces.len() != model.nbodies() {

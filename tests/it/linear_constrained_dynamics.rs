@@ -1,5 +1,5 @@
 //! The multiplier form without M (`dynamics::tree_multipliers`: q̈_free and each column of
-//! M⁻¹Jᵀ by ABA's passes, O(n·m + m³)) against the dense path (CRBA, the LTL factor of M and
+//! M⁻¹Jᵀ by ABA's passes, O(n·m² + m³)) against the dense path (CRBA, the LTL factor of M and
 //! its Schur complement, checked against Pinocchio in `reference_dynamics`):
 //!
 //! - On every bundled scene whose multiplier form both paths take (loops, held frames,
@@ -135,16 +135,7 @@ fn the_linear_multiplier_form_agrees_with_the_dense_one_on_the_bundled_scenes() 
 #[test]
 fn a_chain_held_at_both_ends_takes_the_linear_path() {
     let n = 200;
-    let dir = std::env::temp_dir().join(format!("linear_kkt_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("chain.urdf"), chain::chain_urdf(n)).unwrap();
-    std::fs::write(
-        dir.join("loop.yaml"),
-        chain::chain_loop_scene_yaml(n, "chain.urdf"),
-    )
-    .unwrap();
-    let scene = Scene::load(dir.join("loop.yaml")).unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
+    let scene = chain::load_chain_scene(n, true);
     let m: &Model = &scene.model;
     assert!(takes_linear_path(m));
     let mut sys = System::from_scene(&scene).unwrap();
@@ -207,17 +198,7 @@ fn a_massless_rod_is_left_to_the_dense_path() {
 /// energy it gains), and the held end stays on its point.
 #[test]
 fn a_held_chain_falls_keeping_its_energy_and_its_end() {
-    let n = 60;
-    let dir = std::env::temp_dir().join(format!("linear_kkt_fall_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("chain.urdf"), chain::chain_urdf(n)).unwrap();
-    std::fs::write(
-        dir.join("loop.yaml"),
-        chain::chain_loop_scene_yaml(n, "chain.urdf"),
-    )
-    .unwrap();
-    let scene = Scene::load(dir.join("loop.yaml")).unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
+    let scene = chain::load_chain_scene(60, true);
     assert!(takes_linear_path(&scene.model));
     let mut p = Predictor::from_scene(&scene).unwrap();
     let traj = p

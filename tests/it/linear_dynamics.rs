@@ -23,7 +23,7 @@ use constraint_dynamics::dynamics::{
     takes_linear_path, tree_forward_dynamics,
 };
 use constraint_dynamics::system::DynamicsOptions;
-use constraint_dynamics::{BaseType, Model, ModelOptions, Scene, System};
+use constraint_dynamics::{BaseType, Model, ModelOptions, System};
 use std::f64::consts::PI;
 
 /// A reproducible uniform draw in [−1, 1) (xorshift64*).
@@ -121,16 +121,7 @@ fn linear_and_dense_agree_on_the_robots() {
 fn a_long_chain_takes_the_linear_path_and_agrees_with_the_dense_one() {
     let n = 200;
     // The chain's scene file, as the benchmark writes it, read back: its start state by name.
-    let dir = std::env::temp_dir().join(format!("linear_dynamics_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("chain.urdf"), chain::chain_urdf(n)).unwrap();
-    std::fs::write(
-        dir.join("chain.yaml"),
-        chain::chain_scene_yaml(n, "chain.urdf"),
-    )
-    .unwrap();
-    let scene = Scene::load(dir.join("chain.yaml")).unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
+    let scene = chain::load_chain_scene(n, false);
     assert_eq!(scene.q0, chain::chain_q0(n));
     let m = (*scene.model).clone();
     assert_eq!(m.nv, n);
@@ -225,34 +216,45 @@ fn double_pendulum_closed_form() {
     }
 }
 
-#[test]
-fn a_singular_tree_is_left_to_the_dense_path() {
-    // A massless leaf link on its own joint: M is singular, ABA's pivot there is 0. The model
-    // alone loads (a scene refuses it unless constraints fix that joint); its dynamics err
-    // through `System` as the dense path does.
+/// The 64-link chain with a leaf link `tip_inner` (the URDF text inside `<link name="tip">`)
+/// on its own joint under link 1.
+fn chain_with_tip(tip_inner: &str, file: &str) -> Model {
     let urdf = chain::chain_urdf(64).replace(
         "</robot>",
-        r#"<link name="tip"/><joint name="tip_joint" type="revolute"><parent link="link1"/>
-  <child link="tip"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/>
-  </joint></robot>"#,
+        &format!(
+            r#"<link name="tip">{tip_inner}</link><joint name="tip_joint" type="revolute">
+  <parent link="link1"/><child link="tip"/><axis xyz="0 0 1"/>
+  <limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>"#
+        ),
     );
-    let m = fixed(&urdf, "chain_with_massless_tip.urdf");
-    assert!(m.singular.is_some());
-    let q = m.neutral();
+    fixed(&urdf, file)
+}
+
+/// At (q, v = 0, τ) the linear path declines and `System` errs as the dense path does,
+/// naming the tip's joint.
+fn assert_left_to_the_dense_path(m: &Model, q: &[f64], tau: &[f64]) {
     let zero = vec![0.0; m.nv];
-    let mut data = Data::new(&m);
-    let mut ws = TreeWorkspace::new(&m);
-    assert!(!tree_forward_dynamics(
-        &m, &mut data, &mut ws, &q, &zero, &zero
-    ));
+    let mut data = Data::new(m);
+    let mut ws = TreeWorkspace::new(m);
+    assert!(!tree_forward_dynamics(m, &mut data, &mut ws, q, &zero, tau));
     let mut sys = System::new(
         m.clone(),
         ConstraintSet::default(),
         Baumgarte::default(),
         Formulation::Multipliers,
     );
-    let err = sys.forward_dynamics(&q, &zero, &zero, false).unwrap_err();
+    let err = sys.forward_dynamics(q, &zero, tau, false).unwrap_err();
     assert_has(&err.to_string(), &["tip_joint", "no inertia"]);
+}
+
+#[test]
+fn a_singular_tree_is_left_to_the_dense_path() {
+    // A massless leaf link on its own joint: M is singular, ABA's pivot there is 0. The model
+    // alone loads (a scene refuses it unless constraints fix that joint); its dynamics err
+    // through `System` as the dense path does.
+    let m = chain_with_tip("", "chain_with_massless_tip.urdf");
+    assert!(m.singular.is_some());
+    assert_left_to_the_dense_path(&m, &m.neutral(), &vec![0.0; m.nv]);
 }
 
 #[test]
@@ -261,15 +263,11 @@ fn a_nearly_singular_tree_is_left_to_the_dense_path() {
     // 1e-22 kg·m²) but 1e-14 of M's largest entry is above it, so M is singular to working
     // precision: the linear path declines on the pivot check (q̈ itself comes out finite,
     // about 1e20 times the torque) and `System` reports what the dense path reports.
-    let urdf = chain::chain_urdf(64).replace(
-        "</robot>",
-        r#"<link name="tip"><inertial><origin xyz="0 0 0"/><mass value="1e-20"/>
-  <inertia ixx="1e-22" ixy="0" ixz="0" iyy="1e-22" iyz="0" izz="1e-22"/></inertial></link>
-  <joint name="tip_joint" type="revolute"><parent link="link1"/>
-  <child link="tip"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/>
-  </joint></robot>"#,
+    let m = chain_with_tip(
+        r#"<inertial><origin xyz="0 0 0"/><mass value="1e-20"/>
+  <inertia ixx="1e-22" ixy="0" ixz="0" iyy="1e-22" iyz="0" izz="1e-22"/></inertial>"#,
+        "chain_with_light_tip.urdf",
     );
-    let m = fixed(&urdf, "chain_with_light_tip.urdf");
     let q = m.neutral();
     let zero = vec![0.0; m.nv];
     let tau: Vec<f64> = (0..m.nv).map(|k| 0.1 * (k as f64).cos()).collect();
@@ -279,16 +277,5 @@ fn a_nearly_singular_tree_is_left_to_the_dense_path() {
         data.qdd.iter().all(|x| x.is_finite()),
         "ABA's q̈ is finite here"
     );
-    let mut ws = TreeWorkspace::new(&m);
-    assert!(!tree_forward_dynamics(
-        &m, &mut data, &mut ws, &q, &zero, &tau
-    ));
-    let mut sys = System::new(
-        m.clone(),
-        ConstraintSet::default(),
-        Baumgarte::default(),
-        Formulation::Multipliers,
-    );
-    let err = sys.forward_dynamics(&q, &zero, &tau, false).unwrap_err();
-    assert_has(&err.to_string(), &["tip_joint", "no inertia"]);
+    assert_left_to_the_dense_path(&m, &q, &tau);
 }

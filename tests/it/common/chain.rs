@@ -104,3 +104,23 @@ pub fn chain_loop_scene_yaml(n: usize, urdf: &str) -> String {
     );
     s
 }
+
+/// The scene of the n-link chain, free or `held` at both ends, written with its URDF to a
+/// directory of its own under the system's temporary directory and read back as a scene file
+/// is (the start state by name), the directory removed again.
+pub fn load_chain_scene(n: usize, held: bool) -> constraint_dynamics::Scene {
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let k = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("cd_chain_{}_{k}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a temporary directory");
+    std::fs::write(dir.join("chain.urdf"), chain_urdf(n)).expect("the chain's URDF written");
+    let yaml = if held {
+        chain_loop_scene_yaml(n, "chain.urdf")
+    } else {
+        chain_scene_yaml(n, "chain.urdf")
+    };
+    std::fs::write(dir.join("chain.yaml"), yaml).expect("the chain's scene written");
+    let scene = constraint_dynamics::Scene::load(dir.join("chain.yaml")).expect("the chain loads");
+    let _ = std::fs::remove_dir_all(&dir);
+    scene
+}
