@@ -347,6 +347,9 @@ def cases():
     resp.covariance_dimension = 2  # uint32 after a float64, before a float64[]
     resp.covariances = [0.01, -0.0, 0.0, 0.0025, 0.0125, 0.001, 0.001, 0.003,
                         0.02, 0.002, 0.002, 0.004]
+    resp.orientation_error_estimate = 2.5e-4  # float64s after a float64[]
+    resp.joint_error_estimate_rad = 0.0125
+    resp.joint_error_estimate_m = 0.0  # a robot without prismatic joints
     out["constraint_dynamics_msgs__Predict_Response"] = resp
 
     req = Rollouts.Request()

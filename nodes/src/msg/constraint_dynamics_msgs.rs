@@ -247,12 +247,22 @@ pub mod srv {
         /// Time of each pose relative to the start [s].
         pub times: Vec<f64>,
         pub forces: Vec<ConstraintForces>,
-        /// Estimated position drift [m].
+        /// Error estimate of the base's position at the horizon [m] (integration estimate +
+        /// holonomic residual).
         pub position_error_estimate: f64,
         /// n = 2nv (with `with_covariance`).
         pub covariance_dimension: u32,
         /// Each sample's n × n covariance, row-major, concatenated in `times` order.
         pub covariances: Vec<f64>,
+        /// Error estimate of the base's orientation at the horizon [rad] (integration estimate
+        /// + holonomic residual).
+        pub orientation_error_estimate: f64,
+        /// Integration error estimate of the revolute joints' angles at the horizon [rad]; 0
+        /// without such joints or without the estimate.
+        pub joint_error_estimate_rad: f64,
+        /// Integration error estimate of the prismatic joints' displacements at the horizon
+        /// [m]; 0 without such joints or without the estimate.
+        pub joint_error_estimate_m: f64,
     }
 
     ros_service!(Predict, PredictRequest, PredictResponse);

@@ -249,6 +249,10 @@ impl PredictionNode {
             times: traj.samples.iter().map(|s| s.t).collect(),
             forces,
             position_error_estimate: last.position_error_estimate(),
+            orientation_error_estimate: last.orientation_error_estimate(),
+            // 0 when the scene turns the estimate off, as the base's integration part.
+            joint_error_estimate_rad: last.error_estimate_by_kind.map_or(0.0, |e| e.joint_rad),
+            joint_error_estimate_m: last.error_estimate_by_kind.map_or(0.0, |e| e.joint_m),
         })
     }
 }
