@@ -233,12 +233,35 @@ fn suite_services_match_the_core_library() {
         );
     }
     let last = traj.samples.last().unwrap();
-    assert_close(
-        "position_error_estimate",
-        &[r.position_error_estimate],
-        &[last.position_error_estimate()],
-        1e-6,
-    );
+    // The estimate of each kind in its unit (~1e-5 … 1e-4 here): the core's to 1e-6 of each.
+    let by_kind = last.error_estimate_by_kind.unwrap();
+    for (what, node, core) in [
+        (
+            "position_error_estimate",
+            r.position_error_estimate,
+            last.position_error_estimate(),
+        ),
+        (
+            "orientation_error_estimate",
+            r.orientation_error_estimate,
+            last.orientation_error_estimate(),
+        ),
+        (
+            "joint_error_estimate_rad",
+            r.joint_error_estimate_rad,
+            by_kind.joint_rad,
+        ),
+        (
+            "joint_error_estimate_m",
+            r.joint_error_estimate_m,
+            by_kind.joint_m,
+        ),
+    ] {
+        assert!(
+            (node - core).abs() <= 1e-6 * core,
+            "{what}: node {node:e}, core {core:e}"
+        );
+    }
     assert_eq!(r.path.header.frame_id, "odom");
     println!(
         "{TEST}: predict ({} samples) = core; {}",
