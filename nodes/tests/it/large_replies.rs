@@ -96,7 +96,7 @@ fn summaries(out: &Output) -> Vec<Value> {
         .collect()
 }
 
-/// Horizons around the datagram limits: without forces a reply is ~108 + 88 n bytes for n
+/// Horizons around the datagram limits: without forces a reply is ~132 + 88 n bytes for n
 /// samples (every 20 ms), so 0.20–0.34 s straddles the fragmentation threshold at MTU 1 500 and
 /// 14.70–14.90 s the one at MTU 65 536; with forces (~840 B per sample) 1.50/1.54/1.60 s are
 /// sizes an unpatched rustdds does not deliver.

@@ -330,6 +330,15 @@ def phase_twist(user):
         ok = err < 3e-3
     check("service predict: the returned path ends on the closed-form arc (3 mm)", ok,
           None if resp is None else resp.message)
+    # The error estimate of each kind in its unit: finite, within the scene's max_error (its
+    # default, 1e-3), and 0 for the prismatic joints this robot does not have.
+    if resp is not None and resp.success:
+        est = {k: getattr(resp, k) for k in ("position_error_estimate", "orientation_error_estimate",
+                                             "joint_error_estimate_rad", "joint_error_estimate_m")}
+        ok = all(math.isfinite(e) and 0.0 <= e <= 1e-3 for e in est.values()) \
+            and est["joint_error_estimate_m"] == 0.0
+        check("service predict: every kind's error estimate finite, within 1e-3, 0 without prismatic joints",
+              ok, est)
 
     # Rollouts: sequence 0 holds the start twist (the closed-form arc), sequence 1 turns the
     # other way after 1 s, sequence 2 repeats sequence 0 (computed on another thread or not:
