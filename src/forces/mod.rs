@@ -1,12 +1,16 @@
 //! Force elements a scene adds to the dynamics (the generalized force Q(t, q, v) that joins τ):
 //! joint spring-dampers (and URDF `<dynamics damping>`), point-to-point spring-dampers between
 //! frames, joint torques (constant or piecewise-linear in time), frame forces (world axes) and
-//! the turning resistance of wide tyres (`turning.rs`).
+//! the turning resistance of wide tyres (`turning.rs`) and tyres that grip by friction in place
+//! of a rolling constraint (`tyre.rs`).
 
 mod turning;
+mod tyre;
 
 use turning::TurningResistance;
 pub use turning::TurningResistanceSpec;
+use tyre::Tyre;
+pub use tyre::TyreSpec;
 
 use crate::algorithm::{
     Data, ReferenceFrame, frame_jacobian, point_jacobian, point_position, point_velocity,
@@ -39,6 +43,10 @@ pub struct ForcesSpec {
     /// none).
     #[serde(default)]
     pub turning_resistance: Vec<TurningResistanceSpec>,
+    /// `tyres:` wheels that grip the ground by friction, creeping and skidding, in place of a
+    /// rolling constraint (default none).
+    #[serde(default)]
+    pub tyres: Vec<TyreSpec>,
 }
 
 /// τ = −k (q − rest) − d q̇ on a 1-DOF joint.
@@ -144,6 +152,7 @@ pub struct ForceElements {
     torques: Vec<(usize, Vec<[f64; 2]>)>,
     frame_forces: Vec<FrameForce>,
     turning: Vec<TurningResistance>,
+    tyres: Vec<Tyre>,
     j3: DMatrix<f64>,
     j6: DMatrix<f64>,
 }
@@ -242,6 +251,9 @@ impl ForceElements {
         for t in &spec.turning_resistance {
             fe.turning.push(TurningResistance::new(model, t)?);
         }
+        for t in &spec.tyres {
+            fe.tyres.push(Tyre::new(model, t)?);
+        }
         Ok(fe)
     }
 
@@ -252,6 +264,7 @@ impl ForceElements {
             && self.torques.is_empty()
             && self.frame_forces.is_empty()
             && self.turning.is_empty()
+            && self.tyres.is_empty()
     }
 
     /// Joint spring-dampers (q index, v index, k [N/m or N·m/rad], d [N·s/m or N·m·s/rad],
@@ -264,14 +277,20 @@ impl ForceElements {
     /// spring-dampers (joint torques depend on t alone): its Jacobian is then (−k, −d) on
     /// those joints, with no kinematics.
     pub fn depends_on_state_by_joints_only(&self) -> bool {
-        self.springs.is_empty() && self.frame_forces.is_empty() && self.turning.is_empty()
+        self.springs.is_empty()
+            && self.frame_forces.is_empty()
+            && self.turning.is_empty()
+            && self.tyres.is_empty()
     }
 
     /// True when the generalized force needs the kinematics at (q, v): point springs, frame
-    /// forces and turning resistances act at frames; joint spring-dampers and joint torques act
-    /// on coordinates.
+    /// forces, turning resistances and tyres act at frames; joint spring-dampers and joint
+    /// torques act on coordinates.
     pub fn needs_kinematics(&self) -> bool {
-        !self.springs.is_empty() || !self.frame_forces.is_empty() || !self.turning.is_empty()
+        !self.springs.is_empty()
+            || !self.frame_forces.is_empty()
+            || !self.turning.is_empty()
+            || !self.tyres.is_empty()
     }
 
     /// True when there are point-to-point spring-dampers (whose direction turns with q).
@@ -346,11 +365,15 @@ impl ForceElements {
         for tr in &self.turning {
             tr.add(model, data, v, &mut self.j6, tau);
         }
+        for ty in &self.tyres {
+            ty.add(model, data, &mut self.j3, tau);
+        }
     }
 
     /// The fastest rate among the elements [1/s]: max over joint elements of √(k (M⁻¹)_ii) and
     /// d (M⁻¹)_ii, over point springs of √(k w) and c w with w = n̂ᵀ J M⁻¹ Jᵀ n̂, and over
-    /// turning resistances of M_max/ω₀ gᵀ M⁻¹ g with g = J_ωᵀ n (kinematics at q).
+    /// turning resistances of M_max/ω₀ gᵀ M⁻¹ g with g = J_ωᵀ n, and over tyres of μ N/s₀
+    /// times the contact point's tangential mobility (kinematics at q).
     pub fn max_rate(&mut self, model: &Model, data: &Data, minv: &DMatrix<f64>) -> f64 {
         let mut rate: f64 = 0.0;
         for &(_, iv, k, d, _) in &self.joint_springs {
@@ -370,6 +393,9 @@ impl ForceElements {
         }
         for tr in &self.turning {
             rate = rate.max(tr.max_rate(model, data, minv, &mut self.j6));
+        }
+        for ty in &self.tyres {
+            rate = rate.max(ty.max_rate(model, data, minv, &mut self.j3));
         }
         rate
     }
@@ -401,6 +427,7 @@ impl ForceElements {
             && self.torques.is_empty()
             && self.frame_forces.is_empty()
             && self.turning.is_empty()
+            && self.tyres.is_empty()
     }
 }
 
@@ -414,7 +441,7 @@ fn fe_frame_forces(spec: &ForcesSpec) -> Result<Vec<FrameForceSpec>> {
     Ok(spec.frame_forces.clone())
 }
 
-fn add_point_force(
+pub(super) fn add_point_force(
     model: &Model,
     data: &Data,
     j3: &mut DMatrix<f64>,

@@ -67,6 +67,7 @@ mod sdirk2_steps;
 mod seeds;
 mod state_map;
 mod stiff_extreme;
+mod tyres;
 mod velocity_constraints;
 mod velocity_dependent;
 mod velocity_determined;
