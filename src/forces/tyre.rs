@@ -14,8 +14,11 @@
 //! above it, within 1 % of Coulomb's μ N once |s| > 7 s₀. Its power F·s ≤ 0: it only dissipates.
 //! The contact point is the wheel's lowest point, p = c + r u with u = −(n − (n·a)a)/|…| (a the
 //! spin axis, n the ground's normal), as for a rolling constraint; r is the effective rolling
-//! radius. N is the scene's constant (the wheel's share of the weight): the wheel's coordinates
-//! are free, so no constraint row carries a normal force.
+//! radius. A ball (no axis: a caster's sphere, a skid) touches at p = c − r n. N is the scene's
+//! constant (the wheel's share of the weight; the base's coordinates hold it on the ground), or,
+//! on a soft floor, N = max(0, k d + c ḋ) with d the depth of p below the plane, applied along n
+//! too: a base that can pitch and leave the ground (floating) then rocks on its supports and
+//! lifts its wheels, and each wheel's grip follows its load.
 
 use super::add_point_force;
 use crate::algorithm::{Data, frame_placement, point_jacobian, point_velocity};
@@ -37,15 +40,32 @@ fn up() -> [f64; 3] {
 pub struct TyreSpec {
     /// `wheel:` the wheel frame, its origin at the wheel's centre; required.
     pub wheel: String,
-    /// `axis:` the spin axis in the wheel frame; required.
-    pub axis: [f64; 3],
+    /// `axis:` the spin axis in the wheel frame; absent for a ball (a caster's sphere, a skid)
+    /// that touches the ground at its lowest point whichever way it turns.
+    #[serde(default)]
+    pub axis: Option<[f64; 3]>,
+    /// `centre:` the wheel's or ball's centre in the frame [m] (default the frame's origin).
+    #[serde(default)]
+    pub centre: [f64; 3],
     /// `radius:` the effective rolling radius r [m] > 0; required.
     pub radius: f64,
     /// `friction:` Coulomb coefficient μ > 0 of the tread on the ground; required.
     pub friction: f64,
-    /// `normal_force:` N, the ground's push on this wheel [N] > 0 (its share of the weight);
-    /// required.
-    pub normal_force: f64,
+    /// `normal_force:` N, the ground's constant push on this wheel [N] > 0 (its share of the
+    /// weight); required unless `normal_stiffness` is given.
+    #[serde(default)]
+    pub normal_force: Option<f64>,
+    /// `normal_stiffness:` k [N/m] > 0: the ground pushes back N = max(0, k d + c ḋ) where the
+    /// contact point lies d below the plane (a soft floor and tyre; a base that can leave the
+    /// ground, floating, needs it). Default: the constant `normal_force`.
+    #[serde(default)]
+    pub normal_stiffness: Option<f64>,
+    /// `normal_damping:` c [N·s/m] ≥ 0 of that push (default 0).
+    #[serde(default)]
+    pub normal_damping: f64,
+    /// `plane_height:` h [m], the ground plane n·x = h (default 0).
+    #[serde(default)]
+    pub plane_height: f64,
     /// `slip_speed_scale:` s₀ [m/s] > 0, below which the tyre creeps viscously (default 0.01).
     #[serde(default = "default_slip_speed_scale")]
     pub slip_speed_scale: f64,
@@ -54,15 +74,26 @@ pub struct TyreSpec {
     pub plane_normal: [f64; 3],
 }
 
+/// Where the ground's normal force on a tyre comes from.
+#[derive(Clone, Copy, Debug)]
+enum Normal {
+    /// The scene's constant N [N].
+    Constant(f64),
+    /// A soft floor: N = max(0, k d + c ḋ), d the depth below the plane n·x = h.
+    Soft { k: f64, c: f64, height: f64 },
+}
+
 /// A validated tyre.
 #[derive(Clone, Debug)]
 pub(crate) struct Tyre {
     frame: usize,
-    axis: Vector3<f64>,
+    /// Spin axis in the frame; None for a ball.
+    axis: Option<Vector3<f64>>,
+    centre: Vector3<f64>,
     radius: f64,
     normal: Vector3<f64>,
-    /// μ N [N].
-    max_force: f64,
+    friction: f64,
+    normal_force: Normal,
     /// s₀ [m/s].
     slip_scale: f64,
 }
@@ -82,52 +113,110 @@ impl Tyre {
     /// Validate one spec against the model; errors name the wheel and the field.
     pub(crate) fn new(model: &Model, s: &TyreSpec) -> Result<Self> {
         let at = format!("forces.tyres['{}']", s.wheel);
-        for (field, x) in [
-            ("radius", s.radius),
-            ("friction", s.friction),
+        let positive = [
+            ("radius", Some(s.radius)),
+            ("friction", Some(s.friction)),
             ("normal_force", s.normal_force),
-            ("slip_speed_scale", s.slip_speed_scale),
-        ] {
+            ("normal_stiffness", s.normal_stiffness),
+            ("slip_speed_scale", Some(s.slip_speed_scale)),
+        ];
+        for (field, x) in positive.iter().filter_map(|(f, x)| x.map(|x| (f, x))) {
             if !(x.is_finite() && x > 0.0) {
                 return Err(Error::Invalid(format!(
                     "{at}.{field} = {x}: must be finite and > 0"
                 )));
             }
         }
+        for (field, x, least) in [
+            ("normal_damping", s.normal_damping, 0.0),
+            ("plane_height", s.plane_height, f64::NEG_INFINITY),
+        ] {
+            if !(x.is_finite() && x >= least) {
+                return Err(Error::Invalid(format!(
+                    "{at}.{field} = {x}: must be finite{}",
+                    if least == 0.0 { " and ≥ 0" } else { "" }
+                )));
+            }
+        }
+        crate::error::check_finite(&format!("{at}.centre"), &s.centre)?;
+        let normal_force = match (s.normal_force, s.normal_stiffness) {
+            (_, Some(k)) => Normal::Soft {
+                k,
+                c: s.normal_damping,
+                height: s.plane_height,
+            },
+            (Some(n), None) => Normal::Constant(n),
+            (None, None) => {
+                return Err(Error::Invalid(format!(
+                    "{at}: needs normal_force [N] or normal_stiffness [N/m]"
+                )));
+            }
+        };
         let frame = model
             .frame_id(&s.wheel)
             .map_err(|e| Error::Invalid(format!("{at}.wheel: {e}")))?;
         Ok(Self {
             frame,
-            axis: unit(&at, "axis", s.axis)?,
+            axis: s.axis.map(|a| unit(&at, "axis", a)).transpose()?,
+            centre: Vector3::from(s.centre),
             radius: s.radius,
             normal: unit(&at, "plane_normal", s.plane_normal)?,
-            max_force: s.friction * s.normal_force,
+            friction: s.friction,
+            normal_force,
             slip_scale: s.slip_speed_scale,
         })
     }
 
-    /// The contact point r u from the wheel's centre, in the wheel frame's axes [m]: the
-    /// material point of the wheel that touches the ground now (kinematics of `data` at q).
-    fn contact_point(&self, model: &Model, data: &Data) -> Vector3<f64> {
+    /// The contact point c + r u in the frame [m] (c the centre; u the direction from it to the
+    /// ground: −n for a ball), the material point that touches the ground now, and its height
+    /// n·p above the origin, world axes [m] (kinematics of `data` at q).
+    fn contact_point(&self, model: &Model, data: &Data) -> (Vector3<f64>, f64) {
         let o_m_w = frame_placement(model, data, self.frame);
-        let a = o_m_w.rotation * self.axis;
-        let w = self.normal - a * self.normal.dot(&a);
-        let u = -w / w.norm().max(f64::MIN_POSITIVE);
-        o_m_w.rotation.transpose() * (u * self.radius)
+        let u = match self.axis {
+            Some(axis) => {
+                let a = o_m_w.rotation * axis;
+                let w = self.normal - a * self.normal.dot(&a);
+                -w / w.norm().max(f64::MIN_POSITIVE)
+            }
+            None => -self.normal,
+        };
+        let local = self.centre + o_m_w.rotation.transpose() * (u * self.radius);
+        let height = self
+            .normal
+            .dot(&(o_m_w.translation + o_m_w.rotation * local));
+        (local, height)
     }
 
-    /// The slip s: the contact point's velocity in the ground plane [m/s], world axes.
-    fn slip(&self, model: &Model, data: &Data, p: &Vector3<f64>) -> Vector3<f64> {
-        let vp = point_velocity(model, data, self.frame, p);
-        vp - self.normal * self.normal.dot(&vp)
+    /// The ground's normal force N [N] at a contact point at `height` moving at `vp`.
+    fn normal_force(&self, height: f64, vp: &Vector3<f64>) -> f64 {
+        match self.normal_force {
+            Normal::Constant(n) => n,
+            Normal::Soft { k, c, height: h } => {
+                let depth = h - height;
+                if depth <= 0.0 {
+                    0.0
+                } else {
+                    (k * depth - c * self.normal.dot(vp)).max(0.0)
+                }
+            }
+        }
     }
 
-    /// Adds Q = J_pᵀ F(s) to `tau` (kinematics of `data` at (q, v)).
+    /// Adds Q = J_pᵀ (N n + F(s)) to `tau`, s the contact point's velocity in the ground plane
+    /// (kinematics of `data` at (q, v)); a constant N is not applied along n (the base's
+    /// coordinates already hold the wheel on the ground).
     pub(crate) fn add(&self, model: &Model, data: &Data, j3: &mut DMatrix<f64>, tau: &mut [f64]) {
-        let p = self.contact_point(model, data);
-        let s = self.slip(model, data, &p);
-        let f = -s * (self.max_force / (s.norm_squared() + self.slip_scale.powi(2)).sqrt());
+        let (p, height) = self.contact_point(model, data);
+        let vp = point_velocity(model, data, self.frame, &p);
+        let n = self.normal_force(height, &vp);
+        if n == 0.0 {
+            return;
+        }
+        let s = vp - self.normal * self.normal.dot(&vp);
+        let mut f = -s * (self.friction * n / (s.norm_squared() + self.slip_scale.powi(2)).sqrt());
+        if let Normal::Soft { .. } = self.normal_force {
+            f += self.normal * n;
+        }
         add_point_force(model, data, j3, self.frame, &p, &f, tau);
     }
 
@@ -141,11 +230,21 @@ impl Tyre {
         minv: &DMatrix<f64>,
         j3: &mut DMatrix<f64>,
     ) -> f64 {
-        let p = self.contact_point(model, data);
+        let (p, height) = self.contact_point(model, data);
         point_jacobian(model, data, self.frame, &p, j3, 0);
         let proj = nalgebra::Matrix3::identity() - self.normal * self.normal.transpose();
         let jt = proj * j3.rows(0, 3);
         let mobility = (&jt * minv * jt.transpose()).trace();
-        self.max_force / self.slip_scale * mobility
+        let jn = self.normal.transpose() * j3.rows(0, 3);
+        let normal_mobility = (&jn * minv * jn.transpose())[(0, 0)];
+        let vp = point_velocity(model, data, self.frame, &p);
+        let n = self.normal_force(height, &vp);
+        let (k, c) = match self.normal_force {
+            Normal::Soft { k, c, .. } => (k, c),
+            Normal::Constant(_) => (0.0, 0.0),
+        };
+        (self.friction * n / self.slip_scale * mobility)
+            .max((k * normal_mobility).sqrt())
+            .max(c * normal_mobility)
     }
 }

@@ -7,6 +7,12 @@
 
 use super::{BaseType, Model};
 use crate::error::{Error, Result};
+use nalgebra::{Quaternion, UnitQuaternion};
+
+/// Variance [m² or rad²] from which an odometry's entry counts as not measured: a planar
+/// odometry states z, roll and pitch so (REP-105 practice: 1e3 and more; diff_drive_controller
+/// gives 1e6).
+pub const UNMEASURED_VARIANCE: f64 = 1e3;
 
 /// Pose of the base in the world frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -82,6 +88,26 @@ impl Model {
             },
             BaseType::Fixed => BaseTwist::default(),
         }
+    }
+
+    /// On a floating base under a planar odometry (its z, roll and pitch variances at least
+    /// [`UNMEASURED_VARIANCE`]), the height, roll and pitch the odometry does not measure are
+    /// `rest`'s (the scene's initial state: a robot at rest on its supports), under the heading
+    /// `q` has; otherwise `q` stays as it is. REP-103 covariance over (x, y, z, roll, pitch, yaw).
+    pub fn keep_unmeasured_tilt(&self, pose_covariance: &[f64; 36], rest: &[f64], q: &mut [f64]) {
+        let planar = [14, 21, 28]
+            .iter()
+            .all(|&i| pose_covariance[i] >= UNMEASURED_VARIANCE);
+        if self.base != BaseType::Floating || !planar {
+            return;
+        }
+        let quat =
+            |x: &[f64]| UnitQuaternion::from_quaternion(Quaternion::new(x[6], x[3], x[4], x[5]));
+        let (roll, pitch, _) = quat(rest).euler_angles();
+        let (_, _, yaw) = quat(q).euler_angles();
+        let r = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
+        q[2] = rest[2];
+        q[3..7].copy_from_slice(&[r.i, r.j, r.k, r.w]);
     }
 
     /// Writes a base pose and twist into `q` and `v` (the inverse of [`Model::base_pose`] and
@@ -201,6 +227,38 @@ mod tests {
                 .to_string()
                 .contains("linear.z")
         );
+    }
+
+    /// A floating base resting pitched 6.3 mrad, 0.96 mm low; a planar odometry at yaw 1.2 rad:
+    /// the state keeps the height and the tilt and turns to the odometry's heading (read back
+    /// from the rotation matrix: R₂₀ = −sin pitch, atan2(R₁₀, R₀₀) = yaw). A full odometry, or a
+    /// planar base, is left alone.
+    #[test]
+    fn a_planar_odometry_keeps_a_floating_base_height_roll_and_pitch() {
+        let m = model(BaseType::Floating);
+        let rest = UnitQuaternion::from_euler_angles(0.0, 0.0063, 0.0);
+        let q0 = [0.0, 0.0, -0.00096, rest.i, rest.j, rest.k, rest.w];
+        let heading = UnitQuaternion::from_euler_angles(0.0, 0.0, 1.2);
+        let odom = [2.0, 3.0, 0.0, heading.i, heading.j, heading.k, heading.w];
+        let mut cov = [0.0; 36];
+        let mut q = odom;
+        m.keep_unmeasured_tilt(&cov, &q0, &mut q);
+        assert_eq!(q, odom, "a full odometry measures the tilt");
+        for i in [14, 21, 28] {
+            cov[i] = 1e6;
+        }
+        m.keep_unmeasured_tilt(&cov, &q0, &mut q);
+        let r = UnitQuaternion::from_quaternion(Quaternion::new(q[6], q[3], q[4], q[5]))
+            .to_rotation_matrix();
+        let r = r.matrix();
+        assert_eq!(&q[..3], &[2.0, 3.0, -0.00096]);
+        assert!((-r[(2, 0)] - 0.0063_f64.sin()).abs() < 1e-15);
+        assert!((r[(1, 0)].atan2(r[(0, 0)]) - 1.2).abs() < 1e-15);
+        assert!(r[(2, 1)].abs() < 1e-15, "no roll");
+        let planar = model(BaseType::Planar);
+        let mut p = [2.0, 3.0, 1.2];
+        planar.keep_unmeasured_tilt(&cov, &[0.0; 3], &mut p);
+        assert_eq!(p, [2.0, 3.0, 1.2]);
     }
 
     #[test]

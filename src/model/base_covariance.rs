@@ -17,6 +17,7 @@
 //! The twist is in the base frame on both sides and the core's v is too: copied as is.
 //! A planar base uses the x, y, yaw and vx, vy, ωz entries; a floating base all six.
 
+use super::base::UNMEASURED_VARIANCE;
 use super::{BaseType, Model};
 use nalgebra::{DMatrix, Matrix3, Quaternion, UnitQuaternion};
 
@@ -98,6 +99,10 @@ pub fn start_covariance(
     let idx = rep103_indices(model.base);
     let nb = idx.len();
     if nb > 0 {
+        let (pose, twist) = (
+            &without_unmeasured(model, pose),
+            &without_unmeasured(model, twist),
+        );
         let g = world_to_body(model, q);
         let body = &g * covariance_block(pose, idx) * g.transpose();
         // Exactly symmetric (rounding differs above and below the diagonal; the core checks).
@@ -111,6 +116,24 @@ pub fn start_covariance(
         p[(nv + iv, nv + iv)] = s.velocity * s.velocity;
     }
     p
+}
+
+/// A floating base's covariance from a planar odometry (its z, roll and pitch variances at least
+/// [`UNMEASURED_VARIANCE`]; in the twist, vz and the roll and pitch rates) without those rows and
+/// columns: the state takes them from the robot at rest ([`Model::keep_unmeasured_tilt`]), not
+/// from the odometry's placeholder.
+fn without_unmeasured(model: &Model, c: &[f64; 36]) -> [f64; 36] {
+    let mut out = *c;
+    if model.base == BaseType::Floating && [14, 21, 28].iter().all(|&i| c[i] >= UNMEASURED_VARIANCE)
+    {
+        for k in 2..5 {
+            for j in 0..6 {
+                out[6 * k + j] = 0.0;
+                out[6 * j + k] = 0.0;
+            }
+        }
+    }
+    out
 }
 
 /// Adds the process noise of `age` [s] to P: white acceleration noise of density σᵢ per

@@ -92,6 +92,7 @@ impl StartAssembler {
             .ok_or_else(|| missing(&recording.odometry.name))?;
         let (mut q, mut v) = (self.scene.q0.clone(), self.scene.v0.clone());
         model.set_base(&odom.pose, &odom.twist, &mut q, &mut v);
+        model.keep_unmeasured_tilt(&odom.pose_covariance, &self.scene.q0, &mut q);
         let mut oldest = *t_odom;
         let mut any_joint = false;
         for (name, iq, iv) in &self.joints {

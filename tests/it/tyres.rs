@@ -189,3 +189,103 @@ fn a_bad_tyre_names_its_field() {
         &["forces.tyres['no_such_wheel'].wheel", "no_such_wheel"],
     );
 }
+
+/// tests/data/ball.urdf: radius [m], mass [kg], inertia about its centre [kg·m²].
+const BALL_R: f64 = 0.1;
+const BALL_M: f64 = 2.0;
+const BALL_I: f64 = 0.4 * BALL_M * BALL_R * BALL_R;
+/// The soft ground's stiffness [N/m]: the ball rests m g/k = 0.196 mm deep.
+const GROUND_K: f64 = 1e5;
+
+/// The ball on a floating base, its centre at height `z` [m] with velocity (vx, vz) [m/s], on a
+/// soft ground with damping `c` [N·s/m] and friction μ; RK4 at 10 µs.
+fn ball(z: f64, (vx, vz): (f64, f64), (c, mu): (f64, f64), horizon: f64) -> Trajectory {
+    let urdf = repo_dir().join("tests/data/ball.urdf");
+    let yaml = format!(
+        "urdf: {:?}\nbase: floating\n\
+         initial_state: {{q: {{'root_joint:z': {z}, 'root_joint:qw': 1.0}}, \
+         v: {{'root_joint:vx_local': {vx}, 'root_joint:vz_local': {vz}}}}}\n\
+         forces:\n  tyres:\n    - {{wheel: ball, radius: {BALL_R}, friction: {mu}, \
+         normal_stiffness: {GROUND_K}, normal_damping: {c}, slip_speed_scale: 0.001}}\n\
+         integration: {{method: rk4, dt: 1.0e-5, horizon: {horizon}, sample_period: 0.001}}\n",
+        urdf.display().to_string(),
+    );
+    let scene = load(&yaml).unwrap();
+    let mut p = Predictor::from_scene(&scene).unwrap();
+    let (q, v) = (scene.q0.clone(), scene.v0.clone());
+    p.predict(&PredictionRequest::new(&q, &v)).unwrap()
+}
+
+/// The base's linear velocity in world axes from its twist in its own axes (q's quaternion
+/// x, y, z, w at 3..7).
+fn world_linear(q: &[f64], v: &[f64]) -> [f64; 3] {
+    let r = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+        q[6], q[3], q[4], q[5],
+    ));
+    (r * nalgebra::Vector3::new(v[0], v[1], v[2])).into()
+}
+
+/// A ball set sliding at v₀ on a soft floor that carries its weight: friction at the contact
+/// point spins it up until it rolls at 5/7 v₀. Its angular momentum about the contact line,
+/// I ω + m r v, is conserved throughout (friction acts on that line, the floor's push balances
+/// the weight), and it never leaves its rest depth m g/k.
+#[test]
+fn a_sliding_ball_ends_rolling_at_five_sevenths_of_its_speed() {
+    let v0 = 1.0;
+    let rest = BALL_R - BALL_M * 9.81 / GROUND_K;
+    let c = 2.0 * (GROUND_K * BALL_M).sqrt();
+    let traj = ball(rest, (v0, 0.0), (c, 0.3), 0.5);
+    // v: the floating base's twist in its own axes (linear, then angular); the ball turns about
+    // y, so ω_y is the world's and its forward speed is R's first row times the linear part.
+    let forward = |q: &[f64], v: &[f64]| world_linear(q, v)[0];
+    let momentum = |q: &[f64], v: &[f64]| BALL_I * v[4] + BALL_M * BALL_R * forward(q, v);
+    let l0 = BALL_M * BALL_R * v0;
+    let mut drift: f64 = 0.0;
+    let mut sink: f64 = 0.0;
+    for s in &traj.samples {
+        drift = drift.max((momentum(&s.q, &s.v) - l0).abs() / l0);
+        sink = sink.max((s.q[2] - rest).abs());
+    }
+    assert!(drift < 1e-12, "I ω + m r v drifted by {drift:e} relative");
+    assert!(sink < 1e-12, "the ball left its rest depth by {sink:e} m");
+    // Sliding ends after (2/7) v₀/(μ g) = 0.0971 s; rolling at 5/7 v₀ with ω r = v.
+    let last = traj.samples.last().unwrap();
+    let five_sevenths = 5.0 / 7.0 * v0;
+    let v_end = forward(&last.q, &last.v);
+    assert!((v_end - five_sevenths).abs() < 1e-9, "{v_end}");
+    assert!(
+        (last.v[4] * BALL_R - five_sevenths).abs() < 1e-9,
+        "{}",
+        last.v[4]
+    );
+}
+
+/// Dropped from 10 mm onto an undamped soft floor, the ball bounces back (one contact within the
+/// 0.1 s: it lands at 45 ms and is up again 15 ms later): its energy
+/// ½ m v² + m g z (+ ½ k d² while in contact) is conserved through the contact, and the contact
+/// lasts (π + 2 atan(g/(ω v_i)))/ω, ω = √(k/m), v_i = √(2 g h) the impact speed.
+#[test]
+fn a_ball_bounces_on_an_undamped_floor_keeping_its_energy() {
+    let h = 0.01;
+    let traj = ball(BALL_R + h, (0.0, 0.0), (0.0, 0.3), 0.1);
+    let g = 9.81;
+    let energy = |q: &[f64], v: &[f64]| {
+        let depth = (BALL_R - q[2]).max(0.0);
+        0.5 * BALL_M * v[2] * v[2] + BALL_M * g * q[2] + 0.5 * GROUND_K * depth * depth
+    };
+    let e0 = energy(&traj.samples[0].q, &traj.samples[0].v);
+    let worst = (traj.samples.iter())
+        .map(|s| (energy(&s.q, &s.v) - e0).abs() / (BALL_M * g * h))
+        .fold(0.0, f64::max);
+    // RK4 at 10 µs, of first order where the floor's push sets in and ends (a kink in the
+    // force): 5.7e-7 of m g h.
+    assert!(worst < 1e-6, "energy moved by {worst:e} of m g h");
+    let in_contact = traj.samples.iter().filter(|s| s.q[2] < BALL_R).count() as f64 * 1e-3;
+    let w = (GROUND_K / BALL_M).sqrt();
+    let vi = (2.0 * g * h).sqrt();
+    let duration = (std::f64::consts::PI + 2.0 * (g / (w * vi)).atan()) / w;
+    assert!(
+        (in_contact - duration).abs() <= 1e-3,
+        "{in_contact} s vs {duration} s"
+    );
+}

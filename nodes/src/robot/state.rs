@@ -38,6 +38,9 @@ pub struct StateEstimate {
     /// 1-DOF joint name → (q index, v index).
     joints: HashMap<String, (usize, usize)>,
     base: BaseType,
+    /// The scene's initial configuration: the height, roll and pitch a planar odometry leaves
+    /// unmeasured on a floating base (`Model::keep_unmeasured_tilt`).
+    rest: Vec<f64>,
 }
 
 /// What a `JointState` did.
@@ -61,6 +64,7 @@ impl StateEstimate {
             .map(|j| (j.name.clone(), (j.idx_q, j.idx_v)))
             .collect();
         StateEstimate {
+            rest: q0.to_vec(),
             q: q0.to_vec(),
             v: v0.to_vec(),
             effort: vec![0.0; model.nv],
@@ -167,6 +171,7 @@ impl StateEstimate {
                 .map_err(|e| NodeError::message("Odometry: pose.orientation", e.to_string()))?,
         };
         model.set_base(&pose, &twist, &mut self.q, &mut self.v);
+        model.keep_unmeasured_tilt(&od.pose.covariance, &self.rest, &mut self.q);
         self.odom_covariance = (od.pose.covariance, od.twist.covariance);
         self.stamp = Some(od.header.stamp);
         Ok(())
