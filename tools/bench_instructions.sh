@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
 # Instruction counts of the core's criterion bench routines at two commits, and their ratio:
 #   tools/bench_instructions.sh OLD_REV NEW_REV [BENCH ...]   (default: every [[bench]] of NEW_REV)
-# criterion's --test mode runs each routine once; callgrind counts only inside Bencher::iter*, so
-# setup is left out and the count is the same from run to run whatever else the machine does.
+# criterion's --test mode runs each routine once; callgrind counts only inside Bencher::iter (every
+# thread), so setup is left out and the count is the same from run to run whatever else the
+# machine does (to the instruction on one thread; rollouts on 2 threads within 3e-4: rayon's
+# idle workers). All routines of a bench run in one process: a routine's count can differ by a
+# few 1e-3 from a run of that routine alone (the allocator's state).
 # Each commit is checked out in a worktree under target/bench_instructions and built there with
 # the bench profile (the first build takes minutes) into $CARGO_TARGET_DIR, else
 # target/bench_instructions/target. A bench missing at OLD_REV is counted at NEW_REV only and
@@ -47,20 +50,33 @@ count() { # count COMMIT: "bench|routine|instructions" lines into $WORK/COMMIT.B
     # The executables of this commit's benches, as cargo names them (not the newest file: the
     # other commit's binaries sit in the same target directory).
     (cd "$wt" && cargo bench -p constraint_dynamics --no-run --offline \
-        --message-format=json-render-diagnostics "${args[@]}") | jq -r 'select(.reason == "compiler-artifact" and .executable != null)
+        --message-format=json-render-diagnostics "${args[@]}") |
+        jq -r 'select(.reason == "compiler-artifact" and .executable != null)
             | "\(.target.name) \(.executable)"' > "$WORK/$rev.bins"
     for b in "${todo[@]}"; do
         local bin out=$WORK/$rev.$b.txt
         bin=$(awk -v b="$b" '$1 == b {print $2}' "$WORK/$rev.bins")
         [[ -x $bin ]] || { echo "no executable for bench $b at $rev" >&2; exit 1; }
-        local names
-        names=$("$bin" --list) || { echo "bench $b --list failed at $rev" >&2; exit 1; }
-        sed -n 's/: benchmark$//p' <<< "$names" | while IFS= read -r n; do
-            valgrind --tool=callgrind --callgrind-out-file="$WORK/cg.out" --collect-atstart=no \
-                '--toggle-collect=*Bencher*iter*' "$bin" --test --exact "$n" > "$WORK/cg.log" 2>&1 ||
-                { echo "$b: $n failed at $rev:" >&2; tail -5 "$WORK/cg.log" >&2; exit 1; }
-            echo "$b|$n|$(awk '/^(summary|totals):/ {print $2; exit}' "$WORK/cg.out")"
-        done > "$out.part"
+        local names dumps
+        names=$("$bin" --list | sed -n 's/: benchmark$//p') ||
+            { echo "bench $b --list failed at $rev" >&2; exit 1; }
+        # One run of every routine; callgrind zeroes its counts when Bencher::iter is entered and
+        # writes a profile when it returns (cg.N, N = 1, 2, ... in the order of --list), so the
+        # setup runs once and is left out, and the routine's worker threads are counted too.
+        rm -f "$WORK/cg.$rev".*
+        valgrind --tool=callgrind --callgrind-out-file="$WORK/cg.$rev" \
+            '--zero-before=criterion::bencher::Bencher<M>::iter' \
+            '--dump-after=criterion::bencher::Bencher<M>::iter' "$bin" --test \
+            > "$WORK/cg.$rev.log" 2>&1 ||
+            { echo "bench $b failed at $rev:" >&2; tail -5 "$WORK/cg.$rev.log" >&2; exit 1; }
+        dumps=$(find "$WORK" -maxdepth 1 -name "cg.$rev.[0-9]*" | wc -l)
+        [[ $dumps -eq $(wc -l <<< "$names") ]] ||
+            { echo "bench $b at $rev: $dumps profiles for $(wc -l <<< "$names") routines" >&2; exit 1; }
+        local k=0
+        while IFS= read -r n; do
+            k=$((k + 1))
+            echo "$b|$n|$(awk '/^(summary|totals):/ {print $2; exit}' "$WORK/cg.$rev.$k")"
+        done <<< "$names" > "$out.part"
         mv "$out.part" "$out"
     done
 }
