@@ -2,10 +2,11 @@
 # Instruction counts of the core's criterion bench routines at two commits, and their ratio:
 #   tools/bench_instructions.sh OLD_REV NEW_REV [BENCH ...]   (default: every [[bench]] of NEW_REV)
 # criterion's --test mode runs each routine once; callgrind counts only inside Bencher::iter (every
-# thread), so setup is left out and the count is the same from run to run whatever else the
-# machine does (to the instruction on one thread; rollouts on 2 threads within 3e-4: rayon's
-# idle workers). All routines of a bench run in one process: a routine's count can differ by a
-# few 1e-3 from a run of that routine alone (the allocator's state).
+# thread), so setup is left out and the count is the same from run to run whatever else the machine
+# does: mostly to the instruction, within 1e-4 where the routine reads the clock (Clarabel's timers)
+# and 3e-4 with worker threads (the rollouts, the covariance's worker). All routines of a bench run
+# in one process: a routine's count can differ by a few 1e-3 from a run of that routine alone (the
+# allocator's state).
 # Each commit is checked out in a worktree under target/bench_instructions and built there with
 # the bench profile (the first build takes minutes) into $CARGO_TARGET_DIR, else
 # target/bench_instructions/target. A bench missing at OLD_REV is counted at NEW_REV only and
@@ -23,7 +24,8 @@ if [[ $# -gt 0 ]]; then
     benches=("$@")
 else
     read -r -a benches <<< "$(git -C "$REPO" show "$new:Cargo.toml" |
-        awk '/^\[\[bench\]\]/ {b = 1; next} b && /^name *=/ {gsub(/[" ]/, ""); sub(/name=/, ""); print; b = 0}' |
+        awk '/^\[\[bench\]\]/ {b = 1; next}
+             b && /^name *=/ {gsub(/[" ]/, ""); sub(/name=/, ""); print; b = 0}' |
         tr '\n' ' ')"
 fi
 WORK=$REPO/target/bench_instructions
@@ -36,7 +38,9 @@ if [[ -z ${CD_ANCHORS_VENV:-} ]]; then
 fi
 mkdir -p "$WORK"
 # The benches read ../shared/reference beside the checkout: the worktrees' is this checkout's.
-[[ -e $WORK/shared || ! -d $REPO/../shared ]] || ln -s "$(realpath "$REPO/../shared")" "$WORK/shared"
+if [[ ! -e $WORK/shared && -d $REPO/../shared ]]; then
+    ln -s "$(realpath "$REPO/../shared")" "$WORK/shared"
+fi
 count() { # count COMMIT: "bench|routine|instructions" lines into $WORK/COMMIT.BENCH.txt
     local rev=$1 wt=$WORK/wt-$1 b present=() todo=() args=()
     for b in "${benches[@]}"; do
@@ -57,7 +61,7 @@ count() { # count COMMIT: "bench|routine|instructions" lines into $WORK/COMMIT.B
         local bin out=$WORK/$rev.$b.txt
         bin=$(awk -v b="$b" '$1 == b {print $2}' "$WORK/$rev.bins")
         [[ -x $bin ]] || { echo "no executable for bench $b at $rev" >&2; exit 1; }
-        local names dumps
+        local names dumps routines
         names=$("$bin" --list | sed -n 's/: benchmark$//p') ||
             { echo "bench $b --list failed at $rev" >&2; exit 1; }
         # One run of every routine; callgrind zeroes its counts when Bencher::iter is entered and
@@ -70,8 +74,9 @@ count() { # count COMMIT: "bench|routine|instructions" lines into $WORK/COMMIT.B
             > "$WORK/cg.$rev.log" 2>&1 ||
             { echo "bench $b failed at $rev:" >&2; tail -5 "$WORK/cg.$rev.log" >&2; exit 1; }
         dumps=$(find "$WORK" -maxdepth 1 -name "cg.$rev.[0-9]*" | wc -l)
-        [[ $dumps -eq $(wc -l <<< "$names") ]] ||
-            { echo "bench $b at $rev: $dumps profiles for $(wc -l <<< "$names") routines" >&2; exit 1; }
+        routines=$(wc -l <<< "$names")
+        [[ $dumps -eq $routines ]] ||
+            { echo "bench $b at $rev: $dumps profiles for $routines routines" >&2; exit 1; }
         local k=0
         while IFS= read -r n; do
             k=$((k + 1))
