@@ -21,14 +21,40 @@ use nalgebra::DMatrix;
 /// the whole robot's composite inertia expressed in the base frame
 /// ([`OriginInertia::expressed_in`]), with no subspace columns or forces of its own.
 pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a DMatrix<f64> {
-    // (One loop for the kinematics and the forward sweep measured 15–25 % slower.)
-    super::forward_kinematics_pos(model, data, q);
-    crba_after_kinematics(model, data)
+    data.size_mass_matrix(model.nv);
+    kinematics_and_sweeps(model, data, q);
+    &data.mass_matrix
+}
+
+crate::linalg::wide_fn! {
+    /// The placements at q, then both sweeps: one body for the AVX2 build, whose three-operand
+    /// instructions spare the SSE2 build's register copies (same arithmetic, same numbers).
+    /// (One loop for the kinematics and the forward sweep measured 15–25 % slower.)
+    fn kinematics_and_sweeps(model: &Model, data: &mut Data, q: &[f64]) {
+        for i in 1..model.nbodies() {
+            super::kinematics::place(model, data, i, q);
+        }
+        sweeps_by_base(model, data);
+    }
 }
 
 /// CRBA reusing the placements `o_m_i` of a kinematics pass at the same q.
 pub(crate) fn crba_after_kinematics<'a>(model: &Model, data: &'a mut Data) -> &'a DMatrix<f64> {
     data.size_mass_matrix(model.nv);
+    sweeps_wide(model, data);
+    &data.mass_matrix
+}
+
+crate::linalg::wide_fn! {
+    /// [`sweeps_by_base`] in the AVX2 build where the CPU has it.
+    fn sweeps_wide(model: &Model, data: &mut Data) {
+        sweeps_by_base(model, data);
+    }
+}
+
+/// The sweeps built for the model's base kind.
+#[inline(always)]
+fn sweeps_by_base(model: &Model, data: &mut Data) {
     let free_flyer = matches!(
         model.bodies.get(1).map(|b| (&b.joint.kind, b.joint.idx_v)),
         Some((JointKind::FreeFlyer, 0))
@@ -38,11 +64,11 @@ pub(crate) fn crba_after_kinematics<'a>(model: &Model, data: &'a mut Data) -> &'
     } else {
         sweeps::<false>(model, data);
     }
-    &data.mass_matrix
 }
 
 /// Both sweeps, compiled once per base kind: a fixed base's checks of the free-flyer's
 /// coordinates fold away (one shared build measured +2–3 % instructions on ur5 and panda).
+#[inline(always)]
 fn sweeps<const FREE_FLYER: bool>(model: &Model, data: &mut Data) {
     // Velocity coordinates 0..6 of a free-flyer base (body 1), or none.
     let base_nv = if FREE_FLYER { 6 } else { 0 };
@@ -117,14 +143,21 @@ fn backward(model: &Model, data: &mut Data, base_nv: usize) {
             f_crb[c] = y.mul_motion(&o_s[c]);
         }
         // Row r against every column r moves (its subtree, one contiguous range of forces
-        // already computed): the lower triangle's column r, contiguous in memory.
+        // already computed): the lower triangle's column r, contiguous in memory, and the
+        // upper triangle's row r, every nv-th entry of the columns after r (slices and
+        // iterators rather than two bounds-checked stores per entry).
         for r in cols {
             let s_r = o_s[r];
             let end = model.v_subtree_end[r];
-            for (c, f) in (r..end).zip(&f_crb[r..end]) {
-                let x = s_r.dot(f);
-                m[r * nv + c] = x;
-                m[c * nv + r] = x;
+            let (left, right) = m.split_at_mut((r + 1) * nv);
+            let col = &mut left[r * nv + r..r * nv + end];
+            let forces = &f_crb[r..end];
+            col[0] = s_r.dot(&forces[0]);
+            let row = right.iter_mut().skip(r).step_by(nv);
+            for ((x, u), f) in col[1..].iter_mut().zip(row).zip(&forces[1..]) {
+                let v = s_r.dot(f);
+                *x = v;
+                *u = v;
             }
         }
         if b.parent != 0 {
@@ -133,11 +166,12 @@ fn backward(model: &Model, data: &mut Data, base_nv: usize) {
     }
 }
 
-/// A free-flyer base's six rows: its own block, the whole robot's composite inertia in the base
+crate::linalg::wide_fn! {
+    /// A free-flyer base's six rows: its own block, the whole robot's composite inertia in the base
 /// frame `[[m 1, −[h]×], [[h]×, I]]` about the base origin, and each other column's force in
 /// the base frame. Out of line, so that the fixed-base robots' sweeps compile without it.
-#[inline(never)]
-fn base_rows(model: &Model, data: &mut Data) {
+    #[inline(never)]
+    fn base_rows(model: &Model, data: &mut Data) {
     let nv = model.nv;
     let m = data.mass_matrix.as_mut_slice();
     let o_m_b = &data.o_m_i[1];
@@ -176,4 +210,5 @@ fn base_rows(model: &Model, data: &mut Data) {
             row.for_each(|(x, fb)| *x = fb.ang[r - 3]);
         }
     }
+}
 }

@@ -13,6 +13,7 @@ mod check;
 mod inertial;
 mod joint;
 mod payload;
+mod sincos;
 mod state_map;
 mod urdf_text;
 
