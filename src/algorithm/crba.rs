@@ -27,15 +27,16 @@ pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a DMatrix<f64
 }
 
 crate::linalg::wide_fn! {
-    /// The placements at q, then both sweeps: one body for the AVX2 build, whose three-operand
-    /// instructions spare the SSE2 build's register copies (same arithmetic, same numbers).
-    /// (One loop for the kinematics and the forward sweep measured 15–25 % slower.)
-    fn kinematics_and_sweeps(model: &Model, data: &mut Data, q: &[f64]) {
-        for i in 1..model.nbodies() {
-            super::kinematics::place(model, data, i, q);
-        }
-        sweeps_by_base(model, data);
+/// The placements at q, then both sweeps, in one AVX2 build where the CPU has it (the same
+/// arithmetic, so the same numbers; its three-operand instructions spare the register copies
+/// of the SSE2 build). (One loop for the kinematics and the forward sweep measured 15–25 %
+/// slower.)
+fn kinematics_and_sweeps(model: &Model, data: &mut Data, q: &[f64]) {
+    for i in 1..model.nbodies() {
+        super::kinematics::place(model, data, i, q);
     }
+    sweeps_by_base(model, data);
+}
 }
 
 /// CRBA reusing the placements `o_m_i` of a kinematics pass at the same q.
@@ -46,10 +47,10 @@ pub(crate) fn crba_after_kinematics<'a>(model: &Model, data: &'a mut Data) -> &'
 }
 
 crate::linalg::wide_fn! {
-    /// [`sweeps_by_base`] in the AVX2 build where the CPU has it.
-    fn sweeps_wide(model: &Model, data: &mut Data) {
-        sweeps_by_base(model, data);
-    }
+/// [`sweeps_by_base`] in an AVX2 build where the CPU has it.
+fn sweeps_wide(model: &Model, data: &mut Data) {
+    sweeps_by_base(model, data);
+}
 }
 
 /// The sweeps built for the model's base kind.
@@ -143,21 +144,14 @@ fn backward(model: &Model, data: &mut Data, base_nv: usize) {
             f_crb[c] = y.mul_motion(&o_s[c]);
         }
         // Row r against every column r moves (its subtree, one contiguous range of forces
-        // already computed): the lower triangle's column r, contiguous in memory, and the
-        // upper triangle's row r, every nv-th entry of the columns after r (slices and
-        // iterators rather than two bounds-checked stores per entry).
+        // already computed): the lower triangle's column r, contiguous in memory.
         for r in cols {
             let s_r = o_s[r];
             let end = model.v_subtree_end[r];
-            let (left, right) = m.split_at_mut((r + 1) * nv);
-            let col = &mut left[r * nv + r..r * nv + end];
-            let forces = &f_crb[r..end];
-            col[0] = s_r.dot(&forces[0]);
-            let row = right.iter_mut().skip(r).step_by(nv);
-            for ((x, u), f) in col[1..].iter_mut().zip(row).zip(&forces[1..]) {
-                let v = s_r.dot(f);
-                *x = v;
-                *u = v;
+            for (c, f) in (r..end).zip(&f_crb[r..end]) {
+                let x = s_r.dot(f);
+                m[r * nv + c] = x;
+                m[c * nv + r] = x;
             }
         }
         if b.parent != 0 {
@@ -167,11 +161,12 @@ fn backward(model: &Model, data: &mut Data, base_nv: usize) {
 }
 
 crate::linalg::wide_fn! {
-    /// A free-flyer base's six rows: its own block, the whole robot's composite inertia in the base
+/// A free-flyer base's six rows: its own block, the whole robot's composite inertia in the base
 /// frame `[[m 1, −[h]×], [[h]×, I]]` about the base origin, and each other column's force in
-/// the base frame. Out of line, so that the fixed-base robots' sweeps compile without it.
-    #[inline(never)]
-    fn base_rows(model: &Model, data: &mut Data) {
+/// the base frame. Out of line, so that the fixed-base robots' sweeps compile without it; in an
+/// AVX2 build where the CPU has it.
+#[inline(never)]
+fn base_rows(model: &Model, data: &mut Data) {
     let nv = model.nv;
     let m = data.mass_matrix.as_mut_slice();
     let o_m_b = &data.o_m_i[1];

@@ -13,7 +13,6 @@ mod check;
 mod inertial;
 mod joint;
 mod payload;
-mod sincos;
 mod state_map;
 mod urdf_text;
 
