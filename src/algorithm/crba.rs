@@ -21,14 +21,41 @@ use nalgebra::DMatrix;
 /// the whole robot's composite inertia expressed in the base frame
 /// ([`OriginInertia::expressed_in`]), with no subspace columns or forces of its own.
 pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a DMatrix<f64> {
-    // (One loop for the kinematics and the forward sweep measured 15–25 % slower.)
-    super::forward_kinematics_pos(model, data, q);
-    crba_after_kinematics(model, data)
+    data.size_mass_matrix(model.nv);
+    kinematics_and_sweeps(model, data, q);
+    &data.mass_matrix
+}
+
+crate::linalg::wide_fn! {
+/// The placements at q, then both sweeps, in one AVX2 build where the CPU has it (the same
+/// arithmetic, so the same numbers; its three-operand instructions spare the register copies
+/// of the SSE2 build). (One loop for the kinematics and the forward sweep measured 15–25 %
+/// slower.)
+fn kinematics_and_sweeps(model: &Model, data: &mut Data, q: &[f64]) {
+    for i in 1..model.nbodies() {
+        super::kinematics::place(model, data, i, q);
+    }
+    sweeps_by_base(model, data);
+}
 }
 
 /// CRBA reusing the placements `o_m_i` of a kinematics pass at the same q.
 pub(crate) fn crba_after_kinematics<'a>(model: &Model, data: &'a mut Data) -> &'a DMatrix<f64> {
     data.size_mass_matrix(model.nv);
+    sweeps_wide(model, data);
+    &data.mass_matrix
+}
+
+crate::linalg::wide_fn! {
+/// [`sweeps_by_base`] in an AVX2 build where the CPU has it.
+fn sweeps_wide(model: &Model, data: &mut Data) {
+    sweeps_by_base(model, data);
+}
+}
+
+/// The sweeps built for the model's base kind.
+#[inline(always)]
+fn sweeps_by_base(model: &Model, data: &mut Data) {
     let free_flyer = matches!(
         model.bodies.get(1).map(|b| (&b.joint.kind, b.joint.idx_v)),
         Some((JointKind::FreeFlyer, 0))
@@ -38,11 +65,11 @@ pub(crate) fn crba_after_kinematics<'a>(model: &Model, data: &'a mut Data) -> &'
     } else {
         sweeps::<false>(model, data);
     }
-    &data.mass_matrix
 }
 
 /// Both sweeps, compiled once per base kind: a fixed base's checks of the free-flyer's
 /// coordinates fold away (one shared build measured +2–3 % instructions on ur5 and panda).
+#[inline(always)]
 fn sweeps<const FREE_FLYER: bool>(model: &Model, data: &mut Data) {
     // Velocity coordinates 0..6 of a free-flyer base (body 1), or none.
     let base_nv = if FREE_FLYER { 6 } else { 0 };
@@ -133,9 +160,11 @@ fn backward(model: &Model, data: &mut Data, base_nv: usize) {
     }
 }
 
+crate::linalg::wide_fn! {
 /// A free-flyer base's six rows: its own block, the whole robot's composite inertia in the base
 /// frame `[[m 1, −[h]×], [[h]×, I]]` about the base origin, and each other column's force in
-/// the base frame. Out of line, so that the fixed-base robots' sweeps compile without it.
+/// the base frame. Out of line, so that the fixed-base robots' sweeps compile without it; in an
+/// AVX2 build where the CPU has it.
 #[inline(never)]
 fn base_rows(model: &Model, data: &mut Data) {
     let nv = model.nv;
@@ -176,4 +205,5 @@ fn base_rows(model: &Model, data: &mut Data) {
             row.for_each(|(x, fb)| *x = fb.ang[r - 3]);
         }
     }
+}
 }
