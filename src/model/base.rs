@@ -14,6 +14,14 @@ use nalgebra::{Quaternion, UnitQuaternion};
 /// gives 1e6).
 pub const UNMEASURED_VARIANCE: f64 = 1e3;
 
+/// Whether a REP-103 6×6 covariance (pose or twist) leaves z, roll and pitch (or their rates)
+/// unmeasured: their variances at least [`UNMEASURED_VARIANCE`], as a planar odometry states them.
+pub(crate) fn measures_planar_motion_only(covariance: &[f64; 36]) -> bool {
+    [14, 21, 28]
+        .iter()
+        .all(|&i| covariance[i] >= UNMEASURED_VARIANCE)
+}
+
 /// Pose of the base in the world frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct BasePose {
@@ -95,10 +103,7 @@ impl Model {
     /// `rest`'s (the scene's initial state: a robot at rest on its supports), under the heading
     /// `q` has; otherwise `q` stays as it is. REP-103 covariance over (x, y, z, roll, pitch, yaw).
     pub fn keep_unmeasured_tilt(&self, pose_covariance: &[f64; 36], rest: &[f64], q: &mut [f64]) {
-        let planar = [14, 21, 28]
-            .iter()
-            .all(|&i| pose_covariance[i] >= UNMEASURED_VARIANCE);
-        if self.base != BaseType::Floating || !planar {
+        if self.base != BaseType::Floating || !measures_planar_motion_only(pose_covariance) {
             return;
         }
         let quat =

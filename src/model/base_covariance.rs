@@ -17,7 +17,7 @@
 //! The twist is in the base frame on both sides and the core's v is too: copied as is.
 //! A planar base uses the x, y, yaw and vx, vy, ωz entries; a floating base all six.
 
-use super::base::UNMEASURED_VARIANCE;
+use super::base::measures_planar_motion_only;
 use super::{BaseType, Model};
 use nalgebra::{DMatrix, Matrix3, Quaternion, UnitQuaternion};
 
@@ -119,13 +119,12 @@ pub fn start_covariance(
 }
 
 /// A floating base's covariance from a planar odometry (its z, roll and pitch variances at least
-/// [`UNMEASURED_VARIANCE`]; in the twist, vz and the roll and pitch rates) without those rows and
+/// [`super::base::UNMEASURED_VARIANCE`]; in the twist, vz and the roll and pitch rates) without those rows and
 /// columns: the state takes them from the robot at rest ([`Model::keep_unmeasured_tilt`]), not
 /// from the odometry's placeholder.
 fn without_unmeasured(model: &Model, c: &[f64; 36]) -> [f64; 36] {
     let mut out = *c;
-    if model.base == BaseType::Floating && [14, 21, 28].iter().all(|&i| c[i] >= UNMEASURED_VARIANCE)
-    {
+    if model.base == BaseType::Floating && measures_planar_motion_only(c) {
         for k in 2..5 {
             for j in 0..6 {
                 out[6 * k + j] = 0.0;

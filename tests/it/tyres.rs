@@ -11,8 +11,7 @@
 //!   ṡ = −μ N g(s) (r²/I_s + 2/M), g(s) = s/√(s² + s₀²), with v̇ = 2 μ N g(s)/M.
 //! - Sliding sideways on still wheels: M v̇_y = −2 μ N g(v_y), the wheels never turn.
 
-use crate::common::{assert_has, repo_dir};
-use constraint_dynamics::Scene;
+use crate::common::{assert_has, repo_dir, scene_from_yaml};
 use constraint_dynamics::predict::{PredictionRequest, Predictor, Trajectory};
 
 const R: f64 = 0.05;
@@ -25,20 +24,6 @@ const SLIP_SCALE: f64 = 0.01;
 
 fn normal_force() -> f64 {
     MASS * 9.81 / 2.0
-}
-
-/// A scene from YAML text through a temporary file (one per call: tests run in parallel).
-fn load(yaml: &str) -> constraint_dynamics::Result<Scene> {
-    static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let path = std::env::temp_dir().join(format!(
-        "tyres_{}_{}.yaml",
-        std::process::id(),
-        N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
-    ));
-    std::fs::write(&path, yaml).unwrap();
-    let scene = Scene::load(&path);
-    let _ = std::fs::remove_file(&path);
-    scene
 }
 
 fn tyre(wheel: &str, extra: &str) -> String {
@@ -63,7 +48,7 @@ fn sliding(vx: f64, vy: f64, w: f64, horizon: f64) -> Trajectory {
         tyre("left_wheel", ""),
         tyre("right_wheel", ""),
     );
-    let scene = load(&yaml).unwrap();
+    let scene = scene_from_yaml(&yaml).unwrap();
     let mut p = Predictor::from_scene(&scene).unwrap();
     let (q, v) = (scene.q0.clone(), scene.v0.clone());
     p.predict(&PredictionRequest::new(&q, &v)).unwrap()
@@ -171,7 +156,7 @@ fn a_sideways_slide_stops_under_coulomb_friction() {
 fn a_bad_tyre_names_its_field() {
     let urdf = repo_dir().join("tests/data/diff_drive_centred.urdf");
     let scene = |entry: &str| {
-        load(&format!(
+        scene_from_yaml(&format!(
             "urdf: {:?}\nbase: planar\nforces:\n  tyres:\n{entry}",
             urdf.display().to_string()
         ))
@@ -210,7 +195,7 @@ fn ball(z: f64, (vx, vz): (f64, f64), (c, mu): (f64, f64), horizon: f64) -> Traj
          integration: {{method: rk4, dt: 1.0e-5, horizon: {horizon}, sample_period: 0.001}}\n",
         urdf.display().to_string(),
     );
-    let scene = load(&yaml).unwrap();
+    let scene = scene_from_yaml(&yaml).unwrap();
     let mut p = Predictor::from_scene(&scene).unwrap();
     let (q, v) = (scene.q0.clone(), scene.v0.clone());
     p.predict(&PredictionRequest::new(&q, &v)).unwrap()

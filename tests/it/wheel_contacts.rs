@@ -7,7 +7,7 @@
 //! and comes to rest at Ω* = ω₀ artanh(τ b / (r M_max)) when τ b/r < M_max; above it, in the
 //! Coulomb regime, Ω grows at the constant rate (2 τ b/r − 2 M_max)/a₂.
 
-use crate::common::{assert_has, repo_dir};
+use crate::common::{assert_has, repo_dir, scene_from_yaml};
 use constraint_dynamics::Scene;
 use constraint_dynamics::actuators::Command;
 use constraint_dynamics::algorithm::{Data, forward_kinematics};
@@ -46,20 +46,6 @@ fn turning_yaml() -> String {
     )
 }
 
-/// A scene from YAML text through a temporary file (one per call: tests run in parallel).
-fn load(yaml: &str) -> constraint_dynamics::Result<Scene> {
-    static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let path = std::env::temp_dir().join(format!(
-        "turning_{}_{}.yaml",
-        std::process::id(),
-        N.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
-    ));
-    std::fs::write(&path, yaml).unwrap();
-    let scene = Scene::load(&path);
-    let _ = std::fs::remove_file(&path);
-    scene
-}
-
 const CONTACTS: &str = "constraints:
   - {name: left_wheel_contact, kind: rolling, wheel: left_wheel, axis: [0, 1, 0], radius: 0.05}
   - {name: right_wheel_contact, kind: rolling, wheel: right_wheel, axis: [0, 1, 0], radius: 0.05}
@@ -85,7 +71,7 @@ fn centred(w0: f64, (left, right): (f64, f64), turning: bool, horizon: f64) -> T
             String::new()
         }
     );
-    let scene = load(&yaml).unwrap();
+    let scene = scene_from_yaml(&yaml).unwrap();
     let mut p = Predictor::from_scene(&scene).unwrap();
     let (q, v) = (scene.q0.clone(), scene.v0.clone());
     p.predict(&PredictionRequest::new(&q, &v)).unwrap()
@@ -213,7 +199,7 @@ fn the_scrub_moment_acts_on_the_yaw_and_only_dissipates() {
 
 fn centred_scene_without_torques() -> Scene {
     let urdf = repo_dir().join("tests/data/diff_drive_centred.urdf");
-    load(&format!(
+    scene_from_yaml(&format!(
         "urdf: {:?}\nbase: planar\n{CONTACTS}",
         urdf.display().to_string()
     ))
@@ -236,7 +222,7 @@ fn controllers_holding_a_spin_pay_the_scrub_moment() {
         urdf.display().to_string(),
         turning_yaml()
     );
-    let scene = load(&yaml).unwrap();
+    let scene = scene_from_yaml(&yaml).unwrap();
     let mut p = Predictor::from_scene(&scene).unwrap();
     let omega = 1.0;
     let commands = [(
@@ -271,7 +257,7 @@ fn controllers_holding_a_spin_pay_the_scrub_moment() {
 fn a_bad_turning_resistance_names_its_field() {
     let urdf = repo_dir().join("tests/data/diff_drive_centred.urdf");
     let with = |entry: &str| {
-        load(&format!(
+        scene_from_yaml(&format!(
             "urdf: {:?}\nbase: planar\n{CONTACTS}forces:\n  turning_resistance:\n    - {entry}\n",
             urdf.display().to_string()
         ))
@@ -321,7 +307,7 @@ fn an_effective_radius_and_track_scale_what_the_controllers_achieve() {
         urdf.display().to_string(),
         -s
     );
-    let scene = load(&yaml).unwrap();
+    let scene = scene_from_yaml(&yaml).unwrap();
     let mut p = Predictor::from_scene(&scene).unwrap();
     let (v_cmd, w_cmd) = (0.4, 0.8);
     let commands = [(
@@ -348,7 +334,7 @@ fn an_effective_radius_and_track_scale_what_the_controllers_achieve() {
     // Achieved 2.6e-15 m/s and 2.0e-13 rad/s: the PI's integral has settled by 3 s.
     assert!((last.v[0] - speed).abs() < 1e-12, "{}", last.v[0]);
     assert!((last.v[2] - turn).abs() < 1e-12, "{}", last.v[2]);
-    let bad = load(&yaml.replace("axle_offset: 0.01}", "axle_offset: .inf}"))
+    let bad = scene_from_yaml(&yaml.replace("axle_offset: 0.01}", "axle_offset: .inf}"))
         .and_then(|s| constraint_dynamics::System::from_scene(&s).map(|_| ()))
         .expect_err("an infinite offset")
         .to_string();

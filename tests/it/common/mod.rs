@@ -292,6 +292,11 @@ pub fn scene_from(urdf: &str, base: &str, constraints: &str) -> Result<System, E
         "urdf: {:?}\nbase: {base}\nconstraints:\n{constraints}",
         urdf.display().to_string()
     );
+    System::from_scene(&scene_from_yaml(&yaml)?)
+}
+
+/// A scene from YAML text (its paths absolute), loaded through a temporary file of its own.
+pub fn scene_from_yaml(yaml: &str) -> Result<Scene, Error> {
     // One file per call: the tests run in parallel threads of one process.
     static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let path = std::env::temp_dir().join(format!(
@@ -302,7 +307,7 @@ pub fn scene_from(urdf: &str, base: &str, constraints: &str) -> Result<System, E
     std::fs::write(&path, yaml).unwrap();
     let scene = Scene::load(&path);
     let _ = std::fs::remove_file(&path);
-    System::from_scene(&scene?)
+    scene
 }
 
 /// A free-flyer's configuration: position `p`, orientation `rot` (x, y, z, w).
