@@ -332,6 +332,46 @@ impl Actuators {
         self.position.iter_mut().for_each(|c| c.gain = (0.0, 0.0));
     }
 
+    /// The velocity controllers' integrals ∫(target − q̇) dt at a prediction's start [rad or
+    /// m], by v index (nv; empty: all zero). Called after the start of the controllers' model
+    /// in time ([`Actuators::start_continuous`] for the continuous hold).
+    pub fn start_integrals(&mut self, integrals: &[f64]) {
+        for c in &mut self.velocity {
+            let i = integrals.get(c.iv).copied().unwrap_or(0.0);
+            // Continuous hold: the integral is target_integral + ∫target − (q − q(0)), so the
+            // start's integral is the target integral's start value.
+            (c.integral, c.target_integral) = (i, i);
+        }
+    }
+
+    /// Each velocity controller's integral ∫(target − q̇) dt [rad or m] that makes its PI give
+    /// the measured effort, into `out` (by v index): the inverse of
+    /// τ = kp (target − q̇) + ki ∫(target − q̇) dt under `cmd`, at the measured joint velocities
+    /// `v` and efforts `effort` (both nv; NaN: not measured). A controller without a target
+    /// under `cmd` or without integral gain gets 0; one whose joint was not measured keeps its
+    /// entry (joint states may come in several messages). An effort beyond the controller's
+    /// limit counts as the limit: the least integral that reaches it.
+    pub fn integrals_from_efforts(
+        &self,
+        cmd: &Command,
+        v: &[f64],
+        effort: &[f64],
+        out: &mut [f64],
+    ) {
+        let drive = self.diff_drive;
+        for (k, c) in self.velocity.iter().enumerate() {
+            let (tau, w) = (effort[c.iv], v[c.iv]);
+            match velocity_target(drive, cmd, k, &c.name) {
+                Some(target) if c.ki > 0.0 => {
+                    if tau.is_finite() && w.is_finite() {
+                        out[c.iv] = (tau.clamp(-c.effort, c.effort) - c.kp * (target - w)) / c.ki;
+                    }
+                }
+                _ => out[c.iv] = 0.0,
+            }
+        }
+    }
+
     /// The controllers' linear feedback at their last tick, velocity controllers first, in a
     /// fixed order (module doc of [`Feedback`]).
     pub fn feedback(&self) -> impl Iterator<Item = Feedback> + '_ {

@@ -66,6 +66,11 @@ pub struct ReplayArgs {
     /// The longest gap allowed in the odometry, joint states and reference [s].
     #[arg(long, default_value_t = 0.5)]
     pub max_gap: f64,
+    /// Start the velocity controllers' integrals where the joint states' recorded efforts put
+    /// them, under the command then in force, instead of at zero (the node's
+    /// state.controller_integrals_from_effort).
+    #[arg(long)]
+    pub controllers_from_efforts: bool,
 }
 
 impl ReplayArgs {
@@ -97,6 +102,7 @@ impl ReplayArgs {
             },
             joint_noise,
             max_gap_s: self.max_gap,
+            integrals_from_efforts: self.controllers_from_efforts,
             ..EvaluationSettings::default()
         }
     }

@@ -10,8 +10,9 @@ use serde_yaml::Value;
 /// A quantity of the robot a recorded drive can determine.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum FitParameter {
-    /// Every rolling contact's `radius:` [m], one shared value: the effective rolling radius
-    /// (worn or soft tyres roll on less than their nominal radius).
+    /// Every rolling contact's and every wheel tyre's (`forces.tyres` with an `axis:`)
+    /// `radius:` [m], one shared value: the effective rolling radius (worn or soft tyres roll
+    /// on less than their nominal radius).
     RollingRadius,
     /// Every rolling contact's `axle_offset:` [m], outward from the robot's middle: the
     /// effective half-track minus the nominal one (a scrubbing tyre turns the robot as if its
@@ -26,16 +27,20 @@ pub enum FitParameter {
     /// The diff drive's `traction_torque:` [N·m]: the wheel torque at which the tyres skid.
     /// Only a drive that reaches it determines it.
     TractionTorque,
+    /// Every `forces.tyres` entry's `slip_speed_scale:` [m/s], one shared value: the slip
+    /// speed below which a tyre creeps rather than skids (how soft its grip is).
+    TyreSlipSpeed,
 }
 
 impl FitParameter {
     /// Every parameter, in the order the output lists them.
-    pub const ALL: [FitParameter; 5] = [
+    pub const ALL: [FitParameter; 6] = [
         FitParameter::RollingRadius,
         FitParameter::TrackOffset,
         FitParameter::BaseMass,
         FitParameter::TurningFriction,
         FitParameter::TractionTorque,
+        FitParameter::TyreSlipSpeed,
     ];
 
     /// The name `--fit` takes and the output prints.
@@ -46,6 +51,7 @@ impl FitParameter {
             FitParameter::BaseMass => "base_mass",
             FitParameter::TurningFriction => "turning_friction",
             FitParameter::TractionTorque => "traction_torque",
+            FitParameter::TyreSlipSpeed => "tyre_slip_speed",
         }
     }
 
@@ -53,6 +59,7 @@ impl FitParameter {
     pub fn unit(self) -> &'static str {
         match self {
             FitParameter::RollingRadius | FitParameter::TrackOffset => "m",
+            FitParameter::TyreSlipSpeed => "m/s",
             FitParameter::BaseMass => "kg",
             FitParameter::TurningFriction => "1",
             FitParameter::TractionTorque => "N·m",
@@ -80,6 +87,9 @@ pub struct SceneParameters {
     /// Indices of the rolling contacts in `constraints:`, with the sign that makes a positive
     /// track offset point away from the robot's middle.
     rolling: Vec<(usize, f64)>,
+    /// Indices of the wheel tyres (with an axis) in `forces.tyres`, and how many tyres there
+    /// are in all (balls included).
+    tyres: (Vec<usize>, usize),
     /// The base link's name and its centre of mass in it [m].
     base: (String, [f64; 3]),
     /// The joints the rolling contacts' wheels turn on.
@@ -97,6 +107,25 @@ fn constraints(scene: &Value) -> &[Value] {
         .get("constraints")
         .and_then(Value::as_sequence)
         .map_or(&[], |s| s.as_slice())
+}
+
+fn tyres(scene: &Value) -> &[Value] {
+    scene
+        .get("forces")
+        .and_then(|f| f.get("tyres"))
+        .and_then(Value::as_sequence)
+        .map_or(&[], |s| s.as_slice())
+}
+
+/// `forces.tyres`' default `slip_speed_scale` [m/s] (forces/tyre.rs).
+const DEFAULT_SLIP_SPEED: f64 = 0.01;
+
+fn tyres_mut(scene: &mut Value) -> &mut [Value] {
+    scene
+        .get_mut("forces")
+        .and_then(|f| f.get_mut("tyres"))
+        .and_then(Value::as_sequence_mut)
+        .map_or(&mut [], |s| s.as_mut_slice())
 }
 
 fn number(v: Option<&Value>) -> Option<f64> {
@@ -130,6 +159,21 @@ impl SceneParameters {
             let a = m.rotation * nalgebra::Vector3::new(axis[0], axis[1], axis[2]);
             wheels.push((i, m.translation, a));
             wheel_joints.push(model.bodies[model.frames[frame].body].joint.name.clone());
+        }
+        let mut wheel_tyres = Vec::new();
+        for (i, t) in tyres(scene).iter().enumerate() {
+            if t.get("axis").is_none() {
+                continue;
+            }
+            wheel_tyres.push(i);
+            let wheel = t.get("wheel").and_then(Value::as_str).unwrap_or("");
+            let frame = model
+                .frame_id(wheel)
+                .map_err(|e| format!("forces.tyres[{i}].wheel: {e}"))?;
+            let joint = &model.bodies[model.frames[frame].body].joint.name;
+            if !wheel_joints.contains(joint) {
+                wheel_joints.push(joint.clone());
+            }
         }
         let middle = wheels
             .iter()
@@ -173,6 +217,7 @@ impl SceneParameters {
             number(scene.get("payload").and_then(|p| p.get("mass"))).is_some_and(|m| m != 0.0);
         Ok(SceneParameters {
             rolling,
+            tyres: (wheel_tyres, tyres(scene).len()),
             wheel_joints,
             base: (body.name.clone(), [com.x, com.y, com.z]),
             turning,
@@ -184,8 +229,14 @@ impl SceneParameters {
     /// Why `p` cannot be fitted on this scene, if it cannot.
     pub fn unavailable(&self, p: FitParameter) -> Option<String> {
         match p {
-            FitParameter::RollingRadius | FitParameter::TrackOffset if self.rolling.is_empty() => {
+            FitParameter::RollingRadius if self.rolling.is_empty() && self.tyres.0.is_empty() => {
+                Some("the scene has no rolling contact nor wheel tyre".into())
+            }
+            FitParameter::TrackOffset if self.rolling.is_empty() => {
                 Some("the scene has no rolling contact".into())
+            }
+            FitParameter::TyreSlipSpeed if self.tyres.1 == 0 => {
+                Some("the scene declares no forces.tyres".into())
             }
             FitParameter::BaseMass if self.has_payload => {
                 Some("the scene declares its own payload".into())
@@ -214,7 +265,15 @@ impl SceneParameters {
         match p {
             FitParameter::RollingRadius => first
                 .and_then(|(i, _)| number(cs[*i].get("radius")))
+                .or_else(|| {
+                    let i = *self.tyres.0.first()?;
+                    number(tyres(scene)[i].get("radius"))
+                })
                 .unwrap_or(0.0),
+            FitParameter::TyreSlipSpeed => tyres(scene)
+                .first()
+                .and_then(|t| number(t.get("slip_speed_scale")))
+                .unwrap_or(DEFAULT_SLIP_SPEED),
             FitParameter::TrackOffset => first
                 .map(|(i, s)| s * number(cs[*i].get("axle_offset")).unwrap_or(0.0))
                 .unwrap_or(0.0),
@@ -239,7 +298,19 @@ impl SceneParameters {
             }
         };
         match p {
+            FitParameter::TyreSlipSpeed => {
+                for t in tyres_mut(scene) {
+                    put(t, "slip_speed_scale", value.max(1e-6));
+                }
+            }
             FitParameter::RollingRadius | FitParameter::TrackOffset => {
+                if p == FitParameter::RollingRadius {
+                    for (i, t) in tyres_mut(scene).iter_mut().enumerate() {
+                        if self.tyres.0.contains(&i) {
+                            put(t, "radius", value.max(1e-6));
+                        }
+                    }
+                }
                 let Some(cs) = scene
                     .get_mut("constraints")
                     .and_then(Value::as_sequence_mut)
@@ -318,7 +389,7 @@ impl SceneParameters {
 
     /// How far the parameter is moved to see its effect, and the size a change must reach to
     /// matter (the fit's parameter scaling): 1 mm of radius, 1 cm of track, a tenth of the
-    /// robot's mass, 0.1 of μ, a tenth of the traction torque.
+    /// robot's mass, 0.1 of μ, a tenth of the traction torque, 1 cm/s of slip speed.
     pub fn scale(&self, p: FitParameter, model: &Model) -> f64 {
         match p {
             FitParameter::TractionTorque => 0.1 * self.traction.unwrap_or(1.0),
@@ -326,6 +397,49 @@ impl SceneParameters {
             FitParameter::TrackOffset => 1e-2,
             FitParameter::BaseMass => 0.1 * model.total_mass(),
             FitParameter::TurningFriction => 0.1,
+            FitParameter::TyreSlipSpeed => 0.01,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// On the soft-floor scene (wheels and balls as `forces.tyres`, no rolling contact): the
+    /// radius goes to the wheel tyres only, the slip speed to every tyre, the process noise to
+    /// the wheels' joints; the track offset has nowhere to go.
+    #[test]
+    fn tyre_parameters_go_where_the_tyres_are() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/params/mobile_manipulator_soft_floor.yaml"
+        );
+        let scene = crate::Scene::load(path).unwrap();
+        let mut yaml: Value =
+            serde_yaml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+        let places = SceneParameters::new(&yaml, &scene.model).unwrap();
+        assert_eq!(places.value(&yaml, FitParameter::RollingRadius), 0.04925);
+        assert_eq!(places.value(&yaml, FitParameter::TyreSlipSpeed), 0.01);
+        assert!(places.unavailable(FitParameter::TrackOffset).is_some());
+        assert!(places.unavailable(FitParameter::TyreSlipSpeed).is_none());
+        assert_eq!(
+            places.wheel_joints(),
+            [
+                "left_wheel_joint".to_string(),
+                "right_wheel_joint".to_string()
+            ]
+        );
+        places.set(&mut yaml, FitParameter::RollingRadius, 0.048);
+        places.set(&mut yaml, FitParameter::TyreSlipSpeed, 0.07);
+        let radii: Vec<f64> = tyres(&yaml)
+            .iter()
+            .filter_map(|t| number(t.get("radius")))
+            .collect();
+        let slips: Vec<f64> = (tyres(&yaml).iter())
+            .filter_map(|t| number(t.get("slip_speed_scale")))
+            .collect();
+        assert_eq!(radii, [0.048, 0.048, 0.025, 0.025]);
+        assert_eq!(slips, [0.07; 4]);
     }
 }

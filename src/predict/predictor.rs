@@ -57,6 +57,11 @@ impl PredictorConfig {
         &self.uncertainty
     }
 
+    /// The scene's controllers at rest.
+    pub fn actuators(&self) -> &Actuators {
+        &self.actuators
+    }
+
     /// The controllers' period [s], None without controllers or with continuous ones.
     pub fn control_period(&self) -> Option<f64> {
         (!self.actuators.is_empty() && !self.actuators.is_continuous())
@@ -247,6 +252,16 @@ impl Predictor {
         for (t, c) in req.commands {
             crate::error::check_finite("command time", &[*t])?;
             self.actuators.check_command(c)?;
+        }
+        if !req.controller_integrals.is_empty() {
+            if req.controller_integrals.len() != self.model.nv {
+                return Err(Error::Invalid(format!(
+                    "controller_integrals: {} values for {} velocity coordinates",
+                    req.controller_integrals.len(),
+                    self.model.nv
+                )));
+            }
+            crate::error::check_finite("controller_integrals", req.controller_integrals)?;
         }
         let control = budget.control_period();
         let mut s = budget.settings().clone();

@@ -42,6 +42,11 @@ pub struct PredictionRequest<'a> {
     pub contact_limits: ContactLimits,
     /// Which samples carry the propagated covariance (with a start covariance).
     pub covariance_samples: CovarianceSamples<'a>,
+    /// The velocity controllers' integrals ∫(target − q̇) dt at the start [rad or m], by v
+    /// index (nv; a joint without a velocity controller is ignored), e.g. inferred from the
+    /// measured efforts ([`crate::actuators::Actuators::integrals_from_efforts`]). Empty: every
+    /// controller starts afresh, at zero.
+    pub controller_integrals: &'a [f64],
 }
 
 /// Which samples of a prediction carry the propagated covariance.
@@ -119,6 +124,12 @@ impl<'a> PredictionRequest<'a> {
     /// With the covariance in `which` samples.
     pub fn covariance_samples(mut self, which: CovarianceSamples<'a>) -> Self {
         self.covariance_samples = which;
+        self
+    }
+
+    /// With the velocity controllers' integrals at the start (nv, by v index).
+    pub fn controller_integrals(mut self, integrals: &'a [f64]) -> Self {
+        self.controller_integrals = integrals;
         self
     }
 

@@ -12,7 +12,7 @@ use super::ReplayError;
 use super::series::{Nanos, Odometry, Recording, show_stamp};
 use super::start::StartAssembler;
 use super::stats::{Coverage, Spread, nees};
-use crate::actuators::Command;
+use crate::actuators::{Actuators, Command};
 use crate::model::base_covariance::{JointSigma, odometry_covariance};
 use crate::model::{BasePose, Model};
 use crate::predict::{CovarianceSamples, IntegrationOverrides, PredictionRequest, Predictor};
@@ -55,6 +55,9 @@ pub struct EvaluationSettings {
     pub command_timeout_s: f64,
     /// The longest gap allowed in the state inputs and the reference [s].
     pub max_gap_s: f64,
+    /// Start each velocity controller's integral where its recorded effort puts it (the
+    /// node's `state.controller_integrals_from_effort`); false (default): at zero.
+    pub integrals_from_efforts: bool,
 }
 
 impl Default for EvaluationSettings {
@@ -67,6 +70,7 @@ impl Default for EvaluationSettings {
             propagate_covariance: true,
             command_timeout_s: 0.5,
             max_gap_s: 0.5,
+            integrals_from_efforts: false,
         }
     }
 }
@@ -224,6 +228,8 @@ pub fn evaluate(
     let mut assembler = StartAssembler::new(scene, recording, settings.joint_noise)?;
     let held = assembler.held_joints();
     let drive = scene.file.actuators.diff_drive.is_some();
+    let actuators = Actuators::new(&scene.model, &scene.file.actuators)?;
+    let mut integrals = vec![0.0; scene.model.nv];
     let every = to_nanos(settings.every_s).max(1);
     let shortest = settings.horizons_s.iter().copied().fold(f64::MAX, f64::min);
     let mut records = Vec::new();
@@ -241,11 +247,26 @@ pub fn evaluate(
                 .collect(),
             ..Default::default()
         };
-        let in_force = recording
-            .commands
-            .at_or_before(t0)
-            .filter(|(tc, _)| at(*tc) >= -settings.command_timeout_s)
-            .map_or(start.hold_twist, |(_, c)| *c);
+        let in_force_at = |t: Nanos| {
+            (recording.commands.at_or_before(t))
+                .filter(|(tc, _)| (t - tc) as f64 * 1e-9 <= settings.command_timeout_s)
+                .map_or(start.hold_twist, |(_, c)| *c)
+        };
+        let in_force = in_force_at(t0);
+        // The wheel controllers' integrals from the efforts they gave, under the command in
+        // force when those were measured.
+        if let Some(t_effort) = start
+            .measured
+            .at
+            .filter(|_| settings.integrals_from_efforts)
+        {
+            actuators.integrals_from_efforts(
+                &command(in_force_at(t_effort)),
+                &start.measured.v,
+                &start.measured.effort,
+                &mut integrals,
+            );
+        }
         for &h in &settings.horizons_s {
             let t_end = t0 + to_nanos(h);
             if t_end > end {
@@ -265,6 +286,7 @@ pub fn evaluate(
                 horizon: Some(h),
                 start_covariance: p0,
                 covariance_samples: CovarianceSamples::Last,
+                controller_integrals: &integrals,
                 ..PredictionRequest::new(&start.q, &start.v)
             };
             let failed = |source: Error| ReplayError::Prediction {

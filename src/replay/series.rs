@@ -232,16 +232,16 @@ fn odometry_fault(o: &Odometry) -> Option<String> {
     None
 }
 
-/// Each joint's own track through a joint-state series: (time, position, velocity) of every
-/// sample that names it, so that a start state takes each joint's last value even when joints
+/// Each joint's own track through a joint-state series: (time, position, velocity, effort) of
+/// every sample that names it, so that a start state takes each joint's last value even when joints
 /// come in separate messages.
 #[derive(Clone, Debug, Default)]
 pub struct JointTracks {
     tracks: HashMap<String, Vec<JointPoint>>,
 }
 
-/// One joint at one time: (time, position if given, velocity if given).
-pub type JointPoint = (Nanos, Option<f64>, Option<f64>);
+/// One joint at one time: (time, position if given, velocity if given, effort if given).
+pub type JointPoint = (Nanos, Option<f64>, Option<f64>, Option<f64>);
 
 impl JointTracks {
     /// The tracks of `series` (checked by [`Recording::check`]).
@@ -251,16 +251,17 @@ impl JointTracks {
             for (k, name) in js.name.iter().enumerate() {
                 let p = js.position.get(k).copied();
                 let v = js.velocity.get(k).copied();
-                tracks.entry(name.clone()).or_default().push((*t, p, v));
+                let e = js.effort.get(k).copied();
+                tracks.entry(name.clone()).or_default().push((*t, p, v, e));
             }
         }
         JointTracks { tracks }
     }
 
-    /// The last (time, position, velocity) of joint `name` at or before `t`.
+    /// The last (time, position, velocity, effort) of joint `name` at or before `t`.
     pub fn at_or_before(&self, name: &str, t: Nanos) -> Option<JointPoint> {
         let track = self.tracks.get(name)?;
-        let n = track.partition_point(|(ts, _, _)| *ts <= t);
+        let n = track.partition_point(|(ts, ..)| *ts <= t);
         n.checked_sub(1).map(|i| track[i])
     }
 }

@@ -27,6 +27,20 @@ pub struct StartState {
     pub age_s: f64,
     /// The base twist (v, ω) of the start, the node's `hold` fallback command.
     pub hold_twist: [f64; 2],
+    /// The joints' measured velocities and efforts as recorded (nv each, NaN where none), and
+    /// the time of the latest of them: what the controllers' integrals are inferred from.
+    pub measured: MeasuredEfforts,
+}
+
+/// The joints' last recorded velocities and efforts, before any projection.
+#[derive(Clone, Debug, Default)]
+pub struct MeasuredEfforts {
+    /// Joint velocities (nv) [rad/s or m/s], NaN where none was recorded.
+    pub v: Vec<f64>,
+    /// Joint efforts (nv) [N·m or N], NaN where none was recorded.
+    pub effort: Vec<f64>,
+    /// When the latest recorded effort was measured; None without any.
+    pub at: Option<Nanos>,
 }
 
 /// Assembles start states of one scene from one recording.
@@ -95,12 +109,21 @@ impl StartAssembler {
         model.keep_unmeasured_tilt(&odom.pose_covariance, &self.scene.q0, &mut q);
         let mut oldest = *t_odom;
         let mut any_joint = false;
+        let mut measured = MeasuredEfforts {
+            v: vec![f64::NAN; model.nv],
+            effort: vec![f64::NAN; model.nv],
+            at: None,
+        };
         for (name, iq, iv) in &self.joints {
-            if let Some((t, p, w)) = self.tracks.at_or_before(name, t0) {
+            if let Some((t, p, w, e)) = self.tracks.at_or_before(name, t0) {
                 q[*iq] = p.unwrap_or(q[*iq]);
                 v[*iv] = w.unwrap_or(v[*iv]);
                 oldest = oldest.min(t);
                 any_joint = true;
+                if let (Some(w), Some(e)) = (w, e) {
+                    (measured.v[*iv], measured.effort[*iv]) = (w, e);
+                    measured.at = measured.at.max(Some(t));
+                }
             }
         }
         if !any_joint && !self.joints.is_empty() {
@@ -131,6 +154,7 @@ impl StartAssembler {
             covariance: (!zero).then_some(p),
             age_s,
             hold_twist: [twist.linear[0], twist.angular[2]],
+            measured,
         })
     }
 

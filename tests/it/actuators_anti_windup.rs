@@ -70,3 +70,49 @@ fn a_saturated_pi_holds_its_integral_until_its_torque_is_back_inside() {
     // comes back inside (predicted exactly here: q̈ is constant while saturated).
     assert!(dq < 1e-12 && dw < 1e-10, "{dq:e} rad, {dw:e} rad/s");
 }
+
+/// A PI started with the integral its measured effort implies, against the closed form: the
+/// flywheel spins at the target ω* while its motor gives τ_m (a load just taken off), so
+/// `integrals_from_efforts` gives z₀ = (τ_m − kp·0)/ki. With no load, I ė = −(kp e + ki z),
+/// ż = e, z(0) = z₀, e(0) = 0: z = z₀ (s₁ e^{s₂t} − s₂ e^{s₁t}) / (s₁ − s₂) and
+/// ω = ω* − ż = ω* − z₀ s₁ s₂ (e^{s₂t} − e^{s₁t}) / (s₁ − s₂): the released motor first
+/// speeds the wheel up. Started at zero instead, the wheel would stay at ω*.
+#[test]
+fn a_pi_starts_from_the_integral_its_measured_effort_implies() {
+    let scene = common::scene("tests/data/flywheel_pi.yaml");
+    let mut p = Predictor::from_scene(&scene).unwrap();
+    let mut cmd = Command::default();
+    cmd.joint_velocity.insert("spin".into(), TARGET);
+    let tau_m = 0.6; // [N·m], inside the effort E
+    let v = [TARGET];
+    let mut z = [f64::NAN];
+    (p.config().actuators()).integrals_from_efforts(&cmd, &v, &[tau_m], &mut z);
+    assert_eq!(z[0], tau_m / KI);
+    let cmds = [(0.0, cmd)];
+    let traj = p
+        .predict(
+            &PredictionRequest::new(&scene.q0, &v)
+                .commands(&cmds)
+                .controller_integrals(&z),
+        )
+        .unwrap();
+    let (b, c) = (KP / I, KI / I);
+    let root = (b * b / 4.0 - c).sqrt();
+    let (s1, s2) = (-b / 2.0 + root, -b / 2.0 - root);
+    let z0 = tau_m / KI;
+    let omega = |t: f64| TARGET - z0 * s1 * s2 * ((s2 * t).exp() - (s1 * t).exp()) / (s1 - s2);
+    let mut dw = 0.0f64;
+    for s in &traj.samples {
+        dw = dw.max((s.v[0] - omega(s.t)).abs());
+    }
+    let t0 = &traj.samples[0];
+    println!(
+        "flywheel PI at {TARGET} rad/s started from its measured effort {tau_m} N·m: first \
+         torque {:.15} N·m, largest gap to the closed form {dw:.2e} rad/s; ω peaks at {:.6} rad/s",
+        t0.actuator_torque[0],
+        traj.samples.iter().map(|s| s.v[0]).fold(f64::MIN, f64::max)
+    );
+    assert!((t0.actuator_torque[0] - tau_m).abs() < 1e-14);
+    // Measured 1.4e-12 rad/s: RK4 at 0.1 ms on a smooth response.
+    assert!(dw < 1e-11, "{dw:e} rad/s");
+}

@@ -208,19 +208,51 @@ def twist_msg(v, w):
     return {"linear": {"x": v, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": w}}
 
 
-def record(drive, out_path, scene_path, urdf_path):
-    """Simulate one drive and write its MCAP file; returns {topic: (type, count)} and the span."""
+def drive_ticks(drive, scene_path, urdf_path):
+    """Simulate one drive, yielding at every control tick k, before the physics steps to the
+    next: (k, robot, odom, joints, cmd). odom = (true pose, true twist, noisy pose, noisy twist)
+    at the odometry's ticks, else None; joints = (names, noisy q, noisy v, efforts) at the
+    joint states' ticks, else None; cmd = the command published at this tick, else None (the
+    robot runs the last one). The noise and the plan come from one generator seeded by the drive."""
     rng = np.random.default_rng(drive.seed)
     plan = command_plan(rng, drive.duration_s)
     robot = Robot(scene_path, urdf_path, drive.payload_kg, drive.arm_pose)
     for _ in range(int(SETTLE_S / CONTROL_PERIOD_S)):
         robot.tick((0.0, 0.0))
+    cmd = (0.0, 0.0)
+    n_ticks = int(round(drive.duration_s / CONTROL_PERIOD_S))
+    for k in range(n_ticks + 1):
+        odom = joints = published = None
+        if k % ODOM_PERIOD_TICKS == 0:
+            pose, tw = robot.base()
+            noisy_pose = (pose[0] + rng.normal(0, SIGMA_POS), pose[1] + rng.normal(0, SIGMA_POS),
+                          pose[2] + rng.normal(0, SIGMA_YAW))
+            noisy_tw = (tw[0] + rng.normal(0, SIGMA_V), tw[1] + rng.normal(0, SIGMA_V),
+                        tw[2] + rng.normal(0, SIGMA_W))
+            odom = (pose, tw, noisy_pose, noisy_tw)
+        if k % ODOM_PERIOD_TICKS == JOINT_STATES_OFFSET_TICKS:
+            names = [n for n, _, _ in robot.joints]
+            q = [robot.d.qpos[iq] + rng.normal(0, SIGMA_JOINT_Q) for _, iq, _ in robot.joints]
+            v = [robot.d.qvel[iv] + rng.normal(0, SIGMA_JOINT_V) for _, _, iv in robot.joints]
+            joints = (names, q, v, [float(x) for x in robot.tau])
+        if k % CMD_PERIOD_TICKS == 0 and k < n_ticks:
+            target = target_at(plan, k * CONTROL_PERIOD_S)
+            cmd = smooth(cmd, target, CMD_PERIOD_TICKS * CONTROL_PERIOD_S) if drive.smoothed else target
+            published = cmd
+        yield k, robot, odom, joints, published
+        if k < n_ticks:
+            robot.tick(cmd)
+
+
+def record(drive, out_path, scene_path, urdf_path):
+    """Simulate one drive and write its MCAP file; returns {topic: (type, count)} and the span."""
     # ROS pose covariance over (x, y, z, rot x, rot y, rot z): what the noise is, and large
     # values for what a planar odometry does not measure.
     pose_var = [SIGMA_POS**2, SIGMA_POS**2, 1e6, 1e6, 1e6, SIGMA_YAW**2]
     twist_var = [SIGMA_V**2, SIGMA_V**2, 1e6, 1e6, 1e6, SIGMA_W**2]
     cmd_type = "geometry_msgs/TwistStamped" if drive.stamped else "geometry_msgs/Twist"
     counts = {}
+    n_ticks = int(round(drive.duration_s / CONTROL_PERIOD_S))
     with open(out_path, "wb") as f:
         w = Writer(f)
         schemas = {t: w.register_msgdef(msgdefs.schema_name(t), msgdefs.definition(t))
@@ -231,39 +263,25 @@ def record(drive, out_path, scene_path, urdf_path):
                             sequence=counts.get(topic, (None, 0))[1])
             counts[topic] = (msgdefs.schema_name(datatype), counts.get(topic, (None, 0))[1] + 1)
 
-        cmd = (0.0, 0.0)
-        n_ticks = int(round(drive.duration_s / CONTROL_PERIOD_S))
-        for k in range(n_ticks + 1):
-            t = k * CONTROL_PERIOD_S
+        for k, _, odom, joints, cmd in drive_ticks(drive, scene_path, urdf_path):
             ns = T0_NS + k * 10**6
-            if k % ODOM_PERIOD_TICKS == 0:
-                pose, tw = robot.base()
+            if odom is not None:
+                pose, tw, noisy_pose, noisy_tw = odom
                 write("/ground_truth/odom", "nav_msgs/Odometry",
                       odometry(ns, pose, tw, [0.0] * 6, [0.0] * 6), ns)
-                noisy_pose = (pose[0] + rng.normal(0, SIGMA_POS), pose[1] + rng.normal(0, SIGMA_POS),
-                              pose[2] + rng.normal(0, SIGMA_YAW))
-                noisy_tw = (tw[0] + rng.normal(0, SIGMA_V), tw[1] + rng.normal(0, SIGMA_V),
-                            tw[2] + rng.normal(0, SIGMA_W))
                 write("/odom", "nav_msgs/Odometry",
                       odometry(ns, noisy_pose, noisy_tw, pose_var, twist_var), ns)
-            if k % ODOM_PERIOD_TICKS == JOINT_STATES_OFFSET_TICKS:
-                names = [n for n, _, _ in robot.joints]
-                q = [robot.d.qpos[iq] + rng.normal(0, SIGMA_JOINT_Q) for _, iq, _ in robot.joints]
-                v = [robot.d.qvel[iv] + rng.normal(0, SIGMA_JOINT_V) for _, _, iv in robot.joints]
+            if joints is not None:
+                names, q, v, effort = joints
                 write("/joint_states", "sensor_msgs/JointState", {
                     "header": {"stamp": stamp(ns), "frame_id": ""},
-                    "name": names, "position": q, "velocity": v,
-                    "effort": [float(x) for x in robot.tau],
+                    "name": names, "position": q, "velocity": v, "effort": effort,
                 }, ns)
-            if k % CMD_PERIOD_TICKS == 0 and k < n_ticks:
-                target = target_at(plan, t)
-                cmd = smooth(cmd, target, CMD_PERIOD_TICKS * CONTROL_PERIOD_S) if drive.smoothed else target
+            if cmd is not None:
                 msg = twist_msg(*cmd)
                 if drive.stamped:
                     msg = {"header": {"stamp": stamp(ns), "frame_id": "base_footprint"}, "twist": msg}
                 write("/cmd_vel", cmd_type, msg, ns)
-            if k < n_ticks:
-                robot.tick(cmd)
         w.finish()
     return counts, (T0_NS, n_ticks * 10**6)
 

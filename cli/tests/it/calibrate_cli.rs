@@ -163,6 +163,10 @@ fn a_fit_the_scene_cannot_take_is_an_error_naming_it() {
             "turning_friction",
             "turning_friction: the scene declares no forces.turning_resistance",
         ),
+        (
+            "tyre_slip_speed",
+            "tyre_slip_speed: the scene declares no forces.tyres",
+        ),
     ] {
         let (ok, _, err) = run(
             &dir,

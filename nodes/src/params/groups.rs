@@ -51,6 +51,11 @@ pub struct StateParams {
     /// With `use_latest_state` and no torques in a `get_constraint_forces` request, take the
     /// joint torques from the last `JointState.effort` [N·m, N].
     pub use_measured_effort: bool,
+    /// Start each prediction's velocity controllers (the diff drive's wheels) with the integral
+    /// that gives the last `JointState.effort` under the command then in force, instead of at
+    /// zero: a wheel's PI integral holds the torque its friction and load take. Right where the
+    /// scene models those resistances as torques (docs/logs.md); off by default.
+    pub controller_integrals_from_effort: bool,
     /// The predictor's inputs (`odom`, `joint_states`) are stale once the last one received is
     /// older than this on the ROS clock (`/clock` under `use_sim_time`) [s] (> 0). An input
     /// never received is not stale: the state is the scene's initial one (and `/diagnostics`
@@ -133,6 +138,7 @@ impl Default for StateParams {
             odom_topic: "odom".into(),
             project_to_constraints: true,
             use_measured_effort: true,
+            controller_integrals_from_effort: false,
             timeout: 0.5,
             stale_behaviour: StaleBehaviour::Stop,
             joint_noise: JointNoiseParams::default(),

@@ -9,6 +9,7 @@
 //! `state.stale_behaviour: warn`, are used with a WARN and a covariance grown with their age.
 
 pub(crate) mod contact_break;
+mod controller_state;
 pub mod envelope;
 pub mod markers;
 mod monitor;
@@ -121,6 +122,8 @@ pub struct PredictorNode {
     envelope: envelope::StartEnvelope,
     /// Scores past predictions against the odometry and joint states (`monitor.enabled`).
     monitor: Option<monitor::OnlineMonitor>,
+    /// The wheel controllers' integrals from the last joint state's efforts.
+    integrals: controller_state::ControllerIntegrals,
 }
 
 impl NodeLogic for PredictorNode {
@@ -168,6 +171,7 @@ impl NodeLogic for PredictorNode {
             .then(|| monitor::OnlineMonitor::new(&p.monitor, p.rate, robot.model().nv));
         Ok(PredictorNode {
             monitor,
+            integrals: Default::default(),
             robot,
             predictor,
             start: (sys, forces),
@@ -224,18 +228,24 @@ impl NodeLogic for PredictorNode {
         if let Some(m) = &mut self.monitor {
             m.joint_state(js, self.robot.state());
         }
+        if self.params.common.state.controller_integrals_from_effort {
+            // The command the controllers followed when the efforts were measured.
+            let state = self.robot.state();
+            let at = state.joint_states_at.unwrap_or_default();
+            let base = self.fresh_command(at).or_else(|| {
+                let fallback = self.params.node.command.fallback;
+                self.robot.fallback_twist(fallback, &state.v)
+            });
+            let cmd = self.robot.command(base, &state.q, false);
+            let actuators = self.predictor.config().actuators();
+            self.integrals.joint_state(state, actuators, js, &cmd);
+        }
     }
     fn tick_period(&self) -> Option<Duration> {
         Some(Duration::from_secs_f64(1.0 / self.params.node.rate))
     }
     fn tick(&mut self, now: Time, out: &mut dyn FnMut(Self::Output)) -> Result<(), NodeError> {
-        let timeout = self.params.node.command.timeout;
-        // The command's age on the ROS clock, so a simulation's time decides when it is stale.
-        let age = |at: &Time| (now.to_nanos() - at.to_nanos()) as f64 * 1e-9;
-        let command = self
-            .last_command
-            .filter(|(_, at)| (0.0..=timeout).contains(&age(at)))
-            .map(|(c, _)| c);
+        let command = self.fresh_command(now);
         let state = &self.params.common.state;
         let ages = InputAges::at(self.robot.state(), state, now);
         let stale = ages.stale(state.timeout);
@@ -299,6 +309,16 @@ impl NodeLogic for PredictorNode {
 }
 
 impl PredictorNode {
+    /// The last command if it is fresh at `now`: its age on the ROS clock, so a simulation's
+    /// time decides when it is stale.
+    fn fresh_command(&self, now: Time) -> Option<[f64; 2]> {
+        let timeout = self.params.node.command.timeout;
+        let age = |at: &Time| (now.to_nanos() - at.to_nanos()) as f64 * 1e-9;
+        self.last_command
+            .filter(|(_, at)| (0.0..=timeout).contains(&age(at)))
+            .map(|(c, _)| c)
+    }
+
     /// One periodic prediction from the latest state under `command` (v, ω) — `None` = no
     /// fresh command (the fallback applies) — from a state `age` [s] old.
     pub fn periodic(
@@ -344,6 +364,10 @@ impl PredictorNode {
             // unsaid (`/diagnostics`).
             forces: true,
             contact_limits: self.robot.contact_limits(common),
+            controller_integrals: match common.state.controller_integrals_from_effort {
+                true => self.integrals.get(),
+                false => &[],
+            },
             ..PredictionRequest::new(&q, &v)
         };
         // The covariance on a second thread only where it is a large part of the period: a

@@ -73,6 +73,7 @@ impl Predictor {
         if self.actuators.is_continuous() {
             self.actuators.start_continuous(&q);
         }
+        self.actuators.start_integrals(req.controller_integrals);
         self.ws.tau_act.iter_mut().for_each(|x| *x = 0.0);
         self.ws.companion_actuators.clone_from(&self.actuators);
         self.ws.tau_companion.iter_mut().for_each(|x| *x = 0.0);
