@@ -4,7 +4,7 @@
 //! Jacobians); γ = a_A − a_B, the classical accelerations of the two material points at q̈ = 0.
 //! λ: force exerted on A's point by the constraint [N], world axes (−λ acts on B).
 
-use super::{ConstraintRows, RowSink};
+use super::{ConstraintRows, RowResiduals, RowSink};
 use crate::algorithm::{
     Data, point_classical_acceleration, point_jacobian, point_jacobian_rows,
     point_jacobian_rows_subtract, point_position, point_velocity,
@@ -94,5 +94,20 @@ impl ConstraintRows for PointConstraint {
         for (k, &ax) in self.axes.iter().enumerate() {
             out.finish(out.row0 + k, d[ax], acc[ax], true);
         }
+    }
+
+    /// φ and J v = v_A − v_B (the two material points' world velocities) from placements and
+    /// twists: a sample's residuals without the Jacobian and γ.
+    fn residuals(&self, model: &Model, data: &Data, out: RowResiduals) -> bool {
+        let d = point_position(model, data, self.frame_a, &self.point_a)
+            - point_position(model, data, self.frame_b, &self.point_b);
+        let mut dv = point_velocity(model, data, self.frame_a, &self.point_a);
+        if model.frames[self.frame_b].body != 0 {
+            dv -= point_velocity(model, data, self.frame_b, &self.point_b);
+        }
+        for (k, &ax) in self.axes.iter().enumerate() {
+            (out.phi[k], out.jv[k], out.holonomic[k]) = (d[ax], dv[ax], true);
+        }
+        true
     }
 }
