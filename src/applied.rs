@@ -20,10 +20,23 @@ pub fn applied_generalized_force(
     tau_act: &[f64],
     tau: &mut [f64],
 ) {
-    tau.copy_from_slice(tau_act);
     if elements.needs_kinematics() {
         sys.kinematics_at(q, v);
     }
+    applied_generalized_force_after_kinematics(sys, elements, (t, q, v), tau_act, tau);
+}
+
+/// [`applied_generalized_force`] where [`System::data`] already holds the kinematics at (q, v)
+/// and q̈ = 0 (a [`System::kinematics_at`] or [`System::evaluate_rows`] there, nothing written
+/// since): the force elements read them instead of a second pass.
+pub fn applied_generalized_force_after_kinematics(
+    sys: &System,
+    elements: &mut ForceElements,
+    (t, q, v): (f64, &[f64], &[f64]),
+    tau_act: &[f64],
+    tau: &mut [f64],
+) {
+    tau.copy_from_slice(tau_act);
     if !elements.is_empty() {
         elements.add_generalized_force(sys.model(), sys.data(), t, q, v, tau);
     }

@@ -102,6 +102,44 @@ pub fn point_jacobian_rows(
     });
 }
 
+/// Rows `row0 + r` of `j` −= `dirs[r]ᵀ J_p` (J_p as in [`point_jacobian_rows`]; the columns of
+/// joints that do not support `body` are left as they are): the second point of a constraint
+/// between two bodies, after the first's [`point_jacobian_rows`].
+pub fn point_jacobian_rows_subtract(
+    model: &Model,
+    data: &Data,
+    body: usize,
+    pw: &Vector3<f64>,
+    dirs: &[Vector3<f64>],
+    j: &mut DMatrix<f64>,
+    row0: usize,
+) {
+    let nr = j.nrows();
+    let s = j.as_mut_slice();
+    for_each_point_column(model, data, body, pw, |c, lin| {
+        let col = c * nr + row0;
+        for (r, d) in dirs.iter().enumerate() {
+            s[col + r] -= d.x * lin.x + d.y * lin.y + d.z * lin.z;
+        }
+    });
+}
+
+/// `tau += J_pᵀ f` (nv), J_p the world-axes linear-velocity Jacobian of the material point of
+/// `body` at the world position `pw` [m]: the generalized force of the force `f` [N, world
+/// axes] applied there, in one walk of the supporting chain (no 3 × nv intermediate).
+pub fn point_jacobian_transpose_add(
+    model: &Model,
+    data: &Data,
+    body: usize,
+    pw: &Vector3<f64>,
+    f: &Vector3<f64>,
+    tau: &mut [f64],
+) {
+    for_each_point_column(model, data, body, pw, |c, lin| {
+        tau[c] += lin.x * f.x + lin.y * f.y + lin.z * f.z;
+    });
+}
+
 /// Calls `f(c, v)` for each velocity coordinate c of the joints that support `body`, v the
 /// world-axes linear velocity [m/s per unit of v_c] of the material point of `body` at the
 /// world position `pw` [m]: column c of its point Jacobian (the other columns are zero). The one

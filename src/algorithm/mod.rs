@@ -16,7 +16,10 @@ pub use crba::crba;
 pub(crate) use crba::{crba_after_kinematics, mass_diagonal_after_kinematics};
 pub use data::{DENSE_EAGER_NV, Data};
 pub use energy::{center_of_mass, kinetic_energy, potential_energy};
-pub use jacobian::{ReferenceFrame, frame_jacobian, point_jacobian, point_jacobian_rows};
+pub use jacobian::{
+    ReferenceFrame, frame_jacobian, point_jacobian, point_jacobian_rows,
+    point_jacobian_rows_subtract, point_jacobian_transpose_add,
+};
 pub use kinematics::{
     forward_kinematics, forward_kinematics_bias, forward_kinematics_pos, forward_kinematics_vel,
     frame_placement, frame_velocity, point_classical_acceleration, point_position, point_velocity,

@@ -92,14 +92,6 @@ impl RowSink<'_> {
     fn clear_row(&mut self, k: usize) {
         self.j.row_mut(self.row0 + k).fill(0.0);
     }
-    /// Row k := row `src` of the 3 × nv scratch `j3`.
-    fn set_row_from(&mut self, k: usize, src: usize, phi: f64, gamma: f64, holonomic: bool) {
-        let r = self.row0 + k;
-        for c in 0..self.j.ncols() {
-            self.j[(r, c)] = self.j3[(src, c)];
-        }
-        self.finish(r, phi, gamma, holonomic);
-    }
     /// Row k := row `src` of the 6 × nv scratch `j6`.
     fn set_row_from_j6(&mut self, k: usize, src: usize, phi: f64, gamma: f64, holonomic: bool) {
         let r = self.row0 + k;

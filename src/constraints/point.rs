@@ -4,10 +4,10 @@
 //! Jacobians); γ = a_A − a_B, the classical accelerations of the two material points at q̈ = 0.
 //! λ: force exerted on A's point by the constraint [N], world axes (−λ acts on B).
 
-use super::{ConstraintRows, RowSink};
+use super::{ConstraintRows, RowResiduals, RowSink};
 use crate::algorithm::{
-    Data, point_classical_acceleration, point_jacobian, point_jacobian_rows, point_position,
-    point_velocity,
+    Data, point_classical_acceleration, point_jacobian, point_jacobian_rows,
+    point_jacobian_rows_subtract, point_position, point_velocity,
 };
 use crate::model::Model;
 use nalgebra::{DMatrix, Vector3};
@@ -70,36 +70,44 @@ impl ConstraintRows for PointConstraint {
     }
 
     fn fill(&self, model: &Model, data: &Data, out: &mut RowSink) {
-        if model.frames[self.frame_b].body == 0 {
-            // B fixed in the world (a foot, a held tool): the selected rows of A's point
-            // Jacobian straight into J (the rolling rows' one pass, with unit directions), no
-            // 3 × nv scratch to fill and copy row by row. The same numbers: eₐₓᵀ J_p is J_p's
-            // row ax exactly (the zero products add nothing).
-            let pa = point_position(model, data, self.frame_a, &self.point_a);
-            let d = pa - point_position(model, data, self.frame_b, &self.point_b);
-            let acc = point_classical_acceleration(model, data, self.frame_a, &self.point_a);
-            let mut dirs = [Vector3::zeros(); 3];
-            for (dir, &ax) in dirs.iter_mut().zip(&self.axes) {
-                dir[ax] = 1.0;
-            }
-            let body = model.frames[self.frame_a].body;
-            let dirs = &dirs[..self.axes.len()];
-            point_jacobian_rows(model, data, body, &pa, dirs, out.j, out.row0);
-            for (k, &ax) in self.axes.iter().enumerate() {
-                out.finish(out.row0 + k, d[ax], acc[ax], true);
-            }
-            return;
+        // The selected rows of A's point Jacobian straight into J (the rolling rows' one pass,
+        // with unit directions), B's subtracted in place: no 3 × nv scratch to fill and copy
+        // row by row. The same numbers: eₐₓᵀ J_p is J_p's row ax exactly (the zero products
+        // add nothing).
+        let pa = point_position(model, data, self.frame_a, &self.point_a);
+        let pb = point_position(model, data, self.frame_b, &self.point_b);
+        let d = pa - pb;
+        let mut acc = point_classical_acceleration(model, data, self.frame_a, &self.point_a);
+        let mut dirs = [Vector3::zeros(); 3];
+        for (dir, &ax) in dirs.iter_mut().zip(&self.axes) {
+            dir[ax] = 1.0;
         }
-        let [d, _, acc] = relative_point(
-            model,
-            data,
-            (self.frame_a, &self.point_a),
-            (self.frame_b, &self.point_b),
-            out.j3,
-            out.jtmp,
-        );
+        let dirs = &dirs[..self.axes.len()];
+        let body_a = model.frames[self.frame_a].body;
+        point_jacobian_rows(model, data, body_a, &pa, dirs, out.j, out.row0);
+        let body_b = model.frames[self.frame_b].body;
+        // B fixed in the world (a foot, a held tool): no Jacobian or acceleration to subtract.
+        if body_b != 0 {
+            acc -= point_classical_acceleration(model, data, self.frame_b, &self.point_b);
+            point_jacobian_rows_subtract(model, data, body_b, &pb, dirs, out.j, out.row0);
+        }
         for (k, &ax) in self.axes.iter().enumerate() {
-            out.set_row_from(k, ax, d[ax], acc[ax], true);
+            out.finish(out.row0 + k, d[ax], acc[ax], true);
         }
+    }
+
+    /// φ and J v = v_A − v_B (the two material points' world velocities) from placements and
+    /// twists: a sample's residuals without the Jacobian and γ.
+    fn residuals(&self, model: &Model, data: &Data, out: RowResiduals) -> bool {
+        let d = point_position(model, data, self.frame_a, &self.point_a)
+            - point_position(model, data, self.frame_b, &self.point_b);
+        let mut dv = point_velocity(model, data, self.frame_a, &self.point_a);
+        if model.frames[self.frame_b].body != 0 {
+            dv -= point_velocity(model, data, self.frame_b, &self.point_b);
+        }
+        for (k, &ax) in self.axes.iter().enumerate() {
+            (out.phi[k], out.jv[k], out.holonomic[k]) = (d[ax], dv[ax], true);
+        }
+        true
     }
 }

@@ -1,6 +1,6 @@
 //! The residuals a sample reports — max |φ| over holonomic rows and max |J v| — straight from
 //! placements and twists where every kind can say its rows' φ and J v without forming J and γ
-//! (rolling wheels, knife edges), else through the full evaluation.
+//! (points, rolling wheels, knife edges), else through the full evaluation.
 
 use super::{ConstraintData, ConstraintSet, RowResiduals};
 use crate::algorithm::{Data, forward_kinematics_vel};

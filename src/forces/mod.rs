@@ -13,7 +13,8 @@ use tyre::Tyre;
 pub use tyre::TyreSpec;
 
 use crate::algorithm::{
-    Data, ReferenceFrame, frame_jacobian, point_jacobian, point_position, point_velocity,
+    Data, ReferenceFrame, frame_jacobian, point_jacobian, point_jacobian_transpose_add,
+    point_position, point_velocity,
 };
 use crate::error::{Error, Result};
 use crate::model::Model;
@@ -339,22 +340,14 @@ impl ForceElements {
                     - point_velocity(model, data, s.b.0, &s.b.1)),
             );
             let f = -n * (s.k * (len - s.rest) + s.c * rate); // force on A
-            add_point_force(model, data, &mut self.j3, s.a.0, &s.a.1, &f, tau);
-            add_point_force(model, data, &mut self.j3, s.b.0, &s.b.1, &(-f), tau);
+            add_point_force(model, data, s.a.0, &s.a.1, &f, tau);
+            add_point_force(model, data, s.b.0, &s.b.1, &(-f), tau);
         }
         for (iv, profile) in &self.torques {
             tau[*iv] += piecewise_linear(profile, t);
         }
         for ff in &self.frame_forces {
-            add_point_force(
-                model,
-                data,
-                &mut self.j3,
-                ff.frame,
-                &ff.point,
-                &ff.force,
-                tau,
-            );
+            add_point_force(model, data, ff.frame, &ff.point, &ff.force, tau);
             frame_jacobian(model, data, ff.frame, ReferenceFrame::World, &mut self.j6);
             for c in 0..model.nv {
                 tau[c] += (0..3)
@@ -366,7 +359,7 @@ impl ForceElements {
             tr.add(model, data, v, &mut self.j6, tau);
         }
         for ty in &self.tyres {
-            ty.add(model, data, &mut self.j3, tau);
+            ty.add(model, data, tau);
         }
     }
 
@@ -441,19 +434,17 @@ fn fe_frame_forces(spec: &ForcesSpec) -> Result<Vec<FrameForceSpec>> {
     Ok(spec.frame_forces.clone())
 }
 
+/// `tau += J_pᵀ f`: the force `f` [N, world axes] on the material point `p` of `frame`.
 pub(super) fn add_point_force(
     model: &Model,
     data: &Data,
-    j3: &mut DMatrix<f64>,
     frame: usize,
     p: &Vector3<f64>,
     f: &Vector3<f64>,
     tau: &mut [f64],
 ) {
-    point_jacobian(model, data, frame, p, j3, 0);
-    for c in 0..model.nv {
-        tau[c] += j3[(0, c)] * f.x + j3[(1, c)] * f.y + j3[(2, c)] * f.z;
-    }
+    let pw = point_position(model, data, frame, p);
+    point_jacobian_transpose_add(model, data, model.frames[frame].body, &pw, f, tau);
 }
 
 /// Piecewise-linear interpolation of (t, value) pairs, constant outside.

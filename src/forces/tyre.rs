@@ -205,7 +205,7 @@ impl Tyre {
     /// Adds Q = J_pᵀ (N n + F(s)) to `tau`, s the contact point's velocity in the ground plane
     /// (kinematics of `data` at (q, v)); a constant N is not applied along n (the base's
     /// coordinates already hold the wheel on the ground).
-    pub(crate) fn add(&self, model: &Model, data: &Data, j3: &mut DMatrix<f64>, tau: &mut [f64]) {
+    pub(crate) fn add(&self, model: &Model, data: &Data, tau: &mut [f64]) {
         let (p, height) = self.contact_point(model, data);
         let vp = point_velocity(model, data, self.frame, &p);
         let n = self.normal_force(height, &vp);
@@ -217,7 +217,7 @@ impl Tyre {
         if let Normal::Soft { .. } = self.normal_force {
             f += self.normal * n;
         }
-        add_point_force(model, data, j3, self.frame, &p, &f, tau);
+        add_point_force(model, data, self.frame, &p, &f, tau);
     }
 
     /// Its fastest rate [1/s]: the creep slope μ N/s₀ times the largest tangential mobility

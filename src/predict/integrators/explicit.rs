@@ -36,7 +36,12 @@ pub fn explicit_step<F: Accel>(
     ws: &mut StepWorkspace,
 ) -> Result<()> {
     let s = tab.b.len();
+    // A retried step (rejected, state restored) keeps its first stage, f(t, q_n, v_n).
+    let reuse = ws.first_stage_at.take() == Some(t) && q == &ws.q0[..] && v == &ws.v0[..];
     for i in 0..s {
+        if i == 0 && reuse && tab.c[0] == 0.0 {
+            continue;
+        }
         let (done, rest) = ws.ks.split_at_mut(i);
         combine(&mut ws.dx, done, tab.a[i], dt);
         stage(model, q, v, &ws.dx, &mut ws.qs, &mut ws.vs);
@@ -164,6 +169,8 @@ fn embedded_step<P: EmbeddedPair, F: Accel>(
     let factor = (0.9 * norm.max(P::NORM_FLOOR).powf(P::EXPONENT)).clamp(0.2, P::MAX_GROWTH);
     Ok(Some(if norm > 1.0 || !norm.is_finite() {
         ws.restore(q, v);
+        // The retry starts from the same state: its first stage is the one just evaluated.
+        ws.first_stage_at = Some(t);
         StepOutcome {
             accepted: false,
             h_next: dt * factor.min(0.5),

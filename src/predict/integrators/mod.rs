@@ -212,6 +212,9 @@ pub struct StepWorkspace {
     pub(in crate::predict) jacobians: usize,
     /// Versions of `jac`: each Jacobian computed and each re-formed (`reform`).
     pub(in crate::predict) forms: usize,
+    /// `ks[0]` is the derivative at the saved state (`q0`, `v0`) at this time [s]: a step
+    /// retried after a rejection starts from it without evaluating it again.
+    pub(in crate::predict) first_stage_at: Option<f64>,
 }
 
 impl StepWorkspace {
@@ -236,6 +239,7 @@ impl StepWorkspace {
             jac_fresh: false,
             jacobians: 0,
             forms: 0,
+            first_stage_at: None,
         }
     }
 
@@ -263,6 +267,7 @@ impl StepWorkspace {
     pub fn invalidate(&mut self) {
         self.jac_valid = false;
         self.newton_dt = f64::NAN;
+        self.first_stage_at = None;
     }
 
     /// Step with `other`'s F from now on (refactored at the next step): a W-method keeps its

@@ -3,9 +3,9 @@
 //! derivatives of the dynamics, the controllers' feedback through ∂q̈/∂τ).
 
 use crate::actuators::Actuators;
-use crate::applied::applied_generalized_force;
+use crate::applied::{applied_generalized_force, applied_generalized_force_after_kinematics};
 use crate::derivatives::DerivativeData;
-use crate::dynamics::{Baumgarte, disagree_beyond_rounding};
+use crate::dynamics::{Baumgarte, Formulation, disagree_beyond_rounding};
 use crate::error::{Error, Result};
 use crate::forces::ForceElements;
 use crate::model::Model;
@@ -118,6 +118,12 @@ impl RowsAt<'_> {
 impl Rhs<'_> {
     /// τ at (t, q, v) into `tau`.
     pub(in crate::predict) fn apply(&mut self, t: f64, q: &[f64], v: &[f64]) {
+        self.apply_with(t, q, v, false);
+    }
+
+    /// τ at (t, q, v) into `tau`; `kinematics_current`: the system's kinematics are already
+    /// those of (q, v) at q̈ = 0, which the force elements then read without a pass of their own.
+    fn apply_with(&mut self, t: f64, q: &[f64], v: &[f64], kinematics_current: bool) {
         let tau_act: &[f64] = match self.control {
             Some(a) => {
                 a.continuous_torque(t, q, v, self.tau_ctl);
@@ -125,7 +131,18 @@ impl Rhs<'_> {
             }
             None => self.tau_act,
         };
-        applied_generalized_force(self.sys, self.forces, (t, q, v), tau_act, self.tau);
+        let state = (t, q, v);
+        if kinematics_current {
+            applied_generalized_force_after_kinematics(
+                self.sys,
+                self.forces,
+                state,
+                tau_act,
+                self.tau,
+            );
+        } else {
+            applied_generalized_force(self.sys, self.forces, state, tau_act, self.tau);
+        }
     }
 
     /// ∂q̈/∂τ · ∂τ/∂(δq, v) of the force elements other than joint spring-dampers (central
@@ -177,15 +194,27 @@ impl Accel for Rhs<'_> {
             return Ok(());
         }
         self.evaluations += 1;
-        let rows_evaluated = self.rows.take(t, q, v);
-        self.apply(t, q, v);
+        let mut rows_evaluated = self.rows.take(t, q, v);
         // The form holds without stabilisation gains (a run under `drift: baumgarte` has them).
         if let Some(form) = self.invariant
             && self.gains == Baumgarte::default()
         {
+            self.apply(t, q, v);
             form.accel(v, self.tau, qdd);
             return Ok(());
         }
+        // Force elements that read placements and twists (a point spring) and the multiplier
+        // form's constraint rows need the same kinematics pass at (q, v, q̈ = 0): the rows are
+        // evaluated first and the elements read its kinematics (one pass instead of two).
+        if !rows_evaluated
+            && self.forces.needs_kinematics()
+            && !self.sys.constraints().is_empty()
+            && self.sys.formulation() != Formulation::Embedded
+        {
+            self.sys.evaluate_rows(t, q, v);
+            rows_evaluated = true;
+        }
+        self.apply_with(t, q, v, rows_evaluated);
         // `formulation: auto` takes the multiplier form here: the same q̈ as the embedded form
         // (tests/it/propagation_formulations.rs), 1.08–1.7× faster on every bundled scene
         // (docs/performance.md). Least squares (λ = S⁺ r) where stages or drift make redundant
