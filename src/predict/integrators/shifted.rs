@@ -201,7 +201,8 @@ mod tests {
     use super::*;
 
     /// The residual ‖W x − b‖ of random F of the shape, with g dt near ROS2's at 20 ms and stiff
-    /// entries (10³ /s), on sizes with their own kernels and above them; and the fixed-size
+    /// entries (10³ /s), on sizes with their own kernels, above them and above
+    /// `DENSE_EAGER_NV` (sized by the first factor); and the fixed-size
     /// kernels give the general path's factor and solve bit for bit.
     #[test]
     fn solves_w() {
@@ -235,7 +236,10 @@ mod tests {
             let mut x = b.clone();
             sf.solve(x.as_mut_slice());
             let residual = (&w * &x - &b).amax();
-            assert!(residual < 1e-12, "nv {nv}: {residual:e}");
+            // The LU's rounding grows with its size: 2.9e-12 at nv = 257 (the size sized by its
+            // first factor).
+            let tol = 1e-12 * (nv as f64 / crate::linalg::FIXED_MAX as f64).max(1.0);
+            assert!(residual < tol, "nv {nv}: {residual:e}");
             // S as the factor forms it: −g B − g² A, then the identity added.
             let mut general =
                 -(f.view((nv, nv), (nv, nv)) * g) - f.view((nv, 0), (nv, nv)) * (g * g);
