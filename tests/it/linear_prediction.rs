@@ -135,7 +135,7 @@ fn the_work_bound_counts_the_linear_path_on_a_5000_link_chain() {
     let last = traj.samples.last().unwrap();
     assert!((last.q.iter().chain(&last.v)).all(|x| x.is_finite()));
     assert!(last.error_estimate.unwrap() < 1e-6);
-    // 100 s (1e5 steps, about 20 minutes): refused before running.
+    // 100 s (1e5 steps, about 45 minutes): refused before running.
     let t = std::time::Instant::now();
     let e = p.predict(&req(100.0, rk4)).unwrap_err();
     assert!(matches!(e, Error::WorkLimit { .. }), "{e}");

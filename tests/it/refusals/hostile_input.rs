@@ -143,7 +143,7 @@ fn absurd_steps_horizons_and_states_are_refused_before_running() {
 }
 
 /// A 1 000-link chain over 100 s (RK4, dt = 1 ms, the error estimate's companion: 1.2e6
-/// evaluations by ABA, about 10 minutes) is refused up front with the estimate, naming the path
+/// evaluations by ABA, about 8 minutes) is refused up front with the estimate, naming the path
 /// it counted.
 #[test]
 fn a_1000_link_chain_is_refused_by_the_work_budget() {
