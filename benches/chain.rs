@@ -28,12 +28,12 @@ use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 
 /// The chains timed, and the largest on which the dense path (cubic on a chain) is timed.
-const SIZES: [usize; 15] = [
-    4, 8, 12, 16, 24, 32, 48, 64, 100, 128, 300, 1000, 2000, 3000, 5000,
+const SIZES: [usize; 17] = [
+    4, 8, 10, 12, 16, 24, 30, 32, 48, 64, 100, 128, 300, 1000, 2000, 3000, 5000,
 ];
 const DENSE_MAX: usize = 1000;
 /// The chains held at both ends that are timed.
-const LOOP_SIZES: [usize; 5] = [100, 300, 1000, 3000, 5000];
+const LOOP_SIZES: [usize; 7] = [10, 30, 100, 300, 1000, 3000, 5000];
 
 fn chain_model(n: usize) -> Model {
     let opts = ModelOptions {

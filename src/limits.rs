@@ -21,8 +21,8 @@ pub const MAX_STATE: (f64, f64, f64) = (1e9, 1e6, 1e12);
 pub const DEFAULT_MAX_STEPS: f64 = 1e6;
 /// Default `integration.max_samples`: output samples per prediction.
 pub const DEFAULT_MAX_SAMPLES: f64 = 1e5;
-/// Default `integration.max_work`: dynamics evaluations × the model's cost per evaluation
-/// (bodies + Σ depth² of the coordinates: the mass-matrix factorization), ≈ 10–60 s of CPU.
+/// Default `integration.max_work`: dynamics evaluations × the system's cost per evaluation
+/// ([`EvaluationCost`]), ≈ 10–60 s of CPU.
 pub const DEFAULT_MAX_WORK: f64 = 1e10;
 
 /// `x` finite and within [lo, hi], or an error naming `what` and the range.
@@ -57,9 +57,68 @@ pub fn check_input_state(model: &crate::Model, q: &[f64], v: &[f64], tau: &[f64]
     check_magnitude("tau", tau, MAX_STATE.2, "N or N·m")
 }
 
-/// The cost of one dynamics evaluation in work units: bodies plus Σ over velocity coordinates
-/// of (depth in the tree)², the operation count of M's sparse factorization.
-pub fn evaluation_cost(model: &crate::Model) -> f64 {
+/// Work units of one body in ABA's pass (the linear-time path): the dense path's units per
+/// coordinate on the chain where both take the same time — mean depth
+/// `LINEAR_MIN_MEAN_DEPTH` = 15, n = 29: (29 + Σ k²) / 29 = 296.
+pub const LINEAR_UNITS_PER_BODY: f64 = 300.0;
+
+/// Work units of one body in a constraint row's pass on the linear-time path (its innovations,
+/// a force pass without ABA's inertias): a tenth of ABA's. Measured on the 1 000-link chain
+/// (benches/chain.rs): three rows, their Gram matrix and solve add 46 µs to ABA's 503 µs,
+/// 15 ns a body a row against ABA's 500.
+pub const LINEAR_UNITS_PER_BODY_ROW: f64 = 30.0;
+
+/// The cost of one dynamics evaluation of a system in work units, on the path it takes.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct EvaluationCost {
+    /// The dense path's: bodies + Σ over velocity coordinates of (depth in the tree)², the
+    /// operation count of M's sparse factorization. The implicit methods pay it on every path:
+    /// their F (the dynamics' derivatives, nv × 2nv) and its factor are dense.
+    pub dense: f64,
+    /// The linear-time path's, where the system's dynamics take it
+    /// ([`crate::dynamics::takes_linear_path`]): bodies × [`LINEAR_UNITS_PER_BODY`] + per
+    /// constraint row bodies × [`LINEAR_UNITS_PER_BODY_ROW`], plus nv m² for the rows' Gram
+    /// matrix and m³ for its solve (m rows): O(n m² + m³).
+    pub linear: Option<f64>,
+    /// Moving bodies (for messages).
+    pub bodies: usize,
+}
+
+impl EvaluationCost {
+    /// The cost of `sys`'s dynamics on the path its prediction stages take.
+    pub fn of(sys: &crate::System) -> Self {
+        let model = sys.model();
+        let rows = sys.constraints().nrows;
+        let linear = sys.takes_linear_path()
+            && (rows == 0 || sys.formulation() != crate::dynamics::Formulation::Embedded);
+        Self {
+            dense: dense_evaluation_cost(model),
+            linear: linear.then(|| linear_evaluation_cost(model, rows)),
+            bodies: model.nbodies() - 1,
+        }
+    }
+
+    /// Work units of one evaluation by a method: explicit ones evaluate on the system's path;
+    /// `implicit` ones (a Jacobian and a factor of it) at the dense path's cost.
+    pub fn per_evaluation(&self, implicit: bool) -> f64 {
+        match self.linear {
+            Some(c) if !implicit => c,
+            _ => self.dense,
+        }
+    }
+
+    /// The path `per_evaluation(implicit)` counts, for messages.
+    pub fn path(&self, implicit: bool) -> &'static str {
+        match self.linear {
+            Some(_) if !implicit => "linear-time",
+            _ => "dense",
+        }
+    }
+}
+
+/// The dense path's cost of one evaluation: bodies plus Σ over velocity coordinates of
+/// (depth in the tree)², the operation count of M's sparse factorization.
+pub fn dense_evaluation_cost(model: &crate::Model) -> f64 {
     let mut depth = vec![0.0f64; model.nv];
     let mut cost = model.nbodies() as f64;
     for k in 0..model.nv {
@@ -68,6 +127,13 @@ pub fn evaluation_cost(model: &crate::Model) -> f64 {
         cost += depth[k] * depth[k];
     }
     cost
+}
+
+/// The linear-time path's cost of one evaluation with `rows` constraint rows
+/// ([`EvaluationCost::linear`]).
+pub fn linear_evaluation_cost(model: &crate::Model, rows: usize) -> f64 {
+    let (bodies, nv, m) = (model.nbodies() as f64, model.nv as f64, rows as f64);
+    bodies * (LINEAR_UNITS_PER_BODY + m * LINEAR_UNITS_PER_BODY_ROW) + nv * m * m + m * m * m
 }
 
 /// A number for a message: plain where that reads well, `1e308` rather than 309 digits.

@@ -14,8 +14,13 @@ What it runs, in order:
   (`dynamics/tree_multipliers.rs`) and dense;
 - the release CLI's whole `eval --scene` process on each chain scene, free and held (URDF
   reading, model building, the scene's checks, the dynamics, the constraint forces, the JSON
-  output): wall time (best of `--repeats`) and peak RSS (the process's own, from wait4).
-The exponent is the least-squares slope of log(cost) against log(n) over n >= 1000.
+  output): wall time (best of `--repeats`) and peak RSS (the process's own, from wait4);
+- the release CLI's whole `predict --scene` process on the same scenes: RK4 at a fixed 1 ms
+  step for 0.1 s (100 steps), the scene's defaults otherwise (error estimate on: its companion
+  takes two half steps per step, 1 200 evaluations in all; drift projection; one sample at the
+  end): wall time (best of `--repeats`) and peak RSS.
+The exponent is the least-squares slope of log(cost) against log(n) over n >= 1000. The load
+average when the measurement starts and ends is written beside the tables.
 """
 
 import argparse
@@ -32,7 +37,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DOC = os.path.join(ROOT, "docs", "performance.md")
 BEGIN = "<!-- chain:begin -->"
 END = "<!-- chain:end -->"
-TABLE_N = [100, 300, 1000, 3000, 5000]
+TABLE_N = [10, 30, 100, 300, 1000, 3000, 5000]
+# The prediction timed: RK4 at a fixed step over a fixed horizon.
+PREDICT = ["--method", "rk4", "--dt", "1e-3", "--horizon", "0.1", "--sample-period", "0.1"]
 FIT_FROM = 1000
 
 
@@ -69,34 +76,39 @@ def exponent(ns, values):
     return sum((x - mx) * (y - my) for x, y in pts) / sum((x - mx) ** 2 for x, _ in pts)
 
 
+def best_of(repeats, cmd):
+    """(best wall seconds, largest peak RSS in MB) of `repeats` runs of `cmd`."""
+    runs = [timed_process(cmd) for _ in range(repeats)]
+    return min(w for w, _ in runs), max(r for _, r in runs)
+
+
 def measure(repeats):
     scenes = os.path.join(target_dir(), "chain_scenes")
+    load = [os.getloadavg()[0]]
     run(["cargo", "build", "--release", "-p", "constraint_dynamics_cli"])
     run(["cargo", "bench", "--bench", "chain"], env={**os.environ, "CHAIN_SCENES_DIR": scenes})
     cli = os.path.join(target_dir(), "release", "constraint_dynamics")
+
+    def processes(name, n):
+        scene = os.path.join(scenes, f"{name}_{n}.yaml")
+        eval_s, rss_mb = best_of(repeats, [cli, "eval", "--scene", scene])
+        predict_s, predict_mb = best_of(repeats, [cli, "predict", "--scene", scene] + PREDICT)
+        return {"n": n, "eval_s": eval_s, "rss_mb": rss_mb, "predict_s": predict_s,
+                "predict_mb": predict_mb}
+
     rows = []
     for n in TABLE_N:
-        scene = os.path.join(scenes, f"chain_{n}.yaml")
-        runs = [timed_process([cli, "eval", "--scene", scene]) for _ in range(repeats)]
-        rows.append({
-            "n": n,
-            "eval_s": min(w for w, _ in runs),
-            "rss_mb": max(r for _, r in runs),
-            "dynamics_s": criterion_median_s("chain", "linear", str(n)),
-        })
+        r = processes("chain", n)
+        r["dynamics_s"] = criterion_median_s("chain", "linear", str(n))
+        rows.append(r)
     loops = []
     for n in TABLE_N:
-        scene = os.path.join(scenes, f"chain_loop_{n}.yaml")
-        runs = [timed_process([cli, "eval", "--scene", scene]) for _ in range(repeats)]
+        r = processes("chain_loop", n)
         dense_dir = os.path.join(target_dir(), "criterion", "chain_loop", "dense", str(n))
-        loops.append({
-            "n": n,
-            "eval_s": min(w for w, _ in runs),
-            "rss_mb": max(r for _, r in runs),
-            "dynamics_s": criterion_median_s("chain_loop", "linear", str(n)),
-            "dense_s": criterion_median_s("chain_loop", "dense", str(n))
-            if os.path.isdir(dense_dir) else None,
-        })
+        r["dynamics_s"] = criterion_median_s("chain_loop", "linear", str(n))
+        r["dense_s"] = (criterion_median_s("chain_loop", "dense", str(n))
+                        if os.path.isdir(dense_dir) else None)
+        loops.append(r)
     sizes = sorted(int(d) for d in os.listdir(os.path.join(target_dir(), "criterion", "chain",
                                                               "dense")) if d.isdigit())
     paths = [(n, criterion_median_s("chain", "linear", str(n)),
@@ -105,7 +117,8 @@ def measure(repeats):
     for name in ["ur5", "panda", "solo12", "talos_reduced"]:
         robots.append((name, criterion_median_s("robot", "linear", name),
                        criterion_median_s("robot", "dense", name)))
-    return rows, paths, robots, loops
+    load.append(os.getloadavg()[0])
+    return rows, paths, robots, loops, load
 
 
 def fmt_time(s):
@@ -126,9 +139,21 @@ def crossover(paths):
     return best
 
 
-def table(rows, paths, robots, loops):
+KEYS = ("eval_s", "rss_mb", "predict_s", "predict_mb", "dynamics_s")
+
+
+def process_cells(r):
+    return (f"{fmt_time(r['eval_s'])} | {r['rss_mb']:.0f} MB | {fmt_time(r['predict_s'])} "
+            f"| {r['predict_mb']:.0f} MB | {fmt_time(r['dynamics_s'])}")
+
+
+def exponent_cells(fit):
+    return " | ".join(f"{fit[k]:.2f}" for k in KEYS)
+
+
+def table(rows, paths, robots, loops, load):
     ns = [r["n"] for r in rows]
-    fit = {k: exponent(ns, [r[k] for r in rows]) for k in ("eval_s", "dynamics_s", "rss_mb")}
+    fit = {k: exponent(ns, [r[k] for r in rows]) for k in KEYS}
     cpu = ""
     try:
         with open("/proc/cpuinfo") as f:
@@ -139,17 +164,17 @@ def table(rows, paths, robots, loops):
         "<!-- written by python3 tools/chain_cost.py: do not edit -->",
         "",
         f"Measured on {cpu}, {os.cpu_count()} cores, "
-        f"{time.strftime('%Y-%m-%d', time.gmtime())}.",
+        f"{time.strftime('%Y-%m-%d', time.gmtime())}; load average {load[0]:.1f} at the start, "
+        f"{load[1]:.1f} at the end. `predict`: `{' '.join(PREDICT)}`, the scene's defaults "
+        "otherwise (error estimate on: 1 200 evaluations; drift projection).",
         "",
-        "| n (links = nv) | `eval --scene` process, URDF reading included | peak RSS | "
-        "forward dynamics alone (ABA) |",
-        "|---|---|---|---|",
+        "| n (links = nv) | `eval --scene` process, URDF reading included | peak RSS "
+        "| `predict --scene` process | peak RSS | forward dynamics alone (ABA) |",
+        "|---|---|---|---|---|---|",
     ]
     for r in rows:
-        out.append(f"| {r['n']} | {fmt_time(r['eval_s'])} | {r['rss_mb']:.0f} MB "
-                   f"| {fmt_time(r['dynamics_s'])} |")
-    out.append(f"| exponent (n ≥ {FIT_FROM}) | {fit['eval_s']:.2f} | {fit['rss_mb']:.2f} "
-               f"| {fit['dynamics_s']:.2f} |")
+        out.append(f"| {r['n']} | {process_cells(r)} |")
+    out.append(f"| exponent (n ≥ {FIT_FROM}) | {exponent_cells(fit)} |")
     out += [
         "",
         "Forward dynamics alone, both paths (criterion medians):",
@@ -172,20 +197,18 @@ def table(rows, paths, robots, loops):
         "The chain held at both ends (its last link's end held at its start point: three rows), "
         "multiplier form with its forces:",
         "",
-        "| n | `eval --scene` process | peak RSS | constrained dynamics without M "
-        "| dense (CRBA + LTL + Schur) | dense / without M |",
-        "|---|---|---|---|---|---|",
+        "| n | `eval --scene` process | peak RSS | `predict --scene` process | peak RSS "
+        "| constrained dynamics without M | dense (CRBA + LTL + Schur) | dense / without M |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for r in loops:
         ratio = r["dense_s"] / r["dynamics_s"] if r["dense_s"] else None
         dense = (f"{fmt_time(r['dense_s'])} | {ratio:.{1 if ratio < 10 else 0}f}"
                  if ratio else "— | —")
-        out.append(f"| {r['n']} | {fmt_time(r['eval_s'])} | {r['rss_mb']:.0f} MB "
-                   f"| {fmt_time(r['dynamics_s'])} | {dense} |")
-    lfit = {k: exponent(ns, [r[k] for r in loops]) for k in ("eval_s", "dynamics_s", "rss_mb")}
+        out.append(f"| {r['n']} | {process_cells(r)} | {dense} |")
+    lfit = {k: exponent(ns, [r[k] for r in loops]) for k in KEYS}
     out += [
-        f"| exponent (n ≥ {FIT_FROM}) | {lfit['eval_s']:.2f} | {lfit['rss_mb']:.2f} "
-        f"| {lfit['dynamics_s']:.2f} | | |",
+        f"| exponent (n ≥ {FIT_FROM}) | {exponent_cells(lfit)} | | |",
         "",
     ]
     return "\n".join(out)

@@ -366,11 +366,21 @@ impl ForceElements {
     /// The fastest rate among the elements [1/s]: max over joint elements of √(k (M⁻¹)_ii) and
     /// d (M⁻¹)_ii, over point springs of √(k w) and c w with w = n̂ᵀ J M⁻¹ Jᵀ n̂, and over
     /// turning resistances of M_max/ω₀ gᵀ M⁻¹ g with g = J_ωᵀ n, and over tyres of μ N/s₀
-    /// times the contact point's tangential mobility (kinematics at q).
-    pub fn max_rate(&mut self, model: &Model, data: &Data, minv: &DMatrix<f64>) -> f64 {
+    /// times the contact point's tangential mobility (kinematics at q). `mobility(a)` is
+    /// a M⁻¹ aᵀ for a row a (nv): the dense inverse on a small robot, ABA's factors on a large
+    /// tree (`Predictor::check_step_size`).
+    pub fn max_rate(
+        &mut self,
+        model: &Model,
+        data: &Data,
+        mobility: &mut dyn FnMut(&[f64]) -> f64,
+    ) -> f64 {
         let mut rate: f64 = 0.0;
+        let mut row = vec![0.0; model.nv];
         for &(_, iv, k, d, _) in &self.joint_springs {
-            let w = minv[(iv, iv)];
+            row[iv] = 1.0;
+            let w = mobility(&row);
+            row[iv] = 0.0;
             rate = rate.max((k * w).sqrt()).max(d * w);
         }
         for s in &self.springs {
@@ -381,14 +391,14 @@ impl ForceElements {
             let ja = n.transpose() * &self.j3;
             point_jacobian(model, data, s.b.0, &s.b.1, &mut self.j3, 0);
             let jrel = ja - n.transpose() * &self.j3;
-            let w = (&jrel * minv * jrel.transpose())[(0, 0)];
+            let w = mobility(jrel.as_slice());
             rate = rate.max((s.k * w).sqrt()).max(s.c * w);
         }
         for tr in &self.turning {
-            rate = rate.max(tr.max_rate(model, data, minv, &mut self.j6));
+            rate = rate.max(tr.max_rate(model, data, mobility, &mut self.j6));
         }
         for ty in &self.tyres {
-            rate = rate.max(ty.max_rate(model, data, minv, &mut self.j3));
+            rate = rate.max(ty.max_rate(model, data, mobility, &mut self.j3));
         }
         rate
     }

@@ -128,12 +128,12 @@ impl TurningResistance {
         &self,
         model: &Model,
         data: &Data,
-        minv: &DMatrix<f64>,
+        mobility: &mut dyn FnMut(&[f64]) -> f64,
         j6: &mut DMatrix<f64>,
     ) -> f64 {
         self.spin_row(model, data, j6);
         let g = j6.row(0).clone_owned();
-        let w = (&g * minv * g.transpose())[(0, 0)];
+        let w = mobility(g.as_slice());
         self.max_moment / self.rate_scale * w
     }
 }

@@ -227,23 +227,26 @@ impl Tyre {
         &self,
         model: &Model,
         data: &Data,
-        minv: &DMatrix<f64>,
+        mobility: &mut dyn FnMut(&[f64]) -> f64,
         j3: &mut DMatrix<f64>,
     ) -> f64 {
         let (p, height) = self.contact_point(model, data);
         point_jacobian(model, data, self.frame, &p, j3, 0);
         let proj = nalgebra::Matrix3::identity() - self.normal * self.normal.transpose();
         let jt = proj * j3.rows(0, 3);
-        let mobility = (&jt * minv * jt.transpose()).trace();
+        // The trace of P J M⁻¹ Jᵀ P: the sum of its rows' mobilities.
+        let tangential: f64 = (0..3)
+            .map(|i| mobility(jt.row(i).clone_owned().as_slice()))
+            .sum();
         let jn = self.normal.transpose() * j3.rows(0, 3);
-        let normal_mobility = (&jn * minv * jn.transpose())[(0, 0)];
+        let normal_mobility = mobility(jn.as_slice());
         let vp = point_velocity(model, data, self.frame, &p);
         let n = self.normal_force(height, &vp);
         let (k, c) = match self.normal_force {
             Normal::Soft { k, c, .. } => (k, c),
             Normal::Constant(_) => (0.0, 0.0),
         };
-        (self.friction * n / self.slip_scale * mobility)
+        (self.friction * n / self.slip_scale * tangential)
             .max((k * normal_mobility).sqrt())
             .max(c * normal_mobility)
     }

@@ -18,11 +18,14 @@ use super::run::rhs::JacobianWork;
 use super::settings::{DriftControl, IntegrationSettings};
 use super::trajectory::Trajectory;
 use crate::actuators::Actuators;
-use crate::dynamics::Baumgarte;
+use crate::algorithm::innovations_product;
+use crate::dynamics::{Baumgarte, TreeKktWorkspace};
 use crate::error::{Error, Result};
 use crate::forces::ForceElements;
+use crate::limits::EvaluationCost;
 use crate::model::Model;
 use crate::system::System;
+use nalgebra::{DMatrix, DVector};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -103,8 +106,8 @@ pub(super) struct Workspace {
     pub(super) rows_v: Vec<f64>,
     /// The implicit methods' Jacobian (run/advance.rs).
     pub(super) jw: JacobianWork,
-    /// Work units of one dynamics evaluation (`limits::evaluation_cost`).
-    pub(super) cost: f64,
+    /// Work units of one dynamics evaluation on each path.
+    pub(super) cost: EvaluationCost,
     /// The Baumgarte gains of the current run (`Predictor::drift_gains`).
     pub(super) gains: Baumgarte,
     /// The covariance worker's pipe while a run has one.
@@ -162,7 +165,7 @@ impl Predictor {
             probe_v: vec![0.0; nv],
             rows_q: vec![0.0; nq],
             rows_v: vec![0.0; nv],
-            cost: crate::limits::evaluation_cost(&model),
+            cost: EvaluationCost::of(&sys),
             gains: sys.baumgarte(),
             jw: JacobianWork::new(&sys),
             pipe: PipeSlot::default(),
@@ -232,7 +235,7 @@ impl Predictor {
         };
         Ok(
             PredictionBudget::validated(overrides.apply(&self.config.settings), control)?
-                .with_model(&self.model),
+                .with_system(&self.sys),
         )
     }
 
@@ -275,7 +278,7 @@ impl Predictor {
                 {
                     s = estimate::refined(&s, excess, t, horizon);
                     PredictionBudget::new(s.clone(), control)
-                        .with_model(&self.model)
+                        .with_system(&self.sys)
                         .check(horizon)?;
                     refinements += 1;
                 }
@@ -300,6 +303,9 @@ impl Predictor {
 
     /// Refuse, before running, a fixed explicit step beyond the method's stability limit for the
     /// stiffest spring or damper: dt·max(ω, d/m) from k (M⁻¹)_ii, d (M⁻¹)_ii per joint element.
+    /// The mobilities a M⁻¹ aᵀ come from ABA's factors on a tree that takes the linear path (one
+    /// O(n) pass per row), from the dense inverse of M elsewhere; a scene without force elements
+    /// has no rate to bound.
     pub(super) fn check_step_size(
         &mut self,
         q: &[f64],
@@ -309,13 +315,25 @@ impl Predictor {
         let Some(limit) = s.method.integrator().stability_limit() else {
             return Ok(());
         };
+        if self.forces.is_empty() {
+            return Ok(());
+        }
         self.sys.kinematics_at(q, v);
-        let m = self.sys.mass_matrix_at(q).clone();
-        let reg = m.diagonal().amax().max(1e-12) * 1e-12;
-        let minv = (m + nalgebra::DMatrix::identity(v.len(), v.len()) * reg)
-            .try_inverse()
-            .unwrap_or_default();
-        let rate = (self.forces).max_rate(self.sys.model(), self.sys.data(), &minv);
+        let rate = match self.tree_max_rate(q) {
+            Some(rate) => rate,
+            None => {
+                let m = self.sys.mass_matrix_at(q).clone();
+                let reg = m.diagonal().amax().max(1e-12) * 1e-12;
+                let minv = (m + DMatrix::identity(v.len(), v.len()) * reg)
+                    .try_inverse()
+                    .unwrap_or_default();
+                let mut mobility = |a: &[f64]| {
+                    let a = DVector::from_column_slice(a);
+                    a.dot(&(&minv * &a))
+                };
+                (self.forces).max_rate(self.sys.model(), self.sys.data(), &mut mobility)
+            }
+        };
         if s.dt * rate > limit {
             return Err(Error::StepTooLarge {
                 message: format!(
@@ -328,5 +346,26 @@ impl Predictor {
             });
         }
         Ok(())
+    }
+
+    /// The elements' fastest rate with the mobilities from ABA's factors of M at q (the
+    /// system's kinematics at (q, v), kept: the factors go into a copy of its data), O(n) per
+    /// row; None where the system takes the dense path or a pivot fails its checks.
+    fn tree_max_rate(&mut self, q: &[f64]) -> Option<f64> {
+        if !self.sys.takes_linear_path() {
+            return None;
+        }
+        let model = self.sys.model();
+        let mut factors = self.sys.data().clone();
+        let mut kkt = TreeKktWorkspace::new(model);
+        if !kkt.factor_metric(model, &mut factors, q) {
+            return None;
+        }
+        let mut u = vec![0.0; model.nv];
+        let mut mobility = |a: &[f64]| {
+            kkt.innovations(model, &factors, a, &mut u);
+            innovations_product(model, &factors, &u, &u)
+        };
+        Some((self.forces).max_rate(model, self.sys.data(), &mut mobility))
     }
 }

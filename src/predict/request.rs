@@ -9,8 +9,8 @@ use super::settings::{DriftControl, IntegrationSettings};
 use crate::actuators::Command;
 use crate::constraints::ContactLimits;
 use crate::error::{Error, Result};
-use crate::limits::{evaluation_cost, show};
-use crate::model::Model;
+use crate::limits::{EvaluationCost, show};
+use crate::system::System;
 use nalgebra::DMatrix;
 
 /// One prediction: where it starts, how long, under which commands, what it records, and any
@@ -192,9 +192,8 @@ impl IntegrationOverrides {
 pub struct PredictionBudget {
     settings: IntegrationSettings,
     control_period: Option<f64>,
-    /// Work units of one dynamics evaluation (`limits::evaluation_cost`) and the model's moving
-    /// bodies; None: counts only.
-    evaluation_cost: Option<(f64, usize)>,
+    /// Work units of one dynamics evaluation on each path; None: counts only.
+    evaluation_cost: Option<EvaluationCost>,
 }
 
 /// The counts of a prediction that fits its budget.
@@ -238,10 +237,10 @@ impl PredictionBudget {
         Ok(Self::new(settings, control_period))
     }
 
-    /// The same budget, bounding also the work units of `model`'s dynamics evaluations
-    /// (`limits::evaluation_cost`).
-    pub fn with_model(mut self, model: &Model) -> Self {
-        self.evaluation_cost = Some((evaluation_cost(model), model.nbodies() - 1));
+    /// The same budget, bounding also the work units of `sys`'s dynamics evaluations on the
+    /// path they take ([`EvaluationCost`]).
+    pub fn with_system(mut self, sys: &System) -> Self {
+        self.evaluation_cost = Some(EvaluationCost::of(sys));
         self
     }
 
@@ -351,16 +350,20 @@ impl PredictionBudget {
             self.evaluation_cost,
             s.method.integrator().evaluations_per_step(),
         ) {
-            (Some((cost, bodies)), Some(per_step)) => {
+            (Some(costs), Some(per_step)) => {
                 // The error estimate's companion takes two steps of dt/2 per step (estimate.rs):
                 // three times the answer's evaluations, counted whether or not it runs.
                 let per_step = 3.0 * per_step;
                 let steps = (horizon / s.dt).ceil();
+                let implicit = s.method.integrator().is_implicit();
+                let cost = costs.per_evaluation(implicit);
                 let work = steps * per_step * cost;
                 limit(
                     format!(
                         "work units ({steps:e} steps × {per_step} evaluations × {cost:.3e} per \
-                         evaluation of this {bodies}-body model)"
+                         evaluation of this {}-body model on its {} path)",
+                        costs.bodies,
+                        costs.path(implicit)
                     ),
                     work,
                     s.max_work,

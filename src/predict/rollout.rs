@@ -74,7 +74,7 @@ impl Predictor {
         batch.max_steps *= n;
         batch.max_samples *= n;
         PredictionBudget::new(batch, single.control_period())
-            .with_model(self.model())
+            .with_system(&self.sys)
             .check(longest * n)?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(opts.threads)

@@ -61,7 +61,9 @@ pub struct IntegrationSettings {
     #[serde(default = "default_max_samples")]
     pub max_samples: f64,
     /// Work units one prediction may cost (default 1e10, ≈ 10–60 s of CPU): dynamics
-    /// evaluations × (bodies + Σ depth² of the coordinates), see `limits::evaluation_cost`.
+    /// evaluations × the cost of one on the path it takes, see `limits::EvaluationCost` (the
+    /// dense path: bodies + Σ depth² of the coordinates; the linear-time path: O(n m² + m³)
+    /// with m constraint rows).
     #[serde(default = "default_max_work")]
     pub max_work: f64,
     /// `max_error:` bound on the global error estimate of q, every kind of coordinate in its

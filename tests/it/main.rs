@@ -38,6 +38,7 @@ mod example_robot_data;
 mod invariant_dynamics;
 mod linear_constrained_dynamics;
 mod linear_dynamics;
+mod linear_prediction;
 mod linearize;
 mod live_prediction;
 mod moving_frames;

@@ -122,7 +122,7 @@ fn rollouts_bound_the_batch_work() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let mut scene = Scene::load(root.join("params/suite_diff_drive.yaml")).unwrap();
     scene.file.actuators.control_period = Some(0.005);
-    let cost = constraint_dynamics::limits::evaluation_cost(&scene.model);
+    let cost = constraint_dynamics::limits::dense_evaluation_cost(&scene.model);
     // One rollout: 2 commands × 0.025 s = 10 steps × 12 = 120 costs; 2 rollouts 240.
     let predictor = Predictor::from_scene(&scene)
         .unwrap()

@@ -16,6 +16,7 @@ mod shifted;
 mod tableaus;
 
 use crate::actuators::Actuators;
+use crate::algorithm::DENSE_EAGER_NV;
 use crate::error::{Error, Result};
 use crate::model::Model;
 use lie::dexp_inv;
@@ -45,7 +46,9 @@ pub trait Accel {
     }
 }
 
-/// Buffers of a finite-difference Jacobian (nv or 2nv each).
+/// Buffers of a finite-difference Jacobian (nv or 2nv each), and what an analytic one keeps
+/// (nv × nv and nv × 2nv: sized at build up to `DENSE_EAGER_NV` coordinates, by the first
+/// analytic Jacobian above).
 #[derive(Clone, Debug, Default)]
 pub struct JacobianScratch {
     dx: Vec<f64>,
@@ -69,14 +72,15 @@ pub struct JacobianScratch {
 
 impl JacobianScratch {
     pub fn new(nq: usize, nv: usize) -> Self {
+        let dense = if nv <= DENSE_EAGER_NV { nv * nv } else { 0 };
         Self {
             dx: vec![0.0; 2 * nv],
             qs: vec![0.0; nq],
             vs: vec![0.0; nv],
             ap: vec![0.0; nv],
             dqdd_dt: vec![0.0; nv],
-            dqdd_dtau: vec![0.0; nv * nv],
-            passive: vec![0.0; 2 * nv * nv],
+            dqdd_dtau: vec![0.0; dense],
+            passive: vec![0.0; 2 * dense],
             has_dqdd_dtau: false,
         }
     }
@@ -84,6 +88,8 @@ impl JacobianScratch {
     /// Keep F's lower half `jac` (before the controllers' feedback) and ∂q̈/∂τ.
     pub(in crate::predict) fn keep_passive(&mut self, jac: &DMatrix<f64>, dqdd_dtau: &[f64]) {
         let nv = self.dqdd_dt.len();
+        self.dqdd_dtau.resize(nv * nv, 0.0);
+        self.passive.resize(2 * nv * nv, 0.0);
         for c in 0..2 * nv {
             for r in 0..nv {
                 self.passive[c * nv + r] = jac[(nv + r, c)];
@@ -180,7 +186,10 @@ pub fn accel_jacobian_fd<F: Accel + ?Sized>(
     Ok(())
 }
 
-/// Buffers of one step, sized for a model (nq, nv) and reused by every step.
+/// Buffers of one step, sized for a model (nq, nv) and reused by every step. The implicit
+/// methods' F and W (2nv × 2nv and 2 nv²) are sized at build up to `DENSE_EAGER_NV`
+/// coordinates, by the first step that forms them above: an explicit step of a large tree holds
+/// O(nv).
 #[derive(Clone, Debug, Default)]
 pub struct StepWorkspace {
     /// Stage derivatives k_i (2nv each), up to 12 stages (DOP853).
@@ -229,7 +238,11 @@ impl StepWorkspace {
             v0: vec![0.0; nv],
             err: vec![0.0; n],
             err3: vec![0.0; n],
-            jac: DMatrix::zeros(n, n),
+            jac: if nv <= DENSE_EAGER_NV {
+                DMatrix::zeros(n, n)
+            } else {
+                DMatrix::zeros(0, 0)
+            },
             newton: ShiftedFactor::new(nv),
             resid: vec![0.0; n],
             a0: vec![0.0; nv],
@@ -274,10 +287,13 @@ impl StepWorkspace {
     /// order with any F, and the error estimate's companion takes the answer's, computed at
     /// nearly the same state, instead of its own.
     pub(in crate::predict) fn share_jacobian(&mut self, other: &StepWorkspace) {
+        size_square(&mut self.jac, other.jac.nrows());
         self.jac.copy_from(&other.jac);
-        (self.scratch.dqdd_dt).copy_from_slice(&other.scratch.dqdd_dt);
-        (self.scratch.dqdd_dtau).copy_from_slice(&other.scratch.dqdd_dtau);
-        (self.scratch.passive).copy_from_slice(&other.scratch.passive);
+        // `Vec::clone_from` reuses the allocation where the sizes agree (every step after the
+        // first).
+        (self.scratch.dqdd_dt).clone_from(&other.scratch.dqdd_dt);
+        (self.scratch.dqdd_dtau).clone_from(&other.scratch.dqdd_dtau);
+        (self.scratch.passive).clone_from(&other.scratch.passive);
         self.scratch.has_dqdd_dtau = other.scratch.has_dqdd_dtau;
         self.jac_valid = true;
         self.newton_dt = f64::NAN;
@@ -313,6 +329,7 @@ pub(in crate::predict) fn state_jacobian<F: Accel>(
     ws: &mut StepWorkspace,
 ) -> Result<()> {
     let nv = v.len();
+    size_square(&mut ws.jac, 2 * nv);
     ws.jac.as_mut_slice().fill(0.0);
     for i in 0..nv {
         ws.jac[(i, nv + i)] = 1.0; // ∂(stage velocity)/∂v
@@ -323,6 +340,13 @@ pub(in crate::predict) fn state_jacobian<F: Accel>(
     ws.jacobians += 1;
     ws.forms += 1;
     Ok(())
+}
+
+/// `m` sized n × n, when it is not (its entries then zero).
+fn size_square(m: &mut DMatrix<f64>, n: usize) {
+    if m.nrows() != n || m.ncols() != n {
+        *m = DMatrix::zeros(n, n);
+    }
 }
 
 /// `ws.newton` ← the factored I − dtg · `ws.jac`; `method` names the step in the error.

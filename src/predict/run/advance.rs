@@ -70,7 +70,7 @@ impl Predictor {
         s: &IntegrationSettings,
     ) -> Result<f64> {
         let (t0, t1) = span;
-        let cost = self.ws.cost;
+        let cost = (self.ws.cost).per_evaluation(s.method.integrator().is_implicit());
         let model = &self.model;
         let actuators = &self.actuators;
         let ws = &mut self.ws;

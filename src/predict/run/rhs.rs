@@ -3,6 +3,7 @@
 //! derivatives of the dynamics, the controllers' feedback through ∂q̈/∂τ).
 
 use crate::actuators::Actuators;
+use crate::algorithm::DENSE_EAGER_NV;
 use crate::applied::{applied_generalized_force, applied_generalized_force_after_kinematics};
 use crate::derivatives::DerivativeData;
 use crate::dynamics::{Baumgarte, Formulation, disagree_beyond_rounding};
@@ -20,7 +21,9 @@ use nalgebra::DMatrix;
 /// force elements' generalized force differenced (kinematics only).
 #[derive(Clone, Debug, Default)]
 pub(in crate::predict) struct JacobianWork {
-    /// None: finite differences of the whole right-hand side.
+    /// The dynamics' derivatives (six nv × nv matrices): built with the workspace up to
+    /// `DENSE_EAGER_NV` coordinates, by the first analytic Jacobian above (an explicit
+    /// prediction of a large tree never holds them).
     pub(in crate::predict) dd: Option<DerivativeData>,
     pub(in crate::predict) tau_p: Vec<f64>,
     pub(in crate::predict) tau_m: Vec<f64>,
@@ -34,7 +37,8 @@ impl JacobianWork {
     pub(in crate::predict) fn new(sys: &System) -> Self {
         let (nq, nv) = (sys.model().nq, sys.model().nv);
         Self {
-            dd: Some(DerivativeData::new(sys.model(), sys.constraints().nrows)),
+            dd: (nv <= DENSE_EAGER_NV)
+                .then(|| DerivativeData::new(sys.model(), sys.constraints().nrows)),
             tau_p: vec![0.0; nv],
             tau_m: vec![0.0; nv],
             dtau: vec![0.0; nv],
@@ -265,10 +269,8 @@ impl Accel for Rhs<'_> {
         // The derivatives (or differences) evaluate at other states: nothing to reuse after.
         self.rows.t = None;
         self.apply(t, q, v);
-        let Some(dd) = self.jw.dd.as_mut() else {
-            accel_jacobian_fd(self, model, (t, q, v), qdd, jac, scratch)?;
-            return Ok(false);
-        };
+        let rows = self.sys.constraints().nrows;
+        let dd = (self.jw.dd).get_or_insert_with(|| DerivativeData::new(model, rows));
         // Where the dynamics are a constant form, its own derivatives: the exact Jacobian of
         // the right-hand side evaluated (dynamics/invariant.rs).
         let analytic = match self.invariant {
