@@ -255,6 +255,7 @@ pub fn evaluate(
         let in_force = in_force_at(t0);
         // The wheel controllers' integrals from the efforts they gave, under the command in
         // force when those were measured.
+        integrals.fill(0.0);
         if let Some(t_effort) = start
             .measured
             .at
