@@ -153,8 +153,8 @@ trait EmbeddedPair {
 }
 
 /// One step of an embedded pair and its step-size control: the next step is
-/// dt · clamp(0.9 norm^EXPONENT, 0.2, MAX_GROWTH); a step over the tolerance (or with a
-/// non-finite norm) is undone and retried at most half as long.
+/// dt · clamp(0.9 norm^EXPONENT, 0.2, MAX_GROWTH), at most dt right after a rejection; a step
+/// over the tolerance (or with a non-finite norm) is undone and retried at most half as long.
 fn embedded_step<P: EmbeddedPair, F: Accel>(
     f: &mut F,
     model: &Model,
@@ -171,11 +171,20 @@ fn embedded_step<P: EmbeddedPair, F: Accel>(
         ws.restore(q, v);
         // The retry starts from the same state: its first stage is the one just evaluated.
         ws.first_stage_at = Some(t);
+        ws.after_rejection = true;
         StepOutcome {
             accepted: false,
             h_next: dt * factor.min(0.5),
         }
     } else {
+        // Hairer's rule (dop853.f, dopri5.f): the step accepted right after a rejection does
+        // not let the next one grow; the estimate that just failed says the error is rising.
+        let factor = if ws.after_rejection {
+            factor.min(1.0)
+        } else {
+            factor
+        };
+        ws.after_rejection = false;
         StepOutcome {
             accepted: true,
             h_next: dt * factor,
