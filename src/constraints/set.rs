@@ -87,6 +87,8 @@ pub struct ConstraintData {
     pub t: f64,
     /// Rows whose kind wrote its own velocity residual.
     pub(crate) residual_given: Vec<bool>,
+    /// The given residuals of those rows while J v is summed by columns (nc).
+    jv_given: Vec<f64>,
     /// Row is holonomic (has a position-level residual).
     pub holonomic: Vec<bool>,
     pub(crate) j3: DMatrix<f64>,
@@ -105,6 +107,7 @@ impl ConstraintData {
             jv: DVector::zeros(nc),
             t: 0.0,
             residual_given: vec![false; nc],
+            jv_given: vec![0.0; nc],
             holonomic: vec![true; nc],
             j3: DMatrix::zeros(3, nv),
             jtmp: DMatrix::zeros(3, nv),
@@ -214,11 +217,29 @@ impl ConstraintSet {
         cd.t = t;
         forward_kinematics_bias(model, data, q, v);
         self.fill_rows(model, data, cd, q, v);
-        // J's column-major storage, entry (r, c) at c·nrows + r.
+        // J v column by column over J's column-major storage (contiguous), each row's sum in
+        // the order of its columns; the rows whose kind gave its own residual keep it.
         let (nr, j) = (cd.j.nrows(), cd.j.as_slice());
-        for r in 0..self.nrows {
-            if !cd.residual_given[r] {
-                cd.jv[r] = v.iter().enumerate().map(|(c, x)| j[c * nr + r] * x).sum();
+        if nr == 0 {
+            return;
+        }
+        let jv = &mut cd.jv.as_mut_slice()[..nr];
+        let given = &cd.residual_given[..nr];
+        let kept = &mut cd.jv_given[..nr];
+        for ((k, &g), &x) in kept.iter_mut().zip(given).zip(jv.iter()) {
+            if g {
+                *k = x;
+            }
+        }
+        jv.fill(0.0);
+        for (col, &x) in j.chunks_exact(nr).zip(v) {
+            for (s, &a) in jv.iter_mut().zip(col) {
+                *s += a * x;
+            }
+        }
+        for ((s, &g), &k) in jv.iter_mut().zip(given).zip(kept.iter()) {
+            if g {
+                *s = k;
             }
         }
     }

@@ -27,6 +27,7 @@
 use super::dense::{
     cholesky_in, solve_lower_in, solve_lower_transpose_in, subtract_earlier_columns,
 };
+use crate::linalg::by_size;
 use nalgebra::DMatrix;
 
 /// Workspace of [`MinNormSolver::solve`] for n × n systems.
@@ -132,7 +133,10 @@ impl MinNormSolver {
     /// triangle) and `perm`. Returns the rank.
     fn pivoted_cholesky(&mut self, s: &DMatrix<f64>, tol: f64) -> usize {
         let n = self.n;
-        let k = self.factor(s, tol, false);
+        let (l, perm) = (&mut self.l, &mut self.perm);
+        let k = by_size!(n, factor_in_order_fixed(s, tol, l, perm), {
+            self.factor(s, tol, false)
+        });
         if k == n { n } else { self.factor(s, tol, true) }
     }
 
@@ -154,6 +158,44 @@ impl MinNormSolver {
             largest_first,
         )
     }
+}
+
+/// [`MinNormSolver::factor`] in order for n = N known when compiled: the same operations in the
+/// same order as [`factor_pivoted`] (so the same factor to the bit), on loops of known length; a
+/// few constraint rows spend more in the general loops' control than in their arithmetic.
+fn factor_in_order_fixed<const N: usize>(
+    s: &DMatrix<f64>,
+    tol: f64,
+    l: &mut [f64],
+    perm: &mut Vec<usize>,
+) -> usize {
+    let (src, lds) = (s.as_slice(), s.nrows());
+    let l = &mut l[..N * N];
+    for c in 0..N {
+        l[c * N + c..c * N + N].copy_from_slice(&src[c * lds + c..c * lds + N]);
+    }
+    perm.clear();
+    perm.extend(0..N);
+    let dmax = (0..N).fold(0.0, |m: f64, i| m.max(l[i * N + i]));
+    for j in 0..N {
+        // Column j less the earlier columns, each subtraction in factor_pivoted's order.
+        for k in 0..j {
+            let f = l[k * N + j];
+            for r in j..N {
+                l[j * N + r] -= f * l[k * N + r];
+            }
+        }
+        let pivot = l[j * N + j];
+        if pivot.is_nan() || pivot <= tol * dmax {
+            return j;
+        }
+        let d = pivot.sqrt();
+        l[j * N + j] = d;
+        for r in j + 1..N {
+            l[j * N + r] /= d;
+        }
+    }
+    N
 }
 
 wide_fn! {

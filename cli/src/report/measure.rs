@@ -24,11 +24,16 @@ pub(super) fn process_cpu_s() -> f64 {
     ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
-/// Runs shorter than this are repeated (up to 3 times) and the least time kept.
+/// A run shorter than this was a warm-up: it is repeated `REPEATS` times and the least time of
+/// the repeats kept (the peers' rule: one warm-up call, then the least of 5).
 const REPEAT_BELOW_S: f64 = 0.25;
+/// Timed repeats after the warm-up of a run shorter than `REPEAT_BELOW_S`.
+const REPEATS: usize = 5;
 
-/// Predict with the given method, drift control and step/tolerance; the CPU time is the smallest
-/// of up to 3 runs when a run takes less than `REPEAT_BELOW_S`.
+/// Predict with the given method, drift control and step/tolerance. The CPU time is that of the
+/// one run when it takes `REPEAT_BELOW_S` or more; otherwise that run was a warm-up (caches,
+/// allocator, branch predictors) and the time is the least of `REPEATS` further runs, as the
+/// peers time their calls.
 pub(super) fn predict(
     scene: &Scene,
     method: Method,
@@ -52,20 +57,20 @@ pub(super) fn predict(
             s.dt = x;
         }
     })?;
-    let mut best = f64::INFINITY;
-    let mut last = None;
-    for _ in 0..3 {
-        let c0 = process_cpu_s();
-        let t = p.predict(&PredictionRequest::new(&scene.q0, &scene.v0).horizon(horizon))?;
-        let cpu = process_cpu_s() - c0;
-        best = best.min(cpu);
-        let fast = cpu < REPEAT_BELOW_S;
-        last = Some(t);
-        if !fast {
-            break;
-        }
+    let request = PredictionRequest::new(&scene.q0, &scene.v0).horizon(horizon);
+    let c0 = process_cpu_s();
+    let mut last = p.predict(&request)?;
+    let first = process_cpu_s() - c0;
+    if first >= REPEAT_BELOW_S {
+        return Ok((last, first));
     }
-    Ok((last.expect("one run"), best))
+    let mut best = f64::INFINITY;
+    for _ in 0..REPEATS {
+        let c0 = process_cpu_s();
+        last = p.predict(&request)?;
+        best = best.min(process_cpu_s() - c0);
+    }
+    Ok((last, best))
 }
 
 /// Max over the samples of |q ⊖ q_ref|∞.

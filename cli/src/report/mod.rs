@@ -331,8 +331,9 @@ fn readme(
          control (`none`) and with Baumgarte terms (time constant 10 steps). The \
          error is measured against a closed form where one exists, otherwise against a tighter \
          solution by another method (named per scene). CPU time is the process CPU time of one \
-         single-threaded prediction without the error estimate's companion run (the least of 3 \
-         runs under 0.25 s; the peers': the least of 5 calls, also process CPU time); the \
+         single-threaded prediction without the error estimate's companion run; our runs and the \
+         peers' calls are timed by one rule: a run under 0.25 s is a warm-up, then the least of \
+         5 runs (the peers: a warm-up call, then the least of 5 calls, also process CPU time); the \
          machine was shared (CPU time does not count the time others hold the core, but caches \
          are shared), so differences below ~30 % are noise. \
          External peers (Andrews' squeezer: CasADi's CVODES and IDAS) are drawn with triangles \

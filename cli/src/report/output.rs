@@ -30,8 +30,9 @@ pub(super) fn write_csv(path: &Path, b: &Bench, reference_note: &str, rows: &[Ro
     let _ = writeln!(
         s,
         "# drift: max over the samples of |φ| [m] and |J v| [m/s]; energy: max |E − E0| [J]; \
-         cpu_s: process CPU time of the prediction, one thread (least of up to 3 runs under 0.25 \
-         s; peers: least of 5 calls, see README.md); jacobian_evaluations: radau5 and the peers"
+         cpu_s: process CPU time of the prediction, one thread (a run under 0.25 s is a \
+         warm-up, then the least of 5 runs; peers: a warm-up call, then the least of 5 calls); \
+         jacobian_evaluations: radau5 and the peers"
     );
     s.push_str(
         "scene,line,method,drift,dt_s,rtol,steps,evaluations,cpu_s,error,max_position_residual,\

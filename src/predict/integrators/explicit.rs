@@ -148,13 +148,16 @@ trait EmbeddedPair {
     const EXPONENT: f64;
     /// The most an accepted step lets the next one grow.
     const MAX_GROWTH: f64;
+    /// The step accepted right after a rejection does not grow the next one.
+    const HOLD_AFTER_REJECTION: bool;
     /// The error norm of the last step (1: at the tolerance).
     fn error_norm(step: &StepWorkspace, v: &[f64], s: &IntegrationSettings) -> f64;
 }
 
 /// One step of an embedded pair and its step-size control: the next step is
-/// dt · clamp(0.9 norm^EXPONENT, 0.2, MAX_GROWTH); a step over the tolerance (or with a
-/// non-finite norm) is undone and retried at most half as long.
+/// dt · clamp(0.9 norm^EXPONENT, 0.2, MAX_GROWTH) (at most dt right after a rejection where the
+/// pair holds it); a step over the tolerance (or with a non-finite norm) is undone and retried
+/// at most half as long.
 fn embedded_step<P: EmbeddedPair, F: Accel>(
     f: &mut F,
     model: &Model,
@@ -171,11 +174,20 @@ fn embedded_step<P: EmbeddedPair, F: Accel>(
         ws.restore(q, v);
         // The retry starts from the same state: its first stage is the one just evaluated.
         ws.first_stage_at = Some(t);
+        ws.after_rejection = true;
         StepOutcome {
             accepted: false,
             h_next: dt * factor.min(0.5),
         }
     } else {
+        // Hairer's rule (dop853.f): the step accepted right after a rejection does not let
+        // the next one grow; the estimate that just failed says the error is rising.
+        let factor = if ws.after_rejection && P::HOLD_AFTER_REJECTION {
+            factor.min(1.0)
+        } else {
+            factor
+        };
+        ws.after_rejection = false;
         StepOutcome {
             accepted: true,
             h_next: dt * factor,
@@ -188,6 +200,8 @@ impl EmbeddedPair for Dopri5 {
     const NORM_FLOOR: f64 = 1e-10;
     const EXPONENT: f64 = -0.2;
     const MAX_GROWTH: f64 = 5.0;
+    // Held, the stiff chain's stability-bound steps (tests/it/radau.rs) lost accuracy.
+    const HOLD_AFTER_REJECTION: bool = false;
     fn error_norm(step: &StepWorkspace, v: &[f64], s: &IntegrationSettings) -> f64 {
         dopri5_error_norm(step, v, s)
     }
@@ -198,6 +212,7 @@ impl EmbeddedPair for Dop853 {
     const NORM_FLOOR: f64 = 1e-12;
     const EXPONENT: f64 = -1.0 / 8.0;
     const MAX_GROWTH: f64 = 10.0;
+    const HOLD_AFTER_REJECTION: bool = true;
     fn error_norm(step: &StepWorkspace, v: &[f64], s: &IntegrationSettings) -> f64 {
         dop853_error_norm(step, v, s)
     }

@@ -224,6 +224,9 @@ pub struct StepWorkspace {
     /// `ks[0]` is the derivative at the saved state (`q0`, `v0`) at this time [s]: a step
     /// retried after a rejection starts from it without evaluating it again.
     pub(in crate::predict) first_stage_at: Option<f64>,
+    /// The last step of an embedded pair was rejected: the next accepted one does not grow
+    /// the step after it.
+    pub(in crate::predict) after_rejection: bool,
 }
 
 impl StepWorkspace {
@@ -253,6 +256,7 @@ impl StepWorkspace {
             jacobians: 0,
             forms: 0,
             first_stage_at: None,
+            after_rejection: false,
         }
     }
 
@@ -281,6 +285,7 @@ impl StepWorkspace {
         self.jac_valid = false;
         self.newton_dt = f64::NAN;
         self.first_stage_at = None;
+        self.after_rejection = false;
     }
 
     /// Step with `other`'s F from now on (refactored at the next step): a W-method keeps its
