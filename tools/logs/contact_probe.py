@@ -47,25 +47,14 @@ def normal_forces(m, d):
 
 
 def probe(drive):
-    rng = np.random.default_rng(drive.seed)
-    plan = ml.command_plan(rng, drive.duration_s)
-    robot = ml.Robot(os.path.join(ml.REPO, "params", "suite_mobile_manipulator.yaml"),
-                     os.path.join(ml.REPO, "urdf", "mobile_manipulator.urdf"),
-                     drive.payload_kg, drive.arm_pose)
-    for _ in range(int(ml.SETTLE_S / ml.CONTROL_PERIOD_S)):
-        robot.tick((0.0, 0.0))
     dt = ml.CONTROL_PERIOD_S
     off = {w: 0.0 for w in WHEELS}
     both_off, longest_both, run = 0.0, 0.0, 0.0
     support = {"caster": 0.0, "anti_tip": 0.0}
     max_pitch = 0.0
-    cmd = (0.0, 0.0)
-    n_ticks = int(round(drive.duration_s / dt))
-    for k in range(n_ticks):
-        if k % ml.CMD_PERIOD_TICKS == 0:
-            target = ml.target_at(plan, k * dt)
-            cmd = ml.smooth(cmd, target, ml.CMD_PERIOD_TICKS * dt) if drive.smoothed else target
-        robot.tick(cmd)
+    for k, robot, _, _, _ in ml.drive_ticks(drive, ml.SCENE, ml.URDF):
+        if k == 0:
+            continue  # the settled start; every tick's end state from here
         n = normal_forces(robot.m, robot.d)
         unloaded = [n.get(w, 0.0) < UNLOADED_N for w in WHEELS]
         for w, u in zip(WHEELS, unloaded):

@@ -40,6 +40,9 @@ from robot_mjcf import ARM_JOINTS, mjcf
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.normpath(os.path.join(HERE, "..", ".."))
+# The scene whose controllers drive the simulated robot, and the robot's URDF.
+SCENE = os.path.join(REPO, "params", "suite_mobile_manipulator.yaml")
+URDF = os.path.join(REPO, "urdf", "mobile_manipulator.urdf")
 
 # The scene's controllers (params/suite_mobile_manipulator.yaml, `actuators:`), read by
 # read_scene_controllers so a change there reaches the logs.
@@ -312,20 +315,18 @@ def metadata_yaml(drive, file_name, counts, span):
 def main():
     out = sys.argv[1] if len(sys.argv) > 1 else os.path.join(REPO, "tests", "data", "logs")
     os.makedirs(out, exist_ok=True)
-    scene = os.path.join(REPO, "params", "suite_mobile_manipulator.yaml")
-    urdf = os.path.join(REPO, "urdf", "mobile_manipulator.urdf")
     for drive in DRIVES:
         if drive.bag_directory:
             folder = os.path.join(out, drive.name)
             os.makedirs(folder, exist_ok=True)
             file_name = f"{drive.name}_0.mcap"
-            counts, span = record(drive, os.path.join(folder, file_name), scene, urdf)
+            counts, span = record(drive, os.path.join(folder, file_name), SCENE, URDF)
             with open(os.path.join(folder, "metadata.yaml"), "w") as f:
                 f.write(metadata_yaml(drive, file_name, counts, span))
             path = folder
         else:
             path = os.path.join(out, f"{drive.name}.mcap")
-            counts, _ = record(drive, path, scene, urdf)
+            counts, _ = record(drive, path, SCENE, URDF)
         print(f"make_logs: {path}: " + ", ".join(f"{t} {c}" for t, (_, c) in counts.items()))
 
 

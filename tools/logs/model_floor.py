@@ -42,8 +42,6 @@ END = "<!-- model_floor:end -->"
 EVERY_TICKS = 500
 HORIZONS_S = (0.25, 0.5, 1.0, 2.0)
 VARIANTS = ("measured", "node", "node_integrals")
-SCENE = os.path.join(ml.REPO, "params", "suite_mobile_manipulator.yaml")
-URDF = os.path.join(ml.REPO, "urdf", "mobile_manipulator.urdf")
 
 
 def rot(quat):
@@ -99,7 +97,7 @@ def run_drive(drive):
     last_joints = None
     rest = None
     cmd = (0.0, 0.0)
-    for k, robot, odom, joints, published in ml.drive_ticks(drive, SCENE, URDF):
+    for k, robot, odom, joints, published in ml.drive_ticks(drive, ml.SCENE, ml.URDF):
         if rest is None:
             rest = planar_parts(robot)  # settled, standing still
             template = robot
