@@ -6,9 +6,10 @@ written as rosbag2 MCAP by a real writer (mcap-ros2-support): tests/data/logs/.
 The robot is rebuilt from its URDF with what the scene does not know (robot_mjcf.py) and driven
 at 1 kHz by the scene's own controllers, read from params/suite_mobile_manipulator.yaml: the
 diff drive's wheel-speed PI (torque clamped to the URDF effort, no integration while clamped)
-and the arm's PD, held at the scene's initial arm pose. Each drive follows ~20 s of Nav2-like
-cmd_vel at 20 Hz (arcs, spins, reverses, stops), smoothed to 1 m/s² and 2 rad/s² as a velocity
-smoother would, or raw steps. One shorter drive carries a payload on the tool that the scene is
+and the arm's PD, held at the scene's initial arm pose. Each drive follows phases of ~20 s of
+Nav2-like cmd_vel at 20 Hz (arcs, spins, reverses, stops), smoothed to 1 m/s² and 2 rad/s² as a
+velocity smoother would, or raw steps: the validation drives one phase each, the calibration
+drive a smoothed phase and then a phase of steps. One shorter drive carries a payload on the tool that the scene is
 not told of (payload_3kg.mcap: 3 kg at tool0, robot_mjcf.py), its arm held with the tool above
 the wheel axle (shoulder pitch −0.1, elbow −0.15 rad): with the scene's forward-leaning pose the
 robot's centre of mass lies within a millimetre of the axle, and any mass at the tool (0.51 m
@@ -62,20 +63,30 @@ ACCEL_LIMITS = (1.0, 2.0)  # m/s², rad/s²
 class Drive:
     name: str
     seed: int
-    smoothed: bool
+    # ((commands, duration_s), …) in order: "smoothed" (a velocity smoother's ramps) or "steps"
+    # (raw steps).
+    phases: tuple
     stamped: bool
     bag_directory: bool
-    duration_s: float = 20.0
     payload_kg: float = 0.0
     arm_pose: dict = None  # {joint: rad} the arm's PD holds instead of the scene's initial pose
 
+    @property
+    def duration_s(self):
+        return sum(d for _, d in self.phases)
+
 
 DRIVES = [
-    Drive("calibration", seed=11, smoothed=True, stamped=False, bag_directory=False),
-    Drive("validation_smooth", seed=22, smoothed=True, stamped=False, bag_directory=False),
-    Drive("validation_steps", seed=33, smoothed=False, stamped=True, bag_directory=True),
-    Drive("payload_3kg", seed=44, smoothed=True, stamped=False, bag_directory=False,
-          duration_s=10.0, payload_kg=3.0,
+    # A calibration drive excites what a team wants fitted: its second half steps the commands
+    # as a planner without a smoother would, up to the tyres' grip.
+    Drive("calibration", seed=11, phases=(("smoothed", 20.0), ("steps", 20.0)), stamped=False,
+          bag_directory=False),
+    Drive("validation_smooth", seed=22, phases=(("smoothed", 20.0),), stamped=False,
+          bag_directory=False),
+    Drive("validation_steps", seed=33, phases=(("steps", 20.0),), stamped=True,
+          bag_directory=True),
+    Drive("payload_3kg", seed=44, phases=(("smoothed", 10.0),), stamped=False,
+          bag_directory=False, payload_kg=3.0,
           arm_pose={"arm_shoulder_yaw": 0.0, "arm_shoulder_pitch": -0.1, "arm_elbow": -0.15,
                     "arm_wrist": 0.0}),
 ]
@@ -92,7 +103,7 @@ def read_scene_controllers(path):
     return (dd["wheel_radius"], dd["wheel_separation"], dd["kp"], dd["ki"]), pd, arm_q0
 
 
-def command_plan(rng, duration):
+def phase_plan(rng, duration):
     """Targets (t_start [s], v [m/s], ω [rad/s]) of a Nav2-like drive: every kind of motion in a
     seeded order with seeded magnitudes, a stop at the end."""
     kinds = ["straight", "arc", "spin", "reverse", "stop", "arc", "spin", "straight", "arc"]
@@ -115,8 +126,20 @@ def command_plan(rng, duration):
     return plan
 
 
+def command_plan(rng, phases):
+    """The drive's targets (t_start [s], v [m/s], ω [rad/s], raw), phase after phase; raw: the
+    command steps straight to the target (else a smoother ramps it)."""
+    plan, start = [], 0.0
+    for commands, duration in phases:
+        for t, v, w in phase_plan(rng, duration):
+            plan.append((start + t, v, w, commands == "steps"))
+        start += duration
+    return plan
+
+
 def target_at(plan, t):
-    return next((v, w) for ts, v, w in reversed(plan) if ts <= t + 1e-9)
+    """(v, ω, raw) of the plan's segment in force at t."""
+    return next(p[1:] for p in reversed(plan) if p[0] <= t + 1e-9)
 
 
 def smooth(prev, target, dt):
@@ -218,7 +241,7 @@ def drive_ticks(drive, scene_path, urdf_path):
     joint states' ticks, else None; cmd = the command published at this tick, else None (the
     robot runs the last one). The noise and the plan come from one generator seeded by the drive."""
     rng = np.random.default_rng(drive.seed)
-    plan = command_plan(rng, drive.duration_s)
+    plan = command_plan(rng, drive.phases)
     robot = Robot(scene_path, urdf_path, drive.payload_kg, drive.arm_pose)
     for _ in range(int(SETTLE_S / CONTROL_PERIOD_S)):
         robot.tick((0.0, 0.0))
@@ -239,8 +262,8 @@ def drive_ticks(drive, scene_path, urdf_path):
             v = [robot.d.qvel[iv] + rng.normal(0, SIGMA_JOINT_V) for _, _, iv in robot.joints]
             joints = (names, q, v, [float(x) for x in robot.tau])
         if k % CMD_PERIOD_TICKS == 0 and k < n_ticks:
-            target = target_at(plan, k * CONTROL_PERIOD_S)
-            cmd = smooth(cmd, target, CMD_PERIOD_TICKS * CONTROL_PERIOD_S) if drive.smoothed else target
+            v, w, raw = target_at(plan, k * CONTROL_PERIOD_S)
+            cmd = (v, w) if raw else smooth(cmd, (v, w), CMD_PERIOD_TICKS * CONTROL_PERIOD_S)
             published = cmd
         yield k, robot, odom, joints, published
         if k < n_ticks:

@@ -250,8 +250,8 @@ fn bad_input_is_a_clear_error() {
             "horizon [s] = -1",
         ),
         (
-            vec!["--scene", s, "--bag", b, "--horizons", "25"],
-            "horizon 25 s",
+            vec!["--scene", s, "--bag", b, "--horizons", "45"],
+            "horizon 45 s",
         ),
         (
             vec!["--scene", s, "--bag", "/nonexistent/bag.mcap"],
