@@ -294,11 +294,6 @@ impl ForceElements {
             || !self.tyres.is_empty()
     }
 
-    /// True when there are point-to-point spring-dampers (whose direction turns with q).
-    pub fn has_point_springs(&self) -> bool {
-        !self.springs.is_empty()
-    }
-
     /// Largest stiffness-like coefficient, for step-size checks: (k_max [N/m or N·m/rad], d_max).
     pub fn max_gains(&self) -> (f64, f64) {
         let k = self
@@ -329,6 +324,16 @@ impl ForceElements {
         for &(iq, iv, k, d, rest) in &self.joint_springs {
             tau[iv] -= k * (q[iq] - rest) + d * v[iv];
         }
+        for (iv, profile) in &self.torques {
+            tau[*iv] += piecewise_linear(profile, t);
+        }
+        self.add_forces_at_frames(model, data, v, tau);
+    }
+
+    /// Add the generalized force of the elements that act at frames (point springs, frame
+    /// forces, turning resistances, tyres: [`Self::needs_kinematics`]) to `tau` (kinematics of
+    /// `data` at (q, v)).
+    pub fn add_forces_at_frames(&mut self, model: &Model, data: &Data, v: &[f64], tau: &mut [f64]) {
         for s in &self.springs {
             let pa = point_position(model, data, s.a.0, &s.a.1);
             let pb = point_position(model, data, s.b.0, &s.b.1);
@@ -342,9 +347,6 @@ impl ForceElements {
             let f = -n * (s.k * (len - s.rest) + s.c * rate); // force on A
             add_point_force(model, data, s.a.0, &s.a.1, &f, tau);
             add_point_force(model, data, s.b.0, &s.b.1, &(-f), tau);
-        }
-        for (iv, profile) in &self.torques {
-            tau[*iv] += piecewise_linear(profile, t);
         }
         for ff in &self.frame_forces {
             add_point_force(model, data, ff.frame, &ff.point, &ff.force, tau);
@@ -361,6 +363,16 @@ impl ForceElements {
         for ty in &self.tyres {
             ty.add(model, data, tau);
         }
+    }
+
+    /// The elements that act at frames alone ([`Self::add_forces_at_frames`]), `None` when
+    /// there are none.
+    pub fn acting_at_frames(&self) -> Option<Self> {
+        self.needs_kinematics().then(|| ForceElements {
+            joint_springs: vec![],
+            torques: vec![],
+            ..self.clone()
+        })
     }
 
     /// The fastest rate among the elements [1/s]: max over joint elements of √(k (M⁻¹)_ii) and

@@ -14,8 +14,9 @@
 //! end state to [`CHUNK_RTOL`] of the chunk's motion (tangent-space max norm, q and v apart).
 //! Where it does not (a force element that varies within the chunk, a fast transient), the
 //! chunk is shortened as a step-size controller would (×0.9·ratio^(−1/(p+1)), at most
-//! doubling), down to the single recorded step, which is the exact per-step linearization
-//! (for DOPRI5 and DOP853 that step's by RK4, `chunk_method`: within RK4's local error).
+//! doubling), down to the single recorded step, which is the exact per-step linearization,
+//! by the step's own method (chunks of several DOPRI5 or DOP853 steps are linearized by RK4,
+//! `chunk_method`: within RK4's local error).
 //! That check cannot see a stiff mode the nominal does not excite (a stiff spring at rest: the
 //! long step reproduces the state, but its Φ amplifies perturbations along that mode), so a
 //! chunk must also stay inside the method's stability region: H · ρ ≤ [`CHUNK_STABILITY`],
@@ -299,10 +300,14 @@ impl CovariancePropagator {
             let hi = lo + m;
             let h = rec.t[hi] - rec.t[lo];
             self.lin.set_feedback(&rec.feedback[lo]);
+            // One recorded step is linearized by its own method: an embedded pair's adaptive
+            // step on a stiff problem rides its own stability limit (DOPRI5's 3.3 on the real
+            // axis), where RK4's Φ (2.8) would grow without bound.
+            let lin_method = if m == 1 { method } else { chunk_method(method) };
             linearize_step(
                 sys,
                 &mut self.lin,
-                chunk_method(method),
+                lin_method,
                 rec.t[lo],
                 &rec.q[lo],
                 &rec.v[lo],

@@ -11,8 +11,10 @@
 //! series. Semi-implicit Euler likewise. The result equals finite differences of the step
 //! (tests).
 
+mod frame_forces;
 pub(in crate::predict) mod ros2;
 mod stages;
+use frame_forces::FrameForces;
 pub(in crate::predict) use ros2::ros2_with_step_jacobian;
 use stages::{dynamics, stage_acceleration};
 pub(in crate::predict) use stages::{dynamics_derivatives, stage_options};
@@ -21,6 +23,7 @@ use crate::actuators::Feedback;
 use crate::derivatives::DerivativeData;
 use crate::dynamics::Baumgarte;
 use crate::error::{Error, Result};
+use crate::forces::ForceElements;
 use crate::linalg::{gemm_columns, mat_vec_add};
 use crate::predict::integrators::lie::{StageMaps, dexp_inv, right_jacobian, transport};
 use crate::predict::integrators::{Method, Tableau};
@@ -49,6 +52,9 @@ pub struct Linearization {
     joint_springs: Vec<(usize, usize, f64, f64, f64)>,
     /// How many of `joint_springs` are the force elements' (the rest is feedback).
     fixed_springs: usize,
+    /// The force elements acting at frames, moved to and differentiated at every stage
+    /// ([`Linearization::with_frame_forces`]).
+    frame_forces: Option<FrameForces>,
     /// τ of the current stage.
     tau_stage: Vec<f64>,
     /// q⁺ (nq) and v⁺ (nv) of the step.
@@ -145,6 +151,14 @@ impl Linearization {
         self
     }
 
+    /// The force elements of `forces` that act at frames (tyres, turning resistances, frame
+    /// forces), linearized at every stage instead of held in τ (linearize/frame_forces.rs): the
+    /// τ given to [`linearize_step`] includes their generalized force at the step's start.
+    pub fn with_frame_forces(mut self, sys: &System, forces: &ForceElements) -> Self {
+        self.frame_forces = FrameForces::new(sys, forces);
+        self
+    }
+
     /// The controllers' feedback over the next step (`Actuators::feedback`), linearized as
     /// joint spring-dampers beside the force elements' (replacing the previous step's;
     /// allocates only when the list grows).
@@ -170,6 +184,7 @@ impl Linearization {
             t: 0.0,
             joint_springs: vec![],
             fixed_springs: 0,
+            frame_forces: None,
             tau_stage: vec![0.0; nv],
             q_next: vec![0.0; nq],
             v_next: vec![0.0; nv],
@@ -220,8 +235,9 @@ pub fn linearize_step(
             "linearize: dt = {dt} s must be finite and > 0"
         )));
     }
-    // ∂q̈/∂τ enters only B and the joint springs' stiffness and damping.
-    lin.dd.with_tau = lin.inputs || !lin.joint_springs.is_empty();
+    // ∂q̈/∂τ enters only B and the stiffness and damping of the joint springs and the elements
+    // acting at frames.
+    lin.dd.with_tau = lin.inputs || !lin.joint_springs.is_empty() || lin.frame_forces.is_some();
     // The method's own linearized step (integrators/, `Step::linearize`): one of the functions
     // below, or a refusal.
     method.linearize(sys, lin, (q, v), tau, dt)
@@ -252,6 +268,7 @@ pub(in crate::predict) fn semi_implicit_euler(
         lin.stage_options(),
         &mut lin.dd,
         springs,
+        lin.frame_forces.as_mut(),
         &mut lin.tau_stage,
         (q, v),
         (q, v, 0.0),
@@ -346,6 +363,7 @@ pub(in crate::predict) fn explicit(
             lin.stage_options(),
             &mut lin.dd,
             springs,
+            lin.frame_forces.as_mut(),
             &mut lin.tau_stage,
             (q, v),
             stage,

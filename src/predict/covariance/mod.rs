@@ -9,7 +9,9 @@
 //! - A = ∂x⁺/∂x of one step of the prediction's method ([`linearize_step`](crate::predict::covariance::linearize::linearize_step), under the
 //!   generalized force held over it, with the joint spring-dampers and the controllers'
 //!   feedback moving with the state — `Actuators::feedback`; without it P missed the suite's
-//!   closed-loop sensitivity by 10³, tests/it/covariance_sensitivity.rs) that may span several
+//!   closed-loop sensitivity by 10³, tests/it/covariance_sensitivity.rs — and so do the
+//!   elements acting at frames: tyres, turning resistances, frame forces, point springs,
+//!   linearize/frame_forces.rs) that may span several
 //!   of the prediction's steps: the
 //!   sensitivity of the flow, not of the step size, is what the covariance needs, and one
 //!   linearization per 2–32 steps is what makes the covariance cheap (covariance/chunks.rs,
@@ -182,8 +184,8 @@ impl RowProjector {
 
 impl CovariancePropagator {
     /// Sized for `sys`, with the process noise of `spec` (names checked against the model),
-    /// linearizing the joint spring-dampers of `forces` (point springs are not: the caller
-    /// refuses them).
+    /// linearizing the force elements of `forces` (joint spring-dampers in closed form, the
+    /// elements acting at frames by differences: linearize/frame_forces.rs).
     pub fn new(sys: &System, forces: &ForceElements, spec: &UncertaintySpec) -> Result<Self> {
         let nv = sys.model().nv;
         let mut noise = vec![0.0; nv];
@@ -200,8 +202,9 @@ impl CovariancePropagator {
             p: DMatrix::zeros(2 * nv, 2 * nv),
             noise,
             lin: {
-                let mut lin =
-                    Linearization::new(sys).with_joint_springs(forces.joint_spring_dampers());
+                let mut lin = Linearization::new(sys)
+                    .with_joint_springs(forces.joint_spring_dampers())
+                    .with_frame_forces(sys, forces);
                 lin.inputs = false;
                 lin
             },

@@ -102,18 +102,6 @@ impl Predictor {
     ) -> Result<Trajectory> {
         let (s, companion) = s;
         let commands = req.commands;
-        if req.start_covariance.is_some() && self.forces.has_point_springs() {
-            // Each step's linearization holds the applied generalized force apart from joint
-            // spring-dampers: a point spring's stiffness would be missing from Φ and the
-            // covariance silently wrong.
-            return Err(Error::Unsupported {
-                what: "covariance propagation with point-to-point springs (`forces.springs`)"
-                    .into(),
-                why: "their dependence on the configuration is not linearized yet (joint \
-                      spring-dampers are); predict without a start covariance"
-                    .into(),
-            });
-        }
         self.covariance = match req.start_covariance {
             Some(p0) => Some(CovariancePropagator::start(
                 &mut self.sys,

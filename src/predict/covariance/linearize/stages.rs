@@ -1,6 +1,7 @@
 //! The dynamics at the stages of a linearized step: q̈ and its derivatives under the step's
 //! generalized force, with the joint springs' and controllers' share moved to the stage.
 
+use super::frame_forces::FrameForces;
 use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
 use crate::dynamics::{Baumgarte, Formulation, KktOptions};
 use crate::error::Result;
@@ -9,13 +10,15 @@ use crate::system::{DynamicsOptions, System};
 /// q̈ and its derivatives at (q, v, τ) into `dd`: the multiplier form's with constraints (its
 /// Baumgarte gains included), ABA's without. With joint spring-dampers, τ's share of them is
 /// taken at this (q, v) (τ holds the share at the step's start (q₀, v₀)) and their stiffness and
-/// damping enter ∂q̈/∂q and ∂q̈/∂v through ∂q̈/∂τ.
+/// damping enter ∂q̈/∂q and ∂q̈/∂v through ∂q̈/∂τ; so do the elements acting at frames, moved
+/// to the stage and differentiated there (frame_forces.rs).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn dynamics(
     sys: &mut System,
     at: KktOptions,
     dd: &mut DerivativeData,
     springs: &[(usize, usize, f64, f64, f64)],
+    frame: Option<&mut FrameForces>,
     tau_stage: &mut [f64],
     (q0, v0): (&[f64], &[f64]),
     (q, v, ds): (&[f64], &[f64], f64),
@@ -23,7 +26,13 @@ pub(super) fn dynamics(
 ) -> Result<()> {
     stage_torque(springs, tau_stage, (q0, v0), (q, v, ds), tau);
     let at = KktOptions { t: at.t + ds, ..at };
-    dynamics_derivatives(sys, at, dd, q, v, tau_stage)?;
+    if let Some(f) = frame {
+        f.stage(sys, (q0, v0), (q, v), tau_stage, true);
+        dynamics_derivatives(sys, at, dd, q, v, tau_stage)?;
+        f.add_to(dd);
+    } else {
+        dynamics_derivatives(sys, at, dd, q, v, tau_stage)?;
+    }
     let nv = v.len();
     for &(_, iv, k, d, _) in springs {
         for i in 0..nv {
@@ -61,6 +70,7 @@ pub(super) fn stage_acceleration(
     sys: &mut System,
     at: KktOptions,
     springs: &[(usize, usize, f64, f64, f64)],
+    frame: Option<&mut FrameForces>,
     tau_stage: &mut [f64],
     (q0, v0): (&[f64], &[f64]),
     (q, v, ds): (&[f64], &[f64], f64),
@@ -68,6 +78,9 @@ pub(super) fn stage_acceleration(
     qdd: &mut [f64],
 ) -> Result<()> {
     stage_torque(springs, tau_stage, (q0, v0), (q, v, ds), tau);
+    if let Some(f) = frame {
+        f.stage(sys, (q0, v0), (q, v), tau_stage, false);
+    }
     let opts = DynamicsOptions {
         gains: Some(at.gains),
         t: at.t + ds,
