@@ -361,6 +361,11 @@ impl SceneParameters {
         &self.wheel_joints
     }
 
+    /// True when the scene declares tyres (`forces.tyres`).
+    pub fn has_tyres(&self) -> bool {
+        self.tyres.1 > 0
+    }
+
     /// Writes `uncertainty.acceleration_noise: σ` [(rad/s²)/√Hz] for every wheel joint,
     /// keeping the scene's other entries.
     pub fn set_wheel_noise(&self, scene: &mut Value, sigma: f64) {
