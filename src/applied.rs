@@ -11,6 +11,7 @@ use crate::dynamics::Formulation;
 use crate::error::Result;
 use crate::forces::ForceElements;
 use crate::system::{DynamicsOptions, System};
+use nalgebra::DMatrix;
 
 /// Writes τ = τ_act + Q(t, q, v) into `tau` (nv). Allocates nothing.
 pub fn applied_generalized_force(
@@ -125,4 +126,127 @@ pub fn constraint_forces_at(
         )?;
     }
     Ok(out)
+}
+
+/// How [`ForceJacobian`] differences Q.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Differences {
+    /// (Q(x + ε) − Q(x − ε)) / 2ε, ε = 1e-6: the implicit methods' Jacobian, whose error
+    /// enters their Newton iterations.
+    Central,
+    /// (Q(x + ε) − Q(x)) / ε, ε = 1e-7: half the evaluations, for a covariance, which needs
+    /// far less than its ~1e-7 relative error.
+    Forward,
+}
+
+/// ∂Q/∂δq and ∂Q/∂v of force elements at a state (δq a right perturbation q ⊕ δq), by
+/// differences of their generalized force Q(t, q, v): kinematics and the elements only, since
+/// the elements (tyres, turning resistances, frame forces, point springs) have no analytic
+/// derivatives. The v step is ε·max(|v_c|, 1). Buffers sized once; allocates nothing.
+#[derive(Clone, Debug, Default)]
+pub struct ForceJacobian {
+    /// ∂Q/∂δq (nv × nv) [N/m, N·m/rad].
+    pub dq: DMatrix<f64>,
+    /// ∂Q/∂v (nv × nv) [N·s/m, N·m·s/rad].
+    pub dv: DMatrix<f64>,
+    /// Q at the state (with [`Differences::Forward`]), and at the perturbed states.
+    pub at: Vec<f64>,
+    plus: Vec<f64>,
+    minus: Vec<f64>,
+    q: Vec<f64>,
+    v: Vec<f64>,
+    e: Vec<f64>,
+}
+
+impl ForceJacobian {
+    /// Sized for `model`.
+    pub fn new(model: &crate::model::Model) -> Self {
+        let (nq, nv) = (model.nq, model.nv);
+        Self {
+            dq: DMatrix::zeros(nv, nv),
+            dv: DMatrix::zeros(nv, nv),
+            at: vec![0.0; nv],
+            plus: vec![0.0; nv],
+            minus: vec![0.0; nv],
+            q: vec![0.0; nq],
+            v: vec![0.0; nv],
+            e: vec![0.0; nv],
+        }
+    }
+
+    /// Q of `elements` at (t, q, v) into `out` (its kinematics computed here).
+    pub fn generalized_force(
+        sys: &mut System,
+        elements: &mut ForceElements,
+        (t, q, v): (f64, &[f64], &[f64]),
+        out: &mut [f64],
+    ) {
+        if elements.needs_kinematics() {
+            sys.kinematics_at(q, v);
+        }
+        out.fill(0.0);
+        elements.add_generalized_force(sys.model(), sys.data(), t, q, v, out);
+    }
+
+    /// [`Self::dq`] and [`Self::dv`] of `elements` at (t, q, v); with
+    /// [`Differences::Forward`], Q there in [`Self::at`]. Leaves the system's kinematics at a
+    /// nearby state.
+    pub fn differentiate(
+        &mut self,
+        sys: &mut System,
+        elements: &mut ForceElements,
+        (t, q, v): (f64, &[f64], &[f64]),
+        how: Differences,
+    ) {
+        let Self {
+            dq,
+            dv,
+            at,
+            plus,
+            minus,
+            q: qp,
+            v: vp,
+            e,
+        } = self;
+        let (eps0, central) = match how {
+            Differences::Central => (1e-6, true),
+            Differences::Forward => (1e-7, false),
+        };
+        if !central {
+            Self::generalized_force(sys, elements, (t, q, v), at);
+        }
+        let nv = v.len();
+        for col in 0..2 * nv {
+            let c = col % nv;
+            let eps = if col < nv {
+                eps0
+            } else {
+                eps0 * v[c].abs().max(1.0)
+            };
+            let signs: &[f64] = if central { &[1.0, -1.0] } else { &[1.0] };
+            for &sign in signs {
+                if col < nv {
+                    e.fill(0.0);
+                    e[c] = sign * eps;
+                    sys.model().integrate(q, e, 1.0, qp);
+                    vp.copy_from_slice(v);
+                } else {
+                    qp.copy_from_slice(q);
+                    vp.copy_from_slice(v);
+                    vp[c] += sign * eps;
+                }
+                let out = if sign > 0.0 { &mut *plus } else { &mut *minus };
+                Self::generalized_force(sys, elements, (t, qp, vp), out);
+            }
+            let (base, width) = if central {
+                (&*minus, 2.0 * eps)
+            } else {
+                (&*at, eps)
+            };
+            let m = if col < nv { &mut *dq } else { &mut *dv };
+            for r in 0..nv {
+                m[(r, c)] = (plus[r] - base[r]) / width;
+            }
+        }
+    }
 }

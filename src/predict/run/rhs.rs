@@ -4,7 +4,10 @@
 
 use crate::actuators::Actuators;
 use crate::algorithm::DENSE_EAGER_NV;
-use crate::applied::{applied_generalized_force, applied_generalized_force_after_kinematics};
+use crate::applied::{
+    Differences, ForceJacobian, applied_generalized_force,
+    applied_generalized_force_after_kinematics,
+};
 use crate::derivatives::DerivativeData;
 use crate::dynamics::{Baumgarte, Formulation, disagree_beyond_rounding};
 use crate::error::{Error, Result};
@@ -13,7 +16,7 @@ use crate::model::Model;
 use crate::predict::InvariantDynamics;
 use crate::predict::covariance::linearize::{dynamics_derivatives, stage_options};
 use crate::predict::drift::DriftProjector;
-use crate::predict::integrators::{Accel, JacobianScratch, accel_jacobian_fd, stage};
+use crate::predict::integrators::{Accel, JacobianScratch, accel_jacobian_fd};
 use crate::system::{DynamicsOptions, System};
 use nalgebra::DMatrix;
 
@@ -25,26 +28,17 @@ pub(in crate::predict) struct JacobianWork {
     /// `DENSE_EAGER_NV` coordinates, by the first analytic Jacobian above (an explicit
     /// prediction of a large tree never holds them).
     pub(in crate::predict) dd: Option<DerivativeData>,
-    pub(in crate::predict) tau_p: Vec<f64>,
-    pub(in crate::predict) tau_m: Vec<f64>,
-    pub(in crate::predict) dtau: Vec<f64>,
-    pub(in crate::predict) dx: Vec<f64>,
-    pub(in crate::predict) qs: Vec<f64>,
-    pub(in crate::predict) vs: Vec<f64>,
+    /// The force elements' ∂Q/∂(δq, v), differenced.
+    pub(in crate::predict) forces: ForceJacobian,
 }
 
 impl JacobianWork {
     pub(in crate::predict) fn new(sys: &System) -> Self {
-        let (nq, nv) = (sys.model().nq, sys.model().nv);
+        let nv = sys.model().nv;
         Self {
             dd: (nv <= DENSE_EAGER_NV)
                 .then(|| DerivativeData::new(sys.model(), sys.constraints().nrows)),
-            tau_p: vec![0.0; nv],
-            tau_m: vec![0.0; nv],
-            dtau: vec![0.0; nv],
-            dx: vec![0.0; 2 * nv],
-            qs: vec![0.0; nq],
-            vs: vec![0.0; nv],
+            forces: ForceJacobian::new(sys.model()),
         }
     }
 }
@@ -149,43 +143,20 @@ impl Rhs<'_> {
         }
     }
 
-    /// ∂q̈/∂τ · ∂τ/∂(δq, v) of the force elements other than joint spring-dampers (central
-    /// differences of their generalized force: kinematics only) added to F's lower half.
-    fn force_columns_fd(
-        &mut self,
-        model: &Model,
-        (t, q, v): (f64, &[f64], &[f64]),
-        jac: &mut DMatrix<f64>,
-    ) {
+    /// ∂q̈/∂τ · ∂Q/∂(δq, v) of the force elements (central differences of their generalized
+    /// force: kinematics only) added to F's lower half.
+    fn force_columns_fd(&mut self, (t, q, v): (f64, &[f64], &[f64]), jac: &mut DMatrix<f64>) {
         let nv = v.len();
         let jw = &mut *self.jw;
+        let fj = &mut jw.forces;
+        fj.differentiate(self.sys, self.forces, (t, q, v), Differences::Central);
         let dd = jw.dd.as_ref().expect("checked above");
         for col in 0..2 * nv {
-            let eps = 1e-6
-                * if col < nv {
-                    1.0
-                } else {
-                    v[col - nv].abs().max(1.0)
-                };
-            for (sign, out) in [(1.0, &mut jw.tau_p), (-1.0, &mut jw.tau_m)] {
-                jw.dx.iter_mut().for_each(|x| *x = 0.0);
-                jw.dx[col] = sign * eps;
-                stage(model, q, v, &jw.dx, &mut jw.qs, &mut jw.vs);
-                // The held torque: the controllers' share is their feedback (apply_controllers).
-                applied_generalized_force(
-                    self.sys,
-                    self.forces,
-                    (t, &jw.qs, &jw.vs),
-                    self.tau_act,
-                    out,
-                );
-            }
-            for j in 0..nv {
-                jw.dtau[j] = (jw.tau_p[j] - jw.tau_m[j]) / (2.0 * eps);
-            }
+            let m = if col < nv { &fj.dq } else { &fj.dv };
+            let c = col % nv;
             for r in 0..nv {
                 jac[(nv + r, col)] += (0..nv)
-                    .map(|j| dd.dqdd_dtau[(r, j)] * jw.dtau[j])
+                    .map(|j| dd.dqdd_dtau[(r, j)] * m[(j, c)])
                     .sum::<f64>();
             }
         }
@@ -302,7 +273,7 @@ impl Accel for Rhs<'_> {
                 }
             }
         } else {
-            self.force_columns_fd(model, (t, q, v), jac);
+            self.force_columns_fd((t, q, v), jac);
         }
         let dd = self.jw.dd.as_ref().expect("checked above");
         scratch.keep_passive(jac, dd.dqdd_dtau.as_slice());
