@@ -24,5 +24,6 @@ pub use kinematics::{
     forward_kinematics, forward_kinematics_bias, forward_kinematics_pos, forward_kinematics_vel,
     frame_placement, frame_velocity, point_classical_acceleration, point_position, point_velocity,
 };
+pub(crate) use kinematics::forward_kinematics_bias_after_placements;
 pub(crate) use rnea::bias_forces_after_kinematics;
 pub use rnea::{nonlinear_effects, rnea};

@@ -4,7 +4,7 @@
 //! Every constraint kind has derivatives: point, weld (world and local axes), distance,
 //! coupling/mimic, rolling and no-side-slip.
 
-use super::rnea::rnea_derivatives_with_point_forces;
+use super::rnea::rnea_derivatives_after_bias;
 use super::{DerivativeData, kkt, rows};
 use crate::algorithm::Data;
 use crate::constraints::{ConstraintData, ConstraintSet};
@@ -52,8 +52,9 @@ pub fn constrained_dynamics_derivatives(
 
     // λ as forces on the bodies (the kinematics of the solve are still in `data`).
     rows::register_constraint_forces(model, data, set, ws.lambda.as_slice(), dd);
+    // The forward dynamics left its bias pass in `data` (kinematics at (q, v, q̈ = 0), h).
     let qdd = std::mem::take(&mut dd.qdd);
-    rnea_derivatives_with_point_forces(model, data, dd, q, v, qdd.as_slice());
+    rnea_derivatives_after_bias(model, data, dd, qdd.as_slice());
     dd.qdd = qdd;
     rows::force_corrections(model, data, set, ws.lambda.as_slice(), dd);
     // M is still in `data` from the forward dynamics (nothing since wrote it).
