@@ -10,6 +10,7 @@ use crate::algorithm::Data;
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::dynamics::{KktOptions, KktWorkspace, constrained_forward_dynamics};
 use crate::error::{Error, Result};
+use crate::linalg::ltl_inverse;
 use crate::model::Model;
 
 /// Solves the constrained dynamics at (q, v, τ) (q̈ in `ws.qdd` and `dd.qdd`, λ in
@@ -57,8 +58,21 @@ pub fn constrained_dynamics_derivatives(
     rnea_derivatives_after_bias(model, data, dd, qdd.as_slice());
     dd.qdd = qdd;
     rows::force_corrections(model, data, set, ws.lambda.as_slice(), dd);
-    // M is still in `data` from the forward dynamics (nothing since wrote it).
-    kkt::invert_mass_or_augmented(model, data, cd, dd)?;
+    // M⁻¹ from the forward dynamics' LTL factor of M where it took one (M is still in `data`
+    // for the augmented case: nothing since wrote it).
+    if ws.augmented {
+        kkt::invert_mass_or_augmented(model, data, cd, dd)?;
+    } else {
+        dd.rho = 0.0;
+        ltl_inverse(
+            &ws.l,
+            ws.l_inv_diag.as_slice(),
+            &model.v_parent,
+            &model.v_subtree_end,
+            &mut dd.chol,
+            &mut dd.minv,
+        );
+    }
     rows::row_derivatives(model, data, set, cd, dd, stab);
     kkt::solve_kkt_derivatives(cd, dd);
     Ok(())
