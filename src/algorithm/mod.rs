@@ -20,10 +20,10 @@ pub use jacobian::{
     ReferenceFrame, frame_jacobian, point_jacobian, point_jacobian_rows,
     point_jacobian_rows_subtract, point_jacobian_transpose_add,
 };
+pub(crate) use kinematics::forward_kinematics_bias_after_placements;
 pub use kinematics::{
     forward_kinematics, forward_kinematics_bias, forward_kinematics_pos, forward_kinematics_vel,
     frame_placement, frame_velocity, point_classical_acceleration, point_position, point_velocity,
 };
-pub(crate) use kinematics::forward_kinematics_bias_after_placements;
 pub(crate) use rnea::bias_forces_after_kinematics;
 pub use rnea::{nonlinear_effects, rnea};
