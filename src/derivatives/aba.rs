@@ -13,9 +13,9 @@ use nalgebra::DMatrix;
 /// q̈ = M⁻¹(τ − h) (the forward dynamics ABA computes) into `dd.qdd` and `data.qdd`, and its
 /// derivatives into `dd.dqdd_dq`, `dd.dqdd_dv`, `dd.dqdd_dtau` = `dd.minv` = M⁻¹; `dd.dtau_dq`,
 /// `dd.dtau_dv` hold RNEA's at a = q̈, and `data.tau` holds h. M⁻¹ is needed anyway, so q̈
-/// comes from it and the bias pass on CRBA's placements rather than from a separate ABA pass
-/// (CRBA + RNEA + M⁻¹ r: 0.7 of ABA's time on talos_reduced); RNEA's derivatives at q̈ then
-/// add q̈'s share to that bias pass instead of running RNEA again.
+/// comes from it and the bias pass on CRBA's placements (no joint transforms formed twice)
+/// rather than from a separate ABA pass; RNEA's derivatives at q̈ then add q̈'s share to that
+/// bias pass instead of running RNEA again.
 pub fn aba_derivatives(
     model: &Model,
     data: &mut Data,
