@@ -1,7 +1,7 @@
 //! Articulated-body algorithm: forward dynamics `q̈ = M(q)⁻¹ (τ − h(q, v))` in O(nb).
 
 use super::Data;
-use crate::model::{Joint, Model};
+use crate::model::{Joint, JointKind, Model};
 use crate::spatial::{Force, Motion};
 use nalgebra::{DVector, Matrix6, Vector3, Vector6};
 
@@ -13,24 +13,50 @@ fn subspace_matrix(j: &Joint) -> Matrix6<f64> {
     s
 }
 
-/// Inverse of the leading k × k block of a symmetric positive-definite `d` (zero elsewhere).
+/// Inverse of the leading k × k block of a symmetric positive-definite `d` (zero elsewhere),
+/// by its Cholesky factor; NaN throughout where the block is not positive definite (a massless
+/// subtree), which q̈ then carries to the callers' checks.
 fn inverse_leading_block(d: &Matrix6<f64>, k: usize) -> Matrix6<f64> {
-    let mut padded = *d;
-    for r in 0..6 {
-        for c in 0..6 {
-            if r >= k || c >= k {
-                padded[(r, c)] = if r == c { 1.0 } else { 0.0 };
+    // L (lower) in `l`, then L⁻¹ in place, then D⁻¹ = L⁻ᵀ L⁻¹.
+    let mut l = Matrix6::zeros();
+    for j in 0..k {
+        let mut djj = d[(j, j)];
+        for m in 0..j {
+            djj -= l[(j, m)] * l[(j, m)];
+        }
+        if djj.is_nan() || djj <= 0.0 {
+            return Matrix6::from_element(f64::NAN);
+        }
+        let ljj = djj.sqrt();
+        l[(j, j)] = ljj;
+        for r in j + 1..k {
+            let mut x = d[(r, j)];
+            for m in 0..j {
+                x -= l[(r, m)] * l[(j, m)];
             }
+            l[(r, j)] = x / ljj;
         }
     }
-    let mut inv = padded
-        .try_inverse()
-        .unwrap_or_else(|| Matrix6::from_element(f64::NAN));
-    for r in 0..6 {
-        for c in 0..6 {
-            if r >= k || c >= k {
-                inv[(r, c)] = 0.0;
+    let mut w = Matrix6::zeros();
+    for j in 0..k {
+        w[(j, j)] = 1.0 / l[(j, j)];
+        for r in j + 1..k {
+            let mut x = 0.0;
+            for m in j..r {
+                x -= l[(r, m)] * w[(m, j)];
             }
+            w[(r, j)] = x / l[(r, r)];
+        }
+    }
+    let mut inv = Matrix6::zeros();
+    for a in 0..k {
+        for b in 0..=a {
+            let mut x = 0.0;
+            for m in a..k {
+                x += w[(m, a)] * w[(m, b)];
+            }
+            inv[(a, b)] = x;
+            inv[(b, a)] = x;
         }
     }
     inv
@@ -71,40 +97,66 @@ pub fn aba<'a>(
         let j = &b.joint;
         let nvj = j.kind.nv();
         let c = data.c[i].to_vector();
+        // A body on the world passes nothing on: its U, D⁻¹ and u only.
+        let root = b.parent == 0;
         let (ia, pa) = if nvj == 1 {
-            let s = j.subspace[0].to_vector();
-            let u = data.ia[i] * s;
-            let dinv = 1.0 / s.dot(&u);
-            let ui = tau[j.idx_v] - s.dot(&data.pa[i]);
+            // U = IA S, D = Sᵀ U and Sᵀ p; for S = ±e (an aligned revolute axis) a column and
+            // two entries, the same numbers as the products (their other terms are exact zeros).
+            let (u, d, sp) = match &j.kind {
+                JointKind::Revolute {
+                    aligned: Some((k, sign)),
+                    ..
+                } => (
+                    data.ia[i].column(3 + k) * *sign,
+                    data.ia[i][(3 + k, 3 + k)],
+                    data.pa[i][3 + k] * *sign,
+                ),
+                _ => {
+                    let s = j.subspace[0].to_vector();
+                    let u = data.ia[i] * s;
+                    (u, s.dot(&u), s.dot(&data.pa[i]))
+                }
+            };
+            let dinv = 1.0 / d;
+            let ui = tau[j.idx_v] - sp;
             data.u_mat[i].set_column(0, &u);
             data.d_inv[i][(0, 0)] = dinv;
             data.u_vec[i][0] = ui;
+            if root {
+                continue;
+            }
             let ia = data.ia[i] - u * u.transpose() * dinv;
             let pa = data.pa[i] + ia * c + u * (dinv * ui);
             (ia, pa)
         } else {
-            let s = subspace_matrix(j);
-            let u = data.ia[i] * s;
-            let dinv = inverse_leading_block(&(s.transpose() * u), nvj);
+            // A free-flyer's S is the identity: U = D = IA.
+            let (u, d, stp) = if matches!(j.kind, JointKind::FreeFlyer) {
+                (data.ia[i], data.ia[i], data.pa[i])
+            } else {
+                let s = subspace_matrix(j);
+                let u = data.ia[i] * s;
+                (u, s.transpose() * u, s.transpose() * data.pa[i])
+            };
+            let dinv = inverse_leading_block(&d, nvj);
             let mut ui = Vector6::zeros();
-            let stp = s.transpose() * data.pa[i];
             for k in 0..nvj {
                 ui[k] = tau[j.idx_v + k] - stp[k];
             }
             data.u_mat[i] = u;
             data.d_inv[i] = dinv;
             data.u_vec[i] = ui;
+            if root {
+                continue;
+            }
             let ia = data.ia[i] - u * dinv * u.transpose();
             let pa = data.pa[i] + ia * c + u * (dinv * ui);
             (ia, pa)
         };
-        if b.parent != 0 {
-            let x = &data.li_m_i[i];
-            let iap = x.act_inertia_matrix(&ia);
-            data.ia[b.parent] += iap;
-            let fp = x.act_force(&Force::from_vector(&pa)).to_vector();
-            data.pa[b.parent] += fp;
-        }
+        let x = &data.li_m_i[i];
+        let iap = x.act_inertia_matrix(&ia);
+        data.ia[b.parent] += iap;
+        let fp = x.act_force(&Force::from_vector(&pa)).to_vector();
+        data.pa[b.parent] += fp;
     }
     data.a_gf[0] = Motion::new(-model.gravity, Vector3::zeros());
     for i in 1..nb {

@@ -52,6 +52,23 @@ pub fn forward_kinematics_bias(model: &Model, data: &mut Data, q: &[f64], v: &[f
     }
 }
 
+/// [`forward_kinematics_bias`] from the placements `li_m_i` already in `data` at the same q (a
+/// CRBA's): twists and bias accelerations only, no joint transforms formed again.
+pub(crate) fn forward_kinematics_bias_after_placements(model: &Model, data: &mut Data, v: &[f64]) {
+    for i in 1..model.nbodies() {
+        let b = &model.bodies[i];
+        let j = &b.joint;
+        let mut vj = Motion::zero();
+        for k in 0..j.kind.nv() {
+            vj += j.subspace[k] * v[j.idx_v + k];
+        }
+        let li = &data.li_m_i[i];
+        let vi = li.act_inv_motion(&data.v[b.parent]) + vj;
+        data.a[i] = li.act_inv_motion(&data.a[b.parent]) + vi.cross_motion(&vj);
+        data.v[i] = vi;
+    }
+}
+
 /// Placements and body twists without accelerations: what the residuals a sample reports and
 /// the kinetic energy read (`ConstraintSet::residuals`).
 pub fn forward_kinematics_vel(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) {

@@ -20,6 +20,7 @@ pub use jacobian::{
     ReferenceFrame, frame_jacobian, point_jacobian, point_jacobian_rows,
     point_jacobian_rows_subtract, point_jacobian_transpose_add,
 };
+pub(crate) use kinematics::forward_kinematics_bias_after_placements;
 pub use kinematics::{
     forward_kinematics, forward_kinematics_bias, forward_kinematics_pos, forward_kinematics_vel,
     frame_placement, frame_velocity, point_classical_acceleration, point_position, point_velocity,

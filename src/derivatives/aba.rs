@@ -1,8 +1,10 @@
 //! Derivatives of unconstrained forward dynamics q̈ = M⁻¹(τ − h): differentiating
 //! M q̈ + h = τ gives ∂q̈/∂x = −M⁻¹ ∂τ/∂x of inverse dynamics taken at a = q̈, and ∂q̈/∂τ = M⁻¹.
 
-use super::{DerivativeData, rnea::rnea_derivatives_with_point_forces};
-use crate::algorithm::{Data, crba, rnea};
+use super::{DerivativeData, rnea::rnea_derivatives_after_bias};
+use crate::algorithm::{
+    Data, bias_forces_after_kinematics, crba, forward_kinematics_bias_after_placements,
+};
 use crate::error::{Error, Result};
 use crate::linalg::{dot_unrolled, gemm_into, ltl_factor, ltl_inverse, spd_inverse};
 use crate::model::Model;
@@ -10,9 +12,10 @@ use nalgebra::DMatrix;
 
 /// q̈ = M⁻¹(τ − h) (the forward dynamics ABA computes) into `dd.qdd` and `data.qdd`, and its
 /// derivatives into `dd.dqdd_dq`, `dd.dqdd_dv`, `dd.dqdd_dtau` = `dd.minv` = M⁻¹; `dd.dtau_dq`,
-/// `dd.dtau_dv` hold RNEA's at a = q̈. M⁻¹ is needed anyway, so q̈ comes from it and a bias
-/// RNEA rather than from a separate ABA pass (CRBA + RNEA + M⁻¹ r: 0.7 of ABA's time on
-/// talos_reduced).
+/// `dd.dtau_dv` hold RNEA's at a = q̈, and `data.tau` holds h. M⁻¹ is needed anyway, so q̈
+/// comes from it and the bias pass on CRBA's placements (no joint transforms formed twice)
+/// rather than from a separate ABA pass; RNEA's derivatives at q̈ then add q̈'s share to that
+/// bias pass instead of running RNEA again.
 pub fn aba_derivatives(
     model: &Model,
     data: &mut Data,
@@ -24,10 +27,8 @@ pub fn aba_derivatives(
     crba(model, data, q);
     inverse_mass_matrix(model, data, dd)?;
     dd.clear_point_forces();
-    // Moved out and back (no copy, no allocation) so RNEA can read them while writing `dd`.
-    let mut qdd = std::mem::take(&mut dd.qdd);
-    qdd.as_mut_slice().fill(0.0);
-    rnea(model, data, q, v, qdd.as_slice());
+    forward_kinematics_bias_after_placements(model, data, v);
+    bias_forces_after_kinematics(model, data);
     for (r, (t, h)) in dd
         .col_scratch
         .iter_mut()
@@ -37,14 +38,16 @@ pub fn aba_derivatives(
     }
     // M⁻¹ is symmetric: entry i is column i (contiguous) times τ − h.
     let nv = model.nv;
-    for (i, x) in qdd.iter_mut().enumerate() {
+    for (i, x) in dd.qdd.iter_mut().enumerate() {
         *x = dot_unrolled(
             &dd.minv.as_slice()[i * nv..(i + 1) * nv],
             dd.col_scratch.as_slice(),
         );
     }
-    data.qdd.copy_from(&qdd);
-    rnea_derivatives_with_point_forces(model, data, dd, q, v, qdd.as_slice());
+    data.qdd.copy_from(&dd.qdd);
+    // Moved out and back (no copy, no allocation) so the passes can read it while writing `dd`.
+    let qdd = std::mem::take(&mut dd.qdd);
+    rnea_derivatives_after_bias(model, data, dd, qdd.as_slice());
     dd.qdd = qdd;
     gemm_into(&mut dd.dqdd_dq, -1.0, &dd.minv, &dd.dtau_dq, 0.0);
     gemm_into(&mut dd.dqdd_dv, -1.0, &dd.minv, &dd.dtau_dv, 0.0);

@@ -4,12 +4,13 @@
 //! Every constraint kind has derivatives: point, weld (world and local axes), distance,
 //! coupling/mimic, rolling and no-side-slip.
 
-use super::rnea::rnea_derivatives_with_point_forces;
+use super::rnea::rnea_derivatives_after_bias;
 use super::{DerivativeData, kkt, rows};
 use crate::algorithm::Data;
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::dynamics::{KktOptions, KktWorkspace, constrained_forward_dynamics};
 use crate::error::{Error, Result};
+use crate::linalg::ltl_inverse;
 use crate::model::Model;
 
 /// Solves the constrained dynamics at (q, v, τ) (q̈ in `ws.qdd` and `dd.qdd`, λ in
@@ -52,12 +53,26 @@ pub fn constrained_dynamics_derivatives(
 
     // λ as forces on the bodies (the kinematics of the solve are still in `data`).
     rows::register_constraint_forces(model, data, set, ws.lambda.as_slice(), dd);
+    // The forward dynamics left its bias pass in `data` (kinematics at (q, v, q̈ = 0), h).
     let qdd = std::mem::take(&mut dd.qdd);
-    rnea_derivatives_with_point_forces(model, data, dd, q, v, qdd.as_slice());
+    rnea_derivatives_after_bias(model, data, dd, qdd.as_slice());
     dd.qdd = qdd;
     rows::force_corrections(model, data, set, ws.lambda.as_slice(), dd);
-    // M is still in `data` from the forward dynamics (nothing since wrote it).
-    kkt::invert_mass_or_augmented(model, data, cd, dd)?;
+    // M⁻¹ from the forward dynamics' LTL factor of M where it took one (M is still in `data`
+    // for the augmented case: nothing since wrote it).
+    if ws.augmented {
+        kkt::invert_mass_or_augmented(model, data, cd, dd)?;
+    } else {
+        dd.rho = 0.0;
+        ltl_inverse(
+            &ws.l,
+            ws.l_inv_diag.as_slice(),
+            &model.v_parent,
+            &model.v_subtree_end,
+            &mut dd.chol,
+            &mut dd.minv,
+        );
+    }
     rows::row_derivatives(model, data, set, cd, dd, stab);
     kkt::solve_kkt_derivatives(cd, dd);
     Ok(())

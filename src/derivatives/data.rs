@@ -1,10 +1,10 @@
 //! The reusable workspace of the derivative algorithms: world-axes kinematics, the per-column
 //! variations and every output matrix, sized once for a model and a number of constraint rows.
 
-use super::rnea::Column;
+use super::rnea::{AngularColumns, Column};
 use crate::model::Model;
-use crate::spatial::{Force, Inertia, Motion};
-use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Vector3};
+use crate::spatial::{Force, Motion, OriginInertia};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 /// Results and intermediates of [`rnea_derivatives`](super::rnea_derivatives),
 /// [`aba_derivatives`](super::aba_derivatives) and
@@ -47,7 +47,11 @@ pub struct DerivativeData {
     pub(crate) o_v: Vec<Motion>,
     /// Spatial accelerations with the gravity offset (base at −g), world axes.
     pub(crate) o_a: Vec<Motion>,
-    pub(crate) o_inertia: Vec<Inertia>,
+    /// q̈'s share of o_a (the bias form of the passes).
+    pub(crate) o_aq: Vec<Motion>,
+    /// Each body's wrench of q̈'s share, its world inertia times o_aq, summed leaf to root in
+    /// the backward pass (the bias form).
+    pub(crate) f_q: Vec<Force>,
     /// Composite wrenches of inverse dynamics (minus the applied point forces), world axes.
     pub(crate) o_f: Vec<Force>,
     /// ᵒS of each velocity coordinate.
@@ -62,9 +66,9 @@ pub struct DerivativeData {
     pub(crate) v_end: Vec<usize>,
     /// Composite world inertia Y, its variation Ẏ and the applied forces' G per body
     /// (rnea.rs), summed leaf to root during the backward pass.
-    pub(crate) ycrb: Vec<Matrix6<f64>>,
-    pub(crate) dycrb: Vec<Matrix6<f64>>,
-    pub(crate) gext: Vec<Matrix6<f64>>,
+    pub(crate) ycrb: Vec<OriginInertia>,
+    pub(crate) dycrb: Vec<AngularColumns>,
+    pub(crate) gext: Vec<AngularColumns>,
     /// Whether any point force or moment is applied (G is zero everywhere otherwise).
     pub(crate) has_applied: bool,
     /// The backward pass's 6-vectors per velocity coordinate.
@@ -141,16 +145,17 @@ impl DerivativeData {
             qdd: DVector::zeros(nv),
             o_v: vec![Motion::zero(); nb],
             o_a: vec![Motion::zero(); nb],
-            o_inertia: vec![Inertia::zero(); nb],
+            o_aq: vec![Motion::zero(); nb],
+            f_q: vec![Force::zero(); nb],
             o_f: vec![Force::zero(); nb],
             o_s: vec![Motion::zero(); nv],
             dof_body,
             subtree_end,
             df: vec![Force::zero(); nb],
             v_end,
-            ycrb: vec![Matrix6::zeros(); nb],
-            dycrb: vec![Matrix6::zeros(); nb],
-            gext: vec![Matrix6::zeros(); nb],
+            ycrb: vec![OriginInertia::default(); nb],
+            dycrb: vec![AngularColumns::default(); nb],
+            gext: vec![AngularColumns::default(); nb],
             has_applied: false,
             cols: vec![Column::default(); nv],
             ext_f: vec![Vector3::zeros(); nb],

@@ -17,14 +17,16 @@
 //!
 //! acting on each subtree's composite inertia Y and its variation Ẏ = v ×* Y − Y v× + (· ×* Y v)
 //! summed over the subtree; a row above J sees the subtree's wrench turn with it as well
-//! (S ×* F). Cost: one 6-vector product per (ancestor, descendant) coordinate pair and a few 6×6
-//! products per body, O(n·d); nothing allocates.
+//! (S ×* F). Y is kept about the world origin in its additive form (`OriginInertia`), and Ẏ,
+//! whose left three columns vanish, as its right half (`AngularColumns`). Cost: one 6-vector
+//! product per (ancestor, descendant) coordinate pair and a few 3×3 products per body, O(n·d);
+//! nothing allocates.
 
 use super::DerivativeData;
 use crate::algorithm::{Data, rnea};
-use crate::model::Model;
-use crate::spatial::{Force, Motion, skew};
-use nalgebra::{Matrix3, Matrix6, Vector3, Vector6};
+use crate::model::{JointKind, Model};
+use crate::spatial::{Force, Motion, OriginInertia, skew};
+use nalgebra::{Matrix3, Vector3};
 
 /// ∂τ/∂q and ∂τ/∂v of τ = RNEA(q, v, a) into `dd.dtau_dq`, `dd.dtau_dv` (∂/∂q in the tangent
 /// space: column j is the derivative along δ_j in q ⊕ δ, docs/architecture.md), and
@@ -38,64 +40,141 @@ pub fn rnea_derivatives(
     a: &[f64],
 ) {
     dd.clear_point_forces();
-    rnea_derivatives_with_point_forces(model, data, dd, q, v, a);
+    rnea(model, data, q, v, a);
+    passes(model, data, dd, Accelerations::Rnea);
 }
 
-/// As [`rnea_derivatives`], for τ − Σ (generalized force of the point forces registered with
-/// `DerivativeData::add_point_force`, fixed in world axes, applied at points moving with their
-/// bodies). The constrained derivatives use it for ∂(RNEA − Jᵀλ)/∂q at fixed λ.
-pub(crate) fn rnea_derivatives_with_point_forces(
+/// As [`rnea_derivatives`] at a = q̈, for τ − Σ (generalized force of the point forces
+/// registered with `DerivativeData::add_point_force`, fixed in world axes, applied at points
+/// moving with their bodies), from the bias pass at q̈ = 0 already in `data` (placements,
+/// twists, `data.a` and the composite bias wrenches `data.f` of
+/// `bias_forces_after_kinematics`): q̈'s share of the accelerations and wrenches is added in
+/// world axes, where it needs no transform (ᵒa_k += ᵒa_λ's share + Σ ᵒS q̈), instead of a
+/// second RNEA. M is not written (the caller's CRBA has it). The forward dynamics' derivatives
+/// use it, with the constraint forces λ as the point forces for ∂(RNEA − Jᵀλ)/∂q.
+pub(crate) fn rnea_derivatives_after_bias(
     model: &Model,
     data: &mut Data,
     dd: &mut DerivativeData,
-    q: &[f64],
-    v: &[f64],
-    a: &[f64],
+    qdd: &[f64],
 ) {
-    rnea(model, data, q, v, a);
-    passes(model, data, dd);
+    passes(model, data, dd, Accelerations::BiasPlus(qdd));
+}
+
+/// Where the passes find the bodies' accelerations and composite wrenches.
+#[derive(Clone, Copy)]
+enum Accelerations<'a> {
+    /// `data.a_gf` and `data.f` of an RNEA at a; M is written.
+    Rnea,
+    /// `data.a` and `data.f` of the bias pass, plus the share of this q̈; M is not written.
+    BiasPlus(&'a [f64]),
 }
 
 crate::linalg::wide_fn! {
 /// The two passes, whose 6×6 products gain from wider vectors.
-fn passes(model: &Model, data: &mut Data, dd: &mut DerivativeData) {
-    world_pass(model, data, dd);
-    backward_pass(model, data, dd);
+fn passes(model: &Model, data: &mut Data, dd: &mut DerivativeData, acc: Accelerations<'_>) {
+    world_pass(model, data, dd, acc);
+    backward_pass(model, data, dd, matches!(acc, Accelerations::Rnea));
 }
 }
 
-/// The matrix of f ↦ v ×* f.
-#[inline(always)]
-fn force_cross_matrix(v: &Motion) -> Matrix6<f64> {
-    let (w, l) = (skew(&v.ang), skew(&v.lin));
-    let mut m = Matrix6::zeros();
-    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&w);
-    m.fixed_view_mut::<3, 3>(3, 0).copy_from(&l);
-    m.fixed_view_mut::<3, 3>(3, 3).copy_from(&w);
-    m
+/// A 6 × 6 matrix on (lin, ang) whose left three columns are zero, `[[0, [t]×], [0, B]]`: the
+/// form of Ẏ and of G (below), kept as t and B (12 numbers added per body instead of 36, and
+/// half the products).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct AngularColumns {
+    t: Vector3<f64>,
+    b: Matrix3<f64>,
 }
 
-/// The matrix of x ↦ x ×* h, added to `m`.
-#[inline(always)]
-fn add_cross_by_force(m: &mut Matrix6<f64>, h: &Force) {
-    let (hl, ha) = (skew(&h.lin), skew(&h.ang));
-    let mut add = |r: usize, c: usize, x: &Matrix3<f64>| {
-        let mut b = m.fixed_view_mut::<3, 3>(r, c);
-        b -= x;
-    };
-    add(0, 3, &hl);
-    add(3, 0, &hl);
-    add(3, 3, &ha);
+impl AngularColumns {
+    /// The matrix times the motion x: (t × x_ang, B x_ang).
+    #[inline(always)]
+    fn mul(&self, x: &Motion) -> Force {
+        Force::new(self.t.cross(&x.ang), self.b * x.ang)
+    }
+
+    /// The angular part of the matrix's transpose times s (its linear part is zero):
+    /// [t]×ᵀ s_lin + Bᵀ s_ang = s_lin × t + Bᵀ s_ang.
+    #[inline(always)]
+    fn tr_mul(&self, s: &Motion) -> Vector3<f64> {
+        s.lin.cross(&self.t) + self.b.tr_mul(&s.ang)
+    }
 }
 
-/// World-axes twists, accelerations, inertias, composite wrenches and subspace columns from the
-/// body-frame results of the last RNEA pass; each body's Y, Ẏ and the applied forces' G, and
-/// each coordinate's dV, dA of ∂/∂q and dA of ∂/∂v.
+impl std::ops::AddAssign for AngularColumns {
+    #[inline(always)]
+    fn add_assign(&mut self, o: Self) {
+        self.t += o.t;
+        self.b += o.b;
+    }
+}
+
+/// Ẏ = v ×* Y − Y v× + (· ×* Y v) of one body's world inertia Y = [[m 1, −[h]×], [[h]×, I]]
+/// (about the world origin) moving with the world twist v = (v, ω). With V, H, W the cross
+/// matrices of v, h, ω and (p, L) = Y v, the first two terms are A + Aᵀ for A = (v ×*) Y =
+/// [[m W, −W H], [m V + W H, −V H + W I]]; with [a]×[b]× − [b]×[a]× = [a × b]× their left
+/// column cancels that of the third term, [[0, −[p]×], [−[p]×, −[L]×]], and
+///   Ẏ = [[0, −2 [p]×], [0, −(V H + H V) + W I + (W I)ᵀ − [L]×]],
+/// with V H + H V = h vᵀ + v hᵀ − 2 (v·h) 1.
 #[inline(always)]
-fn world_pass(model: &Model, data: &Data, dd: &mut DerivativeData) {
+fn inertia_variation(y: &OriginInertia, v: &Motion) -> AngularColumns {
+    let yv = y.mul_motion(v);
+    let (h, w, l) = (y.h, v.ang, v.lin);
+    let [xx, yy, zz, xy, xz, yz] = y.i_o;
+    let i = Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz);
+    // W I, column by column: ω × (column of I).
+    let wi = Matrix3::from_columns(&[
+        w.cross(&i.column(0).into_owned()),
+        w.cross(&i.column(1).into_owned()),
+        w.cross(&i.column(2).into_owned()),
+    ]);
+    let hv = h * l.transpose();
+    let mut b = wi + wi.transpose() - hv - hv.transpose();
+    let d = 2.0 * h.dot(&l);
+    let n = yv.ang;
+    b[(0, 0)] += d;
+    b[(1, 1)] += d;
+    b[(2, 2)] += d;
+    // − [L]×
+    b[(0, 1)] += n.z;
+    b[(0, 2)] -= n.y;
+    b[(1, 0)] -= n.z;
+    b[(1, 2)] += n.x;
+    b[(2, 0)] += n.y;
+    b[(2, 1)] -= n.x;
+    AngularColumns {
+        t: yv.lin * -2.0,
+        b,
+    }
+}
+
+/// Body i's world subspace column c: for a revolute joint a pure rotation about its world axis
+/// through the body origin, (t × R a, R a) (R a a column of R when a is a frame axis), as CRBA
+/// forms it.
+#[inline(always)]
+fn world_subspace(kind: &JointKind, o_m_i: &crate::spatial::SE3, s: &Motion) -> Motion {
+    if let JointKind::Revolute { axis, aligned, .. } = kind {
+        let ang = match aligned {
+            Some((k, sign)) => o_m_i.rotation.column(*k) * *sign,
+            None => o_m_i.rotation * axis,
+        };
+        Motion::new(o_m_i.translation.cross(&ang), ang)
+    } else {
+        o_m_i.act_motion(s)
+    }
+}
+
+/// World-axes twists, accelerations, composite wrenches and subspace columns from the
+/// body-frame results of the last RNEA or bias pass; each body's Y, Ẏ and the applied forces'
+/// G, and each coordinate's dV, dA of ∂/∂q and dA of ∂/∂v.
+#[inline(always)]
+fn world_pass(model: &Model, data: &Data, dd: &mut DerivativeData, acc: Accelerations<'_>) {
     let nb = model.nbodies();
+    let gravity_offset = Motion::new(-model.gravity, Vector3::zeros());
     dd.o_v[0] = Motion::zero();
-    dd.o_a[0] = Motion::new(-model.gravity, Vector3::zeros());
+    dd.o_a[0] = gravity_offset;
+    dd.o_aq[0] = Motion::zero();
     // Composite applied wrenches, accumulated leaf to root in `df` (scratch here).
     dd.has_applied = false;
     for k in 0..nb {
@@ -112,31 +191,41 @@ fn world_pass(model: &Model, data: &Data, dd: &mut DerivativeData) {
         let m = &data.o_m_i[k];
         let vk = m.act_motion(&data.v[k]);
         dd.o_v[k] = vk;
-        dd.o_a[k] = m.act_motion(&data.a_gf[k]);
-        dd.o_inertia[k] = b.inertia.transformed(m);
+        let (p, j) = (b.parent, &b.joint);
+        for c in 0..j.kind.nv() {
+            dd.o_s[j.idx_v + c] = world_subspace(&j.kind, m, &j.subspace[c]);
+        }
         dd.o_f[k] = m.act_force(&data.f[k]) - dd.df[k];
-        let y = dd.o_inertia[k].matrix();
-        // Ẏ = v ×* Y − Y v× + (· ×* Y v); with v× = −(v×*)ᵀ and Y symmetric, the first two
-        // terms are A + Aᵀ for A = (v×*) Y.
-        let a = force_cross_matrix(&vk) * y;
-        dd.dycrb[k] = a + a.transpose();
-        add_cross_by_force(&mut dd.dycrb[k], &dd.o_inertia[k].mul_motion(&vk));
+        match acc {
+            Accelerations::Rnea => dd.o_a[k] = m.act_motion(&data.a_gf[k]),
+            Accelerations::BiasPlus(qdd) => {
+                let mut aq = dd.o_aq[p];
+                for c in j.idx_v..j.idx_v + j.kind.nv() {
+                    aq += dd.o_s[c] * qdd[c];
+                }
+                dd.o_aq[k] = aq;
+                dd.o_a[k] = m.act_motion(&data.a[k]) + gravity_offset + aq;
+            }
+        }
+        let y = OriginInertia::transformed(&b.inertia, m);
+        if let Accelerations::BiasPlus(_) = acc {
+            dd.f_q[k] = y.mul_motion(&dd.o_aq[k]);
+        }
+        dd.dycrb[k] = inertia_variation(&y, &vk);
         dd.ycrb[k] = y;
         if dd.has_applied {
             dd.gext[k] = applied_force_variation(dd, k);
         }
-        let (p, j) = (b.parent, &b.joint);
         let (vp, ap) = (dd.o_v[p], dd.o_a[p]);
         for c in 0..j.kind.nv() {
             let i = j.idx_v + c;
-            let s = m.act_motion(&j.subspace[c]);
-            dd.o_s[i] = s;
+            let s = dd.o_s[i];
             let dv = vp.cross_motion(&s);
             let col = &mut dd.cols[i];
-            col.s = s.to_vector();
-            col.dv_dq = dv.to_vector();
-            col.da_dq = (ap.cross_motion(&s) + vp.cross_motion(&dv)).to_vector();
-            col.da_dv = (vk + vp).cross_motion(&s).to_vector();
+            col.s = s;
+            col.dv_dq = dv;
+            col.da_dq = ap.cross_motion(&s) + vp.cross_motion(&dv);
+            col.da_dv = (vk + vp).cross_motion(&s);
         }
     }
 }
@@ -145,42 +234,44 @@ fn world_pass(model: &Model, data: &Data, dd: &mut DerivativeData) {
 /// body moves by S: (ω × f, p × (ω × f)) summed over its points (and ω × m for pure moments),
 /// as a matrix on S = (lin, ω): [0, −[F]×; 0, −[n]× − Σ p fᵀ + (Σ p·f) 1].
 #[inline(always)]
-fn applied_force_variation(dd: &DerivativeData, k: usize) -> Matrix6<f64> {
-    let mut g = Matrix6::zeros();
-    g.fixed_view_mut::<3, 3>(0, 3)
-        .copy_from(&-skew(&dd.ext_f[k]));
-    g.fixed_view_mut::<3, 3>(3, 3)
-        .copy_from(&(-skew(&dd.ext_m[k]) - dd.ext_pf[k] + Matrix3::identity() * dd.ext_pdotf[k]));
-    g
+fn applied_force_variation(dd: &DerivativeData, k: usize) -> AngularColumns {
+    AngularColumns {
+        t: -dd.ext_f[k],
+        b: -skew(&dd.ext_m[k]) - dd.ext_pf[k] + Matrix3::identity() * dd.ext_pdotf[k],
+    }
 }
 
 /// Leaf to root: each body's composites Y, Ẏ, G (children already added), its coordinates'
-/// wrench variations, and the blocks of ∂τ/∂q, ∂τ/∂v and M between its coordinates and those
-/// of its subtree.
+/// wrench variations, and the blocks of ∂τ/∂q, ∂τ/∂v (and M when `write_mass`) between its
+/// coordinates and those of its subtree.
 #[inline(always)]
-fn backward_pass(model: &Model, data: &mut Data, dd: &mut DerivativeData) {
+fn backward_pass(model: &Model, data: &mut Data, dd: &mut DerivativeData, write_mass: bool) {
     data.size_mass_matrix(model.nv);
     let m = &mut data.mass_matrix;
     dd.dtau_dq.as_mut_slice().fill(0.0);
     dd.dtau_dv.as_mut_slice().fill(0.0);
-    m.as_mut_slice().fill(0.0);
+    if write_mass {
+        m.as_mut_slice().fill(0.0);
+    }
+    let bias_plus = !write_mass;
+    let applied = dd.has_applied;
     for k in (1..model.nbodies()).rev() {
         let b = &model.bodies[k];
-        let (y, dy, g) = (dd.ycrb[k], dd.dycrb[k], dd.gext[k]);
+        let (y, dy) = (dd.ycrb[k], dd.dycrb[k]);
         let (c0, c1, end) = (
             b.joint.idx_v,
             b.joint.idx_v + b.joint.kind.nv(),
             dd.v_end[k],
         );
-        let applied = dd.has_applied;
         for c in c0..c1 {
             let col = &mut dd.cols[c];
-            col.df_da = y * col.s;
-            col.df_dq = dy * col.dv_dq + y * col.da_dq;
-            col.df_dv = dy * col.s + y * col.da_dv;
+            col.df_da = y.mul_motion(&col.s);
+            col.df_dq = dy.mul(&col.dv_dq) + y.mul_motion(&col.da_dq);
+            col.df_dv = dy.mul(&col.s) + y.mul_motion(&col.da_dv);
             col.dyt_s = dy.tr_mul(&col.s);
             if applied {
-                col.df_dq += g * col.s;
+                let g = &dd.gext[k];
+                col.df_dq += g.mul(&col.s);
                 col.gt_s = g.tr_mul(&col.s);
             }
         }
@@ -189,34 +280,45 @@ fn backward_pass(model: &Model, data: &mut Data, dd: &mut DerivativeData) {
             // Rows below k (their composites already summed), column c.
             for r in c1..end {
                 let rc = &dd.cols[r];
-                let mut dq = rc.df_da.dot(&sc.da_dq) + rc.dyt_s.dot(&sc.dv_dq);
+                let mut dq = sc.da_dq.dot(&rc.df_da) + rc.dyt_s.dot(&sc.dv_dq.ang);
                 if applied {
-                    dq += rc.gt_s.dot(&sc.s);
+                    dq += rc.gt_s.dot(&sc.s.ang);
                 }
                 dd.dtau_dq[(r, c)] = dq;
-                dd.dtau_dv[(r, c)] = rc.df_da.dot(&sc.da_dv) + rc.dyt_s.dot(&sc.s);
+                dd.dtau_dv[(r, c)] = sc.da_dv.dot(&rc.df_da) + rc.dyt_s.dot(&sc.s.ang);
             }
             // Row c, the columns of k's subtree (k's own included).
             for r in c0..end {
                 let rc = &dd.cols[r];
                 dd.dtau_dq[(c, r)] = sc.s.dot(&rc.df_dq);
                 dd.dtau_dv[(c, r)] = sc.s.dot(&rc.df_dv);
-                let mcr = sc.s.dot(&rc.df_da);
-                m[(c, r)] = mcr;
-                m[(r, c)] = mcr;
+                if write_mass {
+                    let mcr = sc.s.dot(&rc.df_da);
+                    m[(c, r)] = mcr;
+                    m[(r, c)] = mcr;
+                }
             }
         }
-        // Rows above k see the subtree's wrench F turn with it: S ×* F.
+        // Rows above k see the subtree's wrench F turn with it: S ×* F (F with q̈'s share,
+        // its subtree's already summed, in the bias form).
+        let p = b.parent;
+        if bias_plus {
+            let fq = dd.f_q[k];
+            dd.o_f[k] += fq;
+            if p != 0 {
+                dd.f_q[p] += fq;
+            }
+        }
         let f = dd.o_f[k];
         for c in c0..c1 {
-            let turn = dd.o_s[c].cross_force(&f).to_vector();
+            let turn = dd.o_s[c].cross_force(&f);
             dd.cols[c].df_dq += turn;
         }
-        let p = b.parent;
         if p != 0 {
             dd.ycrb[p] += y;
             dd.dycrb[p] += dy;
             if applied {
+                let g = dd.gext[k];
                 dd.gext[p] += g;
             }
         }
@@ -227,18 +329,19 @@ fn backward_pass(model: &Model, data: &mut Data, dd: &mut DerivativeData) {
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Column {
     /// ᵒS.
-    s: Vector6<f64>,
+    s: Motion,
     /// dV = v_P × S and dA = a_P × S + v_P × dV of ∂/∂δ; dA = (v_J + v_P) × S of ∂/∂v.
-    dv_dq: Vector6<f64>,
-    da_dq: Vector6<f64>,
-    da_dv: Vector6<f64>,
+    dv_dq: Motion,
+    da_dq: Motion,
+    da_dv: Motion,
     /// Y S, Ẏ dV + Y dA + G S (then + S ×* F), Ẏ S + Y dA, with the composites of its body.
-    df_da: Vector6<f64>,
-    df_dq: Vector6<f64>,
-    df_dv: Vector6<f64>,
-    /// Ẏᵀ S and Gᵀ S, what the rows of this coordinate need from the columns above it.
-    dyt_s: Vector6<f64>,
-    gt_s: Vector6<f64>,
+    df_da: Force,
+    df_dq: Force,
+    df_dv: Force,
+    /// The angular parts of Ẏᵀ S and Gᵀ S (their linear parts are zero), what the rows of this
+    /// coordinate need from the columns above it.
+    dyt_s: Vector3<f64>,
+    gt_s: Vector3<f64>,
 }
 
 /// Variation (∂ᵒv_k, ∂ᵒa_k) of body k's world twist and acceleration along q-column j, or None

@@ -125,15 +125,26 @@ impl SE3 {
     }
 
     /// Articulated (6×6, symmetric) inertia in b → in a: `X⁻ᵀ I X⁻¹` with `X` = act_inv on motions.
+    /// By blocks, I = [[A, B], [Bᵀ, C]]: turned into a's axes (R A Rᵀ, R B Rᵀ, R C Rᵀ, then
+    /// A', B', C'), and moved to a's origin with T = [t]× (a motion's velocity at b's origin is
+    /// v − T ω): `[[A', B' − A' T], [·, C' + T (B' − A' T) + (T B')ᵀ]]`. Nine 3×3 products,
+    /// against two 6×6 ones (four times the multiplications, most of them by X's zero block).
+    #[inline]
     pub fn act_inertia_matrix(&self, ib: &Matrix6<f64>) -> Matrix6<f64> {
-        // X_inv maps motions in a to b: [Rᵀ, -Rᵀ[t]×; 0, Rᵀ]
-        let rt = self.rotation.transpose();
-        let mut xinv = Matrix6::zeros();
-        xinv.fixed_view_mut::<3, 3>(0, 0).copy_from(&rt);
-        xinv.fixed_view_mut::<3, 3>(0, 3)
-            .copy_from(&(-rt * skew(&self.translation)));
-        xinv.fixed_view_mut::<3, 3>(3, 3).copy_from(&rt);
-        xinv.transpose() * ib * xinv
+        let r = &self.rotation;
+        let turned = |blk: Matrix3<f64>| r * blk * r.transpose();
+        let a = turned(ib.fixed_view::<3, 3>(0, 0).into_owned());
+        let b = turned(ib.fixed_view::<3, 3>(0, 3).into_owned());
+        let c = turned(ib.fixed_view::<3, 3>(3, 3).into_owned());
+        let t = skew(&self.translation);
+        let b2 = b - a * t;
+        let c2 = c + t * b2 + (t * b).transpose();
+        let mut out = Matrix6::zeros();
+        out.fixed_view_mut::<3, 3>(0, 0).copy_from(&a);
+        out.fixed_view_mut::<3, 3>(0, 3).copy_from(&b2);
+        out.fixed_view_mut::<3, 3>(3, 0).copy_from(&b2.transpose());
+        out.fixed_view_mut::<3, 3>(3, 3).copy_from(&c2);
+        out
     }
 
     /// Exponential map of a body twist `ν = [v; ω]` applied for unit time (SE(3) exp).
