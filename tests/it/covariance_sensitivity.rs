@@ -11,10 +11,10 @@
 
 use crate::common;
 use common::*;
+use constraint_dynamics::Scene;
 use constraint_dynamics::actuators::Command;
 use constraint_dynamics::forces::JointSpringSpec;
 use constraint_dynamics::predict::{PredictionRequest, Predictor};
-use constraint_dynamics::Scene;
 use nalgebra::DMatrix;
 
 /// Achieved ≤ 8.2e-4 (the mobile manipulator at 0.5 s; 1.3e-4 on its floating twin, ≤ 3.4e-5
