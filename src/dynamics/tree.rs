@@ -18,9 +18,9 @@ use nalgebra::Matrix6;
 /// The mean depth of a velocity coordinate in the tree (its ancestors, itself included) from
 /// which ABA is the faster: the dense path's work per coordinate grows with it (M's entries in
 /// its column, the LTL factor's products), ABA's does not. Measured on chains (mean depth
-/// (n + 1)/2): dense/linear time 0.87 at n = 24, 1.07 at n = 32; the four example robots, mean
-/// depth ≤ 10, are 1.4–1.7× faster dense.
-pub const LINEAR_MIN_MEAN_DEPTH: f64 = 15.0;
+/// (n + 1)/2): dense/linear time 0.83 at n = 16, 1.03 at n = 24 (docs/performance.md); the
+/// four example robots, mean depth ≤ 10, are 1.2–1.4× faster dense.
+pub const LINEAR_MIN_MEAN_DEPTH: f64 = 12.0;
 
 /// Whether a system on `model` without constraint rows evaluates its forward dynamics by ABA
 /// (`System::forward_dynamics_with`): where it is the faster (mean depth at least

@@ -28,8 +28,10 @@ pub(in crate::predict) struct JacobianWork {
     /// `DENSE_EAGER_NV` coordinates, by the first analytic Jacobian above (an explicit
     /// prediction of a large tree never holds them).
     pub(in crate::predict) dd: Option<DerivativeData>,
-    /// The force elements' ∂Q/∂(δq, v), differenced.
-    pub(in crate::predict) forces: ForceJacobian,
+    /// The force elements' ∂Q/∂(δq, v), differenced: built by the first Jacobian of a scene
+    /// whose elements depend on the state beyond its joints (n × n: never on a large tree
+    /// without such elements).
+    pub(in crate::predict) forces: Option<ForceJacobian>,
 }
 
 impl JacobianWork {
@@ -38,7 +40,7 @@ impl JacobianWork {
         Self {
             dd: (nv <= DENSE_EAGER_NV)
                 .then(|| DerivativeData::new(sys.model(), sys.constraints().nrows)),
-            forces: ForceJacobian::new(sys.model()),
+            forces: None,
         }
     }
 }
@@ -148,7 +150,7 @@ impl Rhs<'_> {
     fn force_columns_fd(&mut self, (t, q, v): (f64, &[f64], &[f64]), jac: &mut DMatrix<f64>) {
         let nv = v.len();
         let jw = &mut *self.jw;
-        let fj = &mut jw.forces;
+        let fj = (jw.forces).get_or_insert_with(|| ForceJacobian::new(self.sys.model()));
         fj.differentiate(self.sys, self.forces, (t, q, v), Differences::Central);
         let dd = jw.dd.as_ref().expect("checked above");
         for col in 0..2 * nv {
