@@ -9,14 +9,14 @@ diff drive's wheel-speed PI (torque clamped to the URDF effort, no integration w
 and the arm's PD, held at the scene's initial arm pose. Each drive follows phases of ~20 s of
 Nav2-like cmd_vel at 20 Hz (arcs, spins, reverses, stops), smoothed to 1 m/s² and 2 rad/s² as a
 velocity smoother would, or raw steps: the validation drives one phase each, the calibration
-drive a smoothed phase and then a phase of steps. One shorter drive carries a payload on the tool that the scene is
-not told of (payload_3kg.mcap: 3 kg at tool0, robot_mjcf.py), its arm held with the tool above
-the wheel axle (shoulder pitch −0.1, elbow −0.15 rad): with the scene's forward-leaning pose the
-robot's centre of mass lies within a millimetre of the axle, and any mass at the tool (0.51 m
-ahead of it there) tips the robot onto its anti-tip skid (3 kg: ~145 N on the skid, ~11 N on
-each wheel, and the wheels spin). Topics:
+drive a smoothed phase and then a phase of steps. One shorter drive carries a payload on the
+tool that the scene is not told of (payload_3kg.mcap: 3 kg at tool0, robot_mjcf.py), its arm
+held with the tool above the wheel axle (shoulder pitch −0.1, elbow −0.15 rad): with the
+scene's forward-leaning pose the robot's centre of mass lies within a millimetre of the axle,
+and any mass at the tool (0.51 m ahead of it there) tips the robot onto its anti-tip skid
+(3 kg: ~145 N on the skid, ~11 N on each wheel, and the wheels spin). Topics:
 
-    /cmd_vel            geometry_msgs/Twist (TwistStamped in the drive with raw steps), 20 Hz
+    /cmd_vel            geometry_msgs/Twist (TwistStamped in validation_steps), 20 Hz
     /odom               nav_msgs/Odometry, 50 Hz: the true base pose and twist plus white noise
                         (σ 2 mm, 2 mrad, 0.01 m/s, 0.01 rad/s) and a covariance that states it
     /joint_states       sensor_msgs/JointState, 50 Hz, 5 ms after /odom: positions and
