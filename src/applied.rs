@@ -225,18 +225,17 @@ impl ForceJacobian {
             };
             let signs: &[f64] = if central { &[1.0, -1.0] } else { &[1.0] };
             for &sign in signs {
+                let out = if sign > 0.0 { &mut *plus } else { &mut *minus };
                 if col < nv {
                     e.fill(0.0);
                     e[c] = sign * eps;
                     sys.model().integrate(q, e, 1.0, qp);
-                    vp.copy_from_slice(v);
+                    Self::generalized_force(sys, elements, (t, qp, v), out);
                 } else {
-                    qp.copy_from_slice(q);
                     vp.copy_from_slice(v);
                     vp[c] += sign * eps;
+                    Self::generalized_force(sys, elements, (t, q, vp), out);
                 }
-                let out = if sign > 0.0 { &mut *plus } else { &mut *minus };
-                Self::generalized_force(sys, elements, (t, qp, vp), out);
             }
             let (base, width) = if central {
                 (&*minus, 2.0 * eps)

@@ -238,6 +238,9 @@ pub fn linearize_step(
     // ∂q̈/∂τ enters only B and the stiffness and damping of the joint springs and the elements
     // acting at frames.
     lin.dd.with_tau = lin.inputs || !lin.joint_springs.is_empty() || lin.frame_forces.is_some();
+    if let Some(f) = lin.frame_forces.as_mut() {
+        f.start_step(sys, q, v);
+    }
     // The method's own linearized step (integrators/, `Step::linearize`): one of the functions
     // below, or a refusal.
     method.linearize(sys, lin, (q, v), tau, dt)

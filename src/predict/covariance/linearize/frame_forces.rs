@@ -10,7 +10,7 @@
 //! tests/it/covariance_sensitivity.rs). So each stage takes
 //! `τ_stage = τ + Q_f(q_s, v_s) − Q_f(q₀, v₀)` and adds
 //! `∂q̈/∂τ · (∂Q_f/∂δq, ∂Q_f/∂v)` to ∂q̈/∂(δq, v), by forward differences of Q_f
-//! ([`ForceJacobian`], 2nv + 2 evaluations a stage).
+//! ([`ForceJacobian`], 2nv + 1 evaluations a stage, and one at the step's start).
 
 use crate::applied::{Differences, ForceJacobian};
 use crate::derivatives::DerivativeData;
@@ -43,19 +43,22 @@ impl FrameForces {
         })
     }
 
-    /// Moves the elements' share of `tau_stage` from the step's start (q₀, v₀) to the stage
-    /// (q, v), and, with `derivatives`, takes their derivatives there (module doc). Leaves the
-    /// system's kinematics at a nearby state: the caller's dynamics recompute them.
+    /// Q_f at the start (q₀, v₀) of the step about to be linearized: the share its τ holds.
+    pub(super) fn start_step(&mut self, sys: &mut System, q0: &[f64], v0: &[f64]) {
+        // The elements acting at frames do not depend on t.
+        ForceJacobian::generalized_force(sys, &mut self.elements, (0.0, q0, v0), &mut self.start);
+    }
+
+    /// Moves the elements' share of `tau_stage` from the step's start ([`Self::start_step`]) to
+    /// the stage (q, v), and, with `derivatives`, takes their derivatives there (module doc).
+    /// Leaves the system's kinematics at a nearby state: the caller's dynamics recompute them.
     pub(super) fn stage(
         &mut self,
         sys: &mut System,
-        (q0, v0): (&[f64], &[f64]),
         (q, v): (&[f64], &[f64]),
         tau_stage: &mut [f64],
         derivatives: bool,
     ) {
-        // The elements acting at frames do not depend on t.
-        ForceJacobian::generalized_force(sys, &mut self.elements, (0.0, q0, v0), &mut self.start);
         let j = &mut self.jacobian;
         if derivatives {
             j.differentiate(sys, &mut self.elements, (0.0, q, v), Differences::Forward);

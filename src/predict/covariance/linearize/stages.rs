@@ -27,7 +27,7 @@ pub(super) fn dynamics(
     stage_torque(springs, tau_stage, (q0, v0), (q, v, ds), tau);
     let at = KktOptions { t: at.t + ds, ..at };
     if let Some(f) = frame {
-        f.stage(sys, (q0, v0), (q, v), tau_stage, true);
+        f.stage(sys, (q, v), tau_stage, true);
         dynamics_derivatives(sys, at, dd, q, v, tau_stage)?;
         f.add_to(dd);
     } else {
@@ -79,7 +79,7 @@ pub(super) fn stage_acceleration(
 ) -> Result<()> {
     stage_torque(springs, tau_stage, (q0, v0), (q, v, ds), tau);
     if let Some(f) = frame {
-        f.stage(sys, (q0, v0), (q, v), tau_stage, false);
+        f.stage(sys, (q, v), tau_stage, false);
     }
     let opts = DynamicsOptions {
         gains: Some(at.gains),
