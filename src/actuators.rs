@@ -147,6 +147,8 @@ struct Pi {
     integral: f64,
     /// Linear feedback (k, d) at the last tick ([`Actuators::feedback`]).
     gain: (f64, f64),
+    /// Held: clamped at the last tick.
+    clamped: bool,
     name: String,
     /// Continuous hold: the target of the current segment (NaN: none), ∫v* dt up to the
     /// segment's start, and the joint's position at the prediction's start.
@@ -195,6 +197,9 @@ pub struct Feedback {
     /// The torque's own rate at fixed (q, v) [N·m/s or N/s]: a continuous velocity controller's
     /// ki × target (its integral of the target grows with t); 0 for a held torque.
     pub rate: f64,
+    /// The controller has a target and asks for more than its effort (or the traction torque):
+    /// its torque is clamped.
+    pub saturated: bool,
 }
 
 /// Validated actuators with their controller state.
@@ -255,6 +260,7 @@ impl Actuators {
                 effort,
                 integral: 0.0,
                 gain: (0.0, 0.0),
+                clamped: false,
                 name: s.joint.clone(),
                 target: f64::NAN,
                 target_integral: 0.0,
@@ -304,6 +310,7 @@ impl Actuators {
                     effort,
                     integral: 0.0,
                     gain: (0.0, 0.0),
+                    clamped: false,
                     name: name.clone(),
                     target: f64::NAN,
                     target_integral: 0.0,
@@ -327,7 +334,7 @@ impl Actuators {
     pub fn reset(&mut self) {
         self.velocity.iter_mut().for_each(|c| {
             c.integral = 0.0;
-            c.gain = (0.0, 0.0);
+            (c.gain, c.clamped) = ((0.0, 0.0), false);
         });
         self.position.iter_mut().for_each(|c| c.gain = (0.0, 0.0));
     }
@@ -375,13 +382,14 @@ impl Actuators {
     /// The controllers' linear feedback at their last tick, velocity controllers first, in a
     /// fixed order (module doc of [`Feedback`]).
     pub fn feedback(&self) -> impl Iterator<Item = Feedback> + '_ {
-        let of = |(iq, iv), (k, d), integral, rate| Feedback {
+        let of = |(iq, iv), (k, d), integral, rate, saturated| Feedback {
             iq,
             iv,
             k,
             d,
             integral,
             rate,
+            saturated,
         };
         let continuous = self.is_continuous();
         let pi = self.velocity.iter().map(move |c| {
@@ -389,12 +397,16 @@ impl Actuators {
                 true => c.gain.0 * c.target,
                 false => 0.0,
             };
-            of((c.iq, c.iv), c.gain, true, rate)
+            let saturated = match continuous {
+                true => c.target.is_finite() && c.frozen.is_finite(),
+                false => c.clamped,
+            };
+            of((c.iq, c.iv), c.gain, true, rate, saturated)
         });
         let pd = self
             .position
             .iter()
-            .map(move |c| of((c.iq, c.iv), c.gain, false, 0.0));
+            .map(move |c| of((c.iq, c.iv), c.gain, false, 0.0, false));
         pi.chain(pd)
     }
 
@@ -435,12 +447,13 @@ impl Actuators {
         let drive = self.diff_drive;
         for (k, c) in self.velocity.iter_mut().enumerate() {
             let Some(target) = velocity_target(drive, cmd, k, &c.name) else {
-                c.gain = (0.0, 0.0);
+                (c.gain, c.clamped) = ((0.0, 0.0), false);
                 continue;
             };
             let e = target - v[c.iv];
             let raw = c.kp * e + c.ki * (c.integral + e * dt);
-            c.gain = if raw.abs() <= c.effort {
+            c.clamped = raw.abs() > c.effort;
+            c.gain = if !c.clamped {
                 c.integral += e * dt; // anti-windup: integrate only when not saturated
                 (c.ki, c.kp + c.ki * dt)
             } else {

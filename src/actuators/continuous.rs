@@ -82,6 +82,7 @@ impl Actuators {
                     d,
                     integral: false,
                     rate,
+                    saturated: false,
                 });
             }
         });

@@ -1,16 +1,22 @@
 //! The process noise: what the model still misses after the fit, stated as the wheels'
 //! acceleration noise so that the predicted covariance covers it.
 //!
-//! One density σ [(rad/s²)/√Hz] on every wheel joint (`uncertainty.acceleration_noise`,
-//! docs/propagation.md): through the rolling constraints it spreads the base's position along
-//! the travel and its yaw, growing with the horizon. σ is the smallest value whose predicted
-//! covariance (the node's: propagated, error estimate and floors, plus the reference's own)
-//! holds the target fraction of the replayed errors inside its 95 % region, pooled over every
-//! horizon and recording; found by doubling, then bisection of log σ. Not on a scene with tyres:
-//! their grip rejects such noise ([`TYRES_REJECT_NOISE`]).
+//! Two densities on every wheel joint (docs/propagation.md): σ [(rad/s²)/√Hz] at all times
+//! (`uncertainty.acceleration_noise`), and σ_sat added while the wheel's controller is saturated
+//! (`uncertainty.saturation_noise`): at the grip's limit — a skid, a wheel unloaded as the robot
+//! pitches — the model knows least what the floor takes. Through the rolling constraints they
+//! spread the base's position along the travel and its yaw, growing with the horizon. For each
+//! σ_sat tried, σ is the smallest value whose predicted covariance (the node's: propagated, error
+//! estimate and floors, plus the reference's own) holds the target fraction of the replayed
+//! errors inside its 95 % region, pooled over every horizon and recording (doubling, then
+//! bisection of log σ); of those pairs the one with the best log score is kept (the mean
+//! negative log-likelihood of the errors under the predicted Gaussians: a proper score, which
+//! prefers the sharpest covariance that still covers). Not on a scene with tyres: their grip
+//! rejects such noise ([`TYRES_REJECT_NOISE`]).
 
 use super::{CalibrationError, CalibrationSettings, Problem};
 use crate::replay::{EvaluationSettings, evaluate, stats::Coverage};
+use nalgebra::Matrix3;
 use serde::Serialize;
 use serde_yaml::Value;
 
@@ -21,8 +27,13 @@ pub struct ProcessNoise {
     pub joints: Vec<String>,
     /// σ [(rad/s²)/√Hz].
     pub acceleration_noise: f64,
-    /// The fraction of the replayed errors inside the 95 % region with it.
+    /// σ_sat [(rad/s²)/√Hz], added while a wheel's controller is saturated.
+    pub saturation_noise: f64,
+    /// The fraction of the replayed errors inside the 95 % region with them.
     pub coverage_p95: f64,
+    /// The predictions' mean negative log-likelihood with them (½ (NEES + ln det P), P the
+    /// pose covariance in m and rad; lower is better).
+    pub log_score: f64,
     /// Replays it took.
     pub replays: usize,
     /// Why σ was not fitted, where it was not.
@@ -42,8 +53,18 @@ const BISECTIONS: usize = 6;
 /// The largest and smallest σ tried [(rad/s²)/√Hz].
 const LARGEST: f64 = 1e4;
 const SMALLEST: f64 = 1e-4;
+/// σ_sat tried [(rad/s²)/√Hz], in order, until one scores worse than the one before it: along
+/// σ_sat the log score has one minimum on the drives measured.
+const SATURATION_TRIED: [f64; 6] = [0.0, 1.0, 2.0, 4.0, 8.0, 16.0];
 
-/// Fits σ for the scene `yaml` (the fitted one) and writes it in.
+/// One trial's coverage and log score.
+#[derive(Clone, Copy)]
+struct Score {
+    coverage_p95: f64,
+    log_score: f64,
+}
+
+/// Fits σ and σ_sat for the scene `yaml` (the fitted one) and writes them in.
 pub(super) fn fit(
     problem: &Problem,
     yaml: &mut Value,
@@ -54,73 +75,121 @@ pub(super) fn fit(
         ..settings.replay.clone()
     };
     let mut replays = 0;
-    let mut coverage = |sigma: f64| -> Result<f64, CalibrationError> {
+    let mut score = |sigma: f64, sat: f64| -> Result<Score, CalibrationError> {
         let mut trial = yaml.clone();
         if sigma > 0.0 {
-            problem.places.set_wheel_noise(&mut trial, sigma);
+            (problem.places).set_wheel_noise(&mut trial, "acceleration_noise", sigma);
+        }
+        if sat > 0.0 {
+            (problem.places).set_wheel_noise(&mut trial, "saturation_noise", sat);
         }
         let scene = problem.source.build(&trial)?;
-        let mut nees = Vec::new();
+        let (mut nees, mut log_score) = (Vec::new(), 0.0);
         for recording in problem.recordings {
             let ev = evaluate(&scene, recording, &replay)?;
-            nees.extend(ev.records.iter().map(|r| r.nees));
+            for r in &ev.records {
+                let p =
+                    Matrix3::from(r.predicted_covariance) + Matrix3::from(r.reference_covariance);
+                log_score += 0.5 * (r.nees + p.determinant().max(f64::MIN_POSITIVE).ln());
+                nees.push(r.nees);
+            }
         }
         replays += 1;
-        Ok(if nees.is_empty() {
-            0.0
-        } else {
-            Coverage::of(&nees).p95
+        Ok(Score {
+            coverage_p95: if nees.is_empty() {
+                0.0
+            } else {
+                Coverage::of(&nees).p95
+            },
+            log_score: log_score / nees.len().max(1) as f64,
         })
     };
     let target = settings.target_coverage_p95;
     let joints = problem.places.wheel_joints().to_vec();
-    let c0 = coverage(0.0)?;
+    let s0 = score(0.0, 0.0)?;
     let tyres = problem.places.has_tyres();
-    if c0 >= target || joints.is_empty() || tyres {
+    if s0.coverage_p95 >= target || joints.is_empty() || tyres {
         return Ok(ProcessNoise {
             joints,
             acceleration_noise: 0.0,
-            coverage_p95: c0,
+            saturation_noise: 0.0,
+            coverage_p95: s0.coverage_p95,
+            log_score: s0.log_score,
             replays,
-            not_fitted: (tyres && c0 < target).then_some(TYRES_REJECT_NOISE),
+            not_fitted: (tyres && s0.coverage_p95 < target).then_some(TYRES_REJECT_NOISE),
         });
     }
-    // A bracket [lo, hi] with coverage(lo) < target ≤ coverage(hi), by factors of 2 from
-    // 0.1 (wheel accelerations of a tenth of a rad/s² over a second's horizon).
-    let (mut lo, mut hi) = (0.0, 0.1);
-    let mut c_hi = coverage(hi)?;
-    if c_hi >= target {
+    let mut best: Option<(f64, f64, Score)> = None;
+    for sat in SATURATION_TRIED {
+        // σ only shrinks as σ_sat grows: the bracket starts at the last one's σ.
+        let from = best.map_or(0.1, |b| b.0);
+        let (sigma, s) = smallest_sigma(|sigma| score(sigma, sat), target, from)?;
+        if best.is_some_and(|b| s.log_score >= b.2.log_score) {
+            break;
+        }
+        best = Some((sigma, sat, s));
+    }
+    let (sigma, sat, s) = best.expect("SATURATION_TRIED is not empty");
+    problem
+        .places
+        .set_wheel_noise(yaml, "acceleration_noise", sigma);
+    if sat > 0.0 {
+        problem
+            .places
+            .set_wheel_noise(yaml, "saturation_noise", sat);
+    }
+    Ok(ProcessNoise {
+        joints,
+        acceleration_noise: sigma,
+        saturation_noise: sat,
+        coverage_p95: s.coverage_p95,
+        log_score: s.log_score,
+        replays,
+        not_fitted: None,
+    })
+}
+
+/// The smallest σ (to 2^(1/64)) whose `score` covers `target`, bracketed by factors of 2 from
+/// `from`; σ = 0 where that already covers it.
+fn smallest_sigma(
+    mut score: impl FnMut(f64) -> Result<Score, CalibrationError>,
+    target: f64,
+    from: f64,
+) -> Result<(f64, Score), CalibrationError> {
+    let (mut lo, mut hi) = (0.0, from.max(SMALLEST));
+    let mut s_hi = score(hi)?;
+    if s_hi.coverage_p95 >= target {
         lo = hi / 2.0;
-        while lo > SMALLEST {
-            let c = coverage(lo)?;
-            if c < target {
+        loop {
+            if lo <= SMALLEST {
+                let s = score(0.0)?;
+                if s.coverage_p95 >= target {
+                    return Ok((0.0, s));
+                }
                 break;
             }
-            (hi, c_hi) = (lo, c);
+            let s = score(lo)?;
+            if s.coverage_p95 < target {
+                break;
+            }
+            (hi, s_hi) = (lo, s);
             lo /= 2.0;
         }
     } else {
-        while c_hi < target && hi < LARGEST {
+        while s_hi.coverage_p95 < target && hi < LARGEST {
             lo = hi;
             hi *= 2.0;
-            c_hi = coverage(hi)?;
+            s_hi = score(hi)?;
         }
     }
     for _ in 0..BISECTIONS {
-        let mid = (lo * hi).sqrt();
-        let c = coverage(mid)?;
-        if c >= target {
-            (hi, c_hi) = (mid, c);
+        let mid = if lo > 0.0 { (lo * hi).sqrt() } else { hi / 2.0 };
+        let s = score(mid)?;
+        if s.coverage_p95 >= target {
+            (hi, s_hi) = (mid, s);
         } else {
             lo = mid;
         }
     }
-    problem.places.set_wheel_noise(yaml, hi);
-    Ok(ProcessNoise {
-        joints,
-        acceleration_noise: hi,
-        coverage_p95: c_hi,
-        replays,
-        not_fitted: None,
-    })
+    Ok((hi, s_hi))
 }

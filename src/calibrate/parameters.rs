@@ -366,9 +366,9 @@ impl SceneParameters {
         self.tyres.1 > 0
     }
 
-    /// Writes `uncertainty.acceleration_noise: σ` [(rad/s²)/√Hz] for every wheel joint,
-    /// keeping the scene's other entries.
-    pub fn set_wheel_noise(&self, scene: &mut Value, sigma: f64) {
+    /// Writes `uncertainty.<field>: σ` [(rad/s²)/√Hz] (`acceleration_noise` or
+    /// `saturation_noise`) for every wheel joint, keeping the scene's other entries.
+    pub fn set_wheel_noise(&self, scene: &mut Value, field: &str, sigma: f64) {
         let Some(root) = scene.as_mapping_mut() else {
             return;
         };
@@ -380,7 +380,7 @@ impl SceneParameters {
         }
         let Some(u) = u.as_mapping_mut() else { return };
         let noise = u
-            .entry("acceleration_noise".into())
+            .entry(field.into())
             .or_insert_with(|| Value::Mapping(Default::default()));
         if !noise.is_mapping() {
             *noise = Value::Mapping(Default::default());

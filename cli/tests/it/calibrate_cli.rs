@@ -82,6 +82,8 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
     assert_eq!(m["value"].as_f64(), Some(0.0), "{m}");
     let sigma = out["process_noise"]["acceleration_noise"].as_f64().unwrap();
     assert!(sigma > 0.0, "{out}");
+    let sigma_sat = out["process_noise"]["saturation_noise"].as_f64().unwrap();
+    assert!(sigma_sat >= 0.0, "{out}");
     assert!(out["run_time_s"].as_f64().unwrap() < 300.0, "{out}");
 
     // The written scene loads from where it was written, as every command reads a scene.
@@ -122,8 +124,8 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
     }
     // Raw command steps skid the tyres and pitch the robot onto its skid, lifting its wheels
     // (docs/logs.md). Fitted on a drive that also skids, the scene misses by a third to a half of
-    // what it missed before calibration; the simulator
-    // itself, predicting from such a start, leaves 65 mrad at 1 s (tools/logs/model_floor.py).
+    // what it missed before calibration; the simulator itself, predicting from such a start,
+    // leaves 65 mrad at 1 s (tools/logs/model_floor.py).
     let steps = format!("{logs}/validation_steps");
     let score = |scene: &str| {
         let (ok, v, err) = run(

@@ -59,6 +59,12 @@ pub struct UncertaintySpec {
     /// (default: none, 0).
     #[serde(default)]
     pub acceleration_noise: BTreeMap<String, f64>,
+    /// Acceleration noise density σ [(rad/s²)/√Hz or (m/s²)/√Hz] on a velocity-controlled
+    /// joint while its controller is saturated (at its effort, or a diff drive's traction
+    /// torque), added to `acceleration_noise`: at the grip's limit the model knows least what
+    /// the floor takes (default: none).
+    #[serde(default)]
+    pub saturation_noise: BTreeMap<String, f64>,
 }
 
 /// Propagates a covariance along a prediction (buffers sized once; a step allocates nothing).
@@ -66,8 +72,9 @@ pub struct UncertaintySpec {
 pub struct CovariancePropagator {
     /// The current covariance, 2nv × 2nv, order [δq; δv] in the velocity order.
     pub p: DMatrix<f64>,
-    /// σ_i² per velocity coordinate.
+    /// σ_i² per velocity coordinate, and added while its controller is saturated.
     noise: Vec<f64>,
+    saturation_noise: Vec<f64>,
     pub(in crate::predict) lin: Linearization,
     /// The prediction's steps not yet in `p`, and how they are cut into chunks
     /// (covariance/chunks.rs).
@@ -188,19 +195,23 @@ impl CovariancePropagator {
     /// elements acting at frames by differences: linearize/frame_forces.rs).
     pub fn new(sys: &System, forces: &ForceElements, spec: &UncertaintySpec) -> Result<Self> {
         let nv = sys.model().nv;
-        let mut noise = vec![0.0; nv];
-        for (name, &sigma) in &spec.acceleration_noise {
-            let i = sys.model().v_index(name)?;
-            if !(sigma.is_finite() && sigma >= 0.0) {
-                return Err(Error::Invalid(format!(
-                    "uncertainty.acceleration_noise.{name} = {sigma}: must be finite and ≥ 0"
-                )));
+        let variances = |field: &str, sigmas: &BTreeMap<String, f64>| -> Result<Vec<f64>> {
+            let mut noise = vec![0.0; nv];
+            for (name, &sigma) in sigmas {
+                let i = sys.model().v_index(name)?;
+                if !(sigma.is_finite() && sigma >= 0.0) {
+                    return Err(Error::Invalid(format!(
+                        "uncertainty.{field}.{name} = {sigma}: must be finite and ≥ 0"
+                    )));
+                }
+                noise[i] = sigma * sigma;
             }
-            noise[i] = sigma * sigma;
-        }
+            Ok(noise)
+        };
         Ok(Self {
             p: DMatrix::zeros(2 * nv, 2 * nv),
-            noise,
+            noise: variances("acceleration_noise", &spec.acceleration_noise)?,
+            saturation_noise: variances("saturation_noise", &spec.saturation_noise)?,
             lin: {
                 let mut lin = Linearization::new(sys)
                     .with_joint_springs(forces.joint_spring_dampers())
@@ -290,8 +301,11 @@ impl CovariancePropagator {
         if let Some(o) = self.integral.as_mut() {
             o.add_cross_terms(&mut self.p);
         }
-        for i in 0..nv {
-            let s2 = self.noise[i];
+        let saturated = feedback.iter().filter(|f| f.saturated).map(|f| f.iv);
+        for (i, s2) in (0..nv)
+            .map(|i| (i, self.noise[i]))
+            .chain(saturated.map(|i| (i, self.saturation_noise[i])))
+        {
             if s2 > 0.0 {
                 self.p[(i, i)] += s2 * h * h * h / 3.0;
                 self.p[(i, nv + i)] += s2 * h * h / 2.0;

@@ -1,0 +1,122 @@
+//! Process noise against its closed forms on a 2 kg slider (a prismatic joint along x, no
+//! gravity along it) under a velocity controller (kp 4 N·s/m, no integral, effort 1 N):
+//! - asked for 10 m/s it saturates for the whole second: the force is a constant 1 N, and white
+//!   acceleration noise of density σ (`acceleration_noise`) plus σ_sat while saturated
+//!   (`saturation_noise`) gives the double integrator's `(σ² + σ_sat²) [t³/3, t²/2; t²/2, t]`;
+//! - asked for 0.2 m/s it stays inside its effort (kp·0.2 = 0.8 N): v is an Ornstein–Uhlenbeck
+//!   process of rate a = kp/m, `var v(t) = σ² (1 − e^{−2at}) / (2a)`, and σ_sat adds nothing.
+
+use crate::common;
+use common::*;
+use constraint_dynamics::Scene;
+use constraint_dynamics::actuators::Command;
+use constraint_dynamics::predict::{PredictionRequest, Predictor};
+use nalgebra::DMatrix;
+
+const URDF: &str = r#"<?xml version="1.0"?>
+<robot name="slider">
+  <link name="rail"/>
+  <link name="carriage"><inertial><mass value="2.0"/>
+    <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>
+  <joint name="slider" type="prismatic"><parent link="rail"/><child link="carriage"/>
+    <axis xyz="1 0 0"/><limit lower="-100" upper="100" effort="1.0" velocity="20"/></joint>
+</robot>
+"#;
+const MASS_KG: f64 = 2.0;
+const KP: f64 = 4.0;
+const SIGMA: f64 = 0.3;
+const SIGMA_SAT: f64 = 0.4;
+
+fn slider(hold: &str) -> Scene {
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let k = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("cd_slider_{}_{k}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("slider.urdf"), URDF).unwrap();
+    let yaml = format!(
+        "urdf: slider.urdf\nbase: fixed\ngravity: [0.0, 0.0, -9.81]\n\
+         actuators:\n  hold: {hold}\n  velocity:\n    - {{ joint: slider, kp: {KP}, ki: 0.0 }}\n\
+         integration:\n  method: rk4\n  dt: 0.001\n\
+         uncertainty:\n  acceleration_noise: {{ slider: {SIGMA} }}\n  \
+         saturation_noise: {{ slider: {SIGMA_SAT} }}\n"
+    );
+    std::fs::write(dir.join("slider.yaml"), yaml).unwrap();
+    let scene = Scene::load(dir.join("slider.yaml")).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    scene
+}
+
+/// The covariance at every sample of a 1 s prediction from rest asked for `target` [m/s],
+/// with (t, [[P_qq, P_qv], [P_vq, P_vv]]).
+fn covariances(scene: &Scene, target: f64) -> Vec<(f64, [[f64; 2]; 2])> {
+    let mut pred = Predictor::from_scene(scene)
+        .unwrap()
+        .with_settings(|s| s.error_estimate = false)
+        .unwrap();
+    let cmd = Command {
+        joint_velocity: [("slider".to_string(), target)].into(),
+        ..Default::default()
+    };
+    let p0 = DMatrix::zeros(2, 2);
+    let commands = [(0.0, cmd)];
+    let req = PredictionRequest::new(&[0.0], &[0.0])
+        .horizon(1.0)
+        .commands(&commands)
+        .covariance(&p0);
+    let traj = pred.predict(&req).unwrap();
+    (traj.samples.iter())
+        .filter(|s| s.t > 0.0)
+        .map(|s| {
+            let p = rows_to_matrix(s.covariance.as_ref().unwrap());
+            (s.t, [[p[(0, 0)], p[(0, 1)]], [p[(1, 0)], p[(1, 1)]]])
+        })
+        .collect()
+}
+
+#[test]
+fn saturation_noise_is_the_double_integrators_while_saturated() {
+    for hold in ["continuous", "zero_order"] {
+        let mut worst: f64 = 0.0;
+        for (t, p) in covariances(&slider(hold), 10.0) {
+            let s2 = SIGMA * SIGMA + SIGMA_SAT * SIGMA_SAT;
+            let exact = [
+                [s2 * t.powi(3) / 3.0, s2 * t * t / 2.0],
+                [s2 * t * t / 2.0, s2 * t],
+            ];
+            for a in 0..2 {
+                for b in 0..2 {
+                    worst = worst.max((p[a][b] - exact[a][b]).abs() / exact[a][b]);
+                }
+            }
+        }
+        println!("{hold}: saturated, worst relative difference {worst:.2e}");
+        assert!(worst < 1e-12, "{hold}: {worst:e}");
+    }
+}
+
+#[test]
+fn saturation_noise_is_absent_inside_the_effort() {
+    let a = KP / MASS_KG;
+    for hold in ["continuous", "zero_order"] {
+        let samples = covariances(&slider(hold), 0.2);
+        // The noise of a chunk of H enters as the double integrator's, P_vv += σ² H, and the
+        // controller damps it from the next chunk on: P_vv(kH) = σ² H (1 − e^{−2akH}) /
+        // (1 − e^{−2aH}), which is the Ornstein–Uhlenbeck variance to a relative a·H.
+        let h = samples[0].0;
+        let (mut discrete, mut continuous): (f64, f64) = (0.0, 0.0);
+        for (t, p) in &samples {
+            let chunked =
+                SIGMA * SIGMA * h * (1.0 - (-2.0 * a * t).exp()) / (1.0 - (-2.0 * a * h).exp());
+            let ou = SIGMA * SIGMA * (1.0 - (-2.0 * a * t).exp()) / (2.0 * a);
+            discrete = discrete.max((p[1][1] - chunked).abs() / chunked);
+            continuous = continuous.max((p[1][1] - ou).abs() / ou);
+        }
+        println!(
+            "{hold}: inside the effort, var v against the chunked form {discrete:.2e}, \
+             against the Ornstein–Uhlenbeck variance {continuous:.2e} (a·H = {:.2e})",
+            a * h
+        );
+        assert!(discrete < 5e-9, "{hold}: {discrete:e}");
+        assert!(continuous < 1.01 * a * h, "{hold}: {continuous:e}");
+    }
+}
