@@ -1,0 +1,110 @@
+"""How far one calibration carries: the calibrated scene scored on fresh drives of the same
+kinds, and what a calibration drive with more raw steps changes.
+
+    .venv-logs/bin/python tools/logs/step_spread.py [--print]
+
+Fresh drives come from make_logs.py's own generator with seeds no bundled drive uses (five of
+20 s of raw command steps, two of 20 s smoothed), written to a temporary directory. The suite's
+scene is calibrated twice with the CLI's defaults: on the bundled calibration.mcap (20 s
+smoothed, 20 s of steps) and on a drive of the same seed with a second 20 s phase of steps
+(60 s). Each calibrated scene is then scored by `evaluate` against the simulator's true pose on
+the two bundled validation drives and on the fresh ones. Writes docs/logs.md's table between its
+`step_spread:begin` / `step_spread:end` markers (`--print`: to stdout instead).
+"""
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.dirname(HERE))
+import make_logs as ml  # noqa: E402
+from doc_block import write_block  # noqa: E402
+
+DOC = os.path.join(ml.REPO, "docs", "logs.md")
+BEGIN = "<!-- step_spread:begin -->"
+END = "<!-- step_spread:end -->"
+LOGS = os.path.join(ml.REPO, "tests", "data", "logs")
+STEPS_SEEDS = [101, 102, 103, 104, 105]
+SMOOTH_SEEDS = [201, 202]
+
+
+def cli(*args):
+    out = subprocess.run(
+        ["cargo", "run", "--quiet", "--locked", "-p", "constraint_dynamics_cli", "--", *args],
+        cwd=ml.REPO, check=True, stdout=subprocess.PIPE, text=True)
+    return json.loads(out.stdout)
+
+
+def drive(tmp, name, seed, phases):
+    path = os.path.join(tmp, f"{name}.mcap")
+    d = ml.Drive(name, seed=seed, phases=tuple((k, 20.0) for k in phases), stamped=False,
+                 bag_directory=False)
+    ml.record(d, path, ml.SCENE, ml.URDF)
+    return path
+
+
+def scored(scene, bag):
+    """{horizon: (worst position [mm], worst yaw [mrad], median yaw [mrad], coverage p95)}."""
+    ev = cli("evaluate", "--scene", scene, "--bag", bag, "--truth-topic", "/ground_truth/odom",
+             "--horizons", "1,2")
+    return {h["horizon_s"]: (1e3 * h["position_error_m"]["max"], 1e3 * h["yaw_error_rad"]["max"],
+                             1e3 * h["yaw_error_rad"]["median"], h["coverage"]["p95"])
+            for h in ev["horizons"]}
+
+
+def span(values, fmt):
+    lo, hi = min(values), max(values)
+    return fmt.format(lo) if fmt.format(lo) == fmt.format(hi) else \
+        f"{fmt.format(lo)}–{fmt.format(hi)}"
+
+
+def main():
+    with tempfile.TemporaryDirectory() as tmp:
+        calibrations = [
+            ("calibration.mcap (40 s: smoothed, steps)", os.path.join(LOGS, "calibration.mcap")),
+            ("60 s: smoothed, steps, steps", drive(tmp, "calibration_60", 11,
+                                                   ["smoothed", "steps", "steps"])),
+        ]
+        steps = [drive(tmp, f"steps_{s}", s, ["steps"]) for s in STEPS_SEEDS]
+        smooth = [drive(tmp, f"smooth_{s}", s, ["smoothed"]) for s in SMOOTH_SEEDS]
+        rows = []
+        for label, bag in calibrations:
+            out = os.path.join(tmp, "calibrated.yaml")
+            cal = cli("calibrate", "--scene", ml.SCENE, "--bag", bag, "--out", out)
+            values = {p["name"]: p["value"] for p in cal["parameters"]}
+            pn = cal["process_noise"]
+            fitted = (f"r {values['rolling_radius']:.5f} m, track +{1e3 * values['track_offset']:.1f}"
+                      f" mm, traction {values['traction_torque']:.2f} N·m; σ "
+                      f"{pn['acceleration_noise']:.3g}, σ_sat {pn['saturation_noise']:.3g}")
+            groups = [("validation_smooth", [os.path.join(LOGS, "validation_smooth.mcap")]),
+                      ("validation_steps", [os.path.join(LOGS, "validation_steps")]),
+                      (f"{len(smooth)} fresh smoothed", smooth),
+                      (f"{len(steps)} fresh steps", steps)]
+            for name, bags in groups:
+                s = [scored(out, b) for b in bags]
+                cells = []
+                for h in (1.0, 2.0):
+                    cells.append(f"{span([x[h][0] for x in s], '{:.1f}')} mm, "
+                                 f"{span([x[h][1] for x in s], '{:.0f}')} mrad, "
+                                 f"{span([x[h][2] for x in s], '{:.1f}')} mrad")
+                cov = " / ".join(span([x[h][3] for x in s], "{:.2f}") for h in (1.0, 2.0))
+                rows.append(f"| {label} | {fitted} | {name} | {cells[0]} | {cells[1]} | {cov} |")
+                label = fitted = ""
+    lines = ["<!-- written by .venv-logs/bin/python tools/logs/step_spread.py: do not edit -->",
+             "",
+             "| calibrated on | fitted | scored on | 1 s: worst position, worst / median yaw | "
+             "2 s: the same | coverage p95 at 1 s / 2 s |",
+             "|---|---|---|---|---|---|", *rows]
+    body = "\n".join(lines)
+    if "--print" in sys.argv:
+        print(body)
+    else:
+        write_block(DOC, BEGIN, END, body)
+
+
+if __name__ == "__main__":
+    main()
