@@ -71,6 +71,9 @@ pub struct ReplayArgs {
     /// state.controller_integrals_from_effort).
     #[arg(long)]
     pub controllers_from_efforts: bool,
+    /// Threads the predictions run on (default: every core; the figures do not depend on it).
+    #[arg(long)]
+    pub threads: Option<usize>,
 }
 
 impl ReplayArgs {
@@ -103,6 +106,9 @@ impl ReplayArgs {
             joint_noise,
             max_gap_s: self.max_gap,
             integrals_from_efforts: self.controllers_from_efforts,
+            threads: self
+                .threads
+                .unwrap_or(EvaluationSettings::default().threads),
             ..EvaluationSettings::default()
         }
     }

@@ -3,8 +3,8 @@
 //! a recomputation here from its own per-prediction records — the reference poses looked up
 //! again in the bag by the mcap crate and CDR decoded into plain structs (not the tool's
 //! reader), errors and NEES from the printed poses and covariances with a 3 × 3 inverse by
-//! cofactors, the χ²(3) bounds from the closed-form CDF, percentiles by sorting — and bad input
-//! is a clear error, never a panic.
+//! cofactors, the χ²(3) bounds from the closed-form CDF, percentiles by sorting — whatever the
+//! threads it runs on, and bad input is a clear error, never a panic.
 
 use crate::common::repo_dir;
 use byteorder::LittleEndian;
@@ -154,6 +154,15 @@ fn figures_agree_with_a_recomputation_from_the_bag() {
         }
         let (ok, out, err) = evaluate(&args);
         assert!(ok, "{bag}: {err}");
+        // The starts are replayed on every core; one thread or three give the same records.
+        for threads in ["1", "3"] {
+            let (ok, again, err) = evaluate(&[&args[..], &["--threads", threads]].concat());
+            assert!(ok, "{bag}: {err}");
+            assert_eq!(
+                again["records"], out["records"],
+                "{bag}: --threads {threads}"
+            );
+        }
         let refs = reference(&path, topic);
         let origin = refs.iter().map(|r| r.0).min().unwrap();
         let records = out["records"].as_array().unwrap();
@@ -256,6 +265,10 @@ fn bad_input_is_a_clear_error() {
         (
             vec!["--scene", s, "--bag", "/nonexistent/bag.mcap"],
             "/nonexistent/bag.mcap",
+        ),
+        (
+            vec!["--scene", s, "--bag", b, "--threads", "0"],
+            "threads = 0: must be at least 1",
         ),
     ] {
         let (ok, _, err) = evaluate(&args);
