@@ -243,35 +243,33 @@ pub fn evaluate(
     // Each thread replays every `threads`-th start with its own predictor, in order, and
     // stops at its first error: every start before the earliest error is replayed, so the
     // error reported is the one a replay in order meets first.
-    let per_thread: Vec<Vec<(usize, Result<Vec<PredictionRecord>, ReplayError>)>> =
-        std::thread::scope(|s| {
-            let handles: Vec<_> = (0..threads)
-                .map(|k| {
-                    let starts = &starts;
-                    s.spawn(move || {
-                        let mut out = Vec::new();
-                        let mut replayer = match Replayer::new(scene, recording, settings, span) {
-                            Ok(r) => r,
-                            Err(e) => return vec![(k, Err(e))],
-                        };
-                        for i in (k..starts.len()).step_by(threads) {
-                            let r = replayer.start(starts[i]);
-                            let failed = r.is_err();
-                            out.push((i, r));
-                            if failed {
-                                break;
-                            }
+    let per_thread: Vec<Vec<StartRecords>> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..threads)
+            .map(|k| {
+                let starts = &starts;
+                s.spawn(move || {
+                    let mut out = Vec::new();
+                    let mut replayer = match Replayer::new(scene, recording, settings, span) {
+                        Ok(r) => r,
+                        Err(e) => return vec![(k, Err(e))],
+                    };
+                    for i in (k..starts.len()).step_by(threads) {
+                        let r = replayer.start(starts[i]);
+                        let failed = r.is_err();
+                        out.push((i, r));
+                        if failed {
+                            break;
                         }
-                        out
-                    })
+                    }
+                    out
                 })
-                .collect();
-            (handles.into_iter())
-                .map(|h| h.join().expect("a replay thread panicked"))
-                .collect()
-        });
-    let mut by_start: Vec<(usize, Result<Vec<PredictionRecord>, ReplayError>)> =
-        per_thread.into_iter().flatten().collect();
+            })
+            .collect();
+        (handles.into_iter())
+            .map(|h| h.join().expect("a replay thread panicked"))
+            .collect()
+    });
+    let mut by_start: Vec<StartRecords> = per_thread.into_iter().flatten().collect();
     by_start.sort_by_key(|(i, _)| *i);
     let mut records = Vec::new();
     for (_, r) in by_start {
@@ -279,6 +277,9 @@ pub fn evaluate(
     }
     summarise(settings, starts.len(), records, (end - first) as f64 * 1e-9)
 }
+
+/// A start's index and its predictions (or why it failed).
+type StartRecords = (usize, Result<Vec<PredictionRecord>, ReplayError>);
 
 /// The recording's origin and end [ns].
 #[derive(Clone, Copy)]
