@@ -4,13 +4,15 @@
 //! - `series.rs`: the recording as plain time series (no message format);
 //! - `start.rs`: a start state at t0, assembled and projected as the predictor node does;
 //! - `evaluate.rs`: predictions every `every` seconds over each horizon, their errors against
-//!   the reference poses and the covariance's coverage;
+//!   the reference poses and the covariance's coverage, the starts spread over threads;
+//! - `replayer.rs`: one thread's share of the starts, with its own predictor;
 //! - `stats.rs`: the order statistics, χ²(3) regions and NEES.
 //!
 //! Nothing here reads a file: a log reader (the nodes crate's rosbag2 reader) fills a
 //! [`Recording`].
 
 mod evaluate;
+mod replayer;
 mod series;
 mod start;
 pub mod stats;
