@@ -74,15 +74,16 @@ pub(super) fn fit(
         propagate_covariance: true,
         ..settings.replay.clone()
     };
+    // The fit owns the wheels' two densities: every trial and the result set both, 0 included,
+    // so that what is scored is what is written.
+    let write = |yaml: &mut Value, sigma: f64, sat: f64| {
+        (problem.places).set_wheel_noise(yaml, "acceleration_noise", sigma);
+        (problem.places).set_wheel_noise(yaml, "saturation_noise", sat);
+    };
     let mut replays = 0;
     let mut score = |sigma: f64, sat: f64| -> Result<Score, CalibrationError> {
         let mut trial = yaml.clone();
-        if sigma > 0.0 {
-            (problem.places).set_wheel_noise(&mut trial, "acceleration_noise", sigma);
-        }
-        if sat > 0.0 {
-            (problem.places).set_wheel_noise(&mut trial, "saturation_noise", sat);
-        }
+        write(&mut trial, sigma, sat);
         let scene = problem.source.build(&trial)?;
         let (mut nees, mut log_score) = (Vec::new(), 0.0);
         for recording in problem.recordings {
@@ -109,6 +110,7 @@ pub(super) fn fit(
     let s0 = score(0.0, 0.0)?;
     let tyres = problem.places.has_tyres();
     if s0.coverage_p95 >= target || joints.is_empty() || tyres {
+        write(yaml, 0.0, 0.0);
         return Ok(ProcessNoise {
             joints,
             acceleration_noise: 0.0,
@@ -130,14 +132,7 @@ pub(super) fn fit(
         best = Some((sigma, sat, s));
     }
     let (sigma, sat, s) = best.expect("SATURATION_TRIED is not empty");
-    problem
-        .places
-        .set_wheel_noise(yaml, "acceleration_noise", sigma);
-    if sat > 0.0 {
-        problem
-            .places
-            .set_wheel_noise(yaml, "saturation_noise", sat);
-    }
+    write(yaml, sigma, sat);
     Ok(ProcessNoise {
         joints,
         acceleration_noise: sigma,

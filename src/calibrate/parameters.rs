@@ -369,7 +369,10 @@ impl SceneParameters {
     /// Writes `uncertainty.<field>: σ` [(rad/s²)/√Hz] (`acceleration_noise` or
     /// `saturation_noise`) for every wheel joint, keeping the scene's other entries.
     pub fn set_wheel_noise(&self, scene: &mut Value, field: &str, sigma: f64) {
-        let Some(root) = scene.as_mapping_mut() else {
+        let Some(root) = scene
+            .as_mapping_mut()
+            .filter(|_| !self.wheel_joints.is_empty())
+        else {
             return;
         };
         let u = root
