@@ -4,7 +4,8 @@
 //!   acceleration noise of density σ (`acceleration_noise`) plus σ_sat while saturated
 //!   (`saturation_noise`) gives the double integrator's `(σ² + σ_sat²) [t³/3, t²/2; t²/2, t]`;
 //! - asked for 0.2 m/s it stays inside its effort (kp·0.2 = 0.8 N): v is an Ornstein–Uhlenbeck
-//!   process of rate a = kp/m, `var v(t) = σ² (1 − e^{−2at}) / (2a)`, and σ_sat adds nothing.
+//!   process of rate a = kp/m, `var v(t) = σ² (1 − e^{−2at}) / (2a)` (to (aH)²/6 for chunks of
+//!   H), and σ_sat adds nothing.
 
 use crate::common;
 use common::*;
@@ -99,24 +100,31 @@ fn saturation_noise_is_absent_inside_the_effort() {
     let a = KP / MASS_KG;
     for hold in ["continuous", "zero_order"] {
         let samples = covariances(&slider(hold), 0.2);
-        // The noise of a chunk of H enters as the double integrator's, P_vv += σ² H, and the
-        // controller damps it from the next chunk on: P_vv(kH) = σ² H (1 − e^{−2akH}) /
-        // (1 − e^{−2aH}), which is the Ornstein–Uhlenbeck variance to a relative a·H.
+        // Over a chunk of H the noise enters through the chunk's own transition taken linear
+        // in time (docs/propagation.md): with A = e^{−aH} on v, δ = A − 1, the chunk adds
+        // Q = σ² H ((1 + δ/2)² + δ²/12) and P_vv(kH) = Q (1 − A^{2k}) / (1 − A²), which is the
+        // Ornstein–Uhlenbeck variance σ² (1 − e^{−2at}) / (2a) to a relative (aH)²/6.
         let h = samples[0].0;
+        let damping = (-a * h).exp();
+        let delta = damping - 1.0;
+        let q = SIGMA * SIGMA * h * ((1.0 + delta / 2.0).powi(2) + delta * delta / 12.0);
         let (mut discrete, mut continuous): (f64, f64) = (0.0, 0.0);
         for (t, p) in &samples {
-            let chunked =
-                SIGMA * SIGMA * h * (1.0 - (-2.0 * a * t).exp()) / (1.0 - (-2.0 * a * h).exp());
+            let k = (t / h).round() as i32;
+            let chunked = q * (1.0 - damping.powi(2 * k)) / (1.0 - damping * damping);
             let ou = SIGMA * SIGMA * (1.0 - (-2.0 * a * t).exp()) / (2.0 * a);
             discrete = discrete.max((p[1][1] - chunked).abs() / chunked);
             continuous = continuous.max((p[1][1] - ou).abs() / ou);
         }
         println!(
             "{hold}: inside the effort, var v against the chunked form {discrete:.2e}, \
-             against the Ornstein–Uhlenbeck variance {continuous:.2e} (a·H = {:.2e})",
-            a * h
+             against the Ornstein–Uhlenbeck variance {continuous:.2e} ((aH)²/6 = {:.2e})",
+            (a * h).powi(2) / 6.0
         );
         assert!(discrete < 5e-9, "{hold}: {discrete:e}");
-        assert!(continuous < 1.01 * a * h, "{hold}: {continuous:e}");
+        assert!(
+            continuous < 1.01 * (a * h).powi(2) / 6.0,
+            "{hold}: {continuous:e}"
+        );
     }
 }

@@ -75,6 +75,8 @@ pub struct CovariancePropagator {
     /// σ_i² per velocity coordinate, and added while its controller is saturated.
     noise: Vec<f64>,
     saturation_noise: Vec<f64>,
+    /// (A − I) e_{nv+i}: how a noisy coordinate's velocity moves the state over a chunk.
+    noise_response: Vec<f64>,
     pub(in crate::predict) lin: Linearization,
     /// The prediction's steps not yet in `p`, and how they are cut into chunks
     /// (covariance/chunks.rs).
@@ -228,6 +230,7 @@ impl CovariancePropagator {
             minv: DMatrix::zeros(nv, nv),
             chol: DMatrix::zeros(nv, nv),
             col: vec![0.0; nv],
+            noise_response: vec![0.0; 2 * nv],
             n_jv: DMatrix::zeros(sys.constraints().nrows, nv),
             n_tq: DMatrix::zeros(sys.constraints().nrows, nv),
             jv_at_q: vec![0.0; sys.constraints().nrows],
@@ -292,6 +295,13 @@ impl CovariancePropagator {
 
     /// `P ← A P Aᵀ + Q_h` with A = `self.lin.a` of a step of size h [s] under the controllers'
     /// `feedback` (and the integrals' start offsets, covariance_integral.rs).
+    ///
+    /// Q_h = ∫₀ʰ Φ(u) Q_c Φ(u)ᵀ du for white acceleration noise Q_c = σ² e eᵀ on velocity
+    /// coordinate i (e = e_{nv+i}), with the transition over the time u left taken linear in u,
+    /// Φ(u) ≈ I + (u/h)(A − I): Q_h = h σ² (w wᵀ + d dᵀ/12), d = (A − I) e, w = e + d/2. Exact
+    /// for a free double integrator (σ² [h³/3, h²/2; h²/2, h]); on a joint a controller holds
+    /// at rate a, within a relative (ah)²/6 of the exact variance, where adding the free
+    /// integrator's Q_h undamped was off by ah.
     pub(in crate::predict) fn apply_linearization(&mut self, h: f64, feedback: &[Feedback]) {
         let nv = self.noise.len();
         if let Some(o) = self.integral.as_mut() {
@@ -307,10 +317,21 @@ impl CovariancePropagator {
             .chain(saturated.map(|i| (i, self.saturation_noise[i])))
         {
             if s2 > 0.0 {
-                self.p[(i, i)] += s2 * h * h * h / 3.0;
-                self.p[(i, nv + i)] += s2 * h * h / 2.0;
-                self.p[(nv + i, i)] += s2 * h * h / 2.0;
-                self.p[(nv + i, nv + i)] += s2 * h;
+                let e = nv + i;
+                let d = &mut self.noise_response;
+                for (r, dr) in d.iter_mut().enumerate() {
+                    *dr = self.lin.a[(r, e)] - if r == e { 1.0 } else { 0.0 };
+                }
+                let w = |r: usize| d[r] / 2.0 + if r == e { 1.0 } else { 0.0 };
+                for c in 0..2 * nv {
+                    let (wc, dc) = (w(c), d[c]);
+                    if wc == 0.0 && dc == 0.0 {
+                        continue;
+                    }
+                    for r in 0..2 * nv {
+                        self.p[(r, c)] += h * s2 * (w(r) * wc + d[r] * dc / 12.0);
+                    }
+                }
             }
         }
     }
