@@ -162,13 +162,15 @@ fn backward(model: &Model, data: &mut Data, base_nv: usize) {
         let ji = &b.joint;
         let y = data.ycrb[i];
         let cols = ji.idx_v.max(base_nv)..ji.idx_v + ji.kind.nv();
+        // The empty `black_box`es keep these loops scalar: vectorized, their set-up on runs
+        // of 1–7 entries cost more than it saved (the rows' ur5 +4 %, panda +5 %; the forces'
+        // solo12 and talos_reduced +3 % instructions).
         for c in cols.clone() {
             f_crb[c] = y.mul_motion(&o_s[c]);
+            std::hint::black_box(());
         }
         // Row r against every column r moves (its subtree, one contiguous range of forces
-        // already computed): the lower triangle's column r, contiguous in memory. The empty
-        // `black_box` keeps the loop scalar: vectorized four entries at a time, its set-up on
-        // runs of 1–7 entries cost more than it saved (ur5 +4 %, panda +5 % instructions).
+        // already computed): the lower triangle's column r, contiguous in memory.
         for r in cols {
             let s_r = o_s[r];
             let end = model.v_subtree_end[r];
