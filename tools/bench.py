@@ -167,7 +167,8 @@ def table(pin, ours, version, loads, rounds, pin_text, rustc):
                          f"{best:.3f} | {p[c]:.3f} | {best / p[c]:.2f} | {med:.3f} |")
     lines += [
         "",
-        "Notes: Pinocchio's `crba` fills the upper triangle of M only; ours fills both. "
+        "Notes: Pinocchio's `crba` fills the upper triangle of M only, ours the lower triangle "
+        "only (what the factorizations of M read): one triangle each. "
         "`rnea_derivatives` returns M as well (as ∂τ/∂q̈), as Pinocchio's call does. "
         "Contacts: ur5 tool0 and panda panda_hand_tcp points, solo12's four feet (3 rows each, "
         "world axes, as Pinocchio's CONTACT_3D LOCAL_WORLD_ALIGNED); talos_reduced's soles "

@@ -5,7 +5,10 @@ use crate::model::{JointKind, Model};
 use crate::spatial::{Motion, OriginInertia};
 use nalgebra::DMatrix;
 
-/// M(q) into `data.mass_matrix` (both triangles filled).
+/// M(q)'s lower triangle (diagonal included) into `data.mass_matrix`; the strict upper triangle is
+/// not written (it keeps whatever it held), as compiled Pinocchio's `crba` writes one triangle.
+/// Every factorization here reads the lower triangle only (the LTL factor, the dense Cholesky);
+/// [`crba_full`] mirrors it for products with M.
 ///
 /// Everything in world axes, so no force is carried from frame to frame: with `ᵒS_c` the world
 /// subspace column of velocity coordinate c and `ᵒY_i` the composite inertia of the subtree of
@@ -26,6 +29,13 @@ pub fn crba<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a DMatrix<f64
     &data.mass_matrix
 }
 
+/// M(q), both triangles: [`crba`] and its lower triangle mirrored.
+pub fn crba_full<'a>(model: &Model, data: &'a mut Data, q: &[f64]) -> &'a DMatrix<f64> {
+    crba(model, data, q);
+    data.mass_matrix.fill_upper_triangle_with_lower_triangle();
+    &data.mass_matrix
+}
+
 crate::linalg::wide_fn! {
 /// The placements at q, then both sweeps, in one AVX2 build where the CPU has it (the same
 /// arithmetic, so the same numbers; its three-operand instructions spare the register copies
@@ -39,10 +49,21 @@ fn kinematics_and_sweeps(model: &Model, data: &mut Data, q: &[f64]) {
 }
 }
 
-/// CRBA reusing the placements `o_m_i` of a kinematics pass at the same q.
+/// [`crba`] (the lower triangle) reusing the placements `o_m_i` of a kinematics pass at the same q.
 pub(crate) fn crba_after_kinematics<'a>(model: &Model, data: &'a mut Data) -> &'a DMatrix<f64> {
     data.size_mass_matrix(model.nv);
     sweeps_wide(model, data);
+    &data.mass_matrix
+}
+
+/// [`crba_full`] (both triangles) reusing the placements `o_m_i` of a kinematics pass at the
+/// same q.
+pub(crate) fn crba_full_after_kinematics<'a>(
+    model: &Model,
+    data: &'a mut Data,
+) -> &'a DMatrix<f64> {
+    crba_after_kinematics(model, data);
+    data.mass_matrix.fill_upper_triangle_with_lower_triangle();
     &data.mass_matrix
 }
 
@@ -129,7 +150,8 @@ fn forward(model: &Model, data: &mut Data, i: usize) {
     }
 }
 
-/// The composite inertias from the leaves to the root, and M but a free-flyer base's rows.
+/// The composite inertias from the leaves to the root, and M's lower triangle but a free-flyer
+/// base's rows.
 #[inline(always)]
 fn backward(model: &Model, data: &mut Data, base_nv: usize) {
     let nv = model.nv;
@@ -140,18 +162,22 @@ fn backward(model: &Model, data: &mut Data, base_nv: usize) {
         let ji = &b.joint;
         let y = data.ycrb[i];
         let cols = ji.idx_v.max(base_nv)..ji.idx_v + ji.kind.nv();
+        // The empty `black_box`es keep these loops scalar: vectorized, their set-up on runs
+        // of 1–7 entries cost more than it saved (the rows' ur5 +4 %, panda +5 %; the forces'
+        // solo12 and talos_reduced +3 % instructions).
         for c in cols.clone() {
             f_crb[c] = y.mul_motion(&o_s[c]);
+            std::hint::black_box(());
         }
         // Row r against every column r moves (its subtree, one contiguous range of forces
         // already computed): the lower triangle's column r, contiguous in memory.
         for r in cols {
             let s_r = o_s[r];
             let end = model.v_subtree_end[r];
-            for (c, f) in (r..end).zip(&f_crb[r..end]) {
-                let x = s_r.dot(f);
-                m[r * nv + c] = x;
-                m[c * nv + r] = x;
+            let (col, forces) = (&mut m[r * nv + r..r * nv + end], &f_crb[r..end]);
+            for k in 0..forces.len() {
+                col[k] = s_r.dot(&forces[k]);
+                std::hint::black_box(());
             }
         }
         if b.parent != 0 {
@@ -161,10 +187,10 @@ fn backward(model: &Model, data: &mut Data, base_nv: usize) {
 }
 
 crate::linalg::wide_fn! {
-/// A free-flyer base's six rows: its own block, the whole robot's composite inertia in the base
-/// frame `[[m 1, −[h]×], [[h]×, I]]` about the base origin, and each other column's force in
-/// the base frame. Out of line, so that the fixed-base robots' sweeps compile without it; in an
-/// AVX2 build where the CPU has it.
+/// A free-flyer base's six columns of the lower triangle: its own block, the whole robot's
+/// composite inertia in the base frame `[[m 1, −[h]×], [[h]×, I]]` about the base origin, and
+/// each other column's force in the base frame as row c. Out of line, so that the fixed-base
+/// robots' sweeps compile without it; in an AVX2 build where the CPU has it.
 #[inline(never)]
 fn base_rows(model: &Model, data: &mut Data) {
     let nv = model.nv;
@@ -182,22 +208,15 @@ fn base_rows(model: &Model, data: &mut Data) {
         [-h.y, h.x, 0.0, xz, yz, zz],
     ];
     for (c, col) in block.iter().enumerate() {
-        m[c * nv..c * nv + 6].copy_from_slice(col);
+        m[c * nv + c..c * nv + 6].copy_from_slice(&col[c..]);
     }
     // Column c's base rows: its force in the base frame, transformed in place, then written
-    // as contiguous runs: rows 0..6 of column c, and row c of the first six columns (storing
-    // each entry twice, strided and bounds-checked, costs ≈ 750 of solo12's 8 400 instructions
-    // after the kinematics).
+    // as row c of the first six columns, a contiguous run in each.
     for f in data.f_crb.iter_mut().skip(6) {
         *f = o_m_b.act_inv_force(f);
     }
     let forces = &data.f_crb[6..];
-    let (base_cols, other_cols) = m.split_at_mut(6 * nv);
-    for (col, fb) in other_cols.chunks_exact_mut(nv).zip(forces) {
-        col[..3].copy_from_slice(fb.lin.as_slice());
-        col[3..6].copy_from_slice(fb.ang.as_slice());
-    }
-    for (r, col) in base_cols.chunks_exact_mut(nv).enumerate() {
+    for (r, col) in m.chunks_exact_mut(nv).take(6).enumerate() {
         let row = col[6..].iter_mut().zip(forces);
         if r < 3 {
             row.for_each(|(x, fb)| *x = fb.lin[r]);

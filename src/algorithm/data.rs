@@ -30,8 +30,9 @@ pub struct Data {
     /// Per velocity coordinate c, ᵒY_i ᵒS_c with i its body (CRBA), world axes, nv (a
     /// free-flyer robot's, but for the base's own six, in the base frame after CRBA).
     pub f_crb: Vec<Force>,
-    /// Joint-space inertia matrix M(q), nv × nv, symmetric. Sized by `Data::new` up to
-    /// [`DENSE_EAGER_NV`] coordinates; a larger model's is sized by the first call that
+    /// Joint-space inertia matrix M(q), nv × nv, symmetric: [`crate::algorithm::crba`] writes
+    /// its lower triangle only, `crba_full` and RNEA's derivatives both. Sized by `Data::new`
+    /// up to [`DENSE_EAGER_NV`] coordinates; a larger model's is sized by the first call that
     /// computes it (CRBA, RNEA's derivatives), so that its O(n) paths never hold n² entries.
     pub mass_matrix: DMatrix<f64>,
     /// RNEA output τ (or bias h = C v + g when called with q̈ = 0), nv.

@@ -10,10 +10,10 @@ use nalgebra::Vector3;
 pub(crate) fn place(model: &Model, data: &mut Data, i: usize, q: &[f64]) {
     let b = &model.bodies[i];
     let j = &b.joint;
-    let qi = &q[j.idx_q..j.idx_q + j.kind.nq()];
-    if let Some(o) = b.placed_in_world(qi, &data.o_m_i[b.parent], &mut data.li_m_i[i]) {
+    if let Some(o) = b.placed_in_world(q, &data.o_m_i[b.parent], &mut data.li_m_i[i]) {
         data.o_m_i[i] = o;
     } else {
+        let qi = &q[j.idx_q..j.idx_q + j.kind.nq()];
         data.li_m_i[i] = j.kind.placed(&b.placement, qi);
         data.o_m_i[i] = data.o_m_i[b.parent].compose(&data.li_m_i[i]);
     }

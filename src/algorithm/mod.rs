@@ -12,8 +12,10 @@ mod kinematics;
 mod rnea;
 
 pub use aba::{aba, aba_from_innovations, aba_innovations, innovations_product};
-pub use crba::crba;
-pub(crate) use crba::{crba_after_kinematics, mass_diagonal_after_kinematics};
+pub use crba::{crba, crba_full};
+pub(crate) use crba::{
+    crba_after_kinematics, crba_full_after_kinematics, mass_diagonal_after_kinematics,
+};
 pub use data::{DENSE_EAGER_NV, Data};
 pub use energy::{center_of_mass, kinetic_energy, potential_energy};
 pub use jacobian::{

@@ -55,8 +55,9 @@ pub fn aba_derivatives(
     Ok(())
 }
 
-/// M⁻¹ into `dd.minv` from the mass matrix in `data` (after `crba` at the same q), by its
-/// tree-sparse LTL factor ([`ltl_inverse`]); fails when M is not positive definite.
+/// M⁻¹ into `dd.minv` from the lower triangle of the mass matrix in `data` (after `crba` at the
+/// same q), by its tree-sparse LTL factor ([`ltl_inverse`]); fails when M is not positive
+/// definite.
 pub fn inverse_mass_matrix(model: &Model, data: &Data, dd: &mut DerivativeData) -> Result<()> {
     invert_mass(model, &data.mass_matrix, dd).map_err(|i| Error::SingularMass {
         message: format!(

@@ -15,7 +15,9 @@
 
 use super::Baumgarte;
 use super::partition::{Partition, PartitionWorkspace, partition_into};
-use crate::algorithm::{DENSE_EAGER_NV, Data, bias_forces_after_kinematics, crba_after_kinematics};
+use crate::algorithm::{
+    DENSE_EAGER_NV, Data, bias_forces_after_kinematics, crba_full_after_kinematics,
+};
 use crate::constraints::{Constraint, ConstraintData, ConstraintSet};
 use crate::error::{Error, Result};
 use crate::linalg::{cholesky_in_place, cholesky_solve, lu_in_place, lu_solve};
@@ -248,7 +250,7 @@ fn solve(
     // One kinematics pass at (q, v, q̈ = 0) serves the constraints, M and h.
     set.evaluate(model, data, cd, t, q, v);
     set.check_finite(cd)?;
-    crba_after_kinematics(model, data);
+    crba_full_after_kinematics(model, data);
     bias_forces_after_kinematics(model, data);
     for k in 0..nc {
         ws.b[k] = -cd.gamma[k] - stab.kd * cd.jv[k] - stab.kp * cd.phi[k];

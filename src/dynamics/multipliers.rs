@@ -122,7 +122,8 @@ impl From<Baumgarte> for KktOptions {
 }
 
 /// Constrained forward dynamics with multipliers at (q, v, τ); results in `ws.qdd`, `ws.lambda`,
-/// `ws.generalized_force`; J, φ, γ, J v in `cd`; M in `data.mass_matrix`, h in `data.tau`.
+/// `ws.generalized_force`; J, φ, γ, J v in `cd`; M's lower triangle in `data.mass_matrix` (what the
+/// factors read; [`crate::algorithm::crba`]), h in `data.tau`.
 #[allow(clippy::too_many_arguments)]
 pub fn constrained_forward_dynamics(
     model: &Model,

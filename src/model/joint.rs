@@ -279,12 +279,23 @@ fn write_free_flyer(m: &SE3, q: &mut [f64]) {
 /// The rotation by θ about frame axis e_i, from (sin θ, cos θ).
 #[inline(always)]
 pub(crate) fn axis_rotation(i: usize, sn: f64, cs: f64) -> Matrix3<f64> {
-    let (j, k) = (NEXT_AXIS[i], NEXT_AXIS[NEXT_AXIS[i]]);
+    match i {
+        0 => axis_rotation_jk::<1, 2>(sn, cs),
+        1 => axis_rotation_jk::<2, 0>(sn, cs),
+        _ => axis_rotation_jk::<0, 1>(sn, cs),
+    }
+}
+
+/// [`axis_rotation`] about the axis whose two successors in cyclic order (x → y → z → x) are
+/// J and K: constants, so that the entries it sets are fixed offsets (an index looked up per
+/// joint and checked against 3 is measurable in every kinematics pass).
+#[inline(always)]
+fn axis_rotation_jk<const J: usize, const K: usize>(sn: f64, cs: f64) -> Matrix3<f64> {
     let mut r = Matrix3::identity();
-    r[(j, j)] = cs;
-    r[(k, k)] = cs;
-    r[(k, j)] = sn;
-    r[(j, k)] = -sn;
+    r[(J, J)] = cs;
+    r[(K, K)] = cs;
+    r[(K, J)] = sn;
+    r[(J, K)] = -sn;
     r
 }
 
@@ -292,17 +303,22 @@ pub(crate) fn axis_rotation(i: usize, sn: f64, cs: f64) -> Matrix3<f64> {
 /// 3×3 product's 27; the product's other terms are exact zeros, so the numbers are the same).
 #[inline(always)]
 pub(crate) fn turned(r: &Matrix3<f64>, i: usize, sn: f64, cs: f64) -> Matrix3<f64> {
-    let (j, k) = (NEXT_AXIS[i], NEXT_AXIS[NEXT_AXIS[i]]);
-    let (pj, pk) = (r.column(j), r.column(k));
-    let mut out = *r;
-    out.set_column(j, &(pj * cs + pk * sn));
-    out.set_column(k, &(pk * cs - pj * sn));
-    out
+    match i {
+        0 => turned_jk::<1, 2>(r, sn, cs),
+        1 => turned_jk::<2, 0>(r, sn, cs),
+        _ => turned_jk::<0, 1>(r, sn, cs),
+    }
 }
 
-/// The axis after axis i in cyclic order (x → y → z → x), a table rather than `(i + 1) % 3`:
-/// an integer division per joint and pass is measurable.
-const NEXT_AXIS: [usize; 3] = [1, 2, 0];
+/// [`turned`] with the two mixed columns J and K as constants (see [`axis_rotation_jk`]).
+#[inline(always)]
+fn turned_jk<const J: usize, const K: usize>(r: &Matrix3<f64>, sn: f64, cs: f64) -> Matrix3<f64> {
+    let (pj, pk) = (r.column(J), r.column(K));
+    let mut out = *r;
+    out.set_column(J, &(pj * cs + pk * sn));
+    out.set_column(K, &(pk * cs - pj * sn));
+    out
+}
 
 // The base joints' transforms, kept out of line: they run once per model and forward pass,
 // while the small revolute and prismatic arms of `transform` are inlined into every pass.

@@ -62,10 +62,12 @@ pub struct Body {
 }
 
 impl Body {
-    /// `world_m_body` at q for an aligned revolute joint whose placement does not rotate (most
-    /// URDF joints: `rpy="0 0 0"`), with `parent_m_body` into `li`: the parent's rotation
-    /// turned by the joint (`joint::turned`) instead of composed with a 3 × 3 product — the
-    /// same numbers. `None` for every other body (compose [`JointKind::placed`]).
+    /// `world_m_body` at q (the whole configuration, nq) for an aligned revolute joint whose
+    /// placement does not rotate (most URDF joints: `rpy="0 0 0"`), with `parent_m_body` into
+    /// `li`: the parent's rotation turned by the joint (`joint::turned`) instead of composed
+    /// with a 3 × 3 product — the same numbers. `None` for every other body (compose
+    /// [`JointKind::placed`]). It reads its own angle `q[idx_q]`, so that the kinematics pass
+    /// forms the joint's slice of q only on the other path.
     #[inline(always)]
     pub fn placed_in_world(&self, q: &[f64], o_m_parent: &SE3, li: &mut SE3) -> Option<SE3> {
         let JointKind::Revolute {
@@ -78,7 +80,7 @@ impl Body {
         if self.placement_rotates {
             return None;
         }
-        let (sn, cs) = joint::sin_cos(q[0]);
+        let (sn, cs) = joint::sin_cos(q[self.joint.idx_q]);
         let s = sign * sn;
         *li = SE3::new(joint::axis_rotation(*i, s, cs), self.placement.translation);
         let t = o_m_parent.rotation * self.placement.translation + o_m_parent.translation;

@@ -18,7 +18,7 @@ use super::kkt::{EqualityWorkspace, RowRef};
 use super::polish::{mark_active, row_tol, velocity_scale};
 use super::problem::{Bounds, ProjectionProblem, Side};
 use super::qp::{IneqRow, QpCache, inequality_rows};
-use crate::algorithm::{Data, crba_after_kinematics};
+use crate::algorithm::{Data, crba_full_after_kinematics};
 use crate::constraints::{ConstraintData, ConstraintSet};
 use crate::error::{Error, Result, check_finite, check_len};
 use crate::model::Model;
@@ -168,7 +168,7 @@ impl VelocityProjector {
         // A projection is of the present: time-dependent rows at the rows' own last time.
         let t = cd.t;
         set.evaluate(model, data, cd, t, q, v_eval);
-        crba_after_kinematics(model, data);
+        crba_full_after_kinematics(model, data);
         self.solve_evaluated(model, &data.mass_matrix, &cd.j, problem)
     }
 

@@ -5,7 +5,7 @@ use super::diagnose::Conflict;
 use super::problem::{BoundSource, ProjectionProblem, Side};
 use super::projector::{SolvePath, Status, VelocityProjector};
 use super::request::{ProjectionRequest, base_dofs};
-use crate::algorithm::{Data, crba_after_kinematics};
+use crate::algorithm::{Data, crba_full_after_kinematics};
 use crate::constraints::{ConstraintData, ConstraintSet, constraint_forces};
 use crate::error::{Error, Result};
 use crate::model::Model;
@@ -179,7 +179,7 @@ impl VelocityProjector {
         // A projection is of the present: time-dependent rows at the rows' own last time.
         let t = cd.t;
         set.evaluate(model, data, cd, t, q, v_current);
-        crba_after_kinematics(model, data);
+        crba_full_after_kinematics(model, data);
         let problem = request.resolve(model, &cd.j, v_current)?;
         let twist_done = request.effective_mode() == super::Mode::Twist
             && self

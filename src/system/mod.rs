@@ -8,9 +8,9 @@ mod metric;
 pub use metric::TreeMetric;
 
 use crate::algorithm::{
-    Data, bias_forces_after_kinematics, center_of_mass, crba, crba_after_kinematics,
-    forward_kinematics, forward_kinematics_bias, forward_kinematics_pos, kinetic_energy,
-    potential_energy,
+    Data, bias_forces_after_kinematics, center_of_mass, crba_after_kinematics, crba_full,
+    crba_full_after_kinematics, forward_kinematics, forward_kinematics_bias,
+    forward_kinematics_pos, kinetic_energy, potential_energy,
 };
 use crate::constraints::{ConstraintData, ConstraintForce, ConstraintSet, constraint_forces};
 use crate::derivatives::{
@@ -180,8 +180,9 @@ impl System {
         &self.cdata
     }
 
-    /// M(q) [kg, kg·m, kg·m²] at the configuration of the last [`System::evaluate_rows`] (a
-    /// CRBA on its kinematics, no second pass), kept in [`System::data`].
+    /// M(q)'s lower triangle [kg, kg·m, kg·m²] at the configuration of the last
+    /// [`System::evaluate_rows`] (a CRBA on its kinematics, no second pass), kept in
+    /// [`System::data`]: what a Cholesky factor reads; the strict upper triangle is not written.
     pub fn mass_matrix_after_rows(&mut self) -> &DMatrix<f64> {
         crba_after_kinematics(&self.model, &mut self.data)
     }
@@ -193,13 +194,13 @@ impl System {
         &self.data.tau
     }
 
-    /// The rows at (t, q, v) with M and h of the same kinematics pass, their entries checked
-    /// finite: what a solve in the mass metric reads (through [`System::data`] and
-    /// [`System::rows`]).
+    /// The rows at (t, q, v) with M (both triangles) and h of the same kinematics pass, their
+    /// entries checked finite: what a solve in the mass metric reads (through [`System::data`]
+    /// and [`System::rows`]).
     pub fn evaluate_rows_and_dynamics(&mut self, t: f64, q: &[f64], v: &[f64]) -> Result<()> {
         self.evaluate_rows(t, q, v);
         self.constraints.check_finite(&self.cdata)?;
-        crba_after_kinematics(&self.model, &mut self.data);
+        crba_full_after_kinematics(&self.model, &mut self.data);
         bias_forces_after_kinematics(&self.model, &mut self.data);
         Ok(())
     }
@@ -211,9 +212,9 @@ impl System {
         &self.data
     }
 
-    /// M(q), kept in [`System::data`].
+    /// M(q), both triangles, kept in [`System::data`].
     pub fn mass_matrix_at(&mut self, q: &[f64]) -> &DMatrix<f64> {
-        crba(&self.model, &mut self.data, q)
+        crba_full(&self.model, &mut self.data, q)
     }
 
     /// (max |φ| over holonomic rows [m or rad], max |J v| [m/s or rad/s]) at (t, q, v), each
@@ -427,12 +428,12 @@ impl System {
         }
     }
 
-    /// M(q) and h(q, v) = C(q, v) v + g(q) at (q, v), kept in [`System::data`]
-    /// (`mass_matrix`, `tau`): what a dense evaluation computes on the way, asked for
-    /// separately since the linear-time path does not form them.
+    /// M(q) (both triangles) and h(q, v) = C(q, v) v + g(q) at (q, v), kept in
+    /// [`System::data`] (`mass_matrix`, `tau`): what a dense evaluation computes on the way,
+    /// asked for separately since the linear-time path does not form them.
     pub fn terms_at(&mut self, q: &[f64], v: &[f64]) -> (&DMatrix<f64>, &DVector<f64>) {
         forward_kinematics_bias(&self.model, &mut self.data, q, v);
-        crba_after_kinematics(&self.model, &mut self.data);
+        crba_full_after_kinematics(&self.model, &mut self.data);
         bias_forces_after_kinematics(&self.model, &mut self.data);
         (&self.data.mass_matrix, &self.data.tau)
     }

@@ -190,8 +190,8 @@ fn locked_joints_reduce_the_model_and_cost_nothing() {
     // The reduced M equals the full M's leading block with the locked joints at their values.
     let q_full = [0.1, -0.7, 1.1, 0.3, 0.4, -0.2];
     let (mut df, mut dr) = (Data::new(&full), Data::new(&red));
-    let mf = constraint_dynamics::algorithm::crba(&full, &mut df, &q_full).clone();
-    let mr = constraint_dynamics::algorithm::crba(&red, &mut dr, &q_full[..4]).clone();
+    let mf = constraint_dynamics::algorithm::crba_full(&full, &mut df, &q_full).clone();
+    let mr = constraint_dynamics::algorithm::crba_full(&red, &mut dr, &q_full[..4]).clone();
     assert_close(
         "reduced M",
         mr.as_slice(),

@@ -9,7 +9,7 @@
 
 use crate::common;
 use common::*;
-use constraint_dynamics::algorithm::{Data, crba};
+use constraint_dynamics::algorithm::{Data, crba_full};
 use constraint_dynamics::constraints::{ConstraintData, ConstraintSet};
 use constraint_dynamics::derivatives::*;
 use constraint_dynamics::dynamics::{Baumgarte, KktWorkspace};
@@ -82,7 +82,7 @@ fn check(name: &str) {
                 &free["dtau_dv"],
                 TOL_FREE,
             ));
-        crba(&model, &mut data, &q);
+        crba_full(&model, &mut data, &q);
         let m = data.mass_matrix.clone();
         worst_free = worst_free.max(check_matrix(&format!("{tag} M"), &m, &free["M"], TOL_FREE));
 

@@ -9,7 +9,7 @@
 
 use crate::common;
 use common::*;
-use constraint_dynamics::algorithm::{Data, aba, crba, nonlinear_effects, rnea};
+use constraint_dynamics::algorithm::{Data, aba, crba_full, nonlinear_effects, rnea};
 use constraint_dynamics::constraints::ConstraintKind;
 use constraint_dynamics::derivatives::*;
 use constraint_dynamics::dynamics::Baumgarte;
@@ -209,7 +209,7 @@ fn dense_kkt(
         sys.rows().phi.clone(),
     );
     let (mut data, _, _) = workspaces(sys);
-    crba(sys.model(), &mut data, q);
+    crba_full(sys.model(), &mut data, q);
     let m = data.mass_matrix.clone();
     let h = nonlinear_effects(sys.model(), &mut data, q, v).clone();
     let nk = kept.len();

@@ -13,7 +13,7 @@
 //! repair`, romeo_small loads (68).
 
 use crate::common;
-use constraint_dynamics::algorithm::{Data, crba};
+use constraint_dynamics::algorithm::{Data, crba_full};
 use constraint_dynamics::{BaseType, Model, ModelOptions};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -133,7 +133,7 @@ fn compare(model: &Model, pin: &Value, locked: &[String]) -> f64 {
     let mut worst = 0.0f64;
     for c in pin["configs"].as_array().unwrap() {
         let q = our_q(model, c);
-        let m = crba(model, &mut data, &q);
+        let m = crba_full(model, &mut data, &q);
         let rows = c["M"].as_array().unwrap();
         let scale = rows
             .iter()

@@ -515,12 +515,12 @@ fn certificate(
     p: &ProjectionProblem,
     period: f64,
 ) -> Certificate {
-    use constraint_dynamics::algorithm::{Data, crba, nonlinear_effects};
+    use constraint_dynamics::algorithm::{Data, crba_full, nonlinear_effects};
     use constraint_dynamics::constraints::ConstraintData;
     let model = sys.model();
     let nv = model.nv;
     let mut d = Data::new(model);
-    let m = crba(model, &mut d, q).clone();
+    let m = crba_full(model, &mut d, q).clone();
     let h = nonlinear_effects(model, &mut d, q, v).clone();
     let mut cd = ConstraintData::new(model, sys.constraints());
     sys.constraints()
