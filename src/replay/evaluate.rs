@@ -264,7 +264,7 @@ pub fn evaluate(
             })
             .collect();
         (handles.into_iter())
-            .map(|h| h.join().expect("a replay thread panicked"))
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
             .collect()
     });
     let mut by_start: Vec<StartRecords> = per_thread.into_iter().flatten().collect();

@@ -300,8 +300,8 @@ impl CovariancePropagator {
     /// coordinate i (e = e_{nv+i}), with the transition over the time u left taken linear in u,
     /// Φ(u) ≈ I + (u/h)(A − I): Q_h = h σ² (w wᵀ + d dᵀ/12), d = (A − I) e, w = e + d/2. Exact
     /// for a free double integrator (σ² [h³/3, h²/2; h²/2, h]); on a joint a controller holds
-    /// at rate a, within a relative (ah)²/6 of the exact variance, where adding the free
-    /// integrator's Q_h undamped was off by ah.
+    /// at rate a, within a relative (ah)²/6 of the exact variance (the free integrator's Q_h
+    /// added undamped would be off by ah, and a density would mean more on longer chunks).
     pub(in crate::predict) fn apply_linearization(&mut self, h: f64, feedback: &[Feedback]) {
         let nv = self.noise.len();
         if let Some(o) = self.integral.as_mut() {
