@@ -1,18 +1,21 @@
-//! The process noise: what the model still misses after the fit, stated as the wheels'
-//! acceleration noise so that the predicted covariance covers it.
+//! The process noise: what the model still misses after the fit, stated on the wheels so that
+//! the predicted covariance covers it.
 //!
-//! Two densities on every wheel joint (docs/propagation.md): σ [(rad/s²)/√Hz] at all times
-//! (`uncertainty.acceleration_noise`), and σ_sat added while the wheel's controller is saturated
-//! (`uncertainty.saturation_noise`): at the grip's limit — a skid, a wheel unloaded as the robot
-//! pitches — the model knows least what the floor takes. Through the rolling constraints they
-//! spread the base's position along the travel and its yaw, growing with the horizon. For each
-//! σ_sat tried, σ is the smallest value whose predicted covariance (the node's: propagated, error
-//! estimate and floors, plus the reference's own) holds the target fraction of the replayed
-//! errors inside its 95 % region, pooled over every horizon and recording (doubling, then
-//! bisection of log σ); of those pairs the one with the best log score is kept (the mean
-//! negative log-likelihood of the errors under the predicted Gaussians: a proper score, which
-//! prefers the sharpest covariance that still covers). Not on a scene with tyres: their grip
-//! rejects such noise ([`TYRES_REJECT_NOISE`]).
+//! Two terms on every wheel joint (docs/propagation.md): a white acceleration noise of density σ
+//! [(rad/s²)/√Hz] at all times (`uncertainty.acceleration_noise`), and, while the wheel's
+//! controller is saturated, an acceleration offset of standard deviation σ_b [rad/s²], the same
+//! through a prediction (`uncertainty.saturation_bias`): at the grip's limit — a skid, a wheel
+//! unloaded as the robot pitches — the model knows least what the floor takes, and that error
+//! lasts as long as the skid. Through the rolling constraints they spread the base's position
+//! along the travel and its yaw, growing with the horizon.
+//!
+//! Each term is sized on the predictions it acts on. For each σ_b tried, in increasing order, σ
+//! is the smallest value whose predicted covariance (the node's: propagated, error estimate and
+//! floors, plus the reference's own) holds the target fraction of all the replayed errors inside
+//! its 95 % region, pooled over every horizon and recording (doubling, then bisection of log σ);
+//! the first σ_b with which the predictions through a saturation are covered to the same
+//! fraction is kept. Not on a scene with tyres: their grip rejects such noise
+//! ([`TYRES_REJECT_NOISE`]).
 
 use super::{CalibrationError, CalibrationSettings, Problem};
 use crate::replay::{EvaluationSettings, evaluate, stats::Coverage};
@@ -27,10 +30,14 @@ pub struct ProcessNoise {
     pub joints: Vec<String>,
     /// σ [(rad/s²)/√Hz].
     pub acceleration_noise: f64,
-    /// σ_sat [(rad/s²)/√Hz], added while a wheel's controller is saturated.
-    pub saturation_noise: f64,
+    /// σ_b [rad/s²], while a wheel's controller is saturated.
+    pub saturation_bias: f64,
     /// The fraction of the replayed errors inside the 95 % region with them.
     pub coverage_p95: f64,
+    /// The same among the predictions through a saturation.
+    pub saturated_coverage_p95: f64,
+    /// How many predictions pass through a saturation.
+    pub saturated_predictions: usize,
     /// The predictions' mean negative log-likelihood with them (½ (NEES + ln det P), P the
     /// pose covariance in m and rad; lower is better).
     pub log_score: f64,
@@ -53,18 +60,23 @@ const BISECTIONS: usize = 6;
 /// The largest and smallest σ tried [(rad/s²)/√Hz].
 const LARGEST: f64 = 1e4;
 const SMALLEST: f64 = 1e-4;
-/// σ_sat tried [(rad/s²)/√Hz], in order, until one scores worse than the one before it: along
-/// σ_sat the log score has one minimum on the drives measured.
-const SATURATION_TRIED: [f64; 6] = [0.0, 1.0, 2.0, 4.0, 8.0, 16.0];
+/// σ_b tried [rad/s²], in order, until the predictions through a saturation are covered. A
+/// wheel's offset reaches the base only through the rolling constraints, which give most of it
+/// back to the wheel (its inertia is a few thousandths of the robot's on the wheel's axis), so
+/// the values that matter are large.
+const BIAS_TRIED: [f64; 7] = [0.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0];
 
-/// One trial's coverage and log score.
+/// One trial's coverage (of all the predictions, and of those through a saturation) and log
+/// score.
 #[derive(Clone, Copy)]
 struct Score {
     coverage_p95: f64,
+    saturated_coverage_p95: f64,
+    saturated: usize,
     log_score: f64,
 }
 
-/// Fits σ and σ_sat for the scene `yaml` (the fitted one) and writes them in.
+/// Fits σ and σ_b for the scene `yaml` (the fitted one) and writes them in.
 pub(super) fn fit(
     problem: &Problem,
     yaml: &mut Value,
@@ -74,18 +86,18 @@ pub(super) fn fit(
         propagate_covariance: true,
         ..settings.replay.clone()
     };
-    // The fit owns the wheels' two densities: every trial and the result set both, 0 included,
-    // so that what is scored is what is written.
-    let write = |yaml: &mut Value, sigma: f64, sat: f64| {
+    // The fit owns the wheels' two terms: every trial and the result set both, 0 included, so
+    // that what is scored is what is written.
+    let write = |yaml: &mut Value, sigma: f64, bias: f64| {
         (problem.places).set_wheel_noise(yaml, "acceleration_noise", sigma);
-        (problem.places).set_wheel_noise(yaml, "saturation_noise", sat);
+        (problem.places).set_wheel_noise(yaml, "saturation_bias", bias);
     };
     let mut replays = 0;
-    let mut score = |sigma: f64, sat: f64| -> Result<Score, CalibrationError> {
+    let mut score = |sigma: f64, bias: f64| -> Result<Score, CalibrationError> {
         let mut trial = yaml.clone();
-        write(&mut trial, sigma, sat);
+        write(&mut trial, sigma, bias);
         let scene = problem.source.build(&trial)?;
-        let (mut nees, mut log_score) = (Vec::new(), 0.0);
+        let (mut nees, mut saturated, mut log_score) = (Vec::new(), Vec::new(), 0.0);
         for recording in problem.recordings {
             let ev = evaluate(&scene, recording, &replay)?;
             for r in &ev.records {
@@ -93,15 +105,23 @@ pub(super) fn fit(
                     Matrix3::from(r.predicted_covariance) + Matrix3::from(r.reference_covariance);
                 log_score += 0.5 * (r.nees + p.determinant().max(f64::MIN_POSITIVE).ln());
                 nees.push(r.nees);
+                if r.saturated_s > 0.0 {
+                    saturated.push(r.nees);
+                }
             }
         }
         replays += 1;
-        Ok(Score {
-            coverage_p95: if nees.is_empty() {
-                0.0
+        let p95 = |n: &[f64]| {
+            if n.is_empty() {
+                1.0
             } else {
-                Coverage::of(&nees).p95
-            },
+                Coverage::of(n).p95
+            }
+        };
+        Ok(Score {
+            coverage_p95: if nees.is_empty() { 0.0 } else { p95(&nees) },
+            saturated_coverage_p95: p95(&saturated),
+            saturated: saturated.len(),
             log_score: log_score / nees.len().max(1) as f64,
         })
     };
@@ -109,39 +129,37 @@ pub(super) fn fit(
     let joints = problem.places.wheel_joints().to_vec();
     let s0 = score(0.0, 0.0)?;
     let tyres = problem.places.has_tyres();
-    if s0.coverage_p95 >= target || joints.is_empty() || tyres {
-        write(yaml, 0.0, 0.0);
-        return Ok(ProcessNoise {
-            joints,
-            acceleration_noise: 0.0,
-            saturation_noise: 0.0,
-            coverage_p95: s0.coverage_p95,
-            log_score: s0.log_score,
-            replays,
-            not_fitted: (tyres && s0.coverage_p95 < target).then_some(TYRES_REJECT_NOISE),
-        });
-    }
-    let mut best: Option<(f64, f64, Score)> = None;
-    for sat in SATURATION_TRIED {
-        // σ only shrinks as σ_sat grows: the bracket starts at the last one's σ.
-        let from = best.map_or(0.1, |b| b.0);
-        let (sigma, s) = smallest_sigma(|sigma| score(sigma, sat), target, from)?;
-        if best.is_some_and(|b| s.log_score >= b.2.log_score) {
-            break;
-        }
-        best = Some((sigma, sat, s));
-    }
-    let (sigma, sat, s) = best.expect("SATURATION_TRIED is not empty");
-    write(yaml, sigma, sat);
-    Ok(ProcessNoise {
-        joints,
+    let result = |sigma: f64, bias: f64, s: Score, replays: usize| ProcessNoise {
+        joints: joints.clone(),
         acceleration_noise: sigma,
-        saturation_noise: sat,
+        saturation_bias: bias,
         coverage_p95: s.coverage_p95,
+        saturated_coverage_p95: s.saturated_coverage_p95,
+        saturated_predictions: s.saturated,
         log_score: s.log_score,
         replays,
-        not_fitted: None,
-    })
+        not_fitted: (tyres && s.coverage_p95 < target).then_some(TYRES_REJECT_NOISE),
+    };
+    if s0.coverage_p95 >= target && s0.saturated_coverage_p95 >= target
+        || joints.is_empty()
+        || tyres
+    {
+        write(yaml, 0.0, 0.0);
+        return Ok(result(0.0, 0.0, s0, replays));
+    }
+    let mut kept = None;
+    for bias in BIAS_TRIED {
+        // σ only shrinks as σ_b grows: the bracket starts at the last one's σ.
+        let from = kept.map_or(0.1, |(sigma, _, _)| sigma);
+        let (sigma, s) = smallest_sigma(|sigma| score(sigma, bias), target, from)?;
+        kept = Some((sigma, bias, s));
+        if s.saturated_coverage_p95 >= target {
+            break;
+        }
+    }
+    let (sigma, bias, s) = kept.expect("BIAS_TRIED is not empty");
+    write(yaml, sigma, bias);
+    Ok(result(sigma, bias, s, replays))
 }
 
 /// The smallest σ (to 2^(1/64)) whose `score` covers `target`, bracketed by factors of 2 from

@@ -366,8 +366,8 @@ impl SceneParameters {
         self.tyres.1 > 0
     }
 
-    /// Writes `uncertainty.<field>: σ` [(rad/s²)/√Hz] (`acceleration_noise` or
-    /// `saturation_noise`) for every wheel joint, keeping the scene's other entries.
+    /// Writes `uncertainty.<field>: σ` (`acceleration_noise` [(rad/s²)/√Hz] or
+    /// `saturation_bias` [rad/s²]) for every wheel joint, keeping the scene's other entries.
     pub fn set_wheel_noise(&self, scene: &mut Value, field: &str, sigma: f64) {
         let Some(root) = scene
             .as_mapping_mut()

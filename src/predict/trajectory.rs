@@ -113,6 +113,10 @@ pub struct Trajectory {
     /// the constraints (`DriftProjector::project_measured`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub start_off_constraints: Option<OffConstraints>,
+    /// Time the prediction spent with a velocity controller saturated (at its effort, or a diff
+    /// drive's traction torque) [s]: where the robot cannot follow its command, and where the
+    /// model knows least what the floor takes (`uncertainty.saturation_bias`).
+    pub saturated_s: f64,
     /// Accepted steps and right-hand-side evaluations.
     pub steps: usize,
     /// Right-hand-side (forward dynamics) evaluations.

@@ -87,6 +87,9 @@ pub struct PredictionRecord {
     pub horizon_s: f64,
     /// The error bound refused it; rerun without the bound.
     pub refused: bool,
+    /// Time a velocity controller spent saturated over the horizon [s]
+    /// (`Trajectory::saturated_s`).
+    pub saturated_s: f64,
     /// Predicted pose at t0 + h.
     pub predicted: [f64; 3],
     /// Its covariance (propagated, error estimate and floors).
@@ -308,6 +311,7 @@ pub(super) fn score(
         t0_s: 0.0,
         horizon_s: 0.0,
         refused: false,
+        saturated_s: 0.0,
         predicted,
         predicted_covariance: p,
         reference_t_s: 0.0,

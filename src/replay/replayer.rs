@@ -164,6 +164,7 @@ impl<'a> Replayer<'a> {
                 t0_s: (t0 - origin) as f64 * 1e-9,
                 horizon_s: h,
                 refused,
+                saturated_s: traj.saturated_s,
                 reference_t_s: (t_ref - origin) as f64 * 1e-9,
                 ..record
             });

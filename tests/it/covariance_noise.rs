@@ -1,11 +1,14 @@
 //! Process noise against its closed forms on a 2 kg slider (a prismatic joint along x, no
 //! gravity along it) under a velocity controller (kp 4 N·s/m, no integral, effort 1 N):
-//! - asked for 10 m/s it saturates for the whole second: the force is a constant 1 N, and white
-//!   acceleration noise of density σ (`acceleration_noise`) plus σ_sat while saturated
-//!   (`saturation_noise`) gives the double integrator's `(σ² + σ_sat²) [t³/3, t²/2; t²/2, t]`;
+//! - asked for 10 m/s it saturates for the whole second: the force is a constant 1 N, white
+//!   acceleration noise of density σ (`acceleration_noise`) gives the double integrator's
+//!   `σ² [t³/3, t²/2; t²/2, t]`, and an acceleration offset of standard deviation σ_b while
+//!   saturated (`saturation_bias`) adds a constant acceleration's `σ_b² [t⁴/4, t³/2; t³/2, t²]`;
 //! - asked for 0.2 m/s it stays inside its effort (kp·0.2 = 0.8 N): v is an Ornstein–Uhlenbeck
 //!   process of rate a = kp/m, `var v(t) = σ² (1 − e^{−2at}) / (2a)` (to (aH)²/6 for chunks of
-//!   H), and σ_sat adds nothing.
+//!   H), and σ_b adds nothing;
+//! - asked for 0.3 m/s from rest it asks kp·0.3 = 1.2 N, is held at 1 N until kp (0.3 − v) = 1 N,
+//!   v = 0.05 m/s at 1 N / 2 kg: saturated for 0.1 s (`Trajectory::saturated_s`).
 
 use crate::common;
 use common::*;
@@ -26,7 +29,7 @@ const URDF: &str = r#"<?xml version="1.0"?>
 const MASS_KG: f64 = 2.0;
 const KP: f64 = 4.0;
 const SIGMA: f64 = 0.3;
-const SIGMA_SAT: f64 = 0.4;
+const SIGMA_BIAS: f64 = 0.4;
 
 fn slider(hold: &str) -> Scene {
     static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
@@ -39,7 +42,7 @@ fn slider(hold: &str) -> Scene {
          actuators:\n  hold: {hold}\n  velocity:\n    - {{ joint: slider, kp: {KP}, ki: 0.0 }}\n\
          integration:\n  method: rk4\n  dt: 0.001\n\
          uncertainty:\n  acceleration_noise: {{ slider: {SIGMA} }}\n  \
-         saturation_noise: {{ slider: {SIGMA_SAT} }}\n"
+         saturation_bias: {{ slider: {SIGMA_BIAS} }}\n"
     );
     std::fs::write(dir.join("slider.yaml"), yaml).unwrap();
     let scene = Scene::load(dir.join("slider.yaml")).unwrap();
@@ -47,9 +50,12 @@ fn slider(hold: &str) -> Scene {
     scene
 }
 
-/// The covariance at every sample of a 1 s prediction from rest asked for `target` [m/s],
-/// with (t, [[P_qq, P_qv], [P_vq, P_vv]]).
-fn covariances(scene: &Scene, target: f64) -> Vec<(f64, [[f64; 2]; 2])> {
+/// (t [s], [[P_qq, P_qv], [P_vq, P_vv]]) at a sample.
+type CovarianceAt = (f64, [[f64; 2]; 2]);
+
+/// The covariance at every sample of a 1 s prediction from rest asked for `target` [m/s], and
+/// the time it spent saturated [s].
+fn covariances(scene: &Scene, target: f64) -> (Vec<CovarianceAt>, f64) {
     let mut pred = Predictor::from_scene(scene)
         .unwrap()
         .with_settings(|s| s.error_estimate = false)
@@ -65,24 +71,29 @@ fn covariances(scene: &Scene, target: f64) -> Vec<(f64, [[f64; 2]; 2])> {
         .commands(&commands)
         .covariance(&p0);
     let traj = pred.predict(&req).unwrap();
-    (traj.samples.iter())
+    let samples = (traj.samples.iter())
         .filter(|s| s.t > 0.0)
         .map(|s| {
             let p = rows_to_matrix(s.covariance.as_ref().unwrap());
             (s.t, [[p[(0, 0)], p[(0, 1)]], [p[(1, 0)], p[(1, 1)]]])
         })
-        .collect()
+        .collect();
+    (samples, traj.saturated_s)
 }
 
 #[test]
-fn saturation_noise_is_the_double_integrators_while_saturated() {
+fn saturation_bias_is_a_constant_acceleration_while_saturated() {
     for hold in ["continuous", "zero_order"] {
         let mut worst: f64 = 0.0;
-        for (t, p) in covariances(&slider(hold), 10.0) {
-            let s2 = SIGMA * SIGMA + SIGMA_SAT * SIGMA_SAT;
+        let (samples, saturated_s) = covariances(&slider(hold), 10.0);
+        for (t, p) in samples {
+            let (s2, b2) = (SIGMA * SIGMA, SIGMA_BIAS * SIGMA_BIAS);
             let exact = [
-                [s2 * t.powi(3) / 3.0, s2 * t * t / 2.0],
-                [s2 * t * t / 2.0, s2 * t],
+                [
+                    s2 * t.powi(3) / 3.0 + b2 * t.powi(4) / 4.0,
+                    s2 * t * t / 2.0 + b2 * t.powi(3) / 2.0,
+                ],
+                [s2 * t * t / 2.0 + b2 * t.powi(3) / 2.0, s2 * t + b2 * t * t],
             ];
             for a in 0..2 {
                 for b in 0..2 {
@@ -90,16 +101,30 @@ fn saturation_noise_is_the_double_integrators_while_saturated() {
                 }
             }
         }
-        println!("{hold}: saturated, worst relative difference {worst:.2e}");
+        println!("{hold}: saturated {saturated_s} s, worst relative difference {worst:.2e}");
         assert!(worst < 1e-12, "{hold}: {worst:e}");
+        assert!((saturated_s - 1.0).abs() < 1e-12, "{hold}: {saturated_s}");
     }
 }
 
 #[test]
-fn saturation_noise_is_absent_inside_the_effort() {
+fn saturated_time_ends_where_the_controller_comes_inside_its_effort() {
+    // Saturated until v = 0.3 − 1 N / kp = 0.05 m/s, reached at 1 N / 2 kg in 0.1 s; the held
+    // controller sees it at its next tick (the scene's control period, 1 ms by default).
+    let exact = (0.3 - 1.0 / KP) / (1.0 / MASS_KG);
+    for (hold, tol) in [("continuous", 1e-6), ("zero_order", 1.001e-3)] {
+        let (_, saturated_s) = covariances(&slider(hold), 0.3);
+        println!("{hold}: saturated {saturated_s:.6} s (exact {exact} s)");
+        assert!((saturated_s - exact).abs() <= tol, "{hold}: {saturated_s}");
+    }
+}
+
+#[test]
+fn saturation_bias_is_absent_inside_the_effort() {
     let a = KP / MASS_KG;
     for hold in ["continuous", "zero_order"] {
-        let samples = covariances(&slider(hold), 0.2);
+        let (samples, saturated_s) = covariances(&slider(hold), 0.2);
+        assert_eq!(saturated_s, 0.0, "{hold}");
         // Over a chunk of H the noise enters through the chunk's own transition taken linear
         // in time (docs/propagation.md): with A = e^{−aH} on v, δ = A − 1, the chunk adds
         // Q = σ² H ((1 + δ/2)² + δ²/12) and P_vv(kH) = Q (1 − A^{2k}) / (1 − A²), which is the

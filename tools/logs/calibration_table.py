@@ -74,9 +74,10 @@ def main():
         lines.append(f"| process noise on {joints} [(rad/s²)/√Hz] | 0 | "
                      f"{pn['acceleration_noise']:.3g} | — | coverage p95 "
                      f"{pn['coverage_p95']:.2f} |")
-        lines.append(f"| saturation noise on {joints} [(rad/s²)/√Hz] | 0 | "
-                     f"{pn['saturation_noise']:.3g} | — | log score "
-                     f"{pn['log_score']:.2f} |")
+        lines.append(f"| saturation bias on {joints} [rad/s²] | 0 | "
+                     f"{pn['saturation_bias']:.3g} | — | coverage p95 "
+                     f"{pn['saturated_coverage_p95']:.2f} of the "
+                     f"{pn['saturated_predictions']} predictions through a saturation |")
     lines += ["", "Position / yaw error against the true pose, median / worst, and the coverage "
               "p95 at 1 s / 2 s:", "",
               "| drive | scene | 0.25 s | 0.5 s | 1 s | 2 s | coverage p95 at 1 s / 2 s |",

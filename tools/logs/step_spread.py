@@ -79,7 +79,7 @@ def main():
             pn = cal["process_noise"]
             fitted = (f"r {values['rolling_radius']:.5f} m, track +{1e3 * values['track_offset']:.1f}"
                       f" mm, traction {values['traction_torque']:.2f} N·m; σ "
-                      f"{pn['acceleration_noise']:.3g}, σ_sat {pn['saturation_noise']:.3g}")
+                      f"{pn['acceleration_noise']:.3g}, σ_b {pn['saturation_bias']:.3g}")
             groups = [("validation_smooth", [os.path.join(LOGS, "validation_smooth.mcap")]),
                       ("validation_steps", [os.path.join(LOGS, "validation_steps")]),
                       (f"{len(smooth)} fresh smoothed", smooth),

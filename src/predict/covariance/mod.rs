@@ -32,7 +32,7 @@
 //!   first.
 
 mod chunks;
-mod integral;
+mod constants;
 pub(in crate::predict) mod linearize;
 pub(in crate::predict) mod worker;
 
@@ -44,7 +44,7 @@ use crate::linalg::{
     cholesky_in_place, cholesky_solve, gemm_into, semidefinite_cholesky, semidefinite_solve,
 };
 use crate::predict::covariance::chunks::{ChunkControl, StepRecord};
-use crate::predict::covariance::integral::IntegralOffsets;
+use crate::predict::covariance::constants::ConstantInputs;
 use crate::predict::covariance::linearize::Linearization;
 use crate::system::System;
 use nalgebra::DMatrix;
@@ -59,12 +59,12 @@ pub struct UncertaintySpec {
     /// (default: none, 0).
     #[serde(default)]
     pub acceleration_noise: BTreeMap<String, f64>,
-    /// Acceleration noise density σ [(rad/s²)/√Hz or (m/s²)/√Hz] on a velocity-controlled
-    /// joint while its controller is saturated (at its effort, or a diff drive's traction
-    /// torque), added to `acceleration_noise`: at the grip's limit the model knows least what
-    /// the floor takes (default: none).
+    /// Standard deviation σ_b [rad/s² or m/s²] of an acceleration offset on a
+    /// velocity-controlled joint while its controller is saturated, the same through a
+    /// prediction: how fast the grip lets the joint follow its command, known only roughly
+    /// (covariance/constants.rs; default: none).
     #[serde(default)]
-    pub saturation_noise: BTreeMap<String, f64>,
+    pub saturation_bias: BTreeMap<String, f64>,
 }
 
 /// Propagates a covariance along a prediction (buffers sized once; a step allocates nothing).
@@ -72,9 +72,10 @@ pub struct UncertaintySpec {
 pub struct CovariancePropagator {
     /// The current covariance, 2nv × 2nv, order [δq; δv] in the velocity order.
     pub p: DMatrix<f64>,
-    /// σ_i² per velocity coordinate, and added while its controller is saturated.
+    /// σ_i² per velocity coordinate.
     noise: Vec<f64>,
-    saturation_noise: Vec<f64>,
+    /// σ_b² per velocity coordinate.
+    saturation_bias: Vec<f64>,
     /// (A − I) e_{nv+i}: how a noisy coordinate's velocity moves the state over a chunk.
     noise_response: Vec<f64>,
     pub(in crate::predict) lin: Linearization,
@@ -100,8 +101,8 @@ pub struct CovariancePropagator {
     /// rows' kinds are known once the constraints were evaluated).
     blocks: Option<[RowProjector; 2]>,
     /// The velocity controllers' start offsets, where P0 gives them a variance
-    /// (covariance_integral.rs).
-    integral: Option<IntegralOffsets>,
+    /// (covariance_integral.rs), and the saturated controllers' grip biases.
+    constants: Option<ConstantInputs>,
 }
 
 /// `P ← A P Aᵀ` for a symmetric P, as `A (A P)ᵀ`: two column-major products and an in-place
@@ -213,7 +214,7 @@ impl CovariancePropagator {
         Ok(Self {
             p: DMatrix::zeros(2 * nv, 2 * nv),
             noise: variances("acceleration_noise", &spec.acceleration_noise)?,
-            saturation_noise: variances("saturation_noise", &spec.saturation_noise)?,
+            saturation_bias: variances("saturation_bias", &spec.saturation_bias)?,
             lin: {
                 let mut lin = Linearization::new(sys)
                     .with_joint_springs(forces.joint_spring_dampers())
@@ -237,7 +238,7 @@ impl CovariancePropagator {
             q_pert: vec![0.0; sys.model().nq],
             e_k: vec![0.0; nv],
             blocks: None,
-            integral: None,
+            constants: None,
         })
     }
 
@@ -257,8 +258,11 @@ impl CovariancePropagator {
         c.record.reserve_feedback(feedback.len());
         c.reset(p0)?;
         c.project(sys, t, q, v)?;
-        c.integral = IntegralOffsets::start(&c.p, feedback);
-        c.lin.inputs = c.integral.is_some();
+        c.constants = ConstantInputs::start(&c.p, feedback, &c.saturation_bias);
+        c.lin.inputs = c
+            .constants
+            .as_ref()
+            .is_some_and(ConstantInputs::need_inputs);
         c.lin.gains = gains;
         Ok(c)
     }
@@ -294,7 +298,7 @@ impl CovariancePropagator {
     }
 
     /// `P ← A P Aᵀ + Q_h` with A = `self.lin.a` of a step of size h [s] under the controllers'
-    /// `feedback` (and the integrals' start offsets, covariance_integral.rs).
+    /// `feedback` (and the constant inputs: covariance/constants.rs).
     ///
     /// Q_h = ∫₀ʰ Φ(u) Q_c Φ(u)ᵀ du for white acceleration noise Q_c = σ² e eᵀ on velocity
     /// coordinate i (e = e_{nv+i}), with the transition over the time u left taken linear in u,
@@ -304,18 +308,14 @@ impl CovariancePropagator {
     /// added undamped would be off by ah, and a density would mean more on longer chunks).
     pub(in crate::predict) fn apply_linearization(&mut self, h: f64, feedback: &[Feedback]) {
         let nv = self.noise.len();
-        if let Some(o) = self.integral.as_mut() {
-            o.step(&self.lin.a, &self.lin.b, feedback);
+        if let Some(o) = self.constants.as_mut() {
+            o.step(&self.lin.a, &self.lin.b, h, feedback);
         }
         congruence(&mut self.p, &self.lin.a, &mut self.tmp);
-        if let Some(o) = self.integral.as_mut() {
+        if let Some(o) = self.constants.as_mut() {
             o.add_cross_terms(&mut self.p);
         }
-        let saturated = feedback.iter().filter(|f| f.saturated).map(|f| f.iv);
-        for (i, s2) in (0..nv)
-            .map(|i| (i, self.noise[i]))
-            .chain(saturated.map(|i| (i, self.saturation_noise[i])))
-        {
+        for (i, &s2) in self.noise.iter().enumerate() {
             if s2 > 0.0 {
                 let e = nv + i;
                 let d = &mut self.noise_response;
@@ -383,7 +383,7 @@ impl CovariancePropagator {
         }
         blocks[1].apply_coupling(&self.n_tq, &mut self.proj, nv);
         congruence(&mut self.p, &self.proj, &mut self.tmp);
-        if let Some(o) = self.integral.as_mut() {
+        if let Some(o) = self.constants.as_mut() {
             o.project(&self.proj);
         }
         let n = 2 * nv;

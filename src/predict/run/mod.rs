@@ -131,6 +131,7 @@ impl Predictor {
             ),
             contact_check: None,
             start_off_constraints: None,
+            saturated_s: 0.0,
             steps: 0,
             evaluations: 0,
             least_squares_evaluations: 0,
@@ -335,6 +336,9 @@ impl Predictor {
                 }
                 if fresh {
                     on_f = 0;
+                }
+                if self.actuators.feedback().any(|f| f.saturated) {
+                    traj.saturated_s += te - ts;
                 }
                 let f = (fresh, &mut shared);
                 self.advance_piece(lanes, (ts, te), s, companion, f)?;

@@ -1,0 +1,178 @@
+//! Random constants that drive the state: the velocity controllers' start offsets and the
+//! saturated controllers' grip biases, carried beside P.
+//!
+//! **Start offsets.** A PI velocity controller's integral is its joint's travel since the
+//! prediction started, `∫(target − q̇) dt = target·t − (q − q(0))`, so the linearized steps
+//! carry it as a spring on the joint's position (`Actuators::feedback`): its torque moves by
+//! `−ki δq(t)`. That holds for a perturbation that leaves the start position alone; a
+//! perturbation of the start position itself (an encoder's uncertainty, `state.joint_noise`)
+//! does not reach the controller, which integrates velocity errors, and its share `−ki δq(0)` is
+//! given back as a constant torque: the offset `c_j = δq_j(0)`, entering a step through
+//! `B[:, j] k_j` (B = ∂x⁺/∂τ of the linearized step, k_j the controller's ki in it: 0 when
+//! saturated or without a target). Carried only when the start covariance gives such a position
+//! a variance (B costs half as much again per linearization).
+//!
+//! **Grip biases** (`uncertainty.saturation_bias`). While a controller is saturated its joint
+//! accelerates as fast as the grip allows, and how much that is the model knows only roughly
+//! (the floor, the load on the wheel as the robot pitches): an acceleration offset `c_j` of
+//! variance σ_b², the same through the prediction, acts on the joint's velocity coordinate
+//! whenever its controller is saturated. Over a chunk of length h it enters through
+//! `h w`, w = e + (A − I) e / 2 (e = e_{nv+j}: the transition over the chunk taken linear in
+//! time, as for the white noise, mod.rs). A constant, unlike white noise, moves the velocity in
+//! proportion to the time spent saturated, not to its square root: a long skid moves it more
+//! than a short one in the ratio of their lengths.
+//!
+//! Either way, with x⁺ = A x + B̃ c:
+//!
+//! ```text
+//! [δx⁺; c] = [[A, B̃], [0, 1]] [δx; c]
+//! ```
+//!
+//! so with P_xc = cov(δx, c) and P_cc = cov(c):
+//! `P ← A P Aᵀ + Y B̃ᵀ + B̃ Yᵀ + Z B̃ᵀ`, `P_xc ← Y + Z`, with `Y = A P_xc`, `Z = B̃ P_cc`.
+//! The constraint projection acts on P_xc's rows as on P's.
+
+use crate::actuators::Feedback;
+use nalgebra::DMatrix;
+
+/// What a constant is, with its joint's v index and its index in the feedback list.
+#[derive(Clone, Copy, Debug)]
+enum Constant {
+    StartOffset { iv: usize, feedback: usize },
+    GripBias { iv: usize, feedback: usize },
+}
+
+/// cov(δx, c) and cov(c) of the constants (module doc).
+#[derive(Clone, Debug)]
+pub(in crate::predict) struct ConstantInputs {
+    constants: Vec<Constant>,
+    p_xc: DMatrix<f64>,
+    p_cc: DMatrix<f64>,
+    b_tilde: DMatrix<f64>,
+    y: DMatrix<f64>,
+    tmp: DMatrix<f64>,
+}
+
+impl ConstantInputs {
+    /// The start offsets of the velocity controllers in `feedback` whose start position has a
+    /// variance in `p` (2nv × 2nv, already on the constraints), and the grip biases of the
+    /// controllers whose joint has a variance in `bias` (σ_b² per v index); None when there is
+    /// neither.
+    pub(in crate::predict) fn start(
+        p: &DMatrix<f64>,
+        feedback: &[Feedback],
+        bias: &[f64],
+    ) -> Option<Self> {
+        let offsets = feedback
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| f.integral && p[(f.iv, f.iv)] > 0.0)
+            .map(|(i, f)| Constant::StartOffset {
+                iv: f.iv,
+                feedback: i,
+            });
+        let biases = feedback
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| bias.get(f.iv).is_some_and(|&b| b > 0.0))
+            .map(|(i, f)| Constant::GripBias {
+                iv: f.iv,
+                feedback: i,
+            });
+        let constants: Vec<Constant> = offsets.chain(biases).collect();
+        if constants.is_empty() {
+            return None;
+        }
+        let (n, m) = (p.nrows(), constants.len());
+        let mut p_xc = DMatrix::zeros(n, m);
+        let mut p_cc = DMatrix::zeros(m, m);
+        for (c, a) in constants.iter().enumerate() {
+            match *a {
+                Constant::StartOffset { iv, .. } => {
+                    for r in 0..n {
+                        p_xc[(r, c)] = p[(r, iv)];
+                    }
+                    for (d, b) in constants.iter().enumerate() {
+                        if let Constant::StartOffset { iv: jv, .. } = *b {
+                            p_cc[(c, d)] = p[(iv, jv)];
+                        }
+                    }
+                }
+                Constant::GripBias { iv, .. } => p_cc[(c, c)] = bias[iv],
+            }
+        }
+        Some(Self {
+            constants,
+            p_xc,
+            p_cc,
+            b_tilde: DMatrix::zeros(n, m),
+            y: DMatrix::zeros(n, m),
+            tmp: DMatrix::zeros(n, m),
+        })
+    }
+
+    /// Whether a step needs B = ∂x⁺/∂τ (a start offset enters through it).
+    pub(in crate::predict) fn need_inputs(&self) -> bool {
+        (self.constants.iter()).any(|c| matches!(c, Constant::StartOffset { .. }))
+    }
+
+    /// One linearized step (A, B) of length h [s] under `feedback`: P and P_xc forward (module
+    /// doc). Before `p ← A p Aᵀ`, since Y needs A only.
+    pub(in crate::predict) fn step(
+        &mut self,
+        a: &DMatrix<f64>,
+        b: &DMatrix<f64>,
+        h: f64,
+        feedback: &[Feedback],
+    ) {
+        let nv = a.nrows() / 2;
+        for (c, constant) in self.constants.iter().enumerate() {
+            match *constant {
+                Constant::StartOffset { iv, feedback: i } => {
+                    let k = feedback.get(i).map_or(0.0, |f| f.k);
+                    for r in 0..a.nrows() {
+                        self.b_tilde[(r, c)] = b[(r, iv)] * k;
+                    }
+                }
+                Constant::GripBias { iv, feedback: i } => {
+                    let on = feedback.get(i).is_some_and(|f| f.saturated);
+                    let e = nv + iv;
+                    for r in 0..a.nrows() {
+                        // h w_r = h (A e + e)_r / 2.
+                        self.b_tilde[(r, c)] = if on {
+                            0.5 * h * (a[(r, e)] + if r == e { 1.0 } else { 0.0 })
+                        } else {
+                            0.0
+                        };
+                    }
+                }
+            }
+        }
+        self.y.gemm(1.0, a, &self.p_xc, 0.0);
+        // P_xc ← Y + B̃ P_cc (held in p_xc; Z = p_xc − y).
+        self.p_xc.copy_from(&self.y);
+        self.p_xc.gemm(1.0, &self.b_tilde, &self.p_cc, 1.0);
+    }
+
+    /// Adds `Y B̃ᵀ + B̃ Yᵀ + Z B̃ᵀ` to P (after `p ← A p Aᵀ`), with Z = P_xc − Y.
+    pub(in crate::predict) fn add_cross_terms(&mut self, p: &mut DMatrix<f64>) {
+        // Y B̃ᵀ + B̃ Yᵀ + (P_xc − Y) B̃ᵀ = P_xc B̃ᵀ + B̃ Yᵀ.
+        let (n, m) = self.p_xc.shape();
+        for s in 0..n {
+            for r in 0..n {
+                p[(r, s)] += (0..m)
+                    .map(|c| {
+                        self.p_xc[(r, c)] * self.b_tilde[(s, c)]
+                            + self.b_tilde[(r, c)] * self.y[(s, c)]
+                    })
+                    .sum::<f64>();
+            }
+        }
+    }
+
+    /// `P_xc ← T P_xc` (the constraint projection of P).
+    pub(in crate::predict) fn project(&mut self, t: &DMatrix<f64>) {
+        self.tmp.gemm(1.0, t, &self.p_xc, 0.0);
+        std::mem::swap(&mut self.tmp, &mut self.p_xc);
+    }
+}
