@@ -48,6 +48,7 @@ mod payload;
 mod projection;
 mod projection_diff_drive;
 mod projection_dynamic;
+mod projection_dynamic_certificates;
 mod projection_kkt;
 mod propagation;
 mod propagation_a01;
