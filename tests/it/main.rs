@@ -27,6 +27,7 @@ mod constraint_conventions;
 mod constraint_forces;
 mod constraint_kinds;
 mod covariance;
+mod covariance_bricard;
 mod covariance_noise;
 mod covariance_sensitivity;
 mod covariance_worker;
