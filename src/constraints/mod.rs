@@ -6,6 +6,7 @@
 //! `J(q) v = 0` at velocity level, `J q̈ + γ = 0` at acceleration level, and `φ(q) = 0` on holonomic
 //! rows (φ is zero on nonholonomic rows).
 
+mod build;
 mod contact;
 mod coupling;
 mod distance;

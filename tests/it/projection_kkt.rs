@@ -224,17 +224,6 @@ fn mobile_manipulator_mixed_bounds_satisfy_kkt_and_reuse_the_qp() {
 // ---------------------------------------------------------------------------------------------
 // Randomised: every answer carries a KKT certificate.
 
-/// xorshift64*: a deterministic stream in [0, 1).
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 /// Random desired velocities and random bound subsets (some lo = hi) on three robots: every
 /// optimal answer satisfies the KKT conditions (feasibility, stationarity with the returned
 /// λ, ν, η, signs, complementarity), which certify optimality of a convex QP.

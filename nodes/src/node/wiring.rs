@@ -1,15 +1,11 @@
-//! Starting one node of any kind: its ROS node with declared, validated parameters and its
-//! lifecycle ([`super::managed`]), which brings up the inputs every node has (`joint_states`,
-//! `odom`, `robot_description`, `/clock`) and its worker when configured, and when active
-//! `/diagnostics`, `~/set_payload` and the kind's own topics and services ([`RosWiring`]).
+//! A node kind's ROS side: what its wiring works with ([`Wiring`]), what it implements
+//! ([`RosWiring`]), and the endpoints every node has: the state inputs (`joint_states`, `odom`,
+//! `robot_description`, `/clock`) while configured, `/diagnostics` and `~/set_payload` while
+//! active. The lifecycle ([`super::managed`]) decides when each is created and removed.
 
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::SyncSender;
-use std::sync::{Arc, Mutex};
 
-use ros2_client::{Context, NodeOptions};
-
-use super::managed::{Managed, Supervisor, WorkerLink};
+use ros2_client::Context;
 
 use crate::error::NodeError;
 use crate::msg::RosService;
@@ -22,11 +18,10 @@ use crate::msg::sensor_msgs::JointState;
 use crate::msg::std_msgs::Header;
 use crate::msg::std_msgs::StringMsg;
 use crate::node::worker::{Event, NodeLogic};
-use crate::params::{NodeParams, WorkBudget};
-use crate::ros::args::{Parameters, RosArgs};
+use crate::params::NodeParams;
 use crate::ros::context::{RosNode, qos};
 use crate::ros::io::{Reply, serve, subscribe};
-use crate::ros::logging::{self, NodeLog};
+use crate::ros::logging::NodeLog;
 
 /// What a kind's wiring works with.
 pub struct Wiring<'a, N: NodeLogic> {
@@ -76,149 +71,9 @@ pub trait RosWiring: NodeLogic {
 /// How often an active node looks at the discovered graph [`RosWiring::follow_graph`].
 pub const GRAPH_PERIOD: std::time::Duration = std::time::Duration::from_millis(250);
 
-/// A running node: its lifecycle supervisor, which owns the worker, the tasks and the ROS
-/// node.
-pub trait RunningNode: Send {
-    /// The node's name.
-    fn name(&self) -> &str;
-    /// The node's fully qualified name.
-    fn fqn(&self) -> &str;
-    /// Stops the worker, the tasks, then the ROS node.
-    fn stop(&mut self);
-}
-
-struct Running {
-    name: String,
-    fqn: String,
-    supervisor: Option<Supervisor>,
-}
-
-impl RunningNode for Running {
-    fn name(&self) -> &str {
-        &self.name
-    }
-    fn fqn(&self) -> &str {
-        &self.fqn
-    }
-    fn stop(&mut self) {
-        if let Some(mut s) = self.supervisor.take() {
-            s.stop();
-        }
-        logging::unregister(&self.name);
-    }
-}
-
-/// The scene's work limits while the node is configured (none before: `configure` checks the
-/// parameters against them then).
-fn budget_of<N: NodeLogic>(link: &Mutex<Option<WorkerLink<N>>>) -> Option<WorkBudget> {
-    link.lock()
-        .ok()
-        .and_then(|l| l.as_ref().map(|l| l.budget.clone()))
-}
-
 /// Sends a state event; a full queue drops it (the next message replaces it anyway).
 pub fn forward<N: NodeLogic>(tx: &SyncSender<Event<N>>, ev: Event<N>) {
     let _ = tx.try_send(ev);
-}
-
-/// Starts node `name` of kind `N` in `namespace` with its parameters: its ROS node, its
-/// lifecycle services and, with `autostart` (the default), configured and active at once. A
-/// failed configuration or activation leaves the node unconfigured (or inactive) with an
-/// ERROR on `/rosout` and `/diagnostics`, so the other nodes of the process run on; with
-/// `exit_on_failure` it is returned instead (the process exits).
-pub fn start_node<N: RosWiring>(
-    context: &Context,
-    args: &RosArgs,
-    namespace: &str,
-    name: &str,
-    ros_params: Parameters,
-    params: NodeParams<N::Params>,
-    exit_on_failure: bool,
-) -> Result<Box<dyn RunningNode>, NodeError> {
-    let log = NodeLog::new(name);
-    // Parameters: declared with their values; each set request is validated as a whole (the
-    // combination it would make), and reaches the worker when there is one (configured).
-    let ready = Arc::new(AtomicBool::new(false));
-    let current = Arc::new(Mutex::new(ros_params));
-    let link: Arc<Mutex<Option<WorkerLink<N>>>> = Arc::new(Mutex::new(None));
-    let mut options = NodeOptions::new().enable_rosout(true);
-    for (pname, value) in params.to_ros() {
-        options = options.declare_parameter(&pname, value);
-    }
-    {
-        let (ready, current, link) = (ready.clone(), current.clone(), link.clone());
-        options = options.parameters_validator(Box::new(move |changes| {
-            if !ready.load(Ordering::SeqCst) {
-                return Ok(());
-            }
-            let c = current.lock().map_err(|e| e.to_string())?;
-            let budget = budget_of(&link);
-            let next = NodeParams::<N::Params>::updated(&c, changes, budget.as_ref())
-                .map_err(|e| e.to_string())?;
-            check_model(&next, &link)
-        }));
-    }
-    {
-        let (ready, current, link) = (ready.clone(), current.clone(), link.clone());
-        options = options.parameters_set_action(Box::new(move |changes| {
-            if !ready.load(Ordering::SeqCst) {
-                return Ok(());
-            }
-            let mut c = current.lock().map_err(|e| e.to_string())?;
-            let budget = budget_of(&link);
-            let next = NodeParams::<N::Params>::updated(&c, changes, budget.as_ref())
-                .map_err(|e| e.to_string())?;
-            check_model(&next, &link)?;
-            // A set is acknowledged only once the worker has it: with its queue full the set is
-            // refused (the caller can retry), never dropped after a success reply.
-            let tx = link
-                .lock()
-                .ok()
-                .and_then(|l| l.as_ref().map(|l| l.tx.clone()));
-            if let Some(tx) = tx {
-                tx.try_send(Event::Params(Box::new(next))).map_err(|_| {
-                    "the node is busy (request queue full); nothing set, try again".to_string()
-                })?;
-            }
-            for p in changes {
-                c.values.insert(p.name.clone(), p.value.clone());
-            }
-            Ok(())
-        }));
-    }
-    let ros = RosNode::new(context, namespace, name, options)?;
-    logging::register(name, ros.node.logging_handle());
-    ready.store(true, Ordering::SeqCst);
-    let fqn = format!("{}/{name}", namespace.trim_end_matches('/'));
-    let autostart = params.common.autostart;
-    let mut managed = Managed::<N>::new(
-        context.clone(),
-        args.clone(),
-        ros,
-        &fqn,
-        (current, link),
-        log.clone(),
-    )?;
-    if autostart {
-        if let Err(e) = managed.autostart() {
-            if exit_on_failure {
-                return Err(e);
-            }
-            log.error(&format!(
-                "{name} is not running ({e}); the process's other nodes run on (a lifecycle \
-                 manager may configure it again; --exit-on-failure exits instead)"
-            ));
-        }
-    } else {
-        log.info(&format!(
-            "{name} unconfigured (autostart: false): waiting for ~/change_state"
-        ));
-    }
-    Ok(Box::new(Running {
-        name: name.to_string(),
-        fqn,
-        supervisor: Some(managed.spawn()?),
-    }))
 }
 
 /// Serves `S` at `name`: each request becomes the kind's input `input(request, reply)`; `error`
@@ -260,22 +115,6 @@ pub(crate) fn wire_set_payload<N: NodeLogic>(w: &mut Wiring<N>) -> Result<(), No
         },
     )));
     Ok(())
-}
-
-/// The parameters that name parts of the model checked against it (none before the node is
-/// configured, when `configure` checks them).
-fn check_model<N: NodeLogic>(
-    params: &NodeParams<N::Params>,
-    link: &Mutex<Option<WorkerLink<N>>>,
-) -> Result<(), String> {
-    let model = link
-        .lock()
-        .ok()
-        .and_then(|l| l.as_ref().map(|l| l.model.clone()));
-    match model {
-        Some(m) => params.check_model(&m).map_err(|e| e.to_string()),
-        None => Ok(()),
-    }
 }
 
 /// The node's status on `/diagnostics` (global, as diagnostic_updater publishes it; the status

@@ -10,7 +10,7 @@ use crate::msg::geometry_msgs::Vector3;
 use crate::msg::sensor_msgs::JointState;
 use crate::params::CommonParams;
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::predict::Sample;
+use constraint_dynamics::predict::{PredictionRequest, Sample};
 
 fn node(project: bool) -> PredictorNode {
     let mut common = CommonParams::default();

@@ -8,7 +8,8 @@ use ros2_client::{Context, ParameterValue};
 
 use crate::error::NodeError;
 use crate::forces::ForcesNode;
-use crate::node::wiring::{RosWiring, RunningNode, start_node};
+use crate::node::start::{RunningNode, start_node};
+use crate::node::wiring::RosWiring;
 use crate::params::{NodeKind, NodeParams, resolve_path};
 use crate::prediction::PredictionNode;
 use crate::predictor::PredictorNode;

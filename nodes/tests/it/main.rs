@@ -26,6 +26,7 @@ mod suite_diff_drive_arc;
 mod suite_envelope_rclpy;
 mod suite_filter;
 mod suite_load;
+mod suite_load_pipelined;
 mod suite_monitor_log_rclpy;
 mod suite_monitor_rclpy;
 mod suite_params_rclpy;

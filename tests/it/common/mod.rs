@@ -363,3 +363,15 @@ pub mod cart {
     /// Heights above the ground: 20 × 0.1 + 2 × 1 × 0.1 + 0.5 × 0.05 + 10 × 1.1 [kg·m].
     pub const M_Z: f64 = 13.225;
 }
+
+/// xorshift64*: a deterministic stream in [0, 1) (the randomised projection certificates).
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
