@@ -86,6 +86,10 @@ pub struct PeriodicOutput {
 pub enum PredictorInput {
     /// A velocity command (the command to predict under).
     Command(Twist),
+    /// Whether anything takes the envelope at every tick (a subscriber of
+    /// `~/acceleration_limits` or the velocity smoother bridge); without, it is computed once
+    /// per diagnostics period, for `/diagnostics` only (see [`PredictorNode::periodic`]).
+    LimitsWanted(bool),
 }
 
 /// The predictor's logic: a robot, its predictor, the latest command and the slip log.
@@ -120,6 +124,10 @@ pub struct PredictorNode {
     contacts: Option<ContactCheck>,
     /// The acceleration envelope at the start state (with its own model and workspace).
     envelope: envelope::StartEnvelope,
+    /// Whether the envelope is wanted at every tick ([`PredictorInput::LimitsWanted`]), and
+    /// when it was last computed.
+    limits_wanted: bool,
+    envelope_at: Option<Time>,
     /// Scores past predictions against the odometry and joint states (`monitor.enabled`).
     monitor: Option<monitor::OnlineMonitor>,
     /// The wheel controllers' integrals from the last joint state's efforts.
@@ -188,6 +196,8 @@ impl NodeLogic for PredictorNode {
             work: None,
             contacts: None,
             envelope,
+            limits_wanted: true,
+            envelope_at: None,
         })
     }
     fn robot(&self) -> &Robot {
@@ -203,7 +213,13 @@ impl NodeLogic for PredictorNode {
         self.params = params;
     }
     fn handle(&mut self, input: PredictorInput, now: Time, _out: &mut dyn FnMut(Self::Output)) {
-        let PredictorInput::Command(t) = input;
+        let t = match input {
+            PredictorInput::Command(t) => t,
+            PredictorInput::LimitsWanted(wanted) => {
+                self.limits_wanted = wanted;
+                return;
+            }
+        };
         let finite = t.linear.x.is_finite() && t.angular.z.is_finite();
         if let Err(e) = self.robot.twist_command(&t, "cmd_vel") {
             let level = self
@@ -415,8 +431,15 @@ impl PredictorNode {
             false => traj.start_off_constraints,
         };
         let (markers, wrenches) = self.markers(at.forces, &states, &q, &path, now);
-        let limits = match self.params.node.envelope.enabled {
+        // Nobody taking the limits, the envelope is only for `/diagnostics`: once per period of
+        // its status (its SOCPs cost a quarter of the prediction's instructions).
+        let since = |t: &Time| (now.to_nanos() - t.to_nanos()) as f64 * 1e-9;
+        let period = self.params.common.diagnostics.period;
+        let envelope_due = self.limits_wanted
+            || (self.envelope_at.as_ref()).is_none_or(|t| !(0.0..period).contains(&since(t)));
+        let limits = match self.params.node.envelope.enabled && envelope_due {
             true => {
+                self.envelope_at = Some(now);
                 let (sys, elements) = &mut self.start;
                 // The envelope holds the rows as equalities, which a state off the constraints
                 // cannot meet: without `state.project_to_constraints` it takes the projection
@@ -553,6 +576,8 @@ impl PredictorNode {
     }
 }
 
+#[cfg(test)]
+mod limits_wanted_tests;
 #[cfg(test)]
 mod start_state_tests;
 #[cfg(test)]
