@@ -11,12 +11,19 @@ it) -- and, after `--settle` seconds of feed, reads the suite process's user + s
 Opens DDS participants: run it only inside tools/ros2/netns_run.sh, with the peer venv's Python
 (tools/ros2/setup_peer_venv.sh):
     tools/ros2/netns_run.sh .venv-ros2/bin/python tools/ros2/live_cpu.py --suite target/release/constraint_dynamics_suite
+
+To see where the suite's time goes, `--perf-record FILE` samples it over the window with
+`perf record` (cpu-clock at 999 Hz, DWARF call graphs: a VM may have no hardware counters; read
+with `perf report -i FILE`), and `--wrap "valgrind --tool=callgrind ..."` starts the suite under
+a tool (it then runs far slower than its rates: read the counts per tick and per message, not
+per second).
 """
 
 import argparse
 import json
 import math
 import os
+import shlex
 import signal
 import subprocess
 import sys
@@ -63,12 +70,15 @@ def main():
     ap.add_argument("--window", type=float, default=8.0, help="[s] of CPU time read")
     ap.add_argument("--feed", choices=["steady", "changing"], default="steady",
                     help="a steady command, or one that changes at every message")
+    ap.add_argument("--perf-record", metavar="FILE",
+                    help="sample the suite over the window with perf record -g into FILE")
+    ap.add_argument("--wrap", default="", help="a command the suite runs under (e.g. valgrind)")
     args = ap.parse_args()
     if os.environ.get("CD_NETNS") != "1":
         sys.exit("live_cpu.py opens DDS participants: run it inside tools/ros2/netns_run.sh")
 
     suite = subprocess.Popen(
-        [args.suite, "--ros-args", "--params-file", args.params],
+        [*shlex.split(args.wrap), args.suite, "--ros-args", "--params-file", args.params],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
@@ -88,6 +98,7 @@ def main():
     twist_cov = covariance([0.01, 0.01, 1e6, 1e6, 1e6, 0.01])
     start = time.monotonic()
     window = None
+    perf = None
     try:
         while time.monotonic() - start < args.settle + args.window:
             v, w = command(args.feed, time.monotonic() - start)
@@ -112,11 +123,21 @@ def main():
             cmd.publish(c)
             if window is None and time.monotonic() - start >= args.settle:
                 window = (time.monotonic(), cpu_seconds(suite.pid))
+                if args.perf_record:
+                    perf = subprocess.Popen(
+                        ["perf", "record", "--call-graph", "dwarf,32768", "-F", "999",
+                         "-o", args.perf_record, "-p", str(suite.pid)],
+                        stdout=subprocess.DEVNULL,
+                        stderr=subprocess.DEVNULL,
+                    )
             until = time.monotonic() + 0.05
             while time.monotonic() < until:
                 rclpy.spin_once(node, timeout_sec=0.01)
         t1, cpu1 = time.monotonic(), cpu_seconds(suite.pid)
     finally:
+        if perf is not None:
+            perf.send_signal(signal.SIGINT)
+            perf.wait(timeout=60)
         suite.send_signal(signal.SIGINT)
         try:
             suite.wait(timeout=10)

@@ -1,7 +1,8 @@
-//! The predictor's acceleration envelope: at every tick, from the prediction's start state, the
-//! core's [`acceleration_envelope`] (how hard the base can accelerate, brake and turn) as a
+//! The predictor's acceleration envelope: from the prediction's start state, the core's
+//! [`acceleration_envelope`] (how hard the base can accelerate, brake and turn) as a
 //! `constraint_dynamics_msgs/AccelerationLimits` for `~/acceleration_limits`, and its four
-//! values for `/diagnostics`.
+//! values for `/diagnostics` — at every tick while the limits are taken, else once per
+//! diagnostics period (`PredictorInput::LimitsWanted`).
 //!
 //! The [`EnvelopeModel`] and [`EnvelopeData`] are built once, with the node's logic, and reused:
 //! after the first tick only Clarabel's solves allocate. A failure at one tick is logged

@@ -48,6 +48,10 @@ pub use periodic::PeriodicOutput;
 pub enum PredictorInput {
     /// A velocity command (the command to predict under).
     Command(Twist),
+    /// Whether anything takes the envelope at every tick (a subscriber of
+    /// `~/acceleration_limits` or the velocity smoother bridge); without, it is computed once
+    /// per diagnostics period, for `/diagnostics` only (see [`PredictorNode::periodic`]).
+    LimitsWanted(bool),
 }
 
 /// The predictor's logic: a robot, its predictor, the latest command and the slip log.
@@ -82,6 +86,10 @@ pub struct PredictorNode {
     contacts: Option<ContactCheck>,
     /// The acceleration envelope at the start state (with its own model and workspace).
     envelope: envelope::StartEnvelope,
+    /// Whether the envelope is wanted at every tick ([`PredictorInput::LimitsWanted`]), and
+    /// when it was last computed.
+    limits_wanted: bool,
+    envelope_at: Option<Time>,
     /// Scores past predictions against the odometry and joint states (`monitor.enabled`).
     monitor: Option<monitor::OnlineMonitor>,
     /// The wheel controllers' integrals from the last joint state's efforts.
@@ -150,6 +158,8 @@ impl NodeLogic for PredictorNode {
             work: None,
             contacts: None,
             envelope,
+            limits_wanted: true,
+            envelope_at: None,
         })
     }
     fn robot(&self) -> &Robot {
@@ -165,7 +175,13 @@ impl NodeLogic for PredictorNode {
         self.params = params;
     }
     fn handle(&mut self, input: PredictorInput, now: Time, _out: &mut dyn FnMut(Self::Output)) {
-        let PredictorInput::Command(t) = input;
+        let t = match input {
+            PredictorInput::Command(t) => t,
+            PredictorInput::LimitsWanted(wanted) => {
+                self.limits_wanted = wanted;
+                return;
+            }
+        };
         let finite = t.linear.x.is_finite() && t.angular.z.is_finite();
         if let Err(e) = self.robot.twist_command(&t, "cmd_vel") {
             let level = self
@@ -284,6 +300,8 @@ impl PredictorNode {
 
 #[cfg(test)]
 mod envelope_tests;
+#[cfg(test)]
+mod limits_wanted_tests;
 #[cfg(test)]
 mod start_state_tests;
 #[cfg(test)]

@@ -149,8 +149,15 @@ impl PredictorNode {
             false => traj.start_off_constraints,
         };
         let (markers, wrenches) = self.markers(at.forces, &states, &q, &path, now);
-        let limits = match self.params.node.envelope.enabled {
+        // Nobody taking the limits, the envelope is only for `/diagnostics`: once per period of
+        // its status (its SOCPs cost a quarter of the prediction's instructions).
+        let since = |t: &Time| (now.to_nanos() - t.to_nanos()) as f64 * 1e-9;
+        let period = self.params.common.diagnostics.period;
+        let envelope_due = self.limits_wanted
+            || (self.envelope_at.as_ref()).is_none_or(|t| !(0.0..period).contains(&since(t)));
+        let limits = match self.params.node.envelope.enabled && envelope_due {
             true => {
+                self.envelope_at = Some(now);
                 let (sys, elements) = &mut self.start;
                 // The envelope holds the rows as equalities, which a state off the constraints
                 // cannot meet: without `state.project_to_constraints` it takes the projection

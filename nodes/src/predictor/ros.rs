@@ -89,55 +89,96 @@ async fn typed_commands<M: serde::de::DeserializeOwned + 'static>(
     }
 }
 
+/// One of the predictor's per-tick outputs: its publisher and its topic's DDS name.
+struct Output<M: serde::Serialize> {
+    publisher: ros2_client::Publisher<M>,
+    dds_topic: String,
+}
+
+impl<M: crate::msg::RosMessage + std::fmt::Debug> Output<M> {
+    fn new(w: &mut Wiring<PredictorNode>, topic: &str) -> Result<Self, NodeError> {
+        let topic = (w.topic)(topic);
+        Ok(Output {
+            publisher: w.ros.publisher::<M>(&topic, &qos::reliable(10))?,
+            dds_topic: format!("rt{topic}"),
+        })
+    }
+
+    /// Publishes `msg` if the topic has a subscriber: serializing and handing to DDS a
+    /// message nobody reads is the larger part of publishing it.
+    async fn publish(&self, readers: &Readers, msg: M, log: &NodeLog) {
+        if !readers.topics.contains(&self.dds_topic) {
+            return;
+        }
+        if let Err(e) = self.publisher.async_publish(msg).await {
+            log.warn(&format!("publish {}: {e:?}", &self.dds_topic[2..]));
+        }
+    }
+}
+
+/// How often [`Readers`] looks at discovery: a copy of every discovered reader costs about
+/// 0.14 M instructions with one rclpy peer (and grows with the graph), half the instructions
+/// the publishing task spends on a tick's outputs.
+const READERS_PERIOD: std::time::Duration = std::time::Duration::from_secs(1);
+
+/// The topics other participants subscribe to (DDS names), looked up in discovery at most
+/// every [`READERS_PERIOD`]: a new subscriber misses at most that on top of what it misses
+/// before its reader is matched (the topics are volatile).
+struct Readers {
+    participant: DomainParticipant,
+    checked: Option<std::time::Instant>,
+    topics: std::collections::HashSet<String>,
+}
+
+impl Readers {
+    fn refresh(&mut self) {
+        let now = std::time::Instant::now();
+        if self
+            .checked
+            .is_some_and(|t| now.duration_since(t) < READERS_PERIOD)
+        {
+            return;
+        }
+        self.checked = Some(now);
+        self.topics = (self.participant.discovered_readers().into_iter())
+            .map(|r| r.subscription_topic_data.topic_name)
+            .collect();
+    }
+}
+
 impl RosWiring for PredictorNode {
     fn wire(w: &mut Wiring<Self>) -> Result<(), NodeError> {
-        let p = &w.params.node;
-        let odom_pub = w
-            .ros
-            .publisher::<Odometry>(&(w.topic)("~/predicted_odom"), &qos::reliable(10))?;
+        let p = w.params.node.clone();
+        let odom_pub = Output::<Odometry>::new(w, "~/predicted_odom")?;
         let path_pub = match p.publish_path {
-            true => Some(
-                w.ros
-                    .publisher::<Path>(&(w.topic)("~/predicted_path"), &qos::reliable(10))?,
-            ),
+            true => Some(Output::<Path>::new(w, "~/predicted_path")?),
             false => None,
         };
         let forces_pub = match p.publish_forces {
-            true => Some(w.ros.publisher::<ConstraintForces>(
-                &(w.topic)("~/constraint_forces"),
-                &qos::reliable(10),
-            )?),
+            true => Some(Output::<ConstraintForces>::new(w, "~/constraint_forces")?),
             false => None,
         };
         let markers_pub = match p.markers.enabled {
-            true => Some(
-                w.ros
-                    .publisher::<MarkerArray>(&(w.topic)("~/markers"), &qos::reliable(10))?,
-            ),
+            true => Some(Output::<MarkerArray>::new(w, "~/markers")?),
             false => None,
         };
         let mut wrench_pubs = HashMap::new();
         if p.markers.wrenches {
-            for name in w.constraints {
-                let topic = (w.topic)(&format!("~/wrench/{}", topic_token(name)));
-                let publisher = w
-                    .ros
-                    .publisher::<WrenchStamped>(&topic, &qos::reliable(10))?;
-                wrench_pubs.insert(name.clone(), publisher);
+            let constraints = w.constraints;
+            for name in constraints {
+                let topic = format!("~/wrench/{}", topic_token(name));
+                wrench_pubs.insert(name.clone(), Output::<WrenchStamped>::new(w, &topic)?);
             }
         }
         let limits_pub = match p.envelope.enabled {
-            true => Some(w.ros.publisher::<AccelerationLimits>(
-                &(w.topic)("~/acceleration_limits"),
-                &qos::reliable(10),
+            true => Some(Output::<AccelerationLimits>::new(
+                w,
+                "~/acceleration_limits",
             )?),
             false => None,
         };
         let residuals_pub = match p.monitor.enabled {
-            true => Some(w.ros.publisher::<DiagnosticArray>(
-                &(w.topic)("~/prediction_residuals"),
-                &qos::reliable(10),
-            )?),
+            true => Some(Output::<DiagnosticArray>::new(w, "~/prediction_residuals")?),
             false => None,
         };
         let bridge = match p.envelope.velocity_smoother.is_empty() {
@@ -150,48 +191,51 @@ impl RosWiring for PredictorNode {
             }
         };
         let log = w.log.clone();
+        let mut readers = Readers {
+            participant: w.context.domain_participant(),
+            checked: None,
+            topics: Default::default(),
+        };
+        // The envelope is wanted at every tick by the bridge or a subscriber of the limits;
+        // the predictor starts out computing it.
+        let tx = w.tx.clone();
+        let mut limits_wanted = true;
         let Some(out_rx) = w.outputs.take() else {
             return Ok(());
         };
         w.tasks.push(w.ros.spawn(async move {
             while let Ok(out) = out_rx.recv().await {
                 let out = *out;
-                if let Err(e) = odom_pub.async_publish(out.odom).await {
-                    log.warn(&format!("publish predicted_odom: {e:?}"));
+                readers.refresh();
+                if let Some(l) = &limits_pub {
+                    let wanted = bridge.is_some() || readers.topics.contains(&l.dds_topic);
+                    let told = || Event::Node(PredictorInput::LimitsWanted(wanted));
+                    if wanted != limits_wanted && tx.try_send(told()).is_ok() {
+                        limits_wanted = wanted;
+                    }
                 }
-                if let Some(p) = &path_pub
-                    && let Err(e) = p.async_publish(out.path).await
-                {
-                    log.warn(&format!("publish predicted_path: {e:?}"));
+                odom_pub.publish(&readers, out.odom, &log).await;
+                if let Some(p) = &path_pub {
+                    p.publish(&readers, out.path, &log).await;
                 }
-                if let Some(p) = &forces_pub
-                    && let Err(e) = p.async_publish(out.forces).await
-                {
-                    log.warn(&format!("publish constraint_forces: {e:?}"));
+                if let Some(p) = &forces_pub {
+                    p.publish(&readers, out.forces, &log).await;
                 }
-                if let (Some(p), Some(m)) = (&markers_pub, out.markers)
-                    && let Err(e) = p.async_publish(m).await
-                {
-                    log.warn(&format!("publish markers: {e:?}"));
+                if let (Some(p), Some(m)) = (&markers_pub, out.markers) {
+                    p.publish(&readers, m, &log).await;
                 }
                 if let (Some(tx), Some(m)) = (&bridge, &out.limits) {
                     super::smoother_ros::offer(tx, (m.clone(), out.forward_speed));
                 }
-                if let (Some(p), Some(m)) = (&limits_pub, out.limits)
-                    && let Err(e) = p.async_publish(m).await
-                {
-                    log.warn(&format!("publish acceleration_limits: {e:?}"));
+                if let (Some(p), Some(m)) = (&limits_pub, out.limits) {
+                    p.publish(&readers, m, &log).await;
                 }
-                if let (Some(p), Some(m)) = (&residuals_pub, out.residuals)
-                    && let Err(e) = p.async_publish(m).await
-                {
-                    log.warn(&format!("publish prediction_residuals: {e:?}"));
+                if let (Some(p), Some(m)) = (&residuals_pub, out.residuals) {
+                    p.publish(&readers, m, &log).await;
                 }
                 for (name, msg) in out.wrenches {
-                    if let Some(p) = wrench_pubs.get(&name)
-                        && let Err(e) = p.async_publish(msg).await
-                    {
-                        log.warn(&format!("publish wrench/{name}: {e:?}"));
+                    if let Some(p) = wrench_pubs.get(&name) {
+                        p.publish(&readers, msg, &log).await;
                     }
                 }
             }

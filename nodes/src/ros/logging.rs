@@ -52,9 +52,11 @@ pub fn init(levels: &[String]) {
             Some(_) => *l.external.lock().unwrap_or_else(|e| e.into_inner()) = level,
         }
     }
-    if log::set_logger(l).is_ok() {
-        log::set_max_level(LevelFilter::Trace);
-    }
+    // The `log` macros compare with the max level before they call the logger: at the levels
+    // asked for, RustDDS's per-datagram debug! and trace! lines cost a comparison, not a call
+    // (with its lock) that then drops them.
+    let _ = log::set_logger(l);
+    log::set_max_level(l.max_level());
 }
 
 /// Sends the records of node `name` to its `/rosout` handle too.
@@ -73,6 +75,15 @@ pub fn unregister(name: &str) {
         .lock()
         .unwrap_or_else(|e| e.into_inner())
         .remove(name);
+}
+
+impl Logger {
+    /// The most verbose level any record is logged at.
+    fn max_level(&self) -> LevelFilter {
+        let level = *self.level.lock().unwrap_or_else(|e| e.into_inner());
+        let external = *self.external.lock().unwrap_or_else(|e| e.into_inner());
+        level.max(external)
+    }
 }
 
 impl log::Log for Logger {
