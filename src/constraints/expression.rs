@@ -18,15 +18,10 @@ use crate::error::ExpressionProblem;
 use crate::model::Model;
 use std::collections::BTreeMap;
 
-/// Functions of the syntax.
-pub const FUNCTIONS: [&str; 7] = ["sqrt", "sin", "cos", "tan", "exp", "ln", "abs"];
+pub use super::expression_tape::{FUNCTIONS, MAX_SYMBOLS};
+
 /// Symbols with a fixed meaning: time [s] and π.
 pub const RESERVED: [&str; 2] = ["t", "pi"];
-/// Most distinct symbols one expression may use (values live in a stack buffer).
-pub const MAX_SYMBOLS: usize = 16;
-/// Most tokens one expression may have: it bounds the tape, whose evaluation buffers live on
-/// the stack (about 8 KiB for the gradient). 400 tokens are 50 terms like `3*vx*vz^2 +`.
-pub const MAX_TOKENS: usize = 400;
 
 /// What a symbol of the expression stands for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -7,8 +7,7 @@
 //!   power := atom ('^' unary)?                 right-associative: 2^3^2 = 2^9, 2^-1 = 0.5
 //!   atom  := number | pi | t | symbol | FUNC '(' expr ')' | '(' expr ')'
 
-use super::expression::{FUNCTIONS, MAX_SYMBOLS, MAX_TOKENS};
-use super::expression_tape::{Bin, Func, Op, Tape};
+use super::expression_tape::{Bin, FUNCTIONS, Func, MAX_SYMBOLS, MAX_TOKENS, Op, Tape};
 use crate::error::ExpressionProblem;
 
 /// Deepest nesting of parentheses, signs and exponents: the parser recurses once per level, so

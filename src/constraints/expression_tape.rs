@@ -2,7 +2,13 @@
 //! symbol in one reverse-mode sweep, both on fixed-size buffers in the stack frame (the tape is
 //! at most `MAX_TAPE` long, one entry per token at most), so the hot path never allocates.
 
-use super::expression::MAX_TOKENS;
+/// Functions of the syntax (the tape's [`Func`]s but the unary minus).
+pub const FUNCTIONS: [&str; 7] = ["sqrt", "sin", "cos", "tan", "exp", "ln", "abs"];
+/// Most distinct symbols one expression may use (values live in a stack buffer).
+pub const MAX_SYMBOLS: usize = 16;
+/// Most tokens one expression may have: it bounds the tape, whose evaluation buffers live on
+/// the stack (about 8 KiB for the gradient). 400 tokens are 50 terms like `3*vx*vz^2 +`.
+pub const MAX_TOKENS: usize = 400;
 
 /// Longest tape: every token adds at most one entry (parentheses and a `+` sign add none).
 pub(super) const MAX_TAPE: usize = MAX_TOKENS;
