@@ -13,7 +13,7 @@ mod radau_tableau;
 pub(in crate::predict) mod ros2;
 pub(in crate::predict) mod sdirk2;
 mod shifted;
-mod tableaus;
+pub(in crate::predict) mod tableaus;
 
 use crate::actuators::Actuators;
 use crate::algorithm::DENSE_EAGER_NV;

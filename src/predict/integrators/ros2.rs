@@ -18,12 +18,10 @@ use crate::model::Model;
 use crate::predict::IntegrationSettings;
 use crate::predict::covariance::linearize::{self, Linearization};
 use crate::predict::integrators::radau::RadauWorkspace;
+use crate::predict::integrators::tableaus::ROS2_GAMMA as GAMMA;
 use crate::predict::integrators::{
     Accel, StepOutcome, StepWorkspace, derivative, factor_shifted, stage, state_jacobian,
 };
-
-/// γ of ROS2 (L-stable choice).
-pub(in crate::predict) const GAMMA: f64 = 1.0 - std::f64::consts::FRAC_1_SQRT_2;
 
 /// One ROS2 step of `dt` from (q, v) at t, in place. F is evaluated at this step's start when
 /// `ws.jac_valid` is false (the caller decides how long one F serves), and W refactored when

@@ -1,6 +1,8 @@
 //! Butcher tableaus of the explicit Runge–Kutta methods — RK4, Dormand–Prince 5(4) and
 //! Dormand–Prince 8(5,3) ("DOP853": Hairer, Nørsett & Wanner, Solving ODEs I, II.10; the
 //! coefficients of Hairer's dop853.f) — checked against the order conditions in the tests below.
+//! Also the Rosenbrock method ROS2's γ, which its step and its linearization
+//! (covariance/linearize/ros2.rs) share.
 
 // DOP853's coefficients are written as published (30 digits), beyond f64's 17.
 #![allow(clippy::excessive_precision)]
@@ -26,6 +28,9 @@ pub struct Tableau {
     pub error: ErrorWeights,
     pub c: &'static [f64],
 }
+
+/// γ of ROS2 (L-stable choice, 1 − 1/√2).
+pub(in crate::predict) const ROS2_GAMMA: f64 = 1.0 - std::f64::consts::FRAC_1_SQRT_2;
 
 /// The most stages of any tableau here (DOP853).
 pub const MAX_STAGES: usize = 12;

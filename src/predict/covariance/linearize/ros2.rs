@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::linalg::gemm_columns;
 use crate::predict::integrators::ShiftedFactor;
 use crate::predict::integrators::lie::dexp_inv;
-use crate::predict::integrators::ros2::GAMMA;
+use crate::predict::integrators::tableaus::ROS2_GAMMA as GAMMA;
 use crate::system::System;
 use nalgebra::DMatrix;
 
