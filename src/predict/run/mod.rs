@@ -5,6 +5,7 @@
 
 mod advance;
 pub(in crate::predict) mod rhs;
+mod sample;
 
 use crate::actuators::Command;
 use crate::constraints::ContactLimits;
