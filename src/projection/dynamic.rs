@@ -29,14 +29,14 @@
 //! rebuilt only when the set of finite bounds or the number of rows of A changes. Nothing else
 //! allocates after the first call on an optimal answer (an infeasible one names its conflicts).
 
+use super::activity::velocity_scale;
 use super::diagnose::Conflict;
 use super::dynamic_diagnose::{DynamicConflict, diagnose};
 use super::dynamic_socp::{DynSocp, SocpData, SocpOutcome};
-use super::polish::velocity_scale;
 use super::problem::{ProjectionProblem, Side};
 use super::projector::{Outcome, SolvePath, Status, VelocityProjector};
 use super::qp::{IneqRow, inequality_rows};
-use super::report::{ActiveBound, ActiveInequality, NamedConflict, Projection};
+use super::report::{ActiveBound, ActiveInequality, DynamicReport, NamedConflict, Projection};
 use super::request::{Mode, ProjectionRequest};
 use crate::constraints::ConstraintSet;
 use crate::envelope::{EnvelopeModel, unchecked_limits};
@@ -47,23 +47,6 @@ use crate::robot_limits::{
 };
 use crate::system::System;
 use nalgebra::DVector;
-use serde::Serialize;
-
-/// What the dynamics add to a named projection (absent when Δt = 0).
-#[derive(Clone, Debug, Serialize)]
-pub struct DynamicReport {
-    /// The control period Δt [s].
-    pub period: f64,
-    /// The limits that bind the answer (or, when infeasible, that cannot hold together).
-    pub binding: Vec<NamedLimit>,
-    /// The actuated joints, in order.
-    pub actuators: Vec<String>,
-    /// Their torques (forces) over the period [N·m or N]; absent when infeasible.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub tau: Option<Vec<f64>>,
-    /// Limits the dynamics cannot check (as the envelope lists them).
-    pub unchecked: Vec<NamedLimit>,
-}
 
 /// Workspace and results of the dynamic projection for one model and constraint set.
 pub struct DynamicProjector {

@@ -36,6 +36,7 @@
 //! order), [`VelocityProjector::project_request`] (named [`ProjectionRequest`] → [`Projection`]),
 //! and [`project_system`] for a [`System`]. See `docs/projection.md`.
 
+mod activity;
 mod diagnose;
 mod dynamic;
 mod dynamic_diagnose;
@@ -50,11 +51,13 @@ mod request;
 mod twist;
 
 pub use diagnose::Conflict;
-pub use dynamic::{DynamicProjector, DynamicReport};
+pub use dynamic::DynamicProjector;
 pub use dynamic_diagnose::DynamicConflict;
 pub use problem::{AccelLimit, BoundSource, ProjectionProblem, Side};
 pub use projector::{Outcome, SolvePath, Status, VelocityProjector};
-pub use report::{ActiveBound, ActiveInequality, ConstraintImpulse, NamedConflict, Projection};
+pub use report::{
+    ActiveBound, ActiveInequality, ConstraintImpulse, DynamicReport, NamedConflict, Projection,
+};
 pub use request::{
     AccelLimitRequest, Fill, Mode, PerCoordinate, ProjectionRequest, RowSpec, base_dofs,
     coordinate_index,

@@ -13,9 +13,9 @@
 //! 5. A primal-infeasible QP is diagnosed (`diagnose.rs`): the infeasibility certificate's
 //!    support, reduced by a deletion filter to a minimal conflicting set, named.
 
+use super::activity::{mark_active, row_tol, velocity_scale};
 use super::diagnose::Conflict;
 use super::kkt::{EqualityWorkspace, RowRef};
-use super::polish::{mark_active, row_tol, velocity_scale};
 use super::problem::{Bounds, ProjectionProblem, Side};
 use super::qp::{IneqRow, QpCache, inequality_rows};
 use crate::algorithm::{Data, crba_full_after_kinematics};

@@ -9,6 +9,7 @@ use crate::algorithm::{Data, crba_full_after_kinematics};
 use crate::constraints::{ConstraintData, ConstraintSet, constraint_forces};
 use crate::error::{Error, Result};
 use crate::model::Model;
+use crate::robot_limits::NamedLimit;
 use serde::Serialize;
 
 /// One constraint's impulse at its frame: Jᵀλ expressed as a linear impulse at a point and an
@@ -74,6 +75,22 @@ pub struct NamedConflict {
     pub label: String,
 }
 
+/// What the dynamics add to a named projection (absent when Δt = 0).
+#[derive(Clone, Debug, Serialize)]
+pub struct DynamicReport {
+    /// The control period Δt [s].
+    pub period: f64,
+    /// The limits that bind the answer (or, when infeasible, that cannot hold together).
+    pub binding: Vec<NamedLimit>,
+    /// The actuated joints, in order.
+    pub actuators: Vec<String>,
+    /// Their torques (forces) over the period [N·m or N]; absent when infeasible.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tau: Option<Vec<f64>>,
+    /// Limits the dynamics cannot check (as the envelope lists them).
+    pub unchecked: Vec<NamedLimit>,
+}
+
 /// The result by name.
 #[derive(Clone, Debug, Serialize)]
 pub struct Projection {
@@ -121,7 +138,7 @@ pub struct Projection {
     pub qp_iterations: u32,
     /// With a control period: the period, what binds and the torques (absent when Δt = 0).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub dynamics: Option<super::dynamic::DynamicReport>,
+    pub dynamics: Option<DynamicReport>,
 }
 
 /// Each constraint's impulse `lambda` (nc) at its frame (kinematics in `data`).
