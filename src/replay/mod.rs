@@ -6,20 +6,21 @@
 //! - `evaluate.rs`: predictions every `every` seconds over each horizon, their errors against
 //!   the reference poses and the covariance's coverage, the starts spread over threads;
 //! - `replayer.rs`: one thread's share of the starts, with its own predictor;
+//! - `record.rs`: the replay's settings, and one prediction scored against the reference;
 //! - `stats.rs`: the order statistics, χ²(3) regions and NEES.
 //!
 //! Nothing here reads a file: a log reader (the nodes crate's rosbag2 reader) fills a
 //! [`Recording`].
 
 mod evaluate;
+mod record;
 mod replayer;
 mod series;
 mod start;
 pub mod stats;
 
-pub use evaluate::{
-    CovarianceFloors, Evaluation, EvaluationSettings, HorizonSummary, PredictionRecord, evaluate,
-};
+pub use evaluate::{Evaluation, HorizonSummary, evaluate};
+pub use record::{CovarianceFloors, EvaluationSettings, PredictionRecord};
 pub use series::{JointStates, JointTracks, Nanos, Odometry, Recording, Series, show_stamp};
 pub use start::{StartAssembler, StartState};
 

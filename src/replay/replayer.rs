@@ -2,7 +2,7 @@
 //! replaying the starts it is given (evaluate.rs spreads the starts over the threads).
 
 use super::ReplayError;
-use super::evaluate::{EvaluationSettings, PredictionRecord, score, to_nanos};
+use super::record::{EvaluationSettings, PredictionRecord, score, to_nanos};
 use super::series::{Nanos, Recording, show_stamp};
 use super::start::StartAssembler;
 use crate::actuators::{Actuators, Command};
