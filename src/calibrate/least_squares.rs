@@ -4,7 +4,9 @@
 //!
 //! A residual is one error of one prediction — Δx, Δy [m] or Δyaw [rad] between the reference
 //! and the prediction at its horizon — divided by that kind's RMS at that horizon at the scene's
-//! own values, so that every horizon and both kinds weigh alike. The Jacobian is taken by
+//! own values, so that every horizon and both kinds weigh alike; once the process noise is
+//! known, the prediction's (Δx, Δy, Δyaw) whitened by its predicted covariance instead
+//! (`weighting.rs`). The Jacobian is taken by
 //! central differences of the whole replay: a fitted value changes the model, the controllers'
 //! response and the start's projection at once, which no analytic derivative of the core
 //! covers.

@@ -5,7 +5,9 @@
 //! - `least_squares.rs`: Levenberg–Marquardt on the replayed predictions' errors, and the
 //!   fitted values' standard errors;
 //! - `noise.rs`: the process noise that makes the predicted covariance cover what the model
-//!   still misses.
+//!   still misses;
+//! - `weighting.rs`: once the noise is known, the fit again with each prediction's error
+//!   weighed by its own predicted covariance, and the noise sized again.
 //!
 //! The replay is [`crate::replay::evaluate`]'s: the same starts, commands and predictions the
 //! `evaluate` command scores.
@@ -13,13 +15,14 @@
 mod least_squares;
 mod noise;
 mod parameters;
+mod weighting;
 
 pub use noise::ProcessNoise;
 pub use parameters::{FitParameter, SceneParameters};
 
 use crate::replay::{EvaluationSettings, Recording, ReplayError, evaluate};
 use crate::scene::{Scene, SceneFile};
-use nalgebra::DVector;
+use nalgebra::{DVector, Matrix3, Vector3};
 use serde::Serialize;
 use serde_yaml::Value;
 use std::path::Path;
@@ -144,6 +147,10 @@ pub(crate) struct Problem<'a> {
     fitted: Vec<(FitParameter, f64, f64)>,
     /// Per horizon, the RMS of the position and the yaw errors at the scene's values.
     norms: Vec<[f64; 2]>,
+    /// Per prediction, the inverse Cholesky factor of its predicted pose covariance (with the
+    /// fitted process noise): where present, a prediction's residual is its whitened error
+    /// instead of its error over the horizon's RMS ([`weighting`]).
+    whitening: Option<Vec<Matrix3<f64>>>,
     count: usize,
 }
 
@@ -194,10 +201,14 @@ impl Problem<'_> {
         }
         let mut r = DVector::zeros(self.count);
         for (i, (k, e)) in errors.iter().enumerate() {
-            let [np, ny] = self.norms[*k];
-            r[3 * i] = e[0] / np;
-            r[3 * i + 1] = e[1] / np;
-            r[3 * i + 2] = e[2] / ny;
+            let w = match &self.whitening {
+                Some(w) => w[i] * Vector3::from(*e),
+                None => {
+                    let [np, ny] = self.norms[*k];
+                    Vector3::new(e[0] / np, e[1] / np, e[2] / ny)
+                }
+            };
+            r.fixed_rows_mut::<3>(3 * i).copy_from(&w);
         }
         Ok(r)
     }
@@ -267,6 +278,7 @@ pub fn calibrate(
         replay,
         fitted: Vec::new(),
         norms: vec![[1.0, 1.0]; settings.replay.horizons_s.len()],
+        whitening: None,
         count: 0,
     };
     // The normalisation: each kind's RMS per horizon at the scene's values.
@@ -288,61 +300,34 @@ pub fn calibrate(
     let rms = |r: &DVector<f64>| (r.norm_squared() / r.len().max(1) as f64).sqrt();
     let before = rms(&problem.residuals(&[])?);
 
-    // Fit; a parameter the recordings do not determine goes back to the scene's value and the
-    // others are fitted again without it.
-    let mut fitted: Vec<FitParameter> = asked.clone();
-    // Parameters sent back to the scene's value, with their standard error [their unit].
-    let mut dropped: Vec<(FitParameter, Option<f64>)> = Vec::new();
-    let mut replays = 1;
-    let (x, termination, std_errors) = loop {
-        problem.fitted = fitted
-            .iter()
-            .map(|&p| {
-                let value = problem.places.value(source.yaml, p);
-                (p, value, problem.places.scale(p, &scene.model))
-            })
-            .collect();
-        if fitted.is_empty() {
-            break (DVector::zeros(0), "nothing to fit".to_string(), Vec::new());
+    let mut values = fit_values(&mut problem, &scene.model, asked.clone(), None, settings)?;
+    let mut replays = 1 + values.replays;
+    let mut yaml = problem.yaml_at(values.x.as_slice());
+    let mut process_noise = None;
+    if settings.fit_process_noise {
+        let mut noise = noise::fit(&problem, &mut yaml, settings)?;
+        replays += noise.replays;
+        // With the process noise known, the predictions' own covariances weigh their errors
+        // (weighting.rs): fit again from the values found, then size the noise again.
+        if let Some(whitening) = weighting::whitening(&problem, &yaml, &noise)? {
+            replays += 1;
+            problem.whitening = Some(whitening);
+            let from: Vec<(FitParameter, f64)> = (problem.fitted.iter().zip(values.x.iter()))
+                .map(|(f, x)| (f.0, *x))
+                .collect();
+            let kept = from.iter().map(|f| f.0).collect();
+            let mut weighted = fit_values(&mut problem, &scene.model, kept, Some(&from), settings)?;
+            replays += weighted.replays;
+            weighted.dropped.extend(values.dropped);
+            values = weighted;
+            problem.whitening = None;
+            yaml = problem.yaml_at(values.x.as_slice());
+            noise = noise::fit(&problem, &mut yaml, settings)?;
+            replays += noise.replays;
         }
-        let (x0, n) = start(&problem)?;
-        replays += n;
-        let (x, termination, n) = least_squares::minimize(&problem, x0, settings.max_iterations);
-        replays += n;
-        let fit = least_squares::Fit {
-            problem: &problem,
-            x: x.clone(),
-            evaluations: std::cell::Cell::new(0),
-        };
-        let (Some(j), Some(r)) = (fit.jacobian_at(&x), fit.residuals_at(&x)) else {
-            return Err(CalibrationError::Scene(
-                "the replay fails at the fitted values".into(),
-            ));
-        };
-        replays += fit.evaluations.get();
-        let se = least_squares::standard_errors(&j, &r);
-        let keep: Vec<bool> = (0..fitted.len())
-            .map(|k| se[k].is_some_and(|s| x[k].abs() >= 2.0 * s))
-            .collect();
-        if keep.iter().all(|&k| k) {
-            break (x, termination, se);
-        }
-        for (k, f) in problem.fitted.iter().enumerate() {
-            if !keep[k] {
-                dropped.push((f.0, se[k].map(|s| s * f.2)));
-            }
-        }
-        fitted = (fitted.iter().zip(&keep))
-            .filter(|(_, k)| **k)
-            .map(|(p, _)| *p)
-            .collect();
-        if fitted.is_empty() {
-            problem.fitted.clear();
-            break (DVector::zeros(0), termination, Vec::new());
-        }
-    };
-    let after = rms(&problem.residuals(x.as_slice())?);
-    let mut yaml = problem.yaml_at(x.as_slice());
+        process_noise = Some(noise);
+    }
+    let after = rms(&problem.residuals(values.x.as_slice())?);
     let mut parameters = Vec::new();
     for p in asked {
         let scene_value = problem.places.value(source.yaml, p);
@@ -352,27 +337,122 @@ pub fn calibrate(
             name: p.name(),
             unit: p.unit(),
             scene_value,
-            value: k.map_or(scene_value, |k| scene_value + scale * x[k]),
+            value: k.map_or(scene_value, |k| scene_value + scale * values.x[k]),
             std_error: match k {
-                Some(k) => std_errors[k].map(|s| s * scale),
-                None => dropped.iter().find(|d| d.0 == p).and_then(|d| d.1),
+                Some(k) => values.std_errors[k].map(|s| s * scale),
+                None => (values.dropped.iter()).find(|d| d.0 == p).and_then(|d| d.1),
             },
             determined: k.is_some(),
         });
     }
-    let process_noise = if settings.fit_process_noise {
-        let fitted = noise::fit(&problem, &mut yaml, settings)?;
-        replays += fitted.replays;
-        Some(fitted)
-    } else {
-        None
-    };
     Ok(Calibration {
         parameters,
         process_noise,
         residual_rms: [before, after],
         replays,
-        termination,
+        termination: values.termination,
         scene: yaml,
     })
+}
+
+/// What [`fit_values`] found.
+struct Values {
+    /// The scaled offsets of `problem.fitted` from the scene's values.
+    x: DVector<f64>,
+    /// How Levenberg–Marquardt ended.
+    termination: String,
+    /// Their standard errors, scaled.
+    std_errors: Vec<Option<f64>>,
+    /// The parameters sent back to the scene's value, with their standard error [their unit].
+    dropped: Vec<(FitParameter, Option<f64>)>,
+    /// Replays it took.
+    replays: usize,
+}
+
+/// Fits `fitted` from `from` (their scaled offsets; else from [`start`]); a parameter the
+/// recordings do not determine goes back to the scene's value and the others are fitted again
+/// without it. Leaves `problem.fitted` at the parameters kept.
+fn fit_values(
+    problem: &mut Problem,
+    model: &crate::Model,
+    mut fitted: Vec<FitParameter>,
+    from: Option<&[(FitParameter, f64)]>,
+    settings: &CalibrationSettings,
+) -> Result<Values, CalibrationError> {
+    let mut dropped: Vec<(FitParameter, Option<f64>)> = Vec::new();
+    let mut replays = 0;
+    loop {
+        problem.fitted = fitted
+            .iter()
+            .map(|&p| {
+                let value = problem.places.value(problem.source.yaml, p);
+                (p, value, problem.places.scale(p, model))
+            })
+            .collect();
+        if fitted.is_empty() {
+            return Ok(Values {
+                x: DVector::zeros(0),
+                termination: "nothing to fit".to_string(),
+                std_errors: Vec::new(),
+                dropped,
+                replays,
+            });
+        }
+        let x0 = match from {
+            Some(from) => DVector::from_iterator(
+                fitted.len(),
+                (fitted.iter()).map(|p| from.iter().find(|f| f.0 == *p).map_or(0.0, |f| f.1)),
+            ),
+            None => {
+                let (x0, n) = start(problem)?;
+                replays += n;
+                x0
+            }
+        };
+        let (x, termination, n) = least_squares::minimize(problem, x0, settings.max_iterations);
+        replays += n;
+        let fit = least_squares::Fit {
+            problem,
+            x: x.clone(),
+            evaluations: std::cell::Cell::new(0),
+        };
+        let (Some(j), Some(r)) = (fit.jacobian_at(&x), fit.residuals_at(&x)) else {
+            return Err(CalibrationError::Scene(
+                "the replay fails at the fitted values".into(),
+            ));
+        };
+        replays += fit.evaluations.get();
+        let std_errors = least_squares::standard_errors(&j, &r);
+        let keep: Vec<bool> = (0..fitted.len())
+            .map(|k| std_errors[k].is_some_and(|s| x[k].abs() >= 2.0 * s))
+            .collect();
+        if keep.iter().all(|&k| k) {
+            return Ok(Values {
+                x,
+                termination,
+                std_errors,
+                dropped,
+                replays,
+            });
+        }
+        for (k, f) in problem.fitted.iter().enumerate() {
+            if !keep[k] {
+                dropped.push((f.0, std_errors[k].map(|s| s * f.2)));
+            }
+        }
+        fitted = (fitted.iter().zip(&keep))
+            .filter(|(_, k)| **k)
+            .map(|(p, _)| *p)
+            .collect();
+        if fitted.is_empty() {
+            problem.fitted.clear();
+            return Ok(Values {
+                x: DVector::zeros(0),
+                termination,
+                std_errors: Vec::new(),
+                dropped,
+                replays,
+            });
+        }
+    }
 }

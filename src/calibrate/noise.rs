@@ -9,13 +9,13 @@
 //! lasts as long as the skid. Through the rolling constraints they spread the base's position
 //! along the travel and its yaw, growing with the horizon.
 //!
-//! Each term is sized on the predictions it acts on. For each σ_b tried, in increasing order, σ
-//! is the smallest value whose predicted covariance (the node's: propagated, error estimate and
-//! floors, plus the reference's own) holds the target fraction of all the replayed errors inside
-//! its 95 % region, pooled over every horizon and recording (doubling, then bisection of log σ);
-//! the first σ_b with which the predictions through a saturation are covered to the same
-//! fraction is kept. Not on a scene with tyres: their grip rejects such noise
-//! ([`TYRES_REJECT_NOISE`]).
+//! Each term is sized on the predictions it acts on. σ is the smallest value whose predicted
+//! covariance (the node's: propagated, error estimate and floors, plus the reference's own)
+//! holds the target fraction of the predictions through no saturation inside its 95 % region at
+//! every fit horizon (doubling, then bisection of log σ). Then σ_b, beside it, is the smallest
+//! value that does the same for the predictions through a saturation (stepping through
+//! [`BIAS_TRIED`], then bisection of log σ_b). Not on a scene with tyres: their grip rejects such
+//! noise ([`TYRES_REJECT_NOISE`]).
 
 use super::{CalibrationError, CalibrationSettings, Problem};
 use crate::replay::{EvaluationSettings, evaluate, stats::Coverage};
@@ -32,9 +32,14 @@ pub struct ProcessNoise {
     pub acceleration_noise: f64,
     /// σ_b [rad/s²], while a wheel's controller is saturated.
     pub saturation_bias: f64,
-    /// The fraction of the replayed errors inside the 95 % region with them.
+    /// The fraction of the replayed errors inside the 95 % region with them, over every fit
+    /// horizon.
     pub coverage_p95: f64,
-    /// The same among the predictions through a saturation.
+    /// The same among the predictions through no saturation, at the fit horizon where it is
+    /// least.
+    pub unsaturated_coverage_p95: f64,
+    /// The same among the predictions through a saturation, at the fit horizon where it is
+    /// least.
     pub saturated_coverage_p95: f64,
     /// How many predictions pass through a saturation.
     pub saturated_predictions: usize,
@@ -64,13 +69,18 @@ const SMALLEST: f64 = 1e-4;
 /// wheel's offset reaches the base only through the rolling constraints, which give most of it
 /// back to the wheel (its inertia is a few thousandths of the robot's on the wheel's axis), so
 /// the values that matter are large.
-const BIAS_TRIED: [f64; 7] = [0.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0];
+const BIAS_TRIED: [f64; 6] = [10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0];
+/// Bisection steps of log σ_b between the last value of [`BIAS_TRIED`] that does not cover
+/// and the first that does: their factor ≈ 3 to ≈ 1.15.
+const BIAS_BISECTIONS: usize = 3;
+/// Where σ's bracket starts [(rad/s²)/√Hz].
+const SIGMA_START: f64 = 0.1;
 
-/// One trial's coverage (of all the predictions, and of those through a saturation) and log
-/// score.
+/// One trial's coverages (as [`ProcessNoise`] states them) and log score.
 #[derive(Clone, Copy)]
 struct Score {
     coverage_p95: f64,
+    unsaturated_coverage_p95: f64,
     saturated_coverage_p95: f64,
     saturated: usize,
     log_score: f64,
@@ -97,7 +107,10 @@ pub(super) fn fit(
         let mut trial = yaml.clone();
         write(&mut trial, sigma, bias);
         let scene = problem.source.build(&trial)?;
-        let (mut nees, mut saturated, mut log_score) = (Vec::new(), Vec::new(), 0.0);
+        let (mut nees, mut log_score) = (Vec::new(), 0.0);
+        let horizons = &replay.horizons_s;
+        let (mut saturated, mut unsaturated) =
+            (vec![vec![]; horizons.len()], vec![vec![]; horizons.len()]);
         for recording in problem.recordings {
             let ev = evaluate(&scene, recording, &replay)?;
             for r in &ev.records {
@@ -105,23 +118,31 @@ pub(super) fn fit(
                     Matrix3::from(r.predicted_covariance) + Matrix3::from(r.reference_covariance);
                 log_score += 0.5 * (r.nees + p.determinant().max(f64::MIN_POSITIVE).ln());
                 nees.push(r.nees);
+                let k = horizons.iter().position(|&h| h == r.horizon_s).unwrap_or(0);
                 if r.saturated_s > 0.0 {
-                    saturated.push(r.nees);
+                    saturated[k].push(r.nees);
+                } else {
+                    unsaturated[k].push(r.nees);
                 }
             }
         }
         replays += 1;
-        let p95 = |n: &[f64]| {
-            if n.is_empty() {
-                1.0
-            } else {
-                Coverage::of(n).p95
-            }
+        // A subset's coverage at the horizon where it is least.
+        let least = |by_horizon: &[Vec<f64>]| {
+            (by_horizon.iter())
+                .filter(|n| !n.is_empty())
+                .map(|n| Coverage::of(n).p95)
+                .fold(1.0, f64::min)
         };
         Ok(Score {
-            coverage_p95: if nees.is_empty() { 0.0 } else { p95(&nees) },
-            saturated_coverage_p95: p95(&saturated),
-            saturated: saturated.len(),
+            coverage_p95: if nees.is_empty() {
+                0.0
+            } else {
+                Coverage::of(&nees).p95
+            },
+            unsaturated_coverage_p95: least(&unsaturated),
+            saturated_coverage_p95: least(&saturated),
+            saturated: saturated.iter().map(Vec::len).sum(),
             log_score: log_score / nees.len().max(1) as f64,
         })
     };
@@ -134,62 +155,77 @@ pub(super) fn fit(
         acceleration_noise: sigma,
         saturation_bias: bias,
         coverage_p95: s.coverage_p95,
+        unsaturated_coverage_p95: s.unsaturated_coverage_p95,
         saturated_coverage_p95: s.saturated_coverage_p95,
         saturated_predictions: s.saturated,
         log_score: s.log_score,
         replays,
         not_fitted: (tyres && s.coverage_p95 < target).then_some(TYRES_REJECT_NOISE),
     };
-    if s0.coverage_p95 >= target && s0.saturated_coverage_p95 >= target
+    if s0.unsaturated_coverage_p95 >= target && s0.saturated_coverage_p95 >= target
         || joints.is_empty()
         || tyres
     {
         write(yaml, 0.0, 0.0);
         return Ok(result(0.0, 0.0, s0, replays));
     }
-    let mut kept = None;
-    for bias in BIAS_TRIED {
-        // σ only shrinks as σ_b grows: the bracket starts at the last one's σ.
-        let from = kept.map_or(0.1, |(sigma, _, _)| sigma);
-        let (sigma, s) = smallest_sigma(|sigma| score(sigma, bias), target, from)?;
-        kept = Some((sigma, bias, s));
-        if s.saturated_coverage_p95 >= target {
-            break;
+    // σ on the predictions only it acts on; then σ_b, beside it, on those through a saturation.
+    let (sigma, mut s) = smallest_sigma(|sigma| score(sigma, 0.0), target)?;
+    let mut bias = 0.0;
+    if s.saturated_coverage_p95 < target {
+        let covered = |s: &Score| s.saturated_coverage_p95 >= target;
+        let mut lo = 0.0;
+        for b in BIAS_TRIED {
+            (bias, s) = (b, score(sigma, b)?);
+            if covered(&s) {
+                break;
+            }
+            lo = b;
+        }
+        if covered(&s) && lo > 0.0 {
+            for _ in 0..BIAS_BISECTIONS {
+                let mid = (lo * bias).sqrt();
+                let at = score(sigma, mid)?;
+                if covered(&at) {
+                    (bias, s) = (mid, at);
+                } else {
+                    lo = mid;
+                }
+            }
         }
     }
-    let (sigma, bias, s) = kept.expect("BIAS_TRIED is not empty");
     write(yaml, sigma, bias);
     Ok(result(sigma, bias, s, replays))
 }
 
-/// The smallest σ (to 2^(1/64)) whose `score` covers `target`, bracketed by factors of 2 from
-/// `from`; σ = 0 where that already covers it.
+/// The smallest σ (to 2^(1/64)) whose `score` covers `target` of the predictions through no
+/// saturation, bracketed by factors of 2 from [`SIGMA_START`]; σ = 0 where that already covers
+/// it.
 fn smallest_sigma(
     mut score: impl FnMut(f64) -> Result<Score, CalibrationError>,
     target: f64,
-    from: f64,
 ) -> Result<(f64, Score), CalibrationError> {
-    let (mut lo, mut hi) = (0.0, from.max(SMALLEST));
+    let (mut lo, mut hi) = (0.0, SIGMA_START);
     let mut s_hi = score(hi)?;
-    if s_hi.coverage_p95 >= target {
+    if s_hi.unsaturated_coverage_p95 >= target {
         lo = hi / 2.0;
         loop {
             if lo <= SMALLEST {
                 let s = score(0.0)?;
-                if s.coverage_p95 >= target {
+                if s.unsaturated_coverage_p95 >= target {
                     return Ok((0.0, s));
                 }
                 break;
             }
             let s = score(lo)?;
-            if s.coverage_p95 < target {
+            if s.unsaturated_coverage_p95 < target {
                 break;
             }
             (hi, s_hi) = (lo, s);
             lo /= 2.0;
         }
     } else {
-        while s_hi.coverage_p95 < target && hi < LARGEST {
+        while s_hi.unsaturated_coverage_p95 < target && hi < LARGEST {
             lo = hi;
             hi *= 2.0;
             s_hi = score(hi)?;
@@ -198,7 +234,7 @@ fn smallest_sigma(
     for _ in 0..BISECTIONS {
         let mid = if lo > 0.0 { (lo * hi).sqrt() } else { hi / 2.0 };
         let s = score(mid)?;
-        if s.coverage_p95 >= target {
+        if s.unsaturated_coverage_p95 >= target {
             (hi, s_hi) = (mid, s);
         } else {
             lo = mid;

@@ -55,8 +55,10 @@ def main():
                 hs = ev["horizons"]
                 cov = " / ".join(f"{h['coverage']['p95']:.2f}" for h in hs
                                  if h["horizon_s"] in (1.0, 2.0))
+                nees = " / ".join(f"{h['nees_mean']:.3g}" for h in hs
+                                  if h["horizon_s"] in (1.0, 2.0))
                 rows.append(f"| {drive.split('.')[0]} | {label} | "
-                            + " | ".join(cell(h) for h in hs) + f" | {cov} |")
+                            + " | ".join(cell(h) for h in hs) + f" | {cov} | {nees} |")
     lines = ["<!-- written by python3 tools/logs/calibration_table.py: do not edit -->", ""]
     lines.append("Fitted on calibration.mcap against its `/odom` "
                  f"({cal['run_time_s']:.0f} s, {cal['replays']} replays of the drive):")
@@ -73,15 +75,18 @@ def main():
         joints = ", ".join(pn["joints"])
         lines.append(f"| process noise on {joints} [(rad/s²)/√Hz] | 0 | "
                      f"{pn['acceleration_noise']:.3g} | — | coverage p95 "
-                     f"{pn['coverage_p95']:.2f} |")
+                     f"{pn['unsaturated_coverage_p95']:.2f} of the predictions through no "
+                     "saturation (at the fit horizon where it is least) |")
         lines.append(f"| saturation bias on {joints} [rad/s²] | 0 | "
                      f"{pn['saturation_bias']:.3g} | — | coverage p95 "
                      f"{pn['saturated_coverage_p95']:.2f} of the "
-                     f"{pn['saturated_predictions']} predictions through a saturation |")
+                     f"{pn['saturated_predictions']} predictions through a saturation (the "
+                     "same) |")
     lines += ["", "Position / yaw error against the true pose, median / worst, and the coverage "
-              "p95 at 1 s / 2 s:", "",
-              "| drive | scene | 0.25 s | 0.5 s | 1 s | 2 s | coverage p95 at 1 s / 2 s |",
-              "|---|---|---|---|---|---|---|", *rows, ""]
+              "p95 and mean NEES at 1 s / 2 s (χ²(3): 0.95 and 3 for an exact covariance):", "",
+              "| drive | scene | 0.25 s | 0.5 s | 1 s | 2 s | coverage p95 at 1 s / 2 s | "
+              "mean NEES at 1 s / 2 s |",
+              "|---|---|---|---|---|---|---|---|", *rows, ""]
     write_block(DOC, BEGIN, END, "\n".join(lines))
 
 if __name__ == "__main__":

@@ -77,10 +77,11 @@ class Drive:
 
 
 DRIVES = [
-    # A calibration drive excites what a team wants fitted: its second half steps the commands
-    # as a planner without a smoother would, up to the tyres' grip.
-    Drive("calibration", seed=11, phases=(("smoothed", 20.0), ("steps", 20.0)), stamped=False,
-          bag_directory=False),
+    # A calibration drive excites what a team wants fitted: after a smoothed third it steps the
+    # commands as a planner without a smoother would, up to the tyres' grip, for twice as long:
+    # the skids are what the process noise's saturation bias is sized on.
+    Drive("calibration", seed=11, phases=(("smoothed", 20.0), ("steps", 20.0), ("steps", 20.0)),
+          stamped=False, bag_directory=False),
     Drive("validation_smooth", seed=22, phases=(("smoothed", 20.0),), stamped=False,
           bag_directory=False),
     Drive("validation_steps", seed=33, phases=(("steps", 20.0),), stamped=True,

@@ -1,5 +1,5 @@
 """How far one calibration carries: the calibrated scene scored on fresh drives of the same
-kinds, and what a calibration drive with more raw steps changes.
+kinds, and what a calibration drive with fewer raw steps changes.
 
     .venv-logs/bin/python tools/logs/step_spread.py [--print]
 
@@ -48,11 +48,13 @@ def drive(tmp, name, seed, phases):
 
 
 def scored(scene, bag):
-    """{horizon: (worst position [mm], worst yaw [mrad], median yaw [mrad], coverage p95)}."""
+    """{horizon: (worst position [mm], worst yaw [mrad], median yaw [mrad], coverage p95,
+    mean NEES)}."""
     ev = cli("evaluate", "--scene", scene, "--bag", bag, "--truth-topic", "/ground_truth/odom",
              "--horizons", "1,2")
     return {h["horizon_s"]: (1e3 * h["position_error_m"]["max"], 1e3 * h["yaw_error_rad"]["max"],
-                             1e3 * h["yaw_error_rad"]["median"], h["coverage"]["p95"])
+                             1e3 * h["yaw_error_rad"]["median"], h["coverage"]["p95"],
+                             h["nees_mean"])
             for h in ev["horizons"]}
 
 
@@ -65,9 +67,9 @@ def span(values, fmt):
 def main():
     with tempfile.TemporaryDirectory() as tmp:
         calibrations = [
-            ("calibration.mcap (40 s: smoothed, steps)", os.path.join(LOGS, "calibration.mcap")),
-            ("60 s: smoothed, steps, steps", drive(tmp, "calibration_60", 11,
-                                                   ["smoothed", "steps", "steps"])),
+            ("calibration.mcap (60 s: smoothed, steps, steps)",
+             os.path.join(LOGS, "calibration.mcap")),
+            ("40 s: smoothed, steps", drive(tmp, "calibration_40", 11, ["smoothed", "steps"])),
         ]
         steps = [drive(tmp, f"steps_{s}", s, ["steps"]) for s in STEPS_SEEDS]
         smooth = [drive(tmp, f"smooth_{s}", s, ["smoothed"]) for s in SMOOTH_SEEDS]
@@ -92,13 +94,15 @@ def main():
                                  f"{span([x[h][1] for x in s], '{:.0f}')} mrad, "
                                  f"{span([x[h][2] for x in s], '{:.1f}')} mrad")
                 cov = " / ".join(span([x[h][3] for x in s], "{:.2f}") for h in (1.0, 2.0))
-                rows.append(f"| {label} | {fitted} | {name} | {cells[0]} | {cells[1]} | {cov} |")
+                nees = " / ".join(span([x[h][4] for x in s], "{:.1f}") for h in (1.0, 2.0))
+                rows.append(f"| {label} | {fitted} | {name} | {cells[0]} | {cells[1]} | {cov} "
+                            f"| {nees} |")
                 label = fitted = ""
     lines = ["<!-- written by .venv-logs/bin/python tools/logs/step_spread.py: do not edit -->",
              "",
              "| calibrated on | fitted | scored on | 1 s: worst position, worst / median yaw | "
-             "2 s: the same | coverage p95 at 1 s / 2 s |",
-             "|---|---|---|---|---|---|", *rows]
+             "2 s: the same | coverage p95 at 1 s / 2 s | mean NEES at 1 s / 2 s |",
+             "|---|---|---|---|---|---|---|", *rows]
     body = "\n".join(lines)
     if "--print" in sys.argv:
         print(body)

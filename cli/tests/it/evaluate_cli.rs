@@ -259,8 +259,8 @@ fn bad_input_is_a_clear_error() {
             "horizon [s] = -1",
         ),
         (
-            vec!["--scene", s, "--bag", b, "--horizons", "45"],
-            "horizon 45 s",
+            vec!["--scene", s, "--bag", b, "--horizons", "75"],
+            "horizon 75 s",
         ),
         (
             vec!["--scene", s, "--bag", "/nonexistent/bag.mcap"],
