@@ -55,7 +55,8 @@ def main():
                 hs = ev["horizons"]
                 cov = " / ".join(f"{h['coverage']['p95']:.2f}" for h in hs
                                  if h["horizon_s"] in (1.0, 2.0))
-                nees = " / ".join(f"{h['nees_mean']:.3g}" for h in hs
+                nees = " / ".join(f"{h['nees_mean']:.3g}" if h["nees_mean"] < 1e3
+                                  else f"{h['nees_mean']:.0f}" for h in hs
                                   if h["horizon_s"] in (1.0, 2.0))
                 rows.append(f"| {drive.split('.')[0]} | {label} | "
                             + " | ".join(cell(h) for h in hs) + f" | {cov} | {nees} |")
