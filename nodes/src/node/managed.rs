@@ -20,25 +20,24 @@ use std::thread::JoinHandle;
 use ros2_client::{Context, Publisher};
 
 use super::failure::Failure;
+use super::lifecycle_servers::{Request, lifecycle_servers};
+use super::state_readers::{Joined, StateReaders};
 use super::wiring::{
     Followed, GRAPH_PERIOD, RosWiring, Wiring, wire_diagnostics, wire_set_payload,
     wire_state_inputs,
 };
 use super::worker::{Event, NodeLogic, WorkerHandle};
 use crate::error::NodeError;
-use crate::lifecycle::{Callback, Lifecycle, LifecycleError, State, Transition};
+use crate::lifecycle::{Callback, Lifecycle, LifecycleError, Transition};
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::diagnostic_msgs::DiagnosticStatus;
 use crate::msg::lifecycle_msgs::{
-    self as lm, ChangeState, ChangeStateResponse, GetAvailableStates, GetAvailableStatesResponse,
-    GetAvailableTransitions, GetAvailableTransitionsResponse, GetState, GetStateResponse,
-    TransitionEvent,
+    ChangeStateResponse, GetAvailableTransitionsResponse, GetStateResponse, TransitionEvent,
 };
 use crate::params::{KindParams, NodeParams, WorkBudget};
 use crate::robot::Robot;
 use crate::ros::args::{Parameters, RosArgs};
 use crate::ros::context::{RosNode, qos};
-use crate::ros::io::{Reply, serve};
 use crate::ros::logging::NodeLog;
 use constraint_dynamics::model::Model;
 
@@ -57,14 +56,6 @@ pub struct WorkerLink<N: NodeLogic> {
     pub model: Arc<Model>,
 }
 
-/// What the lifecycle servers ask the supervisor.
-enum Request {
-    Change(lm::Transition, Reply<ChangeStateResponse>),
-    State(Reply<GetStateResponse>),
-    Transitions(Reply<GetAvailableTransitionsResponse>),
-    Stop,
-}
-
 /// What exists while configured.
 struct Configured<N: NodeLogic> {
     params: NodeParams<N::Params>,
@@ -73,8 +64,10 @@ struct Configured<N: NodeLogic> {
     worker: WorkerHandle<N>,
     outputs: smol::channel::Receiver<N::Output>,
     statuses: smol::channel::Receiver<(Time, DiagnosticStatus)>,
-    /// The state-input subscriptions.
+    /// The URDF and clock subscriptions.
     tasks: Vec<smol::Task<()>>,
+    /// The node's places at the process's shared joint-state and odometry readers.
+    inputs: Vec<Joined>,
 }
 
 /// What exists while active.
@@ -89,6 +82,7 @@ pub struct Managed<N: RosWiring> {
     context: Context,
     args: RosArgs,
     ros: RosNode,
+    readers: StateReaders,
     fqn: String,
     params: ParamsLink<N>,
     log: NodeLog,
@@ -127,11 +121,13 @@ impl Drop for Supervisor {
 }
 
 impl<N: RosWiring> Managed<N> {
-    /// The lifecycle of node `ros` (unconfigured), with its services and event topic.
+    /// The lifecycle of node `ros` (unconfigured), with its services and event topic; its
+    /// state inputs will join `readers`.
     pub fn new(
         context: Context,
         args: RosArgs,
         mut ros: RosNode,
+        readers: StateReaders,
         fqn: &str,
         params: ParamsLink<N>,
         log: NodeLog,
@@ -141,49 +137,12 @@ impl<N: RosWiring> Managed<N> {
         let events =
             ros.publisher::<TransitionEvent>(&topic("~/transition_event"), &qos::reliable(10))?;
         let requests = channel::<Request>();
-        let mut servers = Vec::new();
-        let tx = requests.0.clone();
-        let server = ros.server::<ChangeState>(&topic("~/change_state"))?;
-        servers.push(ros.spawn(serve::<ChangeState, _>(
-            server,
-            log.clone(),
-            move |req, reply| tx.send(Request::Change(req.transition, reply)).is_ok(),
-            |_| ChangeStateResponse { success: false },
-        )));
-        let tx = requests.0.clone();
-        let server = ros.server::<GetState>(&topic("~/get_state"))?;
-        servers.push(ros.spawn(serve::<GetState, _>(
-            server,
-            log.clone(),
-            move |_, reply| tx.send(Request::State(reply)).is_ok(),
-            |_| GetStateResponse::default(),
-        )));
-        let tx = requests.0.clone();
-        let server =
-            ros.server::<GetAvailableTransitions>(&topic("~/get_available_transitions"))?;
-        servers.push(ros.spawn(serve::<GetAvailableTransitions, _>(
-            server,
-            log.clone(),
-            move |_, reply| tx.send(Request::Transitions(reply)).is_ok(),
-            |_| GetAvailableTransitionsResponse::default(),
-        )));
-        // The states never change: answered on the executor.
-        let server = ros.server::<GetAvailableStates>(&topic("~/get_available_states"))?;
-        servers.push(ros.spawn(serve::<GetAvailableStates, _>(
-            server,
-            log.clone(),
-            |_, reply| {
-                let available_states = State::ALL.iter().map(|s| s.msg()).collect();
-                reply
-                    .try_send(GetAvailableStatesResponse { available_states })
-                    .is_ok()
-            },
-            |_| GetAvailableStatesResponse::default(),
-        )));
+        let servers = lifecycle_servers(&mut ros, &topic, &log, &requests.0)?;
         Ok(Managed {
             context,
             args,
             ros,
+            readers,
             fqn: fqn.to_string(),
             params,
             log,
@@ -364,8 +323,10 @@ impl<N: RosWiring> Managed<N> {
             outputs,
             statuses,
             tasks: Vec::new(),
+            inputs: Vec::new(),
         };
-        let mut tasks = Vec::new();
+        let (mut tasks, mut inputs) = (Vec::new(), Vec::new());
+        let inbox = c.worker.inbox();
         with_wiring(
             &self.context,
             &self.args,
@@ -373,9 +334,12 @@ impl<N: RosWiring> Managed<N> {
             &self.log,
             &mut c,
             &mut tasks,
-            |w| wire_state_inputs(w),
+            |w| {
+                inputs = wire_state_inputs(w, &self.readers, &inbox)?;
+                Ok(())
+            },
         )?;
-        c.tasks = tasks;
+        (c.tasks, c.inputs) = (tasks, inputs);
         self.configured = Some(c);
         self.log
             .info(&format!("{} configured: {summary}", self.ros.name()));
@@ -430,6 +394,7 @@ impl<N: RosWiring> Managed<N> {
         }
         if let Some(mut c) = self.configured.take() {
             c.tasks.clear();
+            c.inputs.clear();
             c.worker.stop();
         }
     }

@@ -5,8 +5,10 @@
 
 mod failure;
 pub mod health;
+mod lifecycle_servers;
 pub mod managed;
 pub mod start;
+pub mod state_readers;
 mod timer;
 pub mod wiring;
 pub mod worker;

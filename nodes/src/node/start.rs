@@ -8,6 +8,7 @@ use std::sync::{Arc, Mutex};
 use ros2_client::{Context, NodeOptions};
 
 use super::managed::{Managed, Supervisor, WorkerLink};
+use super::state_readers::StateReaders;
 use super::wiring::RosWiring;
 use crate::error::NodeError;
 use crate::node::worker::{Event, NodeLogic};
@@ -56,18 +57,20 @@ fn budget_of<N: NodeLogic>(link: &Mutex<Option<WorkerLink<N>>>) -> Option<WorkBu
         .and_then(|l| l.as_ref().map(|l| l.budget.clone()))
 }
 
-/// Starts node `name` of kind `N` in `namespace` with its parameters: its ROS node, its
-/// lifecycle services and, with `autostart` (the default), configured and active at once. A
+/// Starts node `name` of kind `N` in the arguments' namespace (`__ns`, else `/`) with its
+/// parameters: its ROS node, its
+/// lifecycle services and, with `autostart` (the default), configured and active at once. Its
+/// joint states and odometry come through the process's shared `readers`. A
 /// failed configuration or activation leaves the node unconfigured (or inactive) with an
 /// ERROR on `/rosout` and `/diagnostics`, so the other nodes of the process run on; with
 /// `exit_on_failure` it is returned instead (the process exits).
 pub fn start_node<N: RosWiring>(
     context: &Context,
     args: &RosArgs,
-    namespace: &str,
     name: &str,
     ros_params: Parameters,
     params: NodeParams<N::Params>,
+    readers: &StateReaders,
     exit_on_failure: bool,
 ) -> Result<Box<dyn RunningNode>, NodeError> {
     let log = NodeLog::new(name);
@@ -121,6 +124,7 @@ pub fn start_node<N: RosWiring>(
             Ok(())
         }));
     }
+    let namespace = args.namespace_or("/");
     let ros = RosNode::new(context, namespace, name, options)?;
     logging::register(name, ros.node.logging_handle());
     ready.store(true, Ordering::SeqCst);
@@ -130,6 +134,7 @@ pub fn start_node<N: RosWiring>(
         context.clone(),
         args.clone(),
         ros,
+        readers.clone(),
         &fqn,
         (current, link),
         log.clone(),

@@ -3,12 +3,12 @@
 //! `robot_description`, `/clock`) while configured, `/diagnostics` and `~/set_payload` while
 //! active. The lifecycle ([`super::managed`]) decides when each is created and removed.
 
+use std::sync::Arc;
 use std::sync::mpsc::SyncSender;
 
 use ros2_client::Context;
 
 use crate::error::NodeError;
-use crate::msg::RosService;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::constraint_dynamics_msgs::srv::{SetPayload, SetPayloadResponse};
 use crate::msg::diagnostic_msgs::{DiagnosticArray, DiagnosticStatus};
@@ -17,8 +17,11 @@ use crate::msg::rosgraph_msgs::Clock;
 use crate::msg::sensor_msgs::JointState;
 use crate::msg::std_msgs::Header;
 use crate::msg::std_msgs::StringMsg;
+use crate::msg::{RosMessage, RosService};
+use crate::node::state_readers::{Inbox, Joined, StateMsg, StateReaders};
 use crate::node::worker::{Event, NodeLogic};
 use crate::params::NodeParams;
+use crate::ros::args::expand_name;
 use crate::ros::context::{RosNode, qos};
 use crate::ros::io::{Reply, serve, subscribe};
 use crate::ros::logging::NodeLog;
@@ -144,30 +147,31 @@ pub(crate) fn wire_diagnostics<N: NodeLogic>(
     Ok(())
 }
 
-/// The inputs every node has: joint states, odometry, the URDF, and `/clock`.
-pub(crate) fn wire_state_inputs<N: NodeLogic>(w: &mut Wiring<N>) -> Result<(), NodeError> {
+/// The inputs every node has: joint states and odometry through the process's shared
+/// readers into the worker's `inbox` (the returned memberships keep them), the URDF and
+/// `/clock` on the node's own subscriptions (a transient-local URDF must reach every node that
+/// joins, and the clock paces the worker).
+pub(crate) fn wire_state_inputs<N: NodeLogic>(
+    w: &mut Wiring<N>,
+    readers: &StateReaders,
+    inbox: &Arc<Inbox>,
+) -> Result<Vec<Joined>, NodeError> {
     let c = &w.params.common;
+    let mut joined = Vec::new();
     if !c.state.joint_states_topic.is_empty() {
-        let sub = w.ros.subscription::<JointState>(
-            &(w.topic)(&c.state.joint_states_topic),
-            &qos::sensor_data(),
-        )?;
-        let tx = w.tx.clone();
-        w.tasks
-            .push(w.ros.spawn(subscribe(sub, w.log.clone(), move |m| {
-                forward(&tx, Event::JointState(m))
-            })));
+        let topic = (w.topic)(&c.state.joint_states_topic);
+        joined.push(join::<N, JointState>(w, readers, inbox, &topic, |m| {
+            StateMsg::JointState(Arc::new(m))
+        })?);
     }
+    let c = &w.params.common;
     if !c.state.odom_topic.is_empty() {
-        let sub = w
-            .ros
-            .subscription::<Odometry>(&(w.topic)(&c.state.odom_topic), &qos::sensor_data())?;
-        let tx = w.tx.clone();
-        w.tasks
-            .push(w.ros.spawn(subscribe(sub, w.log.clone(), move |m| {
-                forward(&tx, Event::Odometry(Box::new(m)))
-            })));
+        let topic = (w.topic)(&c.state.odom_topic);
+        joined.push(join::<N, Odometry>(w, readers, inbox, &topic, |m| {
+            StateMsg::Odometry(Arc::new(m))
+        })?);
     }
+    let c = &w.params.common;
     if c.model.use_robot_description {
         let sub = w.ros.subscription::<StringMsg>(
             &(w.topic)(&c.model.robot_description_topic),
@@ -193,5 +197,25 @@ pub(crate) fn wire_state_inputs<N: NodeLogic>(w: &mut Wiring<N>) -> Result<(), N
                 forward(&tx, Event::Clock(m.clock))
             })));
     }
-    Ok(())
+    Ok(joined)
+}
+
+/// Joins the worker's inbox to the shared reader of `topic` (remapped), creating the reader on
+/// this node when it is the first. Readers are shared by the absolute name, so a private or
+/// relative name is one reader per node only when it expands differently.
+fn join<N: NodeLogic, M: RosMessage + serde::de::DeserializeOwned + Send + Sync + 'static>(
+    w: &mut Wiring<N>,
+    readers: &StateReaders,
+    inbox: &Arc<Inbox>,
+    topic: &str,
+    wrap: fn(M) -> StateMsg,
+) -> Result<Joined, NodeError> {
+    let absolute = expand_name(w.ros.namespace(), w.ros.name(), topic);
+    let tx = w.tx.clone();
+    let wake = Box::new(move || forward(&tx, Event::StateWaiting));
+    readers.join(&absolute, inbox.clone(), wake, |fanout| {
+        let sub = w.ros.subscription::<M>(&absolute, &qos::sensor_data())?;
+        Ok(w.ros
+            .spawn(subscribe(sub, w.log.clone(), move |m| fanout.send(wrap(m)))))
+    })
 }

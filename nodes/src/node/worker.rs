@@ -1,13 +1,17 @@
 //! The real-time side of a node: one thread that owns the node's logic and handles its events
 //! in order, off the ROS executor.
 //!
-//! The glue translates every message and request into an [`Event`] and sends it with
+//! The glue translates every request and message into an [`Event`] and sends it with
 //! `try_send` (never blocking the executor); requests carry a reply channel the glue awaits.
+//! Joint states and odometry instead wait in the worker's inbox, filled by readers the
+//! process's nodes share ([`super::state_readers`]), and are applied before the next event or
+//! tick: a node that only answers requests is not woken by each of them.
 //! A node kind with a tick (the predictor) is ticked at its period on the ROS clock (wall time,
 //! or `/clock` under `use_sim_time`) and hands
 //! its results to the glue as outputs. A panic inside the logic is caught: the request gets an
 //! error, the logic is rebuilt from its scene, and the worker keeps serving.
 
+use std::collections::VecDeque;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -22,6 +26,7 @@ use crate::msg::diagnostic_msgs::{DiagnosticStatus, KeyValue};
 use crate::msg::nav_msgs::Odometry;
 use crate::msg::sensor_msgs::JointState;
 use crate::node::health::{Health, Input, StatusContext};
+use crate::node::state_readers::{BATCH, Inbox, StateMsg};
 use crate::node::timer::RosTimer;
 use crate::params::{KindParams, NodeParams};
 use crate::robot::Robot;
@@ -31,6 +36,8 @@ pub use crate::ros::io::Reply;
 
 #[path = "worker_rebuild.rs"]
 mod rebuild;
+#[path = "worker_state.rs"]
+mod state;
 
 /// The domain logic of one node kind: plain data in, plain data out, no ROS handles.
 pub trait NodeLogic: Sized + Send + 'static {
@@ -81,12 +88,11 @@ pub trait NodeLogic: Sized + Send + 'static {
     }
 }
 
-/// Everything a worker reacts to.
+/// Everything a worker reacts to. Joint states and odometry wait in the worker's inbox
+/// ([`super::state_readers`]) and are applied before each event.
 pub enum Event<N: NodeLogic> {
-    /// `joint_states`.
-    JointState(JointState),
-    /// `odom`.
-    Odometry(Box<Odometry>),
+    /// The inbox asks to be taken (a batch, an input after a silence, sim time).
+    StateWaiting,
     /// A new URDF on `robot_description`.
     RobotDescription(String),
     /// `/clock` (with `use_sim_time`).
@@ -120,6 +126,7 @@ pub struct WorkerHandle<N: NodeLogic> {
     /// Set by [`WorkerHandle::stop`]: the worker exits before its next event.
     stopping: Arc<AtomicBool>,
     name: String,
+    inbox: Arc<Inbox>,
 }
 
 impl<N: NodeLogic> WorkerHandle<N> {
@@ -140,8 +147,14 @@ impl<N: NodeLogic> WorkerHandle<N> {
         if !common.state.odom_topic.is_empty() {
             subscribed.push(Input::Odometry);
         }
+        // Under sim time each message wakes the worker, which stamps it with its clock.
+        let batch = if common.use_sim_time { 1 } else { BATCH };
+        let silence = Duration::from_secs_f64(common.diagnostics.input_timeout);
+        let inbox = Inbox::new(batch, silence);
         let stopping = Arc::new(AtomicBool::new(false));
         let mut worker = Worker {
+            inbox: inbox.clone(),
+            taken: VecDeque::new(),
             stopping: stopping.clone(),
             logic,
             log: NodeLog::new(name),
@@ -164,7 +177,13 @@ impl<N: NodeLogic> WorkerHandle<N> {
             thread: Some(thread),
             stopping,
             name: name.to_string(),
+            inbox,
         })
+    }
+
+    /// The inbox the node's state readers fill.
+    pub fn inbox(&self) -> Arc<Inbox> {
+        self.inbox.clone()
     }
 
     /// A sender for tasks of the glue.
@@ -230,6 +249,10 @@ struct Worker<N: NodeLogic> {
     drops: DropLog,
     /// Lifecycle state: only an active node ticks and publishes its status.
     active: bool,
+    /// Joint states and odometry not yet applied.
+    inbox: Arc<Inbox>,
+    /// What was taken from the inbox and is being applied.
+    taken: VecDeque<(Time, StateMsg)>,
 }
 
 /// The worker's two timers.
@@ -286,6 +309,7 @@ impl<N: NodeLogic> Worker<N> {
             if self.stopping.load(Ordering::SeqCst) {
                 return;
             }
+            self.take_state();
             // An inactive node (lifecycle) follows its inputs but neither predicts nor reports.
             if !self.active {
                 continue;
@@ -304,6 +328,8 @@ impl<N: NodeLogic> Worker<N> {
 
     /// Handles one event; true to stop the thread.
     fn apply(&mut self, ev: Event<N>, timers: &mut Timers) -> bool {
+        // What arrived before the event is applied before it.
+        self.take_state();
         match ev {
             Event::Shutdown => return true,
             Event::RobotDescription(urdf) => {
@@ -427,45 +453,6 @@ impl<N: NodeLogic> Worker<N> {
 
     fn handle(&mut self, ev: Event<N>) {
         match ev {
-            Event::JointState(js) => {
-                let now = self.now();
-                match self.logic.robot_mut().state_mut().apply_joint_state(&js) {
-                    Ok(report) => {
-                        self.health.input(Input::JointStates, now);
-                        self.logic.robot_mut().state_mut().joint_states_at = Some(now);
-                        self.logic.joint_state_applied(&js);
-                        if !report.unknown.is_empty() && !self.warned.unknown_joints {
-                            self.warned.unknown_joints = true;
-                            self.log.info(&format!(
-                                "joint_states: ignoring joints the model does not have: {}",
-                                report.unknown.join(", ")
-                            ));
-                        }
-                    }
-                    Err(e) => {
-                        let e = e.to_string();
-                        let level = self.drops.level("joint_state", &e, Instant::now());
-                        self.log
-                            .log(level, &format!("dropped a joint state message: {e}"));
-                    }
-                }
-            }
-            Event::Odometry(od) => {
-                let now = self.now();
-                match self.logic.robot_mut().apply_odometry(&od) {
-                    Ok(()) => {
-                        self.health.input(Input::Odometry, now);
-                        self.logic.robot_mut().state_mut().odom_at = Some(now);
-                        self.logic.odometry_applied(&od);
-                    }
-                    Err(e) => {
-                        let e = e.to_string();
-                        let level = self.drops.level("odometry", &e, Instant::now());
-                        self.log
-                            .log(level, &format!("dropped an odometry message: {e}"));
-                    }
-                }
-            }
             Event::RobotDescription(urdf) => {
                 self.robot_description(&urdf);
             }
@@ -483,7 +470,7 @@ impl<N: NodeLogic> Worker<N> {
             Event::SetPayload(req, reply) => {
                 self.serve_set_payload(&req, reply);
             }
-            Event::Shutdown | Event::Active(_) => {}
+            Event::StateWaiting | Event::Shutdown | Event::Active(_) => {}
         }
     }
 }

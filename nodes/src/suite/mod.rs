@@ -9,6 +9,7 @@ use ros2_client::{Context, ParameterValue};
 use crate::error::NodeError;
 use crate::forces::ForcesNode;
 use crate::node::start::{RunningNode, start_node};
+use crate::node::state_readers::StateReaders;
 use crate::node::wiring::RosWiring;
 use crate::params::{NodeKind, NodeParams, resolve_path};
 use crate::prediction::PredictionNode;
@@ -23,6 +24,8 @@ pub use cli::main;
 /// The running suite. Drop (or [`Suite::shutdown`]) stops every node.
 pub struct Suite {
     nodes: Vec<Box<dyn RunningNode>>,
+    /// The joint-state and odometry readers the nodes share.
+    readers: StateReaders,
     _context: Context,
 }
 
@@ -59,14 +62,15 @@ fn fqn(namespace: &str, name: &str) -> String {
     format!("{}/{name}", namespace.trim_end_matches('/'))
 }
 
-/// Starts a planned node: (context, arguments, namespace, name, ROS parameters) → the node.
+/// Starts a planned node: (context, arguments, name, ROS parameters, shared state readers,
+/// exit on failure) → the node.
 type StartNode = Box<
     dyn FnOnce(
         &Context,
         &RosArgs,
-        &str,
         String,
         Parameters,
+        &StateReaders,
         bool,
     ) -> Result<Box<dyn RunningNode>, NodeError>,
 >;
@@ -124,8 +128,8 @@ fn plan_kind<N: RosWiring>(args: &RosArgs, name: String, only: bool) -> Result<P
         name,
         network: params.common.network.clone(),
         ros_params,
-        start: Box::new(move |context, args, namespace, name, ros_params, exit| {
-            start_node::<N>(context, args, namespace, &name, ros_params, params, exit)
+        start: Box::new(move |context, args, name, ros_params, readers, exit| {
+            start_node::<N>(context, args, &name, ros_params, params, readers, exit)
                 .map_err(|e| e.in_node(&name))
         }),
     };
@@ -232,18 +236,19 @@ pub fn start(
     }
     let net = network(&plans)?;
     let context = net.create_context()?;
-    let namespace = args.namespace_or("/").to_string();
+    // The nodes with the same joint-state or odometry topic share one reader of it.
     let mut suite = Suite {
         nodes: Vec::new(),
+        readers: StateReaders::default(),
         _context: context.clone(),
     };
     for p in plans {
         let node = (p.start)(
             &context,
             args,
-            &namespace,
             p.name,
             p.ros_params,
+            &suite.readers,
             exit_on_failure,
         )?;
         suite.nodes.push(node);

@@ -36,4 +36,5 @@ mod suite_services;
 mod suite_smoother_missing;
 mod suite_stack;
 mod suite_stack_rclpy;
+mod suite_state_fanout;
 mod suite_topics;
