@@ -19,6 +19,8 @@ use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex, MutexGuard, Weak};
 use std::time::{Duration, Instant};
 
+use ros2_client::gid::Gid;
+
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::msg::nav_msgs::Odometry;
@@ -135,9 +137,10 @@ impl Fanout {
     }
 }
 
-/// One shared reader: the task that owns it and the nodes it feeds.
+/// One shared reader: the task that owns it, its GUID and the nodes it feeds.
 struct Reader {
     fanout: Fanout,
+    gid: Gid,
     _task: smol::Task<()>,
 }
 
@@ -157,40 +160,42 @@ impl StateReaders {
 
     /// Joins `inbox` to `topic` (resolved name): its worker is woken by `wake`. The first node
     /// to join creates the reader with `create`, which spawns a task reading the topic into
-    /// the [`Fanout`] it is given. Dropping the returned [`Joined`] leaves the topic.
+    /// the [`Fanout`] it is given and returns it with the reader's GUID. Dropping the returned
+    /// [`Joined`] leaves the topic.
     pub fn join(
         &self,
         topic: &str,
         inbox: Arc<Inbox>,
         wake: Box<dyn Fn() + Send + Sync>,
-        create: impl FnOnce(Fanout) -> Result<smol::Task<()>, NodeError>,
+        create: impl FnOnce(Fanout) -> Result<(smol::Task<()>, Gid), NodeError>,
     ) -> Result<Joined, NodeError> {
         let id = (self.next_id).fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let member = Member { id, inbox, wake };
         let mut readers = self.lock();
-        match readers.get(topic) {
-            Some(r) => r
-                .fanout
-                .0
-                .lock()
-                .unwrap_or_else(|p| p.into_inner())
-                .push(member),
+        let gid = match readers.get(topic) {
+            Some(r) => {
+                (r.fanout.0.lock().unwrap_or_else(|p| p.into_inner())).push(member);
+                r.gid
+            }
             None => {
                 let fanout = Fanout(Arc::new(Mutex::new(vec![member])));
-                let task = create(fanout.clone())?;
+                let (task, gid) = create(fanout.clone())?;
                 readers.insert(
                     topic.to_string(),
                     Reader {
                         fanout,
+                        gid,
                         _task: task,
                     },
                 );
+                gid
             }
-        }
+        };
         Ok(Joined {
             readers: Arc::downgrade(&self.readers),
             topic: topic.to_string(),
             id,
+            gid,
         })
     }
 
@@ -210,6 +215,15 @@ pub struct Joined {
     readers: Weak<Mutex<Readers>>,
     topic: String,
     id: u64,
+    gid: Gid,
+}
+
+impl Joined {
+    /// The shared reader's GUID, for the joining node to list as its own reader in the ROS
+    /// graph (`ros2 node info` shows every node's state subscriptions, whichever created it).
+    pub fn reader_gid(&self) -> Gid {
+        self.gid
+    }
 }
 
 impl Drop for Joined {

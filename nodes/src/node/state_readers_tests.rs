@@ -10,10 +10,13 @@ use super::*;
 struct Created(Mutex<Vec<Fanout>>);
 
 impl Created {
-    fn create(&self) -> impl FnOnce(Fanout) -> Result<smol::Task<()>, NodeError> + '_ {
+    /// Creates a reader whose GUID is the number of readers created before it, in every byte.
+    fn create(&self) -> impl FnOnce(Fanout) -> Result<(smol::Task<()>, Gid), NodeError> + '_ {
         move |fanout| {
-            self.0.lock().unwrap().push(fanout);
-            Ok(smol::spawn(std::future::pending()))
+            let mut created = self.0.lock().unwrap();
+            let gid = Gid::from([created.len() as u8; 16]);
+            created.push(fanout);
+            Ok((smol::spawn(std::future::pending()), gid))
         }
     }
     fn count(&self) -> usize {
@@ -96,14 +99,18 @@ fn a_node_that_leaves_does_not_stop_the_others() {
     // `a` joins first: the reader is created on its node.
     let ja = readers.join("/joint_states", a.clone(), no_wake(), created.create());
     let jb = readers.join("/joint_states", b.clone(), no_wake(), created.create());
+    // Both list the one reader as theirs in the graph.
+    let (ja, jb) = (ja.unwrap(), jb.unwrap());
+    assert_eq!(ja.reader_gid(), Gid::from([0; 16]));
+    assert_eq!(jb.reader_gid(), ja.reader_gid());
     let fanout = created.last();
-    drop(ja.unwrap());
+    drop(ja);
     fanout.send(js(2.0));
     assert!(positions(&a).is_empty(), "a left: it follows nothing");
     assert_eq!(positions(&b), vec![2.0]);
     assert_eq!(readers.topics(), vec![("/joint_states".to_string(), 1)]);
     // The last to leave removes the reader; the next to join creates one again.
-    drop(jb.unwrap());
+    drop(jb);
     assert!(readers.topics().is_empty());
     let _ja = readers.join("/joint_states", a.clone(), no_wake(), created.create());
     assert_eq!(created.count(), 2);

@@ -213,9 +213,12 @@ fn join<N: NodeLogic, M: RosMessage + serde::de::DeserializeOwned + Send + Sync 
     let absolute = expand_name(w.ros.namespace(), w.ros.name(), topic);
     let tx = w.tx.clone();
     let wake = Box::new(move || forward(&tx, Event::StateWaiting));
-    readers.join(&absolute, inbox.clone(), wake, |fanout| {
+    let joined = readers.join(&absolute, inbox.clone(), wake, |fanout| {
         let sub = w.ros.subscription::<M>(&absolute, &qos::sensor_data())?;
-        Ok(w.ros
-            .spawn(subscribe(sub, w.log.clone(), move |m| fanout.send(wrap(m)))))
-    })
+        let gid = sub.guid().into();
+        let task = (w.ros).spawn(subscribe(sub, w.log.clone(), move |m| fanout.send(wrap(m))));
+        Ok((task, gid))
+    })?;
+    w.ros.node.register_reader(joined.reader_gid());
+    Ok(joined)
 }

@@ -808,6 +808,13 @@ impl Node {
     }
   }
 
+  /// Lists `reader` among this Node's readers in `ros_discovery_info`, as if this Node had
+  /// created it: a reader that another Node of the same participant created and this one
+  /// reads through.
+  pub fn register_reader(&mut self, reader: Gid) {
+    self.add_reader(reader);
+  }
+
   pub fn namespace(&self) -> &str {
     self.node_name.namespace()
   }

@@ -219,6 +219,25 @@ def phase_twist(user):
             break
         time.sleep(0.1)
     check("graph: the suite's four nodes are listed", all(n in names for n in NODES), names)
+
+    # `ros2 node info`: each node lists the state topics it reads, though the process reads
+    # each through one DDS reader that all four share.
+    def state_subscriptions():
+        subs = {}
+        for n in NODES:
+            try:
+                subs[n] = sorted(t for t, _ in user.get_subscriber_names_and_types_by_node(n, "/"))
+            except Exception as e:  # the node's info not yet discovered
+                subs[n] = [repr(e)]
+        return subs
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        subs = state_subscriptions()
+        if all("/odom" in s and "/joint_states" in s for s in subs.values()):
+            break
+        time.sleep(0.1)
+    check("graph: every node lists its /odom and /joint_states subscriptions",
+          all("/odom" in s and "/joint_states" in s for s in subs.values()), subs)
     want_topics = {"/cd_predictor/predicted_odom": "nav_msgs/msg/Odometry",
                    "/cd_predictor/predicted_path": "nav_msgs/msg/Path",
                    "/cd_predictor/constraint_forces": "constraint_dynamics_msgs/msg/ConstraintForces"}
