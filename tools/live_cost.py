@@ -16,6 +16,7 @@ The machine should be otherwise idle: a CPU share is only as good as the quiet a
 """
 
 import argparse
+import datetime
 import json
 import os
 import re
@@ -78,7 +79,20 @@ def span(values, fmt):
     return lo if lo == hi else f"{lo}–{hi}"
 
 
-def table(cpu, acc):
+def machine():
+    """The CPU model and core count: CPU shares compare only on the same kind of machine."""
+    model = "unknown CPU"
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{model}, {os.cpu_count()} cores"
+
+
+def table(cpu, acc, load):
     steady = [c for c in cpu if c["feed"] == "steady"]
     changing = [c for c in cpu if c["feed"] == "changing"]
     share = span([c["cpu_share"] for c in steady], ".3f")
@@ -89,6 +103,9 @@ def table(cpu, acc):
     ratio = span(acc["ratio"], ".2f")
     return "\n".join([
         "<!-- written by python3 tools/live_cost.py: do not edit -->",
+        "",
+        f"Measured {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d} on {machine()}, "
+        f"load average {load:.2f} at the start.",
         "",
         "| suite CPU share, steady command [cores] | changing commands [cores] "
         "| predicted_odom [Hz] | with covariance | evaluations per tick (answer + estimate) "
@@ -108,9 +125,10 @@ def main():
     ap.add_argument("--runs", type=int, default=2, help="suite CPU measurements")
     ap.add_argument("--no-write", action="store_true", help="print the table only")
     args = ap.parse_args()
+    load = os.getloadavg()[0]
     cpu = suite_cpu(args.runs)
     acc = accuracy()
-    t = table(cpu, acc)
+    t = table(cpu, acc, load)
     print(t)
     if args.no_write:
         return
