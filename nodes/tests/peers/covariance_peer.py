@@ -295,7 +295,8 @@ def main():
     peer = Peer()
     ex = SingleThreadedExecutor()
     ex.add_node(peer)
-    threading.Thread(target=ex.spin, daemon=True).start()
+    spin = threading.Thread(target=ex.spin, daemon=True)
+    spin.start()
     try:
         t0 = time.time()
         check("the predictor publishes", wait_for(lambda: len(peer.odom) > 0, 30.0))
@@ -315,6 +316,7 @@ def main():
         ERRORS.append(f"exception: {e!r}")
     finally:
         ex.shutdown()
+        spin.join(timeout=5)
         peer.destroy_node()
         rclpy.try_shutdown()
     ok = not ERRORS

@@ -167,6 +167,7 @@ def main():
               "diagnostics": diagnostics,
               "smoother_setting": {"max_accel": SMOOTHER_ACCEL, "max_decel": SMOOTHER_DECEL}}
     ex.shutdown()
+    spin.join(timeout=5)
     peer.destroy_node()
     smoother.destroy_node()
     rclpy.try_shutdown()

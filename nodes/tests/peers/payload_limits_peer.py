@@ -117,6 +117,7 @@ def main():
         out["errors"].append(f"{type(e).__name__}: {e}")
     finally:
         ex.shutdown()
+        spin.join(timeout=5)
         peer.destroy_node()
         rclpy.shutdown()
     print(json.dumps(out))

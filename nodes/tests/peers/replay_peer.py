@@ -219,6 +219,7 @@ def main():
         ERRORS.append(f"{type(e).__name__}: {e}")
     finally:
         ex.shutdown()
+        spin.join(timeout=5)
         peer.destroy_node()
         rclpy.try_shutdown()
     print(json.dumps({"ok": not ERRORS, "errors": ERRORS, "figures": FIGURES}), flush=True)

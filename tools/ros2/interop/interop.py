@@ -491,6 +491,7 @@ def run_phase(suite, params, stamped, body):
         body(user)
     finally:
         ex.shutdown()
+        spinner.join(timeout=5)
         user.destroy_node()
         rclpy.shutdown()
         proc.terminate()
