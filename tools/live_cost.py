@@ -23,6 +23,7 @@ import re
 import subprocess
 import sys
 
+from bench import machine
 from doc_block import write_block
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -77,19 +78,6 @@ def span(values, fmt):
     """'lo–hi' in `fmt`, or one value when they print the same."""
     lo, hi = format(min(values), fmt), format(max(values), fmt)
     return lo if lo == hi else f"{lo}–{hi}"
-
-
-def machine():
-    """The CPU model and core count: CPU shares compare only on the same kind of machine."""
-    model = "unknown CPU"
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{model}, {os.cpu_count()} cores"
 
 
 def table(cpu, acc, load):
