@@ -29,9 +29,10 @@ use crate::msg::sensor_msgs::JointState;
 /// An inbox holding this many messages wakes its worker (at 2 × 20 Hz about every 1.6 s).
 pub const BATCH: usize = 64;
 
-/// Messages an inbox holds at most; more arriving while the worker computes are dropped (the
-/// next ones replace them), as its event queue dropped them.
-pub const CAPACITY: usize = super::worker::QUEUE;
+/// Messages an inbox holds at most; more arriving while the worker is busy are dropped until it
+/// takes them (the state it then applies is only as fresh as the last one kept). 1024 holds
+/// 25 s of joint states and odometry at 20 Hz each, 5 s at 100 Hz.
+pub const CAPACITY: usize = 1024;
 
 /// One state message, decoded once and shared by the nodes that read it.
 #[derive(Clone)]

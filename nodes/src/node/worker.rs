@@ -109,8 +109,7 @@ pub enum Event<N: NodeLogic> {
     Shutdown,
 }
 
-/// Capacity of a worker's event queue. State messages that find it full are dropped;
-/// requests get a "busy" error.
+/// Capacity of a worker's event queue: requests that find it full get a "busy" error.
 pub const QUEUE: usize = 1024;
 
 /// How long [`WorkerHandle::stop`] waits for the worker to finish what it is computing. A
