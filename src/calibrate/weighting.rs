@@ -7,7 +7,8 @@
 //! leans towards the skids (a shorter radius, a wider track) at the smooth driving's cost. With
 //! the covariance P = L Lᵀ the node would publish (propagated with the fitted noise, plus the
 //! reference's own), the residual L⁻¹ e makes the sum of squares the sum of the predictions'
-//! NEES: generalized least squares with the weights frozen at the first fit's values.
+//! NEES: generalized least squares, the weights held through a fit and taken again from the
+//! new values and noise between fits until the values settle (`WEIGHTED_ROUNDS`).
 
 use super::{CalibrationError, Problem, ProcessNoise};
 use crate::replay::{EvaluationSettings, evaluate};
