@@ -812,7 +812,10 @@ impl Node {
   /// created it: a reader that another Node of the same participant created and this one
   /// reads through.
   pub fn register_reader(&mut self, reader: Gid) {
-    self.add_reader(reader);
+    // The Node that created the reader lists it already: no second discovery update.
+    if !self.readers.contains(&reader) {
+      self.add_reader(reader);
+    }
   }
 
   pub fn namespace(&self) -> &str {
