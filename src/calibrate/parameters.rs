@@ -18,6 +18,10 @@ pub enum FitParameter {
     /// effective half-track minus the nominal one (a scrubbing tyre turns the robot as if its
     /// track were wider).
     TrackOffset,
+    /// Every rolling contact's `axle_offset_turn_gain:` [m/(rad/s)²], outward: how much wider
+    /// the effective track gets with the square of the turn rate (a wide tyre scrubs more in a
+    /// fast turn). Only for a scene with drift control.
+    TrackTurnGain,
     /// A payload [kg] on the base link at the base's centre of mass: a chassis heavier than its
     /// URDF says. Only for a scene without its own `payload:`.
     BaseMass,
@@ -34,9 +38,10 @@ pub enum FitParameter {
 
 impl FitParameter {
     /// Every parameter, in the order the output lists them.
-    pub const ALL: [FitParameter; 6] = [
+    pub const ALL: [FitParameter; 7] = [
         FitParameter::RollingRadius,
         FitParameter::TrackOffset,
+        FitParameter::TrackTurnGain,
         FitParameter::BaseMass,
         FitParameter::TurningFriction,
         FitParameter::TractionTorque,
@@ -48,6 +53,7 @@ impl FitParameter {
         match self {
             FitParameter::RollingRadius => "rolling_radius",
             FitParameter::TrackOffset => "track_offset",
+            FitParameter::TrackTurnGain => "track_turn_gain",
             FitParameter::BaseMass => "base_mass",
             FitParameter::TurningFriction => "turning_friction",
             FitParameter::TractionTorque => "traction_torque",
@@ -60,6 +66,7 @@ impl FitParameter {
         match self {
             FitParameter::RollingRadius | FitParameter::TrackOffset => "m",
             FitParameter::TyreSlipSpeed => "m/s",
+            FitParameter::TrackTurnGain => "m/(rad/s)²",
             FitParameter::BaseMass => "kg",
             FitParameter::TurningFriction => "1",
             FitParameter::TractionTorque => "N·m",
@@ -100,6 +107,8 @@ pub struct SceneParameters {
     /// least URDF effort (infinite where the URDF gives none); `None` without a diff drive.
     traction: Option<f64>,
     has_payload: bool,
+    /// The scene's `integration.drift` is `none`.
+    no_drift_control: bool,
 }
 
 fn constraints(scene: &Value) -> &[Value] {
@@ -215,7 +224,13 @@ impl SceneParameters {
         });
         let has_payload =
             number(scene.get("payload").and_then(|p| p.get("mass"))).is_some_and(|m| m != 0.0);
+        let no_drift_control = scene
+            .get("integration")
+            .and_then(|i| i.get("drift"))
+            .and_then(Value::as_str)
+            == Some("none");
         Ok(SceneParameters {
+            no_drift_control,
             rolling,
             tyres: (wheel_tyres, tyres(scene).len()),
             wheel_joints,
@@ -232,9 +247,12 @@ impl SceneParameters {
             FitParameter::RollingRadius if self.rolling.is_empty() && self.tyres.0.is_empty() => {
                 Some("the scene has no rolling contact nor wheel tyre".into())
             }
-            FitParameter::TrackOffset if self.rolling.is_empty() => {
+            FitParameter::TrackOffset | FitParameter::TrackTurnGain if self.rolling.is_empty() => {
                 Some("the scene has no rolling contact".into())
             }
+            FitParameter::TrackTurnGain if self.no_drift_control => Some(
+                "the scene's integration.drift is none: a turn gain needs drift control".into(),
+            ),
             FitParameter::TyreSlipSpeed if self.tyres.1 == 0 => {
                 Some("the scene declares no forces.tyres".into())
             }
@@ -277,6 +295,9 @@ impl SceneParameters {
             FitParameter::TrackOffset => first
                 .map(|(i, s)| s * number(cs[*i].get("axle_offset")).unwrap_or(0.0))
                 .unwrap_or(0.0),
+            FitParameter::TrackTurnGain => first
+                .map(|(i, s)| s * number(cs[*i].get("axle_offset_turn_gain")).unwrap_or(0.0))
+                .unwrap_or(0.0),
             FitParameter::BaseMass => 0.0,
             FitParameter::TurningFriction => number(
                 scene
@@ -303,7 +324,9 @@ impl SceneParameters {
                     put(t, "slip_speed_scale", value.max(1e-6));
                 }
             }
-            FitParameter::RollingRadius | FitParameter::TrackOffset => {
+            FitParameter::RollingRadius
+            | FitParameter::TrackOffset
+            | FitParameter::TrackTurnGain => {
                 if p == FitParameter::RollingRadius {
                     for (i, t) in tyres_mut(scene).iter_mut().enumerate() {
                         if self.tyres.0.contains(&i) {
@@ -320,6 +343,9 @@ impl SceneParameters {
                 for (i, sign) in &self.rolling {
                     match p {
                         FitParameter::RollingRadius => put(&mut cs[*i], "radius", value),
+                        FitParameter::TrackTurnGain => {
+                            put(&mut cs[*i], "axle_offset_turn_gain", sign * value)
+                        }
                         _ => put(&mut cs[*i], "axle_offset", sign * value),
                     }
                 }
@@ -396,13 +422,14 @@ impl SceneParameters {
     }
 
     /// How far the parameter is moved to see its effect, and the size a change must reach to
-    /// matter (the fit's parameter scaling): 1 mm of radius, 1 cm of track, a tenth of the
-    /// robot's mass, 0.1 of μ, a tenth of the traction torque, 1 cm/s of slip speed.
+    /// matter (the fit's parameter scaling): 1 mm of radius, 1 cm of track (and of its widening
+    /// at 1 rad/s), a tenth of the robot's mass, 0.1 of μ, a tenth of the traction torque,
+    /// 1 cm/s of slip speed.
     pub fn scale(&self, p: FitParameter, model: &Model) -> f64 {
         match p {
             FitParameter::TractionTorque => 0.1 * self.traction.unwrap_or(1.0),
             FitParameter::RollingRadius => 1e-3,
-            FitParameter::TrackOffset => 1e-2,
+            FitParameter::TrackOffset | FitParameter::TrackTurnGain => 1e-2,
             FitParameter::BaseMass => 0.1 * model.total_mass(),
             FitParameter::TurningFriction => 0.1,
             FitParameter::TyreSlipSpeed => 0.01,

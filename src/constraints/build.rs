@@ -183,6 +183,7 @@ pub(super) fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Re
             axis,
             radius,
             axle_offset,
+            axle_offset_turn_gain,
             plane_normal,
             plane_height,
             friction,
@@ -202,6 +203,15 @@ pub(super) fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Re
                     crate::limits::MAX_LENGTH
                 )));
             }
+            if !axle_offset_turn_gain.is_finite()
+                || axle_offset_turn_gain.abs() > crate::limits::MAX_LENGTH
+            {
+                return Err(cerr(format!(
+                    "axle_offset_turn_gain {axle_offset_turn_gain} m/(rad/s)² must be finite and \
+                     at most {:e}",
+                    crate::limits::MAX_LENGTH
+                )));
+            }
             if !plane_height.is_finite() || plane_height.abs() > crate::limits::MAX_LENGTH {
                 return Err(cerr(format!(
                     "plane_height {plane_height} m must be finite and at most {:e} m",
@@ -216,6 +226,7 @@ pub(super) fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Re
                 axis,
                 radius: *radius,
                 axle_offset: *axle_offset,
+                axle_offset_turn_gain: *axle_offset_turn_gain,
                 basis: RollingConstraint::basis_for(&n),
                 height: *plane_height,
                 rows: vec![0, 1, 2],

@@ -2,13 +2,19 @@
 //! the plane n·x = h.
 //!
 //! Contact: u = −(n − (n·a)a)/|n − (n·a)a| (a = R_W a_W), p_c = c + r u + s a (s the axle
-//! offset: an effective track). The material point of the
+//! offset: an effective track, s = s₀ + k ω_n² with ω_n = n·ω the wheel's turn rate about the
+//! normal: a wide tyre's track widens with the turn rate). The material point of the
 //! wheel at p_c has zero velocity: `J v = v_c + ω × (p_c − c) = 0`, expressed on the basis
 //! (t₁, t₂, n) — two nonholonomic tangential rows and one normal row. The normal row is left out
 //! when the model cannot move the contact along n (a planar base already fixes the height).
 //! φ = (0, 0, n·p_c − h). Because p_c moves over the rim,
 //! γ = a_mat(p_c)|q̈=0 + ω × (ṗ_c − v_mat(p_c)) (not the material point's acceleration alone).
 //! λ: contact force by the ground on the wheel at p_c [N] on (t₁, t₂, n).
+//!
+//! With k ≠ 0 the offset is read at the current turn rate and held over each evaluation: the
+//! rows are those of a contact at that offset (force at the contact point), γ leaves out ṡ, and
+//! the drift control carries the contact point along as the turn rate changes (the scene must
+//! have one: docs/contacts.md). J v is then the contact's true slip, f(q, v) itself.
 
 use super::{ConstraintRows, RowResiduals, RowSink};
 use crate::algorithm::{Data, frame_placement, point_jacobian_rows};
@@ -25,8 +31,11 @@ pub struct RollingConstraint {
     pub axis: Vector3<f64>,
     /// Radius [m].
     pub radius: f64,
-    /// The contact point's offset along the spin axis [m] (an effective track).
+    /// The contact point's offset along the spin axis at zero turn rate, s₀ [m] (an effective
+    /// track).
     pub axle_offset: f64,
+    /// k [m/(rad/s)²]: the offset grows by k ω_n² with the turn rate ω_n = n·ω (0: constant).
+    pub axle_offset_turn_gain: f64,
     /// Columns t₁, t₂, n (world).
     pub basis: Matrix3<f64>,
     /// Plane height along n [m].
@@ -65,19 +74,34 @@ impl RollingConstraint {
         self.basis.column(2).into()
     }
 
-    /// Contact point, centre and world axis (after a kinematics pass).
-    pub fn contact(&self, model: &Model, data: &Data) -> Contact {
-        self.contact_at(&frame_placement(model, data, self.wheel))
+    /// The axle offset s [m] at the wheel's angular velocity `omega` (world axes) [rad/s].
+    pub fn offset_at(&self, omega: &Vector3<f64>) -> f64 {
+        let turn = self.normal().dot(omega);
+        self.axle_offset + self.axle_offset_turn_gain * turn * turn
     }
 
-    /// Contact point, centre and world axis for the wheel frame's world placement `o_m_w`.
-    fn contact_at(&self, o_m_w: &SE3) -> Contact {
+    /// The wheel body's angular velocity, world axes [rad/s] (after a kinematics pass with
+    /// velocities).
+    pub(crate) fn omega(&self, model: &Model, data: &Data) -> Vector3<f64> {
+        let body = model.frames[self.wheel].body;
+        data.o_m_i[body].rotation * data.v[body].ang
+    }
+
+    /// Contact point, centre and world axis (after a kinematics pass with velocities).
+    pub fn contact(&self, model: &Model, data: &Data) -> Contact {
+        let offset = self.offset_at(&self.omega(model, data));
+        self.contact_at(&frame_placement(model, data, self.wheel), offset)
+    }
+
+    /// Contact point, centre and world axis for the wheel frame's world placement `o_m_w` and
+    /// the axle offset `offset` [m].
+    fn contact_at(&self, o_m_w: &SE3, offset: f64) -> Contact {
         let a = o_m_w.rotation * self.axis;
         let n = self.normal();
         let w = n - a * n.dot(&a);
         let u = -w / w.norm().max(f64::MIN_POSITIVE);
         Contact {
-            point: o_m_w.translation + u * self.radius + a * self.axle_offset,
+            point: o_m_w.translation + u * self.radius + a * offset,
             centre: o_m_w.translation,
             axis: a,
         }
@@ -91,9 +115,10 @@ impl ConstraintRows for RollingConstraint {
 
     fn fill(&self, model: &Model, data: &Data, out: &mut RowSink) {
         let o_m_w = frame_placement(model, data, self.wheel);
+        let offset = self.offset_at(&self.omega(model, data));
         let Contact {
             point: pc, axis: a, ..
-        } = self.contact_at(&o_m_w);
+        } = self.contact_at(&o_m_w, offset);
         let f = &model.frames[self.wheel];
         let mut dirs = [Vector3::zeros(); 3];
         for (d, &row) in dirs.iter_mut().zip(&self.rows) {
@@ -119,7 +144,7 @@ impl ConstraintRows for RollingConstraint {
         let wdot = -(a * n.dot(&adot) + adot * n.dot(&a));
         let wn = w.norm().max(f64::MIN_POSITIVE);
         let udot = -(wdot / wn - w * (w.dot(&wdot) / (wn * wn * wn)));
-        let pc_dot = v_c + udot * self.radius + adot * self.axle_offset;
+        let pc_dot = v_c + udot * self.radius + adot * offset;
         let gamma_w = a_mat + omega.cross(&(pc_dot - v_mat));
         let phi_n = n.dot(&pc) - self.height;
         for (k, (&row, dir)) in self.rows.iter().zip(dirs).enumerate() {
@@ -135,7 +160,9 @@ impl ConstraintRows for RollingConstraint {
     /// J v = the contact's material-point velocity on each kept direction; φ as in `fill`.
     fn residuals(&self, model: &Model, data: &Data, out: RowResiduals) -> bool {
         let o_m_w = frame_placement(model, data, self.wheel);
-        let pc = self.contact_at(&o_m_w).point;
+        let pc = self
+            .contact_at(&o_m_w, self.offset_at(&self.omega(model, data)))
+            .point;
         let body = model.frames[self.wheel].body;
         let (ob, vb) = (&data.o_m_i[body], &data.v[body]);
         let v_mat = ob.rotation * (vb.lin + vb.ang.cross(&ob.act_inv_point(&pc)));

@@ -175,6 +175,12 @@ pub enum ConstraintSpec {
         /// offset widens the track at the left wheel and narrows it at the right one.
         #[serde(default)]
         axle_offset: f64,
+        /// `axle_offset_turn_gain:` k [m/(rad/s)²] (default 0): the offset grows to
+        /// `axle_offset` + k ω_n² with the wheel's turn rate ω_n about the plane normal (on
+        /// level ground the chassis's yaw rate): a wide tyre's track that widens in fast turns.
+        /// Needs drift control (`integration.drift`: projection or baumgarte).
+        #[serde(default)]
+        axle_offset_turn_gain: f64,
         /// `plane_normal:` ground-plane normal, world axes (normalized; default `[0, 0, 1]`).
         #[serde(default = "up")]
         plane_normal: [f64; 3],

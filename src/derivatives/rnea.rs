@@ -26,7 +26,7 @@ use super::DerivativeData;
 use crate::algorithm::{Data, rnea};
 use crate::model::{JointKind, Model};
 use crate::spatial::{Force, Motion, OriginInertia, skew};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{DMatrix, Matrix3, Vector3};
 
 /// ∂τ/∂q and ∂τ/∂v of τ = RNEA(q, v, a) into `dd.dtau_dq`, `dd.dtau_dv` (∂/∂q in the tangent
 /// space: column j is the derivative along δ_j in q ⊕ δ, docs/architecture.md), and
@@ -391,12 +391,34 @@ pub(crate) fn subtract_force_variation(
     j: usize,
     w: Force,
 ) {
+    subtract_from_column(model, &dd.o_s, &mut dd.dtau_dq, body, j, w);
+}
+
+/// The same along velocity coordinate j (a force whose point moves with the velocity).
+pub(crate) fn subtract_force_variation_v(
+    model: &Model,
+    dd: &mut DerivativeData,
+    body: usize,
+    j: usize,
+    w: Force,
+) {
+    subtract_from_column(model, &dd.o_s, &mut dd.dtau_dv, body, j, w);
+}
+
+fn subtract_from_column(
+    model: &Model,
+    o_s: &[Motion],
+    dtau: &mut DMatrix<f64>,
+    body: usize,
+    j: usize,
+    w: Force,
+) {
     let mut b = body;
     while b > 0 {
         let jb = &model.bodies[b].joint;
         for c in 0..jb.kind.nv() {
             let i = jb.idx_v + c;
-            dd.dtau_dq[(i, j)] -= dd.o_s[i].dot(&w);
+            dtau[(i, j)] -= o_s[i].dot(&w);
         }
         b = model.bodies[b].parent;
     }

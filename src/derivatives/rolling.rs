@@ -8,6 +8,8 @@
 //! v_mat = v₀ + ω × p_c and ṗ_c = v₀ + ω × c + r u̇ + s ȧ, u̇ = −(ẇ − ŵ(ŵ·ẇ))/|w|,
 //! ẇ = −(ȧ (n·a) + a (n·ȧ)), ȧ = ω × a. A perturbation moves the body (its twist and
 //! acceleration as in rnea.rs) and with it c and a; the contact point slides over the rim.
+//! With a turn gain (s = s₀ + k ω_n², ω_n = n·ω) a perturbation of ω moves the contact point
+//! along a by δs = 2 k ω_n n·δω too, in the rows and as the force's point of application.
 
 use super::DerivativeData;
 use crate::algorithm::{Data, frame_placement};
@@ -32,6 +34,8 @@ pub(crate) struct RollingState {
     pc_dot: Vector3<f64>,
     radius: f64,
     offset: f64,
+    /// ds/dω_n = 2 k ω_n [m/(rad/s)].
+    offset_slope: f64,
 }
 
 /// Variations of one column: the 3-vector `g + K_d v_mat` and n·p_c.
@@ -49,12 +53,17 @@ impl RollingState {
         let w_norm = w.norm().max(f64::MIN_POSITIVE);
         let w_hat = w / w_norm;
         let u = -w_hat;
-        let pc = c + u * rc.radius + a * rc.axle_offset;
         let vk = dd.o_v[body];
+        // The turn rate from the forward dynamics' kinematics: the forces are registered before
+        // the derivative pass fills `dd.o_v`.
+        let omega = rc.omega(model, data);
+        let offset = rc.offset_at(&omega);
+        let offset_slope = 2.0 * rc.axle_offset_turn_gain * n.dot(&omega);
+        let pc = c + u * rc.radius + a * offset;
         let a_dot = vk.ang.cross(&a);
         let w_dot = -(a_dot * n.dot(&a) + a * n.dot(&a_dot));
         let u_dot = -(w_dot - w_hat * w_hat.dot(&w_dot)) / w_norm;
-        let pc_dot = vk.lin + vk.ang.cross(&c) + u_dot * rc.radius + a_dot * rc.axle_offset;
+        let pc_dot = vk.lin + vk.ang.cross(&c) + u_dot * rc.radius + a_dot * offset;
         Self {
             body,
             c,
@@ -67,7 +76,8 @@ impl RollingState {
             w_dot,
             pc_dot,
             radius: rc.radius,
-            offset: rc.axle_offset,
+            offset,
+            offset_slope,
         }
     }
 
@@ -89,6 +99,12 @@ impl RollingState {
     fn w_dot_variation(&self, d_a: &Vector3<f64>, d_a_dot: &Vector3<f64>) -> Vector3<f64> {
         let (n, a, ad) = (&self.n, &self.a, &self.a_dot);
         -(d_a_dot * n.dot(a) + ad * n.dot(d_a) + d_a * n.dot(ad) + a * n.dot(d_a_dot))
+    }
+
+    /// The contact point's shift δs a along the axle for a variation `d_omega` of the wheel's
+    /// world angular velocity (zero without a turn gain).
+    pub fn turn_shift(&self, d_omega: &Vector3<f64>) -> Vector3<f64> {
+        self.a * (self.offset_slope * self.n.dot(d_omega))
     }
 
     /// Variation of the contact point for the body motion S (q-column): dc + r du + s da.
@@ -113,14 +129,16 @@ impl RollingState {
         let d_a = s.ang.cross(&self.a);
         let dc = s.lin + s.ang.cross(&self.c);
         let dw = self.w_variation(&d_a);
-        let dpc = self.contact_variation(s);
+        let ds = self.offset_slope * self.n.dot(&dv.ang);
+        let dpc = self.contact_variation(s) + self.turn_shift(&dv.ang);
         let d_a_dot = dv.ang.cross(&self.a) + w.cross(&d_a);
         let d_u_dot = self.u_dot_variation(&dw, &self.w_dot_variation(&d_a, &d_a_dot));
         let dpc_dot = dv.lin
             + dv.ang.cross(&self.c)
             + w.cross(&dc)
             + d_u_dot * self.radius
-            + d_a_dot * self.offset;
+            + d_a_dot * self.offset
+            + self.a_dot * ds;
         let dg = da.lin
             + da.ang.cross(&self.pc)
             + alpha.cross(&dpc)
@@ -134,14 +152,28 @@ impl RollingState {
     }
 
     /// Along velocity coordinate S with acceleration variation da and K_d.
-    pub fn by_v(&self, dd: &DerivativeData, s: &Motion, da: &Motion, kd: f64) -> Vector3<f64> {
+    pub fn by_v(&self, dd: &DerivativeData, s: &Motion, da: &Motion, kd: f64) -> RowVariation {
         let w = dd.o_v[self.body].ang;
         let d_a_dot = s.ang.cross(&self.a);
         let dw_dot = self.w_dot_variation(&Vector3::zeros(), &d_a_dot);
         let d_u_dot = self.u_dot_variation(&Vector3::zeros(), &dw_dot);
-        let dpc_dot = s.lin + s.ang.cross(&self.c) + d_u_dot * self.radius + d_a_dot * self.offset;
-        let dg = da.lin + da.ang.cross(&self.pc) + s.ang.cross(&self.pc_dot) + w.cross(&dpc_dot);
-        let dvmat = s.lin + s.ang.cross(&self.pc);
-        dg + dvmat * kd
+        let ds = self.offset_slope * self.n.dot(&s.ang);
+        let dpc = self.turn_shift(&s.ang);
+        let dpc_dot = s.lin
+            + s.ang.cross(&self.c)
+            + d_u_dot * self.radius
+            + d_a_dot * self.offset
+            + self.a_dot * ds;
+        let alpha = dd.o_a[self.body].ang;
+        let dg = da.lin
+            + da.ang.cross(&self.pc)
+            + alpha.cross(&dpc)
+            + s.ang.cross(&self.pc_dot)
+            + w.cross(&dpc_dot);
+        let dvmat = s.lin + s.ang.cross(&self.pc) + w.cross(&dpc);
+        RowVariation {
+            g_plus_kd_v: dg + dvmat * kd,
+            phi_n: self.n.dot(&dpc),
+        }
     }
 }

@@ -11,7 +11,9 @@
 
 use super::DerivativeData;
 use super::point::PointKin;
-use super::rnea::{body_variation_q, body_variation_v, subtract_force_variation};
+use super::rnea::{
+    body_variation_q, body_variation_v, subtract_force_variation, subtract_force_variation_v,
+};
 use super::rolling::RollingState;
 use super::weld::WeldState;
 use crate::algorithm::{Data, frame_placement, point_position};
@@ -167,14 +169,17 @@ pub(crate) fn force_corrections(
             Constraint::Rolling(rc) => {
                 // δ = dp_c − (S_lin + S_ang × p_c) = r (du − S_ang × u): f acts at δ from
                 // where the material point took it.
+                // With a turn gain the point also moves along a with the wheel's turn rate,
+                // δs a, along q and v alike.
                 let f = rolling_force(rc, lam);
                 let st = RollingState::new(model, data, dd, rc);
                 for j in 0..model.nv {
-                    if body_variation_q(model, dd, st.body, j).is_none() {
+                    let Some((dv, _)) = body_variation_q(model, dd, st.body, j) else {
                         continue;
-                    }
+                    };
                     let s = dd.o_s[j];
-                    let delta = st.contact_variation(&s) - s.lin - s.ang.cross(&st.pc);
+                    let delta = st.contact_variation(&s) - s.lin - s.ang.cross(&st.pc)
+                        + st.turn_shift(&dv.ang);
                     subtract_force_variation(
                         model,
                         dd,
@@ -182,6 +187,21 @@ pub(crate) fn force_corrections(
                         j,
                         Force::new(Vector3::zeros(), delta.cross(&f)),
                     );
+                }
+                if rc.axle_offset_turn_gain != 0.0 {
+                    for j in 0..model.nv {
+                        let Some((dv, _)) = body_variation_v(model, dd, st.body, j) else {
+                            continue;
+                        };
+                        let delta = st.turn_shift(&dv.ang);
+                        subtract_force_variation_v(
+                            model,
+                            dd,
+                            st.body,
+                            j,
+                            Force::new(Vector3::zeros(), delta.cross(&f)),
+                        );
+                    }
                 }
             }
             Constraint::Distance(dc) => {
@@ -361,7 +381,12 @@ pub(crate) fn row_derivatives(
                     if let Some((_, da)) = body_variation_v(model, dd, st.body, j) {
                         let var = st.by_v(dd, &s, &da, kd);
                         for (r, &row) in rc.rows.iter().enumerate() {
-                            dd.rows_dv[(r0 + r, j)] = rc.basis.column(row).dot(&var);
+                            let mut x = rc.basis.column(row).dot(&var.g_plus_kd_v);
+                            if row == 2 {
+                                // A turn gain moves the contact with the velocity.
+                                x += kp * var.phi_n;
+                            }
+                            dd.rows_dv[(r0 + r, j)] = x;
                         }
                     }
                 }

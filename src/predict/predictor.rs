@@ -250,6 +250,9 @@ impl Predictor {
             super::contacts::validate(&req.contact_limits)?;
         }
         let budget = self.budget(&req.integration)?;
+        if budget.settings().drift == DriftControl::None {
+            check_turn_gain_drift(self.sys.constraints())?;
+        }
         let horizon = budget.horizon(req.horizon);
         budget.check(horizon)?;
         for (t, c) in req.commands {
@@ -367,5 +370,22 @@ impl Predictor {
             innovations_product(model, &factors, &u, &u)
         };
         Some((self.forces).max_rate(model, self.sys.data(), &mut mobility))
+    }
+}
+
+/// A rolling contact with a turn gain is held at its current offset over each evaluation, and
+/// only the drift control moves its contact point as the turn rate changes (constraints/rolling.rs).
+fn check_turn_gain_drift(set: &crate::constraints::ConstraintSet) -> Result<()> {
+    let with_gain = set.items.iter().position(|c| {
+        matches!(c, crate::constraints::Constraint::Rolling(rc) if rc.axle_offset_turn_gain != 0.0)
+    });
+    match with_gain {
+        Some(k) => Err(Error::Invalid(format!(
+            "constraint '{}': axle_offset_turn_gain needs drift control (integration.drift: \
+             projection or baumgarte); with drift none its contact point would stay where the \
+             start's turn rate put it",
+            set.names[k]
+        ))),
+        None => Ok(()),
     }
 }

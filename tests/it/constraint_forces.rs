@@ -213,6 +213,7 @@ fn disk_rolls_down_an_incline_at_two_thirds_g_sin_alpha() {
             axis: [0.0, 1.0, 0.0],
             radius: r,
             axle_offset: 0.0,
+            axle_offset_turn_gain: 0.0,
             plane_normal: n,
             plane_height: h,
             friction: None,

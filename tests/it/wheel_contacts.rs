@@ -340,3 +340,75 @@ fn an_effective_radius_and_track_scale_what_the_controllers_achieve() {
         .to_string();
     assert_has(&bad, &["axle_offset", "'l'"]);
 }
+
+/// `axle_offset_turn_gain: k` widens the half-track to b' = b + s₀ + k Ω² at the turn rate Ω.
+/// Under the controllers' wheel targets the steady turn then solves
+/// Ω (b + s₀ + k Ω²) = ω (r'/r) b, a cubic (Newton here), and the speed is v r'/r as before.
+#[test]
+fn a_turn_gain_widens_the_track_with_the_turn_rate() {
+    let urdf = repo_dir().join("urdf/diff_drive.urdf");
+    let (r_eff, s0, k) = (0.049, 0.002, 0.004);
+    let yaml = format!(
+        "urdf: {:?}\nbase: planar\nconstraints:\n\
+         \x20 - {{name: l, kind: rolling, wheel: left_wheel, axis: [0, 1, 0], radius: {r_eff}, axle_offset: {s0}, axle_offset_turn_gain: {k}}}\n\
+         \x20 - {{name: r, kind: rolling, wheel: right_wheel, axis: [0, 1, 0], radius: {r_eff}, axle_offset: {}, axle_offset_turn_gain: {}}}\n\
+         forces: {{urdf_damping: true}}\n\
+         actuators:\n  control_period: 0.001\n  diff_drive: {{left_joint: left_wheel_joint, \
+         right_joint: right_wheel_joint, wheel_radius: 0.05, wheel_separation: 0.34, kp: 1.0, \
+         ki: 20.0}}\n\
+         integration: {{method: rk4, dt: 0.001, drift: projection, horizon: 3.0, sample_period: 0.02}}\n",
+        urdf.display().to_string(),
+        -s0,
+        -k
+    );
+    let scene = scene_from_yaml(&yaml).unwrap();
+    let mut p = Predictor::from_scene(&scene).unwrap();
+    for (v_cmd, w_cmd) in [(0.0, 1.5), (0.3, -1.0), (0.4, 0.3)] {
+        let commands = [(
+            0.0,
+            Command {
+                base_twist: Some([v_cmd, w_cmd]),
+                ..Default::default()
+            },
+        )];
+        let (q, v) = (scene.q0.clone(), scene.v0.clone());
+        let traj = p
+            .predict(&PredictionRequest {
+                commands: &commands,
+                ..PredictionRequest::new(&q, &v)
+            })
+            .unwrap();
+        let last = traj.samples.last().unwrap();
+        let rhs = w_cmd * (r_eff / R) * B;
+        let mut turn = rhs / B;
+        for _ in 0..50 {
+            let f = turn * (B + s0 + k * turn * turn) - rhs;
+            turn -= f / (B + s0 + 3.0 * k * turn * turn);
+        }
+        let speed = v_cmd * r_eff / R;
+        println!(
+            "achieved v {} vs {speed} m/s, ω {} vs {turn} rad/s",
+            last.v[0], last.v[2]
+        );
+        // Achieved ≤ 7.9e-15 m/s and ≤ 1.6e-13 rad/s: the PI's integral has settled by 3 s.
+        assert!((last.v[0] - speed).abs() < 1e-12, "{}", last.v[0]);
+        assert!((last.v[2] - turn).abs() < 1e-12, "{} vs {turn}", last.v[2]);
+    }
+    // The contact point moves with the turn rate only through the drift control.
+    let none = scene_from_yaml(&yaml.replace("drift: projection", "drift: none")).unwrap();
+    let (q, v) = (none.q0.clone(), none.v0.clone());
+    let e = Predictor::from_scene(&none)
+        .unwrap()
+        .predict(&PredictionRequest::new(&q, &v))
+        .expect_err("a turn gain without drift control")
+        .to_string();
+    assert_has(&e, &["'l'", "axle_offset_turn_gain", "drift"]);
+    let bad = scene_from_yaml(&yaml.replace(
+        &format!("axle_offset_turn_gain: {k}}}"),
+        "axle_offset_turn_gain: .nan}",
+    ))
+    .and_then(|s| constraint_dynamics::System::from_scene(&s).map(|_| ()))
+    .expect_err("a NaN turn gain")
+    .to_string();
+    assert_has(&bad, &["axle_offset_turn_gain", "'l'"]);
+}

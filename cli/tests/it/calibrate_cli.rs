@@ -30,13 +30,12 @@ fn figures(v: &Value) -> Vec<(f64, f64, f64, f64, f64, f64)> {
         .collect()
 }
 
-/// The predicted covariance is honest on a drive it was not fitted on: the mean NEES of the
-/// (x, y, yaw) errors near χ²(3)'s mean of 3, and at least 0.85 of them inside the 95 % region.
-/// The region may hold all of a drive's 38 predictions at a horizon: an exact covariance does
-/// so with probability 0.95³⁸ ≈ 0.14.
+/// The predicted covariance is honest on a drive it was not fitted on: between 0.85 and 0.99 of
+/// the (x, y, yaw) errors inside its 95 % region, and their mean NEES near χ²(3)'s 3 (up to 5:
+/// a skid's errors lie beyond a Gaussian's tails and weigh on a mean of 36 to 38).
 fn assert_covered(bag: &str, h: f64, coverage_p95: f64, nees_mean: f64) {
     assert!(
-        coverage_p95 >= 0.85 && (2.0..=4.0).contains(&nees_mean),
+        (0.85..=0.99).contains(&coverage_p95) && (2.0..=5.0).contains(&nees_mean),
         "{bag} {h} s: coverage p95 {coverage_p95}, mean NEES {nees_mean}"
     );
 }
@@ -76,9 +75,15 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
     let radius = r["value"].as_f64().unwrap();
     assert!((0.04875..=0.0495).contains(&radius), "{r}");
     assert!(r["std_error"].as_f64().unwrap() < 2e-4, "{r}");
-    // Wide tyres scrub in turns: the robot turns as if its track were wider.
-    let track = param("track_offset")["value"].as_f64().unwrap();
-    assert!(track > 0.0, "{}", param("track_offset"));
+    // Wide tyres scrub in turns: the robot turns as if its track were wider, the more the
+    // faster it turns. In the simulator's steady turns from 0.8 to 1.9 rad/s the track is 2 to
+    // 12.5 mm wider, s/Ω² from 2.9 to 4.6 mm/(rad/s)² (tools/logs/scrub_sweep.py).
+    let gain = param("track_turn_gain");
+    assert_eq!(gain["determined"], true, "{gain}");
+    assert!(
+        (0.0029..=0.0046).contains(&gain["value"].as_f64().unwrap()),
+        "{gain}"
+    );
     // The drive's second half steps the commands up to the tyres' grip, so the wheel torque at
     // which they skid is determined. The simulated tyres (μ 0.8) carry each at most its static
     // 62 N: the torque cannot exceed μ N r = 0.8 · 62 N · 0.04925 m = 2.44 N·m, and weight moves
@@ -117,7 +122,7 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
         // (horizon, worst position [m], worst yaw [rad], median yaw [rad])
         (
             "validation_smooth.mcap",
-            [(1.0, 9e-3, 13e-3, 3e-3), (2.0, 13e-3, 20e-3, 3.2e-3)],
+            [(1.0, 8.5e-3, 9.5e-3, 2.2e-3), (2.0, 15e-3, 15e-3, 2.6e-3)],
         ),
     ] {
         let (ok, after, err) = run(
@@ -146,8 +151,9 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
         }
     }
     // Raw command steps skid the tyres and pitch the robot onto its skid, lifting its wheels
-    // (docs/logs.md). Fitted on a drive that also skids, the scene misses by a third to a half of
-    // what it missed before calibration; the simulator itself, predicting from such a start,
+    // (docs/logs.md). Fitted on a drive that also skids, the scene's worst errors drop to a third
+    // (yaw; position at 1 s) to two thirds (position at 2 s) of what it missed before
+    // calibration; the simulator itself, predicting from such a start,
     // leaves 65 mrad at 1 s (tools/logs/model_floor.py). The saturation bias sized on the
     // calibration drive's skids covers these.
     let steps = format!("{logs}/validation_steps");
@@ -170,7 +176,7 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
         figures(&v)
     };
     // (worst position [m], worst yaw [rad]) at 1 s and 2 s.
-    let bounds = [(16.5e-3, 72e-3), (37e-3, 140e-3)];
+    let bounds = [(16.5e-3, 62e-3), (42e-3, 100e-3)];
     for ((before, after), (bp, by)) in score(&scene)
         .into_iter()
         .zip(score("calibrated.yaml"))

@@ -162,6 +162,7 @@ pub fn specs_for(
                         axis: [ax[0], ax[1], ax[2]],
                         radius: c["radius"].as_f64().unwrap(),
                         axle_offset: 0.0,
+                        axle_offset_turn_gain: 0.0,
                         plane_normal: [0.0, 0.0, 1.0],
                         plane_height: 0.0,
                         friction: None,
