@@ -418,6 +418,20 @@ fn distance_knife_edge_and_weld_derivatives_match_finite_differences() {
     };
     // The UR5 reference case's first state (../shared/reference/cases/ur5_ee_point.json).
     const UR5_Q: &str = "{shoulder_pan_joint: 1.27, shoulder_lift_joint: -4.08, elbow_joint: -1.74, wrist_1_joint: 4.27, wrist_2_joint: 1.75, wrist_3_joint: -3.32}";
+    // A bundled mobile-manipulator scene with `keys` added to both wheels' rolling contacts.
+    const TURN_GAIN_KEYS: &str = "axle_offset: 0.003\n    axle_offset_turn_gain: 0.004";
+    let with_wheel_keys = |file: &str, keys: &str| {
+        std::fs::read_to_string(repo_dir().join("params").join(file))
+            .unwrap()
+            .replace(
+                "../urdf/mobile_manipulator.urdf",
+                &urdf("mobile_manipulator.urdf"),
+            )
+            .replace(
+                "    radius: 0.05\n",
+                &format!("    radius: 0.05\n    {keys}\n"),
+            )
+    };
     let scenes = [
         (
             "fourbar_distance",
@@ -458,45 +472,17 @@ fn distance_knife_edge_and_weld_derivatives_match_finite_differences() {
             // The contact points moved along the axles (an effective track): the sliding
             // contact's ȧ-term on a floating base, where the wheels tilt.
             "mobile_manipulator_floating_axle_offset",
-            std::fs::read_to_string(repo_dir().join("params/mobile_manipulator_floating.yaml"))
-                .unwrap()
-                .replace(
-                    "../urdf/mobile_manipulator.urdf",
-                    &urdf("mobile_manipulator.urdf"),
-                )
-                .replace(
-                    "    radius: 0.05\n",
-                    "    radius: 0.05\n    axle_offset: 0.012\n",
-                ),
+            with_wheel_keys("mobile_manipulator_floating.yaml", "axle_offset: 0.012"),
         ),
         (
             // The suite's planar diff drive with its track widening in turns
             // (axle_offset_turn_gain): the rows depend on the velocity.
             "suite_mobile_manipulator_turn_gain",
-            std::fs::read_to_string(repo_dir().join("params/suite_mobile_manipulator.yaml"))
-                .unwrap()
-                .replace(
-                    "../urdf/mobile_manipulator.urdf",
-                    &urdf("mobile_manipulator.urdf"),
-                )
-                .replace(
-                    "    radius: 0.05\n",
-                    "    radius: 0.05\n    axle_offset: 0.003\n    axle_offset_turn_gain: 0.004\n",
-                ),
+            with_wheel_keys("suite_mobile_manipulator.yaml", TURN_GAIN_KEYS),
         ),
         (
-            // The offset growing with the turn rate (axle_offset_turn_gain).
             "mobile_manipulator_floating_turn_gain",
-            std::fs::read_to_string(repo_dir().join("params/mobile_manipulator_floating.yaml"))
-                .unwrap()
-                .replace(
-                    "../urdf/mobile_manipulator.urdf",
-                    &urdf("mobile_manipulator.urdf"),
-                )
-                .replace(
-                    "    radius: 0.05\n",
-                    "    radius: 0.05\n    axle_offset: 0.003\n    axle_offset_turn_gain: 0.004\n",
-                ),
+            with_wheel_keys("mobile_manipulator_floating.yaml", TURN_GAIN_KEYS),
         ),
     ];
     let mut rng = Rng(0x1234_5678_9abc_def1);

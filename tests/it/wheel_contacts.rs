@@ -288,28 +288,26 @@ fn a_bad_turning_resistance_names_its_field() {
     assert_has(&e, &["mu"]);
 }
 
-/// The bundled diff drive's PI controllers convert commands with the nominal r = 0.05 m and
-/// b = 0.17 m; with the contacts at an effective radius r' and half-track b' (`axle_offset` ±s
-/// outward) the robot goes at v r'/r and turns at ω (r'/r)(b/b'), the wheels at their targets.
-#[test]
-fn an_effective_radius_and_track_scale_what_the_controllers_achieve() {
+/// The bundled diff drive under its PI wheel-speed controllers (nominal r = 0.05 m, b = 0.17 m)
+/// with both contacts at the effective radius `r_eff` and the keys `left` / `right` added to
+/// their rolling contacts.
+fn effective_diff_drive(r_eff: f64, left: &str, right: &str) -> String {
     let urdf = repo_dir().join("urdf/diff_drive.urdf");
-    let (r_eff, s) = (0.049, 0.01);
-    let yaml = format!(
+    format!(
         "urdf: {:?}\nbase: planar\nconstraints:\n\
-         \x20 - {{name: l, kind: rolling, wheel: left_wheel, axis: [0, 1, 0], radius: {r_eff}, axle_offset: {s}}}\n\
-         \x20 - {{name: r, kind: rolling, wheel: right_wheel, axis: [0, 1, 0], radius: {r_eff}, axle_offset: {}}}\n\
+         \x20 - {{name: l, kind: rolling, wheel: left_wheel, axis: [0, 1, 0], radius: {r_eff}, {left}}}\n\
+         \x20 - {{name: r, kind: rolling, wheel: right_wheel, axis: [0, 1, 0], radius: {r_eff}, {right}}}\n\
          forces: {{urdf_damping: true}}\n\
          actuators:\n  control_period: 0.001\n  diff_drive: {{left_joint: left_wheel_joint, \
          right_joint: right_wheel_joint, wheel_radius: 0.05, wheel_separation: 0.34, kp: 1.0, \
          ki: 20.0}}\n\
          integration: {{method: rk4, dt: 0.001, drift: projection, horizon: 3.0, sample_period: 0.02}}\n",
         urdf.display().to_string(),
-        -s
-    );
-    let scene = scene_from_yaml(&yaml).unwrap();
-    let mut p = Predictor::from_scene(&scene).unwrap();
-    let (v_cmd, w_cmd) = (0.4, 0.8);
+    )
+}
+
+/// (forward speed [m/s], yaw rate [rad/s]) after 3 s under the command (v, ω) from rest.
+fn settled_twist(scene: &constraint_dynamics::Scene, (v_cmd, w_cmd): (f64, f64)) -> (f64, f64) {
     let commands = [(
         0.0,
         Command {
@@ -318,22 +316,36 @@ fn an_effective_radius_and_track_scale_what_the_controllers_achieve() {
         },
     )];
     let (q, v) = (scene.q0.clone(), scene.v0.clone());
-    let traj = p
+    let traj = Predictor::from_scene(scene)
+        .unwrap()
         .predict(&PredictionRequest {
             commands: &commands,
             ..PredictionRequest::new(&q, &v)
         })
         .unwrap();
     let last = traj.samples.last().unwrap();
+    (last.v[0], last.v[2])
+}
+
+/// With the contacts at an effective radius r' and half-track b' (`axle_offset` ±s outward)
+/// the robot goes at v r'/r and turns at ω (r'/r)(b/b'), the wheels at their targets.
+#[test]
+fn an_effective_radius_and_track_scale_what_the_controllers_achieve() {
+    let (r_eff, s) = (0.049, 0.01);
+    let yaml = effective_diff_drive(
+        r_eff,
+        &format!("axle_offset: {s}"),
+        &format!("axle_offset: {}", -s),
+    );
+    let scene = scene_from_yaml(&yaml).unwrap();
+    let (v_cmd, w_cmd) = (0.4, 0.8);
+    let (v, w) = settled_twist(&scene, (v_cmd, w_cmd));
     let speed = v_cmd * r_eff / R;
     let turn = w_cmd * (r_eff / R) * B / (B + s);
-    println!(
-        "achieved v {} vs {speed} m/s, ω {} vs {turn} rad/s",
-        last.v[0], last.v[2]
-    );
+    println!("achieved v {v} vs {speed} m/s, ω {w} vs {turn} rad/s");
     // Achieved 2.6e-15 m/s and 2.0e-13 rad/s: the PI's integral has settled by 3 s.
-    assert!((last.v[0] - speed).abs() < 1e-12, "{}", last.v[0]);
-    assert!((last.v[2] - turn).abs() < 1e-12, "{}", last.v[2]);
+    assert!((v - speed).abs() < 1e-12, "{v}");
+    assert!((w - turn).abs() < 1e-12, "{w}");
     let bad = scene_from_yaml(&yaml.replace("axle_offset: 0.01}", "axle_offset: .inf}"))
         .and_then(|s| constraint_dynamics::System::from_scene(&s).map(|_| ()))
         .expect_err("an infinite offset")
@@ -346,39 +358,15 @@ fn an_effective_radius_and_track_scale_what_the_controllers_achieve() {
 /// Ω (b + s₀ + k Ω²) = ω (r'/r) b, a cubic (Newton here), and the speed is v r'/r as before.
 #[test]
 fn a_turn_gain_widens_the_track_with_the_turn_rate() {
-    let urdf = repo_dir().join("urdf/diff_drive.urdf");
     let (r_eff, s0, k) = (0.049, 0.002, 0.004);
-    let yaml = format!(
-        "urdf: {:?}\nbase: planar\nconstraints:\n\
-         \x20 - {{name: l, kind: rolling, wheel: left_wheel, axis: [0, 1, 0], radius: {r_eff}, axle_offset: {s0}, axle_offset_turn_gain: {k}}}\n\
-         \x20 - {{name: r, kind: rolling, wheel: right_wheel, axis: [0, 1, 0], radius: {r_eff}, axle_offset: {}, axle_offset_turn_gain: {}}}\n\
-         forces: {{urdf_damping: true}}\n\
-         actuators:\n  control_period: 0.001\n  diff_drive: {{left_joint: left_wheel_joint, \
-         right_joint: right_wheel_joint, wheel_radius: 0.05, wheel_separation: 0.34, kp: 1.0, \
-         ki: 20.0}}\n\
-         integration: {{method: rk4, dt: 0.001, drift: projection, horizon: 3.0, sample_period: 0.02}}\n",
-        urdf.display().to_string(),
-        -s0,
-        -k
+    let yaml = effective_diff_drive(
+        r_eff,
+        &format!("axle_offset: {s0}, axle_offset_turn_gain: {k}"),
+        &format!("axle_offset: {}, axle_offset_turn_gain: {}", -s0, -k),
     );
     let scene = scene_from_yaml(&yaml).unwrap();
-    let mut p = Predictor::from_scene(&scene).unwrap();
     for (v_cmd, w_cmd) in [(0.0, 1.5), (0.3, -1.0), (0.4, 0.3)] {
-        let commands = [(
-            0.0,
-            Command {
-                base_twist: Some([v_cmd, w_cmd]),
-                ..Default::default()
-            },
-        )];
-        let (q, v) = (scene.q0.clone(), scene.v0.clone());
-        let traj = p
-            .predict(&PredictionRequest {
-                commands: &commands,
-                ..PredictionRequest::new(&q, &v)
-            })
-            .unwrap();
-        let last = traj.samples.last().unwrap();
+        let (v, w) = settled_twist(&scene, (v_cmd, w_cmd));
         let rhs = w_cmd * (r_eff / R) * B;
         let mut turn = rhs / B;
         for _ in 0..50 {
@@ -386,13 +374,10 @@ fn a_turn_gain_widens_the_track_with_the_turn_rate() {
             turn -= f / (B + s0 + 3.0 * k * turn * turn);
         }
         let speed = v_cmd * r_eff / R;
-        println!(
-            "achieved v {} vs {speed} m/s, ω {} vs {turn} rad/s",
-            last.v[0], last.v[2]
-        );
+        println!("achieved v {v} vs {speed} m/s, ω {w} vs {turn} rad/s");
         // Achieved ≤ 7.9e-15 m/s and ≤ 1.6e-13 rad/s: the PI's integral has settled by 3 s.
-        assert!((last.v[0] - speed).abs() < 1e-12, "{}", last.v[0]);
-        assert!((last.v[2] - turn).abs() < 1e-12, "{} vs {turn}", last.v[2]);
+        assert!((v - speed).abs() < 1e-12, "{v}");
+        assert!((w - turn).abs() < 1e-12, "{w} vs {turn}");
     }
     // The contact point moves with the turn rate only through the drift control.
     let none = scene_from_yaml(&yaml.replace("drift: projection", "drift: none")).unwrap();

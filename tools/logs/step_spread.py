@@ -6,8 +6,8 @@ kinds, and what a calibration drive with fewer raw steps changes.
 Fresh drives come from make_logs.py's own generator with seeds no bundled drive uses (five of
 20 s of raw command steps, two of 20 s smoothed), written to a temporary directory. The suite's
 scene is calibrated twice with the CLI's defaults: on the bundled calibration.mcap (20 s
-smoothed, 20 s of steps) and on a drive of the same seed with a second 20 s phase of steps
-(60 s). Each calibrated scene is then scored by `evaluate` against the simulator's true pose on
+smoothed, then two 20 s phases of steps) and on a 40 s drive of the same seed with one phase of
+steps. Each calibrated scene is then scored by `evaluate` against the simulator's true pose on
 the two bundled validation drives and on the fresh ones. Writes docs/logs.md's table between its
 `step_spread:begin` / `step_spread:end` markers (`--print`: to stdout instead).
 """
@@ -80,7 +80,8 @@ def main():
             values = {p["name"]: p["value"] for p in cal["parameters"]}
             pn = cal["process_noise"]
             fitted = (f"r {values['rolling_radius']:.5f} m, track +{1e3 * values['track_offset']:.1f}"
-                      f" mm, traction {values['traction_torque']:.2f} N·m; σ "
+                      f" mm + {1e3 * values['track_turn_gain']:.2f} mm/(rad/s)² · ω², traction "
+                      f"{values['traction_torque']:.2f} N·m; σ "
                       f"{pn['acceleration_noise']:.3g}, σ_b {pn['saturation_bias']:.3g}")
             groups = [("validation_smooth", [os.path.join(LOGS, "validation_smooth.mcap")]),
                       ("validation_steps", [os.path.join(LOGS, "validation_steps")]),
