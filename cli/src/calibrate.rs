@@ -18,8 +18,9 @@ pub struct CalibrateArgs {
     /// A recorded drive (rosbag2 `.mcap` file or bag directory); repeat for several.
     #[arg(long, required = true)]
     bag: Vec<PathBuf>,
-    /// What to fit, comma-separated: rolling_radius, track_offset, base_mass, turning_friction
-    /// (default: every one the scene can take).
+    /// What to fit, comma-separated: rolling_radius, track_offset, track_turn_gain, base_mass,
+    /// turning_friction, traction_torque, tyre_slip_speed (default: every one the scene can
+    /// take).
     #[arg(long, value_delimiter = ',')]
     fit: Vec<String>,
     /// Do not fit the process noise (the scene's `uncertainty:` stays as it is).
@@ -145,4 +146,26 @@ pub fn run(a: CalibrateArgs) -> Result<Value> {
     out["reference_topic"] = json!(recordings.first().map(|r| r.reference.name.clone()));
     out["run_time_s"] = json!(began.elapsed().as_secs_f64());
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    /// `--fit`'s help names every parameter the library can fit.
+    #[test]
+    fn the_fit_help_names_every_parameter() {
+        use clap::CommandFactory;
+        #[derive(clap::Parser)]
+        struct Wrapper {
+            #[command(flatten)]
+            args: super::CalibrateArgs,
+        }
+        let help = Wrapper::command().render_long_help().to_string();
+        for p in super::FitParameter::ALL {
+            assert!(
+                help.contains(p.name()),
+                "{} missing from:\n{help}",
+                p.name()
+            );
+        }
+    }
 }
