@@ -382,8 +382,8 @@ fn check_turn_gain_drift(set: &crate::constraints::ConstraintSet) -> Result<()> 
     match with_gain {
         Some(k) => Err(Error::Invalid(format!(
             "constraint '{}': axle_offset_turn_gain needs drift control (integration.drift: \
-             projection or baumgarte); with drift none its contact point would stay where the \
-             start's turn rate put it",
+             projection or baumgarte): only the drift control takes back the slip a change of \
+             turn rate leaves",
             set.names[k]
         ))),
         None => Ok(()),
