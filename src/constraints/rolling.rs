@@ -159,10 +159,7 @@ impl ConstraintRows for RollingConstraint {
 
     /// J v = the contact's material-point velocity on each kept direction; φ as in `fill`.
     fn residuals(&self, model: &Model, data: &Data, out: RowResiduals) -> bool {
-        let o_m_w = frame_placement(model, data, self.wheel);
-        let pc = self
-            .contact_at(&o_m_w, self.offset_at(&self.omega(model, data)))
-            .point;
+        let pc = self.contact(model, data).point;
         let body = model.frames[self.wheel].body;
         let (ob, vb) = (&data.o_m_i[body], &data.v[body]);
         let v_mat = ob.rotation * (vb.lin + vb.ang.cross(&ob.act_inv_point(&pc)));

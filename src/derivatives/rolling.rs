@@ -44,6 +44,14 @@ pub(crate) struct RowVariation {
     pub phi_n: f64,
 }
 
+impl RowVariation {
+    /// The variation of the row along `dir` (`row` 2 is the normal one, with K_p φ).
+    pub fn on_row(&self, dir: &Vector3<f64>, row: usize, kp: f64) -> f64 {
+        let x = dir.dot(&self.g_plus_kd_v);
+        if row == 2 { x + kp * self.phi_n } else { x }
+    }
+}
+
 impl RollingState {
     pub fn new(model: &Model, data: &Data, dd: &DerivativeData, rc: &RollingConstraint) -> Self {
         let body = model.frames[rc.wheel].body;
@@ -101,10 +109,15 @@ impl RollingState {
         -(d_a_dot * n.dot(a) + ad * n.dot(d_a) + d_a * n.dot(ad) + a * n.dot(d_a_dot))
     }
 
-    /// The contact point's shift δs a along the axle for a variation `d_omega` of the wheel's
-    /// world angular velocity (zero without a turn gain).
+    /// The offset's variation δs [m] for a variation `d_omega` of the wheel's world angular
+    /// velocity (zero without a turn gain).
+    fn offset_variation(&self, d_omega: &Vector3<f64>) -> f64 {
+        self.offset_slope * self.n.dot(d_omega)
+    }
+
+    /// The contact point's shift δs a along the axle for that variation.
     pub fn turn_shift(&self, d_omega: &Vector3<f64>) -> Vector3<f64> {
-        self.a * (self.offset_slope * self.n.dot(d_omega))
+        self.a * self.offset_variation(d_omega)
     }
 
     /// Variation of the contact point for the body motion S (q-column): dc + r du + s da.
@@ -129,8 +142,8 @@ impl RollingState {
         let d_a = s.ang.cross(&self.a);
         let dc = s.lin + s.ang.cross(&self.c);
         let dw = self.w_variation(&d_a);
-        let ds = self.offset_slope * self.n.dot(&dv.ang);
-        let dpc = self.contact_variation(s) + self.turn_shift(&dv.ang);
+        let ds = self.offset_variation(&dv.ang);
+        let dpc = self.contact_variation(s) + self.a * ds;
         let d_a_dot = dv.ang.cross(&self.a) + w.cross(&d_a);
         let d_u_dot = self.u_dot_variation(&dw, &self.w_dot_variation(&d_a, &d_a_dot));
         let dpc_dot = dv.lin
@@ -157,8 +170,8 @@ impl RollingState {
         let d_a_dot = s.ang.cross(&self.a);
         let dw_dot = self.w_dot_variation(&Vector3::zeros(), &d_a_dot);
         let d_u_dot = self.u_dot_variation(&Vector3::zeros(), &dw_dot);
-        let ds = self.offset_slope * self.n.dot(&s.ang);
-        let dpc = self.turn_shift(&s.ang);
+        let ds = self.offset_variation(&s.ang);
+        let dpc = self.a * ds;
         let dpc_dot = s.lin
             + s.ang.cross(&self.c)
             + d_u_dot * self.radius

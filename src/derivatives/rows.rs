@@ -371,22 +371,16 @@ pub(crate) fn row_derivatives(
                     if let Some((dv, da)) = body_variation_q(model, dd, st.body, j) {
                         let var = st.by_q(dd, &s, &dv, &da, kd);
                         for (r, &row) in rc.rows.iter().enumerate() {
-                            let mut x = rc.basis.column(row).dot(&var.g_plus_kd_v);
-                            if row == 2 {
-                                x += kp * var.phi_n;
-                            }
-                            dd.rows_dq[(r0 + r, j)] = x;
+                            dd.rows_dq[(r0 + r, j)] =
+                                var.on_row(&rc.basis.column(row).into(), row, kp);
                         }
                     }
                     if let Some((_, da)) = body_variation_v(model, dd, st.body, j) {
+                        // φ_n varies with v only where a turn gain moves the contact.
                         let var = st.by_v(dd, &s, &da, kd);
                         for (r, &row) in rc.rows.iter().enumerate() {
-                            let mut x = rc.basis.column(row).dot(&var.g_plus_kd_v);
-                            if row == 2 {
-                                // A turn gain moves the contact with the velocity.
-                                x += kp * var.phi_n;
-                            }
-                            dd.rows_dv[(r0 + r, j)] = x;
+                            dd.rows_dv[(r0 + r, j)] =
+                                var.on_row(&rc.basis.column(row).into(), row, kp);
                         }
                     }
                 }
