@@ -222,20 +222,26 @@ impl Problem<'_> {
 }
 
 /// Where the fit starts (scaled offsets) and the replays it took to find out: the scene's
-/// values, except a clamp (the traction torque) that only acts below where it is. A clamp the
-/// drives never reach has no slope to follow, so its start is the best of a coarse scan down
-/// to a quarter of its value.
+/// values, except where the scene's value is an edge with no slope to follow, where the start
+/// is the best of a coarse scan. A clamp (the traction torque) only acts below where it is, and
+/// one the drives never reach changes nothing: scanned down to a quarter of its value. A rigid
+/// contact (no sideways creep) is the edge of `lateral_creep`: scanned up to 4 mm/s per newton.
 fn start(problem: &Problem) -> Result<(DVector<f64>, usize), CalibrationError> {
     let mut x0 = DVector::zeros(problem.fitted.len());
     let mut replays = 0;
     for (k, (p, value, scale)) in problem.fitted.iter().enumerate() {
-        if *p != FitParameter::TractionTorque {
-            continue;
-        }
+        let tried: Vec<f64> = match p {
+            FitParameter::TractionTorque => [1.0, 0.8, 0.6, 0.45, 0.35, 0.25]
+                .iter()
+                .map(|fraction| (fraction - 1.0) * value / scale)
+                .collect(),
+            FitParameter::LateralCreep if *value == 0.0 => vec![0.0, 0.5, 1.0, 2.0, 4.0],
+            _ => continue,
+        };
         let mut best = (f64::INFINITY, 0.0);
-        for fraction in [1.0, 0.8, 0.6, 0.45, 0.35, 0.25] {
+        for xk in tried {
             let mut x = x0.clone();
-            x[k] = (fraction - 1.0) * value / scale;
+            x[k] = xk;
             replays += 1;
             let cost = problem.residuals(x.as_slice())?.norm_squared();
             if cost < best.0 {

@@ -149,7 +149,7 @@ pub(super) fn fit(
     let target = settings.target_coverage_p95;
     let joints = problem.places.wheel_joints().to_vec();
     let s0 = score(0.0, 0.0)?;
-    let tyres = problem.places.has_tyres();
+    let tyres = problem.places.tyres_carry_wheels();
     let result = |sigma: f64, bias: f64, s: Score, replays: usize| ProcessNoise {
         joints: joints.clone(),
         acceleration_noise: sigma,

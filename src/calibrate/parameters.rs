@@ -34,11 +34,21 @@ pub enum FitParameter {
     /// Every `forces.tyres` entry's `slip_speed_scale:` [m/s], one shared value: the slip
     /// speed below which a tyre creeps rather than skids (how soft its grip is).
     TyreSlipSpeed,
+    /// The wheels' sideways creep [(m/s)/N], the slip speed per newton of sideways force: every
+    /// rolling contact's sideways grip left to a tyre (`lateral: tyre`, with a `forces.tyres`
+    /// entry on its wheel: its radius, μ its `friction:` or [`LATERAL_FRICTION`], N its share
+    /// of the robot's weight, s₀ = c μ N). 0 is the rigid contact. Only for a scene with
+    /// rolling contacts and no `forces.tyres` of its own (`tyre_slip_speed` fits those).
+    LateralCreep,
 }
+
+/// μ of a sideways tyre `lateral_creep` adds to a rolling contact without a `friction:` (rubber
+/// on a floor). Below the grip's limit only the creep c = s₀/(μ N) matters.
+pub const LATERAL_FRICTION: f64 = 0.8;
 
 impl FitParameter {
     /// Every parameter, in the order the output lists them.
-    pub const ALL: [FitParameter; 7] = [
+    pub const ALL: [FitParameter; 8] = [
         FitParameter::RollingRadius,
         FitParameter::TrackOffset,
         FitParameter::TrackTurnGain,
@@ -46,6 +56,7 @@ impl FitParameter {
         FitParameter::TurningFriction,
         FitParameter::TractionTorque,
         FitParameter::TyreSlipSpeed,
+        FitParameter::LateralCreep,
     ];
 
     /// The name `--fit` takes and the output prints.
@@ -58,6 +69,7 @@ impl FitParameter {
             FitParameter::TurningFriction => "turning_friction",
             FitParameter::TractionTorque => "traction_torque",
             FitParameter::TyreSlipSpeed => "tyre_slip_speed",
+            FitParameter::LateralCreep => "lateral_creep",
         }
     }
 
@@ -66,6 +78,7 @@ impl FitParameter {
         match self {
             FitParameter::RollingRadius | FitParameter::TrackOffset => "m",
             FitParameter::TyreSlipSpeed => "m/s",
+            FitParameter::LateralCreep => "m/(N·s)",
             FitParameter::TrackTurnGain => "m/(rad/s)²",
             FitParameter::BaseMass => "kg",
             FitParameter::TurningFriction => "1",
@@ -109,6 +122,10 @@ pub struct SceneParameters {
     has_payload: bool,
     /// The scene's `integration.drift` is `none`.
     no_drift_control: bool,
+    /// A wheel tyre turns a wheel without a rolling contact (the tyre carries it).
+    tyres_carry_wheels: bool,
+    /// Each rolling contact's weight share N [N] (the robot's weight over the contacts).
+    weight_share: f64,
 }
 
 fn constraints(scene: &Value) -> &[Value] {
@@ -169,6 +186,8 @@ impl SceneParameters {
             wheels.push((i, m.translation, a));
             wheel_joints.push(model.bodies[model.frames[frame].body].joint.name.clone());
         }
+        let rolling_joints = wheel_joints.clone();
+        let mut tyres_carry_wheels = false;
         let mut wheel_tyres = Vec::new();
         for (i, t) in tyres(scene).iter().enumerate() {
             if t.get("axis").is_none() {
@@ -180,6 +199,7 @@ impl SceneParameters {
                 .frame_id(wheel)
                 .map_err(|e| format!("forces.tyres[{i}].wheel: {e}"))?;
             let joint = &model.bodies[model.frames[frame].body].joint.name;
+            tyres_carry_wheels |= !rolling_joints.contains(joint);
             if !wheel_joints.contains(joint) {
                 wheel_joints.push(joint.clone());
             }
@@ -229,8 +249,11 @@ impl SceneParameters {
             .and_then(|i| i.get("drift"))
             .and_then(Value::as_str)
             == Some("none");
+        let weight_share = model.total_mass() * model.gravity.norm() / (wheels.len().max(1) as f64);
         Ok(SceneParameters {
             no_drift_control,
+            tyres_carry_wheels,
+            weight_share,
             rolling,
             tyres: (wheel_tyres, tyres(scene).len()),
             wheel_joints,
@@ -255,6 +278,12 @@ impl SceneParameters {
             ),
             FitParameter::TyreSlipSpeed if self.tyres.1 == 0 => {
                 Some("the scene declares no forces.tyres".into())
+            }
+            FitParameter::LateralCreep if self.rolling.is_empty() => {
+                Some("the scene has no rolling contact".into())
+            }
+            FitParameter::LateralCreep if self.tyres.1 > 0 => {
+                Some("the scene declares forces.tyres: their softness is tyre_slip_speed".into())
             }
             FitParameter::BaseMass if self.has_payload => {
                 Some("the scene declares its own payload".into())
@@ -298,7 +327,7 @@ impl SceneParameters {
             FitParameter::TrackTurnGain => first
                 .map(|(i, s)| s * number(cs[*i].get("axle_offset_turn_gain")).unwrap_or(0.0))
                 .unwrap_or(0.0),
-            FitParameter::BaseMass => 0.0,
+            FitParameter::BaseMass | FitParameter::LateralCreep => 0.0,
             FitParameter::TurningFriction => number(
                 scene
                     .get("forces")
@@ -324,6 +353,7 @@ impl SceneParameters {
                     put(t, "slip_speed_scale", value.max(1e-6));
                 }
             }
+            FitParameter::LateralCreep => self.set_lateral_creep(scene, value),
             FitParameter::RollingRadius
             | FitParameter::TrackOffset
             | FitParameter::TrackTurnGain => {
@@ -382,14 +412,59 @@ impl SceneParameters {
         }
     }
 
+    /// Leaves every rolling contact's sideways grip to a tyre creeping at `creep` [(m/s)/N]
+    /// (none at 0 or below: the contacts stay rigid).
+    fn set_lateral_creep(&self, scene: &mut Value, creep: f64) {
+        if creep <= 0.0 {
+            return;
+        }
+        let mut added = Vec::new();
+        if let Some(cs) = scene
+            .get_mut("constraints")
+            .and_then(Value::as_sequence_mut)
+        {
+            for (i, _) in &self.rolling {
+                let c = &mut cs[*i];
+                let mu = number(c.get("friction")).unwrap_or(LATERAL_FRICTION);
+                let mut t = serde_yaml::Mapping::new();
+                for key in ["wheel", "axis", "radius", "plane_normal", "plane_height"] {
+                    if let Some(v) = c.get(key) {
+                        t.insert(key.into(), v.clone());
+                    }
+                }
+                t.insert("friction".into(), mu.into());
+                t.insert("normal_force".into(), self.weight_share.into());
+                t.insert(
+                    "slip_speed_scale".into(),
+                    (creep * mu * self.weight_share).into(),
+                );
+                added.push(Value::Mapping(t));
+                if let Some(m) = c.as_mapping_mut() {
+                    m.insert("lateral".into(), "tyre".into());
+                }
+            }
+        }
+        let Some(root) = scene.as_mapping_mut() else {
+            return;
+        };
+        let forces = root
+            .entry("forces".into())
+            .or_insert_with(|| Value::Mapping(Default::default()));
+        if let Some(f) = forces.as_mapping_mut() {
+            f.insert("tyres".into(), Value::Sequence(added));
+        }
+    }
+
     /// The joints the rolling contacts' wheels turn on: where the process noise goes.
     pub fn wheel_joints(&self) -> &[String] {
         &self.wheel_joints
     }
 
-    /// True when the scene declares tyres (`forces.tyres`).
-    pub fn has_tyres(&self) -> bool {
-        self.tyres.1 > 0
+    /// True when a tyre carries a wheel in place of a rolling contact (`forces.tyres`): its grip
+    /// and the wheel's controller then reject acceleration noise on the wheels. A sideways tyre
+    /// beside a rolling contact does not.
+    pub fn tyres_carry_wheels(&self) -> bool {
+        self.tyres_carry_wheels
     }
 
     /// Writes `uncertainty.<field>: σ` (`acceleration_noise` [(rad/s²)/√Hz] or
@@ -424,7 +499,7 @@ impl SceneParameters {
     /// How far the parameter is moved to see its effect, and the size a change must reach to
     /// matter (the fit's parameter scaling): 1 mm of radius, 1 cm of track (and of its widening
     /// at 1 rad/s), a tenth of the robot's mass, 0.1 of μ, a tenth of the traction torque,
-    /// 1 cm/s of slip speed.
+    /// 1 cm/s of slip speed, 1 mm/s of sideways creep per newton.
     pub fn scale(&self, p: FitParameter, model: &Model) -> f64 {
         match p {
             FitParameter::TractionTorque => 0.1 * self.traction.unwrap_or(1.0),
@@ -433,6 +508,8 @@ impl SceneParameters {
             FitParameter::BaseMass => 0.1 * model.total_mass(),
             FitParameter::TurningFriction => 0.1,
             FitParameter::TyreSlipSpeed => 0.01,
+            // 1 mm/s of sideways slip under 1 N.
+            FitParameter::LateralCreep => 1e-3,
         }
     }
 }
@@ -476,5 +553,51 @@ mod tests {
             .collect();
         assert_eq!(radii, [0.048, 0.048, 0.025, 0.025]);
         assert_eq!(slips, [0.07; 4]);
+    }
+
+    /// On the suite's scene (two rigid rolling contacts, no tyres), `lateral_creep` c leaves each
+    /// contact's sideways grip to a tyre at the contact's wheel, axis and radius, carrying half
+    /// the robot's weight (11.4 kg in the URDF: N = 55.917 N) with s₀ = c μ N; at 0 nothing
+    /// changes. Once the scene has tyres, it is their `tyre_slip_speed`.
+    #[test]
+    fn lateral_creep_adds_sideways_tyres_at_the_contacts() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/params/suite_mobile_manipulator.yaml"
+        );
+        let scene = crate::Scene::load(path).unwrap();
+        let yaml: Value = serde_yaml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+        let places = SceneParameters::new(&yaml, &scene.model).unwrap();
+        assert!(places.unavailable(FitParameter::LateralCreep).is_none());
+        assert_eq!(places.value(&yaml, FitParameter::LateralCreep), 0.0);
+        assert!(!places.tyres_carry_wheels());
+        let mut rigid = yaml.clone();
+        places.set(&mut rigid, FitParameter::LateralCreep, 0.0);
+        assert_eq!(rigid, yaml);
+        let mut soft = yaml.clone();
+        places.set(&mut soft, FitParameter::LateralCreep, 2e-3);
+        let n = 11.4 * 9.81 / 2.0;
+        for (c, t) in constraints(&soft).iter().zip(tyres(&soft)) {
+            assert_eq!(c.get("lateral").and_then(Value::as_str), Some("tyre"));
+            assert_eq!(c.get("wheel"), t.get("wheel"));
+            assert_eq!(number(t.get("radius")), Some(0.05));
+            assert!((number(t.get("normal_force")).unwrap() - n).abs() < 1e-12);
+            let s0 = number(t.get("slip_speed_scale")).unwrap();
+            assert!((s0 - 2e-3 * LATERAL_FRICTION * n).abs() < 1e-15, "{s0}");
+        }
+        assert_eq!(tyres(&soft).len(), 2);
+        let urdf = concat!(env!("CARGO_MANIFEST_DIR"), "/urdf/mobile_manipulator.urdf");
+        let soft_scene = crate::Scene::from_parts(
+            std::path::Path::new(path),
+            serde_yaml::from_value(soft.clone()).unwrap(),
+            &std::fs::read_to_string(urdf).unwrap(),
+            urdf,
+        )
+        .unwrap();
+        crate::predict::Predictor::from_scene(&soft_scene).unwrap();
+        let again = SceneParameters::new(&soft, &soft_scene.model).unwrap();
+        assert!(again.unavailable(FitParameter::LateralCreep).is_some());
+        assert!(again.unavailable(FitParameter::TyreSlipSpeed).is_none());
+        assert!(!again.tyres_carry_wheels());
     }
 }

@@ -2,8 +2,9 @@
 //! and joints found, its numbers finite and in range, its rows chosen.
 
 use super::{
-    Constraint, ConstraintSpec, CouplingConstraint, DistanceConstraint, NoSideSlipConstraint,
-    PointConstraint, RollingConstraint, VelocityConstraint, WeldConstraint,
+    Constraint, ConstraintSpec, CouplingConstraint, DistanceConstraint, LateralGrip,
+    NoSideSlipConstraint, PointConstraint, ROLLING_ROW, RollingConstraint, VelocityConstraint,
+    WeldConstraint,
 };
 use crate::algorithm::Data;
 use crate::error::{Error, Result};
@@ -184,6 +185,7 @@ pub(super) fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Re
             radius,
             axle_offset,
             axle_offset_turn_gain,
+            lateral,
             plane_normal,
             plane_height,
             friction,
@@ -229,7 +231,10 @@ pub(super) fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Re
                 axle_offset_turn_gain: *axle_offset_turn_gain,
                 basis: RollingConstraint::basis_for(&n),
                 height: *plane_height,
-                rows: vec![0, 1, 2],
+                rows: match lateral {
+                    LateralGrip::Rigid => vec![0, 1, 2],
+                    LateralGrip::Tyre => vec![ROLLING_ROW, 2],
+                },
                 friction,
             };
             let a_world = crate::algorithm::frame_placement(model, data, wheel).rotation * axis;
@@ -253,7 +258,7 @@ pub(super) fn build_one(model: &Model, data: &Data, spec: &ConstraintSpec) -> Re
             );
             let jn = n.transpose() * j3;
             if jn.amax() < 1e-12 {
-                c.rows = vec![0, 1];
+                c.rows.retain(|&r| r != 2);
             }
             Constraint::Rolling(c)
         }

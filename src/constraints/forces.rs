@@ -111,7 +111,7 @@ pub(crate) fn row_labels(c: &Constraint) -> Vec<String> {
         Constraint::Rolling(r) => r
             .rows
             .iter()
-            .map(|&i| ["t1", "t2", "n"][i].to_string())
+            .map(|&i| ["t1", "t2", "n", "rolling"][i].to_string())
             .collect(),
         Constraint::NoSideSlip(_) => vec!["lateral".into()],
         Constraint::Velocity(_) => vec!["f".into()],
@@ -194,15 +194,21 @@ pub fn constraint_forces(
             }
             Constraint::Rolling(rc) => {
                 let contact = rc.contact(model, data);
-                let mut local = Vector3::zeros();
+                let (mut along, mut across) = (Vector3::zeros(), 0.0);
                 for (i, &row) in rc.rows.iter().enumerate() {
-                    local[row] = lam[i];
+                    if row == 2 {
+                        across = lam[i];
+                    } else {
+                        along += rc.row_direction(row, &contact.axis) * lam[i];
+                    }
                 }
-                force = rc.basis * local;
-                // hypot: finite wherever both components are (|t| ~ 1e308 squared overflows).
-                tangential = Some(local.x.hypot(local.y));
+                force = along + rc.normal() * across;
+                // The tangential rows are orthogonal to n: their force's norm, finite wherever
+                // its components are (|t| ~ 1e308 squared overflows).
+                tangential =
+                    Some(along.amax() * (along / along.amax().max(f64::MIN_POSITIVE)).norm());
                 // No normal row (a planar base holds the height): no normal force to report.
-                normal = rc.rows.contains(&2).then_some(local.z);
+                normal = rc.rows.contains(&2).then_some(across);
                 (fname(rc.wheel), "world".into(), contact.point)
             }
             Constraint::NoSideSlip(ns) => {

@@ -34,9 +34,12 @@ pub use forces::{ConstraintForce, GeneralizedForce, constraint_forces, generaliz
 pub use kind::ConstraintKind;
 pub use no_side_slip::NoSideSlipConstraint;
 pub use point::PointConstraint;
-pub use rolling::RollingConstraint;
+pub use rolling::{
+    ROLLING_ROW, RollingConstraint, rolling_direction, rolling_direction_rate,
+    rolling_direction_rate_variation,
+};
 pub use set::{Constraint, ConstraintData, ConstraintSet};
-pub use spec::{Axes, ConstraintSpec, Row, VirtualDisplacements};
+pub use spec::{Axes, ConstraintSpec, LateralGrip, Row, VirtualDisplacements};
 pub use velocity::VelocityConstraint;
 pub use weld::WeldConstraint;
 

@@ -40,11 +40,16 @@ pub struct RollingConstraint {
     pub basis: Matrix3<f64>,
     /// Plane height along n [m].
     pub height: f64,
-    /// Which of the 3 rows (t₁, t₂, n) are kept.
+    /// Which rows are kept: 0, 1, 2 for t₁, t₂, n, or [`ROLLING_ROW`] alone on the ground
+    /// plane (with n or not) when the wheel's sideways grip is left to a tyre.
     pub rows: Vec<usize>,
     /// Coulomb coefficient μ (‖λ_t‖ ≤ μ λ_n), for the acceleration envelope.
     pub friction: Option<f64>,
 }
+
+/// The row along the wheel's rolling direction t = a × n/|a × n| (a contact whose lateral row
+/// is left to a tyre: `lateral: tyre`).
+pub const ROLLING_ROW: usize = 3;
 
 /// Contact geometry at the current state.
 pub struct Contact {
@@ -72,6 +77,21 @@ impl RollingConstraint {
     /// Unit plane normal n, world axes.
     pub fn normal(&self) -> Vector3<f64> {
         self.basis.column(2).into()
+    }
+
+    /// Whether the contact leaves its sideways grip to a tyre (only the rolling row on the
+    /// ground plane).
+    pub fn lateral_free(&self) -> bool {
+        self.rows.contains(&ROLLING_ROW)
+    }
+
+    /// The world direction of kept row `row` for the world spin axis `a`.
+    pub fn row_direction(&self, row: usize, a: &Vector3<f64>) -> Vector3<f64> {
+        if row == ROLLING_ROW {
+            rolling_direction(a, &self.normal())
+        } else {
+            self.basis.column(row).into()
+        }
     }
 
     /// The axle offset s [m] at the wheel's angular velocity `omega` (world axes) [rad/s].
@@ -122,7 +142,7 @@ impl ConstraintRows for RollingConstraint {
         let f = &model.frames[self.wheel];
         let mut dirs = [Vector3::zeros(); 3];
         for (d, &row) in dirs.iter_mut().zip(&self.rows) {
-            *d = self.basis.column(row).into();
+            *d = self.row_direction(row, &a);
         }
         let dirs = &dirs[..self.rows.len()];
         point_jacobian_rows(model, data, f.body, &pc, dirs, out.j, out.row0);
@@ -153,18 +173,26 @@ impl ConstraintRows for RollingConstraint {
             } else {
                 (0.0, false)
             };
-            out.finish(out.row0 + k, phi, dir.dot(&gamma_w), hol);
+            // The rolling direction turns with the wheel: d/dt (t·v_mat) = t·g + ṫ·v_mat.
+            let turning = if row == ROLLING_ROW {
+                rolling_direction_rate(&a, &adot, &n).dot(&v_mat)
+            } else {
+                0.0
+            };
+            out.finish(out.row0 + k, phi, dir.dot(&gamma_w) + turning, hol);
         }
     }
 
     /// J v = the contact's material-point velocity on each kept direction; φ as in `fill`.
     fn residuals(&self, model: &Model, data: &Data, out: RowResiduals) -> bool {
-        let pc = self.contact(model, data).point;
+        let Contact {
+            point: pc, axis: a, ..
+        } = self.contact(model, data);
         let body = model.frames[self.wheel].body;
         let (ob, vb) = (&data.o_m_i[body], &data.v[body]);
         let v_mat = ob.rotation * (vb.lin + vb.ang.cross(&ob.act_inv_point(&pc)));
         for (k, &row) in self.rows.iter().enumerate() {
-            let dir = self.basis.column(row);
+            let dir = self.row_direction(row, &a);
             out.jv[k] = dir.dot(&v_mat);
             (out.phi[k], out.holonomic[k]) = if row == 2 {
                 (dir.dot(&pc) - self.height, true)
@@ -174,4 +202,44 @@ impl ConstraintRows for RollingConstraint {
         }
         true
     }
+}
+
+/// The rolling direction t = a × n/|a × n| of a wheel with world spin axis a on a plane of
+/// normal n (a is never parallel to n: the scene is refused).
+pub fn rolling_direction(a: &Vector3<f64>, n: &Vector3<f64>) -> Vector3<f64> {
+    let p = a.cross(n);
+    p / p.norm().max(f64::MIN_POSITIVE)
+}
+
+/// ṫ for the axis' rate ȧ: the derivative of a × n/|a × n|.
+pub fn rolling_direction_rate(
+    a: &Vector3<f64>,
+    a_dot: &Vector3<f64>,
+    n: &Vector3<f64>,
+) -> Vector3<f64> {
+    let p = a.cross(n);
+    let pn = p.norm().max(f64::MIN_POSITIVE);
+    let t = p / pn;
+    let pd = a_dot.cross(n);
+    (pd - t * t.dot(&pd)) / pn
+}
+
+/// The variation of ṫ = [`rolling_direction_rate`]`(a, ȧ, n)` for variations `d_a` of a and
+/// `d_a_dot` of ȧ.
+pub fn rolling_direction_rate_variation(
+    a: &Vector3<f64>,
+    a_dot: &Vector3<f64>,
+    d_a: &Vector3<f64>,
+    d_a_dot: &Vector3<f64>,
+    n: &Vector3<f64>,
+) -> Vector3<f64> {
+    let p = a.cross(n);
+    let pn = p.norm().max(f64::MIN_POSITIVE);
+    let t = p / pn;
+    let pd = a_dot.cross(n);
+    let t_dot = (pd - t * t.dot(&pd)) / pn;
+    let dp = d_a.cross(n);
+    let dt = (dp - t * t.dot(&dp)) / pn;
+    let dpd = d_a_dot.cross(n);
+    (dpd - dt * t.dot(&pd) - t * (dt.dot(&pd) + t.dot(&dpd))) / pn - t_dot * (t.dot(&dp) / pn)
 }

@@ -181,6 +181,11 @@ pub enum ConstraintSpec {
         /// Needs drift control (`integration.drift`: projection or baumgarte).
         #[serde(default)]
         axle_offset_turn_gain: f64,
+        /// `lateral:` what holds the wheel sideways: `rigid` (default), the contact's own row,
+        /// or `tyre`, the wheel's `forces.tyres` entry (the tread creeps and skids sideways
+        /// under the force it takes); the contact then keeps only its rolling row.
+        #[serde(default)]
+        lateral: LateralGrip,
         /// `plane_normal:` ground-plane normal, world axes (normalized; default `[0, 0, 1]`).
         #[serde(default = "up")]
         plane_normal: [f64; 3],
@@ -242,4 +247,15 @@ impl ConstraintSpec {
             | ConstraintSpec::Velocity { name, .. } => name,
         }
     }
+}
+
+/// A rolling contact's `lateral:` key: what holds its wheel sideways.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LateralGrip {
+    /// The contact's lateral row: no sideways slip at all.
+    #[default]
+    Rigid,
+    /// The wheel's tyre (`forces.tyres`): sideways creep and skid.
+    Tyre,
 }

@@ -13,7 +13,10 @@
 
 use super::DerivativeData;
 use crate::algorithm::{Data, frame_placement};
-use crate::constraints::RollingConstraint;
+use crate::constraints::{
+    ROLLING_ROW, RollingConstraint, rolling_direction, rolling_direction_rate,
+    rolling_direction_rate_variation,
+};
 use crate::model::Model;
 use crate::spatial::Motion;
 use nalgebra::Vector3;
@@ -23,7 +26,8 @@ pub(crate) struct RollingState {
     /// Wheel body.
     pub body: usize,
     c: Vector3<f64>,
-    a: Vector3<f64>,
+    /// Spin axis (world).
+    pub a: Vector3<f64>,
     n: Vector3<f64>,
     w_hat: Vector3<f64>,
     w_norm: f64,
@@ -36,19 +40,28 @@ pub(crate) struct RollingState {
     offset: f64,
     /// ds/dω_n = 2 k ω_n [m/(rad/s)].
     offset_slope: f64,
+    /// Whether the contact keeps a rolling row (its sideways grip a tyre's).
+    rolling_row: bool,
 }
 
-/// Variations of one column: the 3-vector `g + K_d v_mat` and n·p_c.
+/// Variations of one column: the 3-vector `g + K_d v_mat`, n·p_c, and the rolling row's.
 pub(crate) struct RowVariation {
     pub g_plus_kd_v: Vector3<f64>,
     pub phi_n: f64,
+    /// The rolling row's variation, t·(g + K_d v_mat) + ṫ·v_mat with t turning with the wheel
+    /// (0 without a rolling row).
+    pub rolling: f64,
 }
 
 impl RowVariation {
-    /// The variation of the row along `dir` (`row` 2 is the normal one, with K_p φ).
+    /// The variation of the row along `dir` (`row` 2 is the normal one, with K_p φ;
+    /// [`ROLLING_ROW`] the rolling one, whose direction varies too).
     pub fn on_row(&self, dir: &Vector3<f64>, row: usize, kp: f64) -> f64 {
-        let x = dir.dot(&self.g_plus_kd_v);
-        if row == 2 { x + kp * self.phi_n } else { x }
+        match row {
+            ROLLING_ROW => self.rolling,
+            2 => dir.dot(&self.g_plus_kd_v) + kp * self.phi_n,
+            _ => dir.dot(&self.g_plus_kd_v),
+        }
     }
 }
 
@@ -86,7 +99,38 @@ impl RollingState {
             radius: rc.radius,
             offset,
             offset_slope,
+            rolling_row: rc.lateral_free(),
         }
+    }
+
+    /// The rolling direction's variation δt for a variation `d_a` of the axis.
+    pub fn rolling_direction_variation(&self, d_a: &Vector3<f64>) -> Vector3<f64> {
+        rolling_direction_rate(&self.a, d_a, &self.n)
+    }
+
+    /// The rolling row's variation: δ[t·(g + K_d v_mat) + ṫ·v_mat] for variations d_a, dȧ of
+    /// the axis and its rate and dg, dv_mat of g and v_mat.
+    fn rolling_variation(
+        &self,
+        dd: &DerivativeData,
+        (d_a, d_a_dot): (&Vector3<f64>, &Vector3<f64>),
+        (dg, dvmat): (&Vector3<f64>, &Vector3<f64>),
+        kd: f64,
+    ) -> f64 {
+        if !self.rolling_row {
+            return 0.0;
+        }
+        let (vk, ak) = (&dd.o_v[self.body], &dd.o_a[self.body]);
+        let v_mat = vk.lin + vk.ang.cross(&self.pc);
+        let g = ak.lin + ak.ang.cross(&self.pc) + vk.ang.cross(&self.pc_dot);
+        let t = rolling_direction(&self.a, &self.n);
+        let t_dot = rolling_direction_rate(&self.a, &self.a_dot, &self.n);
+        let dt = self.rolling_direction_variation(d_a);
+        let dt_dot = rolling_direction_rate_variation(&self.a, &self.a_dot, d_a, d_a_dot, &self.n);
+        dt.dot(&(g + v_mat * kd))
+            + t.dot(&(dg + dvmat * kd))
+            + dt_dot.dot(&v_mat)
+            + t_dot.dot(dvmat)
     }
 
     /// d(u̇) for variations dw of w and dẇ of ẇ.
@@ -161,6 +205,7 @@ impl RollingState {
         RowVariation {
             g_plus_kd_v: dg + dvmat * kd,
             phi_n: self.n.dot(&dpc),
+            rolling: self.rolling_variation(dd, (&d_a, &d_a_dot), (&dg, &dvmat), kd),
         }
     }
 
@@ -187,6 +232,7 @@ impl RollingState {
         RowVariation {
             g_plus_kd_v: dg + dvmat * kd,
             phi_n: self.n.dot(&dpc),
+            rolling: self.rolling_variation(dd, (&Vector3::zeros(), &d_a_dot), (&dg, &dvmat), kd),
         }
     }
 }

@@ -17,7 +17,9 @@ use super::rnea::{
 use super::rolling::RollingState;
 use super::weld::WeldState;
 use crate::algorithm::{Data, frame_placement, point_position};
-use crate::constraints::{Constraint, ConstraintData, ConstraintSet, RollingConstraint};
+use crate::constraints::{
+    Constraint, ConstraintData, ConstraintSet, ROLLING_ROW, RollingConstraint,
+};
 use crate::dynamics::Baumgarte;
 use crate::model::Model;
 use crate::spatial::Force;
@@ -84,10 +86,10 @@ fn pair(
 }
 
 /// The world force of a rolling contact's rows: Σ λ_r t_row(r).
-fn rolling_force(rc: &RollingConstraint, lambda: &[f64]) -> Vector3<f64> {
+fn rolling_force(rc: &RollingConstraint, a: &Vector3<f64>, lambda: &[f64]) -> Vector3<f64> {
     let mut f = Vector3::zeros();
     for (r, &row) in rc.rows.iter().enumerate() {
-        f += rc.basis.column(row) * lambda[r];
+        f += rc.row_direction(row, a) * lambda[r];
     }
     f
 }
@@ -143,7 +145,7 @@ pub(crate) fn register_constraint_forces(
             }
             Constraint::Rolling(rc) => {
                 let st = RollingState::new(model, data, dd, rc);
-                dd.add_point_force(st.body, &st.pc, &rolling_force(rc, lam));
+                dd.add_point_force(st.body, &st.pc, &rolling_force(rc, &st.a, lam));
             }
             Constraint::Weld(w) => WeldState::new(model, data, dd, w).register(dd, w, lam),
             Constraint::Coupling(_) => {}
@@ -171,8 +173,8 @@ pub(crate) fn force_corrections(
                 // where the material point took it.
                 // With a turn gain the point also moves along a with the wheel's turn rate,
                 // δs a, along q and v alike.
-                let f = rolling_force(rc, lam);
                 let st = RollingState::new(model, data, dd, rc);
+                let f = rolling_force(rc, &st.a, lam);
                 for j in 0..model.nv {
                     let Some((dv, _)) = body_variation_q(model, dd, st.body, j) else {
                         continue;
@@ -187,6 +189,23 @@ pub(crate) fn force_corrections(
                         j,
                         Force::new(Vector3::zeros(), delta.cross(&f)),
                     );
+                }
+                // A rolling row's direction turns with the wheel: δf = δt λ at p_c.
+                if let Some(r) = rc.rows.iter().position(|&row| row == ROLLING_ROW) {
+                    for j in 0..model.nv {
+                        if body_variation_q(model, dd, st.body, j).is_none() {
+                            continue;
+                        }
+                        let s = dd.o_s[j];
+                        let df = st.rolling_direction_variation(&s.ang.cross(&st.a)) * lam[r];
+                        subtract_force_variation(
+                            model,
+                            dd,
+                            st.body,
+                            j,
+                            Force::new(df, st.pc.cross(&df)),
+                        );
+                    }
                 }
                 if rc.axle_offset_turn_gain != 0.0 {
                     for j in 0..model.nv {
@@ -372,7 +391,7 @@ pub(crate) fn row_derivatives(
                         let var = st.by_q(dd, &s, &dv, &da, kd);
                         for (r, &row) in rc.rows.iter().enumerate() {
                             dd.rows_dq[(r0 + r, j)] =
-                                var.on_row(&rc.basis.column(row).into(), row, kp);
+                                var.on_row(&rc.row_direction(row, &st.a), row, kp);
                         }
                     }
                     if let Some((_, da)) = body_variation_v(model, dd, st.body, j) {
@@ -380,7 +399,7 @@ pub(crate) fn row_derivatives(
                         let var = st.by_v(dd, &s, &da, kd);
                         for (r, &row) in rc.rows.iter().enumerate() {
                             dd.rows_dv[(r0 + r, j)] =
-                                var.on_row(&rc.basis.column(row).into(), row, kp);
+                                var.on_row(&rc.row_direction(row, &st.a), row, kp);
                         }
                     }
                 }

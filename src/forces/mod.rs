@@ -163,6 +163,11 @@ fn finite(what: &str, xs: &[f64]) -> Result<()> {
 }
 
 impl ForceElements {
+    /// Whether a wheel tyre (a `forces.tyres` entry with an axis) acts on frame `frame`.
+    pub fn has_wheel_tyre(&self, frame: usize) -> bool {
+        self.tyres.iter().any(|t| t.is_wheel_on(frame))
+    }
+
     /// Validate `forces:` against the model (joints 1-DOF, frames known, values finite, ≥ 0).
     pub fn new(model: &Model, spec: &ForcesSpec) -> Result<Self> {
         let mut fe = ForceElements {

@@ -110,6 +110,11 @@ fn unit(at: &str, field: &str, x: [f64; 3]) -> Result<Vector3<f64>> {
 }
 
 impl Tyre {
+    /// Whether this is a wheel's tyre (it has a spin axis) on frame `frame`.
+    pub(crate) fn is_wheel_on(&self, frame: usize) -> bool {
+        self.frame == frame && self.axis.is_some()
+    }
+
     /// Validate one spec against the model; errors name the wheel and the field.
     pub(crate) fn new(model: &Model, s: &TyreSpec) -> Result<Self> {
         let at = format!("forces.tyres['{}']", s.wheel);

@@ -49,8 +49,9 @@ impl InvariantDynamics {
     pub fn fit(sys: &mut System, q0: &[f64]) -> Option<Self> {
         let eligible = !sys.constraints().is_empty()
             && (sys.constraints().items.iter()).all(|c| match c {
-                // A turn gain makes the rows depend on the velocity.
-                Constraint::Rolling(rc) => rc.axle_offset_turn_gain == 0.0,
+                // A turn gain makes the rows depend on the velocity; a contact whose sideways
+                // grip is a tyre's has the tyre's force beside its row.
+                Constraint::Rolling(rc) => rc.axle_offset_turn_gain == 0.0 && !rc.lateral_free(),
                 Constraint::NoSideSlip(_) => true,
                 _ => false,
             })

@@ -142,6 +142,7 @@ impl Predictor {
         settings: IntegrationSettings,
     ) -> Result<Self> {
         settings.validate()?;
+        check_lateral_tyres(&sys, &forces)?;
         let neutral = sys.model().neutral();
         let invariant = InvariantDynamics::fit(&mut sys, &neutral);
         let model = sys.model().clone();
@@ -371,6 +372,23 @@ impl Predictor {
         };
         Some((self.forces).max_rate(model, self.sys.data(), &mut mobility))
     }
+}
+
+/// A rolling contact whose sideways grip is a tyre's (`lateral: tyre`) has no lateral row: the
+/// wheel's `forces.tyres` entry (with an axis) must hold it, or it would slide freely.
+fn check_lateral_tyres(sys: &System, forces: &ForceElements) -> Result<()> {
+    for (c, name) in sys.constraints().items.iter().zip(&sys.constraints().names) {
+        if let crate::constraints::Constraint::Rolling(rc) = c
+            && rc.lateral_free()
+            && !forces.has_wheel_tyre(rc.wheel)
+        {
+            return Err(Error::Invalid(format!(
+                "constraint '{name}': lateral: tyre needs a forces.tyres entry with an axis on                  its wheel '{}'",
+                sys.model().frames[rc.wheel].name
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// A rolling contact with a turn gain is held at its current offset over each evaluation, and

@@ -214,6 +214,7 @@ fn disk_rolls_down_an_incline_at_two_thirds_g_sin_alpha() {
             radius: r,
             axle_offset: 0.0,
             axle_offset_turn_gain: 0.0,
+            lateral: Default::default(),
             plane_normal: n,
             plane_height: h,
             friction: None,

@@ -133,6 +133,7 @@ fn axes_and_normals_of_any_length_act_as_unit_vectors() {
         radius: 0.1,
         axle_offset: 0.0,
         axle_offset_turn_gain: 0.0,
+        lateral: Default::default(),
         plane_normal: [0.0, 0.0, 3.0],
         plane_height: 0.0,
         friction: None,

@@ -422,6 +422,7 @@ fn distance_knife_edge_and_weld_derivatives_match_finite_differences() {
     const UR5_Q: &str = "{shoulder_pan_joint: 1.27, shoulder_lift_joint: -4.08, elbow_joint: -1.74, wrist_1_joint: 4.27, wrist_2_joint: 1.75, wrist_3_joint: -3.32}";
     // A bundled mobile-manipulator scene with `keys` added to both wheels' rolling contacts.
     const TURN_GAIN_KEYS: &str = "axle_offset: 0.003\n    axle_offset_turn_gain: 0.004";
+    const LATERAL_TYRES: &str = "    - { wheel: left_wheel, axis: [0, 1, 0], radius: 0.05, friction: 0.8, normal_force: 56.0, slip_speed_scale: 0.05 }\n    - { wheel: right_wheel, axis: [0, 1, 0], radius: 0.05, friction: 0.8, normal_force: 56.0, slip_speed_scale: 0.05 }\n";
     let with_wheel_keys = |file: &str, keys: &str| {
         std::fs::read_to_string(repo_dir().join("params").join(file))
             .unwrap()
@@ -495,6 +496,21 @@ fn distance_knife_edge_and_weld_derivatives_match_finite_differences() {
                 ),
                 "",
             ),
+        ),
+        (
+            // The wheels' sideways grip left to tyres (`lateral: tyre`): one rolling row per
+            // wheel along a direction that turns with it, v off the lateral rows (slip).
+            "suite_mobile_manipulator_lateral_tyre",
+            with_wheel_keys("suite_mobile_manipulator.yaml", "lateral: tyre").replace(
+                "  urdf_damping: true\n",
+                &format!("  urdf_damping: true\n  tyres:\n{LATERAL_TYRES}"),
+            ),
+        ),
+        (
+            // The same on the floating base, where the wheels tilt and keep their normal rows.
+            "mobile_manipulator_floating_lateral_tyre",
+            with_wheel_keys("mobile_manipulator_floating.yaml", "lateral: tyre")
+                + &format!("forces:\n  tyres:\n{LATERAL_TYRES}"),
         ),
     ];
     let mut rng = Rng(0x1234_5678_9abc_def1);

@@ -12,6 +12,7 @@
 //! - Sliding sideways on still wheels: M v̇_y = −2 μ N g(v_y), the wheels never turn.
 
 use crate::common::{assert_has, repo_dir, scene_from_yaml};
+use constraint_dynamics::actuators::Command;
 use constraint_dynamics::predict::{PredictionRequest, Predictor, Trajectory};
 
 const R: f64 = 0.05;
@@ -273,4 +274,95 @@ fn a_ball_bounces_on_an_undamped_floor_keeping_its_energy() {
         (in_contact - duration).abs() <= 1e-3,
         "{in_contact} s vs {duration} s"
     );
+}
+
+/// The centred diff drive on rolling contacts whose sideways grip is its tyres (`lateral:
+/// tyre`), its PI wheel controllers holding the command (v, ω); the contacts' radius and track
+/// are the controllers' own. Its yaw rate and speed are then exactly the command's, and the
+/// turn's centripetal force M ω v, which only the tyres can give, makes them creep outward:
+/// 2 μ N g(v_y) = −M ω v, so v_y = −f s₀/√(1 − f²) with f = M ω v/(2 μ N) (the centre of mass on
+/// the axle midpoint, where both contacts lie).
+fn steady_turn_with_sideways_tyres(
+    v_cmd: f64,
+    w_cmd: f64,
+    contact_keys: &str,
+) -> Result<[f64; 3], String> {
+    let urdf = repo_dir().join("tests/data/diff_drive_centred.urdf");
+    let yaml = format!(
+        "urdf: {:?}\nbase: planar\nconstraints:\n\
+         \x20 - {{name: l, kind: rolling, wheel: left_wheel, axis: [0, 1, 0], radius: {R}{contact_keys}}}\n\
+         \x20 - {{name: r, kind: rolling, wheel: right_wheel, axis: [0, 1, 0], radius: {R}{contact_keys}}}\n\
+         forces:\n  tyres:\n{}{}\
+         actuators:\n  diff_drive: {{left_joint: left_wheel_joint, right_joint: right_wheel_joint, \
+         wheel_radius: {R}, wheel_separation: 0.34, kp: 1.0, ki: 20.0}}\n\
+         integration: {{method: rk4, dt: 0.001, drift: projection, horizon: 4.0, sample_period: 0.05}}\n",
+        urdf.display().to_string(),
+        tyre("left_wheel", ""),
+        tyre("right_wheel", ""),
+    );
+    let scene = scene_from_yaml(&yaml).map_err(|e| e.to_string())?;
+    let mut p = Predictor::from_scene(&scene).map_err(|e| e.to_string())?;
+    let commands = [(
+        0.0,
+        Command {
+            base_twist: Some([v_cmd, w_cmd]),
+            ..Default::default()
+        },
+    )];
+    let (q, v) = (scene.q0.clone(), scene.v0.clone());
+    let traj = p
+        .predict(&PredictionRequest {
+            commands: &commands,
+            ..PredictionRequest::new(&q, &v)
+        })
+        .map_err(|e| e.to_string())?;
+    let last = traj.samples.last().unwrap();
+    Ok([last.v[0], last.v[1], last.v[2]])
+}
+
+#[test]
+fn a_steady_turn_creeps_outward_as_far_as_its_centripetal_force_asks() {
+    // f = 9 · 0.5 · 0.3 / (2 · 0.05 · 44.145) = 0.306 on the slippery floor: v_y ≈ −3.2 mm/s.
+    for (v_cmd, w_cmd) in [(0.3, 0.5), (0.2, -0.8), (0.5, 0.15)] {
+        let [vx, vy, wz] =
+            steady_turn_with_sideways_tyres(v_cmd, w_cmd, ", lateral: tyre").unwrap();
+        let f = MASS * w_cmd * v_cmd / (2.0 * MU * normal_force());
+        let closed = -f * SLIP_SCALE / (1.0 - f * f).sqrt();
+        assert!(
+            (vy - closed).abs() < 1e-14,
+            "({v_cmd}, {w_cmd}): v_y {vy} against {closed} ({:e} off)",
+            (vy - closed).abs()
+        );
+        assert!(
+            (vx - v_cmd).abs() < 1e-15 && (wz - w_cmd).abs() < 5e-13,
+            "{vx} {wz}"
+        );
+        eprintln!(
+            "({v_cmd}, {w_cmd}): v_y {vy:.6e} m/s, {:.1e} off; v {:.1e}, ω {:.1e} off",
+            (vy - closed).abs(),
+            (vx - v_cmd).abs(),
+            (wz - w_cmd).abs()
+        );
+    }
+    // Rigid sideways (the default), the same turn does not creep at all.
+    let [_, vy, _] = steady_turn_with_sideways_tyres(0.3, 0.5, "").unwrap();
+    assert!(vy.abs() < 1e-12, "rigid contact crept at {vy}");
+    // Without a tyre on its wheel the contact would slide freely: refused, naming it.
+    let urdf = repo_dir().join("tests/data/diff_drive_centred.urdf");
+    let yaml = format!(
+        "urdf: {:?}\nbase: planar\nconstraints:\n\
+         \x20 - {{name: lonely, kind: rolling, wheel: left_wheel, axis: [0, 1, 0], radius: {R}, lateral: tyre}}\n",
+        urdf.display().to_string(),
+    );
+    let err = Predictor::from_scene(&scene_from_yaml(&yaml).unwrap())
+        .err()
+        .unwrap()
+        .to_string();
+    assert_has(
+        &err,
+        &["'lonely'", "lateral: tyre", "forces.tyres", "'left_wheel'"],
+    );
+    let bad = yaml.replace("lateral: tyre", "lateral: soft");
+    let err = scene_from_yaml(&bad).err().unwrap().to_string();
+    assert_has(&err, &["'lonely'", "line 4", "soft", "`rigid` or `tyre`"]);
 }

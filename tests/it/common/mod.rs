@@ -163,6 +163,7 @@ pub fn specs_for(
                         radius: c["radius"].as_f64().unwrap(),
                         axle_offset: 0.0,
                         axle_offset_turn_gain: 0.0,
+                        lateral: Default::default(),
                         plane_normal: [0.0, 0.0, 1.0],
                         plane_height: 0.0,
                         friction: None,
