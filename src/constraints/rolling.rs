@@ -15,6 +15,10 @@
 //! rows are those of a contact at that offset (force at the contact point), γ leaves out ṡ, and
 //! the drift control carries the contact point along as the turn rate changes (the scene must
 //! have one: docs/contacts.md). J v is then the contact's true slip, f(q, v) itself.
+//!
+//! With `lateral: tyre` the wheel's tyre (forces/tyre.rs) holds it sideways: the contact keeps
+//! the row along its rolling direction t = a × n/|a × n| ([`ROLLING_ROW`]) and the normal one.
+//! t turns with the wheel, so that row's γ adds ṫ·v_mat, v_mat sideways where the tyre creeps.
 
 use super::{ConstraintRows, RowResiduals, RowSink};
 use crate::algorithm::{Data, frame_placement, point_jacobian_rows};
@@ -233,13 +237,15 @@ pub fn rolling_direction_rate_variation(
     d_a_dot: &Vector3<f64>,
     n: &Vector3<f64>,
 ) -> Vector3<f64> {
-    let p = a.cross(n);
-    let pn = p.norm().max(f64::MIN_POSITIVE);
-    let t = p / pn;
+    let pn = a.cross(n).norm().max(f64::MIN_POSITIVE);
+    let t = rolling_direction(a, n);
     let pd = a_dot.cross(n);
-    let t_dot = (pd - t * t.dot(&pd)) / pn;
-    let dp = d_a.cross(n);
-    let dt = (dp - t * t.dot(&dp)) / pn;
+    // δt is ṫ's formula with δa for ȧ.
+    let (t_dot, dt) = (
+        rolling_direction_rate(a, a_dot, n),
+        rolling_direction_rate(a, d_a, n),
+    );
     let dpd = d_a_dot.cross(n);
-    (dpd - dt * t.dot(&pd) - t * (dt.dot(&pd) + t.dot(&dpd))) / pn - t_dot * (t.dot(&dp) / pn)
+    (dpd - dt * t.dot(&pd) - t * (dt.dot(&pd) + t.dot(&dpd))) / pn
+        - t_dot * (t.dot(&d_a.cross(n)) / pn)
 }

@@ -159,7 +159,8 @@ pub enum ConstraintSpec {
         c: f64,
     },
     /// Wheel rolling without slipping on a plane: the wheel's material point at the contact has zero
-    /// velocity. λ: contact force by the ground on the wheel [N], world axes.
+    /// velocity. λ: contact force by the ground on the wheel [N], world axes (with `lateral:
+    /// tyre`, along the wheel's rolling direction and the normal).
     Rolling {
         /// `name:` unique constraint name (used in row names `name/row` and errors).
         name: String,

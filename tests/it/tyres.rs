@@ -12,7 +12,7 @@
 //! - Sliding sideways on still wheels: M v̇_y = −2 μ N g(v_y), the wheels never turn.
 
 use crate::common::{assert_has, repo_dir, scene_from_yaml};
-use constraint_dynamics::actuators::Command;
+use crate::wheel_contacts::settled_twist;
 use constraint_dynamics::predict::{PredictionRequest, Predictor, Trajectory};
 
 const R: f64 = 0.05;
@@ -282,11 +282,7 @@ fn a_ball_bounces_on_an_undamped_floor_keeping_its_energy() {
 /// turn's centripetal force M ω v, which only the tyres can give, makes them creep outward:
 /// 2 μ N g(v_y) = −M ω v, so v_y = −f s₀/√(1 − f²) with f = M ω v/(2 μ N) (the centre of mass on
 /// the axle midpoint, where both contacts lie).
-fn steady_turn_with_sideways_tyres(
-    v_cmd: f64,
-    w_cmd: f64,
-    contact_keys: &str,
-) -> Result<[f64; 3], String> {
+fn steady_turn_with_sideways_tyres(v_cmd: f64, w_cmd: f64, contact_keys: &str) -> [f64; 3] {
     let urdf = repo_dir().join("tests/data/diff_drive_centred.urdf");
     let yaml = format!(
         "urdf: {:?}\nbase: planar\nconstraints:\n\
@@ -300,32 +296,14 @@ fn steady_turn_with_sideways_tyres(
         tyre("left_wheel", ""),
         tyre("right_wheel", ""),
     );
-    let scene = scene_from_yaml(&yaml).map_err(|e| e.to_string())?;
-    let mut p = Predictor::from_scene(&scene).map_err(|e| e.to_string())?;
-    let commands = [(
-        0.0,
-        Command {
-            base_twist: Some([v_cmd, w_cmd]),
-            ..Default::default()
-        },
-    )];
-    let (q, v) = (scene.q0.clone(), scene.v0.clone());
-    let traj = p
-        .predict(&PredictionRequest {
-            commands: &commands,
-            ..PredictionRequest::new(&q, &v)
-        })
-        .map_err(|e| e.to_string())?;
-    let last = traj.samples.last().unwrap();
-    Ok([last.v[0], last.v[1], last.v[2]])
+    settled_twist(&scene_from_yaml(&yaml).unwrap(), (v_cmd, w_cmd))
 }
 
 #[test]
 fn a_steady_turn_creeps_outward_as_far_as_its_centripetal_force_asks() {
     // f = 9 · 0.5 · 0.3 / (2 · 0.05 · 44.145) = 0.306 on the slippery floor: v_y ≈ −3.2 mm/s.
     for (v_cmd, w_cmd) in [(0.3, 0.5), (0.2, -0.8), (0.5, 0.15)] {
-        let [vx, vy, wz] =
-            steady_turn_with_sideways_tyres(v_cmd, w_cmd, ", lateral: tyre").unwrap();
+        let [vx, vy, wz] = steady_turn_with_sideways_tyres(v_cmd, w_cmd, ", lateral: tyre");
         let f = MASS * w_cmd * v_cmd / (2.0 * MU * normal_force());
         let closed = -f * SLIP_SCALE / (1.0 - f * f).sqrt();
         assert!(
@@ -345,7 +323,7 @@ fn a_steady_turn_creeps_outward_as_far_as_its_centripetal_force_asks() {
         );
     }
     // Rigid sideways (the default), the same turn does not creep at all.
-    let [_, vy, _] = steady_turn_with_sideways_tyres(0.3, 0.5, "").unwrap();
+    let [_, vy, _] = steady_turn_with_sideways_tyres(0.3, 0.5, "");
     assert!(vy.abs() < 1e-12, "rigid contact crept at {vy}");
     // Without a tyre on its wheel the contact would slide freely: refused, naming it.
     let urdf = repo_dir().join("tests/data/diff_drive_centred.urdf");

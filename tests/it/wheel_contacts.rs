@@ -306,8 +306,12 @@ fn effective_diff_drive(r_eff: f64, left: &str, right: &str) -> String {
     )
 }
 
-/// (forward speed [m/s], yaw rate [rad/s]) after 3 s under the command (v, ω) from rest.
-fn settled_twist(scene: &constraint_dynamics::Scene, (v_cmd, w_cmd): (f64, f64)) -> (f64, f64) {
+/// The planar base's twist in its own axes, (forward, sideways [m/s], yaw rate [rad/s]), at the
+/// scene's horizon under the command (v, ω) from its initial state.
+pub(crate) fn settled_twist(
+    scene: &constraint_dynamics::Scene,
+    (v_cmd, w_cmd): (f64, f64),
+) -> [f64; 3] {
     let commands = [(
         0.0,
         Command {
@@ -324,7 +328,7 @@ fn settled_twist(scene: &constraint_dynamics::Scene, (v_cmd, w_cmd): (f64, f64))
         })
         .unwrap();
     let last = traj.samples.last().unwrap();
-    (last.v[0], last.v[2])
+    [last.v[0], last.v[1], last.v[2]]
 }
 
 /// With the contacts at an effective radius r' and half-track b' (`axle_offset` ±s outward)
@@ -339,7 +343,7 @@ fn an_effective_radius_and_track_scale_what_the_controllers_achieve() {
     );
     let scene = scene_from_yaml(&yaml).unwrap();
     let (v_cmd, w_cmd) = (0.4, 0.8);
-    let (v, w) = settled_twist(&scene, (v_cmd, w_cmd));
+    let [v, _, w] = settled_twist(&scene, (v_cmd, w_cmd));
     let speed = v_cmd * r_eff / R;
     let turn = w_cmd * (r_eff / R) * B / (B + s);
     println!("achieved v {v} vs {speed} m/s, ω {w} vs {turn} rad/s");
@@ -366,7 +370,7 @@ fn a_turn_gain_widens_the_track_with_the_turn_rate() {
     );
     let scene = scene_from_yaml(&yaml).unwrap();
     for (v_cmd, w_cmd) in [(0.0, 1.5), (0.3, -1.0), (0.4, 0.3)] {
-        let (v, w) = settled_twist(&scene, (v_cmd, w_cmd));
+        let [v, _, w] = settled_twist(&scene, (v_cmd, w_cmd));
         let rhs = w_cmd * (r_eff / R) * B;
         let mut turn = rhs / B;
         for _ in 0..50 {

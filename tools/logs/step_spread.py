@@ -79,8 +79,9 @@ def main():
             cal = cli("calibrate", "--scene", ml.SCENE, "--bag", bag, "--out", out)
             values = {p["name"]: p["value"] for p in cal["parameters"]}
             pn = cal["process_noise"]
-            fitted = (f"r {values['rolling_radius']:.5f} m, track +{1e3 * values['track_offset']:.1f}"
-                      f" mm + {1e3 * values['track_turn_gain']:.2f} mm/(rad/s)² · ω², traction "
+            fitted = (f"r {values['rolling_radius']:.5f} m, track {1e3 * values['track_offset']:+.1f}"
+                      f" mm + {1e3 * values['track_turn_gain']:.2f} mm/(rad/s)² · ω², sideways "
+                      f"creep {1e3 * values['lateral_creep']:.2f} (mm/s)/N, traction "
                       f"{values['traction_torque']:.2f} N·m; σ "
                       f"{pn['acceleration_noise']:.3g}, σ_b {pn['saturation_bias']:.3g}")
             groups = [("validation_smooth", [os.path.join(LOGS, "validation_smooth.mcap")]),
