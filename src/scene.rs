@@ -308,6 +308,32 @@ impl Scene {
             ..self.clone()
         })
     }
+
+    /// Whether a rolling contact leaves its sideways grip to a tyre (`lateral: tyre`).
+    pub fn has_sideways_tyres(&self) -> bool {
+        (self.file.constraints.iter()).any(|c| {
+            matches!(
+                c,
+                crate::constraints::ConstraintSpec::Rolling {
+                    lateral: crate::constraints::LateralGrip::Tyre,
+                    ..
+                }
+            )
+        })
+    }
+
+    /// The same scene with every rolling contact rigid sideways (`lateral: rigid`), as the
+    /// instantaneous answers take it — the velocity projection, the acceleration envelope: a
+    /// tyre's sideways creep is a slip its force builds over time, not a velocity to command.
+    pub fn rigid_sideways(&self) -> Scene {
+        let mut scene = self.clone();
+        for c in &mut scene.file.constraints {
+            if let crate::constraints::ConstraintSpec::Rolling { lateral, .. } = c {
+                *lateral = crate::constraints::LateralGrip::Rigid;
+            }
+        }
+        scene
+    }
 }
 
 /// The scene builds what it declares: the system (model and constraints) and the predictor

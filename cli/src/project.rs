@@ -34,7 +34,8 @@ pub struct ProjectArgs {
 }
 
 pub fn run(a: ProjectArgs) -> Result<Value> {
-    let scene = super::state::load_scene(&a.scene)?;
+    // Instantaneous answers: a sideways tyre's creep is no velocity to command.
+    let scene = super::state::load_scene(&a.scene)?.rigid_sideways();
     let mut sys = System::from_scene(&scene)?;
     let (q, v, _tau) = super::state::load(&scene, a.state.as_deref())?;
     let text = if a.v_des.trim_start().starts_with('{') {

@@ -108,7 +108,10 @@ impl NodeLogic for PredictorNode {
     ) -> Result<Self, NodeError> {
         let predictor =
             Predictor::from_scene(robot.scene()).map_err(NodeError::core("predictor"))?;
-        let sys = System::from_scene(robot.scene()).map_err(NodeError::core("predictor"))?;
+        // The start system serves the envelope and the markers' placements: instantaneous
+        // answers, rigid sideways (a tyre's creep is no velocity to command).
+        let sys = System::from_scene(&robot.scene().rigid_sideways())
+            .map_err(NodeError::core("predictor"))?;
         let forces = ForceElements::new(sys.model(), &robot.scene().file.forces)
             .map_err(NodeError::core("predictor"))?;
         let nc = robot.scene().file.constraints.len();

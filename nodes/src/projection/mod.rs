@@ -63,7 +63,8 @@ impl NodeLogic for ProjectionNode {
         params: NodeParams<ProjectionParams>,
         log: NodeLog,
     ) -> Result<Self, NodeError> {
-        let sys = System::from_scene(robot.scene()).map_err(NodeError::core("projection"))?;
+        let sys = System::from_scene(&robot.scene().rigid_sideways())
+            .map_err(NodeError::core("projection"))?;
         // Contacts that declare no μ take `slip.friction_coefficient`, as in the predictor's
         // envelope (read at start; the projection's limits are built once).
         let mu = params.common.slip.friction_coefficient;
@@ -72,7 +73,7 @@ impl NodeLogic for ProjectionNode {
             .map_err(|e| e.to_string());
         let elements = ForceElements::new(sys.model(), &robot.scene().file.forces)
             .map_err(NodeError::core("projection"))?;
-        let sys = robot.system();
+        let sys = robot.kinematic_system();
         let projector = DynamicProjector::new(sys.model(), sys.constraints());
         let nv = sys.model().nv;
         Ok(ProjectionNode {
@@ -182,7 +183,7 @@ impl ProjectionNode {
                 ));
             }
         };
-        let sys = self.robot.system();
+        let sys = self.robot.kinematic_system();
         if limits.is_some() {
             applied_generalized_force(
                 sys,

@@ -146,3 +146,55 @@ fn bad_periods_and_start_velocities_name_their_field() {
         r.message
     );
 }
+
+/// A diff drive whose wheels a tyre holds sideways (`lateral: tyre`): the service answers on
+/// the robot's rigid-sideways system, so a request to slide sideways gets none of it, while
+/// the robot's own system (the predictor's start state) leaves the sideways creep free.
+#[test]
+fn a_sideways_tyre_is_held_rigid_by_the_projection() {
+    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+    let text = std::fs::read_to_string(format!("{root}/params/diff_drive.yaml"))
+        .unwrap()
+        .replace(
+            "../urdf/diff_drive.urdf",
+            &format!("{root}/urdf/diff_drive.urdf"),
+        )
+        .replace(
+            "    radius: 0.05\n",
+            "    radius: 0.05\n    lateral: tyre\n",
+        )
+        + "forces:\n  tyres:\n"
+        + &["left_wheel", "right_wheel"]
+            .map(|w| {
+                format!(
+                    "    - {{wheel: {w}, axis: [0, 1, 0], radius: 0.05, friction: 0.8, \
+                     normal_force: 40.0}}\n"
+                )
+            })
+            .concat();
+    let path = std::env::temp_dir().join(format!("cd_sideways_tyres_{}.yaml", std::process::id()));
+    std::fs::write(&path, text).unwrap();
+    let mut common = CommonParams::default();
+    common.model.scene_file = path.display().to_string();
+    let params = NodeParams {
+        common,
+        node: ProjectionParams::default(),
+    };
+    let robot = Robot::load(&params.common).unwrap();
+    std::fs::remove_file(&path).ok();
+    let mut n = ProjectionNode::new(robot, params, NodeLog::new("test")).unwrap();
+    assert_eq!(n.robot.system().constraints().nrows, 2);
+    assert_eq!(n.robot.kinematic_system().constraints().nrows, 4);
+    let q0 = n.robot.scene().q0.clone();
+    let mut req = request(0.5, 0.0, &q0, vec![]);
+    req.base_twist.linear.y = 0.3;
+    req.base_twist.angular.z = 0.4;
+    let r = n.project_velocity(&req);
+    assert!(r.success, "{}", r.message);
+    let t = &r.base_twist;
+    assert!(t.linear.y.abs() < 1e-12, "{t:?}");
+    assert!(
+        (t.linear.x - 0.5).abs() < 1e-9 && (t.angular.z - 0.4).abs() < 1e-9,
+        "{t:?}"
+    );
+}

@@ -30,6 +30,9 @@ pub struct Robot {
     scene: Scene,
     /// Multiplier form, so λ is always there (forces, projection, state projection).
     sys: System,
+    /// With sideways tyres (`lateral: tyre`), the same rigid sideways for the instantaneous
+    /// answers ([`Robot::kinematic_system`]).
+    kinematic: Option<System>,
     /// The system's contacts: how every force this robot reports is judged.
     contacts: ContactJudge,
     state: StateEstimate,
@@ -82,6 +85,14 @@ impl Robot {
         let sys = System::from_scene(&scene)
             .map_err(NodeError::core("constraints"))?
             .with_formulation(Formulation::Multipliers);
+        let kinematic = match scene.has_sideways_tyres() {
+            true => Some(
+                System::from_scene(&scene.rigid_sideways())
+                    .map_err(NodeError::core("constraints"))?
+                    .with_formulation(Formulation::Multipliers),
+            ),
+            false => None,
+        };
         let contacts = ContactJudge::new(&scene.model, sys.constraints());
         let state = StateEstimate::new(&scene.model, &scene.q0, &scene.v0);
         let held_joints = scene
@@ -103,6 +114,7 @@ impl Robot {
         Ok(Robot {
             scene,
             sys,
+            kinematic,
             contacts,
             state,
             held_joints,
@@ -155,6 +167,16 @@ impl Robot {
     /// The multiplier-form system.
     pub fn system(&mut self) -> &mut System {
         &mut self.sys
+    }
+
+    /// The system the velocity projection takes: the robot's own, rigid sideways where a tyre
+    /// holds a wheel sideways (its creep is a slip its force builds over time, not a velocity a
+    /// command can ask for).
+    pub fn kinematic_system(&mut self) -> &mut System {
+        match self.kinematic.as_mut() {
+            Some(k) => k,
+            None => &mut self.sys,
+        }
     }
 
     /// The latest state.
