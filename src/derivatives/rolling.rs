@@ -10,6 +10,9 @@
 //! acceleration as in rnea.rs) and with it c and a; the contact point slides over the rim.
 //! With a turn gain (s = s₀ + k ω_n², ω_n = n·ω) a perturbation of ω moves the contact point
 //! along a by δs = 2 k ω_n n·δω too, in the rows and as the force's point of application.
+//! A rolling row (`lateral: tyre`) lies along t = a × n/|a × n|, which turns with the wheel:
+//! its row is t·(g + K_d v_mat) + ṫ·v_mat, and a perturbation of the axis turns t (and the
+//! row's force) by δt, of its rate ṫ by δṫ.
 
 use super::DerivativeData;
 use crate::algorithm::{Data, frame_placement};
