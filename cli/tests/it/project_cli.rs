@@ -131,55 +131,25 @@ fn cli_project_with_a_period_respects_the_dynamics() {
 
 /// A wheel whose sideways grip is a tyre's (`lateral: tyre`) creeps sideways only under the
 /// force the tyre gives over time: the projection, an instantaneous answer, holds it rigid
-/// sideways, so a diff drive asked to slide sideways is given none of it (and the envelope
-/// runs on the same scene).
+/// sideways, so a diff drive asked to slide sideways is given none of it; the envelope answers
+/// on the same scene.
 #[test]
 fn cli_project_holds_sideways_tyres_rigid() {
-    let bin = env!("CARGO_BIN_EXE_constraint_dynamics");
-    let urdf = repo_dir().join("urdf/diff_drive.urdf");
-    let text = std::fs::read_to_string(repo_dir().join("params/diff_drive.yaml"))
-        .unwrap()
-        .replace("../urdf/diff_drive.urdf", &urdf.display().to_string())
-        .replace(
-            "    radius: 0.05\n",
-            "    radius: 0.05\n    lateral: tyre\n",
-        )
-        + "forces:\n  tyres:\n"
-        + &["left_wheel", "right_wheel"]
-            .map(|w| {
-                format!(
-                    "    - {{wheel: {w}, axis: [0, 1, 0], radius: 0.05, friction: 0.8, \
-                     normal_force: 40.0, slip_speed_scale: 0.05}}\n"
-                )
-            })
-            .concat();
-    let scene = std::env::temp_dir().join(format!("cd_project_tyres_{}.yaml", std::process::id()));
-    std::fs::write(&scene, text).unwrap();
-    let run = |args: &[&str]| {
-        let out = std::process::Command::new(bin)
-            .args(args)
-            .args(["--scene", scene.to_str().unwrap()])
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        serde_json::from_slice::<Value>(&out.stdout).unwrap()
-    };
-    let v = run(&["project", "--v-des", r#"{"base_twist": [0.5, 0.3, 0.4]}"#]);
-    let envelope = run(&["envelope"]);
-    std::fs::remove_file(&scene).ok();
-    assert!(
-        envelope["forward_acceleration"]["max"].as_f64().unwrap() > 0.0,
-        "{envelope}"
-    );
-    assert_eq!(v["status"], "optimal");
+    let scene = repo_dir().join("tests/data/diff_drive_sideways_tyres.yaml");
+    let scene = scene.to_str().unwrap();
+    let req = r#"{"base_twist": [0.5, 0.3, 0.4]}"#;
+    let (ok, v, err) = crate::run_cli(None, &["project", "--scene", scene, "--v-des", req]);
+    assert!(ok && v["status"] == "optimal", "{err}");
     let twist = vecf(&v["base_twist"]);
     assert!(twist[1].abs() < 1e-12, "sideways {twist:?}");
     assert!(
         (twist[0] - 0.5).abs() < 1e-9 && (twist[2] - 0.4).abs() < 1e-9,
         "{twist:?}"
+    );
+    let (ok, envelope, err) = crate::run_cli(None, &["envelope", "--scene", scene]);
+    assert!(ok, "{err}");
+    assert!(
+        envelope["forward_acceleration"]["max"].as_f64().unwrap() > 0.0,
+        "{envelope}"
     );
 }

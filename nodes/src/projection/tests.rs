@@ -152,36 +152,17 @@ fn bad_periods_and_start_velocities_name_their_field() {
 /// the robot's own system (the predictor's start state) leaves the sideways creep free.
 #[test]
 fn a_sideways_tyre_is_held_rigid_by_the_projection() {
-    let root = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
-    let text = std::fs::read_to_string(format!("{root}/params/diff_drive.yaml"))
-        .unwrap()
-        .replace(
-            "../urdf/diff_drive.urdf",
-            &format!("{root}/urdf/diff_drive.urdf"),
-        )
-        .replace(
-            "    radius: 0.05\n",
-            "    radius: 0.05\n    lateral: tyre\n",
-        )
-        + "forces:\n  tyres:\n"
-        + &["left_wheel", "right_wheel"]
-            .map(|w| {
-                format!(
-                    "    - {{wheel: {w}, axis: [0, 1, 0], radius: 0.05, friction: 0.8, \
-                     normal_force: 40.0}}\n"
-                )
-            })
-            .concat();
-    let path = std::env::temp_dir().join(format!("cd_sideways_tyres_{}.yaml", std::process::id()));
-    std::fs::write(&path, text).unwrap();
     let mut common = CommonParams::default();
-    common.model.scene_file = path.display().to_string();
+    common.model.scene_file = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../tests/data/diff_drive_sideways_tyres.yaml"
+    )
+    .into();
     let params = NodeParams {
         common,
         node: ProjectionParams::default(),
     };
     let robot = Robot::load(&params.common).unwrap();
-    std::fs::remove_file(&path).ok();
     let mut n = ProjectionNode::new(robot, params, NodeLog::new("test")).unwrap();
     assert_eq!(n.robot.system().constraints().nrows, 2);
     assert_eq!(n.robot.kinematic_system().constraints().nrows, 4);
