@@ -203,10 +203,13 @@ pub fn constraint_forces(
                     }
                 }
                 force = along + rc.normal() * across;
-                // The tangential rows are orthogonal to n: their force's norm, finite wherever
-                // its components are (|t| ~ 1e308 squared overflows).
-                tangential =
-                    Some(along.amax() * (along / along.amax().max(f64::MIN_POSITIVE)).norm());
+                // The tangential rows are orthonormal: their force's norm is the hypot of their
+                // λ, finite wherever they are (|t| ~ 1e308 squared overflows).
+                tangential = Some(
+                    (rc.rows.iter().zip(&lam))
+                        .filter(|(row, _)| **row != 2)
+                        .fold(0.0, |m: f64, (_, l)| m.hypot(*l)),
+                );
                 // No normal row (a planar base holds the height): no normal force to report.
                 normal = rc.rows.contains(&2).then_some(across);
                 (fname(rc.wheel), "world".into(), contact.point)
