@@ -203,7 +203,7 @@ pub fn constraint_forces_msg(at: &ForcesAt, ctx: &ForcesContext) -> ConstraintFo
             position_residual: f.position_residual.clone(),
             velocity_residual: f.velocity_residual.clone(),
             normal_force: judged.and_then(|(_, s)| s.normal_force).unwrap_or(0.0),
-            tangential_force: judged.map_or(0.0, |(c, _)| c.tangential_force(at.lambda)),
+            tangential_force: judged.map_or(0.0, |(_, s)| s.tangential_force),
             slipping: judged.is_some_and(|(_, s)| s.breaks.is_some()),
         })
         .collect();

@@ -13,7 +13,7 @@
 //! normal row is its one row when `unilateral`, else world z when it has `friction`; the other
 //! rows are tangential.
 
-use super::{Constraint, ConstraintKind, ConstraintSet};
+use super::{Constraint, ConstraintKind, ConstraintSet, ROLLING_ROW};
 use crate::model::Model;
 use serde::Serialize;
 
@@ -29,6 +29,9 @@ pub struct Contact {
     pub tangential: Vec<usize>,
     /// Coulomb coefficient μ: ‖λ_t‖ ≤ μ λ_n (a second-order cone) when given with a normal row.
     pub friction: Option<f64>,
+    /// The wheel frame whose tyre (`forces.tyres`) holds this contact sideways (`lateral:
+    /// tyre`): the tyre's friction is tangential force the contact carries outside λ.
+    pub sideways_tyre: Option<usize>,
 }
 
 /// What a caller assumes where a contact declares less than its judgement needs. The default
@@ -85,6 +88,8 @@ pub struct ContactState {
     /// absent where neither exists.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub normal_force: Option<f64>,
+    /// The tangential force the contact carries [N]: ‖λ_t‖, with a sideways tyre's friction.
+    pub tangential_force: f64,
     /// Friction used, ‖λ_t‖ / (μ N) [-] (> 1: slip); absent where friction is unchecked or
     /// N ≤ 0.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -95,20 +100,25 @@ pub struct ContactState {
 }
 
 impl Contact {
-    /// Judge this contact at the stacked multipliers `lambda` (nc) under `limits`. Lift-off
-    /// when λ_n < −`pull_tolerance` [N] (a contact that carries nothing may read a rounding
-    /// error below zero); else slip when ‖λ_t‖ > μ max(N, 0) (at ‖λ_t‖ = μ N the contact still
+    /// Judge this contact at the stacked multipliers `lambda` (nc) under `limits`, with
+    /// `sideways` [N] the friction its sideways tyre passes (0 without one), at right angles to
+    /// its rows: the tangential force is ‖(λ_t, sideways)‖. Lift-off when λ_n <
+    /// −`pull_tolerance` [N] (a contact that carries nothing may read a rounding error below
+    /// zero); else slip when the tangential force exceeds μ max(N, 0) (at μ N the contact still
     /// grips: Coulomb's cone is closed). Allocates nothing.
     pub fn judge(
         &self,
         lambda: &[f64],
+        sideways: f64,
         limits: &ContactLimits,
         pull_tolerance: f64,
     ) -> ContactState {
+        let t = self.tangential_force(lambda).hypot(sideways);
         let row_normal = self.normal.map(|r| lambda[r]);
         if let Some(n) = row_normal.filter(|&n| n < -pull_tolerance) {
             return ContactState {
                 normal_force: Some(n),
+                tangential_force: t,
                 friction_used: None,
                 breaks: Some(BreakKind::LiftOff),
             };
@@ -117,15 +127,16 @@ impl Contact {
         let Some((mu, n)) = self.friction_under(limits).zip(normal_force) else {
             return ContactState {
                 normal_force,
+                tangential_force: t,
                 ..ContactState::default()
             };
         };
-        let t = self.tangential_force(lambda);
         let friction_used = (n > 0.0 && mu > 0.0)
             .then(|| t / (mu * n))
             .filter(|x| x.is_finite());
         ContactState {
             normal_force,
+            tangential_force: t,
             friction_used,
             // N within the pull tolerance below zero counts as 0: no friction to grip with,
             // and no slip without a tangential force.
@@ -133,8 +144,8 @@ impl Contact {
         }
     }
 
-    /// ‖λ_t‖ at the stacked multipliers `lambda` (nc) [N]: the tangential force the contact
-    /// needs.
+    /// ‖λ_t‖ at the stacked multipliers `lambda` (nc) [N]: the tangential force the contact's
+    /// rows need.
     pub fn tangential_force(&self, lambda: &[f64]) -> f64 {
         // hypot: finite wherever the components are (a sum of squares can overflow).
         (self.tangential.iter()).fold(0.0, |m: f64, &r| m.hypot(lambda[r]))
@@ -154,6 +165,7 @@ impl Contact {
                     .map(|i| r0 + i)
                     .collect(),
                 friction: rc.friction,
+                sideways_tyre: rc.rows.contains(&ROLLING_ROW).then_some(rc.wheel),
             }),
             Constraint::Point(pc) if pc.unilateral || pc.friction.is_some() => {
                 let normal_axis = if pc.unilateral { pc.axes[0] } else { 2 };
@@ -166,6 +178,7 @@ impl Contact {
                         .map(|i| r0 + i)
                         .collect(),
                     friction: pc.friction,
+                    sideways_tyre: None,
                 })
             }
             _ => None,
@@ -205,6 +218,7 @@ mod tests {
             normal,
             tangential: vec![0, 1],
             friction,
+            sideways_tyre: None,
         }
     }
 
@@ -213,34 +227,35 @@ mod tests {
         let none = ContactLimits::default();
         let w = wheel(Some(0.25), Some(2));
         // ‖(1.2, 1.6)‖ = 2 N = 0.25 · 8 N (exact in binary): at the limit the wheel grips.
-        let s = w.judge(&[1.2, 1.6, 8.0], &none, 1e-6);
+        let s = w.judge(&[1.2, 1.6, 8.0], 0.0, &none, 1e-6);
         assert_eq!((s.friction_used, s.breaks), (Some(1.0), None));
-        let s = w.judge(&[1.2, 1.6, 4.0], &none, 1e-6);
+        let s = w.judge(&[1.2, 1.6, 4.0], 0.0, &none, 1e-6);
         assert_eq!(
             (s.friction_used, s.breaks),
             (Some(2.0), Some(BreakKind::Slip))
         );
         // A rounding error below zero is no pull; beyond the tolerance it is.
-        let s = w.judge(&[0.0, 0.0, -1e-9], &none, 1e-6);
+        let s = w.judge(&[0.0, 0.0, -1e-9], 0.0, &none, 1e-6);
         assert_eq!((s.friction_used, s.breaks), (None, None));
-        let s = w.judge(&[0.0, 0.0, -1e-3], &none, 1e-6);
+        let s = w.judge(&[0.0, 0.0, -1e-3], 0.0, &none, 1e-6);
         assert_eq!(
             (s.normal_force, s.breaks),
             (Some(-1e-3), Some(BreakKind::LiftOff))
         );
         // Without μ nothing is judged but the sign; an assumed μ fills in, the declared one wins.
         let bare = wheel(None, Some(2));
-        assert_eq!(bare.judge(&[1.2, 1.6, 4.0], &none, 1e-6).breaks, None);
+        assert_eq!(bare.judge(&[1.2, 1.6, 4.0], 0.0, &none, 1e-6).breaks, None);
         let assumed = ContactLimits {
             friction: Some(1.0),
             normal_force: None,
         };
         assert_eq!(
-            bare.judge(&[1.2, 1.6, 4.0], &assumed, 1e-6).friction_used,
+            bare.judge(&[1.2, 1.6, 4.0], 0.0, &assumed, 1e-6)
+                .friction_used,
             Some(0.5)
         );
         assert_eq!(
-            w.judge(&[1.2, 1.6, 4.0], &assumed, 1e-6).friction_used,
+            w.judge(&[1.2, 1.6, 4.0], 0.0, &assumed, 1e-6).friction_used,
             Some(2.0)
         );
         // No normal row (planar base): lift-off never judged, friction only with an assumed N
@@ -250,7 +265,26 @@ mod tests {
             normal_force: Some(4.0),
             ..assumed
         };
-        let s = planar.judge(&[1.2, 1.6], &both, 1e-6);
+        let s = planar.judge(&[1.2, 1.6], 0.0, &both, 1e-6);
         assert_eq!((s.normal_force, s.friction_used), (Some(4.0), Some(0.5)));
+        // A wheel held sideways by its tyre: its rolling row's 1.5 N and the tyre's 2 N make
+        // 2.5 N = 0.5 · 5 N, at the limit; 2.1 N sideways slips though the row alone grips.
+        let rolling = Contact {
+            tangential: vec![0],
+            sideways_tyre: Some(7),
+            ..wheel(Some(0.5), None)
+        };
+        let five = ContactLimits {
+            normal_force: Some(5.0),
+            ..none
+        };
+        let s = rolling.judge(&[1.5], 2.0, &five, 1e-6);
+        assert_eq!(
+            (s.tangential_force, s.friction_used, s.breaks),
+            (2.5, Some(1.0), None)
+        );
+        let s = rolling.judge(&[1.5], 2.1, &five, 1e-6);
+        assert_eq!(s.breaks, Some(BreakKind::Slip));
+        assert_eq!(rolling.judge(&[1.5], 0.0, &five, 1e-6).breaks, None);
     }
 }

@@ -168,6 +168,14 @@ impl ForceElements {
         self.tyres.iter().any(|t| t.is_wheel_on(frame))
     }
 
+    /// The friction [N] the wheel tyre on frame `frame` passes to the ground (kinematics of
+    /// `data` at (q, v)); 0 without one.
+    pub fn wheel_tyre_friction(&self, model: &Model, data: &Data, frame: usize) -> f64 {
+        (self.tyres.iter())
+            .find(|t| t.is_wheel_on(frame))
+            .map_or(0.0, |t| t.friction_force(model, data))
+    }
+
     /// Validate `forces:` against the model (joints 1-DOF, frames known, values finite, ≥ 0).
     pub fn new(model: &Model, spec: &ForcesSpec) -> Result<Self> {
         let mut fe = ForceElements {

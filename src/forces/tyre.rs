@@ -211,18 +211,31 @@ impl Tyre {
     /// (kinematics of `data` at (q, v)); a constant N is not applied along n (the base's
     /// coordinates already hold the wheel on the ground).
     pub(crate) fn add(&self, model: &Model, data: &Data, tau: &mut [f64]) {
-        let (p, height) = self.contact_point(model, data);
-        let vp = point_velocity(model, data, self.frame, &p);
-        let n = self.normal_force(height, &vp);
+        let (p, f, n) = self.ground_force(model, data);
         if n == 0.0 {
             return;
         }
-        let s = vp - self.normal * self.normal.dot(&vp);
-        let mut f = -s * (self.friction * n / (s.norm_squared() + self.slip_scale.powi(2)).sqrt());
-        if let Normal::Soft { .. } = self.normal_force {
-            f += self.normal * n;
-        }
+        let f = match self.normal_force {
+            Normal::Soft { .. } => f + self.normal * n,
+            Normal::Constant(_) => f,
+        };
         add_point_force(model, data, self.frame, &p, &f, tau);
+    }
+
+    /// The tread's friction F(s) in the ground plane, world axes [N] (kinematics of `data` at
+    /// (q, v)), with the contact point in the frame [m] and N [N].
+    fn ground_force(&self, model: &Model, data: &Data) -> (Vector3<f64>, Vector3<f64>, f64) {
+        let (p, height) = self.contact_point(model, data);
+        let vp = point_velocity(model, data, self.frame, &p);
+        let n = self.normal_force(height, &vp);
+        let s = vp - self.normal * self.normal.dot(&vp);
+        let scale = self.friction * n / (s.norm_squared() + self.slip_scale.powi(2)).sqrt();
+        (p, -s * scale, n)
+    }
+
+    /// |F(s)|, the friction the tread passes to the ground [N] (kinematics at (q, v)).
+    pub(crate) fn friction_force(&self, model: &Model, data: &Data) -> f64 {
+        self.ground_force(model, data).1.norm()
     }
 
     /// Its fastest rate [1/s]: the creep slope μ N/s₀ times the largest tangential mobility

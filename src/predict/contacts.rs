@@ -1,11 +1,13 @@
 //! When ideal rolling breaks: with forces on, every sample judges each contact of the scene
 //! (constraints/contact.rs: a rolling wheel, a unilateral or frictional point) at its λ — the
-//! friction it uses, ‖λ_t‖ / (μ N), and the sign of its normal force — and the trajectory
+//! friction it uses, ‖λ_t‖ / (μ N) (with the friction of the tyre that holds a `lateral: tyre`
+//! contact sideways, at right angles to its rows), and the sign of its normal force — and the
+//! trajectory
 //! reports the first sample and contact where the motion would need more friction than μ
 //! (`slip`) or a contact would have to pull (`lift_off`).
 //!
 //! The prediction itself never changes: it keeps every contact rolling whatever force that
-//! takes; the judgement only reads the λ each sample already holds. The ROS nodes judge the
+//! takes; the judgement only reads the λ and the tyres' friction each sample already holds. The ROS nodes judge the
 //! forces they publish with the same [`ContactJudge`]. μ is the contact's own
 //! (`friction:`), else [`ContactLimits::friction`] of the request; N is the contact's normal
 //! row, else [`ContactLimits::normal_force`] (a wheel on a planar base). What neither gives is
@@ -75,11 +77,22 @@ impl ContactJudge {
         &self.contacts
     }
 
-    /// Each contact at `lambda` (nc); None without contacts. One allocation (the sample's list).
-    pub fn judge(&self, lambda: &[f64], limits: &ContactLimits) -> Option<Vec<ContactState>> {
+    /// Each contact at `lambda` (nc), `sideways_tyre(wheel frame)` the friction [N] of the tyre
+    /// that holds a contact sideways ([`Contact::sideways_tyre`]; at the state λ was solved at:
+    /// `ForceElements::wheel_tyre_friction`); None without contacts. One allocation (the
+    /// sample's list).
+    pub fn judge(
+        &self,
+        lambda: &[f64],
+        limits: &ContactLimits,
+        sideways_tyre: impl Fn(usize) -> f64,
+    ) -> Option<Vec<ContactState>> {
         (!self.contacts.is_empty()).then(|| {
             (self.contacts.iter())
-                .map(|(_, c)| c.judge(lambda, limits, self.pull_tolerance))
+                .map(|(_, c)| {
+                    let sideways = c.sideways_tyre.map_or(0.0, &sideways_tyre);
+                    c.judge(lambda, sideways, limits, self.pull_tolerance)
+                })
                 .collect()
         })
     }

@@ -32,6 +32,7 @@ mod tests {
             normal: None,
             tangential: vec![0, 1],
             friction: None,
+            sideways_tyre: None,
         };
         let assumed = ContactLimits {
             friction: Some(1.0),

@@ -382,6 +382,7 @@ fn the_floating_mobile_manipulators_envelope_model_holds_the_arm_and_drives_the_
         normal: Some(normal),
         tangential,
         friction: None,
+        sideways_tyre: None,
     };
     assert_eq!(
         em.contacts,

@@ -13,6 +13,8 @@
 
 use crate::common::{assert_has, repo_dir, scene_from_yaml};
 use crate::wheel_contacts::settled_twist;
+use constraint_dynamics::actuators::Command;
+use constraint_dynamics::constraints::{BreakKind, ContactLimits};
 use constraint_dynamics::predict::{PredictionRequest, Predictor, Trajectory};
 
 const R: f64 = 0.05;
@@ -283,6 +285,11 @@ fn a_ball_bounces_on_an_undamped_floor_keeping_its_energy() {
 /// 2 μ N g(v_y) = −M ω v, so v_y = −f s₀/√(1 − f²) with f = M ω v/(2 μ N) (the centre of mass on
 /// the axle midpoint, where both contacts lie).
 fn steady_turn_with_sideways_tyres(v_cmd: f64, w_cmd: f64, contact_keys: &str) -> [f64; 3] {
+    settled_twist(&sideways_tyre_drive(contact_keys), (v_cmd, w_cmd))
+}
+
+/// The centred diff drive of `steady_turn_with_sideways_tyres`, 4 s under its controllers.
+fn sideways_tyre_drive(contact_keys: &str) -> constraint_dynamics::Scene {
     let urdf = repo_dir().join("tests/data/diff_drive_centred.urdf");
     let yaml = format!(
         "urdf: {:?}\nbase: planar\nconstraints:\n\
@@ -296,7 +303,7 @@ fn steady_turn_with_sideways_tyres(v_cmd: f64, w_cmd: f64, contact_keys: &str) -
         tyre("left_wheel", ""),
         tyre("right_wheel", ""),
     );
-    settled_twist(&scene_from_yaml(&yaml).unwrap(), (v_cmd, w_cmd))
+    scene_from_yaml(&yaml).unwrap()
 }
 
 #[test]
@@ -343,4 +350,71 @@ fn a_steady_turn_creeps_outward_as_far_as_its_centripetal_force_asks() {
     let bad = yaml.replace("lateral: tyre", "lateral: soft");
     let err = scene_from_yaml(&bad).err().unwrap().to_string();
     assert_has(&err, &["'lonely'", "line 4", "soft", "`rigid` or `tyre`"]);
+}
+
+/// In that steady turn the chassis's velocity (v, v_y) turns at ω, so the base accelerates at
+/// ω × (v, v_y): the rolling rows carry M ω v_y/2 each along the wheel, the tyres M ω v/2
+/// sideways, and each contact uses M |ω| ‖(v, v_y)‖/(2 μ N) of its grip. The contacts' judgement
+/// adds the tyre's friction to the rows' force at right angles.
+#[test]
+fn a_contact_held_sideways_by_its_tyre_is_judged_with_the_tyres_friction() {
+    let scene = sideways_tyre_drive(", lateral: tyre");
+    let mut predictor = Predictor::from_scene(&scene).unwrap();
+    for (v_cmd, w_cmd) in [(0.3, 0.5), (0.4, -0.9), (0.5, -1.2)] {
+        let commands = [(
+            0.0,
+            Command {
+                base_twist: Some([v_cmd, w_cmd]),
+                ..Default::default()
+            },
+        )];
+        let limits = ContactLimits {
+            friction: Some(MU),
+            normal_force: Some(normal_force()),
+        };
+        let traj = (predictor)
+            .predict(&PredictionRequest {
+                commands: &commands,
+                forces: true,
+                contact_limits: limits,
+                ..PredictionRequest::new(&scene.q0, &scene.v0)
+            })
+            .unwrap();
+        let f = MASS * w_cmd * v_cmd / (2.0 * MU * normal_force());
+        let last = traj.samples.last().unwrap();
+        if f.abs() >= 1.0 {
+            // f = 1.22: more than the tyres can give; the robot skids outward, and so it is judged.
+            let states = last.contacts.as_ref().unwrap();
+            assert!(
+                states.iter().all(|s| s.breaks == Some(BreakKind::Slip)),
+                "{states:?}"
+            );
+            continue;
+        }
+        let v_y = -f * SLIP_SCALE / (1.0 - f * f).sqrt();
+        let along = MASS * w_cmd.abs() * v_y.abs() / 2.0;
+        let tangential = MASS * w_cmd.abs() * v_cmd.hypot(v_y) / 2.0;
+        for (state, lambda) in last
+            .contacts
+            .as_ref()
+            .unwrap()
+            .iter()
+            .zip(last.lambda.as_ref().unwrap())
+        {
+            let used = state.friction_used.unwrap();
+            let want = tangential / (MU * normal_force());
+            println!(
+                "({v_cmd}, {w_cmd}): λ {lambda:.6e} N against {along:.6e}, friction used {used} against \
+                 {want} ({:.1e} off)",
+                (used - want).abs()
+            );
+            assert!(
+                (lambda.abs() - along).abs() < 2e-11,
+                "{lambda} against {along}"
+            );
+            assert!((used - want).abs() < 1e-12, "{used} against {want}");
+            assert!((state.tangential_force - tangential).abs() < 1e-12);
+            assert_eq!(state.breaks, None);
+        }
+    }
 }

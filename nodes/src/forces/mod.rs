@@ -145,7 +145,7 @@ impl ForcesNode {
             _ => now,
         };
         let limits = self.robot.contact_limits(common);
-        let states = self.robot.contact_judge().judge(&at.lambda, &limits);
+        let states = (self.robot).judge_contacts(&at.lambda, &limits, &self.elements);
         let forces = ForcesAt {
             forces: &at.forces,
             lambda: &at.lambda,

@@ -9,8 +9,9 @@ pub mod request;
 pub mod state;
 
 use constraint_dynamics::actuators::Command;
-use constraint_dynamics::constraints::ContactLimits;
+use constraint_dynamics::constraints::{ContactLimits, ContactState};
 use constraint_dynamics::dynamics::Formulation;
+use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::model::Payload;
 use constraint_dynamics::predict::{ContactJudge, DriftProjector, OffConstraints};
 use constraint_dynamics::{Model, Scene, System};
@@ -287,6 +288,21 @@ impl Robot {
     /// The system's contacts, judged as a prediction judges them.
     pub fn contact_judge(&self) -> &ContactJudge {
         &self.contacts
+    }
+
+    /// The contacts judged at `lambda` under `limits` as a prediction judges them, a sideways
+    /// tyre's friction from `elements` at the state the system last solved
+    /// (`constraint_forces_at`'s).
+    pub fn judge_contacts(
+        &self,
+        lambda: &[f64],
+        limits: &ContactLimits,
+        elements: &ForceElements,
+    ) -> Option<Vec<ContactState>> {
+        let (model, data) = (self.sys.model(), self.sys.data());
+        (self.contacts).judge(lambda, limits, |wheel| {
+            elements.wheel_tyre_friction(model, data, wheel)
+        })
     }
 
     /// A `ConstraintForces` message in the odom frame.

@@ -36,14 +36,23 @@ impl Predictor {
             )?),
             _ => None,
         };
+        // Judged before the residuals move the kinematics off the state λ was solved at.
+        let contacts = match (&at, forces) {
+            (Some(f), Some(limits)) => {
+                let (model, data, elements) = (sys.model(), sys.data(), &self.forces);
+                let tyre = |wheel| elements.wheel_tyre_friction(model, data, wheel);
+                // Reads λ and the tyres only: the prediction is the same with or without it.
+                self.contact_judge.judge(&f.lambda, limits, tyre)
+            }
+            _ => None,
+        };
         let (position_residual, velocity_residual) = sys.residuals(t, q, v);
         let (model, data) = (sys.model(), sys.data());
         let ke = kinetic_energy(model, data);
         let pe = potential_energy(model, data) + self.forces.potential_energy(model, data, q);
         let (contacts, lambda, forces, generalized_force, rank_deficiency) = match (at, forces) {
-            (Some(f), Some(limits)) => (
-                // Reads λ only: the prediction is the same with or without the judgement.
-                self.contact_judge.judge(&f.lambda, limits),
+            (Some(f), Some(_)) => (
+                contacts,
                 Some(f.lambda),
                 Some(f.forces),
                 Some(f.generalized_force),

@@ -55,12 +55,13 @@ fn judged(lambda: [f64; 3]) -> Option<ContactState> {
         normal: Some(2),
         tangential: vec![0, 1],
         friction: None,
+        sideways_tyre: None,
     };
     let limits = ContactLimits {
         friction: Some(0.5),
         normal_force: None,
     };
-    Some(wheel.judge(&lambda, &limits, 1e-6))
+    Some(wheel.judge(&lambda, 0.0, &limits, 1e-6))
 }
 
 fn rotations(frame: &str) -> Option<Rotation> {
