@@ -54,3 +54,55 @@ fn a_state_off_the_constraints_is_projected_and_said() {
     );
     assert!(on.success && on.message.is_empty(), "{}", on.message);
 }
+
+/// The bundled diff drive whose tyres hold it sideways (tests/data/diff_drive_sideways_tyres.yaml)
+/// sliding sideways at 5 cm/s on still wheels: each tyre passes μ N v_y/√(v_y² + s₀²) (μ 0.8,
+/// N 40 N, s₀ 0.01 m/s) at right angles to its rolling row, and the reply's tangential force is
+/// that and the row's λ in quadrature.
+#[test]
+fn a_sideways_tyres_friction_is_part_of_the_contacts_tangential_force() {
+    let mut common = CommonParams::default();
+    common.model.scene_file = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../tests/data/diff_drive_sideways_tyres.yaml"
+    )
+    .into();
+    let params = NodeParams::<ForcesParams> {
+        common,
+        node: ForcesParams::default(),
+    };
+    let robot = Robot::load(&params.common).unwrap();
+    let mut n = ForcesNode::new(robot, params, NodeLog::new("test")).unwrap();
+    let model = n.robot.model();
+    let v_y = 0.05;
+    let mut v = vec![0.0; model.nv];
+    v[model
+        .v_names
+        .iter()
+        .position(|s| s.ends_with("vy_local"))
+        .unwrap()] = v_y;
+    let req = GetConstraintForcesRequest {
+        use_latest_state: false,
+        q: vec![0.0; model.nq],
+        v,
+        ..Default::default()
+    };
+    let reply = n.get_constraint_forces(&req, Time::from_nanos(0));
+    assert!(reply.success, "{}", reply.message);
+    let tyre = 0.8 * 40.0 * v_y / (v_y * v_y + 0.01f64.powi(2)).sqrt();
+    for c in &reply.forces.constraints {
+        let [rolling] = c.multipliers[..] else {
+            panic!("{}: rows {:?}", c.name, c.row_names)
+        };
+        let want = rolling.hypot(tyre);
+        println!(
+            "{}: λ {rolling:e} N, tangential {} N against {want}",
+            c.name, c.tangential_force
+        );
+        assert!(
+            (c.tangential_force - want).abs() < 1e-12,
+            "{}",
+            c.tangential_force
+        );
+    }
+}
