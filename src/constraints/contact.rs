@@ -90,8 +90,8 @@ pub struct ContactState {
     pub normal_force: Option<f64>,
     /// The tangential force the contact carries [N]: ‖λ_t‖, with a sideways tyre's friction.
     pub tangential_force: f64,
-    /// Friction used, ‖λ_t‖ / (μ N) [-] (> 1: slip); absent where friction is unchecked or
-    /// N ≤ 0.
+    /// Friction used, the tangential force / (μ N) [-] (> 1: slip); absent where friction is
+    /// unchecked or N ≤ 0.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub friction_used: Option<f64>,
     /// How the contact breaks at this λ, if it does.
