@@ -30,7 +30,8 @@ pub struct ContactBreak {
     pub contact: String,
     /// `slip` or `lift_off`.
     pub kind: BreakKind,
-    /// Friction used there, the tangential force / (μ N) [-] (> 1 at a slip); absent at a lift-off.
+    /// Friction used there, the tangential force / (μ N) [-] (> 1 at a slip); absent at a
+    /// lift-off.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub friction_used: Option<f64>,
     /// The normal force N there [N] (< 0 at a lift-off: the pull the contact would need).
