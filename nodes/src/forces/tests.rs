@@ -4,12 +4,13 @@ use super::*;
 use crate::params::CommonParams;
 
 fn node() -> ForcesNode {
+    node_on("params/suite_mobile_manipulator.yaml")
+}
+
+/// The forces node on `scene`, a path from the repository's root.
+fn node_on(scene: &str) -> ForcesNode {
     let mut common = CommonParams::default();
-    common.model.scene_file = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../params/suite_mobile_manipulator.yaml"
-    )
-    .into();
+    common.model.scene_file = format!("{}/../{scene}", env!("CARGO_MANIFEST_DIR"));
     let params = NodeParams::<ForcesParams> {
         common,
         node: ForcesParams::default(),
@@ -61,18 +62,7 @@ fn a_state_off_the_constraints_is_projected_and_said() {
 /// that and the row's λ in quadrature.
 #[test]
 fn a_sideways_tyres_friction_is_part_of_the_contacts_tangential_force() {
-    let mut common = CommonParams::default();
-    common.model.scene_file = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../tests/data/diff_drive_sideways_tyres.yaml"
-    )
-    .into();
-    let params = NodeParams::<ForcesParams> {
-        common,
-        node: ForcesParams::default(),
-    };
-    let robot = Robot::load(&params.common).unwrap();
-    let mut n = ForcesNode::new(robot, params, NodeLog::new("test")).unwrap();
+    let mut n = node_on("tests/data/diff_drive_sideways_tyres.yaml");
     let model = n.robot.model();
     let v_y = 0.05;
     let mut v = vec![0.0; model.nv];
