@@ -2,17 +2,19 @@
 
 use super::*;
 
+/// The bundled scene `params/<name>.yaml`: loaded, as YAML, and its path.
+fn bundled(name: &str) -> (crate::Scene, Value, String) {
+    let path = format!("{}/params/{name}.yaml", env!("CARGO_MANIFEST_DIR"));
+    let yaml = serde_yaml::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    (crate::Scene::load(&path).unwrap(), yaml, path)
+}
+
 /// On the soft-floor scene (wheels and balls as `forces.tyres`, no rolling contact): the
 /// radius goes to the wheel tyres only, the slip speed to every tyre, the process noise to
 /// the wheels' joints; the track offset has nowhere to go.
 #[test]
 fn tyre_parameters_go_where_the_tyres_are() {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/params/mobile_manipulator_soft_floor.yaml"
-    );
-    let scene = crate::Scene::load(path).unwrap();
-    let mut yaml: Value = serde_yaml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let (scene, mut yaml, _) = bundled("mobile_manipulator_soft_floor");
     let places = SceneParameters::new(&yaml, &scene.model).unwrap();
     assert_eq!(places.value(&yaml, FitParameter::RollingRadius), 0.04925);
     assert_eq!(places.value(&yaml, FitParameter::TyreSlipSpeed), 0.01);
@@ -44,12 +46,7 @@ fn tyre_parameters_go_where_the_tyres_are() {
 /// changes. Once the scene has tyres, it is their `tyre_slip_speed`.
 #[test]
 fn lateral_creep_adds_sideways_tyres_at_the_contacts() {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/params/suite_mobile_manipulator.yaml"
-    );
-    let scene = crate::Scene::load(path).unwrap();
-    let yaml: Value = serde_yaml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let (scene, yaml, path) = bundled("suite_mobile_manipulator");
     let places = SceneParameters::new(&yaml, &scene.model).unwrap();
     assert!(places.unavailable(FitParameter::LateralCreep).is_none());
     assert_eq!(places.value(&yaml, FitParameter::LateralCreep), 0.0);
@@ -71,7 +68,7 @@ fn lateral_creep_adds_sideways_tyres_at_the_contacts() {
     assert_eq!(tyres(&soft).len(), 2);
     let urdf = concat!(env!("CARGO_MANIFEST_DIR"), "/urdf/mobile_manipulator.urdf");
     let soft_scene = crate::Scene::from_parts(
-        std::path::Path::new(path),
+        std::path::Path::new(&path),
         serde_yaml::from_value(soft.clone()).unwrap(),
         &std::fs::read_to_string(urdf).unwrap(),
         urdf,

@@ -13,7 +13,7 @@
 //! normal row is its one row when `unilateral`, else world z when it has `friction`; the other
 //! rows are tangential.
 
-use super::{Constraint, ConstraintKind, ConstraintSet, ROLLING_ROW};
+use super::{Constraint, ConstraintKind, ConstraintSet};
 use crate::model::Model;
 use serde::Serialize;
 
@@ -165,7 +165,7 @@ impl Contact {
                     .map(|i| r0 + i)
                     .collect(),
                 friction: rc.friction,
-                sideways_tyre: rc.rows.contains(&ROLLING_ROW).then_some(rc.wheel),
+                sideways_tyre: rc.lateral_free().then_some(rc.wheel),
             }),
             Constraint::Point(pc) if pc.unilateral || pc.friction.is_some() => {
                 let normal_axis = if pc.unilateral { pc.axes[0] } else { 2 };

@@ -383,7 +383,8 @@ fn check_lateral_tyres(sys: &System, forces: &ForceElements) -> Result<()> {
             && !forces.has_wheel_tyre(rc.wheel)
         {
             return Err(Error::Invalid(format!(
-                "constraint '{name}': lateral: tyre needs a forces.tyres entry with an axis on                  its wheel '{}'",
+                "constraint '{name}': lateral: tyre needs a forces.tyres entry with an axis on \
+                 its wheel '{}'",
                 sys.model().frames[rc.wheel].name
             )));
         }
