@@ -5,7 +5,7 @@ The model is then exact; what remains is what the start does not know.
     .venv-logs/bin/python tools/logs/model_floor.py [--print]
 
 Starts as `evaluate` takes them (every 0.5 s on an odometry stamp, from the first odometry after
-the first joint states; the recorded commands from there), each predicted twice by MuJoCo itself:
+the first joint states; the recorded commands from there), each predicted three ways by MuJoCo itself:
 
 - `measured`: the simulator's true state with what the logs measure replaced by the logged
   values — the base's planar pose and twist by /odom's (noise σ 2 mm, 2 mrad, 0.01 m/s,
@@ -19,8 +19,10 @@ the first joint states; the recorded commands from there), each predicted twice 
   the simulator's resistances).
 
 Scored against the simulator's true pose at t0 + h: position error |(Δx, Δy)| and |Δyaw|, median
-and worst over the starts. Writes docs/logs.md's table between its `model_floor:begin` /
-`model_floor:end` markers (`--print`: to stdout instead).
+and worst over the starts: of each bundled drive, and as ranges over five fresh raw-step drives
+(step_spread.py's, from make_logs' generator with seeds no bundled drive uses). Writes
+docs/logs.md's table between its `model_floor:begin` / `model_floor:end` markers (`--print`: to
+stdout instead).
 """
 
 import math
@@ -35,6 +37,7 @@ sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.dirname(HERE))
 import make_logs as ml  # noqa: E402
 from doc_block import write_block  # noqa: E402
+from step_spread import STEPS_SEEDS, fresh_drive, span  # noqa: E402
 
 DOC = os.path.join(ml.REPO, "docs", "logs.md")
 BEGIN = "<!-- model_floor:begin -->"
@@ -150,16 +153,23 @@ def main():
              "|---|---|" + "---|" * len(HORIZONS_S)]
     label = {"measured": "measured (true tilt and integrals)", "node": "as the node starts",
              "node_integrals": "as the node starts, true integrals"}
-    for d in ml.DRIVES:
-        rows = run_drive(d)
+    fresh = [fresh_drive(f"steps_{s}", s, ["steps"]) for s in STEPS_SEEDS]
+    groups = [(d.name, [d]) for d in ml.DRIVES] + [(f"{len(fresh)} fresh steps", fresh)]
+    for name, drives in groups:
+        runs = [run_drive(d) for d in drives]
         for variant in VARIANTS:
             cells = []
             for h in HORIZONS_S:
-                p = [r[2] for r in rows if r[0] == h and r[1] == variant]
-                y = [r[3] for r in rows if r[0] == h and r[1] == variant]
-                cells.append(f"{1e3 * np.median(p):.1f} / {1e3 * max(p):.1f} mm, "
-                             f"{1e3 * np.median(y):.1f} / {1e3 * max(y):.0f} mrad")
-            lines.append(f"| {d.name} | {label[variant]} | " + " | ".join(cells) + " |")
+                stats = []
+                for rows in runs:
+                    p = [r[2] for r in rows if r[0] == h and r[1] == variant]
+                    y = [r[3] for r in rows if r[0] == h and r[1] == variant]
+                    stats.append((1e3 * np.median(p), 1e3 * max(p), 1e3 * np.median(y),
+                                  1e3 * max(y)))
+                col = [span([s[i] for s in stats], f) for i, f in
+                       enumerate(("{:.1f}", "{:.1f}", "{:.1f}", "{:.0f}"))]
+                cells.append(f"{col[0]} / {col[1]} mm, {col[2]} / {col[3]} mrad")
+            lines.append(f"| {name} | {label[variant]} | " + " | ".join(cells) + " |")
         print("\n".join(lines[-len(VARIANTS):]), file=sys.stderr)
     if "--print" in sys.argv[1:]:
         print("\n".join(lines))

@@ -39,11 +39,15 @@ def cli(*args):
     return json.loads(out.stdout)
 
 
+def fresh_drive(name, seed, phases):
+    """A drive of 20 s per phase from make_logs' generator with a seed of its own."""
+    return ml.Drive(name, seed=seed, phases=tuple((k, 20.0) for k in phases), stamped=False,
+                    bag_directory=False)
+
+
 def drive(tmp, name, seed, phases):
     path = os.path.join(tmp, f"{name}.mcap")
-    d = ml.Drive(name, seed=seed, phases=tuple((k, 20.0) for k in phases), stamped=False,
-                 bag_directory=False)
-    ml.record(d, path, ml.SCENE, ml.URDF)
+    ml.record(fresh_drive(name, seed, phases), path, ml.SCENE, ml.URDF)
     return path
 
 
