@@ -11,10 +11,9 @@ Nav2-like cmd_vel at 20 Hz (arcs, spins, reverses, stops), smoothed to 1 m/s² a
 velocity smoother would, or raw steps: the validation drives one phase each, the calibration
 drive a smoothed phase and then a phase of steps. One shorter drive carries a payload on the
 tool that the scene is not told of (payload_3kg.mcap: 3 kg at tool0, robot_mjcf.py), its arm
-held with the tool above the wheel axle (shoulder pitch −0.1, elbow −0.15 rad): with the
-scene's forward-leaning pose the robot's centre of mass lies within a millimetre of the axle,
-and any mass at the tool (0.51 m ahead of it there) tips the robot onto its anti-tip skid
-(3 kg: ~145 N on the skid, ~11 N on each wheel, and the wheels spin). Topics:
+held with the tool above the wheel axle (shoulder pitch −0.1, elbow −0.15 rad), where it loads
+the shoulder without tipping the robot off its wheels (at rest ~61 N on each wheel, ~34 N on
+the caster). Topics:
 
     /cmd_vel            geometry_msgs/Twist (TwistStamped in validation_steps), 20 Hz
     /odom               nav_msgs/Odometry, 50 Hz: the true base pose and twist plus white noise

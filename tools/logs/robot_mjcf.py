@@ -16,6 +16,10 @@ URDF's own numbers, with what its scene (params/suite_mobile_manipulator.yaml) d
 A drive may also carry a payload the scene is not told of: a solid sphere of PAYLOAD_RADIUS_M
 with its centre at tool0's origin (`mjcf(..., payload_kg=M)`).
 
+MuJoCo gives a contact the larger of its two geoms' frictions (and condims) unless one geom has
+the higher `priority`; the floor's friction (1, as the default's) would then override every
+number above. The robot's contact geoms carry priority 1, so each contact has the robot's own.
+
 The base is a free body (it may pitch and roll on the soft contacts); the arm's joints and the
 wheels are hinges with the URDF's damping. The controllers are not part of the model: the
 simulation applies their torques (make_logs.py).
@@ -119,18 +123,18 @@ def mjcf(urdf_path, timestep, payload_kg=0.0):
                         f'damping="{j["damping"]:.12g}"/>')
             body.append(f'<geom name="{j["child"]}_tyre" type="cylinder" '
                         f'size="{wheel_r:.12g} {0.25 * TYRE_WIDTH_M:.12g}" euler="1.5707963267948966 0 0" '
-                        f'condim="6" friction="{TYRE_MU} {TYRE_TORSIONAL_M} {TYRE_ROLLING_M}" mass="0"/>')
+                        f'condim="6" priority="1" friction="{TYRE_MU} {TYRE_TORSIONAL_M} {TYRE_ROLLING_M}" mass="0"/>')
             body.append("</body>")
         elif j["type"] == "fixed" and j["child"] == "caster_link":
             r = float(child["visual"].find("geometry/sphere").get("radius"))
             body.append(f'<body name="caster_link" pos="{_vec(j["xyz"])}">')
             body.append(_inertial(child))
-            body.append(f'<geom name="caster" type="sphere" size="{r:.12g}" condim="3" '
+            body.append(f'<geom name="caster" type="sphere" size="{r:.12g}" condim="3" priority="1" '
                         f'friction="{CASTER_MU} 0 0" mass="0"/>')
             body.append("</body>")
             skid = [ANTI_TIP_X_M, 0.0, j["xyz"][2] + ANTI_TIP_CLEARANCE_M]
             body.append(f'<geom name="anti_tip" type="sphere" size="{r:.12g}" pos="{_vec(skid)}" '
-                        f'condim="3" friction="{CASTER_MU} 0 0" mass="0"/>')
+                        f'condim="3" priority="1" friction="{CASTER_MU} 0 0" mass="0"/>')
         elif j["type"] == "fixed" and j["child"] == "arm_mount":
             body.append(f'<body name="arm_mount" pos="{_vec(j["xyz"])}">')
             body.extend(_arm(u, "arm_mount", payload_kg))

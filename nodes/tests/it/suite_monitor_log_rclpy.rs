@@ -16,9 +16,9 @@
 //!   holding the tool above the wheel axle): one WARN naming the shoulder pitch's effort and a
 //!   payload, the shoulder's median effort error the closed form −M·g·d at the logged arm pose
 //!   (the peer's) within 0.75 N·m at 0.25 and 0.5 s, and at 1 s between 0.75 N·m below it and
-//!   1.5 N·m above (the heavier robot's lagging accelerations swing arm and payload). The 23 % heavier robot also accelerates and turns otherwise
-//!   than its model, so the odometry is off too: a WARN calls both (or the efforts first, then
-//!   both, when the efforts' window fills first).
+//!   1.5 N·m above (the heavier robot's lagging accelerations swing arm and payload). The
+//!   23 % heavier robot may also drive off its model's odometry: a WARN then calls both (or
+//!   the efforts first, then both, when the efforts' window fills first).
 //!
 //! Needs root and the peer venv (`CD_ROS2_VENV`): `#[ignore]`d in a plain `cargo test`, run by
 //! `tools/test.sh`; a missing prerequisite fails the test.
