@@ -21,106 +21,13 @@ use serde::Deserialize;
 use std::collections::BTreeMap;
 
 mod continuous;
+mod spec;
+mod traction;
 
-/// `actuators:` in a scene.
-#[derive(Clone, Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ActuatorsSpec {
-    /// `velocity:` PI joint velocity controllers (default none).
-    #[serde(default)]
-    pub velocity: Vec<VelocityControllerSpec>,
-    /// `position:` PD joint position controllers (default none).
-    #[serde(default)]
-    pub position: Vec<PositionControllerSpec>,
-    /// `diff_drive:` differential drive over two wheel joints (default none).
-    #[serde(default)]
-    pub diff_drive: Option<DiffDriveSpec>,
-    /// Control period [s]; default [`DEFAULT_CONTROL_PERIOD`].
-    #[serde(default)]
-    pub control_period: Option<f64>,
-    /// How the torques are held between control ticks (module doc); default `zero_order`.
-    #[serde(default)]
-    pub hold: Hold,
-}
-
-/// `actuators.hold:` the controllers' model in time (module doc).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Hold {
-    /// Torques computed every control period and held (a digital controller).
-    #[default]
-    ZeroOrder,
-    /// Torques evaluated at every stage from (t, q, v): no control ticks.
-    Continuous,
-}
-
-/// The control period of a scene's controllers when `actuators.control_period` is not given [s].
-pub const DEFAULT_CONTROL_PERIOD: f64 = 0.001;
-
-impl ActuatorsSpec {
-    /// True when the scene declares a controller.
-    pub fn is_empty(&self) -> bool {
-        self.velocity.is_empty() && self.position.is_empty() && self.diff_drive.is_none()
-    }
-
-    /// The period [s] at which the controllers' torques are recomputed and held, None without
-    /// controllers or with continuous ones (a prediction then has no control ticks).
-    pub fn control_period_s(&self) -> Option<f64> {
-        (!self.is_empty() && self.hold == Hold::ZeroOrder)
-            .then(|| self.control_period.unwrap_or(DEFAULT_CONTROL_PERIOD))
-    }
-}
-
-/// τ = kp (v* − v) + ki ∫(v* − v) dt, clamped to ±effort (no integration while clamped).
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct VelocityControllerSpec {
-    /// `joint:` URDF name of the 1-DOF joint driven; required.
-    pub joint: String,
-    /// kp [N·m·s/rad or N·s/m].
-    pub kp: f64,
-    /// ki [N·m/rad or N/m].
-    #[serde(default)]
-    pub ki: f64,
-}
-
-/// τ = kp (q* − q) − kd v, clamped to ±effort.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PositionControllerSpec {
-    /// `joint:` URDF name of the 1-DOF joint driven; required.
-    pub joint: String,
-    /// kp [N·m/rad or N/m].
-    pub kp: f64,
-    /// kd [N·m·s/rad or N·s/m].
-    #[serde(default)]
-    pub kd: f64,
-}
-
-/// Differential drive: ω_l = (v − ω b/2)/r, ω_r = (v + ω b/2)/r, each tracked by a PI.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct DiffDriveSpec {
-    /// `left_joint:` URDF name of the left wheel joint; required.
-    pub left_joint: String,
-    /// `right_joint:` URDF name of the right wheel joint; required.
-    pub right_joint: String,
-    /// r [m].
-    pub wheel_radius: f64,
-    /// b, distance between the wheel contact points [m].
-    pub wheel_separation: f64,
-    /// `kp:` wheel-speed PI proportional gain [N·m·s/rad]; required.
-    pub kp: f64,
-    /// `ki:` wheel-speed PI integral gain [N·m/rad] (default 0).
-    #[serde(default)]
-    pub ki: f64,
-    /// `traction_torque:` the largest wheel torque the floor takes before the tyre skids
-    /// [N·m], μ N r; each wheel's torque is clamped to the lesser of it and the URDF effort
-    /// (default: the URDF effort alone). A skidding tyre passes μ N to the floor whatever the
-    /// motor gives, so the base accelerates as under this clamp (docs/contacts.md).
-    #[serde(default)]
-    pub traction_torque: Option<f64>,
-}
+pub use spec::{
+    ActuatorsSpec, DEFAULT_CONTROL_PERIOD, DiffDriveSpec, Hold, PositionControllerSpec,
+    VelocityControllerSpec,
+};
 
 /// What a prediction is asked to follow from a time on (piecewise constant).
 #[derive(Clone, Debug, Default, PartialEq, Deserialize)]
@@ -215,6 +122,9 @@ pub struct Actuators {
     pub hold: Hold,
     /// Continuous hold: start of the current command segment [s].
     segment_start: f64,
+    /// The diff drive's traction torque T [N·m] and load transfer κ (κ > 0: the wheels'
+    /// clamps are coupled, [`traction`]).
+    traction: (f64, f64),
 }
 
 impl Actuators {
@@ -321,6 +231,18 @@ impl Actuators {
                 idx[k] = a.velocity.len() - 1;
             }
             a.diff_drive = Some((idx[0], idx[1], d.wheel_radius, d.wheel_separation));
+            if let Some(kappa) = d.traction_load_transfer {
+                let Some(t) = d
+                    .traction_torque
+                    .filter(|_| kappa.is_finite() && kappa >= 0.0)
+                else {
+                    return Err(Error::Invalid(format!(
+                        "actuators.diff_drive.traction_load_transfer = {kappa}: must be finite, \
+                         ≥ 0 and beside a traction_torque"
+                    )));
+                };
+                a.traction = (t, kappa);
+            }
         }
         Ok(a)
     }
@@ -445,6 +367,13 @@ impl Actuators {
     pub fn update(&mut self, cmd: &Command, q: &[f64], v: &[f64], dt: f64, tau: &mut [f64]) {
         tau.iter_mut().for_each(|x| *x = 0.0);
         let drive = self.diff_drive;
+        let raw_of = |k: usize, c: &Pi| {
+            velocity_target(drive, cmd, k, &c.name).map(|target| {
+                let e = target - v[c.iv];
+                c.kp * e + c.ki * (c.integral + e * dt)
+            })
+        };
+        let limits = self.wheel_limits(|k, c| raw_of(k, c).unwrap_or(0.0));
         for (k, c) in self.velocity.iter_mut().enumerate() {
             let Some(target) = velocity_target(drive, cmd, k, &c.name) else {
                 (c.gain, c.clamped) = ((0.0, 0.0), false);
@@ -452,14 +381,15 @@ impl Actuators {
             };
             let e = target - v[c.iv];
             let raw = c.kp * e + c.ki * (c.integral + e * dt);
-            c.clamped = raw.abs() > c.effort;
+            let effort = traction::effort(limits, k, c.effort);
+            c.clamped = raw.abs() > effort;
             c.gain = if !c.clamped {
                 c.integral += e * dt; // anti-windup: integrate only when not saturated
                 (c.ki, c.kp + c.ki * dt)
             } else {
                 (0.0, 0.0)
             };
-            tau[c.iv] += raw.clamp(-c.effort, c.effort);
+            tau[c.iv] += raw.clamp(-effort, effort);
         }
         for c in &mut self.position {
             let Some(&target) = cmd.joint_position.get(&c.name) else {

@@ -1,7 +1,7 @@
 //! `hold: continuous`: the controllers' torques as a function of (t, q, v) within a command
 //! segment, and the anti-windup reviewed between steps (module doc of `actuators`).
 
-use super::{Actuators, Command, Feedback, Hold, Pi, velocity_target};
+use super::{Actuators, Command, Feedback, Hold, Pi, traction, velocity_target};
 
 impl Actuators {
     /// The torques are a function of (t, q, v) (`hold: continuous`).
@@ -96,8 +96,12 @@ impl Actuators {
         v: &[f64],
         mut f: impl FnMut(Joint, f64, (f64, f64, f64)),
     ) {
-        for c in self.velocity.iter().filter(|c| c.target.is_finite()) {
-            let raw = c.kp * (c.target - v[c.iv]) + c.ki * self.integral(c, t, q);
+        let limits = self.wheel_limits(|_, c| self.raw(c, t, q, v));
+        for (n, c) in self.velocity.iter().enumerate() {
+            if !c.target.is_finite() {
+                continue;
+            }
+            let raw = self.raw(c, t, q, v);
             // A frozen integral depends on neither q nor t.
             let (k, rate) = match c.frozen.is_nan() {
                 true => (c.ki, c.ki * c.target),
@@ -107,7 +111,7 @@ impl Actuators {
                 Joint {
                     iq: c.iq,
                     iv: c.iv,
-                    effort: c.effort,
+                    effort: traction::effort(limits, n, c.effort),
                 },
                 raw,
                 (k, c.kp, rate),
@@ -126,6 +130,15 @@ impl Actuators {
             );
         }
     }
+    /// Continuous hold: a velocity controller's raw (unclamped) torque at (t, q, v); 0 without
+    /// a target.
+    fn raw(&self, c: &Pi, t: f64, q: &[f64], v: &[f64]) -> f64 {
+        match c.target.is_finite() {
+            true => c.kp * (c.target - v[c.iv]) + c.ki * self.integral(c, t, q),
+            false => 0.0,
+        }
+    }
+
     /// Continuous hold: a velocity controller's integral ∫(v* − q̇) dt at (t, q) [rad or m] —
     /// held while frozen, else the exact integral less the skipped windup.
     fn integral(&self, c: &Pi, t: f64, q: &[f64]) -> f64 {
@@ -147,20 +160,22 @@ impl Actuators {
     /// right-hand side is then another function (an implicit method's F is stale).
     pub fn review_saturation(&mut self, t: f64, q: &[f64], v: &[f64]) -> bool {
         let mut changed = false;
+        let limits = self.wheel_limits(|_, c| self.raw(c, t, q, v));
         for k in 0..self.velocity.len() {
             let c = &self.velocity[k];
             if !c.target.is_finite() {
                 continue;
             }
+            let effort = traction::effort(limits, k, c.effort);
             let integral = self.integral(c, t, q);
             let raw = c.kp * (c.target - v[c.iv]) + c.ki * integral;
             let frozen = c.frozen.is_finite();
             let free = self.segment_integral(c, t, q) - c.windup;
             let c = &mut self.velocity[k];
-            if !frozen && raw.abs() > c.effort {
+            if !frozen && raw.abs() > effort {
                 (c.frozen, c.gain) = (integral, (0.0, 0.0));
                 changed = true;
-            } else if frozen && raw.abs() <= c.effort {
+            } else if frozen && raw.abs() <= effort {
                 c.windup += free - c.frozen;
                 (c.frozen, c.gain) = (f64::NAN, (c.ki, c.kp));
                 changed = true;
@@ -174,17 +189,20 @@ impl Actuators {
         (self.velocity.iter()).any(|c| c.target.is_finite() && c.frozen.is_finite())
     }
 
-    /// Continuous hold: from (v, q̈) at a span's start, the shortest time [s] after which a
-    /// frozen controller's torque, moving at its rate −kp q̈ (its target and integral held),
-    /// comes back inside its effort; None when none is heading back.
-    pub fn saturation_exit(&self, v: &[f64], qdd: &[f64]) -> Option<f64> {
+    /// Continuous hold: from (t, q, v, q̈) at a span's start, the shortest time [s] after which
+    /// a frozen controller's torque, moving at its rate −kp q̈ (its target and integral held),
+    /// comes back inside its effort (a coupled traction limit held at the span's start's);
+    /// None when none is heading back.
+    pub fn saturation_exit(&self, t: f64, q: &[f64], v: &[f64], qdd: &[f64]) -> Option<f64> {
+        let limits = self.wheel_limits(|_, c| self.raw(c, t, q, v));
         self.velocity
             .iter()
-            .filter(|c| c.target.is_finite() && c.frozen.is_finite())
-            .filter_map(|c| {
+            .enumerate()
+            .filter(|(_, c)| c.target.is_finite() && c.frozen.is_finite())
+            .filter_map(|(k, c)| {
                 let raw = c.kp * (c.target - v[c.iv]) + c.ki * c.frozen;
                 let rate = -c.kp * qdd[c.iv];
-                let excess = raw.abs() - c.effort;
+                let excess = raw.abs() - traction::effort(limits, k, c.effort);
                 let toward = -rate * raw.signum();
                 (excess > 0.0 && toward > 0.0).then(|| excess / toward)
             })

@@ -31,6 +31,10 @@ pub enum FitParameter {
     /// The diff drive's `traction_torque:` [N·m]: the wheel torque at which the tyres skid.
     /// Only a drive that reaches it determines it.
     TractionTorque,
+    /// The diff drive's `traction_load_transfer:` κ (1): the traction the wheels lose per
+    /// newton-metre of their mean torque as the base pitches onto its caster or skid. Only for
+    /// a scene that declares one (its estimate, e.g. μ h/ℓ, is where the fit starts).
+    TractionLoadTransfer,
     /// Every `forces.tyres` entry's `slip_speed_scale:` [m/s], one shared value: the slip
     /// speed below which a tyre creeps rather than skids (how soft its grip is).
     TyreSlipSpeed,
@@ -48,13 +52,14 @@ pub const LATERAL_FRICTION: f64 = 0.8;
 
 impl FitParameter {
     /// Every parameter, in the order the output lists them.
-    pub const ALL: [FitParameter; 8] = [
+    pub const ALL: [FitParameter; 9] = [
         FitParameter::RollingRadius,
         FitParameter::TrackOffset,
         FitParameter::TrackTurnGain,
         FitParameter::BaseMass,
         FitParameter::TurningFriction,
         FitParameter::TractionTorque,
+        FitParameter::TractionLoadTransfer,
         FitParameter::TyreSlipSpeed,
         FitParameter::LateralCreep,
     ];
@@ -68,6 +73,7 @@ impl FitParameter {
             FitParameter::BaseMass => "base_mass",
             FitParameter::TurningFriction => "turning_friction",
             FitParameter::TractionTorque => "traction_torque",
+            FitParameter::TractionLoadTransfer => "traction_load_transfer",
             FitParameter::TyreSlipSpeed => "tyre_slip_speed",
             FitParameter::LateralCreep => "lateral_creep",
         }
@@ -81,7 +87,7 @@ impl FitParameter {
             FitParameter::LateralCreep => "m/(N·s)",
             FitParameter::TrackTurnGain => "m/(rad/s)²",
             FitParameter::BaseMass => "kg",
-            FitParameter::TurningFriction => "1",
+            FitParameter::TurningFriction | FitParameter::TractionLoadTransfer => "1",
             FitParameter::TractionTorque => "N·m",
         }
     }
@@ -119,6 +125,8 @@ pub struct SceneParameters {
     /// The diff drive's wheel torque clamp [N·m]: its `traction_torque:`, else the wheels'
     /// least URDF effort (infinite where the URDF gives none); `None` without a diff drive.
     traction: Option<f64>,
+    /// The diff drive's `traction_load_transfer:`, where it declares one.
+    load_transfer: Option<f64>,
     has_payload: bool,
     /// The scene's `integration.drift` is `none`.
     no_drift_control: bool,
@@ -242,6 +250,7 @@ impl SceneParameters {
                     .fold(f64::INFINITY, f64::min)
             })
         });
+        let load_transfer = number(drive.and_then(|d| d.get("traction_load_transfer")));
         let has_payload =
             number(scene.get("payload").and_then(|p| p.get("mass"))).is_some_and(|m| m != 0.0);
         let no_drift_control = scene
@@ -260,6 +269,7 @@ impl SceneParameters {
             base: (body.name.clone(), [com.x, com.y, com.z]),
             turning,
             traction,
+            load_transfer,
             has_payload,
         })
     }
@@ -291,15 +301,20 @@ impl SceneParameters {
             FitParameter::TurningFriction if self.turning == 0 => {
                 Some("the scene declares no forces.turning_resistance".into())
             }
-            FitParameter::TractionTorque => match self.traction {
-                None => Some("the scene has no actuators.diff_drive".into()),
-                Some(t) if !t.is_finite() => Some(
-                    "the wheels have no effort limit: declare actuators.diff_drive.\
+            FitParameter::TractionLoadTransfer if self.load_transfer.is_none() => {
+                Some("the scene declares no actuators.diff_drive.traction_load_transfer".into())
+            }
+            FitParameter::TractionTorque | FitParameter::TractionLoadTransfer => {
+                match self.traction {
+                    None => Some("the scene has no actuators.diff_drive".into()),
+                    Some(t) if !t.is_finite() => Some(
+                        "the wheels have no effort limit: declare actuators.diff_drive.\
                      traction_torque to start from"
-                        .into(),
-                ),
-                _ => None,
-            },
+                            .into(),
+                    ),
+                    _ => None,
+                }
+            }
             _ => None,
         }
     }
@@ -337,121 +352,7 @@ impl SceneParameters {
             )
             .unwrap_or(0.0),
             FitParameter::TractionTorque => self.traction.unwrap_or(f64::INFINITY),
-        }
-    }
-
-    /// Writes `value` of `p` into `scene`.
-    pub fn set(&self, scene: &mut Value, p: FitParameter, value: f64) {
-        let put = |map: &mut Value, key: &str, x: f64| {
-            if let Some(m) = map.as_mapping_mut() {
-                m.insert(Value::from(key), Value::from(x));
-            }
-        };
-        match p {
-            FitParameter::TyreSlipSpeed => {
-                for t in tyres_mut(scene) {
-                    put(t, "slip_speed_scale", value.max(1e-6));
-                }
-            }
-            FitParameter::LateralCreep => self.set_lateral_creep(scene, value),
-            FitParameter::RollingRadius
-            | FitParameter::TrackOffset
-            | FitParameter::TrackTurnGain => {
-                if p == FitParameter::RollingRadius {
-                    for (i, t) in tyres_mut(scene).iter_mut().enumerate() {
-                        if self.tyres.0.contains(&i) {
-                            put(t, "radius", value.max(1e-6));
-                        }
-                    }
-                }
-                let Some(cs) = scene
-                    .get_mut("constraints")
-                    .and_then(Value::as_sequence_mut)
-                else {
-                    return;
-                };
-                for (i, sign) in &self.rolling {
-                    match p {
-                        FitParameter::RollingRadius => put(&mut cs[*i], "radius", value),
-                        FitParameter::TrackTurnGain => {
-                            put(&mut cs[*i], "axle_offset_turn_gain", sign * value)
-                        }
-                        _ => put(&mut cs[*i], "axle_offset", sign * value),
-                    }
-                }
-            }
-            FitParameter::BaseMass => {
-                let mut payload = serde_yaml::Mapping::new();
-                payload.insert("frame".into(), self.base.0.clone().into());
-                payload.insert("mass".into(), value.max(0.0).into());
-                payload.insert(
-                    "com".into(),
-                    Value::Sequence(self.base.1.iter().map(|&x| x.into()).collect()),
-                );
-                if let Some(m) = scene.as_mapping_mut() {
-                    m.insert("payload".into(), Value::Mapping(payload));
-                }
-            }
-            FitParameter::TurningFriction => {
-                let entries = scene
-                    .get_mut("forces")
-                    .and_then(|f| f.get_mut("turning_resistance"))
-                    .and_then(Value::as_sequence_mut);
-                for e in entries.into_iter().flatten() {
-                    put(e, "friction", value.max(0.0));
-                }
-            }
-            FitParameter::TractionTorque => {
-                let drive = scene
-                    .get_mut("actuators")
-                    .and_then(|a| a.get_mut("diff_drive"));
-                if let Some(d) = drive {
-                    put(d, "traction_torque", value.max(1e-6));
-                }
-            }
-        }
-    }
-
-    /// Leaves every rolling contact's sideways grip to a tyre creeping at `creep` [(m/s)/N]
-    /// (none at 0 or below: the contacts stay rigid).
-    fn set_lateral_creep(&self, scene: &mut Value, creep: f64) {
-        if creep <= 0.0 {
-            return;
-        }
-        let mut added = Vec::new();
-        if let Some(cs) = scene
-            .get_mut("constraints")
-            .and_then(Value::as_sequence_mut)
-        {
-            for (i, _) in &self.rolling {
-                let c = &mut cs[*i];
-                let mu = number(c.get("friction")).unwrap_or(LATERAL_FRICTION);
-                let mut t = serde_yaml::Mapping::new();
-                for key in ["wheel", "axis", "radius", "plane_normal", "plane_height"] {
-                    if let Some(v) = c.get(key) {
-                        t.insert(key.into(), v.clone());
-                    }
-                }
-                t.insert("friction".into(), mu.into());
-                t.insert("normal_force".into(), self.weight_share.into());
-                t.insert(
-                    "slip_speed_scale".into(),
-                    (creep * mu * self.weight_share).into(),
-                );
-                added.push(Value::Mapping(t));
-                if let Some(m) = c.as_mapping_mut() {
-                    m.insert("lateral".into(), "tyre".into());
-                }
-            }
-        }
-        let Some(root) = scene.as_mapping_mut() else {
-            return;
-        };
-        let forces = root
-            .entry("forces".into())
-            .or_insert_with(|| Value::Mapping(Default::default()));
-        if let Some(f) = forces.as_mapping_mut() {
-            f.insert("tyres".into(), Value::Sequence(added));
+            FitParameter::TractionLoadTransfer => self.load_transfer.unwrap_or(0.0),
         }
     }
 
@@ -467,52 +368,25 @@ impl SceneParameters {
         self.tyres_carry_wheels
     }
 
-    /// Writes `uncertainty.<field>: σ` (`acceleration_noise` [(rad/s²)/√Hz] or
-    /// `saturation_bias` [rad/s²]) for every wheel joint, keeping the scene's other entries.
-    pub fn set_wheel_noise(&self, scene: &mut Value, field: &str, sigma: f64) {
-        let Some(root) = scene
-            .as_mapping_mut()
-            .filter(|_| !self.wheel_joints.is_empty())
-        else {
-            return;
-        };
-        let u = root
-            .entry("uncertainty".into())
-            .or_insert_with(|| Value::Mapping(Default::default()));
-        if !u.is_mapping() {
-            *u = Value::Mapping(Default::default());
-        }
-        let Some(u) = u.as_mapping_mut() else { return };
-        let noise = u
-            .entry(field.into())
-            .or_insert_with(|| Value::Mapping(Default::default()));
-        if !noise.is_mapping() {
-            *noise = Value::Mapping(Default::default());
-        }
-        if let Some(noise) = noise.as_mapping_mut() {
-            for j in &self.wheel_joints {
-                noise.insert(j.clone().into(), sigma.into());
-            }
-        }
-    }
-
     /// How far the parameter is moved to see its effect, and the size a change must reach to
     /// matter (the fit's parameter scaling): 1 mm of radius, 1 cm of track (and of its widening
-    /// at 1 rad/s), a tenth of the robot's mass, 0.1 of μ, a tenth of the traction torque,
-    /// 1 cm/s of slip speed, 1 mm/s of sideways creep per newton.
+    /// at 1 rad/s), a tenth of the robot's mass, 0.1 of μ, a tenth of the traction torque, 0.1
+    /// of its load transfer, 1 cm/s of slip speed, 1 mm/s of sideways creep per newton.
     pub fn scale(&self, p: FitParameter, model: &Model) -> f64 {
         match p {
             FitParameter::TractionTorque => 0.1 * self.traction.unwrap_or(1.0),
             FitParameter::RollingRadius => 1e-3,
             FitParameter::TrackOffset | FitParameter::TrackTurnGain => 1e-2,
             FitParameter::BaseMass => 0.1 * model.total_mass(),
-            FitParameter::TurningFriction => 0.1,
+            FitParameter::TurningFriction | FitParameter::TractionLoadTransfer => 0.1,
             FitParameter::TyreSlipSpeed => 0.01,
             // 1 mm/s of sideways slip under 1 N.
             FitParameter::LateralCreep => 1e-3,
         }
     }
 }
+
+mod write;
 
 #[cfg(test)]
 #[path = "parameters_tests.rs"]

@@ -79,3 +79,31 @@ fn traction_torque_clamps_the_wheels_below_the_urdf_effort() {
     let e = Predictor::from_scene(&bad).err().unwrap().to_string();
     assert!(e.contains("traction_torque"), "{e}");
 }
+
+/// `traction_load_transfer: κ` takes κ |τ_c| off both wheels' clamp, τ_c their mean torque: both
+/// pushing forward beyond it (8.81 and 11.59 N·m asked) share L = T − κ L, so T = 3 N·m and
+/// κ = 0.5 drive each wheel with T/(1 + κ) = 2 N·m exactly. κ without a traction torque, or
+/// negative, is refused naming the key.
+#[test]
+fn load_transfer_lowers_both_wheels_clamps_under_a_common_torque() {
+    let loaded = Scene::load(repo_dir().join("params/suite_diff_drive.yaml")).unwrap();
+    let mut scene = loaded.clone();
+    if let Some(d) = scene.file.actuators.diff_drive.as_mut() {
+        (d.traction_torque, d.traction_load_transfer) = (Some(3.0), Some(0.5));
+    }
+    let (first, lambda) = first_sample_and_lambda_at(&scene, 2.0);
+    assert_close(
+        "λ at t = 0, traction 3 N·m with load transfer 0.5",
+        first.lambda.as_deref().unwrap(),
+        &lambda,
+        1e-15,
+    );
+    for (traction, kappa) in [(None, 0.5), (Some(3.0), -0.1), (Some(3.0), f64::NAN)] {
+        let mut bad = loaded.clone();
+        if let Some(d) = bad.file.actuators.diff_drive.as_mut() {
+            (d.traction_torque, d.traction_load_transfer) = (traction, Some(kappa));
+        }
+        let e = Predictor::from_scene(&bad).err().unwrap().to_string();
+        assert!(e.contains("traction_load_transfer"), "{e}");
+    }
+}

@@ -237,6 +237,11 @@ fn a_fit_the_scene_cannot_take_is_an_error_naming_it() {
             "tyre_slip_speed",
             "tyre_slip_speed: the scene declares no forces.tyres",
         ),
+        (
+            "traction_load_transfer",
+            "traction_load_transfer: the scene declares no actuators.diff_drive.\
+             traction_load_transfer",
+        ),
     ] {
         let (ok, _, err) = run(
             &dir,

@@ -318,7 +318,8 @@ impl Predictor {
                     changed |= self.actuators.review_saturation(ts, &a.q, &a.v);
                     if self.actuators.any_frozen() && pieces < MAX_PIECES {
                         self.probe_accel(a, ts)?;
-                        let exit = self.actuators.saturation_exit(&a.v, &self.ws.probe_qdd);
+                        let exit =
+                            (self.actuators).saturation_exit(ts, &a.q, &a.v, &self.ws.probe_qdd);
                         if let Some(dt) = exit {
                             te = (ts + dt.max(MIN_PIECE)).min(t_end);
                             if t_end - te < MIN_PIECE {
