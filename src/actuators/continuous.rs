@@ -130,6 +130,7 @@ impl Actuators {
             );
         }
     }
+
     /// Continuous hold: a velocity controller's raw (unclamped) torque at (t, q, v); 0 without
     /// a target.
     fn raw(&self, c: &Pi, t: f64, q: &[f64], v: &[f64]) -> f64 {
