@@ -2,20 +2,21 @@
 //! (constraints/contact.rs: a rolling wheel, a unilateral or frictional point) at its λ — the
 //! friction it uses, ‖λ_t‖ / (μ N) (with the friction of the tyre that holds a `lateral: tyre`
 //! contact sideways, at right angles to its rows), and the sign of its normal force — and the
-//! trajectory
-//! reports the first sample and contact where the motion would need more friction than μ
-//! (`slip`) or a contact would have to pull (`lift_off`).
+//! trajectory reports the first sample and contact where the motion would need more friction
+//! than μ (`slip`) or a contact would have to pull (`lift_off`).
 //!
 //! The prediction itself never changes: it keeps every contact rolling whatever force that
-//! takes; the judgement only reads the λ and the tyres' friction each sample already holds. The ROS nodes judge the
-//! forces they publish with the same [`ContactJudge`]. μ is the contact's own
+//! takes; the judgement only reads the λ and the tyres' friction each sample already holds. The
+//! ROS nodes judge the forces they publish with the same [`ContactJudge`]. μ is the contact's own
 //! (`friction:`), else [`ContactLimits::friction`] of the request; N is the contact's normal
 //! row, else [`ContactLimits::normal_force`] (a wheel on a planar base). What neither gives is
 //! listed under [`ContactCheck::unchecked`], as the acceleration envelope lists it, never
 //! guessed.
 
+use crate::algorithm::Data;
 use crate::constraints::{BreakKind, ConstraintSet, Contact, ContactLimits, ContactState};
 use crate::error::{Error, Result};
+use crate::forces::ForceElements;
 use crate::model::Model;
 use crate::robot_limits::{ACTIVE_TOLERANCE, NamedLimit, unchecked_contact_limits};
 use serde::Serialize;
@@ -78,20 +79,22 @@ impl ContactJudge {
         &self.contacts
     }
 
-    /// Each contact at `lambda` (nc), `sideways_tyre(wheel frame)` the friction [N] of the tyre
-    /// that holds a contact sideways ([`Contact::sideways_tyre`]; at the state λ was solved at:
-    /// `ForceElements::wheel_tyre_friction`); None without contacts. One allocation (the
-    /// sample's list).
+    /// Each contact at `lambda` (nc), with the friction of the tyre in `tyres` that holds a
+    /// contact sideways ([`Contact::sideways_tyre`]) at the kinematics of `data`, the state λ
+    /// was solved at; None without contacts. One allocation (the sample's list).
     pub fn judge(
         &self,
         lambda: &[f64],
         limits: &ContactLimits,
-        sideways_tyre: impl Fn(usize) -> f64,
+        model: &Model,
+        data: &Data,
+        tyres: &ForceElements,
     ) -> Option<Vec<ContactState>> {
         (!self.contacts.is_empty()).then(|| {
             (self.contacts.iter())
                 .map(|(_, c)| {
-                    let sideways = c.sideways_tyre.map_or(0.0, &sideways_tyre);
+                    let sideways = (c.sideways_tyre)
+                        .map_or(0.0, |wheel| tyres.wheel_tyre_friction(model, data, wheel));
                     c.judge(lambda, sideways, limits, self.pull_tolerance)
                 })
                 .collect()

@@ -300,9 +300,7 @@ impl Robot {
         elements: &ForceElements,
     ) -> Option<Vec<ContactState>> {
         let (model, data) = (self.sys.model(), self.sys.data());
-        (self.contacts).judge(lambda, limits, |wheel| {
-            elements.wheel_tyre_friction(model, data, wheel)
-        })
+        self.contacts.judge(lambda, limits, model, data, elements)
     }
 
     /// A `ConstraintForces` message in the odom frame.

@@ -39,10 +39,9 @@ impl Predictor {
         // Judged before the residuals move the kinematics off the state λ was solved at.
         let contacts = match (&at, forces) {
             (Some(f), Some(limits)) => {
-                let (model, data, elements) = (sys.model(), sys.data(), &self.forces);
-                let tyre = |wheel| elements.wheel_tyre_friction(model, data, wheel);
                 // Reads λ and the tyres only: the prediction is the same with or without it.
-                self.contact_judge.judge(&f.lambda, limits, tyre)
+                let (model, data) = (sys.model(), sys.data());
+                (self.contact_judge).judge(&f.lambda, limits, model, data, &self.forces)
             }
             _ => None,
         };
