@@ -4,7 +4,7 @@
 
 use constraint_dynamics::BaseType;
 pub use constraint_dynamics::model::base_covariance::{
-    JointSigma, add_age_noise, odometry_covariance, rep103_indices, start_covariance,
+    AgeNoise, JointSigma, odometry_covariance, rep103_indices, start_covariance,
 };
 
 #[cfg(test)]

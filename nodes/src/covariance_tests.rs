@@ -221,17 +221,35 @@ fn bad_odometry_covariance_is_refused() {
     assert!(check_odometry_covariance(BaseType::Floating, "twist", &c).is_err());
 }
 
-/// The age's process noise is the double integrator's: σ² [a³/3, a²/2; a²/2, a].
+/// The age's process noise: the acceleration noise is the double integrator's
+/// σ² [a³/3, a²/2; a²/2, a], the slip noise a random walk σ_s² a on the position.
 #[test]
-fn age_noise_is_the_double_integrator() {
-    let mut p = DMatrix::zeros(4, 4);
-    add_age_noise(&mut p, &[0.25, 0.0], 0.6);
-    let s2 = 0.25;
-    let a: f64 = 0.6;
-    assert!((p[(0, 0)] - s2 * a.powi(3) / 3.0).abs() < 1e-16);
-    assert!((p[(0, 2)] - s2 * a * a / 2.0).abs() < 1e-16);
-    assert!((p[(2, 0)] - s2 * a * a / 2.0).abs() < 1e-16);
-    assert!((p[(2, 2)] - s2 * a).abs() < 1e-16);
-    assert_eq!(p[(1, 1)], 0.0);
-    assert_eq!(p[(3, 3)], 0.0);
+fn age_noise_is_the_double_integrator_and_a_random_walk() {
+    let m = model("diff_drive.yaml");
+    let (nv, yaw) = (m.nv, m.v_index("root_joint:wz").unwrap());
+    let wheel = m.v_index("left_wheel_joint").unwrap();
+    let spec = constraint_dynamics::predict::UncertaintySpec {
+        acceleration_noise: [("left_wheel_joint".to_string(), 0.5)].into(),
+        slip_noise: [("root_joint:wz".to_string(), 0.3)].into(),
+        ..Default::default()
+    };
+    let noise = AgeNoise::new(&m, &spec).unwrap();
+    assert!(!noise.is_zero());
+    let mut p = DMatrix::zeros(2 * nv, 2 * nv);
+    noise.add_to(&mut p, 0.6);
+    let (s2, slip2, a): (f64, f64, f64) = (0.25, 0.09, 0.6);
+    assert!((p[(wheel, wheel)] - s2 * a.powi(3) / 3.0).abs() < 1e-16);
+    assert!((p[(wheel, nv + wheel)] - s2 * a * a / 2.0).abs() < 1e-16);
+    assert!((p[(nv + wheel, wheel)] - s2 * a * a / 2.0).abs() < 1e-16);
+    assert!((p[(nv + wheel, nv + wheel)] - s2 * a).abs() < 1e-16);
+    assert!((p[(yaw, yaw)] - slip2 * a).abs() < 1e-16);
+    assert_eq!(p[(nv + yaw, nv + yaw)], 0.0);
+    let others = (0..2 * nv).filter(|&i| ![wheel, nv + wheel, yaw].contains(&i));
+    assert!(others.into_iter().all(|i| p[(i, i)] == 0.0));
+    let bad = constraint_dynamics::predict::UncertaintySpec {
+        slip_noise: [("root_joint:spin".to_string(), 0.3)].into(),
+        ..Default::default()
+    };
+    let e = AgeNoise::new(&m, &bad).unwrap_err();
+    assert!(e.to_string().contains("root_joint:spin"), "{e}");
 }

@@ -1,5 +1,5 @@
-//! The process noise: what the model still misses after the fit, stated on the wheels so that
-//! the predicted covariance covers it.
+//! The process noise: what the model still misses after the fit, stated on the wheels and the
+//! base's yaw so that the predicted covariance covers it.
 //!
 //! Two terms on every wheel joint (docs/propagation.md): a white acceleration noise of density σ
 //! [(rad/s²)/√Hz] at all times (`uncertainty.acceleration_noise`), and, while the wheel's
@@ -7,15 +7,20 @@
 //! through a prediction (`uncertainty.saturation_bias`): at the grip's limit — a skid, a wheel
 //! unloaded as the robot pitches — the model knows least what the floor takes, and that error
 //! lasts as long as the skid. Through the rolling constraints they spread the base's position
-//! along the travel and its yaw, growing with the horizon.
+//! along the travel and its yaw, growing with the horizon. And a slip noise σ_s [rad/√s] on the
+//! base's yaw (`uncertainty.slip_noise`): the heading's random walk outside the constraints,
+//! which the wheel controllers do not take back as they take back the wheels' noise.
 //!
-//! Each term is sized on the predictions it acts on. σ is the smallest value whose predicted
-//! covariance (the node's: propagated, error estimate and floors, plus the reference's own)
-//! holds the target fraction of the predictions through no saturation inside its 95 % region at
-//! every fit horizon (doubling, then bisection of log σ). Then σ_b, beside it, is the smallest
-//! value that does the same for the predictions through a saturation (stepping through
-//! [`BIAS_TRIED`], then bisection of log σ_b). Not on a scene with tyres: their grip rejects such
-//! noise ([`TYRES_REJECT_NOISE`]).
+//! σ and σ_b are each sized on the predictions they act on. σ is the smallest value whose
+//! predicted covariance (the node's: propagated, error estimate and floors, plus the
+//! reference's own) holds the target fraction of the predictions through no saturation inside
+//! its 95 % region at every fit horizon (doubling, then bisection of log σ). Then σ_b, beside
+//! it, is the smallest value that does the same for the predictions through a saturation
+//! (stepping through [`BIAS_TRIED`], then bisection of log σ_b). Not on a scene with tyres:
+//! their grip rejects such noise ([`TYRES_REJECT_NOISE`]). σ_s, beside both, is the most likely
+//! value (the lowest log score): the wheels' terms may already cover the calibration drive's
+//! errors, which the fit itself took down, while a fresh drive's heading drifts more; the
+//! likelihood weighs the errors' shape, which a coverage count does not.
 
 use super::{CalibrationError, CalibrationSettings, Problem};
 use crate::replay::{EvaluationSettings, evaluate, stats::Coverage};
@@ -32,6 +37,10 @@ pub struct ProcessNoise {
     pub acceleration_noise: f64,
     /// σ_b [rad/s²], while a wheel's controller is saturated.
     pub saturation_bias: f64,
+    /// The base's yaw coordinate the slip noise is on, if the base has one.
+    pub slip_coordinate: Option<String>,
+    /// σ_s [rad/√s]: the yaw's random walk, the most likely value beside σ and σ_b.
+    pub slip_noise: f64,
     /// The fraction of the replayed errors inside the 95 % region with them, over every fit
     /// horizon.
     pub coverage_p95: f64,
@@ -75,6 +84,11 @@ const BIAS_TRIED: [f64; 6] = [10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0];
 const BIAS_BISECTIONS: usize = 3;
 /// Where σ's bracket starts [(rad/s²)/√Hz].
 const SIGMA_START: f64 = 0.1;
+/// The least and the largest yaw slip noise tried [rad/√s] (1e-4: 0.14 mrad in 2 s, far
+/// below any odometry's yaw noise), and the factor the golden section resolves it to.
+const SLIP_START: f64 = 1e-4;
+const SLIP_LARGEST: f64 = 1.0;
+const SLIP_RESOLUTION: f64 = 1.1;
 
 /// One trial's coverages (as [`ProcessNoise`] states them) and log score.
 #[derive(Clone, Copy)]
@@ -96,16 +110,17 @@ pub(super) fn fit(
         propagate_covariance: true,
         ..settings.replay.clone()
     };
-    // The fit owns the wheels' two terms: every trial and the result set both, 0 included, so
+    // The fit owns its three terms: every trial and the result set them all, 0 included, so
     // that what is scored is what is written.
-    let write = |yaml: &mut Value, sigma: f64, bias: f64| {
+    let write = |yaml: &mut Value, sigma: f64, bias: f64, slip: f64| {
         (problem.places).set_wheel_noise(yaml, "acceleration_noise", sigma);
         (problem.places).set_wheel_noise(yaml, "saturation_bias", bias);
+        (problem.places).set_yaw_slip(yaml, slip);
     };
     let mut replays = 0;
-    let mut score = |sigma: f64, bias: f64| -> Result<Score, CalibrationError> {
+    let mut score = |sigma: f64, bias: f64, slip: f64| -> Result<Score, CalibrationError> {
         let mut trial = yaml.clone();
-        write(&mut trial, sigma, bias);
+        write(&mut trial, sigma, bias, slip);
         let scene = problem.source.build(&trial)?;
         let (mut nees, mut log_score) = (Vec::new(), 0.0);
         let horizons = &replay.horizons_s;
@@ -148,12 +163,48 @@ pub(super) fn fit(
     };
     let target = settings.target_coverage_p95;
     let joints = problem.places.wheel_joints().to_vec();
-    let s0 = score(0.0, 0.0)?;
+    let s0 = score(0.0, 0.0, 0.0)?;
     let tyres = problem.places.tyres_carry_wheels();
-    let result = |sigma: f64, bias: f64, s: Score, replays: usize| ProcessNoise {
-        joints: joints.clone(),
+    let (mut sigma, mut bias, mut s) = (0.0, 0.0, s0);
+    let covered = s0.unsaturated_coverage_p95 >= target && s0.saturated_coverage_p95 >= target;
+    if !(covered || joints.is_empty() || tyres) {
+        // σ on the predictions only it acts on; then σ_b, beside it, on those through a
+        // saturation.
+        (sigma, s) = smallest_sigma(|sigma| score(sigma, 0.0, 0.0), target)?;
+        if s.saturated_coverage_p95 < target {
+            let covered = |s: &Score| s.saturated_coverage_p95 >= target;
+            let mut lo = 0.0;
+            for b in BIAS_TRIED {
+                (bias, s) = (b, score(sigma, b, 0.0)?);
+                if covered(&s) {
+                    break;
+                }
+                lo = b;
+            }
+            if covered(&s) && lo > 0.0 {
+                for _ in 0..BIAS_BISECTIONS {
+                    let mid = (lo * bias).sqrt();
+                    let at = score(sigma, mid, 0.0)?;
+                    if covered(&at) {
+                        (bias, s) = (mid, at);
+                    } else {
+                        lo = mid;
+                    }
+                }
+            }
+        }
+    }
+    let mut slip = 0.0;
+    if problem.places.base_yaw().is_some() {
+        (slip, s) = most_likely_slip(|slip| score(sigma, bias, slip), s)?;
+    }
+    write(yaml, sigma, bias, slip);
+    Ok(ProcessNoise {
+        joints,
         acceleration_noise: sigma,
         saturation_bias: bias,
+        slip_coordinate: problem.places.base_yaw().map(str::to_string),
+        slip_noise: slip,
         coverage_p95: s.coverage_p95,
         unsaturated_coverage_p95: s.unsaturated_coverage_p95,
         saturated_coverage_p95: s.saturated_coverage_p95,
@@ -161,41 +212,51 @@ pub(super) fn fit(
         log_score: s.log_score,
         replays,
         not_fitted: (tyres && s.coverage_p95 < target).then_some(TYRES_REJECT_NOISE),
-    };
-    if s0.unsaturated_coverage_p95 >= target && s0.saturated_coverage_p95 >= target
-        || joints.is_empty()
-        || tyres
-    {
-        write(yaml, 0.0, 0.0);
-        return Ok(result(0.0, 0.0, s0, replays));
-    }
-    // σ on the predictions only it acts on; then σ_b, beside it, on those through a saturation.
-    let (sigma, mut s) = smallest_sigma(|sigma| score(sigma, 0.0), target)?;
-    let mut bias = 0.0;
-    if s.saturated_coverage_p95 < target {
-        let covered = |s: &Score| s.saturated_coverage_p95 >= target;
-        let mut lo = 0.0;
-        for b in BIAS_TRIED {
-            (bias, s) = (b, score(sigma, b)?);
-            if covered(&s) {
-                break;
-            }
-            lo = b;
+    })
+}
+
+/// The σ_s (to [`SLIP_RESOLUTION`]) with the lowest log score, `at_zero` being the score
+/// without it: up from [`SLIP_START`] by factors of 2 while the score falls, then a golden
+/// section of log σ_s around the best. 0 where the least tried already scores worse.
+fn most_likely_slip(
+    mut score: impl FnMut(f64) -> Result<Score, CalibrationError>,
+    at_zero: Score,
+) -> Result<(f64, Score), CalibrationError> {
+    let mut best = (0.0, at_zero);
+    let mut x = SLIP_START;
+    while x <= SLIP_LARGEST {
+        let s = score(x)?;
+        if s.log_score >= best.1.log_score {
+            break;
         }
-        if covered(&s) && lo > 0.0 {
-            for _ in 0..BIAS_BISECTIONS {
-                let mid = (lo * bias).sqrt();
-                let at = score(sigma, mid)?;
-                if covered(&at) {
-                    (bias, s) = (mid, at);
-                } else {
-                    lo = mid;
-                }
-            }
+        best = (x, s);
+        x *= 2.0;
+    }
+    if best.0 == 0.0 {
+        return Ok(best);
+    }
+    // The minimum lies within a factor 2 of the best tried: golden section of log σ_s.
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut lo, mut hi) = ((best.0 / 2.0).ln(), (best.0 * 2.0).ln());
+    let mut a = (hi - g * (hi - lo), score((hi - g * (hi - lo)).exp())?);
+    let mut b = (lo + g * (hi - lo), score((lo + g * (hi - lo)).exp())?);
+    while hi - lo > SLIP_RESOLUTION.ln() {
+        if a.1.log_score < b.1.log_score {
+            (hi, b) = (b.0, a);
+            let x = hi - g * (hi - lo);
+            a = (x, score(x.exp())?);
+        } else {
+            (lo, a) = (a.0, b);
+            let x = lo + g * (hi - lo);
+            b = (x, score(x.exp())?);
         }
     }
-    write(yaml, sigma, bias);
-    Ok(result(sigma, bias, s, replays))
+    for (x, s) in [a, b] {
+        if s.log_score < best.1.log_score {
+            best = (x.exp(), s);
+        }
+    }
+    Ok(best)
 }
 
 /// The smallest σ (to 2^(1/64)) whose `score` covers `target` of the predictions through no

@@ -5,6 +5,7 @@
 use crate::Model;
 use crate::algorithm::Data;
 use crate::algorithm::{forward_kinematics_pos, frame_placement};
+use crate::model::base_covariance::rep103_indices;
 use serde_yaml::Value;
 
 /// A quantity of the robot a recorded drive can determine.
@@ -120,6 +121,9 @@ pub struct SceneParameters {
     base: (String, [f64; 3]),
     /// The joints the rolling contacts' wheels turn on.
     wheel_joints: Vec<String>,
+    /// The velocity coordinate of the base's yaw (a planar base's `wz`, a floating base's
+    /// `wz_local`; `None` for a fixed base).
+    base_yaw: Option<String>,
     /// How many `forces.turning_resistance` entries the scene declares.
     turning: usize,
     /// The diff drive's wheel torque clamp [N·m]: its `traction_torque:`, else the wheels'
@@ -259,7 +263,11 @@ impl SceneParameters {
             .and_then(Value::as_str)
             == Some("none");
         let weight_share = model.total_mass() * model.gravity.norm() / (wheels.len().max(1) as f64);
+        // The base's coordinates come first, yaw (REP-103's rz) last among them.
+        let base_yaw =
+            (rep103_indices(model.base).len().checked_sub(1)).map(|i| model.v_names[i].clone());
         Ok(SceneParameters {
+            base_yaw,
             no_drift_control,
             tyres_carry_wheels,
             weight_share,
@@ -359,6 +367,11 @@ impl SceneParameters {
     /// The joints the rolling contacts' wheels turn on: where the process noise goes.
     pub fn wheel_joints(&self) -> &[String] {
         &self.wheel_joints
+    }
+
+    /// The velocity coordinate of the base's yaw, if the base has one.
+    pub fn base_yaw(&self) -> Option<&str> {
+        self.base_yaw.as_deref()
     }
 
     /// True when a tyre carries a wheel in place of a rolling contact (`forces.tyres`): its grip

@@ -19,7 +19,10 @@
 
 use super::base::measures_planar_motion_only;
 use super::{BaseType, Model};
+use crate::error::Result;
+use crate::predict::UncertaintySpec;
 use nalgebra::{DMatrix, Matrix3, Quaternion, UnitQuaternion};
+use std::collections::BTreeMap;
 
 /// Indices of the planar base's (x, y, yaw) in a REP-103 6×6 covariance.
 pub const PLANAR: [usize; 3] = [0, 1, 5];
@@ -135,18 +138,52 @@ fn without_unmeasured(model: &Model, c: &[f64; 36]) -> [f64; 36] {
     out
 }
 
-/// Adds the process noise of `age` [s] to P: white acceleration noise of density σᵢ per
-/// velocity coordinate (`noise[i] = σᵢ²`) integrated as the core does over a step (a double
-/// integrator), `σᵢ² [a³/3, a²/2; a²/2, a]` on (δqᵢ, δvᵢ). What the state may have drifted by
-/// since it was measured, the motion over the age aside.
-pub fn add_age_noise(p: &mut DMatrix<f64>, noise: &[f64], age: f64) {
-    let nv = noise.len();
-    let a = age.max(0.0);
-    for (i, &s2) in noise.iter().enumerate() {
-        p[(i, i)] += s2 * a * a * a / 3.0;
-        p[(i, nv + i)] += s2 * a * a / 2.0;
-        p[(nv + i, i)] += s2 * a * a / 2.0;
-        p[(nv + i, nv + i)] += s2 * a;
+/// The scene's process noise as a measured state's age needs it (`uncertainty:`): what the
+/// state may have drifted by since it was measured, the motion over the age aside.
+#[derive(Clone, Debug, Default)]
+pub struct AgeNoise {
+    /// σᵢ² of the white acceleration noise per velocity coordinate.
+    acceleration: Vec<f64>,
+    /// σ_s,i² of the slip noise on each coordinate's position.
+    slip: Vec<f64>,
+}
+
+impl AgeNoise {
+    /// From the scene's `uncertainty:`; a name the model does not have is an error naming it.
+    pub fn new(model: &Model, spec: &UncertaintySpec) -> Result<Self> {
+        let variances = |sigmas: &BTreeMap<String, f64>| -> Result<Vec<f64>> {
+            let mut out = vec![0.0; model.nv];
+            for (name, sigma) in sigmas {
+                out[model.v_index(name)?] = sigma * sigma;
+            }
+            Ok(out)
+        };
+        Ok(Self {
+            acceleration: variances(&spec.acceleration_noise)?,
+            slip: variances(&spec.slip_noise)?,
+        })
+    }
+
+    /// No process noise at all: a zero start then stays zero.
+    pub fn is_zero(&self) -> bool {
+        self.acceleration
+            .iter()
+            .chain(&self.slip)
+            .all(|s| *s == 0.0)
+    }
+
+    /// Adds the noise of `age` [s] to P, integrated as the core does over a step: the
+    /// acceleration noise as a double integrator's `σᵢ² [a³/3, a²/2; a²/2, a]` on (δqᵢ, δvᵢ),
+    /// the slip noise as a random walk `σ_s,i² a` on δqᵢ.
+    pub fn add_to(&self, p: &mut DMatrix<f64>, age: f64) {
+        let nv = self.acceleration.len();
+        let a = age.max(0.0);
+        for (i, (&s2, &slip2)) in self.acceleration.iter().zip(&self.slip).enumerate() {
+            p[(i, i)] += s2 * a * a * a / 3.0 + slip2 * a;
+            p[(i, nv + i)] += s2 * a * a / 2.0;
+            p[(nv + i, i)] += s2 * a * a / 2.0;
+            p[(nv + i, nv + i)] += s2 * a;
+        }
     }
 }
 

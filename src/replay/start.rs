@@ -8,7 +8,7 @@
 use super::ReplayError;
 use super::series::{JointTracks, Nanos, Recording, show_stamp};
 use crate::dynamics::Formulation;
-use crate::model::base_covariance::{JointSigma, add_age_noise, start_covariance};
+use crate::model::base_covariance::{AgeNoise, JointSigma, start_covariance};
 use crate::predict::drift;
 use crate::{Scene, System};
 use nalgebra::DMatrix;
@@ -52,8 +52,8 @@ pub struct StartAssembler {
     tracks: JointTracks,
     /// (v index, σ) of every 1-DOF joint.
     joint_sigma: Vec<(usize, JointSigma)>,
-    /// σ² of the scene's acceleration noise per velocity coordinate.
-    noise: Vec<f64>,
+    /// The scene's process noise over the start's age.
+    noise: AgeNoise,
 }
 
 impl StartAssembler {
@@ -72,10 +72,7 @@ impl StartAssembler {
             .map(|j| (j.name.clone(), j.idx_q, j.idx_v))
             .collect();
         let joint_sigma = joints.iter().map(|(_, _, iv)| (*iv, joint_noise)).collect();
-        let mut noise = vec![0.0; model.nv];
-        for (name, sigma) in &scene.file.uncertainty.acceleration_noise {
-            noise[model.v_index(name)?] = sigma * sigma;
-        }
+        let noise = AgeNoise::new(model, &scene.file.uncertainty)?;
         Ok(StartAssembler {
             scene: scene.clone(),
             sys,
@@ -145,8 +142,8 @@ impl StartAssembler {
             &odom.twist_covariance,
             &self.joint_sigma,
         );
-        add_age_noise(&mut p, &self.noise, age_s);
-        let zero = p.iter().all(|x| *x == 0.0) && self.noise.iter().all(|s| *s == 0.0);
+        self.noise.add_to(&mut p, age_s);
+        let zero = p.iter().all(|x| *x == 0.0) && self.noise.is_zero();
         let twist = model.base_twist(&v);
         Ok(StartState {
             q,

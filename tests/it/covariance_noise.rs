@@ -153,3 +153,95 @@ fn saturation_bias_is_absent_inside_the_effort() {
         );
     }
 }
+
+/// Slip noise of density σ_s on the diff drive's yaw (`uncertainty.slip_noise`) while it drives
+/// straight along x: the yaw is a random walk, var ψ = σ_s² t, and every yaw slip at s turns
+/// the rest of the path, δy(T) = (x(T) − x(s)) δψ(s), so var y = σ_s² ∫₀ᵀ (x(T) − x(s))² ds
+/// and cov(y, ψ) = σ_s² ∫₀ᵀ (x(T) − x(s)) ds (u² T³/3 and u T²/2 at a constant speed u),
+/// taken over the predicted path. The wheel speeds and the velocity block never see it.
+#[test]
+fn yaw_slip_noise_is_a_random_walk_that_turns_the_path() {
+    const SLIP: f64 = 0.01;
+    const U: f64 = 0.5;
+    let path = repo_dir().join("params/suite_diff_drive.yaml");
+    let urdf = repo_dir().join("urdf/diff_drive.urdf");
+    let yaml = std::fs::read_to_string(&path).unwrap().replace(
+        "urdf: ../urdf/diff_drive.urdf",
+        &format!("urdf: {:?}", urdf.display().to_string()),
+    ) + &format!("uncertainty:\n  slip_noise: {{ root_joint:wz: {SLIP} }}\n");
+    let scene = scene_from_yaml(&yaml).unwrap();
+    let m = scene.model.clone();
+    let (nv, wheel_speed) = (m.nv, U / 0.05);
+    let mut v = vec![0.0; nv];
+    v[m.v_index("root_joint:vx_local").unwrap()] = U;
+    v[m.v_index("left_wheel_joint").unwrap()] = wheel_speed;
+    v[m.v_index("right_wheel_joint").unwrap()] = wheel_speed;
+    let q = m.neutral();
+    let mut pred = Predictor::from_scene(&scene)
+        .unwrap()
+        .with_settings(|s| s.error_estimate = false)
+        .unwrap();
+    let cmd = Command {
+        base_twist: Some([U, 0.0]),
+        ..Default::default()
+    };
+    let commands = [(0.0, cmd)];
+    let p0 = DMatrix::zeros(2 * nv, 2 * nv);
+    let req = PredictionRequest::new(&q, &v)
+        .horizon(2.0)
+        .commands(&commands)
+        .covariance(&p0);
+    let traj = pred.predict(&req).unwrap();
+    let (ix, iy, iyaw) = (0, 1, 2);
+    let x: Vec<(f64, f64)> = (traj.samples.iter()).map(|s| (s.t, s.q[ix])).collect();
+    let s2 = SLIP * SLIP;
+    let mut worst: f64 = 0.0;
+    for (k, s) in traj.samples.iter().enumerate().skip(1) {
+        let p = rows_to_matrix(s.covariance.as_ref().unwrap());
+        // ∫ (x(T) − x(s))ⁿ ds, n = 1, 2, with x linear between the 20 ms samples:
+        // (a + b)/2 and (a² + ab + b²)/3 per interval.
+        let moment = |n: i32| -> f64 {
+            (x[..=k].windows(2))
+                .map(|w| {
+                    let (a, b) = (s.q[ix] - w[0].1, s.q[ix] - w[1].1);
+                    let mean = if n == 1 {
+                        (a + b) / 2.0
+                    } else {
+                        (a * a + a * b + b * b) / 3.0
+                    };
+                    mean * (w[1].0 - w[0].0)
+                })
+                .sum()
+        };
+        let exact = [
+            (p[(iyaw, iyaw)], s2 * s.t),
+            (p[(iy, iyaw)], s2 * moment(1)),
+            (p[(iy, iy)], s2 * moment(2)),
+        ];
+        // Over the first 0.1 s the wheels' PI builds the torque the URDF damping takes and
+        // the speed dips by 0.5 %, which the linear interpolation of x does not resolve.
+        for (got, want) in exact.into_iter().filter(|_| s.t >= 0.1) {
+            worst = worst.max((got - want).abs() / want);
+        }
+        // Rounding in the constraint projection: 1e-10 of the pose's variances.
+        for i in nv..2 * nv {
+            let scale = 1e-10 * p[(iy, iy)];
+            assert!(
+                p[(i, i)].abs() < scale,
+                "t {}: P_vv[{i}] = {:e}",
+                s.t,
+                p[(i, i)]
+            );
+        }
+    }
+    let last = traj.samples.last().unwrap();
+    let p = rows_to_matrix(last.covariance.as_ref().unwrap());
+    let u = last.q[ix] / last.t;
+    println!(
+        "worst relative difference {worst:.2e}; at {} s var y {:.4e} (constant speed: {:.4e})",
+        last.t,
+        p[(iy, iy)],
+        s2 * u * u * last.t.powi(3) / 3.0
+    );
+    assert!(worst < 1e-3, "{worst:e}");
+}

@@ -83,6 +83,11 @@ def main():
                      f"{pn['saturated_coverage_p95']:.2f} of the "
                      f"{pn['saturated_predictions']} predictions through a saturation (the "
                      "same) |")
+        if pn.get("slip_coordinate"):
+            lines.append(f"| slip noise on {pn['slip_coordinate']} [rad/√s] | 0 | "
+                         f"{pn['slip_noise']:.3g} | — | the most likely beside them: log score "
+                         f"{pn['log_score']:.2f}, coverage p95 {pn['coverage_p95']:.2f} of all the "
+                         "predictions |")
     lines += ["", "Position / yaw error against the true pose, median / worst, and the coverage "
               "p95 and mean NEES at 1 s / 2 s (χ²(3): 0.95 and 3 for an exact covariance):", "",
               "| drive | scene | 0.25 s | 0.5 s | 1 s | 2 s | coverage p95 at 1 s / 2 s | "

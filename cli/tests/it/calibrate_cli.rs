@@ -31,13 +31,17 @@ fn figures(v: &Value) -> Vec<(f64, f64, f64, f64, f64, f64)> {
 }
 
 /// The predicted covariance is honest on a drive it was not fitted on: between 0.85 and 0.99 of
-/// the (x, y, yaw) errors inside its 95 % region at 1 s, and their mean NEES near χ²(3)'s 3 (up
-/// to 5: a skid's errors lie beyond a Gaussian's tails and weigh on a mean of 36 to 38). At 2 s
-/// it holds a little less, 0.8 (30 of 36 on both validation drives): the errors outside are
-/// 5–7 mrad yaw errors, mostly the start's own odometry noise (σ 2 mrad) with a little drift
-/// the wheels' noise barely spreads, and skids the model does not see saturate.
+/// the (x, y, yaw) errors inside its 95 % region at 1 s and 2 s, and their mean NEES near
+/// χ²(3)'s 3 (up to 5: a skid's errors lie beyond a Gaussian's tails and weigh on a mean of 36
+/// to 38). On the raw steps at 2 s it holds a little less, 0.8 (30 of 36): four of the six
+/// outside pass through skids the model does not see (10–12 mm), two are 5 mrad yaw errors
+/// on a steady arc just outside.
 fn assert_covered(bag: &str, h: f64, coverage_p95: f64, nees_mean: f64) {
-    let least = if h < 1.5 { 0.85 } else { 0.8 };
+    let least = if h > 1.5 && bag.starts_with("validation_steps") {
+        0.8
+    } else {
+        0.85
+    };
     assert!(
         (least..=0.99).contains(&coverage_p95) && (2.0..=5.0).contains(&nees_mean),
         "{bag} {h} s: coverage p95 {coverage_p95}, mean NEES {nees_mean}"
@@ -120,6 +124,10 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
     assert!((mass - 1.4).abs() <= 2.0 * se && se < 2.5, "{m}");
     let sigma = out["process_noise"]["acceleration_noise"].as_f64().unwrap();
     assert!(sigma > 0.0, "{out}");
+    // The yaw drifts a little on every drive (the tyres' scrub the track's widening does not
+    // take): the most likely slip noise is a fraction of a mrad in a second.
+    let slip = out["process_noise"]["slip_noise"].as_f64().unwrap();
+    assert!((1e-4..=3e-3).contains(&slip), "{out}");
     // The drive's steps skid the tyres: some predictions pass through a saturation, a grip
     // bias covers them, and the white noise the others.
     let noise = &out["process_noise"];

@@ -8,7 +8,7 @@ use constraint_dynamics::predict::UncertaintySpec;
 use nalgebra::DMatrix;
 
 use super::state::StateEstimate;
-use crate::covariance::{JointSigma, add_age_noise, start_covariance};
+use crate::covariance::{AgeNoise, JointSigma, start_covariance};
 use crate::error::NodeError;
 use crate::msg::builtin_interfaces::Time;
 use crate::params::{ParamsError, StateParams};
@@ -60,8 +60,8 @@ impl InputAges {
 #[derive(Clone, Debug)]
 pub struct StartCovariance {
     joints: Vec<(usize, JointSigma)>,
-    /// σ² of the acceleration noise per velocity coordinate (`uncertainty:` of the scene).
-    noise: Vec<f64>,
+    /// The scene's process noise over the state's age (`uncertainty:`).
+    noise: AgeNoise,
 }
 
 impl StartCovariance {
@@ -107,13 +107,8 @@ impl StartCovariance {
                 (*iv, JointSigma { position, velocity })
             })
             .collect();
-        let mut noise = vec![0.0; model.nv];
-        for (name, sigma) in &uncertainty.acceleration_noise {
-            // The core checked the names and values when it built its predictor.
-            if let Ok(i) = model.v_index(name) {
-                noise[i] = sigma * sigma;
-            }
-        }
+        // The core checked the names and values when it built its predictor.
+        let noise = AgeNoise::new(model, uncertainty).unwrap_or_default();
         Ok(StartCovariance { joints, noise })
     }
 
@@ -121,7 +116,7 @@ impl StartCovariance {
     pub fn at(&self, model: &Model, q: &[f64], state: &StateEstimate, age: f64) -> DMatrix<f64> {
         let (pose, twist) = &state.odom_covariance;
         let mut p = start_covariance(model, q, pose, twist, &self.joints);
-        add_age_noise(&mut p, &self.noise, age);
+        self.noise.add_to(&mut p, age);
         p
     }
 
@@ -136,7 +131,7 @@ impl StartCovariance {
         age: f64,
     ) -> Option<DMatrix<f64>> {
         let p = self.at(model, q, state, age);
-        let zero = p.iter().all(|x| *x == 0.0) && self.noise.iter().all(|s| *s == 0.0);
+        let zero = p.iter().all(|x| *x == 0.0) && self.noise.is_zero();
         (!zero).then_some(p)
     }
 }

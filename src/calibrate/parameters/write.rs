@@ -130,29 +130,37 @@ impl SceneParameters {
     /// Writes `uncertainty.<field>: σ` (`acceleration_noise` [(rad/s²)/√Hz] or
     /// `saturation_bias` [rad/s²]) for every wheel joint, keeping the scene's other entries.
     pub fn set_wheel_noise(&self, scene: &mut Value, field: &str, sigma: f64) {
-        let Some(root) = scene
-            .as_mapping_mut()
-            .filter(|_| !self.wheel_joints.is_empty())
-        else {
-            return;
-        };
-        let u = root
-            .entry("uncertainty".into())
-            .or_insert_with(|| Value::Mapping(Default::default()));
-        if !u.is_mapping() {
-            *u = Value::Mapping(Default::default());
-        }
-        let Some(u) = u.as_mapping_mut() else { return };
-        let noise = u
-            .entry(field.into())
-            .or_insert_with(|| Value::Mapping(Default::default()));
-        if !noise.is_mapping() {
-            *noise = Value::Mapping(Default::default());
-        }
-        if let Some(noise) = noise.as_mapping_mut() {
-            for j in &self.wheel_joints {
-                noise.insert(j.clone().into(), sigma.into());
-            }
+        set_noise(scene, field, &self.wheel_joints, sigma);
+    }
+
+    /// Writes `uncertainty.slip_noise: σ_s` [rad/√s] on the base's yaw, if the base has one.
+    pub fn set_yaw_slip(&self, scene: &mut Value, sigma: f64) {
+        set_noise(scene, "slip_noise", self.base_yaw.as_slice(), sigma);
+    }
+}
+
+/// Writes `uncertainty.<field>.<coordinate>: σ` for each of `coordinates`, keeping the scene's
+/// other entries.
+fn set_noise(scene: &mut Value, field: &str, coordinates: &[String], sigma: f64) {
+    let Some(root) = scene.as_mapping_mut().filter(|_| !coordinates.is_empty()) else {
+        return;
+    };
+    let u = root
+        .entry("uncertainty".into())
+        .or_insert_with(|| Value::Mapping(Default::default()));
+    if !u.is_mapping() {
+        *u = Value::Mapping(Default::default());
+    }
+    let Some(u) = u.as_mapping_mut() else { return };
+    let noise = u
+        .entry(field.into())
+        .or_insert_with(|| Value::Mapping(Default::default()));
+    if !noise.is_mapping() {
+        *noise = Value::Mapping(Default::default());
+    }
+    if let Some(noise) = noise.as_mapping_mut() {
+        for c in coordinates {
+            noise.insert(c.clone().into(), sigma.into());
         }
     }
 }

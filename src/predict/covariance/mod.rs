@@ -19,7 +19,9 @@
 //! - Q_h: white acceleration noise of density σ_i per velocity coordinate (`uncertainty:` in the
 //!   scene, [(m/s²)/√Hz] or [(rad/s²)/√Hz], as robot_localization's continuous process noise)
 //!   integrated exactly over the step as for a double integrator:
-//!   `σ_i² [h³/3, h²/2; h²/2, h]` on (δq_i, δv_i);
+//!   `σ_i² [h³/3, h²/2; h²/2, h]` on (δq_i, δv_i); and slip noise of density σ_s,i on the
+//!   coordinate's position (`uncertainty.slip_noise`, [m/√s] or [rad/√s]), a random walk
+//!   `σ_s,i² h` on δq_i outside the dynamics, carried by the same integral;
 //! - T keeps P on the tangent space of the constraint manifold {φ_h(q) = 0, J(q) v = 0}:
 //!   `T = [[T_q, 0], [−G N T_q, 1 − G J]]` with `G = M⁻¹Jᵀ (J M⁻¹ Jᵀ)⁻¹` (all rows: the
 //!   mass-weighted projection that constraint impulses would make), T_q the same projection
@@ -65,6 +67,13 @@ pub struct UncertaintySpec {
     /// (covariance/constants.rs; default: none).
     #[serde(default)]
     pub saturation_bias: BTreeMap<String, f64>,
+    /// Slip noise density σ_s per velocity coordinate name [m/√s or rad/√s] (default: none):
+    /// a white rate added to the coordinate's position outside its dynamics and the rolling
+    /// constraints, so that it drifts as a random walk, var = σ_s² t — the slip a rolling
+    /// contact does not express (a wide tyre's residual scrub), as robot_localization's
+    /// process noise on the pose.
+    #[serde(default)]
+    pub slip_noise: BTreeMap<String, f64>,
 }
 
 /// Propagates a covariance along a prediction (buffers sized once; a step allocates nothing).
@@ -74,6 +83,8 @@ pub struct CovariancePropagator {
     pub p: DMatrix<f64>,
     /// σ_i² per velocity coordinate.
     noise: Vec<f64>,
+    /// σ_s,i² per velocity coordinate (the slip noise on its position).
+    slip: Vec<f64>,
     /// σ_b² per velocity coordinate.
     saturation_bias: Vec<f64>,
     /// (A − I) e_{nv+i}: how a noisy coordinate's velocity moves the state over a chunk.
@@ -215,6 +226,7 @@ impl CovariancePropagator {
             p: DMatrix::zeros(2 * nv, 2 * nv),
             noise: variances("acceleration_noise", &spec.acceleration_noise)?,
             saturation_bias: variances("saturation_bias", &spec.saturation_bias)?,
+            slip: variances("slip_noise", &spec.slip_noise)?,
             lin: {
                 let mut lin = Linearization::new(sys)
                     .with_joint_springs(forces.joint_spring_dampers())
@@ -306,6 +318,9 @@ impl CovariancePropagator {
     /// for a free double integrator (σ² [h³/3, h²/2; h²/2, h]); on a joint a controller holds
     /// at rate a, within a relative (ah)²/6 of the exact variance (the free integrator's Q_h
     /// added undamped would be off by ah, and a density would mean more on longer chunks).
+    /// Slip noise is the same integral with e = e_i, the coordinate's position: exact wherever
+    /// a position perturbation moves the state linearly in time (a yaw slip on a straight
+    /// drive, tests/it/covariance_noise.rs).
     pub(in crate::predict) fn apply_linearization(&mut self, h: f64, feedback: &[Feedback]) {
         let nv = self.noise.len();
         if let Some(o) = self.constants.as_mut() {
@@ -315,22 +330,22 @@ impl CovariancePropagator {
         if let Some(o) = self.constants.as_mut() {
             o.add_cross_terms(&mut self.p);
         }
-        for (i, &s2) in self.noise.iter().enumerate() {
-            if s2 > 0.0 {
-                let e = nv + i;
-                let d = &mut self.noise_response;
-                for (r, dr) in d.iter_mut().enumerate() {
-                    *dr = self.lin.a[(r, e)] - if r == e { 1.0 } else { 0.0 };
+        // Acceleration noise enters at δv_i, slip noise at δq_i: the same integral.
+        let white = (self.noise.iter().enumerate()).map(|(i, &s2)| (nv + i, s2));
+        let slip = self.slip.iter().copied().enumerate();
+        for (e, s2) in white.chain(slip).filter(|&(_, s2)| s2 > 0.0) {
+            let d = &mut self.noise_response;
+            for (r, dr) in d.iter_mut().enumerate() {
+                *dr = self.lin.a[(r, e)] - if r == e { 1.0 } else { 0.0 };
+            }
+            let w = |r: usize| d[r] / 2.0 + if r == e { 1.0 } else { 0.0 };
+            for c in 0..2 * nv {
+                let (wc, dc) = (w(c), d[c]);
+                if wc == 0.0 && dc == 0.0 {
+                    continue;
                 }
-                let w = |r: usize| d[r] / 2.0 + if r == e { 1.0 } else { 0.0 };
-                for c in 0..2 * nv {
-                    let (wc, dc) = (w(c), d[c]);
-                    if wc == 0.0 && dc == 0.0 {
-                        continue;
-                    }
-                    for r in 0..2 * nv {
-                        self.p[(r, c)] += h * s2 * (w(r) * wc + d[r] * dc / 12.0);
-                    }
+                for r in 0..2 * nv {
+                    self.p[(r, c)] += h * s2 * (w(r) * wc + d[r] * dc / 12.0);
                 }
             }
         }
