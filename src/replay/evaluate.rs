@@ -2,7 +2,8 @@
 //! prediction per horizon h, as the predictor node makes it (start state: start.rs; the arm held
 //! where it is; the scene's integration settings; a start refused by the error bound rerun
 //! without it and counted), under the recorded commands over [t0, t0 + h], compared with the
-//! last reference pose at or before t0 + h (no interpolation).
+//! last reference pose at or before t0 + h (no interpolation), the prediction taken at that
+//! pose's own stamp.
 //!
 //! The predicted covariance is the node's: the propagated one, plus on each pose axis the
 //! integration error estimate and the floors in quadrature (nodes/src/predictor/mod.rs). Each

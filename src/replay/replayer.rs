@@ -96,6 +96,23 @@ impl<'a> Replayer<'a> {
             if t_end > end {
                 continue;
             }
+            let (t_ref, reference) =
+                recording
+                    .reference
+                    .at_or_before(t_end)
+                    .ok_or_else(|| ReplayError::NoStart {
+                        series: recording.reference.name.clone(),
+                        at_s: (t_end - origin) as f64 * 1e-9,
+                        stamp: show_stamp(t_end),
+                    })?;
+            // Predicted to the reference's own stamp: a reference 10 ms older than t0 + h
+            // (a 0.25 s horizon on 50 Hz odometry) would otherwise count 10 ms of motion as
+            // error. A reference from before t0 is compared with the prediction at t0 + h.
+            let predicted_to = if *t_ref > t0 {
+                (*t_ref - t0) as f64 * 1e-9
+            } else {
+                h
+            };
             let mut commands = vec![(0.0, command(in_force))];
             commands.extend(
                 (recording.commands.between(t0, t_end).iter())
@@ -107,7 +124,7 @@ impl<'a> Replayer<'a> {
                 .filter(|_| settings.propagate_covariance);
             let request = PredictionRequest {
                 commands: &commands,
-                horizon: Some(h),
+                horizon: Some(predicted_to),
                 start_covariance: p0,
                 covariance_samples: CovarianceSamples::Last,
                 controller_integrals: integrals,
@@ -134,15 +151,6 @@ impl<'a> Replayer<'a> {
             };
             let last = (traj.samples.last())
                 .ok_or_else(|| failed(Error::Invalid("the prediction has no samples".into())))?;
-            let (t_ref, reference) =
-                recording
-                    .reference
-                    .at_or_before(t_end)
-                    .ok_or_else(|| ReplayError::NoStart {
-                        series: recording.reference.name.clone(),
-                        at_s: (t_end - origin) as f64 * 1e-9,
-                        stamp: show_stamp(t_end),
-                    })?;
             let record = score(
                 &scene.model,
                 (

@@ -131,14 +131,18 @@ def run_drive(drive):
                 sim.integral = list(integral) if variant == "node_integrals" else [0.0, 0.0]
             set_base(sim, noisy_pose, noisy_twist, tilt, omega_tilt, height, v_up)
             mujoco.mj_forward(sim.m, sim.d)
-            ends = {int(round(h / ml.CONTROL_PERIOD_S)): h for h in HORIZONS_S}
+            # evaluate's reference is the last one at or before t0 + h, and the prediction is
+            # taken at its stamp: the step where it was published.
+            ends = {}
+            for h in HORIZONS_S:
+                k_end = k0 + int(round(h / ml.CONTROL_PERIOD_S))
+                ends[k_end - k_end % ml.ODOM_PERIOD_TICKS - k0] = h
             for step in range(1, max(ends) + 1):
                 if k0 + step >= len(cmds):
                     break
                 sim.tick(cmds[k0 + step - 1])
                 if step in ends:
-                    # evaluate's reference: the last one at or before t0 + h
-                    ref = k0 + step - (k0 + step) % ml.ODOM_PERIOD_TICKS
+                    ref = k0 + step
                     x, y, yaw = sim.base()[0]
                     tx, ty, tyaw = truth[ref]
                     dyaw = (yaw - tyaw + math.pi) % (2 * math.pi) - math.pi
