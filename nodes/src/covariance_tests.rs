@@ -252,4 +252,14 @@ fn age_noise_is_the_double_integrator_and_a_random_walk() {
     };
     let e = AgeNoise::new(&m, &bad).unwrap_err();
     assert!(e.to_string().contains("root_joint:spin"), "{e}");
+    let negative = constraint_dynamics::predict::UncertaintySpec {
+        slip_noise: [("root_joint:wz".to_string(), -0.3)].into(),
+        ..Default::default()
+    };
+    let e = AgeNoise::new(&m, &negative).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("uncertainty.slip_noise.root_joint:wz"),
+        "{e}"
+    );
 }

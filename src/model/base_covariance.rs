@@ -21,8 +21,8 @@ use super::base::measures_planar_motion_only;
 use super::{BaseType, Model};
 use crate::error::Result;
 use crate::predict::UncertaintySpec;
+use crate::predict::noise_variances;
 use nalgebra::{DMatrix, Matrix3, Quaternion, UnitQuaternion};
-use std::collections::BTreeMap;
 
 /// Indices of the planar base's (x, y, yaw) in a REP-103 6×6 covariance.
 pub const PLANAR: [usize; 3] = [0, 1, 5];
@@ -149,18 +149,12 @@ pub struct AgeNoise {
 }
 
 impl AgeNoise {
-    /// From the scene's `uncertainty:`; a name the model does not have is an error naming it.
+    /// From the scene's `uncertainty:`; a name the model does not have, or a bad σ, is an
+    /// error naming it.
     pub fn new(model: &Model, spec: &UncertaintySpec) -> Result<Self> {
-        let variances = |sigmas: &BTreeMap<String, f64>| -> Result<Vec<f64>> {
-            let mut out = vec![0.0; model.nv];
-            for (name, sigma) in sigmas {
-                out[model.v_index(name)?] = sigma * sigma;
-            }
-            Ok(out)
-        };
         Ok(Self {
-            acceleration: variances(&spec.acceleration_noise)?,
-            slip: variances(&spec.slip_noise)?,
+            acceleration: noise_variances(model, "acceleration_noise", &spec.acceleration_noise)?,
+            slip: noise_variances(model, "slip_noise", &spec.slip_noise)?,
         })
     }
 

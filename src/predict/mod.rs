@@ -32,6 +32,7 @@ mod trajectory;
 
 pub use contacts::{ContactBreak, ContactCheck, ContactJudge};
 pub use covariance::linearize::{Linearization, linearize_step};
+pub(crate) use covariance::noise_variances;
 pub use covariance::{CovariancePropagator, UncertaintySpec};
 pub use drift::{DriftProjector, OffConstraints};
 pub use integrators::{ErrorEstimator, Integrator, Method};

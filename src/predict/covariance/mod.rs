@@ -45,6 +45,7 @@ use crate::forces::ForceElements;
 use crate::linalg::{
     cholesky_in_place, cholesky_solve, gemm_into, semidefinite_cholesky, semidefinite_solve,
 };
+use crate::model::Model;
 use crate::predict::covariance::chunks::{ChunkControl, StepRecord};
 use crate::predict::covariance::constants::ConstantInputs;
 use crate::predict::covariance::linearize::Linearization;
@@ -74,6 +75,26 @@ pub struct UncertaintySpec {
     /// process noise on the pose.
     #[serde(default)]
     pub slip_noise: BTreeMap<String, f64>,
+}
+
+/// σ² per velocity coordinate of `uncertainty.<field>` (0 where it names none); a name the
+/// model does not have, or a σ that is negative or not finite, is an error naming it.
+pub(crate) fn noise_variances(
+    model: &Model,
+    field: &str,
+    sigmas: &BTreeMap<String, f64>,
+) -> Result<Vec<f64>> {
+    let mut out = vec![0.0; model.nv];
+    for (name, &sigma) in sigmas {
+        let i = model.v_index(name)?;
+        if !(sigma.is_finite() && sigma >= 0.0) {
+            return Err(Error::Invalid(format!(
+                "uncertainty.{field}.{name} = {sigma}: must be finite and ≥ 0"
+            )));
+        }
+        out[i] = sigma * sigma;
+    }
+    Ok(out)
 }
 
 /// Propagates a covariance along a prediction (buffers sized once; a step allocates nothing).
@@ -208,25 +229,12 @@ impl CovariancePropagator {
     /// linearizing the force elements of `forces` (joint spring-dampers in closed form, the
     /// elements acting at frames by differences: linearize/frame_forces.rs).
     pub fn new(sys: &System, forces: &ForceElements, spec: &UncertaintySpec) -> Result<Self> {
-        let nv = sys.model().nv;
-        let variances = |field: &str, sigmas: &BTreeMap<String, f64>| -> Result<Vec<f64>> {
-            let mut noise = vec![0.0; nv];
-            for (name, &sigma) in sigmas {
-                let i = sys.model().v_index(name)?;
-                if !(sigma.is_finite() && sigma >= 0.0) {
-                    return Err(Error::Invalid(format!(
-                        "uncertainty.{field}.{name} = {sigma}: must be finite and ≥ 0"
-                    )));
-                }
-                noise[i] = sigma * sigma;
-            }
-            Ok(noise)
-        };
+        let (model, nv) = (sys.model(), sys.model().nv);
         Ok(Self {
             p: DMatrix::zeros(2 * nv, 2 * nv),
-            noise: variances("acceleration_noise", &spec.acceleration_noise)?,
-            saturation_bias: variances("saturation_bias", &spec.saturation_bias)?,
-            slip: variances("slip_noise", &spec.slip_noise)?,
+            noise: noise_variances(model, "acceleration_noise", &spec.acceleration_noise)?,
+            saturation_bias: noise_variances(model, "saturation_bias", &spec.saturation_bias)?,
+            slip: noise_variances(model, "slip_noise", &spec.slip_noise)?,
             lin: {
                 let mut lin = Linearization::new(sys)
                     .with_joint_springs(forces.joint_spring_dampers())
