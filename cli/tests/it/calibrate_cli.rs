@@ -34,8 +34,8 @@ fn figures(v: &Value) -> Vec<(f64, f64, f64, f64, f64, f64)> {
 /// the (x, y, yaw) errors inside its 95 % region at 1 s and 2 s, and their mean NEES near
 /// χ²(3)'s 3 (up to 5: a skid's errors lie beyond a Gaussian's tails and weigh on a mean of 36
 /// to 38). On the raw steps at 2 s it holds a little less, 0.8 (30 of 36): four of the six
-/// outside pass through skids the model does not see (10–12 mm), two are 5 mrad yaw errors
-/// on a steady arc just outside.
+/// outside pass through skids (8–12 mm), two are 5 mrad yaw errors built up through a step of
+/// the turn rate that saturates nothing.
 fn assert_covered(bag: &str, h: f64, coverage_p95: f64, nees_mean: f64) {
     let least = if h > 1.5 && bag.starts_with("validation_steps") {
         0.8

@@ -108,7 +108,8 @@ pub struct CovariancePropagator {
     slip: Vec<f64>,
     /// σ_b² per velocity coordinate.
     saturation_bias: Vec<f64>,
-    /// (A − I) e_{nv+i}: how a noisy coordinate's velocity moves the state over a chunk.
+    /// (A − I) e: how noise entering at state index e (a velocity's, or a slipping
+    /// position's) moves the state over a chunk.
     noise_response: Vec<f64>,
     pub(in crate::predict) lin: Linearization,
     /// The prediction's steps not yet in `p`, and how they are cut into chunks
