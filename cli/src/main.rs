@@ -16,6 +16,7 @@ mod report;
 mod state;
 
 use clap::{Parser, Subcommand};
+use std::io::Write;
 use std::process::ExitCode;
 
 #[derive(Parser)]
@@ -67,11 +68,18 @@ fn main() -> ExitCode {
     };
     match result.and_then(|json| finite_json(&json, "output").map(|()| json)) {
         Ok(json) => {
-            println!(
-                "{}",
-                serde_json::to_string_pretty(&json).unwrap_or_default()
-            );
-            ExitCode::SUCCESS
+            // Written, not println!ed: a reader that closes the pipe early (`| head`) ends
+            // the output, which println! would turn into a panic.
+            let text = serde_json::to_string_pretty(&json).unwrap_or_default();
+            let mut out = std::io::stdout().lock();
+            match writeln!(out, "{text}").and_then(|()| out.flush()) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("error: writing the output: {e}");
+                    ExitCode::FAILURE
+                }
+            }
         }
         Err(e) => {
             eprintln!("error: {e}");

@@ -1,6 +1,6 @@
 //! The binary on hostile input: absurd steps and horizons, an overflowing state, a
 //! bad URDF number — each a one-line error on stderr and a failure exit, quickly, never a
-//! `null` in the JSON or a run that does not end.
+//! `null` in the JSON or a run that does not end; a reader that closes the pipe early.
 
 use crate::common;
 use common::cli;
@@ -48,4 +48,32 @@ fn an_overflowing_state_is_refused_naming_the_file_and_entry() {
         &["eval", "--scene", "params/fourbar.yaml", "--state", &s],
         &["state.json", "v: entry 0", "1e6"],
     );
+}
+
+/// A reader that stops early (`constraint_dynamics predict … | head`) ends the output: the tool
+/// exits as it would have, without a panic on the closed pipe.
+#[test]
+fn a_reader_that_closes_the_pipe_ends_the_output_quietly() {
+    use std::process::Stdio;
+    // 1.4 MB of samples: more than a pipe holds, so the write meets the closed end whenever
+    // the reader closes it.
+    let args = [
+        "predict",
+        "--scene",
+        "params/fourbar.yaml",
+        "--horizon",
+        "2",
+        "--sample-period",
+        "0.001",
+    ];
+    let mut child = (cli().args(args))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{:?}: {err}", out.status);
+    assert!(!err.contains("panicked"), "{err}");
 }
