@@ -1,5 +1,5 @@
 //! The process noise: what the model still misses after the fit, stated on the wheels and the
-//! base's yaw so that the predicted covariance covers it.
+//! base so that the predicted covariance covers it.
 //!
 //! Two terms on every wheel joint (docs/propagation.md): a white acceleration noise of density σ
 //! [(rad/s²)/√Hz] at all times (`uncertainty.acceleration_noise`), and, while the wheel's
@@ -7,20 +7,26 @@
 //! through a prediction (`uncertainty.saturation_bias`): at the grip's limit — a skid, a wheel
 //! unloaded as the robot pitches — the model knows least what the floor takes, and that error
 //! lasts as long as the skid. Through the rolling constraints they spread the base's position
-//! along the travel and its yaw, growing with the horizon. And a slip noise σ_s [rad/√s] on the
-//! base's yaw (`uncertainty.slip_noise`): the heading's random walk outside the constraints,
-//! which the wheel controllers do not take back as they take back the wheels' noise.
+//! along the travel and its yaw, growing with the horizon. Beside σ_b, while the drive is
+//! saturated, a rate offset of standard deviation σ_k [m/s] on the base's two horizontal
+//! positions (`uncertainty.saturation_slip`): the skid's slide, which reaches across the path
+//! where a wheel's offset cannot. And a slip noise σ_s [rad/√s] on the base's yaw
+//! (`uncertainty.slip_noise`): the heading's random walk outside the constraints, which the
+//! wheel controllers do not take back as they take back the wheels' noise.
 //!
-//! σ and σ_b are each sized on the predictions they act on. σ is the smallest value whose
-//! predicted covariance (the node's: propagated, error estimate and floors, plus the
-//! reference's own) holds the target fraction of the predictions through no saturation inside
-//! its 95 % region at every fit horizon (doubling, then bisection of log σ). Then σ_b, beside
-//! it, is the smallest value that does the same for the predictions through a saturation
-//! (stepping through [`BIAS_TRIED`], then bisection of log σ_b). Not on a scene with tyres:
-//! their grip rejects such noise ([`TYRES_REJECT_NOISE`]). σ_s, beside both, is the most likely
-//! value (the lowest log score): the wheels' terms may already cover the calibration drive's
-//! errors, which the fit itself took down, while a fresh drive's heading drifts more; the
-//! likelihood weighs the errors' shape, which a coverage count does not.
+//! σ is the smallest value whose predicted covariance (the node's: propagated, error estimate
+//! and floors, plus the reference's own) holds the target fraction of the predictions through
+//! no saturation inside its 95 % region at every fit horizon (doubling, then bisection of log
+//! σ). Not on a scene with tyres: their grip rejects such noise ([`TYRES_REJECT_NOISE`]). σ_b
+//! and σ_k act on the predictions through a saturation, and together: for a σ_k, σ_b is the
+//! smallest value that covers those predictions as σ covers the others (stepping through
+//! [`BIAS_TRIED`], or down from the σ_b of a smaller σ_k, then bisection of log σ_b), and σ_k
+//! is the value whose pair has the lowest log score (0, then up from [`SLIDE_START`] by
+//! factors of 2 while the score falls). A coverage count alone would take σ_b up until the
+//! skids' errors across the path fall inside a region grown along it and in yaw; the
+//! likelihood weighs the region's shape. σ_s, beside them, is the most likely value (the lowest log
+//! score): the wheels' terms may already cover the calibration drive's errors, which the fit
+//! itself took down, while a fresh drive's heading drifts more.
 
 use super::{CalibrationError, CalibrationSettings, Problem};
 use crate::replay::{EvaluationSettings, evaluate, stats::Coverage};
@@ -37,6 +43,10 @@ pub struct ProcessNoise {
     pub acceleration_noise: f64,
     /// σ_b [rad/s²], while a wheel's controller is saturated.
     pub saturation_bias: f64,
+    /// The base's horizontal coordinates the skid's slide is on.
+    pub saturation_slip_coordinates: Vec<String>,
+    /// σ_k [m/s], while the drive is saturated: the lowest log score with its σ_b.
+    pub saturation_slip: f64,
     /// The base's yaw coordinate the slip noise is on, if the base has one.
     pub slip_coordinate: Option<String>,
     /// σ_s [rad/√s]: the yaw's random walk, the most likely value beside σ and σ_b.
@@ -77,11 +87,15 @@ const SMALLEST: f64 = 1e-4;
 /// σ_b tried [rad/s²], in order, until the predictions through a saturation are covered. A
 /// wheel's offset reaches the base only through the rolling constraints, which give most of it
 /// back to the wheel (its inertia is a few thousandths of the robot's on the wheel's axis), so
-/// the values that matter are large.
-const BIAS_TRIED: [f64; 6] = [10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0];
+/// the values that matter are large, less so beside a skid's slide.
+const BIAS_TRIED: [f64; 8] = [1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0];
 /// Bisection steps of log σ_b between the last value of [`BIAS_TRIED`] that does not cover
 /// and the first that does: their factor ≈ 3 to ≈ 1.15.
 const BIAS_BISECTIONS: usize = 3;
+/// The least and the largest skid slide tried [m/s] (0.01: 1 mm over a 0.1 s skid, below the
+/// odometry's position noise).
+const SLIDE_START: f64 = 0.01;
+const SLIDE_LARGEST: f64 = 1.0;
 /// Where σ's bracket starts [(rad/s²)/√Hz].
 const SIGMA_START: f64 = 0.1;
 /// The least and the largest yaw slip noise tried [rad/√s] (1e-4: 0.14 mrad in 2 s, far
@@ -100,11 +114,14 @@ struct Score {
     log_score: f64,
 }
 
-/// Fits σ and σ_b for the scene `yaml` (the fitted one) and writes them in.
+/// Fits the process noise for the scene `yaml` (the fitted one) and writes it in; σ_k searched
+/// for, or kept at `slide` where given (a refit after the values moved a little: the search
+/// costs three times the rest, and its factor-2 steps do not move with them).
 pub(super) fn fit(
     problem: &Problem,
     yaml: &mut Value,
     settings: &CalibrationSettings,
+    slide: Option<f64>,
 ) -> Result<ProcessNoise, CalibrationError> {
     let replay = EvaluationSettings {
         propagate_covariance: true,
@@ -112,15 +129,17 @@ pub(super) fn fit(
     };
     // The fit owns its three terms: every trial and the result set them all, 0 included, so
     // that what is scored is what is written.
-    let write = |yaml: &mut Value, sigma: f64, bias: f64, slip: f64| {
+    let write = |yaml: &mut Value, [sigma, bias, slide, slip]: [f64; 4]| {
         (problem.places).set_wheel_noise(yaml, "acceleration_noise", sigma);
         (problem.places).set_wheel_noise(yaml, "saturation_bias", bias);
+        (problem.places).set_skid_slide(yaml, slide);
         (problem.places).set_yaw_slip(yaml, slip);
     };
     let mut replays = 0;
-    let mut score = |sigma: f64, bias: f64, slip: f64| -> Result<Score, CalibrationError> {
+    // [σ, σ_b, σ_k, σ_s].
+    let mut score = |terms: [f64; 4]| -> Result<Score, CalibrationError> {
         let mut trial = yaml.clone();
-        write(&mut trial, sigma, bias, slip);
+        write(&mut trial, terms);
         let scene = problem.source.build(&trial)?;
         let (mut nees, mut log_score) = (Vec::new(), 0.0);
         let horizons = &replay.horizons_s;
@@ -163,46 +182,37 @@ pub(super) fn fit(
     };
     let target = settings.target_coverage_p95;
     let joints = problem.places.wheel_joints().to_vec();
-    let s0 = score(0.0, 0.0, 0.0)?;
+    let s0 = score([0.0; 4])?;
     let tyres = problem.places.tyres_carry_wheels();
-    let (mut sigma, mut bias, mut s) = (0.0, 0.0, s0);
+    let (mut sigma, mut bias, mut k_slide, mut s) = (0.0, 0.0, 0.0, s0);
     let covered = s0.unsaturated_coverage_p95 >= target && s0.saturated_coverage_p95 >= target;
     if !(covered || joints.is_empty() || tyres) {
-        // σ on the predictions only it acts on; then σ_b, beside it, on those through a
-        // saturation.
-        (sigma, s) = smallest_sigma(|sigma| score(sigma, 0.0, 0.0), target)?;
-        if s.saturated_coverage_p95 < target {
-            let covered = |s: &Score| s.saturated_coverage_p95 >= target;
-            let mut lo = 0.0;
-            for b in BIAS_TRIED {
-                (bias, s) = (b, score(sigma, b, 0.0)?);
-                if covered(&s) {
-                    break;
-                }
-                lo = b;
-            }
-            if covered(&s) && lo > 0.0 {
-                for _ in 0..BIAS_BISECTIONS {
-                    let mid = (lo * bias).sqrt();
-                    let at = score(sigma, mid, 0.0)?;
-                    if covered(&at) {
-                        (bias, s) = (mid, at);
-                    } else {
-                        lo = mid;
-                    }
-                }
-            }
+        // σ on the predictions only it acts on; then σ_b and σ_k, beside it, on those through
+        // a saturation.
+        (sigma, s) = smallest_sigma(|sigma| score([sigma, 0.0, 0.0, 0.0]), target)?;
+        let mut pair = |slide: f64, bound: Bound| {
+            smallest_bias(|b| score([sigma, b, slide, 0.0]), bound, target)
+        };
+        let slides = !problem.places.base_horizontal().is_empty() && s.saturated > 0;
+        match slide {
+            Some(k) if slides && k > 0.0 => (k_slide, (bias, s)) = (k, pair(k, Bound::None)?),
+            _ => (bias, s) = pair(0.0, Bound::Zero(s))?,
+        }
+        if slides && slide.is_none() {
+            (k_slide, bias, s) = most_likely_slide(&mut pair, (bias, s))?;
         }
     }
     let mut slip = 0.0;
     if problem.places.base_yaw().is_some() {
-        (slip, s) = most_likely_slip(|slip| score(sigma, bias, slip), s)?;
+        (slip, s) = most_likely_slip(|slip| score([sigma, bias, k_slide, slip]), s)?;
     }
-    write(yaml, sigma, bias, slip);
+    write(yaml, [sigma, bias, k_slide, slip]);
     Ok(ProcessNoise {
         joints,
         acceleration_noise: sigma,
         saturation_bias: bias,
+        saturation_slip_coordinates: problem.places.base_horizontal().to_vec(),
+        saturation_slip: k_slide,
         slip_coordinate: problem.places.base_yaw().map(str::to_string),
         slip_noise: slip,
         coverage_p95: s.coverage_p95,
@@ -213,6 +223,104 @@ pub(super) fn fit(
         replays,
         not_fitted: (tyres && s.coverage_p95 < target).then_some(TYRES_REJECT_NOISE),
     })
+}
+
+/// What is known of σ_b before its search: nothing, the score without it (at this σ_k), or a
+/// σ_b that covers — covering at a smaller σ_k, it covers here: more variance lowers every
+/// NEES.
+#[derive(Clone, Copy)]
+enum Bound {
+    None,
+    Zero(Score),
+    Covers(f64),
+}
+
+/// The smallest σ_b (to a factor ≈ 1.15) whose `score` covers `target` of the predictions
+/// through a saturation: 0 where that already holds, else the first of [`BIAS_TRIED`] that
+/// covers them — or, below a `bound` that covers, down from it by factors of 3 — bisected down
+/// from there.
+fn smallest_bias(
+    mut score: impl FnMut(f64) -> Result<Score, CalibrationError>,
+    bound: Bound,
+    target: f64,
+) -> Result<(f64, Score), CalibrationError> {
+    let covered = |s: &Score| s.saturated_coverage_p95 >= target;
+    let (mut lo, mut bias, mut s);
+    if let Bound::Covers(b) = bound {
+        // σ_b's own score is taken only where no smaller value covers.
+        let (mut hi, mut at_hi) = (b, None);
+        lo = 0.0;
+        while hi > 0.0 {
+            let down = hi / 3.0;
+            if down < BIAS_TRIED[0] {
+                let at_zero = score(0.0)?;
+                if covered(&at_zero) {
+                    return Ok((0.0, at_zero));
+                }
+                lo = down;
+                break;
+            }
+            let at = score(down)?;
+            if !covered(&at) {
+                lo = down;
+                break;
+            }
+            (hi, at_hi) = (down, Some(at));
+        }
+        bias = hi;
+        s = match at_hi {
+            Some(at) => at,
+            None => score(hi)?,
+        };
+    } else {
+        s = match bound {
+            Bound::Zero(s) => s,
+            _ => score(0.0)?,
+        };
+        if covered(&s) {
+            return Ok((0.0, s));
+        }
+        (lo, bias) = (0.0, 0.0);
+        for b in BIAS_TRIED {
+            (bias, s) = (b, score(b)?);
+            if covered(&s) {
+                break;
+            }
+            lo = b;
+        }
+    }
+    if covered(&s) && lo > 0.0 {
+        for _ in 0..BIAS_BISECTIONS {
+            let mid = (lo * bias).sqrt();
+            let at = score(mid)?;
+            if covered(&at) {
+                (bias, s) = (mid, at);
+            } else {
+                lo = mid;
+            }
+        }
+    }
+    Ok((bias, s))
+}
+
+/// The σ_k whose pair (σ_b from `pair`, bounded by the σ_b of the last σ_k tried) has the
+/// lowest log score, `at_zero` being σ_b and its score without a slide: up from
+/// [`SLIDE_START`] by factors of 2 while the score falls. (σ_k, σ_b, score).
+fn most_likely_slide(
+    mut pair: impl FnMut(f64, Bound) -> Result<(f64, Score), CalibrationError>,
+    at_zero: (f64, Score),
+) -> Result<(f64, f64, Score), CalibrationError> {
+    let mut best = (0.0, at_zero.0, at_zero.1);
+    let mut k = SLIDE_START;
+    while k <= SLIDE_LARGEST {
+        let (b, s) = pair(k, Bound::Covers(best.1))?;
+        if s.log_score >= best.2.log_score {
+            break;
+        }
+        best = (k, b, s);
+        k *= 2.0;
+    }
+    Ok(best)
 }
 
 /// The σ_s (to [`SLIP_RESOLUTION`]) with the lowest log score, `at_zero` being the score

@@ -124,6 +124,9 @@ pub struct SceneParameters {
     /// The velocity coordinate of the base's yaw (a planar base's `wz`, a floating base's
     /// `wz_local`; `None` for a fixed base).
     base_yaw: Option<String>,
+    /// The velocity coordinates of the base's two horizontal translations (REP-103's x and y,
+    /// in the base's frame); empty for a fixed base.
+    base_horizontal: Vec<String>,
     /// How many `forces.turning_resistance` entries the scene declares.
     turning: usize,
     /// The diff drive's wheel torque clamp [N·m]: its `traction_torque:`, else the wheels'
@@ -266,8 +269,15 @@ impl SceneParameters {
         // The base's coordinates come first, yaw (REP-103's rz) last among them.
         let base_yaw =
             (rep103_indices(model.base).len().checked_sub(1)).map(|i| model.v_names[i].clone());
+        // x and y come first where the base has them (a planar or a floating base).
+        let base_horizontal = if rep103_indices(model.base).len() >= 3 {
+            model.v_names[..2].to_vec()
+        } else {
+            Vec::new()
+        };
         Ok(SceneParameters {
             base_yaw,
+            base_horizontal,
             no_drift_control,
             tyres_carry_wheels,
             weight_share,
@@ -372,6 +382,11 @@ impl SceneParameters {
     /// The velocity coordinate of the base's yaw, if the base has one.
     pub fn base_yaw(&self) -> Option<&str> {
         self.base_yaw.as_deref()
+    }
+
+    /// The velocity coordinates of the base's horizontal translations (none for a fixed base).
+    pub fn base_horizontal(&self) -> &[String] {
+        &self.base_horizontal
     }
 
     /// True when a tyre carries a wheel in place of a rolling contact (`forces.tyres`): its grip

@@ -24,7 +24,10 @@ pub(super) fn whitening(
     yaml: &Value,
     noise: &ProcessNoise,
 ) -> Result<Option<Vec<Matrix3<f64>>>, CalibrationError> {
-    if noise.acceleration_noise == 0.0 && noise.saturation_bias == 0.0 {
+    if noise.acceleration_noise == 0.0
+        && noise.saturation_bias == 0.0
+        && noise.saturation_slip == 0.0
+    {
         return Ok(None);
     }
     let replay = EvaluationSettings {

@@ -3,12 +3,15 @@
 //! - asked for 10 m/s it saturates for the whole second: the force is a constant 1 N, white
 //!   acceleration noise of density σ (`acceleration_noise`) gives the double integrator's
 //!   `σ² [t³/3, t²/2; t²/2, t]`, and an acceleration offset of standard deviation σ_b while
-//!   saturated (`saturation_bias`) adds a constant acceleration's `σ_b² [t⁴/4, t³/2; t³/2, t²]`;
+//!   saturated (`saturation_bias`) adds a constant acceleration's `σ_b² [t⁴/4, t³/2; t³/2, t²]`,
+//!   and a rate offset of standard deviation σ_k on its position while saturated
+//!   (`saturation_slip`) a constant rate's `σ_k² t²` on the position alone;
 //! - asked for 0.2 m/s it stays inside its effort (kp·0.2 = 0.8 N): v is an Ornstein–Uhlenbeck
 //!   process of rate a = kp/m, `var v(t) = σ² (1 − e^{−2at}) / (2a)` (to (aH)²/6 for chunks of
 //!   H), and σ_b adds nothing;
 //! - asked for 0.3 m/s from rest it asks kp·0.3 = 1.2 N, is held at 1 N until kp (0.3 − v) = 1 N,
-//!   v = 0.05 m/s at 1 N / 2 kg: saturated for 0.1 s (`Trajectory::saturated_s`).
+//!   v = 0.05 m/s at 1 N / 2 kg: saturated for 0.1 s (`Trajectory::saturated_s`), and the
+//!   slide's variance stops there at `σ_k² (0.1 s)²`.
 
 use crate::common;
 use common::*;
@@ -30,8 +33,19 @@ const MASS_KG: f64 = 2.0;
 const KP: f64 = 4.0;
 const SIGMA: f64 = 0.3;
 const SIGMA_BIAS: f64 = 0.4;
+const SIGMA_SLIDE: f64 = 0.05;
 
+/// The slider with every process-noise term.
 fn slider(hold: &str) -> Scene {
+    let terms = format!(
+        "acceleration_noise: {{ slider: {SIGMA} }}, saturation_bias: {{ slider: {SIGMA_BIAS} }}, \
+         saturation_slip: {{ slider: {SIGMA_SLIDE} }}"
+    );
+    slider_with(hold, &terms)
+}
+
+/// The slider with `uncertainty: {terms}`.
+fn slider_with(hold: &str, terms: &str) -> Scene {
     static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let k = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let dir = std::env::temp_dir().join(format!("cd_slider_{}_{k}", std::process::id()));
@@ -41,8 +55,7 @@ fn slider(hold: &str) -> Scene {
         "urdf: slider.urdf\nbase: fixed\ngravity: [0.0, 0.0, -9.81]\n\
          actuators:\n  hold: {hold}\n  velocity:\n    - {{ joint: slider, kp: {KP}, ki: 0.0 }}\n\
          integration:\n  method: rk4\n  dt: 0.001\n\
-         uncertainty:\n  acceleration_noise: {{ slider: {SIGMA} }}\n  \
-         saturation_bias: {{ slider: {SIGMA_BIAS} }}\n"
+         uncertainty: {{ {terms} }}\n"
     );
     std::fs::write(dir.join("slider.yaml"), yaml).unwrap();
     let scene = Scene::load(dir.join("slider.yaml")).unwrap();
@@ -88,9 +101,10 @@ fn saturation_bias_is_a_constant_acceleration_while_saturated() {
         let (samples, saturated_s) = covariances(&slider(hold), 10.0);
         for (t, p) in samples {
             let (s2, b2) = (SIGMA * SIGMA, SIGMA_BIAS * SIGMA_BIAS);
+            let k2 = SIGMA_SLIDE * SIGMA_SLIDE;
             let exact = [
                 [
-                    s2 * t.powi(3) / 3.0 + b2 * t.powi(4) / 4.0,
+                    s2 * t.powi(3) / 3.0 + b2 * t.powi(4) / 4.0 + k2 * t * t,
                     s2 * t * t / 2.0 + b2 * t.powi(3) / 2.0,
                 ],
                 [s2 * t * t / 2.0 + b2 * t.powi(3) / 2.0, s2 * t + b2 * t * t],
@@ -117,6 +131,36 @@ fn saturated_time_ends_where_the_controller_comes_inside_its_effort() {
         println!("{hold}: saturated {saturated_s:.6} s (exact {exact} s)");
         assert!((saturated_s - exact).abs() <= tol, "{hold}: {saturated_s}");
     }
+}
+
+#[test]
+fn the_skids_slide_stops_with_the_saturation() {
+    // Only the slide: var q = σ_k² min(t, t_s)², t_s = 0.1 s as above; v never sees it.
+    let terms = format!("saturation_slip: {{ slider: {SIGMA_SLIDE} }}");
+    for hold in ["continuous", "zero_order"] {
+        let (samples, saturated_s) = covariances(&slider_with(hold, &terms), 0.3);
+        let mut worst: f64 = 0.0;
+        for (t, p) in &samples {
+            let exact = (SIGMA_SLIDE * t.min(saturated_s)).powi(2);
+            worst = worst.max((p[0][0] - exact).abs() / exact);
+            assert!(
+                p[1][1].abs() < 1e-15 && p[0][1].abs() < 1e-15,
+                "{hold} t {t}: {p:?}"
+            );
+        }
+        println!("{hold}: saturated {saturated_s:.6} s, worst relative difference {worst:.2e}");
+        assert!(worst < 1e-12, "{hold}: {worst:e}");
+    }
+    // A coordinate the robot does not have is refused, naming the field and the name.
+    let mut pred =
+        Predictor::from_scene(&slider_with("continuous", "saturation_slip: { x: 0.1 }")).unwrap();
+    let p0 = DMatrix::zeros(2, 2);
+    let e = (pred.predict(&PredictionRequest::new(&[0.0], &[0.0]).covariance(&p0))).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("uncertainty.saturation_slip: unknown velocity coordinate 'x'"),
+        "{e}"
+    );
 }
 
 #[test]

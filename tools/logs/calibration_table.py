@@ -82,7 +82,11 @@ def main():
                      f"{pn['saturation_bias']:.3g} | — | coverage p95 "
                      f"{pn['saturated_coverage_p95']:.2f} of the "
                      f"{pn['saturated_predictions']} predictions through a saturation (the "
-                     "same) |")
+                     "same), with the slide below |")
+        if pn.get("saturation_slip_coordinates"):
+            lines.append(f"| skid slide on {', '.join(pn['saturation_slip_coordinates'])} "
+                         f"[m/s] | 0 | {pn['saturation_slip']:.3g} | — | the most likely with "
+                         "its saturation bias |")
         if pn.get("slip_coordinate"):
             lines.append(f"| slip noise on {pn['slip_coordinate']} [rad/√s] | 0 | "
                          f"{pn['slip_noise']:.3g} | — | the most likely beside them: log score "

@@ -12,39 +12,47 @@ fn run(dir: &std::path::Path, args: &[&str]) -> (bool, Value, String) {
     crate::run_cli(Some(dir), args)
 }
 
-/// (horizon [s], worst position [m], worst |yaw| [rad], median |yaw| [rad], coverage p95,
-/// mean NEES).
-fn figures(v: &Value) -> Vec<(f64, f64, f64, f64, f64, f64)> {
+/// The figures of one horizon.
+struct Figures {
+    horizon_s: f64,
+    worst_position_m: f64,
+    worst_yaw_rad: f64,
+    median_yaw_rad: f64,
+    coverage_p50: f64,
+    coverage_p95: f64,
+    nees_mean: f64,
+}
+
+fn figures(v: &Value) -> Vec<Figures> {
     let f = |h: &Value, k: &str, s: &str| h[k][s].as_f64().unwrap();
     (v["horizons"].as_array().unwrap().iter())
-        .map(|h| {
-            (
-                h["horizon_s"].as_f64().unwrap(),
-                f(h, "position_error_m", "max"),
-                f(h, "yaw_error_rad", "max"),
-                f(h, "yaw_error_rad", "median"),
-                f(h, "coverage", "p95"),
-                h["nees_mean"].as_f64().unwrap(),
-            )
+        .map(|h| Figures {
+            horizon_s: h["horizon_s"].as_f64().unwrap(),
+            worst_position_m: f(h, "position_error_m", "max"),
+            worst_yaw_rad: f(h, "yaw_error_rad", "max"),
+            median_yaw_rad: f(h, "yaw_error_rad", "median"),
+            coverage_p50: f(h, "coverage", "p50"),
+            coverage_p95: f(h, "coverage", "p95"),
+            nees_mean: h["nees_mean"].as_f64().unwrap(),
         })
         .collect()
 }
 
-/// The predicted covariance is honest on a drive it was not fitted on: between 0.85 and 0.99 of
-/// the (x, y, yaw) errors inside its 95 % region at 1 s and 2 s, and their mean NEES near
-/// χ²(3)'s 3 (up to 5: a skid's errors lie beyond a Gaussian's tails and weigh on a mean of 36
-/// to 38). On the raw steps at 2 s it holds a little less, 0.8 (30 of 36): four of the six
-/// outside pass through skids (8–12 mm), two are 5 mrad yaw errors built up through a step of
-/// the turn rate that saturates nothing.
-fn assert_covered(bag: &str, h: f64, coverage_p95: f64, nees_mean: f64) {
-    let least = if h > 1.5 && bag.starts_with("validation_steps") {
-        0.8
-    } else {
-        0.85
-    };
+/// The predicted covariance is honest on a drive it was not fitted on, at 1 s and 2 s: at
+/// least 0.85 of the (x, y, yaw) errors inside its 95 % region, their mean NEES near χ²(3)'s 3
+/// (2 to 5: a skid's errors lie beyond a Gaussian's tails and weigh on a mean of 36 to 38), and
+/// not wider than the errors: at most 0.7 of them inside its 50 % region (0.5 for an exact
+/// covariance). That bounds the width where an upper bound on the 95 % count cannot: 0.99 is
+/// one error of 38 from 1, and an exact covariance leaves none of 38 outside 14 % of the time
+/// (0.95³⁸).
+fn assert_covered(bag: &str, f: &Figures) {
     assert!(
-        (least..=0.99).contains(&coverage_p95) && (2.0..=5.0).contains(&nees_mean),
-        "{bag} {h} s: coverage p95 {coverage_p95}, mean NEES {nees_mean}"
+        f.coverage_p95 >= 0.85 && f.coverage_p50 <= 0.7 && (2.0..=5.0).contains(&f.nees_mean),
+        "{bag} {} s: coverage p50 {}, p95 {}, mean NEES {}",
+        f.horizon_s,
+        f.coverage_p50,
+        f.coverage_p95,
+        f.nees_mean
     );
 }
 
@@ -113,24 +121,37 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
     assert_eq!(traction["determined"], true, "{traction}");
     let t = traction["value"].as_f64().unwrap();
     assert!((1.2..=2.44).contains(&t), "{traction}");
-    // The chassis is 17.5 % heavier than its URDF's 8 kg: 1.4 kg, which the drive's hard
-    // accelerations determine only loosely (speed-controlled wheels hide a mass).
+    // The chassis is 17.5 % heavier than its URDF's 8 kg: 1.4 kg, which only the drive's hard
+    // accelerations show (speed-controlled wheels hide a mass). The fitted mass is an effective
+    // one: in a skid the simulated robot pitches weight off its wheels onto its caster and
+    // turns round at about 3.4 m/s² where the planar model, which cannot pitch, takes 5
+    // (docs/logs.md), and a heavier chassis slows the model's skids the same way. It lands
+    // above the chassis's 1.4 kg, within four times it (unweighted, 6.5 kg).
     let m = param("base_mass");
     assert_eq!(m["determined"], true, "{m}");
     let (mass, se) = (
         m["value"].as_f64().unwrap(),
         m["std_error"].as_f64().unwrap(),
     );
-    assert!((mass - 1.4).abs() <= 2.0 * se && se < 2.5, "{m}");
+    assert!((1.4..=4.0 * 1.4).contains(&mass) && se < 2.5, "{m}");
     let sigma = out["process_noise"]["acceleration_noise"].as_f64().unwrap();
     assert!(sigma > 0.0, "{out}");
     // The yaw drifts a little on every drive (the tyres' scrub the track's widening does not
     // take): the most likely slip noise is a fraction of a mrad in a second.
     let slip = out["process_noise"]["slip_noise"].as_f64().unwrap();
     assert!((1e-4..=3e-3).contains(&slip), "{out}");
+    // The skids slide the base across its path too: the most likely slide, on the base's
+    // horizontal coordinates, lies between 1 mm and 1 cm over a skid's 0.1 s.
+    let noise = &out["process_noise"];
+    let slide = noise["saturation_slip"].as_f64().unwrap();
+    assert!((0.01..=0.1).contains(&slide), "{noise}");
+    assert_eq!(
+        noise["saturation_slip_coordinates"],
+        serde_json::json!(["root_joint:vx_local", "root_joint:vy_local"]),
+        "{noise}"
+    );
     // The drive's steps skid the tyres: some predictions pass through a saturation, a grip
     // bias covers them, and the white noise the others.
-    let noise = &out["process_noise"];
     assert!(noise["saturation_bias"].as_f64().unwrap() > 0.0, "{noise}");
     assert!(
         noise["saturated_predictions"].as_u64().unwrap() > 0,
@@ -168,22 +189,26 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
             ],
         );
         assert!(ok, "{bag}: {err}");
-        for ((h, pos, yaw, median, cov, nees), (bh, bp, by, bm)) in
-            figures(&after).into_iter().zip(bounds)
-        {
+        for (f, (bh, bp, by, bm)) in figures(&after).into_iter().zip(bounds) {
+            let (h, pos, yaw, median) = (
+                f.horizon_s,
+                f.worst_position_m,
+                f.worst_yaw_rad,
+                f.median_yaw_rad,
+            );
             assert_eq!(h, bh);
             assert!(pos <= bp, "{bag} {h} s: worst position {pos} m > {bp}");
             assert!(yaw <= by, "{bag} {h} s: worst yaw {yaw} rad > {by}");
             assert!(median <= bm, "{bag} {h} s: median yaw {median} rad > {bm}");
-            assert_covered(bag, h, cov, nees);
+            assert_covered(bag, &f);
         }
     }
     // Raw command steps skid the tyres and rock the robot onto its skid and caster, lifting a
     // wheel at times (docs/logs.md). Fitted on a drive that also skids, the scene's worst errors
     // drop to a quarter (position) and a fifth (yaw) of what it missed before calibration; the
     // simulator itself, predicting from such a start, leaves 6.1 mm and 14 mrad at 1 s
-    // (tools/logs/model_floor.py). The saturation bias sized on the calibration drive's skids
-    // covers these.
+    // (tools/logs/model_floor.py). The saturation bias and the skid's slide sized on the
+    // calibration drive's skids cover these.
     let steps = format!("{logs}/validation_steps");
     let score = |scene: &str| {
         let (ok, v, err) = run(
@@ -204,17 +229,22 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
         figures(&v)
     };
     // (worst position [m], worst yaw [rad]) at 1 s and 2 s.
-    let bounds = [(12.5e-3, 26.5e-3), (13.5e-3, 28.5e-3)];
+    let bounds = [(12.5e-3, 26.5e-3), (13.2e-3, 27.5e-3)];
     for ((before, after), (bp, by)) in score(&scene)
         .into_iter()
         .zip(score("calibrated.yaml"))
         .zip(bounds)
     {
-        assert!(
-            after.1 < before.1 && after.2 < before.2 && after.1 <= bp && after.2 <= by,
-            "{before:?} -> {after:?}"
+        let (b, a) = (
+            (before.worst_position_m, before.worst_yaw_rad),
+            (after.worst_position_m, after.worst_yaw_rad),
         );
-        assert_covered("validation_steps", after.0, after.4, after.5);
+        assert!(
+            a.0 < b.0 && a.1 < b.1 && a.0 <= bp && a.1 <= by,
+            "{} s: {b:?} -> {a:?}",
+            after.horizon_s
+        );
+        assert_covered("validation_steps", &after);
     }
     std::fs::remove_dir_all(&dir).ok();
 }

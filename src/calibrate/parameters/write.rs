@@ -137,6 +137,12 @@ impl SceneParameters {
     pub fn set_yaw_slip(&self, scene: &mut Value, sigma: f64) {
         set_noise(scene, "slip_noise", self.base_yaw.as_slice(), sigma);
     }
+
+    /// Writes `uncertainty.saturation_slip: σ_k` [m/s] on the base's two horizontal
+    /// translations, if the base has them.
+    pub fn set_skid_slide(&self, scene: &mut Value, sigma: f64) {
+        set_noise(scene, "saturation_slip", &self.base_horizontal, sigma);
+    }
 }
 
 /// Writes `uncertainty.<field>.<coordinate>: σ` for each of `coordinates`, keeping the scene's

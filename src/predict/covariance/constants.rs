@@ -1,5 +1,5 @@
-//! Random constants that drive the state: the velocity controllers' start offsets and the
-//! saturated controllers' grip biases, carried beside P.
+//! Random constants that drive the state: the velocity controllers' start offsets, the
+//! saturated controllers' grip biases and the skid's slide, carried beside P.
 //!
 //! **Start offsets.** A PI velocity controller's integral is its joint's travel since the
 //! prediction started, `∫(target − q̇) dt = target·t − (q − q(0))`, so the linearized steps
@@ -22,6 +22,16 @@
 //! proportion to the time spent saturated, not to its square root: a long skid moves it more
 //! than a short one in the ratio of their lengths.
 //!
+//! **Skid slides** (`uncertainty.saturation_slip`). While any velocity controller is
+//! saturated the wheels skid, and the base slides at a rate the model knows only roughly: a
+//! wheel hops and grips again, the load moves between the wheels and the caster as the robot
+//! pitches. A rate offset `c_i` of variance σ_k², the same through the prediction, acts on
+//! coordinate i's position while the drive skids, through `h w` with e = e_i: the grip bias's
+//! entry moved from the velocity to the position, as the slip noise's is from the acceleration
+//! noise's (mod.rs). On the base's two horizontal coordinates it lets the covariance grow
+//! across the path as well as along it, where a skid's error goes and a wheel's offset,
+//! through the rolling constraints, cannot send it.
+//!
 //! Either way, with x⁺ = A x + B̃ c:
 //!
 //! ```text
@@ -40,6 +50,7 @@ use nalgebra::DMatrix;
 enum Constant {
     StartOffset { iv: usize, feedback: usize },
     GripBias { iv: usize, feedback: usize },
+    SkidSlide { iv: usize },
 }
 
 /// cov(δx, c) and cov(c) of the constants (module doc).
@@ -55,13 +66,15 @@ pub(in crate::predict) struct ConstantInputs {
 
 impl ConstantInputs {
     /// The start offsets of the velocity controllers in `feedback` whose start position has a
-    /// variance in `p` (2nv × 2nv, already on the constraints), and the grip biases of the
-    /// controllers whose joint has a variance in `bias` (σ_b² per v index); None when there is
-    /// neither.
+    /// variance in `p` (2nv × 2nv, already on the constraints), the grip biases of the
+    /// controllers whose joint has a variance in `bias` (σ_b² per v index), and the skid
+    /// slides of the coordinates with a variance in `slide` (σ_k² per v index) when a velocity
+    /// controller can saturate; None when there is none of them.
     pub(in crate::predict) fn start(
         p: &DMatrix<f64>,
         feedback: &[Feedback],
         bias: &[f64],
+        slide: &[f64],
     ) -> Option<Self> {
         let offsets = feedback
             .iter()
@@ -79,7 +92,11 @@ impl ConstantInputs {
                 iv: f.iv,
                 feedback: i,
             });
-        let constants: Vec<Constant> = offsets.chain(biases).collect();
+        let skids = feedback.iter().any(|f| f.integral);
+        let slides = (slide.iter().enumerate())
+            .filter(move |&(_, &s)| skids && s > 0.0)
+            .map(|(iv, _)| Constant::SkidSlide { iv });
+        let constants: Vec<Constant> = offsets.chain(biases).chain(slides).collect();
         if constants.is_empty() {
             return None;
         }
@@ -99,6 +116,7 @@ impl ConstantInputs {
                     }
                 }
                 Constant::GripBias { iv, .. } => p_cc[(c, c)] = bias[iv],
+                Constant::SkidSlide { iv } => p_cc[(c, c)] = slide[iv],
             }
         }
         Some(Self {
@@ -126,6 +144,7 @@ impl ConstantInputs {
         feedback: &[Feedback],
     ) {
         let nv = a.nrows() / 2;
+        let skidding = feedback.iter().any(|f| f.saturated);
         for (c, constant) in self.constants.iter().enumerate() {
             match *constant {
                 Constant::StartOffset { iv, feedback: i } => {
@@ -136,16 +155,9 @@ impl ConstantInputs {
                 }
                 Constant::GripBias { iv, feedback: i } => {
                     let on = feedback.get(i).is_some_and(|f| f.saturated);
-                    let e = nv + iv;
-                    for r in 0..a.nrows() {
-                        // h w_r = h (A e + e)_r / 2.
-                        self.b_tilde[(r, c)] = if on {
-                            0.5 * h * (a[(r, e)] + if r == e { 1.0 } else { 0.0 })
-                        } else {
-                            0.0
-                        };
-                    }
+                    set_entry(&mut self.b_tilde, c, a, nv + iv, h, on);
                 }
+                Constant::SkidSlide { iv } => set_entry(&mut self.b_tilde, c, a, iv, h, skidding),
             }
         }
         self.y.gemm(1.0, a, &self.p_xc, 0.0);
@@ -174,5 +186,17 @@ impl ConstantInputs {
     pub(in crate::predict) fn project(&mut self, t: &DMatrix<f64>) {
         self.tmp.gemm(1.0, t, &self.p_xc, 0.0);
         std::mem::swap(&mut self.tmp, &mut self.p_xc);
+    }
+}
+
+/// B̃'s column `c` for a constant entering at state index `e` over a chunk of length h, when it
+/// acts (`on`): h w = h (A e + e) / 2; else 0.
+fn set_entry(b_tilde: &mut DMatrix<f64>, c: usize, a: &DMatrix<f64>, e: usize, h: f64, on: bool) {
+    for r in 0..a.nrows() {
+        b_tilde[(r, c)] = if on {
+            0.5 * h * (a[(r, e)] + if r == e { 1.0 } else { 0.0 })
+        } else {
+            0.0
+        };
     }
 }

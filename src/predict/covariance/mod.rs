@@ -75,6 +75,12 @@ pub struct UncertaintySpec {
     /// process noise on the pose.
     #[serde(default)]
     pub slip_noise: BTreeMap<String, f64>,
+    /// Standard deviation σ_k [m/s or rad/s] of a rate on the coordinate's position while a
+    /// velocity controller is saturated, the same through a prediction: how fast the robot
+    /// slides while its wheels skid, which a tyre model knows only roughly
+    /// (covariance/constants.rs; default: none).
+    #[serde(default)]
+    pub saturation_slip: BTreeMap<String, f64>,
 }
 
 /// σ² per velocity coordinate of `uncertainty.<field>` (0 where it names none); a name the
@@ -86,7 +92,8 @@ pub(crate) fn noise_variances(
 ) -> Result<Vec<f64>> {
     let mut out = vec![0.0; model.nv];
     for (name, &sigma) in sigmas {
-        let i = model.v_index(name)?;
+        let i = (model.v_index(name))
+            .map_err(|e| Error::Invalid(format!("uncertainty.{field}: {e}")))?;
         if !(sigma.is_finite() && sigma >= 0.0) {
             return Err(Error::Invalid(format!(
                 "uncertainty.{field}.{name} = {sigma}: must be finite and ≥ 0"
@@ -108,6 +115,8 @@ pub struct CovariancePropagator {
     slip: Vec<f64>,
     /// σ_b² per velocity coordinate.
     saturation_bias: Vec<f64>,
+    /// σ_k² per velocity coordinate (the skid's rate on its position).
+    saturation_slip: Vec<f64>,
     /// (A − I) e: how noise entering at state index e (a velocity's, or a slipping
     /// position's) moves the state over a chunk.
     noise_response: Vec<f64>,
@@ -235,6 +244,7 @@ impl CovariancePropagator {
             p: DMatrix::zeros(2 * nv, 2 * nv),
             noise: noise_variances(model, "acceleration_noise", &spec.acceleration_noise)?,
             saturation_bias: noise_variances(model, "saturation_bias", &spec.saturation_bias)?,
+            saturation_slip: noise_variances(model, "saturation_slip", &spec.saturation_slip)?,
             slip: noise_variances(model, "slip_noise", &spec.slip_noise)?,
             lin: {
                 let mut lin = Linearization::new(sys)
@@ -279,7 +289,7 @@ impl CovariancePropagator {
         c.record.reserve_feedback(feedback.len());
         c.reset(p0)?;
         c.project(sys, t, q, v)?;
-        c.constants = ConstantInputs::start(&c.p, feedback, &c.saturation_bias);
+        c.constants = ConstantInputs::start(&c.p, feedback, &c.saturation_bias, &c.saturation_slip);
         c.lin.inputs = c
             .constants
             .as_ref()
