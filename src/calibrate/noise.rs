@@ -115,13 +115,13 @@ struct Score {
 }
 
 /// Fits the process noise for the scene `yaml` (the fitted one) and writes it in; σ_k searched
-/// for, or kept at `slide` where given (a refit after the values moved a little: the search
+/// for, or kept at `kept_slide` where given (a refit after the values moved a little: the search
 /// costs three times the rest, and its factor-2 steps do not move with them).
 pub(super) fn fit(
     problem: &Problem,
     yaml: &mut Value,
     settings: &CalibrationSettings,
-    slide: Option<f64>,
+    kept_slide: Option<f64>,
 ) -> Result<ProcessNoise, CalibrationError> {
     let replay = EvaluationSettings {
         propagate_covariance: true,
@@ -184,7 +184,7 @@ pub(super) fn fit(
     let joints = problem.places.wheel_joints().to_vec();
     let s0 = score([0.0; 4])?;
     let tyres = problem.places.tyres_carry_wheels();
-    let (mut sigma, mut bias, mut k_slide, mut s) = (0.0, 0.0, 0.0, s0);
+    let (mut sigma, mut bias, mut slide, mut s) = (0.0, 0.0, 0.0, s0);
     let covered = s0.unsaturated_coverage_p95 >= target && s0.saturated_coverage_p95 >= target;
     if !(covered || joints.is_empty() || tyres) {
         // σ on the predictions only it acts on; then σ_b and σ_k, beside it, on those through
@@ -194,25 +194,25 @@ pub(super) fn fit(
             smallest_bias(|b| score([sigma, b, slide, 0.0]), bound, target)
         };
         let slides = !problem.places.base_horizontal().is_empty() && s.saturated > 0;
-        match slide {
-            Some(k) if slides && k > 0.0 => (k_slide, (bias, s)) = (k, pair(k, Bound::None)?),
+        match kept_slide {
+            Some(k) if slides && k > 0.0 => (slide, (bias, s)) = (k, pair(k, Bound::None)?),
             _ => (bias, s) = pair(0.0, Bound::Zero(s))?,
         }
-        if slides && slide.is_none() {
-            (k_slide, bias, s) = most_likely_slide(&mut pair, (bias, s))?;
+        if slides && kept_slide.is_none() {
+            (slide, bias, s) = most_likely_slide(&mut pair, (bias, s))?;
         }
     }
     let mut slip = 0.0;
     if problem.places.base_yaw().is_some() {
-        (slip, s) = most_likely_slip(|slip| score([sigma, bias, k_slide, slip]), s)?;
+        (slip, s) = most_likely_slip(|slip| score([sigma, bias, slide, slip]), s)?;
     }
-    write(yaml, [sigma, bias, k_slide, slip]);
+    write(yaml, [sigma, bias, slide, slip]);
     Ok(ProcessNoise {
         joints,
         acceleration_noise: sigma,
         saturation_bias: bias,
         saturation_slip_coordinates: problem.places.base_horizontal().to_vec(),
-        saturation_slip: k_slide,
+        saturation_slip: slide,
         slip_coordinate: problem.places.base_yaw().map(str::to_string),
         slip_noise: slip,
         coverage_p95: s.coverage_p95,
