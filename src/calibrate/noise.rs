@@ -199,7 +199,7 @@ pub(super) fn fit(
             _ => (bias, s) = pair(0.0, Bound::Zero(s))?,
         }
         if slides && kept_slide.is_none() {
-            (slide, bias, s) = most_likely_slide(&mut pair, (bias, s))?;
+            (slide, bias, s) = most_likely_slide(&mut pair, (bias, s), target)?;
         }
     }
     let mut slip = 0.0;
@@ -303,17 +303,25 @@ fn smallest_bias(
     Ok((bias, s))
 }
 
-/// The σ_k whose pair (σ_b from `pair`, bounded by the σ_b of the last σ_k tried) has the
-/// lowest log score, `at_zero` being σ_b and its score without a slide: up from
-/// [`SLIDE_START`] by factors of 2 while the score falls. (σ_k, σ_b, score).
+/// The σ_k whose pair (σ_b from `pair`, bounded by the best σ_k's σ_b where that covers
+/// `target`) has the lowest log score, `at_zero` being σ_b and its score without a slide: up
+/// from [`SLIDE_START`] by factors of 2 while the score falls. (σ_k, σ_b, score).
 fn most_likely_slide(
     mut pair: impl FnMut(f64, Bound) -> Result<(f64, Score), CalibrationError>,
     at_zero: (f64, Score),
+    target: f64,
 ) -> Result<(f64, f64, Score), CalibrationError> {
     let mut best = (0.0, at_zero.0, at_zero.1);
     let mut k = SLIDE_START;
     while k <= SLIDE_LARGEST {
-        let (b, s) = pair(k, Bound::Covers(best.1))?;
+        // A σ_b that covers bounds the next one; where even the largest tried did not, the
+        // search starts afresh.
+        let bound = if best.2.saturated_coverage_p95 >= target {
+            Bound::Covers(best.1)
+        } else {
+            Bound::None
+        };
+        let (b, s) = pair(k, bound)?;
         if s.log_score >= best.2.log_score {
             break;
         }
