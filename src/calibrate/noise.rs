@@ -24,9 +24,9 @@
 //! is the value whose pair has the lowest log score (0, then up from [`SLIDE_START`] by
 //! factors of 2 while the score falls). A coverage count alone would take σ_b up until the
 //! skids' errors across the path fall inside a region grown along it and in yaw; the
-//! likelihood weighs the region's shape. σ_s, beside them, is the most likely value (the lowest log
-//! score): the wheels' terms may already cover the calibration drive's errors, which the fit
-//! itself took down, while a fresh drive's heading drifts more.
+//! likelihood weighs the region's shape. σ_s, beside them, is the most likely value (the
+//! lowest log score): the wheels' terms may already cover the calibration drive's errors,
+//! which the fit itself took down, while a fresh drive's heading drifts more.
 
 use super::{CalibrationError, CalibrationSettings, Problem};
 use crate::replay::{EvaluationSettings, evaluate, stats::Coverage};
@@ -127,7 +127,7 @@ pub(super) fn fit(
         propagate_covariance: true,
         ..settings.replay.clone()
     };
-    // The fit owns its three terms: every trial and the result set them all, 0 included, so
+    // The fit owns its four terms: every trial and the result set them all, 0 included, so
     // that what is scored is what is written.
     let write = |yaml: &mut Value, [sigma, bias, slide, slip]: [f64; 4]| {
         (problem.places).set_wheel_noise(yaml, "acceleration_noise", sigma);
