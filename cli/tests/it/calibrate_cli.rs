@@ -125,8 +125,9 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
     // accelerations show (speed-controlled wheels hide a mass). The fitted mass is an effective
     // one: in a skid the simulated robot pitches weight off its wheels onto its caster and
     // turns round at about 3.4 m/s² where the planar model, which cannot pitch, takes 5
-    // (docs/logs.md), and a heavier chassis slows the model's skids the same way. It lands
-    // above the chassis's 1.4 kg, within four times it (unweighted, 6.5 kg).
+    // (docs/logs.md), and a heavier chassis slows the model's skids the same way. Weighted by
+    // the covariances it lands above the chassis's 1.4 kg, within four times it (the unweighted
+    // fit, without process noise, makes it 6.5 kg).
     let m = param("base_mass");
     assert_eq!(m["determined"], true, "{m}");
     let (mass, se) = (
