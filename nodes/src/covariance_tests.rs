@@ -246,24 +246,24 @@ fn age_noise_is_the_double_integrator_and_a_random_walk() {
     assert_eq!(p[(nv + yaw, nv + yaw)], 0.0);
     let others = (0..2 * nv).filter(|&i| ![wheel, nv + wheel, yaw].contains(&i));
     assert!(others.into_iter().all(|i| p[(i, i)] == 0.0));
-    let bad = constraint_dynamics::predict::UncertaintySpec {
-        slip_noise: [("root_joint:spin".to_string(), 0.3)].into(),
-        ..Default::default()
-    };
-    let e = AgeNoise::new(&m, &bad).unwrap_err();
-    assert!(
-        e.to_string()
-            .contains("uncertainty.slip_noise: unknown velocity coordinate 'root_joint:spin'"),
-        "{e}"
-    );
-    let negative = constraint_dynamics::predict::UncertaintySpec {
-        slip_noise: [("root_joint:wz".to_string(), -0.3)].into(),
-        ..Default::default()
-    };
-    let e = AgeNoise::new(&m, &negative).unwrap_err();
-    assert!(
-        e.to_string()
-            .contains("uncertainty.slip_noise.root_joint:wz"),
-        "{e}"
-    );
+    // An unknown name and a negative σ are refused, naming the field and the entry.
+    for (name, sigma, says) in [
+        (
+            "root_joint:spin",
+            0.3,
+            "uncertainty.slip_noise: unknown velocity coordinate 'root_joint:spin'",
+        ),
+        (
+            "root_joint:wz",
+            -0.3,
+            "uncertainty.slip_noise.root_joint:wz",
+        ),
+    ] {
+        let bad = constraint_dynamics::predict::UncertaintySpec {
+            slip_noise: [(name.to_string(), sigma)].into(),
+            ..Default::default()
+        };
+        let e = AgeNoise::new(&m, &bad).unwrap_err();
+        assert!(e.to_string().contains(says), "{e}");
+    }
 }
