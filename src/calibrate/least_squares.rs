@@ -111,25 +111,84 @@ pub(super) fn minimize(
     )
 }
 
-/// Standard errors of scaled offsets at `x` from the Jacobian J and residuals r there:
-/// cov = s² (JᵀJ)⁻¹ with s² = |r|² / (m − p) (the Gauss–Newton covariance). `None` for a
+/// Standard errors of scaled offsets at `x` from the Jacobian J and residuals r there, with
+/// residual row i belonging to start `starts[i]` = (recording, the start's rank in it).
+///
+/// The predictions of nearby starts overlap in time and share their errors (the same skid,
+/// the same odometry message as one's reference and another's start), so the rows are not
+/// independent and Gauss–Newton's s² (JᵀJ)⁻¹ understates the spread. The covariance is the
+/// sandwich (JᵀJ)⁻¹ Ω (JᵀJ)⁻¹ · m/(m − p) of Hansen and Hodrick (1980), the standard error
+/// of a regression on overlapping forecast errors: Ω sums g_s g_tᵀ over every pair of starts
+/// of one recording at most `lags` ranks apart, g_s = Σ Jᵢᵀ rᵢ over start s's rows. Should
+/// that sum not be positive semi-definite (it need not be in a short recording), the pairs
+/// are weighed by Newey and West's 1 − lag/(lags + 1), which always is. `None` for a
 /// parameter along which JᵀJ is singular (nothing in the recordings determines it).
-pub(super) fn standard_errors(j: &DMatrix<f64>, r: &DVector<f64>) -> Vec<Option<f64>> {
+pub(super) fn standard_errors(
+    j: &DMatrix<f64>,
+    r: &DVector<f64>,
+    starts: &[(usize, usize)],
+    lags: usize,
+) -> Vec<Option<f64>> {
     let (m, p) = j.shape();
-    let dof = m.saturating_sub(p).max(1) as f64;
-    let s2 = r.norm_squared() / dof;
     let jtj = j.transpose() * j;
     let svd = jtj.clone().svd(true, true);
     let top = svd.singular_values.max();
     let inv = svd.pseudo_inverse(1e-10 * top.max(f64::MIN_POSITIVE));
+    // Each start's score g_s, in the order the starts first appear.
+    let mut scores: Vec<((usize, usize), DVector<f64>)> = Vec::new();
+    for (i, start) in starts.iter().enumerate().take(m) {
+        let g = j.row(i).transpose() * r[i];
+        match scores.iter_mut().find(|(s, _)| s == start) {
+            Some((_, sum)) => *sum += g,
+            None => scores.push((*start, g)),
+        }
+    }
+    let omega = |weighted: bool| {
+        let mut omega = DMatrix::zeros(p, p);
+        for (a, ga) in &scores {
+            for (b, gb) in &scores {
+                let lag = a.1.abs_diff(b.1);
+                if a.0 != b.0 || lag > lags {
+                    continue;
+                }
+                let w = if weighted {
+                    1.0 - lag as f64 / (lags + 1) as f64
+                } else {
+                    1.0
+                };
+                omega += w * ga * gb.transpose();
+            }
+        }
+        omega
+    };
+    let positive = |o: &DMatrix<f64>| {
+        let e = o.clone().symmetric_eigen().eigenvalues;
+        e.min() >= -1e-12 * e.amax()
+    };
+    let mut o = omega(false);
+    if !positive(&o) {
+        o = omega(true);
+    }
+    let scale = m as f64 / m.saturating_sub(p).max(1) as f64;
     (0..p)
         .map(|k| {
             let determined = jtj[(k, k)] > 1e-10 * top;
             match inv {
-                Ok(ref inv) if determined => Some((s2 * inv[(k, k)]).max(0.0).sqrt()),
+                Ok(ref inv) if determined => {
+                    let row = inv.row(k);
+                    Some(
+                        (scale * (row * &o * row.transpose())[(0, 0)])
+                            .max(0.0)
+                            .sqrt(),
+                    )
+                }
                 _ => None,
             }
             .filter(|s| s.is_finite())
         })
         .collect()
 }
+
+#[cfg(test)]
+#[path = "least_squares_tests.rs"]
+mod tests;

@@ -78,8 +78,9 @@ pub struct FittedParameter {
     pub scene_value: f64,
     /// The calibrated value (the scene's when not determined).
     pub value: f64,
-    /// Its standard error (Gauss–Newton; absent where the recordings do not move the
-    /// predictions at all along it).
+    /// Its standard error, with the overlapping predictions' shared errors counted
+    /// (least_squares.rs; absent where the recordings do not move the predictions at all
+    /// along it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub std_error: Option<f64>,
     /// Whether the recordings determine it: its change is at least twice its standard error.
@@ -146,6 +147,11 @@ impl SceneSource<'_> {
     }
 }
 
+/// A prediction's start: (recording, the start's rank in it).
+type Start = (usize, usize);
+/// A prediction's (horizon index, [Δx, Δy, Δyaw]).
+type HorizonError = (usize, [f64; 3]);
+
 /// The fit's residual function over the fitted parameters.
 pub(crate) struct Problem<'a> {
     source: &'a SceneSource<'a>,
@@ -160,6 +166,8 @@ pub(crate) struct Problem<'a> {
     /// fitted process noise): where present, a prediction's residual is its whitened error
     /// instead of its error over the horizon's RMS ([`weighting`]).
     whitening: Option<Vec<Matrix3<f64>>>,
+    /// Per residual row, its prediction's start: (recording, the start's rank in it).
+    starts: Vec<Start>,
     count: usize,
 }
 
@@ -174,10 +182,20 @@ impl Problem<'_> {
     }
 
     /// Every prediction's (horizon index, Δx, Δy, Δyaw) at scaled offsets `x`.
-    fn errors(&self, x: &[f64]) -> Result<Vec<(usize, [f64; 3])>, CalibrationError> {
+    fn errors(&self, x: &[f64]) -> Result<Vec<HorizonError>, CalibrationError> {
+        Ok(self
+            .errors_by_start(x)?
+            .into_iter()
+            .map(|(_, e)| e)
+            .collect())
+    }
+
+    /// [`Self::errors`], each with its start: (recording, the start's rank in it).
+    fn errors_by_start(&self, x: &[f64]) -> Result<Vec<(Start, HorizonError)>, CalibrationError> {
         let scene = self.source.build(&self.yaml_at(x))?;
         let mut out = Vec::new();
-        for recording in self.recordings {
+        for (n, recording) in self.recordings.iter().enumerate() {
+            let mut t0s: Vec<f64> = Vec::new();
             let ev = evaluate(&scene, recording, &self.replay)?;
             for r in &ev.records {
                 let k = (self.replay.horizons_s.iter())
@@ -188,10 +206,24 @@ impl Problem<'_> {
                     r.reference[1] - r.predicted[1],
                     r.yaw_error_rad,
                 ];
-                out.push((k, e));
+                let rank = match t0s.iter().position(|&t| t == r.t0_s) {
+                    Some(rank) => rank,
+                    None => {
+                        t0s.push(r.t0_s);
+                        t0s.len() - 1
+                    }
+                };
+                out.push(((n, rank), (k, e)));
             }
         }
         Ok(out)
+    }
+
+    /// How many start periods apart two predictions may still share an error: their windows
+    /// overlap, or one's reference is the other's start.
+    fn lags(&self) -> usize {
+        let longest = self.replay.horizons_s.iter().copied().fold(0.0, f64::max);
+        (longest / self.replay.every_s.max(1e-9) + 1e-9).floor() as usize
     }
 
     fn residual_count(&self) -> usize {
@@ -294,11 +326,13 @@ pub fn calibrate(
         fitted: Vec::new(),
         norms: vec![[1.0, 1.0]; settings.replay.horizons_s.len()],
         whitening: None,
+        starts: Vec::new(),
         count: 0,
     };
     // The normalisation: each kind's RMS per horizon at the scene's values.
-    let base = problem.errors(&[])?;
+    let (starts, base): (Vec<_>, Vec<_>) = problem.errors_by_start(&[])?.into_iter().unzip();
     problem.count = 3 * base.len();
+    problem.starts = starts.iter().flat_map(|s| [*s; 3]).collect();
     let mut sums = vec![[0.0, 0.0, 0.0]; problem.norms.len()];
     for (k, e) in &base {
         sums[*k][0] += e[0] * e[0] + e[1] * e[1];
@@ -450,7 +484,7 @@ fn fit_values(
             ));
         };
         replays += fit.evaluations.get();
-        let std_errors = least_squares::standard_errors(&j, &r);
+        let std_errors = least_squares::standard_errors(&j, &r, &problem.starts, problem.lags());
         let keep: Vec<bool> = (0..fitted.len())
             .map(|k| std_errors[k].is_some_and(|s| x[k].abs() >= 2.0 * s))
             .collect();
