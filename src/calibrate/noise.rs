@@ -22,7 +22,7 @@
 //! smallest value that covers those predictions as σ covers the others (stepping through
 //! [`BIAS_TRIED`], or down from the σ_b of a smaller σ_k, then bisection of log σ_b), and σ_k
 //! is the value whose pair has the lowest log score (0, then up from [`SLIDE_START`] by
-//! factors of 2 while the score falls). A coverage count alone would take σ_b up until the
+//! factors of 2 while the score falls; a pair that covers before one that does not). A coverage count alone would take σ_b up until the
 //! skids' errors across the path fall inside a region grown along it and in yaw; the
 //! likelihood weighs the region's shape. σ_s, beside them, is the most likely value (the
 //! lowest log score): the wheels' terms may already cover the calibration drive's errors,
@@ -305,27 +305,37 @@ fn smallest_bias(
 
 /// The σ_k whose pair (σ_b from `pair`, bounded by the best σ_k's σ_b where that covers
 /// `target`) has the lowest log score, `at_zero` being σ_b and its score without a slide: up
-/// from [`SLIDE_START`] by factors of 2 while the score falls. (σ_k, σ_b, score).
+/// from [`SLIDE_START`] by factors of 2 while the score falls. A pair that covers is preferred
+/// to one that does not, and while none does the search goes on up: where no σ_b covers the
+/// skids' errors (they lie across the path, out of the wheels' reach), the slide is what can.
+/// (σ_k, σ_b, score).
 fn most_likely_slide(
     mut pair: impl FnMut(f64, Bound) -> Result<(f64, Score), CalibrationError>,
     at_zero: (f64, Score),
     target: f64,
 ) -> Result<(f64, f64, Score), CalibrationError> {
+    let covers = |s: &Score| s.saturated_coverage_p95 >= target;
     let mut best = (0.0, at_zero.0, at_zero.1);
     let mut k = SLIDE_START;
     while k <= SLIDE_LARGEST {
         // A σ_b that covers bounds the next one; where even the largest tried did not, the
         // search starts afresh.
-        let bound = if best.2.saturated_coverage_p95 >= target {
+        let bound = if covers(&best.2) {
             Bound::Covers(best.1)
         } else {
             Bound::None
         };
         let (b, s) = pair(k, bound)?;
-        if s.log_score >= best.2.log_score {
+        let better = match (covers(&s), covers(&best.2)) {
+            (true, false) => true,
+            (false, true) => false,
+            _ => s.log_score < best.2.log_score,
+        };
+        if better {
+            best = (k, b, s);
+        } else if covers(&best.2) {
             break;
         }
-        best = (k, b, s);
         k *= 2.0;
     }
     Ok(best)
@@ -419,3 +429,7 @@ fn smallest_sigma(
     }
     Ok((hi, s_hi))
 }
+
+#[cfg(test)]
+#[path = "noise_tests.rs"]
+mod tests;
