@@ -111,29 +111,59 @@ pub(super) fn minimize(
     )
 }
 
-/// Standard errors of scaled offsets at `x` from the Jacobian J and residuals r there, with
+/// The fitted values' covariance, in scaled units, and which of them the recordings move at
+/// all (where JᵀJ is singular along a value, nothing in them determines it).
+pub(super) struct Spread {
+    covariance: DMatrix<f64>,
+    determined: Vec<bool>,
+}
+
+impl Spread {
+    /// Each value's standard error; `None` where not determined.
+    pub fn std_errors(&self) -> Vec<Option<f64>> {
+        (0..self.determined.len())
+            .map(|k| {
+                let se = self.covariance[(k, k)].max(0.0).sqrt();
+                (self.determined[k] && se.is_finite()).then_some(se)
+            })
+            .collect()
+    }
+
+    /// The correlation of values `a` and `b`; `None` where either is not determined or has no
+    /// spread.
+    pub fn correlation(&self, a: usize, b: usize) -> Option<f64> {
+        let [sa, sb] = [a, b].map(|k| self.std_errors()[k].filter(|s| *s > 0.0));
+        Some(self.covariance[(a, b)] / (sa? * sb?)).filter(|c| c.is_finite())
+    }
+}
+
+/// The spread of scaled offsets at `x` from the Jacobian J and residuals r there, with
 /// residual row i belonging to start `starts[i]` = (recording, the start's rank in it).
 ///
 /// The predictions of nearby starts overlap in time and share their errors (the same skid,
 /// the same odometry message as one's reference and another's start), so the rows are not
 /// independent and Gauss–Newton's s² (JᵀJ)⁻¹ understates the spread. The covariance is the
-/// sandwich (JᵀJ)⁻¹ Ω (JᵀJ)⁻¹ · m/(m − p) of Hansen and Hodrick (1980), the standard error
+/// sandwich (JᵀJ)⁻¹ Ω (JᵀJ)⁻¹ · m/(m − p) of Hansen and Hodrick (1980), the covariance
 /// of a regression on overlapping forecast errors: Ω sums g_s g_tᵀ over every pair of starts
 /// of one recording at most `lags` ranks apart, g_s = Σ Jᵢᵀ rᵢ over start s's rows. Should
 /// that sum not be positive semi-definite (it need not be in a short recording), the pairs
-/// are weighed by Newey and West's 1 − lag/(lags + 1), which always is. `None` for a
-/// parameter along which JᵀJ is singular (nothing in the recordings determines it).
-pub(super) fn standard_errors(
+/// are weighed by Newey and West's 1 − lag/(lags + 1), which always is.
+pub(super) fn spread(
     j: &DMatrix<f64>,
     r: &DVector<f64>,
     starts: &[(usize, usize)],
     lags: usize,
-) -> Vec<Option<f64>> {
+) -> Spread {
     let (m, p) = j.shape();
     let jtj = j.transpose() * j;
     let svd = jtj.clone().svd(true, true);
     let top = svd.singular_values.max();
-    let inv = svd.pseudo_inverse(1e-10 * top.max(f64::MIN_POSITIVE));
+    let Ok(inv) = svd.pseudo_inverse(1e-10 * top.max(f64::MIN_POSITIVE)) else {
+        return Spread {
+            covariance: DMatrix::from_element(p, p, f64::NAN),
+            determined: vec![false; p],
+        };
+    };
     // Each start's score g_s, in the order the starts first appear.
     let mut scores: Vec<((usize, usize), DVector<f64>)> = Vec::new();
     for (i, start) in starts.iter().enumerate().take(m) {
@@ -170,23 +200,10 @@ pub(super) fn standard_errors(
         o = omega(true);
     }
     let scale = m as f64 / m.saturating_sub(p).max(1) as f64;
-    (0..p)
-        .map(|k| {
-            let determined = jtj[(k, k)] > 1e-10 * top;
-            match inv {
-                Ok(ref inv) if determined => {
-                    let row = inv.row(k);
-                    Some(
-                        (scale * (row * &o * row.transpose())[(0, 0)])
-                            .max(0.0)
-                            .sqrt(),
-                    )
-                }
-                _ => None,
-            }
-            .filter(|s| s.is_finite())
-        })
-        .collect()
+    Spread {
+        covariance: scale * &inv * o * &inv,
+        determined: (0..p).map(|k| jtj[(k, k)] > 1e-10 * top).collect(),
+    }
 }
 
 #[cfg(test)]

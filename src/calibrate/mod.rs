@@ -88,11 +88,24 @@ pub struct FittedParameter {
     pub determined: bool,
 }
 
+/// The correlation of two fitted values' estimates (from the covariance whose diagonal gives
+/// their standard errors).
+#[derive(Clone, Debug, Serialize)]
+pub struct Correlation {
+    /// The two parameters' names.
+    pub between: [&'static str; 2],
+    /// In [−1, 1].
+    pub value: f64,
+}
+
 /// A calibration's result.
 #[derive(Clone, Debug, Serialize)]
 pub struct Calibration {
     /// The fitted values, in [`FitParameter::ALL`]'s order.
     pub parameters: Vec<FittedParameter>,
+    /// The correlations of the determined values' estimates, every pair: near ±1, the drives
+    /// tell the two apart poorly and a change of one is largely taken up by the other.
+    pub correlations: Vec<Correlation>,
     /// The fitted process noise (absent when not asked for).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub process_noise: Option<ProcessNoise>,
@@ -407,8 +420,15 @@ pub fn calibrate(
             determined: k.is_some(),
         });
     }
+    let correlations = (values.correlations.iter())
+        .map(|&(a, b, value)| Correlation {
+            between: [problem.fitted[a].0.name(), problem.fitted[b].0.name()],
+            value,
+        })
+        .collect();
     Ok(Calibration {
         parameters,
+        correlations,
         process_noise,
         residual_rms: [before, after],
         replays,
@@ -425,6 +445,8 @@ struct Values {
     termination: String,
     /// Their standard errors, scaled.
     std_errors: Vec<Option<f64>>,
+    /// The correlations of their estimates: (index, index, correlation).
+    correlations: Vec<(usize, usize, f64)>,
     /// The parameters sent back to the scene's value, with their standard error [their unit].
     dropped: Vec<(FitParameter, Option<f64>)>,
     /// Replays it took.
@@ -456,6 +478,7 @@ fn fit_values(
                 x: DVector::zeros(0),
                 termination: "nothing to fit".to_string(),
                 std_errors: Vec::new(),
+                correlations: Vec::new(),
                 dropped,
                 replays,
             });
@@ -484,15 +507,22 @@ fn fit_values(
             ));
         };
         replays += fit.evaluations.get();
-        let std_errors = least_squares::standard_errors(&j, &r, &problem.starts, problem.lags());
+        let spread = least_squares::spread(&j, &r, &problem.starts, problem.lags());
+        let std_errors = spread.std_errors();
         let keep: Vec<bool> = (0..fitted.len())
             .map(|k| std_errors[k].is_some_and(|s| x[k].abs() >= 2.0 * s))
             .collect();
         if keep.iter().all(|&k| k) {
+            let n = fitted.len();
+            let correlations = (0..n)
+                .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
+                .filter_map(|(a, b)| spread.correlation(a, b).map(|c| (a, b, c)))
+                .collect();
             return Ok(Values {
                 x,
                 termination,
                 std_errors,
+                correlations,
                 dropped,
                 replays,
             });
@@ -512,6 +542,7 @@ fn fit_values(
                 x: DVector::zeros(0),
                 termination,
                 std_errors: Vec::new(),
+                correlations: Vec::new(),
                 dropped,
                 replays,
             });

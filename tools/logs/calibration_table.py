@@ -11,6 +11,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import textwrap
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from doc_block import write_block  # noqa: E402
@@ -92,6 +93,13 @@ def main():
                          f"{pn['slip_noise']:.3g} | — | the most likely beside them: log score "
                          f"{pn['log_score']:.2f}, coverage p95 {pn['coverage_p95']:.2f} of all the "
                          "predictions |")
+    strong = sorted((c for c in cal.get("correlations", []) if abs(c["value"]) >= 0.5),
+                    key=lambda c: -abs(c["value"]))
+    if strong:
+        text = ("Correlations of the estimates beyond ±0.5 (the drive tells these apart least): "
+                + ", ".join(f"`{c['between'][0]}` and `{c['between'][1]}` {c['value']:+.2f}"
+                            for c in strong) + ".")
+        lines += ["", textwrap.fill(text, width=96, break_on_hyphens=False)]
     lines += ["", "Position / yaw error against the true pose, median / worst, and the coverage "
               "p95 and mean NEES at 1 s / 2 s (χ²(3): 0.95 and 3 for an exact covariance):", "",
               "| drive | scene | 0.25 s | 0.5 s | 1 s | 2 s | coverage p95 at 1 s / 2 s | "

@@ -6,7 +6,7 @@
 //! simulator's, which shares no code with the model.
 
 use crate::common::repo_dir;
-use serde_json::Value;
+use serde_json::{Value, json};
 
 fn run(dir: &std::path::Path, args: &[&str]) -> (bool, Value, String) {
     crate::run_cli(Some(dir), args)
@@ -135,6 +135,18 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
         m["std_error"].as_f64().unwrap(),
     );
     assert!((1.4..=4.0 * 1.4).contains(&mass) && se < 2.5, "{m}");
+    // A skid's acceleration is the traction over the mass, so the drive tells the two apart
+    // poorly: their estimates correlate strongly and positively.
+    let correlation = (out["correlations"].as_array().unwrap().iter())
+        .find(|c| c["between"] == json!(["base_mass", "traction_torque"]))
+        .unwrap_or_else(|| panic!("no base_mass and traction_torque in {out}"));
+    assert!(
+        correlation["value"].as_f64().unwrap() > 0.5,
+        "{correlation}"
+    );
+    for c in out["correlations"].as_array().unwrap() {
+        assert!(c["value"].as_f64().unwrap().abs() <= 1.0, "{c}");
+    }
     let sigma = out["process_noise"]["acceleration_noise"].as_f64().unwrap();
     assert!(sigma > 0.0, "{out}");
     // The yaw drifts a little on every drive (the tyres' scrub the track's widening does not
