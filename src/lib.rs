@@ -32,6 +32,8 @@ pub mod scene;
 mod scene_errors;
 pub mod spatial;
 pub mod system;
+#[cfg(test)]
+mod test_rng;
 
 pub use error::{Error, Result};
 pub use model::{BaseType, Model, ModelOptions};

@@ -2,20 +2,7 @@
 //! estimate over many drives whose predictions overlap as a replay's do.
 
 use super::*;
-
-struct Rng(u64);
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let (a, b) = (self.uniform(), self.uniform());
-        (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
-    }
-}
+use crate::test_rng::Rng;
 
 /// Windows of 1 to 4 start periods, as horizons of 0.5 to 2 s from starts every 0.5 s.
 const HORIZONS: usize = 4;

@@ -2,20 +2,7 @@
 //! mean 3, median 2.366), known biases, and which cause the verdict names.
 
 use super::*;
-
-struct Rng(u64);
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let (a, b) = (self.uniform(), self.uniform());
-        (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
-    }
-}
+use crate::test_rng::Rng;
 
 const HORIZONS: [f64; 3] = [0.25, 0.5, 1.0];
 const WINDOW: usize = 50;
