@@ -9,7 +9,8 @@
 //! (`weighting.rs`). The Jacobian is taken by
 //! central differences of the whole replay: a fitted value changes the model, the controllers'
 //! response and the start's projection at once, which no analytic derivative of the core
-//! covers.
+//! covers. The fitted values' covariance is a sandwich over the replay's starts ([`spread`]):
+//! predictions from nearby starts share their errors.
 
 use super::Problem;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};

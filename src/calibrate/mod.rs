@@ -3,7 +3,8 @@
 //!
 //! - `parameters.rs`: what can be fitted and where it goes in the scene file;
 //! - `least_squares.rs`: Levenberg–Marquardt on the replayed predictions' errors, and the
-//!   fitted values' standard errors;
+//!   fitted values' covariance (standard errors and correlations, the overlapping
+//!   predictions' shared errors counted);
 //! - `noise.rs`: the process noise that makes the predicted covariance cover what the model
 //!   still misses;
 //! - `weighting.rs`: once the noise is known, the fit again with each prediction's error
