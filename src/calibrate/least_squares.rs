@@ -138,7 +138,7 @@ impl Spread {
     }
 }
 
-/// The spread of scaled offsets at `x` from the Jacobian J and residuals r there, with
+/// The spread of the fitted scaled offsets, from the Jacobian J and the residuals r at them,
 /// residual row i belonging to start `starts[i]` = (recording, the start's rank in it).
 ///
 /// The predictions of nearby starts overlap in time and share their errors (the same skid,
