@@ -21,12 +21,12 @@
 //! and σ_k act on the predictions through a saturation, and together: for a σ_k, σ_b is the
 //! smallest value that covers those predictions as σ covers the others (stepping through
 //! [`BIAS_TRIED`], or down from the σ_b of a smaller σ_k, then bisection of log σ_b), and σ_k
-//! is the value whose pair has the lowest log score (0, then up from [`SLIDE_START`] by
-//! factors of 2 while the score falls; a pair that covers before one that does not). A coverage count alone would take σ_b up until the
-//! skids' errors across the path fall inside a region grown along it and in yaw; the
-//! likelihood weighs the region's shape. σ_s, beside them, is the most likely value (the
-//! lowest log score): the wheels' terms may already cover the calibration drive's errors,
-//! which the fit itself took down, while a fresh drive's heading drifts more.
+//! is the value whose pair has the lowest log score (0, then up from [`SLIDE_START`] by factors
+//! of 2 while the score falls; a pair that covers before one that does not). A coverage count
+//! alone would take σ_b up until the skids' errors across the path fall inside a region grown
+//! along it and in yaw; the likelihood weighs the region's shape. σ_s, beside them, is the most
+//! likely value (the lowest log score): the wheels' terms may already cover the calibration
+//! drive's errors, which the fit itself took down, while a fresh drive's heading drifts more.
 
 use super::{CalibrationError, CalibrationSettings, Problem};
 use crate::replay::{EvaluationSettings, evaluate, stats::Coverage};
