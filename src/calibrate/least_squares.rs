@@ -120,20 +120,23 @@ pub(super) struct Spread {
 }
 
 impl Spread {
+    /// Value `k`'s standard error; `None` where not determined.
+    fn std_error(&self, k: usize) -> Option<f64> {
+        let se = self.covariance[(k, k)].max(0.0).sqrt();
+        (self.determined[k] && se.is_finite()).then_some(se)
+    }
+
     /// Each value's standard error; `None` where not determined.
     pub fn std_errors(&self) -> Vec<Option<f64>> {
         (0..self.determined.len())
-            .map(|k| {
-                let se = self.covariance[(k, k)].max(0.0).sqrt();
-                (self.determined[k] && se.is_finite()).then_some(se)
-            })
+            .map(|k| self.std_error(k))
             .collect()
     }
 
     /// The correlation of values `a` and `b`; `None` where either is not determined or has no
     /// spread.
     pub fn correlation(&self, a: usize, b: usize) -> Option<f64> {
-        let [sa, sb] = [a, b].map(|k| self.std_errors()[k].filter(|s| *s > 0.0));
+        let [sa, sb] = [a, b].map(|k| self.std_error(k).filter(|s| *s > 0.0));
         Some(self.covariance[(a, b)] / (sa? * sb?)).filter(|c| c.is_finite())
     }
 }
