@@ -194,8 +194,11 @@ pub fn calibrate(
         }
         asked
     };
+    // The residuals are the errors alone (the weights are fixed between replays): no
+    // covariance and no error estimate, which would cost more than the predictions.
     let replay = EvaluationSettings {
         propagate_covariance: false,
+        error_estimate: false,
         ..settings.replay.clone()
     };
     let mut problem = Problem {

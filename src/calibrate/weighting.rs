@@ -32,6 +32,7 @@ pub(super) fn whitening(
     }
     let replay = EvaluationSettings {
         propagate_covariance: true,
+        error_estimate: true,
         ..problem.replay.clone()
     };
     let scene = problem.source.build(yaml)?;

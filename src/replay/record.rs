@@ -41,6 +41,10 @@ pub struct EvaluationSettings {
     pub joint_noise: JointSigma,
     /// Propagate the start covariance (the node's `covariance.propagate`); false: floors only.
     pub propagate_covariance: bool,
+    /// Run the integration's error estimate, as the node does (default true). False: the
+    /// predictions alone, at half the cost or less, none refused and no estimate in the
+    /// covariance — for replays that use only the errors (the fit's residuals, calibrate/).
+    pub error_estimate: bool,
     /// A command older than this at t0 is stale and the node's `hold` fallback applies [s].
     pub command_timeout_s: f64,
     /// The longest gap allowed in the state inputs and the reference [s].
@@ -61,6 +65,7 @@ impl Default for EvaluationSettings {
             floors: CovarianceFloors::default(),
             joint_noise: JointSigma::default(),
             propagate_covariance: true,
+            error_estimate: true,
             command_timeout_s: 0.5,
             max_gap_s: 0.5,
             integrals_from_efforts: false,

@@ -128,6 +128,10 @@ impl<'a> Replayer<'a> {
                 start_covariance: p0,
                 covariance_samples: CovarianceSamples::Last,
                 controller_integrals: integrals,
+                integration: IntegrationOverrides {
+                    error_estimate: (!settings.error_estimate).then_some(false),
+                    ..Default::default()
+                },
                 ..PredictionRequest::new(&start.q, &start.v)
             };
             let failed = |source: Error| ReplayError::Prediction {

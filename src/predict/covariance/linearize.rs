@@ -171,6 +171,25 @@ impl Linearization {
             .extend(active.map(|f| (f.iq, f.iv, f.k, f.d, f.rate)));
     }
 
+    /// The generalized force a step held from (q0, v0) under `tau` reaches at (q, v), `ds`
+    /// [s] later, into `out`: the joint springs' and controllers' share and the elements acting
+    /// at frames moved there, as a stage takes them. The τ to hold over a step that starts
+    /// within a recorded one (a stand-in's substep, chunks.rs).
+    pub(in crate::predict) fn torque_at(
+        &mut self,
+        sys: &mut System,
+        (q0, v0): (&[f64], &[f64]),
+        tau: &[f64],
+        (q, v, ds): (&[f64], &[f64], f64),
+        out: &mut [f64],
+    ) {
+        stages::stage_torque(&self.joint_springs, out, (q0, v0), (q, v, ds), tau);
+        if let Some(f) = self.frame_forces.as_mut() {
+            f.start_step(sys, q0, v0);
+            f.stage(sys, (q, v), out, false);
+        }
+    }
+
     /// Size for a system (its model and constraint rows).
     pub fn new(sys: &System) -> Self {
         let (nq, nv) = (sys.model().nq, sys.model().nv);
@@ -228,6 +247,39 @@ pub fn linearize_step(
     tau: &[f64],
     dt: f64,
 ) -> Result<()> {
+    prepare_step(sys, lin, t, q, v, dt)?;
+    // The method's own linearized step (integrators/, `Step::linearize`): one of the functions
+    // below, or a refusal.
+    method.linearize(sys, lin, (q, v), tau, dt)
+}
+
+/// A ROS2 step from (q, v) at `t` [s] under τ over `dt` [s] with the variations stepped as the
+/// variational equation (linearize/ros2.rs, `variational`), into `lin`: the flow's sensitivity
+/// to second order, where [`linearize_step`] gives the step's own. The covariance's cover for a
+/// method without a linearization of its own (Radau5, covariance/chunks.rs).
+pub(in crate::predict) fn linearize_variational_step(
+    sys: &mut System,
+    lin: &mut Linearization,
+    t: f64,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    dt: f64,
+) -> Result<()> {
+    prepare_step(sys, lin, t, q, v, dt)?;
+    ros2::variational(sys, lin, q, v, tau, dt)
+}
+
+/// What every linearized step starts with: the state and step checked, the time, whether
+/// ∂q̈/∂τ is needed, the elements acting at frames taken at the start.
+fn prepare_step(
+    sys: &mut System,
+    lin: &mut Linearization,
+    t: f64,
+    q: &[f64],
+    v: &[f64],
+    dt: f64,
+) -> Result<()> {
     sys.model().check_state(q, v)?;
     lin.t = t;
     if !(dt.is_finite() && dt > 0.0) {
@@ -241,9 +293,7 @@ pub fn linearize_step(
     if let Some(f) = lin.frame_forces.as_mut() {
         f.start_step(sys, q, v);
     }
-    // The method's own linearized step (integrators/, `Step::linearize`): one of the functions
-    // below, or a refusal.
-    method.linearize(sys, lin, (q, v), tau, dt)
+    Ok(())
 }
 
 /// Seed of column c of [δq | δv | δτ]: (δq, δv, δτ) unit vectors.

@@ -163,6 +163,12 @@ pub trait Integrator: Sync {
     /// The method whose step the covariance linearizes over chunks of this method's steps
     /// (covariance/chunks.rs); None where the step's sensitivity is not implemented.
     fn linearized_as(&self) -> Option<Method>;
+    /// Where the step's own sensitivity is not implemented (`linearized_as` None): the
+    /// covariance covers each step with ROS2 steps of the variational equation, L-stable, in as
+    /// many substeps as settle Φ (covariance/chunks.rs). False: the covariance is refused.
+    fn covariance_by_substeps(&self) -> bool {
+        false
+    }
     /// A W-method (ROS2): its order holds with any F, so the prediction decides when F is
     /// refreshed, re-formed for the controllers or shared with the error estimate's companion
     /// (run/mod.rs), and the covariance linearizes each step with the F and increment it took.

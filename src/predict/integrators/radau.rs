@@ -385,6 +385,10 @@ impl super::Integrator for Radau5 {
     fn linearized_as(&self) -> Option<super::Method> {
         None
     }
+    /// ROS2 is L-stable as Radau IIA is: its Φ damps the stiff modes Radau's steps step over.
+    fn covariance_by_substeps(&self) -> bool {
+        true
+    }
 }
 
 impl super::Step for Radau5 {

@@ -82,6 +82,77 @@ pub(in crate::predict) fn ros2(
     tau: &[f64],
     dt: f64,
 ) -> Result<()> {
+    at_start(sys, lin, q, v, tau)?;
+    sensitivity(lin, dt)?;
+    nominal(sys, lin, (q, v), tau, dt, false)?;
+    finish(sys, lin, q);
+    Ok(())
+}
+
+/// A ROS2 step from (q, v) under the held τ, with the variations stepped as the variational
+/// equation δẋ = F(x(t)) δx by the same W-method, not as the step's own sensitivity:
+/// W = I − γ dt F₀ for both stages, and the second stage's right-hand side from its own derivatives at the stage
+/// (q ⊕ Θ₁, V₁), the perturbation moved there as an explicit stage moves it. A W-method keeps
+/// its order with any W, so Φ is second order in dt, where holding F₀ in both stages (as
+/// [`ros2`] does, the step's own sensitivity) is first order in dt · Ḟ: a tyre's grip whose
+/// slope changes within the step. The covariance's stand-in for Radau5's steps (chunks.rs,
+/// tests/it/covariance_sensitivity.rs).
+pub(in crate::predict) fn variational(
+    sys: &mut System,
+    lin: &mut Linearization,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    dt: f64,
+) -> Result<()> {
+    let nv = v.len();
+    let n = 2 * nv;
+    let cols = lin.columns();
+    at_start(sys, lin, q, v, tau)?;
+    first_stage_variation(lin, dt)?;
+    nominal(sys, lin, (q, v), tau, dt, true)?;
+    // The second stage's variation: δΘ₁ = dt δk₁θ, δV₁ = δv + dt δk₁v, the perturbation moved
+    // to the stage's tangent space, and its right-hand side's variation there.
+    for c in 0..cols {
+        for i in 0..nv {
+            lin.d_theta[(i, c)] = dt * lin.ros2.dk1[(i, c)];
+            lin.d_vel[(i, c)] = dt * lin.ros2.dk1[(nv + i, c)] + f64::from(u8::from(c == nv + i));
+        }
+    }
+    lin.maps
+        .build(sys.model(), &lin.theta[0], Some(&lin.vel[0]));
+    tangent_variation(lin, cols, false);
+    let r = &mut lin.ros2;
+    let f = &lin.dd;
+    for c in 0..cols {
+        for i in 0..nv {
+            let mut th = 0.0;
+            let mut ve = if c >= n { f.dqdd_dtau[(i, c - n)] } else { 0.0 };
+            for j in 0..nv {
+                th += lin.maps.dexp_inv[(i, j)] * lin.d_vel[(j, c)]
+                    + lin.maps.dexp_inv_dtheta[(i, j)] * lin.d_theta[(j, c)];
+                ve += f.dqdd_dq[(i, j)] * lin.moved_cols[(j, c)]
+                    + f.dqdd_dv[(i, j)] * lin.d_vel[(j, c)];
+            }
+            r.dk2[(i, c)] = th - 2.0 * r.dk1[(i, c)];
+            r.dk2[(nv + i, c)] = ve - 2.0 * r.dk1[(nv + i, c)];
+        }
+    }
+    solve_columns(&r.w, &mut r.dk2, cols);
+    increment_variation(lin, dt);
+    finish(sys, lin, q);
+    Ok(())
+}
+
+/// F, q̈ and ∂q̈/∂t at the step's start (q, v) under τ, into `lin.ros2` (and the start's
+/// derivatives in `lin.dd`).
+fn at_start(
+    sys: &mut System,
+    lin: &mut Linearization,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+) -> Result<()> {
     let nv = v.len();
     let springs = &lin.joint_springs;
     dynamics(
@@ -115,9 +186,6 @@ pub(in crate::predict) fn ros2(
             }
         }
     }
-    sensitivity(lin, dt)?;
-    nominal(sys, lin, q, v, tau, dt)?;
-    finish(sys, lin, q);
     Ok(())
 }
 
@@ -160,9 +228,29 @@ pub(in crate::predict) fn ros2_with_step_jacobian(
     Ok(())
 }
 
-/// The step's sensitivity from F (`lin.ros2.f`): W factored, δk₁ and δk₂ over the seed
-/// columns, and the increment's variation (`d_theta`, `d_vel`).
+/// The step's sensitivity with F (`lin.ros2.f`) held through both stages: δk₁, then
+/// δk₂ = W⁻¹ (F E + dt F δk₁ − 2 δk₁), and the increment's variation (`d_theta`, `d_vel`).
 fn sensitivity(lin: &mut Linearization, dt: f64) -> Result<()> {
+    let cols = lin.columns();
+    first_stage_variation(lin, dt)?;
+    let r = &mut lin.ros2;
+    r.dk2.columns_mut(0, cols).copy_from(&r.fe.columns(0, cols));
+    gemm_columns(&mut r.dk2, dt, &r.f, &r.dk1, 1.0, cols);
+    let n = r.f.nrows();
+    for c in 0..cols {
+        for i in 0..n {
+            r.dk2[(i, c)] -= 2.0 * r.dk1[(i, c)];
+        }
+    }
+    solve_columns(&r.w, &mut r.dk2, cols);
+    increment_variation(lin, dt);
+    Ok(())
+}
+
+/// W = I − γ dt F factored (`lin.ros2.f`, the start's F), F E over the seed columns (F's
+/// columns for [δq | δv], then [0; ∂q̈/∂τ] for δτ, from `lin.dd` at the start) and
+/// δk₁ = W⁻¹ F E.
+fn first_stage_variation(lin: &mut Linearization, dt: f64) -> Result<()> {
     let nv = lin.v_next.len();
     let n = 2 * nv;
     let cols = lin.columns();
@@ -172,7 +260,6 @@ fn sensitivity(lin: &mut Linearization, dt: f64) -> Result<()> {
             message: format!("linearize: the ROS2 matrix I − γ dt F is singular at dt = {dt} s"),
         });
     }
-    // F E: F's columns for [δq | δv], then [0; ∂q̈/∂τ] for δτ.
     for c in 0..cols {
         for i in 0..n {
             r.fe[(i, c)] = if c < n {
@@ -184,37 +271,36 @@ fn sensitivity(lin: &mut Linearization, dt: f64) -> Result<()> {
             };
         }
     }
-    // δk₁ = W⁻¹ F E
     r.dk1.columns_mut(0, cols).copy_from(&r.fe.columns(0, cols));
     solve_columns(&r.w, &mut r.dk1, cols);
-    // δk₂ = W⁻¹ (F E + dt F δk₁ − 2 δk₁)
-    r.dk2.columns_mut(0, cols).copy_from(&r.fe.columns(0, cols));
-    gemm_columns(&mut r.dk2, dt, &r.f, &r.dk1, 1.0, cols);
-    for c in 0..cols {
-        for i in 0..n {
-            r.dk2[(i, c)] -= 2.0 * r.dk1[(i, c)];
-        }
-    }
-    solve_columns(&r.w, &mut r.dk2, cols);
-    for c in 0..cols {
+    Ok(())
+}
+
+/// The increment's variation dt (3/2 δk₁ + 1/2 δk₂) into `d_theta` and `d_vel` (δv's seed
+/// added).
+fn increment_variation(lin: &mut Linearization, dt: f64) {
+    let nv = lin.v_next.len();
+    let r = &lin.ros2;
+    for c in 0..lin.columns() {
         for i in 0..nv {
             let d = |m: &DMatrix<f64>, row| dt * (1.5 * m[(row, c)] + 0.5 * r.dk2[(row, c)]);
             lin.d_theta[(i, c)] = d(&r.dk1, i);
             lin.d_vel[(i, c)] = d(&r.dk1, nv + i) + f64::from(u8::from(c == nv + i));
         }
     }
-    Ok(())
 }
 
 /// The nominal step (`theta_end`, `v_next`) as integrators/ros2.rs takes it, from q̈ at the
 /// start (`lin.ros2.k1[nv..]`, set by the caller) and ∂q̈/∂t (`lin.ros2.ft`) with W factored.
+/// The second stage's q̈ by a plain evaluation, or with `stage_derivatives` with its
+/// derivatives, left in `lin.dd` (and the stage in `lin.theta[0]`, `lin.vel[0]`).
 fn nominal(
     sys: &mut System,
     lin: &mut Linearization,
-    q: &[f64],
-    v: &[f64],
+    (q, v): (&[f64], &[f64]),
     tau: &[f64],
     dt: f64,
+    stage_derivatives: bool,
 ) -> Result<()> {
     let nv = v.len();
     let n = 2 * nv;
@@ -232,18 +318,35 @@ fn nominal(
         lin.vel[0][i] = v[i] + dt * r.k1[nv + i];
     }
     sys.model().integrate(q, &lin.theta[0], 1.0, &mut lin.qs);
-    // The second stage's q̈ only (F is held): a plain evaluation.
-    stage_acceleration(
-        sys,
-        at,
-        springs,
-        lin.frame_forces.as_mut(),
-        &mut lin.tau_stage,
-        (q, v),
-        (&lin.qs, &lin.vel[0], dt),
-        tau,
-        &mut r.k2[nv..],
-    )?;
+    let stage = (&lin.qs[..], &lin.vel[0][..], dt);
+    let frame = lin.frame_forces.as_mut();
+    if stage_derivatives {
+        dynamics(
+            sys,
+            at,
+            &mut lin.dd,
+            springs,
+            frame,
+            &mut lin.tau_stage,
+            (q, v),
+            stage,
+            tau,
+        )?;
+        r.k2[nv..].copy_from_slice(lin.dd.qdd.as_slice());
+    } else {
+        let qdd = &mut r.k2[nv..];
+        stage_acceleration(
+            sys,
+            at,
+            springs,
+            frame,
+            &mut lin.tau_stage,
+            (q, v),
+            stage,
+            tau,
+            qdd,
+        )?;
+    }
     dexp_inv(sys.model(), &lin.theta[0], &lin.vel[0], &mut r.k2[..nv]);
     for i in 0..n {
         r.k2[i] -= 2.0 * r.k1[i];

@@ -47,7 +47,7 @@ pub(super) fn dynamics(
 /// The generalized force at a stage (q, v) `ds` [s] into the step: the step's τ, with each
 /// joint spring's and controller's share moved from the start (q0, v0) to the stage
 /// (−k Δq − d Δv) and a controller's own rate (its `Feedback::rate`) added over ds.
-fn stage_torque(
+pub(super) fn stage_torque(
     springs: &[(usize, usize, f64, f64, f64)],
     tau_stage: &mut [f64],
     (q0, v0): (&[f64], &[f64]),
