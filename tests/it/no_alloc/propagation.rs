@@ -191,6 +191,36 @@ fn actuated_with_covariance(parallel: bool) {
     assert_eq!(short, long, "the control ticks or the covariance allocate");
 }
 
+/// Radau5 on the soft-floor robot (its tyres' forces differentiated at every stage) with a
+/// propagated covariance: its steps covered by ROS2 substeps of the variational equation, their
+/// A and B composed (src/predict/covariance/chunks.rs). 4× the horizon, the same allocations.
+#[test]
+fn radau5_with_covariance_allocates_nothing_per_step() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let sc = Scene::load(root.join("params/mobile_manipulator_soft_floor.yaml")).unwrap();
+    let mut p = Predictor::from_scene(&sc)
+        .unwrap()
+        .with_parallel_covariance(false)
+        .with_settings(|s| assert_eq!(s.method, Method::Radau5))
+        .unwrap();
+    let n = 2 * p.model().nv;
+    let p0 = nalgebra::DMatrix::identity(n, n) * 1e-6;
+    let commands = [(0.0, crate::common::turning_with_arm_held())];
+    let mut run = |h: f64| {
+        let (n, t) = covariance_prediction_allocations(&mut p, &sc, &commands, &p0, h);
+        assert!(t.samples.iter().all(|s| s.covariance.is_some()));
+        n
+    };
+    let h = 0.1;
+    run(h); // warm-up
+    let (short, long) = (run(h), run(4.0 * h));
+    println!(
+        "soft floor, radau5 with covariance: {short} allocations over {h} s, {long} over {} s",
+        4.0 * h
+    );
+    assert_eq!(short, long, "Radau5's steps or their covariance allocate");
+}
+
 /// With forces, the contacts are judged at the samples only: the cart pushed by its torque ramp
 /// (tests/data/cart_torque_ramp.yaml, two rolling wheels and a unilateral caster), 4× the steps
 /// and the same two samples, the same allocations.
