@@ -46,20 +46,19 @@
 //! damps stiff modes rather than resolving them.
 //!
 //! Radau5 has no linearized step of its own: its steps are covered one by one by ROS2 substeps
-//! under a control of Φ itself (`variational_substeps`), since a chunk's check sees only the
-//! nominal.
+//! under a control of Φ itself (substeps.rs), since a chunk's check sees only the nominal.
 //!
 //! P is brought onto the constraints (`project`) where the flush ends — a sample, where P is
 //! read, or a full record — not after every chunk: the linearized flow keeps it on them to
 //! the chunk's accuracy, and the projection costs about a linearization's stage.
 
 use super::CovariancePropagator;
+use super::substeps::Substeps;
 use crate::actuators::Feedback;
 use crate::error::Result;
-use crate::linalg::{gemm_columns, gemm_into};
 use crate::model::Model;
 use crate::predict::covariance::linearize::{
-    Linearization, linearize_step, linearize_variational_step, ros2_with_step_jacobian,
+    Linearization, linearize_step, ros2_with_step_jacobian,
 };
 use crate::predict::integrators::Method;
 use crate::system::System;
@@ -73,10 +72,6 @@ pub(crate) const CHUNK_RTOL: f64 = 3e-3;
 /// ...plus this [m, rad; m/s, rad/s per unit of |v|∞ + 1]: the drift projection's and
 /// rounding's share, far below any covariance a prediction reports.
 pub(crate) const CHUNK_ATOL: f64 = 1e-10;
-/// Most substeps per recorded step (`variational_substeps`).
-pub(crate) const MAX_SUBSTEPS: usize = 32;
-/// Substeps' composed A is accepted when halving them changes it by this fraction.
-pub(crate) const SUBSTEP_RTOL: f64 = 3e-2;
 /// Most accepted chunks to wait before a refused length is tried again.
 pub(crate) const MAX_PATIENCE: usize = 64;
 /// Largest H · ρ of a chunk of several steps (RK4's and DOPRI5's stability regions reach
@@ -89,14 +84,14 @@ pub(crate) const CHUNK_STABILITY: f64 = 0.5;
 #[derive(Clone, Debug, Default)]
 pub(crate) struct StepRecord {
     /// States at the recorded steps' starts and the last one's end (CHUNK_CAPACITY + 1).
-    q: Vec<Vec<f64>>,
-    v: Vec<Vec<f64>>,
+    pub(super) q: Vec<Vec<f64>>,
+    pub(super) v: Vec<Vec<f64>>,
     /// Generalized force held over each recorded step [N, N·m] (CHUNK_CAPACITY).
-    tau: Vec<Vec<f64>>,
+    pub(super) tau: Vec<Vec<f64>>,
     /// The controllers' feedback over each recorded step (`Actuators::feedback`).
-    feedback: Vec<Vec<Feedback>>,
+    pub(super) feedback: Vec<Vec<Feedback>>,
     /// Time of each recorded state since the first [s].
-    t: Vec<f64>,
+    pub(super) t: Vec<f64>,
     /// Each step's own W-method matrix F (2nv × 2nv) and increment (Θ, Δv) before the drift
     /// projection, where the step gave them (ROS2): its linearization then needs no
     /// derivatives and no evaluation.
@@ -193,16 +188,8 @@ pub(crate) struct ChunkControl {
     wait: usize,
     patience: usize,
     diff: Vec<f64>,
-    /// A substep's start and held τ, the composed A and B and the last composition's A
-    /// (`variational_substeps`), and products' scratch.
-    q_sub: Vec<f64>,
-    v_sub: Vec<f64>,
-    tau_sub: Vec<f64>,
-    a_acc: DMatrix<f64>,
-    b_acc: DMatrix<f64>,
-    a_prev: DMatrix<f64>,
-    scratch: DMatrix<f64>,
-    scratch_b: DMatrix<f64>,
+    /// The buffers of Radau5's substeps (substeps.rs).
+    pub(super) substeps: Substeps,
 }
 
 impl ChunkControl {
@@ -214,14 +201,7 @@ impl ChunkControl {
             wait: 0,
             patience: 0,
             diff: vec![0.0; sys.model().nv],
-            q_sub: vec![0.0; sys.model().nq],
-            v_sub: vec![0.0; sys.model().nv],
-            tau_sub: vec![0.0; sys.model().nv],
-            a_acc: DMatrix::zeros(2 * sys.model().nv, 2 * sys.model().nv),
-            b_acc: DMatrix::zeros(2 * sys.model().nv, sys.model().nv),
-            a_prev: DMatrix::zeros(2 * sys.model().nv, 2 * sys.model().nv),
-            scratch: DMatrix::zeros(2 * sys.model().nv, 2 * sys.model().nv),
-            scratch_b: DMatrix::zeros(2 * sys.model().nv, sys.model().nv),
+            substeps: Substeps::new(sys),
         }
     }
 
@@ -265,99 +245,6 @@ fn next_chunk(m: usize, ratio: f64, order: f64) -> usize {
 }
 
 impl CovariancePropagator {
-    /// Apply recorded step `lo` of a method without a linearization of its own (Radau5:
-    /// `Integrator::covariance_by_substeps`), covered by ROS2 steps stepping the variational
-    /// equation (linearize/ros2.rs, `variational`: L-stable as Radau IIA is, second order in
-    /// Φ). Radau's step is set by its nominal's error and can be long against a mode the
-    /// nominal hardly excites (an arm held still by its PD, at h|λ| near 1), where one such step
-    /// leaves Φ off while the state is reproduced. So Φ itself is controlled, as an
-    /// extrapolation would: the step is covered by 1, 2, 4, … equal substeps, each linearized
-    /// from the last one's end state under the recorded τ moved there and composed, until two
-    /// successive compositions agree to [`SUBSTEP_RTOL`] (‖ΔA‖ / ‖A‖, Frobenius, over A's
-    /// configuration rows: the tyres' slip modes at 10⁴ /s are damped to nothing at any
-    /// substep, while their velocity entries would refine it to their time scale), at most
-    /// [`MAX_SUBSTEPS`].
-    fn variational_substeps(
-        &mut self,
-        sys: &mut System,
-        rec: &StepRecord,
-        lo: usize,
-        hst: &mut ChunkControl,
-    ) -> Result<()> {
-        let h = rec.t[lo + 1] - rec.t[lo];
-        let cols_b = if self.lin.inputs {
-            self.lin.b.ncols()
-        } else {
-            0
-        };
-        let (q, v) = (&rec.q[lo][..], &rec.v[lo][..]);
-        linearize_variational_step(sys, &mut self.lin, rec.t[lo], q, v, &rec.tau[lo], h)?;
-        self.linearizations += 1;
-        hst.a_prev.copy_from(&self.lin.a);
-        let mut k = 2;
-        loop {
-            let dt = h / k as f64;
-            hst.q_sub.copy_from_slice(&rec.q[lo]);
-            hst.v_sub.copy_from_slice(&rec.v[lo]);
-            for i in 0..k {
-                let t = rec.t[lo] + i as f64 * dt;
-                let (q, v) = (&hst.q_sub[..], &hst.v_sub[..]);
-                // The recorded τ is held from the step's start: a substep holds it as moved
-                // to its own start.
-                let start = (&rec.q[lo][..], &rec.v[lo][..]);
-                let ds = i as f64 * dt;
-                (self.lin).torque_at(sys, start, &rec.tau[lo], (q, v, ds), &mut hst.tau_sub);
-                linearize_variational_step(sys, &mut self.lin, t, q, v, &hst.tau_sub, dt)?;
-                self.linearizations += 1;
-                if i == 0 {
-                    hst.a_acc.copy_from(&self.lin.a);
-                    hst.b_acc
-                        .columns_mut(0, cols_b)
-                        .copy_from(&self.lin.b.columns(0, cols_b));
-                } else {
-                    // A ← A_i A, B ← A_i B + B_i
-                    gemm_into(&mut hst.scratch, 1.0, &self.lin.a, &hst.a_acc, 0.0);
-                    hst.a_acc.copy_from(&hst.scratch);
-                    if cols_b > 0 {
-                        let s = &mut hst.scratch_b;
-                        gemm_columns(s, 1.0, &self.lin.a, &hst.b_acc, 0.0, cols_b);
-                        for c in 0..cols_b {
-                            for r in 0..s.nrows() {
-                                hst.b_acc[(r, c)] = s[(r, c)] + self.lin.b[(r, c)];
-                            }
-                        }
-                    }
-                }
-                hst.q_sub.copy_from_slice(&self.lin.q_next);
-                hst.v_sub.copy_from_slice(&self.lin.v_next);
-            }
-            let nv = rec.v[lo].len();
-            let (mut diff2, mut norm2) = (0.0, 0.0);
-            for c in 0..2 * nv {
-                for r in 0..nv {
-                    let (x, y) = (hst.a_acc[(r, c)], hst.a_prev[(r, c)]);
-                    diff2 += (x - y) * (x - y);
-                    norm2 += x * x;
-                }
-            }
-            let change = (diff2 / norm2.max(f64::MIN_POSITIVE)).sqrt();
-            if change <= SUBSTEP_RTOL || 2 * k > MAX_SUBSTEPS {
-                break;
-            }
-            hst.a_prev.copy_from(&hst.a_acc);
-            k *= 2;
-        }
-        self.lin.a.copy_from(&hst.a_acc);
-        if cols_b > 0 {
-            self.lin
-                .b
-                .columns_mut(0, cols_b)
-                .copy_from(&hst.b_acc.columns(0, cols_b));
-        }
-        self.apply_linearization(h, &rec.feedback[lo]);
-        Ok(())
-    }
-
     /// Bring P up to the last recorded state (module doc), kept on the constraints there.
     pub fn flush(&mut self, sys: &mut System, method: Method) -> Result<()> {
         // The record leaves `self` while P is updated from it (disjoint borrows; no allocation).
@@ -414,7 +301,7 @@ impl CovariancePropagator {
         if method.integrator().covariance_by_substeps() {
             while lo < n {
                 self.lin.set_feedback(&rec.feedback[lo]);
-                self.variational_substeps(sys, rec, lo, hst)?;
+                self.variational_substeps(sys, rec, lo, &mut hst.substeps)?;
                 lo += 1;
                 if lo == n {
                     self.project(sys, rec.t[n], &rec.q[n], &rec.v[n])?;

@@ -15,7 +15,7 @@ mod frame_forces;
 pub(in crate::predict) mod ros2;
 mod stages;
 use frame_forces::FrameForces;
-pub(in crate::predict) use ros2::ros2_with_step_jacobian;
+pub(in crate::predict) use ros2::{linearize_variational_step, ros2_with_step_jacobian};
 use stages::{dynamics, stage_acceleration};
 pub(in crate::predict) use stages::{dynamics_derivatives, stage_options};
 
@@ -171,25 +171,6 @@ impl Linearization {
             .extend(active.map(|f| (f.iq, f.iv, f.k, f.d, f.rate)));
     }
 
-    /// The generalized force a step held from (q0, v0) under `tau` reaches at (q, v), `ds`
-    /// [s] later, into `out`: the joint springs' and controllers' share and the elements acting
-    /// at frames moved there, as a stage takes them. The τ to hold over a step that starts
-    /// within a recorded one (a stand-in's substep, chunks.rs).
-    pub(in crate::predict) fn torque_at(
-        &mut self,
-        sys: &mut System,
-        (q0, v0): (&[f64], &[f64]),
-        tau: &[f64],
-        (q, v, ds): (&[f64], &[f64], f64),
-        out: &mut [f64],
-    ) {
-        stages::stage_torque(&self.joint_springs, out, (q0, v0), (q, v, ds), tau);
-        if let Some(f) = self.frame_forces.as_mut() {
-            f.start_step(sys, q0, v0);
-            f.stage(sys, (q, v), out, false);
-        }
-    }
-
     /// Size for a system (its model and constraint rows).
     pub fn new(sys: &System) -> Self {
         let (nq, nv) = (sys.model().nq, sys.model().nv);
@@ -253,26 +234,9 @@ pub fn linearize_step(
     method.linearize(sys, lin, (q, v), tau, dt)
 }
 
-/// A ROS2 step from (q, v) at `t` [s] under τ over `dt` [s] with the variations stepped as the
-/// variational equation (linearize/ros2.rs, `variational`), into `lin`: the flow's sensitivity
-/// to second order, where [`linearize_step`] gives the step's own. The covariance's cover for a
-/// method without a linearization of its own (Radau5, covariance/chunks.rs).
-pub(in crate::predict) fn linearize_variational_step(
-    sys: &mut System,
-    lin: &mut Linearization,
-    t: f64,
-    q: &[f64],
-    v: &[f64],
-    tau: &[f64],
-    dt: f64,
-) -> Result<()> {
-    prepare_step(sys, lin, t, q, v, dt)?;
-    ros2::variational(sys, lin, q, v, tau, dt)
-}
-
 /// What every linearized step starts with: the state and step checked, the time, whether
 /// ∂q̈/∂τ is needed, the elements acting at frames taken at the start.
-fn prepare_step(
+pub(super) fn prepare_step(
     sys: &mut System,
     lin: &mut Linearization,
     t: f64,

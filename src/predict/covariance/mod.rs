@@ -36,6 +36,7 @@
 mod chunks;
 mod constants;
 pub(in crate::predict) mod linearize;
+mod substeps;
 pub(in crate::predict) mod worker;
 
 use crate::actuators::Feedback;

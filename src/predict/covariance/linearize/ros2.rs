@@ -89,6 +89,23 @@ pub(in crate::predict) fn ros2(
     Ok(())
 }
 
+/// A ROS2 step from (q, v) at `t` [s] under τ over `dt` [s] with the variations stepped as the
+/// variational equation ([`variational`]), into `lin`: the flow's sensitivity
+/// to second order, where [`linearize_step`] gives the step's own. The covariance's cover for a
+/// method without a linearization of its own (Radau5, covariance/chunks.rs).
+pub(in crate::predict) fn linearize_variational_step(
+    sys: &mut System,
+    lin: &mut Linearization,
+    t: f64,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+    dt: f64,
+) -> Result<()> {
+    super::prepare_step(sys, lin, t, q, v, dt)?;
+    variational(sys, lin, q, v, tau, dt)
+}
+
 /// A ROS2 step from (q, v) under the held τ, with the variations stepped as the variational
 /// equation δẋ = F(x(t)) δx by the same W-method, not as the step's own sensitivity:
 /// W = I − γ dt F₀ for both stages, and the second stage's right-hand side from its own derivatives at the stage

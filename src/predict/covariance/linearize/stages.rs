@@ -1,6 +1,7 @@
 //! The dynamics at the stages of a linearized step: q̈ and its derivatives under the step's
 //! generalized force, with the joint springs' and controllers' share moved to the stage.
 
+use super::Linearization;
 use super::frame_forces::FrameForces;
 use crate::derivatives::{DerivativeData, aba_derivatives, constrained_dynamics_derivatives};
 use crate::dynamics::{Baumgarte, Formulation, KktOptions};
@@ -44,10 +45,31 @@ pub(super) fn dynamics(
     Ok(())
 }
 
+impl Linearization {
+    /// The generalized force a step held from (q0, v0) under `tau` reaches at (q, v), `ds`
+    /// [s] later, into `out`: the joint springs' and controllers' share and the elements acting
+    /// at frames moved there, as a stage takes them. The τ to hold over a step that starts
+    /// within a recorded one (a stand-in's substep, chunks.rs).
+    pub(in crate::predict) fn torque_at(
+        &mut self,
+        sys: &mut System,
+        (q0, v0): (&[f64], &[f64]),
+        tau: &[f64],
+        (q, v, ds): (&[f64], &[f64], f64),
+        out: &mut [f64],
+    ) {
+        stage_torque(&self.joint_springs, out, (q0, v0), (q, v, ds), tau);
+        if let Some(f) = self.frame_forces.as_mut() {
+            f.start_step(sys, q0, v0);
+            f.stage(sys, (q, v), out, false);
+        }
+    }
+}
+
 /// The generalized force at a stage (q, v) `ds` [s] into the step: the step's τ, with each
 /// joint spring's and controller's share moved from the start (q0, v0) to the stage
 /// (−k Δq − d Δv) and a controller's own rate (its `Feedback::rate`) added over ds.
-pub(super) fn stage_torque(
+fn stage_torque(
     springs: &[(usize, usize, f64, f64, f64)],
     tau_stage: &mut [f64],
     (q0, v0): (&[f64], &[f64]),
