@@ -53,7 +53,6 @@
 //! the chunk's accuracy, and the projection costs about a linearization's stage.
 
 use super::CovariancePropagator;
-use super::substeps::Substeps;
 use crate::actuators::Feedback;
 use crate::error::Result;
 use crate::model::Model;
@@ -188,8 +187,6 @@ pub(crate) struct ChunkControl {
     wait: usize,
     patience: usize,
     diff: Vec<f64>,
-    /// The buffers of Radau5's substeps (substeps.rs).
-    pub(super) substeps: Substeps,
 }
 
 impl ChunkControl {
@@ -201,7 +198,6 @@ impl ChunkControl {
             wait: 0,
             patience: 0,
             diff: vec![0.0; sys.model().nv],
-            substeps: Substeps::new(sys),
         }
     }
 
@@ -301,7 +297,7 @@ impl CovariancePropagator {
         if method.integrator().covariance_by_substeps() {
             while lo < n {
                 self.lin.set_feedback(&rec.feedback[lo]);
-                self.variational_substeps(sys, rec, lo, &mut hst.substeps)?;
+                self.variational_substeps(sys, rec, lo)?;
                 lo += 1;
                 if lo == n {
                     self.project(sys, rec.t[n], &rec.q[n], &rec.v[n])?;

@@ -50,6 +50,7 @@ use crate::model::Model;
 use crate::predict::covariance::chunks::{ChunkControl, StepRecord};
 use crate::predict::covariance::constants::ConstantInputs;
 use crate::predict::covariance::linearize::Linearization;
+use crate::predict::covariance::substeps::Substeps;
 use crate::system::System;
 use nalgebra::DMatrix;
 use serde::Deserialize;
@@ -126,6 +127,8 @@ pub struct CovariancePropagator {
     /// (covariance/chunks.rs).
     pub(in crate::predict) record: StepRecord,
     pub(in crate::predict) chunks: ChunkControl,
+    /// The buffers of Radau5's substeps (covariance/substeps.rs).
+    substeps: Substeps,
     /// Linearized steps so far, tried ones included, and the wall time of the flushes [s].
     pub(in crate::predict) linearizations: usize,
     pub(in crate::predict) time_s: f64,
@@ -256,6 +259,7 @@ impl CovariancePropagator {
             },
             record: StepRecord::new(sys),
             chunks: ChunkControl::new(sys),
+            substeps: Substeps::new(sys),
             linearizations: 0,
             time_s: 0.0,
             tmp: DMatrix::zeros(2 * nv, 2 * nv),

@@ -63,6 +63,20 @@ impl CovariancePropagator {
         sys: &mut System,
         rec: &StepRecord,
         lo: usize,
+    ) -> Result<()> {
+        // The buffers leave `self` while `self.lin` and P are updated (disjoint borrows; a
+        // default Substeps holds no allocation).
+        let mut sub = std::mem::take(&mut self.substeps);
+        let result = self.substeps_with(sys, rec, lo, &mut sub);
+        self.substeps = sub;
+        result
+    }
+
+    fn substeps_with(
+        &mut self,
+        sys: &mut System,
+        rec: &StepRecord,
+        lo: usize,
         sub: &mut Substeps,
     ) -> Result<()> {
         let h = rec.t[lo + 1] - rec.t[lo];
