@@ -165,7 +165,7 @@ pub trait Integrator: Sync {
     fn linearized_as(&self) -> Option<Method>;
     /// Where the step's own sensitivity is not implemented (`linearized_as` None): the
     /// covariance covers each step with ROS2 steps of the variational equation, L-stable, in as
-    /// many substeps as settle Φ (covariance/chunks.rs). False: the covariance is refused.
+    /// many substeps as settle Φ (covariance/substeps.rs). False: the covariance is refused.
     fn covariance_by_substeps(&self) -> bool {
         false
     }

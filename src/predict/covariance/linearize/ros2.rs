@@ -90,9 +90,9 @@ pub(in crate::predict) fn ros2(
 }
 
 /// A ROS2 step from (q, v) at `t` [s] under τ over `dt` [s] with the variations stepped as the
-/// variational equation ([`variational`]), into `lin`: the flow's sensitivity
-/// to second order, where [`linearize_step`] gives the step's own. The covariance's cover for a
-/// method without a linearization of its own (Radau5, covariance/chunks.rs).
+/// variational equation ([`variational`]), into `lin`: the flow's sensitivity to second order,
+/// where `linearize_step` gives the step's own. The covariance's cover for a method without a
+/// linearization of its own (Radau5, covariance/substeps.rs).
 pub(in crate::predict) fn linearize_variational_step(
     sys: &mut System,
     lin: &mut Linearization,
@@ -108,12 +108,12 @@ pub(in crate::predict) fn linearize_variational_step(
 
 /// A ROS2 step from (q, v) under the held τ, with the variations stepped as the variational
 /// equation δẋ = F(x(t)) δx by the same W-method, not as the step's own sensitivity:
-/// W = I − γ dt F₀ for both stages, and the second stage's right-hand side from its own derivatives at the stage
-/// (q ⊕ Θ₁, V₁), the perturbation moved there as an explicit stage moves it. A W-method keeps
-/// its order with any W, so Φ is second order in dt, where holding F₀ in both stages (as
-/// [`ros2`] does, the step's own sensitivity) is first order in dt · Ḟ: a tyre's grip whose
-/// slope changes within the step. The covariance's stand-in for Radau5's steps (chunks.rs,
-/// tests/it/covariance_sensitivity.rs).
+/// W = I − γ dt F₀ for both stages, and the second stage's right-hand side from its own
+/// derivatives at the stage (q ⊕ Θ₁, V₁), the perturbation moved there as an explicit stage
+/// moves it. A W-method keeps its order with any W, so Φ is second order in dt, where holding
+/// F₀ in both stages (as [`ros2`] does, the step's own sensitivity) is first order in dt · Ḟ:
+/// a tyre's grip whose slope changes within the step. What covers Radau5's steps under the
+/// covariance (covariance/substeps.rs, tests/it/covariance_sensitivity.rs).
 pub(in crate::predict) fn variational(
     sys: &mut System,
     lin: &mut Linearization,

@@ -49,7 +49,7 @@ impl Linearization {
     /// The generalized force a step held from (q0, v0) under `tau` reaches at (q, v), `ds`
     /// [s] later, into `out`: the joint springs' and controllers' share and the elements acting
     /// at frames moved there, as a stage takes them. The τ to hold over a step that starts
-    /// within a recorded one (a stand-in's substep, chunks.rs).
+    /// within a recorded one (Radau5's substeps, covariance/substeps.rs).
     pub(in crate::predict) fn torque_at(
         &mut self,
         sys: &mut System,
