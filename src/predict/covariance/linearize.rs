@@ -392,29 +392,7 @@ pub(in crate::predict) fn explicit(
             .build(sys.model(), &lin.theta[st], Some(&lin.vel[st]));
         // δq_i = Ad(Exp(−Θ_i)) δq + J_r(Θ_i) δΘ_i (tangent at q_i); δΘ_i = 0 at a first stage.
         let first = tab.a[st].is_empty();
-        tangent_variation(lin, cols, first);
-        // δkv_i = ∂q̈/∂q δq_i + ∂q̈/∂v δV_i + ∂q̈/∂τ δτ.
-        let (f, d_kv) = (&lin.dd, &mut lin.d_kv[st]);
-        gemm_columns(d_kv, 1.0, &f.dqdd_dq, &lin.moved_cols, 0.0, cols);
-        gemm_columns(d_kv, 1.0, &f.dqdd_dv, &lin.d_vel, 1.0, cols);
-        for c in 2 * nv..cols {
-            for i in 0..nv {
-                d_kv[(i, c)] += f.dqdd_dtau[(i, c - 2 * nv)];
-            }
-        }
-        // δkΘ_i = ∂dexp⁻¹/∂Θ [δΘ_i] + dexp⁻¹(δV_i).
-        let d_kth = &mut lin.d_kth[st];
-        gemm_columns(d_kth, 1.0, &lin.maps.dexp_inv, &lin.d_vel, 0.0, cols);
-        if !first {
-            gemm_columns(
-                d_kth,
-                1.0,
-                &lin.maps.dexp_inv_dtheta,
-                &lin.d_theta,
-                1.0,
-                cols,
-            );
-        }
+        stage_variation(lin, st, cols, first);
     }
     // Final combination.
     for i in 0..nv {
@@ -443,6 +421,30 @@ pub(in crate::predict) fn explicit(
         }
     }
     Ok(())
+}
+
+/// Stage `st`'s right-hand-side variation over the seed columns, from the stage's derivatives
+/// (`lin.dd`), its Lie maps (`lin.maps`, built at the stage) and its δΘ_i, δV_i (`d_theta`,
+/// `d_vel`): δq_i = Ad(Exp(−Θ_i)) δq + J_r(Θ_i) δΘ_i (tangent at q_i; δΘ_i = 0 at a `first`
+/// stage), δkv_i = ∂q̈/∂q δq_i + ∂q̈/∂v δV_i + ∂q̈/∂τ δτ into `d_kv[st]`, and
+/// δkΘ_i = ∂dexp⁻¹/∂Θ [δΘ_i] + dexp⁻¹(δV_i) into `d_kth[st]`.
+pub(super) fn stage_variation(lin: &mut Linearization, st: usize, cols: usize, first: bool) {
+    let nv = lin.v_next.len();
+    tangent_variation(lin, cols, first);
+    let (f, d_kv) = (&lin.dd, &mut lin.d_kv[st]);
+    gemm_columns(d_kv, 1.0, &f.dqdd_dq, &lin.moved_cols, 0.0, cols);
+    gemm_columns(d_kv, 1.0, &f.dqdd_dv, &lin.d_vel, 1.0, cols);
+    for c in 2 * nv..cols {
+        for i in 0..nv {
+            d_kv[(i, c)] += f.dqdd_dtau[(i, c - 2 * nv)];
+        }
+    }
+    let d_kth = &mut lin.d_kth[st];
+    gemm_columns(d_kth, 1.0, &lin.maps.dexp_inv, &lin.d_vel, 0.0, cols);
+    if !first {
+        let dexp_inv_dtheta = &lin.maps.dexp_inv_dtheta;
+        gemm_columns(d_kth, 1.0, dexp_inv_dtheta, &lin.d_theta, 1.0, cols);
+    }
 }
 
 /// `d_theta = Σ_j dt w_j δkΘ_j` and `d_vel = δv + Σ_j dt w_j δkv_j` over the seed columns, for

@@ -10,7 +10,7 @@
 //! factored as the step factors it (integrators/shifted.rs); a step the prediction recorded
 //! brings its own increment, so only its sensitivity is computed here.
 
-use super::{Linearization, dynamics, stage_acceleration, tangent_variation};
+use super::{Linearization, dynamics, stage_acceleration, stage_variation, tangent_variation};
 use crate::error::{Error, Result};
 use crate::linalg::gemm_columns;
 use crate::predict::integrators::ShiftedFactor;
@@ -123,7 +123,6 @@ pub(in crate::predict) fn variational(
     dt: f64,
 ) -> Result<()> {
     let nv = v.len();
-    let n = 2 * nv;
     let cols = lin.columns();
     at_start(sys, lin, q, v, tau)?;
     first_stage_variation(lin, dt)?;
@@ -138,21 +137,12 @@ pub(in crate::predict) fn variational(
     }
     lin.maps
         .build(sys.model(), &lin.theta[0], Some(&lin.vel[0]));
-    tangent_variation(lin, cols, false);
+    stage_variation(lin, 0, cols, false);
     let r = &mut lin.ros2;
-    let f = &lin.dd;
     for c in 0..cols {
         for i in 0..nv {
-            let mut th = 0.0;
-            let mut ve = if c >= n { f.dqdd_dtau[(i, c - n)] } else { 0.0 };
-            for j in 0..nv {
-                th += lin.maps.dexp_inv[(i, j)] * lin.d_vel[(j, c)]
-                    + lin.maps.dexp_inv_dtheta[(i, j)] * lin.d_theta[(j, c)];
-                ve += f.dqdd_dq[(i, j)] * lin.moved_cols[(j, c)]
-                    + f.dqdd_dv[(i, j)] * lin.d_vel[(j, c)];
-            }
-            r.dk2[(i, c)] = th - 2.0 * r.dk1[(i, c)];
-            r.dk2[(nv + i, c)] = ve - 2.0 * r.dk1[(nv + i, c)];
+            r.dk2[(i, c)] = lin.d_kth[0][(i, c)] - 2.0 * r.dk1[(i, c)];
+            r.dk2[(nv + i, c)] = lin.d_kv[0][(i, c)] - 2.0 * r.dk1[(nv + i, c)];
         }
     }
     solve_columns(&r.w, &mut r.dk2, cols);
