@@ -30,7 +30,7 @@ pub struct HorizonSummary {
     pub position_error_m: Spread,
     /// |yaw error| [rad].
     pub yaw_error_rad: Spread,
-    /// Fractions inside the 50 % and 95 % regions.
+    /// Fractions inside the 50 % and 95 % regions, with their 95 % intervals.
     pub coverage: Coverage,
     /// Mean NEES (3 when the covariance is right).
     pub nees_mean: f64,
@@ -147,7 +147,7 @@ fn summarise(
             refused: of_h.iter().filter(|r| r.refused).count(),
             position_error_m: Spread::of(&pos),
             yaw_error_rad: Spread::of(&yaw),
-            coverage: Coverage::of(&nees),
+            coverage: Coverage::of_overlapping(&nees, settings.every_s, h),
             nees_mean: nees.iter().sum::<f64>() / nees.len() as f64,
         });
     }

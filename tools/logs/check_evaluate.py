@@ -6,8 +6,10 @@ EVALUATE_JSON is the output of `evaluate --records`. The bag is read again here 
 reader (mcap-ros2-support's, with its own CDR decoder); for every prediction the reference pose
 at or before t0 + h is looked up in it, the errors and NEES are recomputed from the predicted
 pose and covariance the tool printed, and the summary (median, p95, max, coverage, mean NEES)
-from those with NumPy, and the χ²(3) bounds from the closed-form CDF. Exits 1 naming the first
-figure that disagrees.
+from those with NumPy, and the χ²(3) bounds from the closed-form CDF. The coverages' 95 %
+intervals are recomputed as the roots of the score test's quadratic, (p̂ − π)² = z² π (1 − π)/m,
+on the effective count m that docs/logs.md states, the start period read from the records'
+start times. Exits 1 naming the first figure that disagrees.
 """
 
 import json
@@ -29,6 +31,28 @@ def chi2_3_quantile(p):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if chi2_3_cdf(mid) < p else (lo, mid)
     return 0.5 * (lo + hi)
+
+
+def normal_quantile(p):
+    lo, hi = 0.0, 10.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if 0.5 * (1 + math.erf(mid / math.sqrt(2))) < p else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def score_interval(p, m):
+    """The π where the score test of a fraction p among m trials sits at its two-sided 5 %
+    bound: the roots of (1 + z²/m) π² − (2p + z²/m) π + p² = 0."""
+    z2 = normal_quantile(0.975) ** 2
+    roots = np.sort(np.roots([1 + z2 / m, -(2 * p + z2 / m), p * p]).real)
+    return max(0.0, roots[0]), min(1.0, roots[1])
+
+
+def independent_count(n, every, h):
+    """n / (1 + 2 Σ ρ²) over the lags at which two predictions overlap, ρ = 1 − lag every/h."""
+    lags = np.arange(1, int(np.ceil(h / every - 1e-9)))
+    return n / (1 + 2 * np.sum((1 - lags * every / h) ** 2))
 
 
 def read_reference(bag, topic):
@@ -84,6 +108,8 @@ def main():
         close("yaw error", r["yaw_error_rad"], e[2], 1e-9)
         close("nees", r["nees"], nees, 1e-6)
         by_h.setdefault(r["horizon_s"], []).append((math.hypot(e[0], e[1]), abs(e[2]), nees))
+    t0s = np.unique([r["t0_s"] for r in records])
+    every = float(np.median(np.diff(t0s))) if len(t0s) > 1 else 1.0
     for h in out["horizons"]:
         rows = np.array(by_h[h["horizon_s"]])
         close(f"{h['horizon_s']} s predictions", h["predictions"], len(rows), 0)
@@ -93,6 +119,12 @@ def main():
             close(f"{h['horizon_s']} s {key} max", h[key]["max"], rows[:, col].max(), 1e-12)
         close(f"{h['horizon_s']} s coverage p50", h["coverage"]["p50"], np.mean(rows[:, 2] <= b50), 1e-12)
         close(f"{h['horizon_s']} s coverage p95", h["coverage"]["p95"], np.mean(rows[:, 2] <= b95), 1e-12)
+        m = independent_count(len(rows), every, h["horizon_s"])
+        close(f"{h['horizon_s']} s independent predictions", h["coverage"]["independent_predictions"], m, 1e-6)
+        for b, key in [(b50, "p50"), (b95, "p95")]:
+            lo, hi = score_interval(np.mean(rows[:, 2] <= b), m)
+            close(f"{h['horizon_s']} s coverage {key} interval low", h["coverage"][f"{key}_interval"][0], lo, 1e-6)
+            close(f"{h['horizon_s']} s coverage {key} interval high", h["coverage"][f"{key}_interval"][1], hi, 1e-6)
         close(f"{h['horizon_s']} s nees_mean", h["nees_mean"], rows[:, 2].mean(), 1e-6)
     print(f"check_evaluate: {len(records)} predictions and {len(out['horizons'])} horizons agree")
 

@@ -71,17 +71,42 @@ fn reference(bag: &std::path::Path, topic: &str) -> Vec<(i64, [f64; 3], [[f64; 3
     out
 }
 
-/// P(χ²(3) ≤ x) = erf(√(x/2)) − √(2x/π) e^(−x/2), erf by its series (converges for all x used).
-fn chi2_3_cdf(x: f64) -> f64 {
-    let z = (x / 2.0).sqrt();
+/// erf by its Maclaurin series (converges for all z used here, z ≤ 5).
+fn erf(z: f64) -> f64 {
     let (mut term, mut sum, mut n) = (z, z, 0.0);
     while term.abs() > 1e-17 * sum.abs() {
         n += 1.0;
         term *= -z * z / n;
         sum += term / (2.0 * n + 1.0);
     }
-    let erf = 2.0 / std::f64::consts::PI.sqrt() * sum;
-    erf - (2.0 * x / std::f64::consts::PI).sqrt() * (-x / 2.0).exp()
+    2.0 / std::f64::consts::PI.sqrt() * sum
+}
+
+/// P(χ²(3) ≤ x) = erf(√(x/2)) − √(2x/π) e^(−x/2).
+fn chi2_3_cdf(x: f64) -> f64 {
+    erf((x / 2.0).sqrt()) - (2.0 * x / std::f64::consts::PI).sqrt() * (-x / 2.0).exp()
+}
+
+/// The π at which the score test of a fraction p among m trials sits at its two-sided 5 %
+/// bound: the roots of (1 + z²/m) π² − (2p + z²/m) π + p² = 0, z the normal 0.975 quantile
+/// (erf by bisection).
+fn score_interval(p: f64, m: f64) -> [f64; 2] {
+    let (mut lo, mut hi) = (0.0, 5.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if 0.5 * (1.0 + erf(mid / 2f64.sqrt())) < 0.975 {
+            lo = mid
+        } else {
+            hi = mid
+        }
+    }
+    let z2 = (0.5 * (lo + hi)).powi(2);
+    let (a, b, c) = (1.0 + z2 / m, -(2.0 * p + z2 / m), p * p);
+    let d = (b * b - 4.0 * a * c).max(0.0).sqrt();
+    [
+        ((-b - d) / (2.0 * a)).max(0.0),
+        ((-b + d) / (2.0 * a)).min(1.0),
+    ]
 }
 
 fn chi2_3_quantile(p: f64) -> f64 {
@@ -223,6 +248,19 @@ fn figures_agree_with_a_recomputation_from_the_bag() {
             let inside = |b: f64| rows.iter().filter(|r| r[2] <= b).count() as f64 / n;
             close("coverage p50", f(&h["coverage"]["p50"]), inside(b50), 1e-12);
             close("coverage p95", f(&h["coverage"]["p95"]), inside(b95), 1e-12);
+            // The intervals on docs/logs.md's effective count: n / (1 + 2 Σ (1 − ℓ 0.5/h)²).
+            let hs = f(&h["horizon_s"]);
+            let lags = (1..)
+                .map(|l| 1.0 - l as f64 * 0.5 / hs)
+                .take_while(|r| *r > 0.0);
+            let m = n / (1.0 + 2.0 * lags.map(|r| r * r).sum::<f64>());
+            let cov = &h["coverage"];
+            close("independent", f(&cov["independent_predictions"]), m, 1e-12);
+            for (key, b) in [("p50_interval", b50), ("p95_interval", b95)] {
+                let want = score_interval(inside(b), m);
+                close(key, f(&cov[key][0]), want[0], 1e-9);
+                close(key, f(&cov[key][1]), want[1], 1e-9);
+            }
             close(
                 "nees_mean",
                 f(&h["nees_mean"]),
