@@ -9,6 +9,8 @@
 //!   predictions' shared errors counted);
 //! - `noise.rs`: the process noise that makes the predicted covariance cover what the model
 //!   still misses;
+//! - `noise_basis.rs`: the noise's trials scored from one replay per term, the covariance
+//!   being linear in the terms' variances;
 //! - `weighting.rs`: once the noise is known, the fit again with each prediction's error
 //!   weighed by its own predicted covariance, and the noise sized again.
 //!
@@ -17,6 +19,7 @@
 
 mod least_squares;
 mod noise;
+mod noise_basis;
 mod parameters;
 mod problem;
 mod weighting;
@@ -237,12 +240,17 @@ pub fn calibrate(
     let mut yaml = problem.yaml_at(values.x.as_slice());
     let mut process_noise = None;
     if settings.fit_process_noise {
-        let mut noise = noise::fit(&problem, &mut yaml, settings, None)?;
+        let mut noise = noise::fit(&problem, &mut yaml, settings)?;
         replays += noise.replays;
         // With the process noise known, the predictions' own covariances weigh their errors
         // (weighting.rs): fit again from the values found, size the noise again, and repeat
         // with the new covariances until the values settle.
-        for _ in 0..WEIGHTED_ROUNDS {
+        // Nothing left to weigh where every value went back to the scene's.
+        for _ in 0..if problem.fitted.is_empty() {
+            0
+        } else {
+            WEIGHTED_ROUNDS
+        } {
             let Some(whitening) = weighting::whitening(&problem, &yaml, &noise)? else {
                 break;
             };
@@ -264,7 +272,7 @@ pub fn calibrate(
             values = weighted;
             problem.whitening = None;
             yaml = problem.yaml_at(values.x.as_slice());
-            noise = noise::fit(&problem, &mut yaml, settings, Some(noise.saturation_slip))?;
+            noise = noise::fit(&problem, &mut yaml, settings)?;
             replays += noise.replays;
             if settled {
                 break;

@@ -4,8 +4,11 @@
 //! the turning resistance of wide tyres (`turning.rs`) and tyres that grip by friction in place
 //! of a rolling constraint (`tyre.rs`).
 
+mod profile;
 mod turning;
 mod tyre;
+
+pub use profile::piecewise_linear;
 
 use turning::TurningResistance;
 pub use turning::TurningResistanceSpec;
@@ -480,24 +483,4 @@ pub(super) fn add_point_force(
 ) {
     let pw = point_position(model, data, frame, p);
     point_jacobian_transpose_add(model, data, model.frames[frame].body, &pw, f, tau);
-}
-
-/// Piecewise-linear interpolation of (t, value) pairs, constant outside.
-pub fn piecewise_linear(profile: &[[f64; 2]], t: f64) -> f64 {
-    match profile {
-        [] => 0.0,
-        [only] => only[1],
-        _ => {
-            if t <= profile[0][0] {
-                return profile[0][1];
-            }
-            for w in profile.windows(2) {
-                if t <= w[1][0] {
-                    let s = (t - w[0][0]) / (w[1][0] - w[0][0]);
-                    return w[0][1] + s * (w[1][1] - w[0][1]);
-                }
-            }
-            profile[profile.len() - 1][1]
-        }
-    }
 }

@@ -143,6 +143,12 @@ impl SceneParameters {
     pub fn set_skid_slide(&self, scene: &mut Value, sigma: f64) {
         set_noise(scene, "saturation_slip", &self.base_horizontal, sigma);
     }
+
+    /// Writes `uncertainty.saturation_slip: σ_t` [rad/s] on the base's yaw, if the base has
+    /// one: the skid's turn, beside its slide.
+    pub fn set_skid_turn(&self, scene: &mut Value, sigma: f64) {
+        set_noise(scene, "saturation_slip", self.base_yaw.as_slice(), sigma);
+    }
 }
 
 /// Writes `uncertainty.<field>.<coordinate>: σ` for each of `coordinates`, keeping the scene's
