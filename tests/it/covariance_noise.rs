@@ -12,6 +12,8 @@
 //! - asked for 0.3 m/s from rest it asks kp·0.3 = 1.2 N, is held at 1 N until kp (0.3 − v) = 1 N,
 //!   v = 0.05 m/s at 1 N / 2 kg: saturated for 0.1 s (`Trajectory::saturated_s`), and the
 //!   slide's variance stops there at `σ_k² (0.1 s)²`.
+//!
+//! And on the bundled mobile manipulator through a skid, every term's share superposes.
 
 use crate::common;
 use common::*;
@@ -288,4 +290,66 @@ fn yaw_slip_noise_is_a_random_walk_that_turns_the_path() {
         s2 * u * u * last.t.powi(3) / 3.0
     );
     assert!(worst < 1e-3, "{worst:e}");
+}
+
+/// The calibration sizes the noise terms from one prediction per term
+/// (src/calibrate/noise_basis.rs): that rests on superposition, each term's variance adding
+/// its own share to the covariance along the nominal trajectory. On the bundled mobile
+/// manipulator driving off hard enough to skid (the diff drive saturated at its traction
+/// torque), the covariance with every term equals the one without process noise plus what
+/// each term adds alone, to rounding.
+#[test]
+fn noise_terms_add_their_shares_independently() {
+    let scene = Scene::load(repo_dir().join("params/suite_mobile_manipulator.yaml")).unwrap();
+    // (field, coordinate, σ)
+    let terms = [
+        ("acceleration_noise", "left_wheel_joint", 0.3),
+        ("saturation_bias", "right_wheel_joint", 30.0),
+        ("saturation_slip", "root_joint:vx_local", 0.05),
+        ("saturation_slip", "root_joint:wz", 0.2),
+        ("slip_noise", "root_joint:wz", 0.01),
+    ];
+    let mut cmd = turning_with_arm_held();
+    cmd.base_twist = Some([1.0, 2.0]);
+    let commands = [(0.0, cmd)];
+    let covariance = |which: &[usize]| {
+        let mut scene = scene.clone();
+        let u = &mut scene.file.uncertainty;
+        for &i in which {
+            let (field, coordinate, sigma) = terms[i];
+            let map = match field {
+                "acceleration_noise" => &mut u.acceleration_noise,
+                "saturation_bias" => &mut u.saturation_bias,
+                "saturation_slip" => &mut u.saturation_slip,
+                _ => &mut u.slip_noise,
+            };
+            map.insert(coordinate.to_string(), sigma);
+        }
+        let mut pred = Predictor::from_scene(&scene).unwrap();
+        let nv = pred.model().nv;
+        let p0 = DMatrix::identity(2 * nv, 2 * nv) * 1e-6;
+        let req = PredictionRequest::new(&scene.q0, &scene.v0)
+            .commands(&commands)
+            .horizon(1.0)
+            .covariance(&p0);
+        let traj = pred.predict(&req).unwrap();
+        let p = rows_to_matrix(traj.samples.last().unwrap().covariance.as_ref().unwrap());
+        (p, traj.saturated_s)
+    };
+    let (none, saturated_s) = covariance(&[]);
+    assert!(saturated_s > 0.0, "never saturated");
+    let (all, _) = covariance(&[0, 1, 2, 3, 4]);
+    let mut sum = none.clone();
+    for i in 0..terms.len() {
+        let (alone, _) = covariance(&[i]);
+        assert!(
+            (&alone - &none).norm() > 1e-3 * none.norm(),
+            "{:?}",
+            terms[i]
+        );
+        sum += alone - &none;
+    }
+    let rel = (&all - &sum).norm() / (&all - &none).norm();
+    println!("saturated {saturated_s:.3} s; superposition off by {rel:.1e} of the noise's share");
+    assert!(rel < 1e-9, "{rel:e}");
 }
