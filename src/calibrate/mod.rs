@@ -240,7 +240,7 @@ pub fn calibrate(
     let mut yaml = problem.yaml_at(values.x.as_slice());
     let mut process_noise = None;
     if settings.fit_process_noise {
-        let mut noise = noise::fit(&problem, &mut yaml, settings)?;
+        let mut noise = noise::fit(&problem, &mut yaml, settings, None)?;
         replays += noise.replays;
         // With the process noise known, the predictions' own covariances weigh their errors
         // (weighting.rs): fit again from the values found, size the noise again, and repeat
@@ -272,7 +272,8 @@ pub fn calibrate(
             values = weighted;
             problem.whitening = None;
             yaml = problem.yaml_at(values.x.as_slice());
-            noise = noise::fit(&problem, &mut yaml, settings)?;
+            let kept = [noise.saturation_slip, noise.saturation_turn];
+            noise = noise::fit(&problem, &mut yaml, settings, Some(kept))?;
             replays += noise.replays;
             if settled {
                 break;

@@ -102,11 +102,15 @@ struct Score {
     log_score: f64,
 }
 
-/// Fits the process noise for the scene `yaml` (the fitted one) and writes it in.
+/// Fits the process noise for the scene `yaml` (the fitted one) and writes it in; the skid's
+/// slide and turn [σ_k, σ_t] searched for, or kept at `kept_skid` where given: in the weighted
+/// rounds, searched again on their factor-2 ladders, they and the weights they set chase each
+/// other to a worse fit (docs/logs.md).
 pub(super) fn fit(
     problem: &Problem,
     yaml: &mut Value,
     settings: &CalibrationSettings,
+    kept_skid: Option<[f64; 2]>,
 ) -> Result<ProcessNoise, CalibrationError> {
     let replay = EvaluationSettings {
         propagate_covariance: true,
@@ -172,18 +176,24 @@ pub(super) fn fit(
             smallest_bias(|b| score([sigma, b, slide, 0.0, 0.0]), bound, target)
         };
         let slides = !problem.places.base_horizontal().is_empty() && s.saturated > 0;
-        (bias, s) = pair(0.0, Bound::Zero(s))?;
-        if slides {
+        match kept_skid {
+            Some([k, _]) if slides && k > 0.0 => (slide, (bias, s)) = (k, pair(k, Bound::None)?),
+            _ => (bias, s) = pair(0.0, Bound::Zero(s))?,
+        }
+        if slides && kept_skid.is_none() {
             (slide, bias, s) = most_likely_slide(&mut pair, (bias, s), target)?;
         }
     } else if tyres && !covered && s0.saturated > 0 {
         // The tyres reject the wheels' terms; the skid's slide and turn act on the base.
-        (slide, turn, s) = most_likely_skid(
-            |slide, turn| score([0.0, 0.0, slide, turn, 0.0]),
-            problem.places.base_horizontal().is_empty(),
-            problem.places.base_yaw().is_none(),
-            target,
-        )?;
+        (slide, turn, s) = match kept_skid {
+            Some([k, t]) => (k, t, score([0.0, 0.0, k, t, 0.0])?),
+            None => most_likely_skid(
+                |slide, turn| score([0.0, 0.0, slide, turn, 0.0]),
+                problem.places.base_horizontal().is_empty(),
+                problem.places.base_yaw().is_none(),
+                target,
+            )?,
+        };
     }
     let mut slip = 0.0;
     if problem.places.base_yaw().is_some() {

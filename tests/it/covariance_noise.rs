@@ -340,13 +340,9 @@ fn noise_terms_add_their_shares_independently() {
     assert!(saturated_s > 0.0, "never saturated");
     let (all, _) = covariance(&[0, 1, 2, 3, 4]);
     let mut sum = none.clone();
-    for i in 0..terms.len() {
+    for (i, term) in terms.iter().enumerate() {
         let (alone, _) = covariance(&[i]);
-        assert!(
-            (&alone - &none).norm() > 1e-3 * none.norm(),
-            "{:?}",
-            terms[i]
-        );
+        assert!((&alone - &none).norm() > 1e-3 * none.norm(), "{term:?}");
         sum += alone - &none;
     }
     let rel = (&all - &sum).norm() / (&all - &none).norm();
