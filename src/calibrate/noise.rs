@@ -116,7 +116,7 @@ pub(super) fn fit(
         propagate_covariance: true,
         ..settings.replay.clone()
     };
-    // The fit owns its four terms: every trial and the result set them all, 0 included, so
+    // The fit owns its five terms: every trial and the result set them all, 0 included, so
     // that what is scored is what is written.
     let write = |yaml: &mut Value, [sigma, bias, slide, turn, slip]: Terms| {
         (problem.places).set_wheel_noise(yaml, "acceleration_noise", sigma);
