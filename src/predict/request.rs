@@ -51,11 +51,12 @@ pub struct PredictionRequest<'a> {
 
 /// Which samples of a prediction carry the propagated covariance.
 ///
-/// P is brought onto the constraints and read only at those samples; between them its
+/// P is read, brought onto the constraints there, only at those samples; between them its
 /// linearized chunks may span several samples (covariance/chunks.rs), so a caller that reads P
 /// only at the horizon (a predicted odometry) asks for [`CovarianceSamples::Last`] and pays for
-/// a few long chunks instead of one or more per sample. Each projection costs nv + 2
-/// constraint evaluations and a factorization of M.
+/// a few long chunks instead of one or more per sample. Each read costs nv + 2 constraint
+/// evaluations and a factorization of M. What is read at a sample does not depend on which
+/// others are (covariance/reading.rs).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum CovarianceSamples<'a> {
     /// Every sample.
@@ -66,6 +67,8 @@ pub enum CovarianceSamples<'a> {
     /// The samples within one sample period of any of these times [s] (so the sample nearest
     /// each, on either side), and the last; the others carry none.
     Near(&'a [f64]),
+    /// The samples at these times [s] (within 1e-9 s), and the last; the others carry none.
+    At(&'a [f64]),
 }
 
 impl CovarianceSamples<'_> {
@@ -77,6 +80,7 @@ impl CovarianceSamples<'_> {
                 Self::Every => true,
                 Self::Last => false,
                 Self::Near(times) => times.iter().any(|&h| (t - h).abs() <= period + 1e-9),
+                Self::At(times) => times.iter().any(|&h| (t - h).abs() <= 1e-9),
             }
     }
 }

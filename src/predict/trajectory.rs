@@ -64,6 +64,9 @@ pub struct Sample {
     /// (`PredictionRequest::covariance_samples`: in every sample or in the last).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub covariance: Option<Vec<Vec<f64>>>,
+    /// Time a velocity controller spent saturated from the start to this sample [s]
+    /// (`Trajectory::saturated_s` at the last).
+    pub saturated_s: f64,
 }
 
 impl Sample {

@@ -165,3 +165,53 @@ fn the_live_tick_does_bounded_work() {
     let p_end = t.samples.last().unwrap().covariance.as_ref().unwrap();
     assert!(p_end.iter().flatten().all(|x| x.is_finite()));
 }
+
+/// A prediction passes through the shorter ones from the same start under the same commands:
+/// its sample at t is the prediction to t, which is what lets `evaluate` and `calibrate` read
+/// every horizon of a start from one run to the longest (src/replay/replayer.rs). Through a
+/// step to a brisk turn that saturates a wheel, the states, error estimates and saturated time
+/// agree to the bit; the covariance, linearized in chunks that end where it is read, nearly.
+#[test]
+fn a_longer_prediction_passes_through_the_shorter_ones() {
+    let (scene, mut live) = live();
+    let cmds = commands(&scene, &live, [[0.2, 0.0], [0.0, 2.5]]);
+    let nv = live.model().nv;
+    let mut p0 = nalgebra::DMatrix::zeros(2 * nv, 2 * nv);
+    for i in [0, 1, 2, nv, nv + 1, nv + 2] {
+        p0[(i, i)] = 1e-4;
+    }
+    let times = [0.26, 0.5, 1.0];
+    let req = PredictionRequest::new(&scene.q0, &scene.v0)
+        .commands(&cmds)
+        .covariance(&p0);
+    let long = (live.predict(
+        &req.horizon(2.0)
+            .covariance_samples(CovarianceSamples::At(&times)),
+    ))
+    .unwrap();
+    let mut worst_p = 0.0f64;
+    for &h in &times {
+        let short =
+            (live.predict(&req.horizon(h).covariance_samples(CovarianceSamples::Last))).unwrap();
+        let b = short.samples.last().unwrap();
+        let a = (long.samples.iter())
+            .find(|s| (s.t - h).abs() <= 1e-9)
+            .unwrap();
+        assert_eq!((&a.q, &a.v), (&b.q, &b.v), "at {h} s");
+        assert_eq!(a.error_estimate, b.error_estimate, "at {h} s");
+        assert_eq!(a.saturated_s, b.saturated_s, "at {h} s");
+        let (pa, pb) = (
+            a.covariance.as_ref().unwrap(),
+            b.covariance.as_ref().unwrap(),
+        );
+        let scale = (0..2 * nv).map(|i| pb[i][i]).fold(0.0, f64::max);
+        for (ra, rb) in pa.iter().zip(pb) {
+            for (x, y) in ra.iter().zip(rb) {
+                worst_p = worst_p.max((x - y).abs() / scale);
+            }
+        }
+    }
+    assert!(long.saturated_s > 0.0, "the turn saturates a wheel");
+    println!("covariance: largest difference {worst_p:.2e} of the largest variance");
+    assert!(worst_p < 2e-8, "{worst_p:.2e}");
+}

@@ -125,6 +125,11 @@ impl StepRecord {
         }
     }
 
+    /// Recorded steps.
+    pub(super) fn len(&self) -> usize {
+        self.len
+    }
+
     /// Forget the recorded steps.
     pub(crate) fn clear(&mut self) {
         self.len = 0;
@@ -241,11 +246,12 @@ fn next_chunk(m: usize, ratio: f64, order: f64) -> usize {
 }
 
 impl CovariancePropagator {
-    /// Bring P up to the last recorded state (module doc), kept on the constraints there.
-    pub fn flush(&mut self, sys: &mut System, method: Method) -> Result<()> {
+    /// Bring P up to the last recorded state (module doc); with `read`, what a sample there
+    /// reads (covariance/reading.rs).
+    pub fn flush(&mut self, sys: &mut System, method: Method, read: bool) -> Result<()> {
         // The record leaves `self` while P is updated from it (disjoint borrows; no allocation).
         let mut rec = std::mem::take(&mut self.record);
-        let result = self.flush_record(sys, method, &mut rec);
+        let result = self.flush_record(sys, method, &mut rec, read);
         self.record = rec;
         result
     }
@@ -257,10 +263,12 @@ impl CovariancePropagator {
         sys: &mut System,
         method: Method,
         rec: &mut StepRecord,
+        read: bool,
     ) -> Result<()> {
         let start = std::time::Instant::now();
         let mut ctl = std::mem::take(&mut self.chunks);
-        let result = self.flush_chunks(sys, method, rec, &mut ctl);
+        let result = (self.flush_chunks(sys, method, rec, &mut ctl))
+            .and_then(|()| self.after_flush(sys, rec, read));
         self.chunks = ctl;
         rec.clear();
         self.time_s += start.elapsed().as_secs_f64();
@@ -288,9 +296,7 @@ impl CovariancePropagator {
             self.linearizations += 1;
             self.apply_linearization(h, &rec.feedback[lo]);
             lo += 1;
-            if lo == n {
-                self.project(sys, rec.t[n], &rec.q[n], &rec.v[n])?;
-            }
+            self.applied(sys, rec, lo, 1)?;
         }
         // Steps without a linearization of their own (Radau5's) are covered one by one, under
         // a control of Φ itself (`variational_substeps`): a chunk's check sees only the nominal.
@@ -299,9 +305,7 @@ impl CovariancePropagator {
                 self.lin.set_feedback(&rec.feedback[lo]);
                 self.variational_substeps(sys, rec, lo)?;
                 lo += 1;
-                if lo == n {
-                    self.project(sys, rec.t[n], &rec.q[n], &rec.v[n])?;
-                }
+                self.applied(sys, rec, lo, 1)?;
             }
             return Ok(());
         }
@@ -360,12 +364,9 @@ impl CovariancePropagator {
                 continue;
             }
             self.apply_linearization(h, &rec.feedback[lo]);
-            // P is read only where the flush ends (a sample, or a full record), so it is
-            // brought onto the constraints there; between chunks the linearized flow keeps it
-            // on them to the chunk's accuracy.
-            if hi == n {
-                self.project(sys, rec.t[hi], &rec.q[hi], &rec.v[hi])?;
-            }
+            // Between projections the linearized flow keeps P on the constraints to the
+            // chunks' accuracy (covariance/reading.rs).
+            self.applied(sys, rec, hi, m)?;
             // An accepted chunk never shrinks the next: a piece shorter than `chunk` (the
             // rest before a sample) says nothing against the longer one.
             let grown = if m > 1 {

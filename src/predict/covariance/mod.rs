@@ -36,6 +36,7 @@
 mod chunks;
 mod constants;
 pub(in crate::predict) mod linearize;
+mod reading;
 mod substeps;
 pub(in crate::predict) mod worker;
 
@@ -50,6 +51,7 @@ use crate::model::Model;
 use crate::predict::covariance::chunks::{ChunkControl, StepRecord};
 use crate::predict::covariance::constants::ConstantInputs;
 use crate::predict::covariance::linearize::Linearization;
+use crate::predict::covariance::reading::Reading;
 use crate::predict::covariance::substeps::Substeps;
 use crate::system::System;
 use nalgebra::DMatrix;
@@ -149,6 +151,19 @@ pub struct CovariancePropagator {
     /// The velocity controllers' start offsets, where P0 gives them a variance
     /// (covariance_integral.rs), and the saturated controllers' grip biases.
     constants: Option<ConstantInputs>,
+    /// What a sample reads, and how long since P was projected (covariance/reading.rs).
+    pub(in crate::predict) reading: Reading,
+}
+
+/// P exactly symmetric (rounding).
+fn symmetrize(p: &mut DMatrix<f64>) {
+    for i in 0..p.nrows() {
+        for j in 0..i {
+            let m = 0.5 * (p[(i, j)] + p[(j, i)]);
+            p[(i, j)] = m;
+            p[(j, i)] = m;
+        }
+    }
 }
 
 /// `P ← A P Aᵀ` for a symmetric P, as `A (A P)ᵀ`: two column-major products and an in-place
@@ -275,6 +290,7 @@ impl CovariancePropagator {
             e_k: vec![0.0; nv],
             blocks: None,
             constants: None,
+            reading: Reading::new(sys),
         })
     }
 
@@ -294,6 +310,7 @@ impl CovariancePropagator {
         c.record.reserve_feedback(feedback.len());
         c.reset(p0)?;
         c.project(sys, t, q, v)?;
+        c.start_reading((t, q, v));
         c.constants = ConstantInputs::start(&c.p, feedback, &c.saturation_bias, &c.saturation_slip);
         c.lin.inputs = c
             .constants
@@ -377,9 +394,22 @@ impl CovariancePropagator {
 
     /// Keep P on the constraints at (t, q, v): `P ← T P Tᵀ` (module doc).
     pub fn project(&mut self, sys: &mut System, t: f64, q: &[f64], v: &[f64]) -> Result<()> {
+        if !self.projector(sys, t, q, v)? {
+            return Ok(());
+        }
+        congruence(&mut self.p, &self.proj, &mut self.tmp);
+        if let Some(o) = self.constants.as_mut() {
+            o.project(&self.proj);
+        }
+        symmetrize(&mut self.p);
+        Ok(())
+    }
+
+    /// T at (t, q, v) into `proj` (module doc); false without constraints (T = I).
+    fn projector(&mut self, sys: &mut System, t: f64, q: &[f64], v: &[f64]) -> Result<bool> {
         let nv = v.len();
         if sys.constraints().is_empty() {
-            return Ok(());
+            return Ok(false);
         }
         self.velocity_row_variation(sys, t, q, v);
         let m = sys.mass_matrix_after_rows();
@@ -421,20 +451,7 @@ impl CovariancePropagator {
             }
         }
         blocks[1].apply_coupling(&self.n_tq, &mut self.proj, nv);
-        congruence(&mut self.p, &self.proj, &mut self.tmp);
-        if let Some(o) = self.constants.as_mut() {
-            o.project(&self.proj);
-        }
-        let n = 2 * nv;
-        // Exactly symmetric (rounding).
-        for i in 0..n {
-            for j in 0..i {
-                let m = 0.5 * (self.p[(i, j)] + self.p[(j, i)]);
-                self.p[(i, j)] = m;
-                self.p[(j, i)] = m;
-            }
-        }
-        Ok(())
+        Ok(true)
     }
 
     /// N = ∂(J(q) v)/∂δq by forward differences (module doc), into `n_jv`; leaves the

@@ -154,7 +154,7 @@ impl CovarianceFeed<'_> {
             return Ok(());
         }
         match self {
-            Self::Inline(c) => c.flush(sys, method),
+            Self::Inline(c) => c.flush(sys, method, false),
             Self::Worker(p) => p.handoff(t, None),
         }
     }
@@ -242,10 +242,10 @@ pub(in crate::predict) fn with_worker<R>(
                 if done.error.is_none() {
                     let c = &mut done.propagator;
                     let flushed = c
-                        .flush_record(&mut worker_sys, method, &mut record)
+                        .flush_record(&mut worker_sys, method, &mut record, sample.is_some())
                         .and_then(|()| {
                             if let Some(k) = sample {
-                                done.snapshots.push((k, covariance_rows(&c.p, t)?));
+                                done.snapshots.push((k, covariance_rows(&c.reading.p, t)?));
                             }
                             Ok(())
                         });

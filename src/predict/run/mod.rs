@@ -353,7 +353,7 @@ impl Predictor {
                 // them).
                 let read_p = covariance_samples.at(t, s.sample_period, horizon);
                 if let Some(cov) = self.covariance.as_mut().filter(|_| read_p) {
-                    cov.flush(&mut self.sys, s.method)?;
+                    cov.flush(&mut self.sys, s.method, true)?;
                 } else if let Some(pipe) = self.ws.pipe.get_mut().filter(|_| read_p) {
                     pipe.handoff(t, Some(traj.samples.len()))?;
                 }
@@ -365,7 +365,8 @@ impl Predictor {
                 let e = s.error_estimate.then(|| {
                     estimate::estimate(&self.model, &a.q, &c.q, factor, &mut self.ws.diff)
                 });
-                let sample = self.sample(t, (&a.q, &a.v), None, e, (forces, read_p))?;
+                let mut sample = self.sample(t, (&a.q, &a.v), None, e, (forces, read_p))?;
+                sample.saturated_s = traj.saturated_s;
                 let springs = self
                     .forces
                     .potential_energy(self.sys.model(), self.sys.data(), &a.q);

@@ -82,7 +82,7 @@ impl Predictor {
         }
         // (With the covariance on its worker, the rows are attached when the run ends.)
         let covariance = match &self.covariance {
-            Some(c) if covariance => Some(covariance_rows(&c.p, t)?),
+            Some(c) if covariance => Some(covariance_rows(&c.reading.p, t)?),
             _ => None,
         };
         Ok(Sample {
@@ -102,6 +102,7 @@ impl Predictor {
             error_estimate: err.map(|e| e.largest()),
             error_estimate_by_kind: err,
             covariance,
+            saturated_s: 0.0,
         })
     }
 }
