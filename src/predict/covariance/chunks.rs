@@ -89,8 +89,10 @@ pub(crate) struct StepRecord {
     pub(super) tau: Vec<Vec<f64>>,
     /// The controllers' feedback over each recorded step (`Actuators::feedback`).
     pub(super) feedback: Vec<Vec<Feedback>>,
-    /// Time of each recorded state since the first [s].
+    /// Time of each recorded state since the first [s] (differences of these are the steps).
     pub(super) t: Vec<f64>,
+    /// The prediction's time at the first recorded state [s].
+    start: f64,
     /// Each step's own W-method matrix F (2nv × 2nv) and increment (Θ, Δv) before the drift
     /// projection, where the step gave them (ROS2): its linearization then needs no
     /// derivatives and no evaluation.
@@ -110,6 +112,7 @@ impl StepRecord {
             tau: vec![vec![0.0; nv]; CHUNK_CAPACITY],
             feedback: vec![vec![]; CHUNK_CAPACITY],
             t: vec![0.0; CHUNK_CAPACITY + 1],
+            start: 0.0,
             jac: vec![DMatrix::zeros(2 * nv, 2 * nv); CHUNK_CAPACITY],
             dx: vec![vec![0.0; 2 * nv]; CHUNK_CAPACITY],
             has_jac: vec![false; CHUNK_CAPACITY],
@@ -130,6 +133,12 @@ impl StepRecord {
         self.len
     }
 
+    /// The prediction's time at recorded state k [s]: where a time-dependent constraint is
+    /// evaluated.
+    pub(super) fn time(&self, k: usize) -> f64 {
+        self.start + self.t[k]
+    }
+
     /// Forget the recorded steps.
     pub(crate) fn clear(&mut self) {
         self.len = 0;
@@ -143,7 +152,7 @@ impl StepRecord {
     }
 
     /// Append one step of the prediction: from (q0, v0) under the held generalized force τ
-    /// [N, N·m] and the controllers' `feedback` for h [s] to (q1, v1), with the step's own F
+    /// [N, N·m] and the controllers' `feedback` for h [s] to (q1, v1) at time t1 [s], with the step's own F
     /// and increment when it has them (`step`). Returns true when the record is full (P
     /// must catch up before the next step).
     pub(crate) fn push(
@@ -153,13 +162,14 @@ impl StepRecord {
         feedback: impl Iterator<Item = Feedback>,
         step: Option<(&DMatrix<f64>, &[f64])>,
         h: f64,
-        (q1, v1): (&[f64], &[f64]),
+        (t1, q1, v1): (f64, &[f64], &[f64]),
     ) -> bool {
         let k = self.len;
         if k == 0 {
             self.q[0].copy_from_slice(q0);
             self.v[0].copy_from_slice(v0);
             self.t[0] = 0.0;
+            self.start = t1 - h;
         }
         self.tau[k].copy_from_slice(tau);
         self.feedback[k].clear();
@@ -328,7 +338,7 @@ impl CovariancePropagator {
                 sys,
                 &mut self.lin,
                 lin_method,
-                rec.t[lo],
+                rec.time(lo),
                 &rec.q[lo],
                 &rec.v[lo],
                 &rec.tau[lo],

@@ -29,8 +29,7 @@ pub(in crate::predict) struct Reading {
     pub(in crate::predict) p: DMatrix<f64>,
     /// Steps applied to the running P since it was last projected.
     since_projection: usize,
-    /// The state the running P stands at: the last flushed step's end (time within its
-    /// record [s], q, v).
+    /// The state the running P stands at: the last flushed step's end (time [s], q, v).
     t: f64,
     q: Vec<f64>,
     v: Vec<f64>,
@@ -71,7 +70,7 @@ impl CovariancePropagator {
     ) -> Result<()> {
         self.reading.since_projection += m;
         if self.reading.since_projection >= PROJECTION_STEPS {
-            self.project(sys, rec.t[hi], &rec.q[hi], &rec.v[hi])?;
+            self.project(sys, rec.time(hi), &rec.q[hi], &rec.v[hi])?;
             self.reading.since_projection = 0;
         }
         Ok(())
@@ -88,7 +87,7 @@ impl CovariancePropagator {
         let n = rec.len();
         if n > 0 {
             let r = &mut self.reading;
-            r.t = rec.t[n];
+            r.t = rec.time(n);
             r.q.copy_from_slice(&rec.q[n]);
             r.v.copy_from_slice(&rec.v[n]);
         }

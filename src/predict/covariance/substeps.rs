@@ -86,7 +86,7 @@ impl CovariancePropagator {
             0
         };
         let (q, v) = (&rec.q[lo][..], &rec.v[lo][..]);
-        linearize_variational_step(sys, &mut self.lin, rec.t[lo], q, v, &rec.tau[lo], h)?;
+        linearize_variational_step(sys, &mut self.lin, rec.time(lo), q, v, &rec.tau[lo], h)?;
         self.linearizations += 1;
         sub.a_prev.copy_from(&self.lin.a);
         let mut k = 2;
@@ -95,7 +95,7 @@ impl CovariancePropagator {
             sub.q.copy_from_slice(&rec.q[lo]);
             sub.v.copy_from_slice(&rec.v[lo]);
             for i in 0..k {
-                let t = rec.t[lo] + i as f64 * dt;
+                let t = rec.time(lo) + i as f64 * dt;
                 let (q, v) = (&sub.q[..], &sub.v[..]);
                 // The recorded τ is held from the step's start: a substep holds it as moved
                 // to its own start.

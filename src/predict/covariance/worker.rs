@@ -150,7 +150,7 @@ impl CovarianceFeed<'_> {
             Self::Inline(c) => &mut c.record,
             Self::Worker(p) => &mut p.current,
         };
-        if !record.push(start, tau, feedback, step, h, end) {
+        if !record.push(start, tau, feedback, step, h, (t, end.0, end.1)) {
             return Ok(());
         }
         match self {
