@@ -1,36 +1,30 @@
 //! The process noise: what the model still misses after the fit, stated on the wheels and the
 //! base so that the predicted covariance covers it.
 //!
-//! Two terms on every wheel joint (docs/propagation.md): a white acceleration noise of density σ
-//! [(rad/s²)/√Hz] at all times (`uncertainty.acceleration_noise`), and, while the wheel's
-//! controller is saturated, an acceleration offset of standard deviation σ_b [rad/s²], the same
-//! through a prediction (`uncertainty.saturation_bias`): at the grip's limit — a skid, a wheel
-//! unloaded as the robot pitches — the model knows least what the floor takes, and that error
-//! lasts as long as the skid. Through the rolling constraints they spread the base's position
-//! along the travel and its yaw, growing with the horizon. Beside σ_b, while the drive is
-//! saturated, a rate offset of standard deviation σ_k [m/s] on the base's two horizontal
-//! positions (`uncertainty.saturation_slip`): the skid's slide, which reaches across the path
-//! where a wheel's offset cannot. And a slip noise σ_s [rad/√s] on the base's yaw
+//! Four terms (docs/propagation.md). On every wheel joint a white effort noise of density σ_τ
+//! [(N·m)/√Hz] at all times (`uncertainty.effort_noise`): the torque the floor takes, known only
+//! roughly, accelerates the robot the wheel rolls, and the wheel's controller takes the speed
+//! it costs back. While the drive is saturated — a skid, a wheel unloaded as the robot pitches,
+//! where the model knows least what the floor takes — a rate offset of standard deviation σ_k
+//! [m/s] on the base's two horizontal positions and one of σ_t [rad/s] on its yaw, each the
+//! same through a prediction (`uncertainty.saturation_slip`): the skid's slide and turn, which
+//! last as long as the skid. And a slip noise σ_s [rad/√s] on the base's yaw
 //! (`uncertainty.slip_noise`): the heading's random walk outside the constraints, which the
-//! wheel controllers do not take back as they take back the wheels' noise.
+//! wheel controllers do not take back.
 //!
-//! σ is the smallest value whose predicted covariance (the node's: propagated, error estimate
+//! σ_τ is the smallest value whose predicted covariance (the node's: propagated, error estimate
 //! and floors, plus the reference's own) holds the target fraction of the predictions through
 //! no saturation inside its 95 % region at every fit horizon (doubling, then bisection of log
-//! σ). σ_b and σ_k act on the predictions through a saturation, and together: for a σ_k, σ_b is
-//! the smallest value that covers those predictions as σ covers the others, and σ_k is the
-//! value whose pair has the lowest log score (a pair that covers before one that does not). A
-//! coverage count alone would take σ_b up until the skids' errors across the path fall inside
-//! a region grown along it and in yaw; the likelihood weighs the region's shape. σ_s, beside
-//! them, is the most likely value (the lowest log score): the wheels' terms may already cover
-//! the calibration drive's errors, which the fit itself took down, while a fresh drive's
-//! heading drifts more. The searches: noise_search.rs.
+//! σ_τ). σ_k and σ_t act on the predictions through a saturation: the pair with the lowest log
+//! score among those that cover them as σ_τ covers the others. A coverage count alone would
+//! take them up until the skids' errors in one direction fall inside a region grown in all;
+//! the likelihood weighs the region's shape. σ_s, beside them, is the most likely value (the
+//! lowest log score): the other terms may already cover the calibration drive's errors, which
+//! the fit itself took down, while a fresh drive's heading drifts more. The searches:
+//! noise_search.rs.
 //!
-//! On a scene with tyres σ and σ_b are not fitted: the tyres' grip rejects such noise
-//! ([`TYRES_REJECT_NOISE`]), and with it the yaw a wheel's offset would turn the base by. There
-//! the skid's slide σ_k and a skid's turn σ_t [rad/s] on the base's yaw
-//! (`uncertainty.saturation_slip` on the yaw) act on the predictions through a saturation: the
-//! most likely pair, one that covers before one that does not.
+//! On a scene with tyres σ_τ is not fitted: the tyres' grip rejects a wheel's own noise
+//! ([`TYRES_REJECT_NOISE`]).
 //!
 //! Every trial is scored from one replay per term (noise_basis.rs); the values found are
 //! replayed once more and scored as `evaluate` would.
@@ -38,9 +32,7 @@
 use super::noise_basis::{NoiseBasis, Scored, TERMS, Terms};
 use super::{CalibrationError, CalibrationSettings, Problem};
 use crate::replay::{EvaluationSettings, stats::Coverage};
-use search::{
-    Bound, most_likely_skid, most_likely_slide, most_likely_slip, smallest_bias, smallest_sigma,
-};
+use search::{most_likely_skid, most_likely_slip, smallest_sigma};
 use serde::Serialize;
 use serde_yaml::Value;
 
@@ -49,20 +41,17 @@ use serde_yaml::Value;
 pub struct ProcessNoise {
     /// The joints it is on (the wheels').
     pub joints: Vec<String>,
-    /// σ [(rad/s²)/√Hz].
-    pub acceleration_noise: f64,
-    /// σ_b [rad/s²], while a wheel's controller is saturated.
-    pub saturation_bias: f64,
+    /// σ_τ [(N·m)/√Hz]: the effort noise.
+    pub effort_noise: f64,
     /// The base's horizontal coordinates the skid's slide is on.
     pub saturation_slip_coordinates: Vec<String>,
-    /// σ_k [m/s], while the drive is saturated: the lowest log score with its σ_b.
+    /// σ_k [m/s], while the drive is saturated: with σ_t, the lowest log score.
     pub saturation_slip: f64,
-    /// σ_t [rad/s] on the yaw (`slip_coordinate`), while the drive is saturated: on a scene
-    /// with tyres only, the lowest log score with σ_k.
+    /// σ_t [rad/s] on the yaw (`slip_coordinate`), while the drive is saturated.
     pub saturation_turn: f64,
     /// The base's yaw coordinate the slip noise is on, if the base has one.
     pub slip_coordinate: Option<String>,
-    /// σ_s [rad/√s]: the yaw's random walk, the most likely value beside σ and σ_b.
+    /// σ_s [rad/√s]: the yaw's random walk, the most likely value beside the others.
     pub slip_noise: f64,
     /// The fraction of the replayed errors inside the 95 % region with them, over every fit
     /// horizon.
@@ -80,17 +69,17 @@ pub struct ProcessNoise {
     pub log_score: f64,
     /// Replays it took.
     pub replays: usize,
-    /// Why σ and σ_b were not fitted, where they were not.
+    /// Why σ_τ was not fitted, where it was not.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub not_fitted: Option<&'static str>,
 }
 
 /// A tyre's grip ties its wheel to the floor at the tyre's slip rate (~10⁴ /s) and the wheel's
-/// controller holds its speed: acceleration noise on a wheel (or on the base) is rejected
-/// within milliseconds and spreads no pose (σ = 30 (rad/s²)/√Hz on the soft-floor robot's
-/// wheels moves validation_smooth's mean NEES at 1 s from 4.3 to 4.1).
+/// controller holds its speed: noise on a wheel is rejected within milliseconds and spreads no
+/// pose (acceleration noise of 30 (rad/s²)/√Hz on the soft-floor robot's wheels moved
+/// validation_smooth's mean NEES at 1 s from 4.3 to 4.1 only).
 const TYRES_REJECT_NOISE: &str =
-    "the tyres' grip and the wheel controllers reject acceleration noise on the wheels";
+    "the tyres' grip and the wheel controllers reject noise on the wheels";
 
 /// One trial's coverages (as [`ProcessNoise`] states them) and log score.
 #[derive(Clone, Copy)]
@@ -116,11 +105,10 @@ pub(super) fn fit(
         propagate_covariance: true,
         ..settings.replay.clone()
     };
-    // The fit owns its five terms: every trial and the result set them all, 0 included, so
+    // The fit owns its four terms: every trial and the result set them all, 0 included, so
     // that what is scored is what is written.
-    let write = |yaml: &mut Value, [sigma, bias, slide, turn, slip]: Terms| {
-        (problem.places).set_wheel_noise(yaml, "acceleration_noise", sigma);
-        (problem.places).set_wheel_noise(yaml, "saturation_bias", bias);
+    let write = |yaml: &mut Value, [sigma, slide, turn, slip]: Terms| {
+        (problem.places).set_wheel_noise(yaml, "effort_noise", sigma);
         (problem.places).set_skid_slide(yaml, slide);
         (problem.places).set_skid_turn(yaml, turn);
         (problem.places).set_yaw_slip(yaml, slip);
@@ -159,55 +147,44 @@ pub(super) fn fit(
             log_score: log_score / nees.len().max(1) as f64,
         }
     };
-    // [σ, σ_b, σ_k, σ_t, σ_s].
+    // [σ_τ, σ_k, σ_t, σ_s].
     let mut score =
         |terms: Terms| -> Result<Score, CalibrationError> { Ok(summary(basis.score(terms)?)) };
     let target = settings.target_coverage_p95;
     let joints = problem.places.wheel_joints().to_vec();
     let s0 = score([0.0; TERMS])?;
     let tyres = problem.places.tyres_carry_wheels();
-    let (mut sigma, mut bias, mut slide, mut turn, mut s) = (0.0, 0.0, 0.0, 0.0, s0);
-    let covered = s0.unsaturated_coverage_p95 >= target && s0.saturated_coverage_p95 >= target;
-    if !(covered || joints.is_empty() || tyres) {
-        // σ on the predictions only it acts on; then σ_b and σ_k, beside it, on those through
-        // a saturation.
-        (sigma, s) = smallest_sigma(|sigma| score([sigma, 0.0, 0.0, 0.0, 0.0]), target)?;
-        let mut pair = |slide: f64, bound: Bound| {
-            smallest_bias(|b| score([sigma, b, slide, 0.0, 0.0]), bound, target)
-        };
-        let slides = !problem.places.base_horizontal().is_empty() && s.saturated > 0;
-        match kept_skid {
-            Some([k, _]) if slides && k > 0.0 => (slide, (bias, s)) = (k, pair(k, Bound::None)?),
-            _ => (bias, s) = pair(0.0, Bound::Zero(s))?,
+    let (mut sigma, mut slide, mut turn, mut s) = (0.0, 0.0, 0.0, s0);
+    if !(s0.unsaturated_coverage_p95 >= target && s0.saturated_coverage_p95 >= target) {
+        // σ_τ on the predictions only it acts on; then the skid's pair, beside it, on those
+        // through a saturation.
+        if !(joints.is_empty() || tyres) {
+            (sigma, s) = smallest_sigma(|sigma| score([sigma, 0.0, 0.0, 0.0]), target)?;
         }
-        if slides && kept_skid.is_none() {
-            (slide, bias, s) = most_likely_slide(&mut pair, (bias, s), target)?;
+        if s.saturated > 0 {
+            (slide, turn, s) = match kept_skid {
+                Some([k, t]) => (k, t, score([sigma, k, t, 0.0])?),
+                None => most_likely_skid(
+                    |slide, turn| score([sigma, slide, turn, 0.0]),
+                    problem.places.base_horizontal().is_empty(),
+                    problem.places.base_yaw().is_none(),
+                    target,
+                )?,
+            };
         }
-    } else if tyres && !covered && s0.saturated > 0 {
-        // The tyres reject the wheels' terms; the skid's slide and turn act on the base.
-        (slide, turn, s) = match kept_skid {
-            Some([k, t]) => (k, t, score([0.0, 0.0, k, t, 0.0])?),
-            None => most_likely_skid(
-                |slide, turn| score([0.0, 0.0, slide, turn, 0.0]),
-                problem.places.base_horizontal().is_empty(),
-                problem.places.base_yaw().is_none(),
-                target,
-            )?,
-        };
     }
     let mut slip = 0.0;
     if problem.places.base_yaw().is_some() {
-        (slip, _) = most_likely_slip(|slip| score([sigma, bias, slide, turn, slip]), s)?;
+        (slip, _) = most_likely_slip(|slip| score([sigma, slide, turn, slip]), s)?;
     }
-    let terms = [sigma, bias, slide, turn, slip];
+    let terms = [sigma, slide, turn, slip];
     // What is reported is scored by a replay under the values found, not by the sum.
     let s = summary(basis.replayed(terms)?);
     let replays = basis.replays;
     write(yaml, terms);
     Ok(ProcessNoise {
         joints,
-        acceleration_noise: sigma,
-        saturation_bias: bias,
+        effort_noise: sigma,
         saturation_slip_coordinates: problem.places.base_horizontal().to_vec(),
         saturation_slip: slide,
         saturation_turn: turn,

@@ -1,6 +1,6 @@
 //! The process noise's terms scored without replaying the drives for every trial.
 //!
-//! The five terms (noise.rs) change the predicted covariance only: the predictions' states,
+//! The four terms (noise.rs) change the predicted covariance only: the predictions' states,
 //! their integration error estimates, their saturations and the floors do not depend on them,
 //! and the covariance is propagated linearly along the fixed trajectory (docs/propagation.md)
 //! with the terms' variances entering additively. So a prediction's pose covariance is
@@ -14,13 +14,13 @@ use crate::replay::{EvaluationSettings, PredictionRecord, evaluate};
 use nalgebra::{Matrix3, Vector3};
 use serde_yaml::Value;
 
-/// The terms' unit values [σ (rad/s²)/√Hz, σ_b rad/s², σ_k m/s, σ_t rad/s, σ_s rad/√s]:
-/// inside the ranges the searches try, so that Rᵢ = P(uᵢ) − P₀ keeps its digits.
-const UNITS: [f64; TERMS] = [10.0, 100.0, 0.1, 0.1, 0.01];
+/// The terms' unit values [σ_τ (N·m)/√Hz, σ_k m/s, σ_t rad/s, σ_s rad/√s]: inside the
+/// ranges the searches try, so that Rᵢ = P(uᵢ) − P₀ keeps its digits.
+const UNITS: [f64; TERMS] = [0.01, 0.1, 0.1, 0.01];
 
 /// The process noise's terms.
-pub(super) const TERMS: usize = 5;
-/// A value of each: [σ, σ_b, σ_k, σ_t, σ_s].
+pub(super) const TERMS: usize = 4;
+/// A value of each: [σ_τ, σ_k, σ_t, σ_s].
 pub(super) type Terms = [f64; TERMS];
 
 /// One prediction as the searches score it.

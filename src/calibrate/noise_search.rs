@@ -5,148 +5,24 @@ use super::{CalibrationError, Score};
 
 /// Bisection steps of log σ after the bracket: the bracket's factor 2 to 2^(1/64).
 const BISECTIONS: usize = 6;
-/// The largest and smallest σ tried [(rad/s²)/√Hz].
+/// The largest and smallest σ_τ tried [(N·m)/√Hz].
 const LARGEST: f64 = 1e4;
 const SMALLEST: f64 = 1e-4;
-/// σ_b tried [rad/s²], in order, until the predictions through a saturation are covered. A
-/// wheel's offset reaches the base only through the rolling constraints, which give most of it
-/// back to the wheel (its inertia is a few thousandths of the robot's on the wheel's axis), so
-/// the values that matter are large, less so beside a skid's slide.
-const BIAS_TRIED: [f64; 8] = [1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0, 3000.0];
-/// Bisection steps of log σ_b between the last value of [`BIAS_TRIED`] that does not cover
-/// and the first that does: their factor ≈ 3 to ≈ 1.15.
-const BIAS_BISECTIONS: usize = 3;
 /// The least and the largest skid slide tried [m/s] (0.01: 1 mm over a 0.1 s skid, below the
 /// odometry's position noise).
 const SLIDE_START: f64 = 0.01;
 const SLIDE_LARGEST: f64 = 1.0;
-/// The least and the largest skid turn tried [rad/s] on a scene with tyres (0.01: 1 mrad over
-/// a 0.1 s skid, below the odometry's yaw noise).
+/// The least and the largest skid turn tried [rad/s] (0.01: 1 mrad over a 0.1 s skid, below
+/// the odometry's yaw noise).
 const TURN_START: f64 = 0.01;
 const TURN_LARGEST: f64 = 2.0;
-/// Where σ's bracket starts [(rad/s²)/√Hz].
+/// Where σ_τ's bracket starts [(N·m)/√Hz].
 const SIGMA_START: f64 = 0.1;
 /// The least and the largest yaw slip noise tried [rad/√s] (1e-4: 0.14 mrad in 2 s, far
 /// below any odometry's yaw noise), and the factor the golden section resolves it to.
 const SLIP_START: f64 = 1e-4;
 const SLIP_LARGEST: f64 = 1.0;
 const SLIP_RESOLUTION: f64 = 1.1;
-
-/// What is known of σ_b before its search: nothing, the score without it (at this σ_k), or a
-/// σ_b that covers — covering at a smaller σ_k, it covers here: more variance lowers every
-/// NEES.
-#[derive(Clone, Copy)]
-pub(super) enum Bound {
-    None,
-    Zero(Score),
-    Covers(f64),
-}
-
-/// The smallest σ_b (to a factor ≈ 1.15) whose `score` covers `target` of the predictions
-/// through a saturation: 0 where that already holds, else the first of [`BIAS_TRIED`] that
-/// covers them — or, below a `bound` that covers, down from it by factors of 3 — bisected down
-/// from there.
-pub(super) fn smallest_bias(
-    mut score: impl FnMut(f64) -> Result<Score, CalibrationError>,
-    bound: Bound,
-    target: f64,
-) -> Result<(f64, Score), CalibrationError> {
-    let covered = |s: &Score| s.saturated_coverage_p95 >= target;
-    let (mut lo, mut bias, mut s);
-    if let Bound::Covers(b) = bound {
-        // σ_b's own score is taken only where no smaller value covers.
-        let (mut hi, mut at_hi) = (b, None);
-        lo = 0.0;
-        while hi > 0.0 {
-            let down = hi / 3.0;
-            if down < BIAS_TRIED[0] {
-                let at_zero = score(0.0)?;
-                if covered(&at_zero) {
-                    return Ok((0.0, at_zero));
-                }
-                lo = down;
-                break;
-            }
-            let at = score(down)?;
-            if !covered(&at) {
-                lo = down;
-                break;
-            }
-            (hi, at_hi) = (down, Some(at));
-        }
-        bias = hi;
-        s = match at_hi {
-            Some(at) => at,
-            None => score(hi)?,
-        };
-    } else {
-        s = match bound {
-            Bound::Zero(s) => s,
-            _ => score(0.0)?,
-        };
-        if covered(&s) {
-            return Ok((0.0, s));
-        }
-        (lo, bias) = (0.0, 0.0);
-        for b in BIAS_TRIED {
-            (bias, s) = (b, score(b)?);
-            if covered(&s) {
-                break;
-            }
-            lo = b;
-        }
-    }
-    if covered(&s) && lo > 0.0 {
-        for _ in 0..BIAS_BISECTIONS {
-            let mid = (lo * bias).sqrt();
-            let at = score(mid)?;
-            if covered(&at) {
-                (bias, s) = (mid, at);
-            } else {
-                lo = mid;
-            }
-        }
-    }
-    Ok((bias, s))
-}
-
-/// The σ_k whose pair (σ_b from `pair`, bounded by the best σ_k's σ_b where that covers
-/// `target`) has the lowest log score, `at_zero` being σ_b and its score without a slide: up
-/// from [`SLIDE_START`] by factors of 2 while the score falls. A pair that covers is preferred
-/// to one that does not, and while none does the search goes on up: where no σ_b covers the
-/// skids' errors (they lie across the path, out of the wheels' reach), the slide is what can.
-/// (σ_k, σ_b, score).
-pub(super) fn most_likely_slide(
-    mut pair: impl FnMut(f64, Bound) -> Result<(f64, Score), CalibrationError>,
-    at_zero: (f64, Score),
-    target: f64,
-) -> Result<(f64, f64, Score), CalibrationError> {
-    let covers = |s: &Score| s.saturated_coverage_p95 >= target;
-    let mut best = (0.0, at_zero.0, at_zero.1);
-    let mut k = SLIDE_START;
-    while k <= SLIDE_LARGEST {
-        // A σ_b that covers bounds the next one; where even the largest tried did not, the
-        // search starts afresh.
-        let bound = if covers(&best.2) {
-            Bound::Covers(best.1)
-        } else {
-            Bound::None
-        };
-        let (b, s) = pair(k, bound)?;
-        let better = match (covers(&s), covers(&best.2)) {
-            (true, false) => true,
-            (false, true) => false,
-            _ => s.log_score < best.2.log_score,
-        };
-        if better {
-            best = (k, b, s);
-        } else if covers(&best.2) {
-            break;
-        }
-        k *= 2.0;
-    }
-    Ok(best)
-}
 
 /// The skid's slide σ_k and turn σ_t with the lowest log score among the pairs that cover
 /// `target` of the predictions through a saturation (among all, where none does): every pair

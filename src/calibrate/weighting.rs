@@ -2,13 +2,13 @@
 //! own predicted pose covariance.
 //!
 //! Before the noise is known every prediction at a horizon weighs alike. That lets the
-//! predictions the model knows least — through a skid, where the fitted saturation bias widens
-//! their covariance many times — pull the deterministic values as hard as the rest, and the fit
-//! leans towards the skids (a shorter radius, a wider track) at the smooth driving's cost. With
-//! the covariance P = L Lᵀ the node would publish (propagated with the fitted noise, plus the
-//! reference's own), the residual L⁻¹ e makes the sum of squares the sum of the predictions'
-//! NEES: generalized least squares, the weights held through a fit and taken again from the
-//! new values and noise between fits until the values settle (`WEIGHTED_ROUNDS`).
+//! predictions the model knows least — through a skid, where the fitted skid's slide and turn
+//! widen their covariance many times — pull the deterministic values as hard as the rest, and
+//! the fit leans towards the skids (a shorter radius, a wider track) at the smooth driving's
+//! cost. With the covariance P = L Lᵀ the node would publish (propagated with the fitted noise,
+//! plus the reference's own), the residual L⁻¹ e makes the sum of squares the sum of the
+//! predictions' NEES: generalized least squares, the weights held through a fit and taken again
+//! from the new values and noise between fits until the values settle (`WEIGHTED_ROUNDS`).
 
 use super::{CalibrationError, Problem, ProcessNoise};
 use crate::replay::{EvaluationSettings, evaluate};
@@ -24,9 +24,14 @@ pub(super) fn whitening(
     yaml: &Value,
     noise: &ProcessNoise,
 ) -> Result<Option<Vec<Matrix3<f64>>>, CalibrationError> {
-    if noise.acceleration_noise == 0.0
-        && noise.saturation_bias == 0.0
-        && noise.saturation_slip == 0.0
+    if [
+        noise.effort_noise,
+        noise.saturation_slip,
+        noise.saturation_turn,
+        noise.slip_noise,
+    ]
+    .iter()
+    .all(|&s| s == 0.0)
     {
         return Ok(None);
     }

@@ -4,8 +4,7 @@
 use super::ReplayError;
 use super::record::{EvaluationSettings, PredictionRecord, score, to_nanos};
 use super::series::{Nanos, Odometry, Recording, show_stamp};
-use super::start::StartAssembler;
-use super::start::StartState;
+use super::start::{StartAssembler, StartState};
 use crate::actuators::{Actuators, Command};
 use crate::predict::{
     CovarianceSamples, IntegrationOverrides, PredictionRequest, Predictor, Sample, Trajectory,

@@ -303,8 +303,9 @@ fn noise_terms_add_their_shares_independently() {
     let scene = Scene::load(repo_dir().join("params/suite_mobile_manipulator.yaml")).unwrap();
     // (field, coordinate, σ)
     let terms = [
-        ("acceleration_noise", "left_wheel_joint", 0.3),
-        ("saturation_bias", "right_wheel_joint", 30.0),
+        ("effort_noise", "left_wheel_joint", 0.05),
+        ("acceleration_noise", "right_wheel_joint", 30.0),
+        ("saturation_bias", "right_wheel_joint", 3000.0),
         ("saturation_slip", "root_joint:vx_local", 0.05),
         ("saturation_slip", "root_joint:wz", 0.2),
         ("slip_noise", "root_joint:wz", 0.01),
@@ -318,6 +319,7 @@ fn noise_terms_add_their_shares_independently() {
         for &i in which {
             let (field, coordinate, sigma) = terms[i];
             let map = match field {
+                "effort_noise" => &mut u.effort_noise,
                 "acceleration_noise" => &mut u.acceleration_noise,
                 "saturation_bias" => &mut u.saturation_bias,
                 "saturation_slip" => &mut u.saturation_slip,
@@ -338,10 +340,14 @@ fn noise_terms_add_their_shares_independently() {
     };
     let (none, saturated_s) = covariance(&[]);
     assert!(saturated_s > 0.0, "never saturated");
-    let (all, _) = covariance(&[0, 1, 2, 3, 4]);
+    let (all, _) = covariance(&[0, 1, 2, 3, 4, 5]);
     let mut sum = none.clone();
     for (i, term) in terms.iter().enumerate() {
         let (alone, _) = covariance(&[i]);
+        println!(
+            "{term:?}: {:.2e} of P",
+            (&alone - &none).norm() / none.norm()
+        );
         assert!((&alone - &none).norm() > 1e-3 * none.norm(), "{term:?}");
         sum += alone - &none;
     }

@@ -28,6 +28,7 @@ mod constraint_forces;
 mod constraint_kinds;
 mod covariance;
 mod covariance_bricard;
+mod covariance_constrained_noise;
 mod covariance_noise;
 mod covariance_sensitivity;
 mod covariance_worker;

@@ -76,19 +76,20 @@ def main():
     pn = cal.get("process_noise")
     if pn:
         joints = ", ".join(pn["joints"])
-        lines.append(f"| process noise on {joints} [(rad/s²)/√Hz] | 0 | "
-                     f"{pn['acceleration_noise']:.3g} | — | coverage p95 "
+        lines.append(f"| effort noise on {joints} [(N·m)/√Hz] | 0 | "
+                     f"{pn['effort_noise']:.3g} | — | coverage p95 "
                      f"{pn['unsaturated_coverage_p95']:.2f} of the predictions through no "
                      "saturation (at the fit horizon where it is least) |")
-        lines.append(f"| saturation bias on {joints} [rad/s²] | 0 | "
-                     f"{pn['saturation_bias']:.3g} | — | coverage p95 "
-                     f"{pn['saturated_coverage_p95']:.2f} of the "
-                     f"{pn['saturated_predictions']} predictions through a saturation (the "
-                     "same), with the slide below |")
         if pn.get("saturation_slip_coordinates"):
             lines.append(f"| skid slide on {', '.join(pn['saturation_slip_coordinates'])} "
                          f"[m/s] | 0 | {pn['saturation_slip']:.3g} | — | the most likely with "
-                         "its saturation bias |")
+                         "the turn below |")
+        if pn.get("slip_coordinate"):
+            lines.append(f"| skid turn on {pn['slip_coordinate']} [rad/s] | 0 | "
+                         f"{pn['saturation_turn']:.3g} | — | with the slide, coverage p95 "
+                         f"{pn['saturated_coverage_p95']:.2f} of the "
+                         f"{pn['saturated_predictions']} predictions through a saturation (the "
+                         "same) |")
         if pn.get("slip_coordinate"):
             lines.append(f"| slip noise on {pn['slip_coordinate']} [rad/√s] | 0 | "
                          f"{pn['slip_noise']:.3g} | — | the most likely beside them: log score "

@@ -86,9 +86,9 @@ def main():
             fitted = (f"r {values['rolling_radius']:.5f} m, track {1e3 * values['track_offset']:+.1f}"
                       f" mm + {1e3 * values['track_turn_gain']:.2f} mm/(rad/s)² · ω², sideways "
                       f"creep {1e3 * values['lateral_creep']:.2f} (mm/s)/N, traction "
-                      f"{values['traction_torque']:.2f} N·m; σ "
-                      f"{pn['acceleration_noise']:.3g}, σ_b {pn['saturation_bias']:.3g}, "
-                      f"σ_k {pn['saturation_slip']:.2g}, σ_s {pn['slip_noise']:.2g}")
+                      f"{values['traction_torque']:.2f} N·m; σ_τ "
+                      f"{pn['effort_noise']:.3g}, σ_k {pn['saturation_slip']:.2g}, "
+                      f"σ_t {pn['saturation_turn']:.2g}, σ_s {pn['slip_noise']:.2g}")
             groups = [("validation_smooth", [os.path.join(LOGS, "validation_smooth.mcap")]),
                       ("validation_steps", [os.path.join(LOGS, "validation_steps")]),
                       (f"{len(smooth)} fresh smoothed", smooth),

@@ -127,8 +127,8 @@ impl SceneParameters {
         }
     }
 
-    /// Writes `uncertainty.<field>: σ` (`acceleration_noise` [(rad/s²)/√Hz] or
-    /// `saturation_bias` [rad/s²]) for every wheel joint, keeping the scene's other entries.
+    /// Writes `uncertainty.<field>: σ` (`effort_noise` [(N·m)/√Hz]) for every wheel joint,
+    /// keeping the scene's other entries.
     pub fn set_wheel_noise(&self, scene: &mut Value, field: &str, sigma: f64) {
         set_noise(scene, field, &self.wheel_joints, sigma);
     }

@@ -17,8 +17,9 @@
 //! (the floor, the load on the wheel as the robot pitches): an acceleration offset `c_j` of
 //! variance σ_b², the same through the prediction, acts on the joint's velocity coordinate
 //! whenever its controller is saturated. Over a chunk of length h it enters through
-//! `h w`, w = e + (A − I) e / 2 (e = e_{nv+j}: the transition over the chunk taken linear in
-//! time, as for the white noise, mod.rs). A constant, unlike white noise, moves the velocity in
+//! `h w`, w = u + (A − I) u / 2 with u = T e (e = e_{nv+j} brought onto the constraints by T of
+//! the running P's last projection; the transition over the chunk taken linear in time, as for
+//! the white noise, mod.rs). A constant, unlike white noise, moves the velocity in
 //! proportion to the time spent saturated, not to its square root: a long skid moves it more
 //! than a short one in the ratio of their lengths.
 //!
@@ -140,6 +141,7 @@ impl ConstantInputs {
         &mut self,
         a: &DMatrix<f64>,
         b: &DMatrix<f64>,
+        t: &DMatrix<f64>,
         h: f64,
         feedback: &[Feedback],
     ) {
@@ -155,9 +157,11 @@ impl ConstantInputs {
                 }
                 Constant::GripBias { iv, feedback: i } => {
                     let on = feedback.get(i).is_some_and(|f| f.saturated);
-                    set_entry(&mut self.b_tilde, c, a, nv + iv, h, on);
+                    set_entry(&mut self.b_tilde, c, (a, t), nv + iv, h, on);
                 }
-                Constant::SkidSlide { iv } => set_entry(&mut self.b_tilde, c, a, iv, h, skidding),
+                Constant::SkidSlide { iv } => {
+                    set_entry(&mut self.b_tilde, c, (a, t), iv, h, skidding)
+                }
             }
         }
         self.y.gemm(1.0, a, &self.p_xc, 0.0);
@@ -190,11 +194,20 @@ impl ConstantInputs {
 }
 
 /// B̃'s column `c` for a constant entering at state index `e` over a chunk of length h, when it
-/// acts (`on`): h w = h (A e + e) / 2; else 0.
-fn set_entry(b_tilde: &mut DMatrix<f64>, c: usize, a: &DMatrix<f64>, e: usize, h: f64, on: bool) {
+/// acts (`on`): h w = h (A u + u) / 2 with u = T e, the entry on the constraints (T at the
+/// running P's last projection); else 0.
+fn set_entry(
+    b_tilde: &mut DMatrix<f64>,
+    c: usize,
+    (a, t): (&DMatrix<f64>, &DMatrix<f64>),
+    e: usize,
+    h: f64,
+    on: bool,
+) {
+    let u = t.column(e);
     for r in 0..a.nrows() {
         b_tilde[(r, c)] = if on {
-            0.5 * h * (a[(r, e)] + if r == e { 1.0 } else { 0.0 })
+            0.5 * h * ((0..u.len()).map(|k| a[(r, k)] * u[k]).sum::<f64>() + u[r])
         } else {
             0.0
         };

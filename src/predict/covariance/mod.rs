@@ -19,9 +19,11 @@
 //! - Q_h: white acceleration noise of density σ_i per velocity coordinate (`uncertainty:` in the
 //!   scene, [(m/s²)/√Hz] or [(rad/s²)/√Hz], as robot_localization's continuous process noise)
 //!   integrated exactly over the step as for a double integrator:
-//!   `σ_i² [h³/3, h²/2; h²/2, h]` on (δq_i, δv_i); and slip noise of density σ_s,i on the
-//!   coordinate's position (`uncertainty.slip_noise`, [m/√s] or [rad/√s]), a random walk
-//!   `σ_s,i² h` on δq_i outside the dynamics, carried by the same integral;
+//!   `σ_i² [h³/3, h²/2; h²/2, h]` on (δq_i, δv_i); white effort noise of density σ_τ,i, a
+//!   generalized force on the coordinate (`uncertainty.effort_noise`, [(N·m)/√Hz] or [N/√Hz]);
+//!   and slip noise of density σ_s,i on the coordinate's position (`uncertainty.slip_noise`,
+//!   [m/√s] or [rad/√s]), a random walk `σ_s,i² h` on δq_i outside the dynamics, carried by the
+//!   same integral. Each enters on the constraints (covariance/noise.rs);
 //! - T keeps P on the tangent space of the constraint manifold {φ_h(q) = 0, J(q) v = 0}:
 //!   `T = [[T_q, 0], [−G N T_q, 1 − G J]]` with `G = M⁻¹Jᵀ (J M⁻¹ Jᵀ)⁻¹` (all rows: the
 //!   mass-weighted projection that constraint impulses would make), T_q the same projection
@@ -36,6 +38,7 @@
 mod chunks;
 mod constants;
 pub(in crate::predict) mod linearize;
+mod noise;
 mod reading;
 mod substeps;
 pub(in crate::predict) mod worker;
@@ -47,83 +50,24 @@ use crate::forces::ForceElements;
 use crate::linalg::{
     cholesky_in_place, cholesky_solve, gemm_into, semidefinite_cholesky, semidefinite_solve,
 };
-use crate::model::Model;
 use crate::predict::covariance::chunks::{ChunkControl, StepRecord};
 use crate::predict::covariance::constants::ConstantInputs;
 use crate::predict::covariance::linearize::Linearization;
+use crate::predict::covariance::noise::NoiseTerms;
 use crate::predict::covariance::reading::Reading;
 use crate::predict::covariance::substeps::Substeps;
 use crate::system::System;
 use nalgebra::DMatrix;
-use serde::Deserialize;
-use std::collections::BTreeMap;
-
-/// `uncertainty:` in a scene.
-#[derive(Clone, Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct UncertaintySpec {
-    /// Acceleration noise density σ per velocity coordinate name [(m/s²)/√Hz or (rad/s²)/√Hz]
-    /// (default: none, 0).
-    #[serde(default)]
-    pub acceleration_noise: BTreeMap<String, f64>,
-    /// Standard deviation σ_b [rad/s² or m/s²] of an acceleration offset on a
-    /// velocity-controlled joint while its controller is saturated, the same through a
-    /// prediction: how fast the grip lets the joint follow its command, known only roughly
-    /// (covariance/constants.rs; default: none).
-    #[serde(default)]
-    pub saturation_bias: BTreeMap<String, f64>,
-    /// Slip noise density σ_s per velocity coordinate name [m/√s or rad/√s] (default: none):
-    /// a white rate added to the coordinate's position outside its dynamics and the rolling
-    /// constraints, so that it drifts as a random walk, var = σ_s² t — the slip a rolling
-    /// contact does not express (a wide tyre's residual scrub), as robot_localization's
-    /// process noise on the pose.
-    #[serde(default)]
-    pub slip_noise: BTreeMap<String, f64>,
-    /// Standard deviation σ_k [m/s or rad/s] of a rate on the coordinate's position while a
-    /// velocity controller is saturated, the same through a prediction: how fast the robot
-    /// slides while its wheels skid, which a tyre model knows only roughly
-    /// (covariance/constants.rs; default: none).
-    #[serde(default)]
-    pub saturation_slip: BTreeMap<String, f64>,
-}
-
-/// σ² per velocity coordinate of `uncertainty.<field>` (0 where it names none); a name the
-/// model does not have, or a σ that is negative or not finite, is an error naming it.
-pub(crate) fn noise_variances(
-    model: &Model,
-    field: &str,
-    sigmas: &BTreeMap<String, f64>,
-) -> Result<Vec<f64>> {
-    let mut out = vec![0.0; model.nv];
-    for (name, &sigma) in sigmas {
-        let i = (model.v_index(name))
-            .map_err(|e| Error::Invalid(format!("uncertainty.{field}: {e}")))?;
-        if !(sigma.is_finite() && sigma >= 0.0) {
-            return Err(Error::Invalid(format!(
-                "uncertainty.{field}.{name} = {sigma}: must be finite and ≥ 0"
-            )));
-        }
-        out[i] = sigma * sigma;
-    }
-    Ok(out)
-}
+pub use noise::UncertaintySpec;
+pub(crate) use noise::noise_variances;
 
 /// Propagates a covariance along a prediction (buffers sized once; a step allocates nothing).
 #[derive(Clone, Debug)]
 pub struct CovariancePropagator {
     /// The current covariance, 2nv × 2nv, order [δq; δv] in the velocity order.
     pub p: DMatrix<f64>,
-    /// σ_i² per velocity coordinate.
-    noise: Vec<f64>,
-    /// σ_s,i² per velocity coordinate (the slip noise on its position).
-    slip: Vec<f64>,
-    /// σ_b² per velocity coordinate.
-    saturation_bias: Vec<f64>,
-    /// σ_k² per velocity coordinate (the skid's rate on its position).
-    saturation_slip: Vec<f64>,
-    /// (A − I) e: how noise entering at state index e (a velocity's, or a slipping
-    /// position's) moves the state over a chunk.
-    noise_response: Vec<f64>,
+    /// The process noise's terms and where they enter (covariance/noise.rs).
+    noise: NoiseTerms,
     pub(in crate::predict) lin: Linearization,
     /// The prediction's steps not yet in `p`, and how they are cut into chunks
     /// (covariance/chunks.rs).
@@ -261,10 +205,7 @@ impl CovariancePropagator {
         let (model, nv) = (sys.model(), sys.model().nv);
         Ok(Self {
             p: DMatrix::zeros(2 * nv, 2 * nv),
-            noise: noise_variances(model, "acceleration_noise", &spec.acceleration_noise)?,
-            saturation_bias: noise_variances(model, "saturation_bias", &spec.saturation_bias)?,
-            saturation_slip: noise_variances(model, "saturation_slip", &spec.saturation_slip)?,
-            slip: noise_variances(model, "slip_noise", &spec.slip_noise)?,
+            noise: NoiseTerms::new(model, spec)?,
             lin: {
                 let mut lin = Linearization::new(sys)
                     .with_joint_springs(forces.joint_spring_dampers())
@@ -282,7 +223,6 @@ impl CovariancePropagator {
             minv: DMatrix::zeros(nv, nv),
             chol: DMatrix::zeros(nv, nv),
             col: vec![0.0; nv],
-            noise_response: vec![0.0; 2 * nv],
             n_jv: DMatrix::zeros(sys.constraints().nrows, nv),
             n_tq: DMatrix::zeros(sys.constraints().nrows, nv),
             jv_at_q: vec![0.0; sys.constraints().nrows],
@@ -311,7 +251,12 @@ impl CovariancePropagator {
         c.reset(p0)?;
         c.project(sys, t, q, v)?;
         c.start_reading((t, q, v));
-        c.constants = ConstantInputs::start(&c.p, feedback, &c.saturation_bias, &c.saturation_slip);
+        c.constants = ConstantInputs::start(
+            &c.p,
+            feedback,
+            &c.noise.saturation_bias,
+            &c.noise.saturation_slip,
+        );
         c.lin.inputs = c
             .constants
             .as_ref()
@@ -354,7 +299,8 @@ impl CovariancePropagator {
     /// `feedback` (and the constant inputs: covariance/constants.rs).
     ///
     /// Q_h = ∫₀ʰ Φ(u) Q_c Φ(u)ᵀ du for white acceleration noise Q_c = σ² e eᵀ on velocity
-    /// coordinate i (e = e_{nv+i}), with the transition over the time u left taken linear in u,
+    /// coordinate i (e = T e_{nv+i}, the entry on the constraints; T [0; M⁻¹ e_i] for effort
+    /// noise), with the transition over the time u left taken linear in u,
     /// Φ(u) ≈ I + (u/h)(A − I): Q_h = h σ² (w wᵀ + d dᵀ/12), d = (A − I) e, w = e + d/2. Exact
     /// for a free double integrator (σ² [h³/3, h²/2; h²/2, h]); on a joint a controller holds
     /// at rate a, within a relative (ah)²/6 of the exact variance (the free integrator's Q_h
@@ -363,55 +309,43 @@ impl CovariancePropagator {
     /// a position perturbation moves the state linearly in time (a yaw slip on a straight
     /// drive, tests/it/covariance_noise.rs).
     pub(in crate::predict) fn apply_linearization(&mut self, h: f64, feedback: &[Feedback]) {
-        let nv = self.noise.len();
         if let Some(o) = self.constants.as_mut() {
-            o.step(&self.lin.a, &self.lin.b, h, feedback);
+            o.step(
+                &self.lin.a,
+                &self.lin.b,
+                &self.noise.entry_proj,
+                h,
+                feedback,
+            );
         }
         congruence(&mut self.p, &self.lin.a, &mut self.tmp);
         if let Some(o) = self.constants.as_mut() {
             o.add_cross_terms(&mut self.p);
         }
-        // Acceleration noise enters at δv_i, slip noise at δq_i: the same integral.
-        let white = (self.noise.iter().enumerate()).map(|(i, &s2)| (nv + i, s2));
-        let slip = self.slip.iter().copied().enumerate();
-        for (e, s2) in white.chain(slip).filter(|&(_, s2)| s2 > 0.0) {
-            let d = &mut self.noise_response;
-            for (r, dr) in d.iter_mut().enumerate() {
-                *dr = self.lin.a[(r, e)] - if r == e { 1.0 } else { 0.0 };
-            }
-            let w = |r: usize| d[r] / 2.0 + if r == e { 1.0 } else { 0.0 };
-            for c in 0..2 * nv {
-                let (wc, dc) = (w(c), d[c]);
-                if wc == 0.0 && dc == 0.0 {
-                    continue;
-                }
-                for r in 0..2 * nv {
-                    self.p[(r, c)] += h * s2 * (w(r) * wc + d[r] * dc / 12.0);
-                }
-            }
-        }
+        self.noise.add_white(&mut self.p, &self.lin.a, h);
     }
 
     /// Keep P on the constraints at (t, q, v): `P ← T P Tᵀ` (module doc).
     pub fn project(&mut self, sys: &mut System, t: f64, q: &[f64], v: &[f64]) -> Result<()> {
-        if !self.projector(sys, t, q, v)? {
-            return Ok(());
+        let constrained = self.projector(sys, t, q, v)?;
+        if constrained {
+            congruence(&mut self.p, &self.proj, &mut self.tmp);
+            if let Some(o) = self.constants.as_mut() {
+                o.project(&self.proj);
+            }
+            symmetrize(&mut self.p);
         }
-        congruence(&mut self.p, &self.proj, &mut self.tmp);
-        if let Some(o) = self.constants.as_mut() {
-            o.project(&self.proj);
+        if self.noise.effort_enters() && !constrained {
+            sys.evaluate_rows(t, q, v);
+            self.inverse_mass(sys)?;
         }
-        symmetrize(&mut self.p);
+        self.noise.enter_at(constrained, &self.proj, &self.minv);
         Ok(())
     }
 
-    /// T at (t, q, v) into `proj` (module doc); false without constraints (T = I).
-    fn projector(&mut self, sys: &mut System, t: f64, q: &[f64], v: &[f64]) -> Result<bool> {
-        let nv = v.len();
-        if sys.constraints().is_empty() {
-            return Ok(false);
-        }
-        self.velocity_row_variation(sys, t, q, v);
+    /// M⁻¹ at the configuration of the last `evaluate_rows` into `minv`.
+    fn inverse_mass(&mut self, sys: &mut System) -> Result<()> {
+        let nv = self.minv.nrows();
         let m = sys.mass_matrix_after_rows();
         self.chol.view_mut((0, 0), (nv, nv)).copy_from(m);
         cholesky_in_place(&mut self.chol, nv, 1e-14).map_err(|i| Error::SingularMass {
@@ -428,6 +362,17 @@ impl CovariancePropagator {
                 self.minv[(r, c)] = self.col[r];
             }
         }
+        Ok(())
+    }
+
+    /// T at (t, q, v) into `proj` (module doc); false without constraints (T = I).
+    fn projector(&mut self, sys: &mut System, t: f64, q: &[f64], v: &[f64]) -> Result<bool> {
+        let nv = v.len();
+        if sys.constraints().is_empty() {
+            return Ok(false);
+        }
+        self.velocity_row_variation(sys, t, q, v);
+        self.inverse_mass(sys)?;
         self.proj.as_mut_slice().fill(0.0);
         for i in 0..2 * nv {
             self.proj[(i, i)] = 1.0;

@@ -1,15 +1,11 @@
 //! Where P is brought onto the constraints, and what a sample reads.
 //!
-//! The linearized steps keep P on the constraints only to their accuracy, and a noise term that
-//! enters at one coordinate (a wheel's grip bias or acceleration noise) leaves it off them until
-//! P is projected ([`CovariancePropagator::project`]). So how often the running P is projected
-//! changes it: projected at every read, a prediction read at 0.5 s and at 1 s would give another
-//! 1 s covariance than one read at 1 s alone (on the calibrated mobile manipulator through a
-//! skid, a yaw variance 15 times larger), and a node would publish another covariance when its
-//! monitor reads the intermediate horizons. The running P is therefore projected at a cadence
-//! of its own — every [`PROJECTION_STEPS`] recorded steps from the start — and a read takes a
-//! projected copy: P at a time is the same whichever other times are read
-//! (tests/it/live_prediction.rs).
+//! The linearized steps keep P on the constraints only to their accuracy (the noise terms
+//! enter on them: mod.rs), so how often the running P is projected could change it, and a
+//! node would publish another covariance when its monitor reads the intermediate horizons. The
+//! running P is therefore projected at a cadence of its own — every [`PROJECTION_STEPS`]
+//! recorded steps from the start — and a read takes a projected copy: P at a time is the same
+//! whichever other times are read (tests/it/live_prediction.rs).
 
 use super::CovariancePropagator;
 use super::chunks::{CHUNK_CAPACITY, StepRecord};
