@@ -41,12 +41,6 @@ const KP: f64 = 10.0;
 
 /// The coupled carriages with carriage 1's effort limit [N] and `uncertainty: {terms}`.
 fn carriages(effort: f64, terms: &str) -> Scene {
-    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let k = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let dir = std::env::temp_dir().join(format!("cd_carriages_{}_{k}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let urdf = URDF.replace("EFFORT", &effort.to_string());
-    std::fs::write(dir.join("carriages.urdf"), urdf).unwrap();
     let yaml = format!(
         "urdf: carriages.urdf\nbase: fixed\ngravity: [0.0, 0.0, -9.81]\n\
          constraints:\n  - {{ kind: coupling, name: tie, joint_i: s1, joint_j: s2, a: 1.0, b: -1.0, c: 0.0 }}\n\
@@ -54,10 +48,8 @@ fn carriages(effort: f64, terms: &str) -> Scene {
          integration:\n  method: rk4\n  dt: 0.001\n\
          uncertainty: {{ {terms} }}\n"
     );
-    std::fs::write(dir.join("carriages.yaml"), yaml).unwrap();
-    let scene = Scene::load(dir.join("carriages.yaml")).unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
-    scene
+    let urdf = URDF.replace("EFFORT", &effort.to_string());
+    scene_with_urdf("carriages", &urdf, &yaml)
 }
 
 /// (t [s], P over [δq₁, δq₂, δv₁, δv₂]) at every sample after the start of a 1 s prediction

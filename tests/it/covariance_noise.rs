@@ -48,21 +48,13 @@ fn slider(hold: &str) -> Scene {
 
 /// The slider with `uncertainty: {terms}`.
 fn slider_with(hold: &str, terms: &str) -> Scene {
-    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let k = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let dir = std::env::temp_dir().join(format!("cd_slider_{}_{k}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("slider.urdf"), URDF).unwrap();
     let yaml = format!(
         "urdf: slider.urdf\nbase: fixed\ngravity: [0.0, 0.0, -9.81]\n\
          actuators:\n  hold: {hold}\n  velocity:\n    - {{ joint: slider, kp: {KP}, ki: 0.0 }}\n\
          integration:\n  method: rk4\n  dt: 0.001\n\
          uncertainty: {{ {terms} }}\n"
     );
-    std::fs::write(dir.join("slider.yaml"), yaml).unwrap();
-    let scene = Scene::load(dir.join("slider.yaml")).unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
-    scene
+    scene_with_urdf("slider", URDF, &yaml)
 }
 
 /// (t [s], [[P_qq, P_qv], [P_vq, P_vv]]) at a sample.

@@ -297,6 +297,22 @@ pub fn scene_from(urdf: &str, base: &str, constraints: &str) -> Result<System, E
     System::from_scene(&scene_from_yaml(&yaml)?)
 }
 
+/// A scene from its URDF and YAML text (`urdf: NAME.urdf`), both written to a directory of its
+/// own under the system's temporary directory and read back as a scene file is, the directory
+/// removed again.
+pub fn scene_with_urdf(name: &str, urdf: &str, yaml: &str) -> Scene {
+    // One directory per call: the tests run in parallel threads of one process.
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let k = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("cd_{name}_{}_{k}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a temporary directory");
+    std::fs::write(dir.join(format!("{name}.urdf")), urdf).expect("the URDF written");
+    std::fs::write(dir.join(format!("{name}.yaml")), yaml).expect("the scene written");
+    let scene = Scene::load(dir.join(format!("{name}.yaml")));
+    let _ = std::fs::remove_dir_all(&dir);
+    scene.unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
 /// A scene from YAML text (its paths absolute), loaded through a temporary file of its own.
 pub fn scene_from_yaml(yaml: &str) -> Result<Scene, Error> {
     // One file per call: the tests run in parallel threads of one process.
