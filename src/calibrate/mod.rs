@@ -52,11 +52,11 @@ pub struct CalibrationSettings {
     pub fit: Vec<FitParameter>,
     /// The replay: horizons, start period, the node's covariance settings.
     pub replay: EvaluationSettings,
-    /// Also fit the process noise (`uncertainty:`: the wheels' acceleration noise and
-    /// saturation bias, the base yaw's slip noise; noise.rs).
+    /// Also fit the process noise (`uncertainty:`: the wheels' effort noise, the skid's slide
+    /// and turn on the base, the base yaw's slip noise; noise.rs).
     pub fit_process_noise: bool,
-    /// The coverage of the 95 % region the wheels' two terms are sized to (the slip noise is
-    /// the most likely value beside them).
+    /// The coverage of the 95 % region the wheels' effort noise and the skid's terms are sized
+    /// to (the slip noise is the most likely value beside them).
     pub target_coverage_p95: f64,
     /// Levenberg–Marquardt's budget: at most this many times (parameters + 1) replays.
     pub max_iterations: usize,

@@ -92,9 +92,8 @@ struct Score {
 }
 
 /// Fits the process noise for the scene `yaml` (the fitted one) and writes it in; the skid's
-/// slide and turn [σ_k, σ_t] searched for, or kept at `kept_skid` where given: in the weighted
-/// rounds, searched again on their factor-2 ladders, they and the weights they set chase each
-/// other to a worse fit (docs/logs.md).
+/// slide and turn [σ_k, σ_t] searched for, or kept at `kept_skid` where given: the weighted
+/// rounds keep them, so that the weights they set do not move them in turn (docs/logs.md).
 pub(super) fn fit(
     problem: &Problem,
     yaml: &mut Value,

@@ -390,7 +390,7 @@ impl SceneParameters {
     }
 
     /// True when a tyre carries a wheel in place of a rolling contact (`forces.tyres`): its grip
-    /// and the wheel's controller then reject acceleration noise on the wheels. A sideways tyre
+    /// and the wheel's controller then reject noise on the wheels. A sideways tyre
     /// beside a rolling contact does not.
     pub fn tyres_carry_wheels(&self) -> bool {
         self.tyres_carry_wheels
