@@ -204,12 +204,12 @@ fn set_entry(
     h: f64,
     on: bool,
 ) {
-    let u = t.column(e);
-    for r in 0..a.nrows() {
-        b_tilde[(r, c)] = if on {
-            0.5 * h * ((0..u.len()).map(|k| a[(r, k)] * u[k]).sum::<f64>() + u[r])
-        } else {
-            0.0
-        };
+    let mut column = b_tilde.column_mut(c);
+    if on {
+        let u = t.column(e);
+        column.gemv(0.5 * h, a, &u, 0.0);
+        column.axpy(0.5 * h, &u, 1.0);
+    } else {
+        column.fill(0.0);
     }
 }

@@ -9,7 +9,7 @@
 
 use crate::error::{Error, Result};
 use crate::model::Model;
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVectorViewMut};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 
@@ -171,8 +171,10 @@ enum Entry {
 /// Noise entering at state index e: `u = T e` (T's column e: the entry brought onto the
 /// constraints) and `d = (A − I) u` (how the chunk's transition A moves it).
 fn entry_response(a: &DMatrix<f64>, t: &DMatrix<f64>, e: usize, u: &mut [f64], d: &mut [f64]) {
-    u.copy_from_slice(t.column(e).as_slice());
-    for (r, dr) in d.iter_mut().enumerate() {
-        *dr = (0..u.len()).map(|k| a[(r, k)] * u[k]).sum::<f64>() - u[r];
-    }
+    let column = t.column(e);
+    u.copy_from_slice(column.as_slice());
+    let n = d.len();
+    let mut d = DVectorViewMut::from_slice(d, n);
+    d.gemv(1.0, a, &column, 0.0);
+    d -= column;
 }
