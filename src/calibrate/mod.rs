@@ -332,9 +332,10 @@ struct Values {
     replays: usize,
 }
 
-/// Fits `fitted` from `from` (their scaled offsets; else from [`start`]); a parameter the
-/// recordings do not determine goes back to the scene's value and the others are fitted again
-/// without it. Leaves `problem.fitted` at the parameters kept.
+/// Fits `fitted` from `from` (their scaled offsets; else from [`start`]); while the
+/// recordings leave a parameter undetermined, the least determined one goes back to the scene's
+/// value and the others are fitted again without it. Leaves `problem.fitted` at the parameters
+/// kept.
 fn fit_values(
     problem: &mut Problem,
     model: &crate::Model,
@@ -388,9 +389,23 @@ fn fit_values(
         replays += fit.evaluations.get();
         let spread = least_squares::spread(&j, &r, &problem.starts, problem.lags());
         let std_errors = spread.std_errors();
-        let keep: Vec<bool> = (0..fitted.len())
-            .map(|k| std_errors[k].is_some_and(|s| x[k].abs() >= 2.0 * s))
-            .collect();
+        // The weakest parameter goes back to the scene's value alone, and the others are
+        // fitted again: parameters that trade against each other (a mass against a traction
+        // torque) are each poorly determined while together they are not, and dropping every
+        // weak one at once would drop the pair.
+        let significance = |k: usize| {
+            std_errors[k].map_or(0.0, |s| {
+                if s > 0.0 {
+                    x[k].abs() / s
+                } else {
+                    f64::INFINITY
+                }
+            })
+        };
+        let weakest = (0..fitted.len())
+            .min_by(|&a, &b| significance(a).total_cmp(&significance(b)))
+            .filter(|&k| significance(k) < 2.0);
+        let keep: Vec<bool> = (0..fitted.len()).map(|k| Some(k) != weakest).collect();
         if keep.iter().all(|&k| k) {
             let n = fitted.len();
             let correlations = (0..n)

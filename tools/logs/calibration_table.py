@@ -4,7 +4,7 @@ writes docs/logs.md's before/after table (between its `calibration:begin` / `cal
 markers): `evaluate` against the simulator's true pose on every bundled drive, with the scene as
 it is and as calibrated, and the fitted values.
 
-    python3 tools/logs/calibration_table.py
+    python3 tools/logs/calibration_table.py [--print]
 """
 import json
 import os
@@ -14,7 +14,7 @@ import tempfile
 import textwrap
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-from doc_block import write_block  # noqa: E402
+from doc_block import block_args, emit_block  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 DOC = os.path.join(ROOT, "docs", "logs.md")
@@ -45,6 +45,7 @@ def cell(h):
 
 
 def main():
+    args = block_args(__doc__)
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "calibrated.yaml")
         cal = cli("calibrate", "--scene", SCENE, "--bag", os.path.join(LOGS, DRIVES[0]),
@@ -108,7 +109,7 @@ def main():
               "| drive | scene | 0.25 s | 0.5 s | 1 s | 2 s | coverage p95 [interval] at 1 s / 2 s | "
               "mean NEES at 1 s / 2 s |",
               "|---|---|---|---|---|---|---|---|", *rows, ""]
-    write_block(DOC, BEGIN, END, "\n".join(lines))
+    emit_block(args.print, DOC, BEGIN, END, "\n".join(lines))
 
 if __name__ == "__main__":
     main()

@@ -21,7 +21,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.dirname(HERE))
 import make_logs as ml  # noqa: E402
-from doc_block import write_block  # noqa: E402
+from doc_block import block_args, emit_block  # noqa: E402
 
 DOC = os.path.join(ml.REPO, "docs", "logs.md")
 BEGIN = "<!-- contact_probe:begin -->"
@@ -75,6 +75,7 @@ def probe(drive):
 
 
 def main():
+    args = block_args(__doc__)
     lines = ["<!-- written by .venv-logs/bin/python tools/logs/contact_probe.py: do not edit -->",
              "",
              "| drive | a wheel off the floor [% of the drive, left / right] | both wheels off "
@@ -82,10 +83,7 @@ def main():
              "|---|---|---|---|---|"]
     for d in ml.DRIVES:
         lines.append(f"| {d.name} | " + " | ".join(probe(d)) + " |")
-    if "--print" in sys.argv[1:]:
-        print("\n".join(lines))
-    else:
-        write_block(DOC, BEGIN, END, "\n".join(lines))
+    emit_block(args.print, DOC, BEGIN, END, "\n".join(lines))
 
 
 if __name__ == "__main__":

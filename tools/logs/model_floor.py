@@ -36,7 +36,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.dirname(HERE))
 import make_logs as ml  # noqa: E402
-from doc_block import write_block  # noqa: E402
+from doc_block import block_args, emit_block  # noqa: E402
 from step_spread import STEPS_SEEDS, fresh_drive, span  # noqa: E402
 
 DOC = os.path.join(ml.REPO, "docs", "logs.md")
@@ -151,6 +151,7 @@ def run_drive(drive):
 
 
 def main():
+    args = block_args(__doc__)
     lines = ["<!-- written by .venv-logs/bin/python tools/logs/model_floor.py: do not edit -->",
              "",
              "| drive | start | " + " | ".join(f"{h:g} s" for h in HORIZONS_S) + " |",
@@ -175,10 +176,7 @@ def main():
                 cells.append(f"{col[0]} / {col[1]} mm, {col[2]} / {col[3]} mrad")
             lines.append(f"| {name} | {label[variant]} | " + " | ".join(cells) + " |")
         print("\n".join(lines[-len(VARIANTS):]), file=sys.stderr)
-    if "--print" in sys.argv[1:]:
-        print("\n".join(lines))
-    else:
-        write_block(DOC, BEGIN, END, "\n".join(lines))
+    emit_block(args.print, DOC, BEGIN, END, "\n".join(lines))
 
 
 if __name__ == "__main__":

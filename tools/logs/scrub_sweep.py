@@ -25,7 +25,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.dirname(HERE))
 import make_logs as ml  # noqa: E402
-from doc_block import write_block  # noqa: E402
+from doc_block import block_args, emit_block  # noqa: E402
 
 DOC = os.path.join(ml.REPO, "docs", "contacts.md")
 BEGIN = "<!-- scrub_sweep:begin -->"
@@ -55,6 +55,7 @@ def steady(v, w):
 
 
 def main():
+    args = block_args(__doc__)
     (v, _, left, right, _), mass = steady(0.4, 0.0)
     r_eff = v / ((left + right) / 2)
     rows = []
@@ -79,10 +80,7 @@ def main():
         "|---|---|---|---|",
         *rows,
     ])
-    if "--print" in sys.argv:
-        print(body)
-    else:
-        write_block(DOC, BEGIN, END, body)
+    emit_block(args.print, DOC, BEGIN, END, body)
 
 
 if __name__ == "__main__":

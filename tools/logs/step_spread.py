@@ -22,7 +22,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.dirname(HERE))
 import make_logs as ml  # noqa: E402
-from doc_block import write_block  # noqa: E402
+from doc_block import block_args, emit_block  # noqa: E402
 
 DOC = os.path.join(ml.REPO, "docs", "logs.md")
 BEGIN = "<!-- step_spread:begin -->"
@@ -69,6 +69,7 @@ def span(values, fmt):
 
 
 def main():
+    args = block_args(__doc__)
     with tempfile.TemporaryDirectory() as tmp:
         calibrations = [
             ("calibration.mcap (60 s: smoothed, steps, steps)",
@@ -111,10 +112,7 @@ def main():
              "2 s: the same | coverage p95 at 1 s / 2 s | mean NEES at 1 s / 2 s |",
              "|---|---|---|---|---|---|---|", *rows]
     body = "\n".join(lines)
-    if "--print" in sys.argv:
-        print(body)
-    else:
-        write_block(DOC, BEGIN, END, body)
+    emit_block(args.print, DOC, BEGIN, END, body)
 
 
 if __name__ == "__main__":

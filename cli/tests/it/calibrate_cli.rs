@@ -264,6 +264,65 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A drive that cannot determine a parameter leaves it at the scene's value, says so and gives
+/// its standard error, while the others are still fitted. On the smooth drive (accelerations
+/// within 1 m/s², wheel-speed control) the chassis's extra 1.4 kg and a constant track offset do
+/// not show; the radius and the tyres' sideways creep do, the creep in the range the simulator's
+/// own steady arcs give (tools/logs/scrub_sweep.py). The parameters go back one at a time: with
+/// the mass and the offset sent back together with the creep after the first fit, the creep
+/// would be lost as well.
+#[test]
+fn a_smooth_drive_leaves_the_mass_at_the_scene_value() {
+    let dir = std::env::temp_dir().join(format!("cd_calibrate_smooth_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let root = repo_dir();
+    let path = |p: &str| root.join(p).display().to_string();
+    let (ok, out, err) = run(
+        &dir,
+        &[
+            "calibrate",
+            "--scene",
+            &path("params/suite_mobile_manipulator.yaml"),
+            "--bag",
+            &path("tests/data/logs/validation_smooth.mcap"),
+            "--no-process-noise",
+            "--out",
+            "smooth.yaml",
+        ],
+    );
+    assert!(ok, "{err}");
+    let param = |name: &str| {
+        (out["parameters"].as_array().unwrap().iter())
+            .find(|p| p["name"] == name)
+            .unwrap_or_else(|| panic!("{name} not in {out}"))
+            .clone()
+    };
+    for name in ["base_mass", "track_offset"] {
+        let p = param(name);
+        assert_eq!(p["determined"], false, "{p}");
+        assert_eq!(p["value"], p["scene_value"], "{p}");
+        assert!(p["std_error"].as_f64().is_some_and(|s| s > 0.0), "{p}");
+    }
+    // The mass's standard error dwarfs the 1.4 kg the simulator adds.
+    assert!(param("base_mass")["std_error"].as_f64().unwrap() > 1.4);
+    let written = std::fs::read_to_string(dir.join("smooth.yaml")).unwrap();
+    assert!(!written.contains("payload:"), "{written}");
+    let r = param("rolling_radius");
+    assert_eq!(r["determined"], true, "{r}");
+    assert!(
+        (0.04875..=0.0495).contains(&r["value"].as_f64().unwrap()),
+        "{r}"
+    );
+    let creep = param("lateral_creep");
+    assert_eq!(creep["determined"], true, "{creep}");
+    let se = creep["std_error"].as_f64().unwrap();
+    assert!(
+        (1.68e-3 - se..=2.46e-3 + se).contains(&creep["value"].as_f64().unwrap()),
+        "{creep}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn a_fit_the_scene_cannot_take_is_an_error_naming_it() {
     let dir = std::env::temp_dir();
