@@ -12,6 +12,36 @@ fn run(dir: &std::path::Path, args: &[&str]) -> (bool, Value, String) {
     crate::run_cli(Some(dir), args)
 }
 
+/// The entry of `calibrate`'s output for the parameter `name`.
+fn parameter(out: &Value, name: &str) -> Value {
+    (out["parameters"].as_array().unwrap().iter())
+        .find(|p| p["name"] == name)
+        .unwrap_or_else(|| panic!("{name} not in {out}"))
+        .clone()
+}
+
+/// The simulated tyres roll 1.5 % short of the URDF's 5 cm; under load they also creep, so
+/// the effective radius lies between 1 and 2.5 % short.
+fn assert_radius_as_simulated(r: &Value) {
+    assert_eq!(r["determined"], true, "{r}");
+    assert!(
+        (0.04875..=0.0495).contains(&r["value"].as_f64().unwrap()),
+        "{r}"
+    );
+}
+
+/// The turn's centripetal force comes from the tyres creeping outward: in the simulator's
+/// steady arcs at 0.3 m/s, 1.68 to 2.46 (mm/s) per newton on each wheel (scrub_sweep.py); the
+/// fitted creep lies within one standard error of that range.
+fn assert_creep_as_simulated(creep: &Value) {
+    assert_eq!(creep["determined"], true, "{creep}");
+    let se = creep["std_error"].as_f64().unwrap();
+    assert!(
+        (1.68e-3 - se..=2.46e-3 + se).contains(&creep["value"].as_f64().unwrap()),
+        "{creep}"
+    );
+}
+
 /// The figures of one horizon.
 struct Figures {
     horizon_s: f64,
@@ -79,17 +109,9 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
         ],
     );
     assert!(ok, "{err}");
-    let param = |name: &str| {
-        (out["parameters"].as_array().unwrap().iter())
-            .find(|p| p["name"] == name)
-            .unwrap_or_else(|| panic!("{name} not in {out}"))
-            .clone()
-    };
-    // The simulated tyres roll 1.5 % short of the URDF's 5 cm; under load they also creep, so
-    // the effective radius lies between 1 and 2.5 % short.
+    let param = |name: &str| parameter(&out, name);
     let r = param("rolling_radius");
-    let radius = r["value"].as_f64().unwrap();
-    assert!((0.04875..=0.0495).contains(&radius), "{r}");
+    assert_radius_as_simulated(&r);
     assert!(r["std_error"].as_f64().unwrap() < 2e-4, "{r}");
     // Wide tyres scrub in turns: the robot turns as if its track were wider, the more the
     // faster it turns. In the simulator's steady turns from 1 to 2 rad/s the track is 0.6 to
@@ -103,16 +125,7 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
         (0.0006..=0.0014).contains(&widening),
         "{widening} m at 1 rad/s: {out}"
     );
-    // The turn's centripetal force comes from the tyres creeping outward: in the simulator's
-    // steady arcs at 0.3 m/s, 1.68 to 2.46 (mm/s) per newton on each wheel (scrub_sweep.py);
-    // the fit lands within one standard error of that range.
-    let creep = param("lateral_creep");
-    assert_eq!(creep["determined"], true, "{creep}");
-    let se = creep["std_error"].as_f64().unwrap();
-    assert!(
-        (1.68e-3 - se..=2.46e-3 + se).contains(&creep["value"].as_f64().unwrap()),
-        "{creep}"
-    );
+    assert_creep_as_simulated(&param("lateral_creep"));
     // The drive's second half steps the commands up to the tyres' grip, so the wheel torque at
     // which they skid is determined. The simulated tyres (μ 0.8) carry each at most its static
     // 62 N: the torque cannot exceed μ N r = 0.8 · 62 N · 0.04925 m = 2.44 N·m, and weight moves
@@ -291,12 +304,7 @@ fn a_smooth_drive_leaves_the_mass_at_the_scene_value() {
         ],
     );
     assert!(ok, "{err}");
-    let param = |name: &str| {
-        (out["parameters"].as_array().unwrap().iter())
-            .find(|p| p["name"] == name)
-            .unwrap_or_else(|| panic!("{name} not in {out}"))
-            .clone()
-    };
+    let param = |name: &str| parameter(&out, name);
     for name in ["base_mass", "track_offset"] {
         let p = param(name);
         assert_eq!(p["determined"], false, "{p}");
@@ -307,19 +315,8 @@ fn a_smooth_drive_leaves_the_mass_at_the_scene_value() {
     assert!(param("base_mass")["std_error"].as_f64().unwrap() > 1.4);
     let written = std::fs::read_to_string(dir.join("smooth.yaml")).unwrap();
     assert!(!written.contains("payload:"), "{written}");
-    let r = param("rolling_radius");
-    assert_eq!(r["determined"], true, "{r}");
-    assert!(
-        (0.04875..=0.0495).contains(&r["value"].as_f64().unwrap()),
-        "{r}"
-    );
-    let creep = param("lateral_creep");
-    assert_eq!(creep["determined"], true, "{creep}");
-    let se = creep["std_error"].as_f64().unwrap();
-    assert!(
-        (1.68e-3 - se..=2.46e-3 + se).contains(&creep["value"].as_f64().unwrap()),
-        "{creep}"
-    );
+    assert_radius_as_simulated(&param("rolling_radius"));
+    assert_creep_as_simulated(&param("lateral_creep"));
     std::fs::remove_dir_all(&dir).ok();
 }
 
