@@ -15,6 +15,12 @@
 //! and effort error [N·m or N] (measured − predicted). [`verdict`] turns these into a verdict
 //! with hysteresis (the poses and the efforts; the joint positions are reported).
 //!
+//! Apart from the predictions, the monitor keeps the median over the last `slip_window`
+//! measured start states of how far each lay off the velocity constraints before its projection
+//! (‖J v‖: for rolling wheels, their surface speed against the base's measured motion). It
+//! needs no prediction and no held command: on a slippery floor the wheels spin and slide while
+//! the robot accelerates, the moments whose predictions a changing command leaves unscored.
+//!
 //! Everything is allocated at construction: recording a prediction and scoring a measurement
 //! allocate nothing.
 
@@ -37,6 +43,8 @@ pub struct MonitorSettings {
     /// The latest a measurement may arrive after a predicted sample's time and still be its
     /// measurement [s].
     pub max_lag: f64,
+    /// Measured start states the slip statistic's median is over (≥ 1).
+    pub slip_window: usize,
     /// When the verdict calls the model off.
     pub thresholds: Thresholds,
 }
@@ -164,12 +172,23 @@ pub struct HorizonReport {
     pub command_changed: usize,
 }
 
+/// The measured start states' velocity residual off the constraints.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlipReport {
+    /// Measured states in the window.
+    pub samples: usize,
+    /// Their median ‖J v‖ before the projection [m/s or rad/s] (NaN before any).
+    pub residual_median: f64,
+}
+
 /// Scores past predictions (see the module's documentation).
 #[derive(Clone, Debug)]
 pub struct PredictionMonitor {
     settings: MonitorSettings,
     joints: usize,
     tracks: Vec<Track>,
+    /// The measured start states' velocity residuals.
+    slip: Window,
     scratch: Vec<f64>,
     reports: Vec<HorizonReport>,
     verdict: verdict::Hysteresis,
@@ -203,8 +222,10 @@ impl PredictionMonitor {
             })
             .collect();
         let reports = Vec::with_capacity(settings.horizons.len());
+        let slip_window = settings.slip_window.max(1);
         PredictionMonitor {
-            scratch: vec![0.0; window],
+            slip: Window::new(slip_window),
+            scratch: vec![0.0; window.max(slip_window)],
             verdict: verdict::Hysteresis::default(),
             settings,
             joints,
@@ -230,6 +251,7 @@ impl PredictionMonitor {
             tr.unmatched = 0;
             tr.command_changed = 0;
         }
+        self.slip.clear();
         self.verdict = verdict::Hysteresis::default();
     }
 
@@ -368,6 +390,22 @@ impl PredictionMonitor {
         }
     }
 
+    /// A measured start state lay `velocity_residual` ‖J v‖ [m/s or rad/s] off the velocity
+    /// constraints before its projection (a non-finite one is not taken).
+    pub fn measured_state(&mut self, velocity_residual: f64) {
+        if velocity_residual.is_finite() {
+            self.slip.push(velocity_residual);
+        }
+    }
+
+    /// The measured states' velocity residual, computed now.
+    pub fn slip_report(&mut self) -> SlipReport {
+        SlipReport {
+            samples: self.slip.len(),
+            residual_median: self.slip.median(&mut self.scratch),
+        }
+    }
+
     /// Each horizon's figures, computed now (no allocation after the first call).
     pub fn reports(&mut self) -> &[HorizonReport] {
         self.reports.clear();
@@ -401,12 +439,15 @@ impl PredictionMonitor {
     }
 
     /// The verdict on the latest figures, with hysteresis: a cause is called once its figure
-    /// passes its threshold over at least `min_samples` samples, and cleared once it falls
-    /// below `clear_ratio` × the threshold. Returns it and whether it changed.
+    /// passes its threshold over at least `min_samples` samples (the slip: over a full
+    /// `slip_window`), and cleared once it falls below `clear_ratio` × the threshold. Returns
+    /// it and whether it changed.
     pub fn assess(&mut self) -> (Verdict, bool) {
         self.reports();
+        let slip = (self.slip.len() >= self.settings.slip_window.max(1))
+            .then(|| self.slip_report().residual_median);
         let t = &self.settings.thresholds;
-        self.verdict.update(&self.reports, t)
+        self.verdict.update(&self.reports, slip, t)
     }
 }
 

@@ -13,10 +13,12 @@ fn settings() -> MonitorSettings {
         window: WINDOW,
         pending: 16,
         max_lag: 0.05,
+        slip_window: 20,
         thresholds: Thresholds {
             min_samples: 20,
             nees: 9.0,
             effort: 2.0,
+            slip: 0.05,
             clear_ratio: 0.5,
         },
     }
@@ -354,6 +356,49 @@ fn the_verdict_names_the_floor_or_wheels_when_the_poses_are_off() {
         v.iter().any(|(_, v)| matches!(v, Some(Cause::Both { .. }))),
         "both off: Both"
     );
+}
+
+/// The measured states' velocity residual alone calls the wheels slipping: residuals of
+/// |N(0.02, 0.01)| m/s (a 50 Hz odometry's twist noise against the wheels' speeds), then from
+/// 30 s 0.15 m/s on every other state (wheels spinning in the ramps of a drive on a slippery
+/// floor), then the noise again from 60 s. The median of the last 20 (2 s at 10 Hz) passes
+/// 0.05 m/s once more than half the window slips, and clears below half of it: one onset, one
+/// clearing; nothing before the window fills.
+#[test]
+fn the_verdict_names_a_slippery_floor_when_the_wheels_slip() {
+    let mut m = PredictionMonitor::new(settings(), 2);
+    let mut rng = Rng(7);
+    let (mut changes, mut called) = (0, Vec::new());
+    for k in 0..900 {
+        let t = k as f64 * 0.1;
+        let slipping = (30.0..60.0).contains(&t) && k % 2 == 0;
+        let residual = match slipping {
+            true => 0.15,
+            false => (0.02 + 0.01 * rng.normal()).abs(),
+        };
+        m.measured_state(residual);
+        let (v, changed) = m.assess();
+        changes += changed as usize;
+        if k < 19 {
+            assert!(v.is_none(), "called before the window filled, at {t} s");
+        }
+        if let Some(c) = v {
+            called.push((t, c));
+        }
+    }
+    let (first, v) = called[0];
+    assert!((30.0..32.0).contains(&first), "first called at {first}");
+    assert!(
+        matches!(v, Cause::Slip { residual } if residual > 0.05),
+        "{v:?}"
+    );
+    assert!(v.describe(&|j| j.to_string()).contains("slippery floor"));
+    let (last, _) = called.last().unwrap();
+    assert!((60.0..62.0).contains(last), "last called at {last}");
+    assert_eq!(changes, 2, "one onset and one clearing");
+    let r = m.slip_report();
+    assert_eq!(r.samples, 20);
+    assert!((0.01..0.035).contains(&r.residual_median), "{r:?}");
 }
 
 #[test]

@@ -1,7 +1,8 @@
 //! The monitor's verdict: whether the model still matches what arrives, and if not, the likely
 //! cause — the efforts off while the odometry matches (a load the model does not have: a
 //! payload added without telling the node), the poses off beyond their covariance (the base
-//! does not move as modelled: a slippery floor, wrong wheel radius or track), or both.
+//! does not move as modelled: a slippery floor, wrong wheel radius or track), or both; and the
+//! measured states off the velocity constraints (the wheels slip on the floor).
 
 use super::HorizonReport;
 
@@ -15,6 +16,9 @@ pub struct Thresholds {
     pub nees: f64,
     /// The |median signed effort error| of a joint above which its efforts are off [N·m or N].
     pub effort: f64,
+    /// The measured states' median velocity residual off the constraints above which the
+    /// wheels are called slipping [m/s or rad/s].
+    pub slip: f64,
     /// A called cause clears once its figure falls below this fraction of its threshold (in
     /// (0, 1]).
     pub clear_ratio: f64,
@@ -44,6 +48,13 @@ pub enum Cause {
         yaw: f64,
         /// Median NEES.
         nees: f64,
+    },
+    /// The measured states lie off the velocity constraints by a median ‖J v‖ of `residual`
+    /// [m/s or rad/s]: the wheels turn faster or slower than the base moves over the floor.
+    /// Called before the poses, which it explains, unless the efforts are off too.
+    Slip {
+        /// [m/s or rad/s]
+        residual: f64,
     },
     /// Both: the joint whose efforts are most off and its median error, the horizon whose
     /// poses are most off and its median NEES.
@@ -83,6 +94,11 @@ impl Cause {
                 position * 1e3,
                 yaw * 1e3
             ),
+            Cause::Slip { residual } => format!(
+                "the wheels' speeds are off the base's measured motion (the measured states' \
+                 median velocity residual off the constraints {residual:.3} m/s): the wheels \
+                 slip, a slippery floor?"
+            ),
             Cause::Both {
                 joint,
                 error,
@@ -106,11 +122,19 @@ pub type Verdict = Option<Cause>;
 pub(super) struct Hysteresis {
     poses: bool,
     efforts: bool,
+    slip: bool,
 }
 
 impl Hysteresis {
-    /// The verdict on `reports` under `t`, and whether it changed what is called.
-    pub(super) fn update(&mut self, reports: &[HorizonReport], t: &Thresholds) -> (Verdict, bool) {
+    /// The verdict on `reports` and the slip statistic (`slip`: the measured states' median
+    /// velocity residual, None before its window is full) under `t`, and whether it changed
+    /// what is called.
+    pub(super) fn update(
+        &mut self,
+        reports: &[HorizonReport],
+        slip: Option<f64>,
+        t: &Thresholds,
+    ) -> (Verdict, bool) {
         let enough = |n: usize| n >= t.min_samples.max(1);
         let clear = t.clear_ratio;
         // The horizon whose poses are most off, and the joint whose efforts are most off.
@@ -123,7 +147,7 @@ impl Hysteresis {
             .filter(|r| enough(r.effort_samples))
             .filter_map(|r| r.effort_worst.map(|(j, e)| (r.horizon, j, e)))
             .max_by(|a, b| a.2.abs().total_cmp(&b.2.abs()));
-        let before = (self.poses, self.efforts);
+        let before = (self.poses, self.efforts, self.slip);
         let nees = poses.map_or(0.0, |r| r.nees_median);
         self.poses = match self.poses {
             false => nees > t.nees,
@@ -134,7 +158,12 @@ impl Hysteresis {
             false => error > t.effort,
             true => error >= clear * t.effort,
         };
-        let changed = before != (self.poses, self.efforts);
+        let residual = slip.filter(|r| r.is_finite()).unwrap_or(0.0);
+        self.slip = match self.slip {
+            false => residual > t.slip,
+            true => residual >= clear * t.slip,
+        };
+        let changed = before != (self.poses, self.efforts, self.slip);
         let verdict = match (poses, efforts, self.poses, self.efforts) {
             (Some(p), Some((_, joint, error)), true, true) => Some(Cause::Both {
                 joint,
@@ -142,6 +171,7 @@ impl Hysteresis {
                 horizon: p.horizon,
                 nees: p.nees_median,
             }),
+            _ if self.slip => Some(Cause::Slip { residual }),
             (Some(p), _, true, _) => Some(Cause::Poses {
                 horizon: p.horizon,
                 position: p.position_median,

@@ -13,7 +13,7 @@ drive a smoothed phase and then a phase of steps. One shorter drive carries a pa
 tool that the scene is not told of (payload_3kg.mcap: 3 kg at tool0, robot_mjcf.py), its arm
 held with the tool above the wheel axle (shoulder pitch −0.1, elbow −0.15 rad), where it loads
 the shoulder without tipping the robot off its wheels (at rest ~61 N on each wheel, ~34 N on
-the caster). Topics:
+the caster). Another runs on a slippery floor (slippery_floor.mcap: the tyres' μ 0.1). Topics:
 
     /cmd_vel            geometry_msgs/Twist (TwistStamped in validation_steps), 20 Hz
     /odom               nav_msgs/Odometry, 50 Hz: the true base pose and twist plus white noise
@@ -36,7 +36,7 @@ import yaml
 from mcap_ros2.writer import Writer
 
 import msgdefs
-from robot_mjcf import ARM_JOINTS, mjcf
+from robot_mjcf import ARM_JOINTS, TYRE_MU, mjcf
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.normpath(os.path.join(HERE, "..", ".."))
@@ -69,6 +69,7 @@ class Drive:
     bag_directory: bool
     payload_kg: float = 0.0
     arm_pose: dict = None  # {joint: rad} the arm's PD holds instead of the scene's initial pose
+    tyre_mu: float = TYRE_MU  # the tyres' grip on the floor (robot_mjcf.py)
 
     @property
     def duration_s(self):
@@ -89,6 +90,11 @@ DRIVES = [
           bag_directory=False, payload_kg=3.0,
           arm_pose={"arm_shoulder_yaw": 0.0, "arm_shoulder_pitch": -0.1, "arm_elbow": -0.15,
                     "arm_wrist": 0.0}),
+    # A slippery floor (wet or dusty polish: the tyres' μ 0.1 where the scene's rolling
+    # contacts hold whatever it takes): the smoothed drive's 1 m/s² and its turns need more
+    # grip than the floor gives, so the wheels spin and the base lags and slides.
+    Drive("slippery_floor", seed=55, phases=(("smoothed", 10.0),), stamped=False,
+          bag_directory=False, tyre_mu=0.1),
 ]
 
 
@@ -150,9 +156,9 @@ def smooth(prev, target, dt):
 class Robot:
     """The MuJoCo model and its controllers, ticked at the control period."""
 
-    def __init__(self, scene_path, urdf_path, payload_kg=0.0, arm_pose=None):
+    def __init__(self, scene_path, urdf_path, payload_kg=0.0, arm_pose=None, tyre_mu=TYRE_MU):
         xml, self.effort, self.wheel_radius, self.base_height = mjcf(
-            urdf_path, CONTROL_PERIOD_S / SIM_SUBSTEPS, payload_kg)
+            urdf_path, CONTROL_PERIOD_S / SIM_SUBSTEPS, payload_kg, tyre_mu)
         self.m = mujoco.MjModel.from_xml_string(xml)
         self.d = mujoco.MjData(self.m)
         (self.r, self.b, self.kp, self.ki), self.pd, self.arm_q0 = read_scene_controllers(scene_path)
@@ -242,7 +248,7 @@ def drive_ticks(drive, scene_path, urdf_path):
     robot runs the last one). The noise and the plan come from one generator seeded by the drive."""
     rng = np.random.default_rng(drive.seed)
     plan = command_plan(rng, drive.phases)
-    robot = Robot(scene_path, urdf_path, drive.payload_kg, drive.arm_pose)
+    robot = Robot(scene_path, urdf_path, drive.payload_kg, drive.arm_pose, drive.tyre_mu)
     for _ in range(int(SETTLE_S / CONTROL_PERIOD_S)):
         robot.tick((0.0, 0.0))
     cmd = (0.0, 0.0)

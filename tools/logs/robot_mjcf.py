@@ -97,8 +97,9 @@ def _inertial(link, factor=1.0):
             f'diaginertia="{_vec([x * factor for x in link["inertia"]])}"/>')
 
 
-def mjcf(urdf_path, timestep, payload_kg=0.0):
-    """The MJCF text of the robot on a floor (with `payload_kg` on tool0), the effort limits
+def mjcf(urdf_path, timestep, payload_kg=0.0, tyre_mu=TYRE_MU):
+    """The MJCF text of the robot on a floor (with `payload_kg` on tool0, and its tyres gripping
+    with Coulomb friction `tyre_mu`: a slippery floor below TYRE_MU), the effort limits
     {joint: N·m}, the worn wheels' radius [m] and base_link's height above base_footprint [m]."""
     u = Urdf(urdf_path)
     _, base_joint = u.joint_to("base_link")
@@ -123,7 +124,7 @@ def mjcf(urdf_path, timestep, payload_kg=0.0):
                         f'damping="{j["damping"]:.12g}"/>')
             body.append(f'<geom name="{j["child"]}_tyre" type="cylinder" '
                         f'size="{wheel_r:.12g} {0.25 * TYRE_WIDTH_M:.12g}" euler="1.5707963267948966 0 0" '
-                        f'condim="6" priority="1" friction="{TYRE_MU} {TYRE_TORSIONAL_M} {TYRE_ROLLING_M}" mass="0"/>')
+                        f'condim="6" priority="1" friction="{tyre_mu} {TYRE_TORSIONAL_M} {TYRE_ROLLING_M}" mass="0"/>')
             body.append("</body>")
         elif j["type"] == "fixed" and j["child"] == "caster_link":
             r = float(child["visual"].find("geometry/sphere").get("radius"))

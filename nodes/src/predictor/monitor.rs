@@ -6,12 +6,13 @@
 //! falls within. Every tick the figures go out on
 //! `~/prediction_residuals` (`diagnostic_msgs/DiagnosticArray`, one status per horizon), the
 //! verdict into the node's `/diagnostics` status, and a WARN naming the likely cause once per
-//! onset (an INFO when it clears).
+//! onset (an INFO when it clears). Each tick's measured start state also tells how far it lay
+//! off the velocity constraints ([`OnlineMonitor::measured_state`]): the slip statistic.
 
 use constraint_dynamics::model::Model;
 use constraint_dynamics::monitor::{
-    HorizonReport, MeasuredOdometry, PlanarCovariance, PredictedSample, PredictionMonitor, Verdict,
-    yaw_difference,
+    HorizonReport, MeasuredOdometry, PlanarCovariance, PredictedSample, PredictionMonitor,
+    SlipReport, Verdict, yaw_difference,
 };
 use constraint_dynamics::predict::Trajectory;
 
@@ -232,6 +233,12 @@ impl OnlineMonitor {
         (self.core).joint_states(t, &self.measured_position, &self.measured_effort);
     }
 
+    /// The tick's measured start state lay `velocity_residual` ‖J v‖ [m/s or rad/s] off the
+    /// velocity constraints before its projection.
+    pub fn measured_state(&mut self, velocity_residual: f64) {
+        self.core.measured_state(velocity_residual);
+    }
+
     /// A command (v [m/s], ω [rad/s]) arrived at `now`: one off the last by more than the
     /// tolerance changes what the pending predictions assumed.
     pub fn command(&mut self, now: Time, command: [f64; 2]) {
@@ -270,12 +277,15 @@ impl OnlineMonitor {
         }
         let warning = self.warning();
         let names = self.names.clone();
+        let slip = self.core.slip_report();
         let reports = self.core.reports();
         let status = reports
             .iter()
-            .map(|r| status(r, &warning, &names))
+            .map(|r| status(r, &slip, &warning, &names))
             .collect();
-        self.values = reports.last().map_or(Vec::new(), |r| values(r, &names));
+        self.values = reports
+            .last()
+            .map_or(Vec::new(), |r| values(r, &slip, &names));
         DiagnosticArray {
             header: Header {
                 stamp: now,
@@ -292,7 +302,12 @@ impl OnlineMonitor {
 }
 
 /// One horizon's status on `~/prediction_residuals`.
-fn status(r: &HorizonReport, warning: &Option<String>, names: &[String]) -> DiagnosticStatus {
+fn status(
+    r: &HorizonReport,
+    slip: &SlipReport,
+    warning: &Option<String>,
+    names: &[String],
+) -> DiagnosticStatus {
     let (level, message) = match warning {
         Some(w) => (DiagnosticStatus::WARN, w.clone()),
         None => (DiagnosticStatus::OK, "predictions match".to_string()),
@@ -302,11 +317,11 @@ fn status(r: &HorizonReport, warning: &Option<String>, names: &[String]) -> Diag
         name: format!("prediction at {} s", r.horizon),
         message,
         hardware_id: String::new(),
-        values: values(r, names),
+        values: values(r, slip, names),
     }
 }
 
-fn values(r: &HorizonReport, names: &[String]) -> Vec<KeyValue> {
+fn values(r: &HorizonReport, slip: &SlipReport, names: &[String]) -> Vec<KeyValue> {
     let h = r.horizon;
     let worst = |w: Option<(usize, f64)>, digits: usize| match w {
         Some((j, e)) => (
@@ -343,6 +358,11 @@ fn values(r: &HorizonReport, names: &[String]) -> Vec<KeyValue> {
         kv(
             "command changed (not scored)",
             &r.command_changed.to_string(),
+        ),
+        kv("measured states (slip)", &slip.samples.to_string()),
+        kv(
+            "measured state velocity residual median [m/s or rad/s]",
+            &format!("{:.3e}", slip.residual_median),
         ),
     ]
 }

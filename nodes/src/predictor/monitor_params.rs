@@ -32,6 +32,13 @@ pub struct MonitorParams {
     pub nees_threshold: f64,
     /// |Median effort error| of a joint above which its efforts are called off [N·m or N] (> 0).
     pub effort_threshold: f64,
+    /// Measured start states (one per tick) whose velocity residual off the constraints the
+    /// slip statistic takes the median of ([1, 10000]).
+    pub slip_window: u32,
+    /// The measured states' median velocity residual off the constraints (‖J v‖ before the
+    /// projection: a rolling wheel's surface speed against the base's measured motion) above
+    /// which the wheels are called slipping [m/s or rad/s] (> 0).
+    pub slip_threshold: f64,
     /// A called cause clears below this fraction of its threshold (in (0, 1]).
     pub clear_ratio: f64,
     /// A command whose v [m/s] or ω [rad/s] moves off the last by more than this changes what
@@ -53,6 +60,8 @@ impl Default for MonitorParams {
             max_lag: 0.1,
             nees_threshold: 9.0,
             effort_threshold: 2.0,
+            slip_window: 10,
+            slip_threshold: 0.06,
             clear_ratio: 0.5,
             command_tolerance: vec![0.005, 0.01],
             motion_error: vec![0.02, 0.05],
@@ -86,6 +95,13 @@ impl MonitorParams {
         positive("monitor.max_lag", self.max_lag)?;
         positive("monitor.nees_threshold", self.nees_threshold)?;
         positive("monitor.effort_threshold", self.effort_threshold)?;
+        if !(1..=MAX_WINDOW).contains(&self.slip_window) {
+            return Err(ParamsError::invalid(
+                "monitor.slip_window",
+                format!("= {} must be in [1, {MAX_WINDOW}]", self.slip_window),
+            ));
+        }
+        positive("monitor.slip_threshold", self.slip_threshold)?;
         let pair = |name: &str, x: &[f64], what: &str| match x.len() == 2
             && x.iter().all(|x| x.is_finite() && *x >= 0.0)
         {
@@ -134,10 +150,12 @@ impl MonitorParams {
             // Every prediction pending until its measurement, with room for a late one.
             pending: ((longest + self.max_lag) * rate).ceil().clamp(1.0, 1e5) as usize + 2,
             max_lag: self.max_lag,
+            slip_window: self.slip_window as usize,
             thresholds: Thresholds {
                 min_samples: self.min_samples as usize,
                 nees: self.nees_threshold,
                 effort: self.effort_threshold,
+                slip: self.slip_threshold,
                 clear_ratio: self.clear_ratio,
             },
         }

@@ -176,7 +176,11 @@ impl PredictorNode {
             false => None,
         };
         let forward_speed = self.robot.model().base_twist(&v).linear[0];
+        let off = self.start_off_constraints.map(|o| o.velocity_residual);
         let residuals = self.monitor.as_mut().map(|m| {
+            if let Some(residual) = off {
+                m.measured_state(residual);
+            }
             let floors = &self.params.node.covariance;
             m.record(self.robot.model(), &traj, floors);
             m.tick(now, &self.log)

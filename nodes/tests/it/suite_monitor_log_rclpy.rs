@@ -18,7 +18,13 @@
 //!   (the peer's) within 0.75 N·m at 0.25 and 0.5 s, and at 1 s between 0.75 N·m below it and
 //!   1.5 N·m above (the heavier robot's lagging accelerations swing arm and payload). The
 //!   23 % heavier robot may also drive off its model's odometry: a WARN then calls both (or
-//!   the efforts first, then both, when the efforts' window fills first).
+//!   the efforts first, then both, when the efforts' window fills first);
+//! - slippery_floor.mcap (10 s, the same kind of drive on a floor the tyres grip with μ 0.1,
+//!   the scene's rolling contacts gripping whatever it takes): the wheels spin in the ramps and
+//!   the base lags and slides, while the command ramps: the predictions then are not scored,
+//!   but the measured states lie off the rolling constraints (the wheels' speeds against the
+//!   odometry's twist). A WARN naming a slippery floor (the slip statistic, or the odometry off
+//!   the predictions), and none naming the efforts alone.
 //!
 //! Needs root and the peer venv (`CD_ROS2_VENV`): `#[ignore]`d in a plain `cargo test`, run by
 //! `tools/test.sh`; a missing prerequisite fails the test.
@@ -34,7 +40,7 @@ use constraint_dynamics::replay::{EvaluationSettings, Nanos, PredictionRecord, e
 use constraint_dynamics_nodes::bag::{BagTopics, read_recording};
 use serde_json::Value;
 
-const TEST: &str = "rclpy_replayed_logs_are_scored_and_a_payload_named";
+const TEST: &str = "rclpy_replayed_logs_are_scored_and_a_payload_and_a_slippery_floor_named";
 const HORIZONS: [f64; 3] = [0.25, 0.5, 1.0];
 /// The monitor's defaults (docs/nodes.md, `monitor.*`) that define what it scores.
 const WINDOW: usize = 50;
@@ -90,16 +96,17 @@ fn number(status: &Value, key: &str) -> f64 {
     v.parse().unwrap_or(f64::NAN)
 }
 
-/// One test, the two drives one after the other: their peers publish on the same topics.
+/// One test, the drives one after the other: their peers publish on the same topics.
 #[test]
 #[ignore = "needs root and the peer venv: run by tools/test.sh"]
-fn rclpy_replayed_logs_are_scored_and_a_payload_named() {
+fn rclpy_replayed_logs_are_scored_and_a_payload_and_a_slippery_floor_named() {
     let _group = crate::common::exclusive_group(module_path!());
     if !in_namespace_or_reexec(TEST) {
         return; // the run inside the namespace passed
     }
     normal_drive();
     unannounced_payload();
+    slippery_floor();
 }
 
 fn normal_drive() {
@@ -197,6 +204,27 @@ fn unannounced_payload() {
     assert!(
         !log.contains("predictions match what arrives again"),
         "{log}"
+    );
+    assert!(suite.stop(), "the suite did not stop cleanly:\n{log}");
+}
+
+fn slippery_floor() {
+    let (report, mut suite) = replay("slippery floor", "slippery_floor.mcap", &[]);
+    assert_eq!(report["figures"]["highest level"], 1, "{report:#}");
+    let log = suite.log();
+    let warns: Vec<&str> = log.lines().filter(|l| l.contains(WARN)).collect();
+    assert!(
+        !warns.is_empty(),
+        "no monitor WARN on a slippery floor:\n{log}"
+    );
+    for w in &warns {
+        println!("{TEST}: slippery floor: achieved WARN: {w}");
+        let poses = w.contains("slippery floor") || w.contains("the odometry (NEES");
+        assert!(poses, "a WARN that does not call the odometry: {w}");
+    }
+    assert!(
+        warns.iter().any(|w| w.contains("slippery floor")),
+        "no WARN names a slippery floor:\n{log}"
     );
     assert!(suite.stop(), "the suite did not stop cleanly:\n{log}");
 }

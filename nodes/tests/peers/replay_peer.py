@@ -212,6 +212,11 @@ def main():
                                     + [[finite_or_none(v.value) for v in s.values if v.key.startswith(
                                         ("NEES median", "worst effort error"))] for s in m.status])
             FIGURES["each second: t [s], level, per horizon [NEES median, worst effort]"] = timeline
+            # The slip statistic (not per horizon: every status carries it), over the replay.
+            slip = [finite_or_none(v.value) for _, m in reports for s in m.status[:1]
+                    for v in s.values if v.key.startswith("measured state velocity residual")]
+            slip = [x for x in slip if x is not None]
+            FIGURES["slip statistic's largest median [m/s]"] = max(slip, default=None)
             FIGURES["last"] = {s.name: {"level": level(s), "message": s.message,
                                         "values": {kv.key: kv.value for kv in s.values}}
                                for s in reports[-1][1].status}

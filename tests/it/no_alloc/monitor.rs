@@ -1,5 +1,5 @@
 //! The prediction monitor allocates nothing after construction: recording predictions,
-//! scoring odometry and joint states, command changes, the reports and the verdict (the predictor calls these per
+//! scoring odometry and joint states, command changes, the measured states' slip, the reports and the verdict (the predictor calls these per
 //! message and per tick).
 
 use constraint_dynamics::monitor::{
@@ -15,10 +15,12 @@ fn recording_scoring_and_assessing_allocate_nothing() {
         window: 50,
         pending: 13,
         max_lag: 0.1,
+        slip_window: 20,
         thresholds: Thresholds {
             min_samples: 20,
             nees: 9.0,
             effort: 2.0,
+            slip: 0.05,
             clear_ratio: 0.5,
         },
     };
@@ -49,6 +51,8 @@ fn recording_scoring_and_assessing_allocate_nothing() {
                 });
                 m.joint_states(tm, &[0.0, 1.0, 2.0, 3.5], &[0.5, 1.0, f64::NAN, 6.0]);
             }
+            m.measured_state(0.02 + 1e-3 * (k % 7) as f64);
+            let _ = m.slip_report();
             if k % 20 == 0 {
                 m.command_changed(t + 0.05);
             }
