@@ -61,7 +61,7 @@ impl Default for MonitorParams {
             nees_threshold: 9.0,
             effort_threshold: 2.0,
             slip_window: 10,
-            slip_threshold: 0.06,
+            slip_threshold: 0.05,
             clear_ratio: 0.5,
             command_tolerance: vec![0.005, 0.01],
             motion_error: vec![0.02, 0.05],
