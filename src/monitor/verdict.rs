@@ -51,7 +51,8 @@ pub enum Cause {
     },
     /// The measured states lie off the velocity constraints by a median ‖J v‖ of `residual`
     /// [m/s or rad/s]: the wheels turn faster or slower than the base moves over the floor.
-    /// Called before the poses, which it explains, unless the efforts are off too.
+    /// Named before the poses, which it explains, and before the efforts alone; poses and
+    /// efforts both off are [`Cause::Both`].
     Slip {
         /// [m/s or rad/s]
         residual: f64,
