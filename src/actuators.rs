@@ -21,8 +21,11 @@ use serde::Deserialize;
 use std::collections::BTreeMap;
 
 mod continuous;
+mod lag;
 mod spec;
 mod traction;
+
+pub use lag::CommandLag;
 
 pub use spec::{
     ActuatorsSpec, DEFAULT_CONTROL_PERIOD, DiffDriveSpec, Hold, PositionControllerSpec,
@@ -60,6 +63,9 @@ struct Pi {
     /// Continuous hold: the target of the current segment (NaN: none), ∫v* dt up to the
     /// segment's start, and the joint's position at the prediction's start.
     target: f64,
+    /// Under a command lag ([`lag`]): the lagged target where the current segment (continuous
+    /// hold) or the next tick (held) starts [rad/s or m/s]; NaN: on the command itself.
+    lag_from: f64,
     target_integral: f64,
     q_start: f64,
     /// Continuous hold, anti-windup: the integral held while saturated (NaN: integrating) and
@@ -125,6 +131,8 @@ pub struct Actuators {
     /// The diff drive's traction torque T [N·m] and load transfer κ (κ > 0: the wheels'
     /// clamps are coupled, [`traction`]).
     traction: (f64, f64),
+    /// The diff drive's command lag τ [s] (0: none, [`lag`]).
+    lag_s: f64,
 }
 
 impl Actuators {
@@ -173,6 +181,7 @@ impl Actuators {
                 clamped: false,
                 name: s.joint.clone(),
                 target: f64::NAN,
+                lag_from: f64::NAN,
                 target_integral: 0.0,
                 q_start: 0.0,
                 frozen: f64::NAN,
@@ -223,6 +232,7 @@ impl Actuators {
                     clamped: false,
                     name: name.clone(),
                     target: f64::NAN,
+                    lag_from: f64::NAN,
                     target_integral: 0.0,
                     q_start: 0.0,
                     frozen: f64::NAN,
@@ -243,6 +253,14 @@ impl Actuators {
                 };
                 a.traction = (t, kappa);
             }
+            if let Some(tau) = d.command_lag {
+                if !(tau.is_finite() && tau >= 0.0) {
+                    return Err(Error::Invalid(format!(
+                        "actuators.diff_drive.command_lag = {tau}: must be finite and ≥ 0 [s]"
+                    )));
+                }
+                a.lag_s = tau;
+            }
         }
         Ok(a)
     }
@@ -255,7 +273,7 @@ impl Actuators {
     /// Reset the controllers' integral states.
     pub fn reset(&mut self) {
         self.velocity.iter_mut().for_each(|c| {
-            c.integral = 0.0;
+            (c.integral, c.lag_from) = (0.0, f64::NAN);
             (c.gain, c.clamped) = ((0.0, 0.0), false);
         });
         self.position.iter_mut().for_each(|c| c.gain = (0.0, 0.0));
@@ -270,6 +288,25 @@ impl Actuators {
             // Continuous hold: the integral is target_integral + ∫target − (q − q(0)), so the
             // start's integral is the target integral's start value.
             (c.integral, c.target_integral) = (i, i);
+        }
+    }
+
+    /// The diff drive's command lag τ [s], where the scene declares one above 0.
+    pub fn command_lag_s(&self) -> Option<f64> {
+        (self.lag_s > 0.0).then_some(self.lag_s)
+    }
+
+    /// The diff drive's lagged command (v [m/s], ω [rad/s]) at a prediction's start, where the
+    /// drive has a command lag ([`CommandLag::at`] over the commands before it); None: the
+    /// lag starts on the first command. Called after the start of the controllers' model in
+    /// time, like [`Actuators::start_integrals`].
+    pub fn start_lag(&mut self, lagged: Option<[f64; 2]>) {
+        let (Some((l, r, radius, b)), Some([lin, ang])) = (self.diff_drive, lagged) else {
+            return;
+        };
+        if self.lag_s > 0.0 {
+            self.velocity[l].lag_from = (lin - ang * b / 2.0) / radius;
+            self.velocity[r].lag_from = (lin + ang * b / 2.0) / radius;
         }
     }
 
@@ -316,7 +353,10 @@ impl Actuators {
         let continuous = self.is_continuous();
         let pi = self.velocity.iter().map(move |c| {
             let rate = match continuous && c.target.is_finite() {
-                true => c.gain.0 * c.target,
+                true => {
+                    let (target, target_rate) = self.target_at(c, self.segment_start);
+                    c.gain.0 * target + c.gain.1 * target_rate
+                }
                 false => 0.0,
             };
             let saturated = match continuous {
@@ -366,19 +406,28 @@ impl Actuators {
     /// One control tick at (q, v): update the integrators over `dt` and write the held torques.
     pub fn update(&mut self, cmd: &Command, q: &[f64], v: &[f64], dt: f64, tau: &mut [f64]) {
         tau.iter_mut().for_each(|x| *x = 0.0);
-        let drive = self.diff_drive;
+        let (drive, lag_s) = (self.diff_drive, self.lag_s);
+        // Under a lag the tick's target is the lagged one where the tick starts.
+        let held = |c: &Pi, target: f64| match lag_s > 0.0 && c.lag_from.is_finite() {
+            true => c.lag_from,
+            false => target,
+        };
         let raw_of = |k: usize, c: &Pi| {
             velocity_target(drive, cmd, k, &c.name).map(|target| {
-                let e = target - v[c.iv];
+                let e = held(c, target) - v[c.iv];
                 c.kp * e + c.ki * (c.integral + e * dt)
             })
         };
         let limits = self.wheel_limits(|k, c| raw_of(k, c).unwrap_or(0.0));
         for (k, c) in self.velocity.iter_mut().enumerate() {
-            let Some(target) = velocity_target(drive, cmd, k, &c.name) else {
+            let Some(command) = velocity_target(drive, cmd, k, &c.name) else {
                 (c.gain, c.clamped) = ((0.0, 0.0), false);
                 continue;
             };
+            let target = held(c, command);
+            if lag_s > 0.0 && is_wheel(drive, k) {
+                c.lag_from = lag::value(target, command, lag_s, dt);
+            }
             let e = target - v[c.iv];
             let raw = c.kp * e + c.ki * (c.integral + e * dt);
             let effort = traction::effort(limits, k, c.effort);
@@ -405,6 +454,12 @@ impl Actuators {
             tau[c.iv] += raw.clamp(-c.effort, c.effort);
         }
     }
+}
+
+/// Whether velocity controller `k` drives one of the diff drive's wheels (what a command lag
+/// acts on).
+fn is_wheel(drive: Option<(usize, usize, f64, f64)>, k: usize) -> bool {
+    drive.is_some_and(|(l, r, _, _)| k == l || k == r)
 }
 
 /// The target of velocity controller `k` (named `name`) under `cmd`: a base twist gives the

@@ -19,8 +19,8 @@ pub struct CalibrateArgs {
     #[arg(long, required = true)]
     bag: Vec<PathBuf>,
     /// What to fit, comma-separated: rolling_radius, track_offset, track_turn_gain, base_mass,
-    /// turning_friction, traction_torque, traction_load_transfer, tyre_slip_speed, lateral_creep
-    /// (default: every one the scene can take).
+    /// turning_friction, traction_torque, traction_load_transfer, command_lag, tyre_slip_speed,
+    /// lateral_creep (default: every one the scene can take).
     #[arg(long, value_delimiter = ',')]
     fit: Vec<String>,
     /// Do not fit the process noise (the scene's `uncertainty:` stays as it is).

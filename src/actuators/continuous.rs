@@ -1,7 +1,7 @@
 //! `hold: continuous`: the controllers' torques as a function of (t, q, v) within a command
 //! segment, and the anti-windup reviewed between steps (module doc of `actuators`).
 
-use super::{Actuators, Command, Feedback, Hold, Pi, traction, velocity_target};
+use super::{Actuators, Command, Feedback, Hold, Pi, is_wheel, lag, traction, velocity_target};
 
 impl Actuators {
     /// The torques are a function of (t, q, v) (`hold: continuous`).
@@ -14,6 +14,7 @@ impl Actuators {
         self.segment_start = 0.0;
         for c in &mut self.velocity {
             (c.target, c.target_integral, c.q_start) = (f64::NAN, 0.0, q[c.iq]);
+            c.lag_from = f64::NAN;
             (c.frozen, c.windup) = (f64::NAN, 0.0);
             c.gain = (0.0, 0.0);
         }
@@ -30,14 +31,30 @@ impl Actuators {
     /// changes the form of the right-hand side's Jacobian; a new target alone moves only its
     /// ∂q̈/∂t.
     pub fn begin_segment(&mut self, cmd: &Command, t: f64) -> bool {
-        let drive = self.diff_drive;
+        let (drive, tau) = (self.diff_drive, self.lag_s);
         let elapsed = t - self.segment_start;
         let mut changed = false;
         for (k, c) in self.velocity.iter_mut().enumerate() {
+            let lagged = tau > 0.0 && is_wheel(drive, k);
             if c.target.is_finite() {
-                c.target_integral += c.target * elapsed;
+                let (integral, now) = match lagged && c.lag_from.is_finite() {
+                    true => (
+                        lag::integral(c.lag_from, c.target, tau, elapsed),
+                        lag::value(c.lag_from, c.target, tau, elapsed),
+                    ),
+                    false => (c.target * elapsed, c.target),
+                };
+                c.target_integral += integral;
+                c.lag_from = now;
             }
             c.target = velocity_target(drive, cmd, k, &c.name).unwrap_or(f64::NAN);
+            // The lag starts where the last segment (or the start) left it, else on this
+            // command.
+            c.lag_from = match lagged && c.target.is_finite() {
+                true if c.lag_from.is_finite() => c.lag_from,
+                true => c.target,
+                false => f64::NAN,
+            };
             let gain = if c.target.is_finite() && c.frozen.is_nan() {
                 (c.ki, c.kp)
             } else {
@@ -102,10 +119,11 @@ impl Actuators {
                 continue;
             }
             let raw = self.raw(c, t, q, v);
-            // A frozen integral depends on neither q nor t.
+            let (target, target_rate) = self.target_at(c, t);
+            // A frozen integral depends on neither q nor t; a lagged target moves either way.
             let (k, rate) = match c.frozen.is_nan() {
-                true => (c.ki, c.ki * c.target),
-                false => (0.0, 0.0),
+                true => (c.ki, c.ki * target + c.kp * target_rate),
+                false => (0.0, c.kp * target_rate),
             };
             f(
                 Joint {
@@ -135,8 +153,21 @@ impl Actuators {
     /// a target.
     fn raw(&self, c: &Pi, t: f64, q: &[f64], v: &[f64]) -> f64 {
         match c.target.is_finite() {
-            true => c.kp * (c.target - v[c.iv]) + c.ki * self.integral(c, t, q),
+            true => c.kp * (self.target_at(c, t).0 - v[c.iv]) + c.ki * self.integral(c, t, q),
             false => 0.0,
+        }
+    }
+
+    /// Continuous hold: a velocity controller's target at t [rad/s or m/s] and its rate: the
+    /// command's own, or under a lag the lagged one ([`lag`]).
+    pub(super) fn target_at(&self, c: &Pi, t: f64) -> (f64, f64) {
+        match c.lag_from.is_finite() {
+            true => {
+                let s = t - self.segment_start;
+                let (from, to, tau) = (c.lag_from, c.target, self.lag_s);
+                (lag::value(from, to, tau, s), lag::rate(from, to, tau, s))
+            }
+            false => (c.target, 0.0),
         }
     }
 
@@ -152,7 +183,12 @@ impl Actuators {
 
     /// ∫v* dt − (q − q(0)) at (t, q): the integral without anti-windup [rad or m].
     fn segment_integral(&self, c: &Pi, t: f64, q: &[f64]) -> f64 {
-        c.target_integral + c.target * (t - self.segment_start) - (q[c.iq] - c.q_start)
+        let s = t - self.segment_start;
+        let target = match c.lag_from.is_finite() {
+            true => lag::integral(c.lag_from, c.target, self.lag_s, s),
+            false => c.target * s,
+        };
+        c.target_integral + target - (q[c.iq] - c.q_start)
     }
 
     /// Continuous hold, anti-windup at (t, q, v), between steps: a velocity controller beyond
@@ -169,7 +205,7 @@ impl Actuators {
             }
             let effort = traction::effort(limits, k, c.effort);
             let integral = self.integral(c, t, q);
-            let raw = c.kp * (c.target - v[c.iv]) + c.ki * integral;
+            let raw = c.kp * (self.target_at(c, t).0 - v[c.iv]) + c.ki * integral;
             let frozen = c.frozen.is_finite();
             let free = self.segment_integral(c, t, q) - c.windup;
             let c = &mut self.velocity[k];
@@ -191,7 +227,7 @@ impl Actuators {
     }
 
     /// Continuous hold: from (t, q, v, q̈) at a span's start, the shortest time [s] after which
-    /// a frozen controller's torque, moving at its rate −kp q̈ (its target and integral held),
+    /// a frozen controller's torque, moving at its rate kp (ṫarget − q̈) (its integral held),
     /// comes back inside its effort (a coupled traction limit held at the span's start's);
     /// None when none is heading back.
     pub fn saturation_exit(&self, t: f64, q: &[f64], v: &[f64], qdd: &[f64]) -> Option<f64> {
@@ -201,8 +237,9 @@ impl Actuators {
             .enumerate()
             .filter(|(_, c)| c.target.is_finite() && c.frozen.is_finite())
             .filter_map(|(k, c)| {
-                let raw = c.kp * (c.target - v[c.iv]) + c.ki * c.frozen;
-                let rate = -c.kp * qdd[c.iv];
+                let (target, target_rate) = self.target_at(c, t);
+                let raw = c.kp * (target - v[c.iv]) + c.ki * c.frozen;
+                let rate = c.kp * (target_rate - qdd[c.iv]);
                 let excess = raw.abs() - traction::effort(limits, k, c.effort);
                 let toward = -rate * raw.signum();
                 (excess > 0.0 && toward > 0.0).then(|| excess / toward)

@@ -107,4 +107,10 @@ pub struct DiffDriveSpec {
     /// a support L from the axle), while a pure turn keeps T (docs/contacts.md).
     #[serde(default)]
     pub traction_load_transfer: Option<f64>,
+    /// `command_lag:` τ [s] ≥ 0 (default none): the drive follows its commanded (v, ω) through
+    /// a first-order lag of time constant τ before the wheel controllers see it — a motor
+    /// controller's own velocity loop or a drive's smoothing the scene does not model
+    /// (docs/contacts.md).
+    #[serde(default)]
+    pub command_lag: Option<f64>,
 }

@@ -36,6 +36,10 @@ pub enum FitParameter {
     /// newton-metre of their mean torque as the base pitches onto its caster or skid. Only for
     /// a scene that declares one (its estimate, e.g. μ h/ℓ, is where the fit starts).
     TractionLoadTransfer,
+    /// The diff drive's `command_lag:` τ [s]: how late the drive follows its commands (a motor
+    /// controller's own velocity loop). Only for a scene that declares one (its estimate is
+    /// where the fit starts).
+    CommandLag,
     /// Every `forces.tyres` entry's `slip_speed_scale:` [m/s], one shared value: the slip
     /// speed below which a tyre creeps rather than skids (how soft its grip is).
     TyreSlipSpeed,
@@ -53,7 +57,7 @@ pub const LATERAL_FRICTION: f64 = 0.8;
 
 impl FitParameter {
     /// Every parameter, in the order the output lists them.
-    pub const ALL: [FitParameter; 9] = [
+    pub const ALL: [FitParameter; 10] = [
         FitParameter::RollingRadius,
         FitParameter::TrackOffset,
         FitParameter::TrackTurnGain,
@@ -61,6 +65,7 @@ impl FitParameter {
         FitParameter::TurningFriction,
         FitParameter::TractionTorque,
         FitParameter::TractionLoadTransfer,
+        FitParameter::CommandLag,
         FitParameter::TyreSlipSpeed,
         FitParameter::LateralCreep,
     ];
@@ -75,6 +80,7 @@ impl FitParameter {
             FitParameter::TurningFriction => "turning_friction",
             FitParameter::TractionTorque => "traction_torque",
             FitParameter::TractionLoadTransfer => "traction_load_transfer",
+            FitParameter::CommandLag => "command_lag",
             FitParameter::TyreSlipSpeed => "tyre_slip_speed",
             FitParameter::LateralCreep => "lateral_creep",
         }
@@ -90,6 +96,7 @@ impl FitParameter {
             FitParameter::BaseMass => "kg",
             FitParameter::TurningFriction | FitParameter::TractionLoadTransfer => "1",
             FitParameter::TractionTorque => "N·m",
+            FitParameter::CommandLag => "s",
         }
     }
 
@@ -134,6 +141,8 @@ pub struct SceneParameters {
     traction: Option<f64>,
     /// The diff drive's `traction_load_transfer:`, where it declares one.
     load_transfer: Option<f64>,
+    /// The diff drive's `command_lag:` [s], where it declares one.
+    command_lag: Option<f64>,
     has_payload: bool,
     /// The scene's `integration.drift` is `none`.
     no_drift_control: bool,
@@ -258,6 +267,7 @@ impl SceneParameters {
             })
         });
         let load_transfer = number(drive.and_then(|d| d.get("traction_load_transfer")));
+        let command_lag = number(drive.and_then(|d| d.get("command_lag")));
         let has_payload =
             number(scene.get("payload").and_then(|p| p.get("mass"))).is_some_and(|m| m != 0.0);
         let no_drift_control = scene
@@ -288,6 +298,7 @@ impl SceneParameters {
             turning,
             traction,
             load_transfer,
+            command_lag,
             has_payload,
         })
     }
@@ -321,6 +332,9 @@ impl SceneParameters {
             }
             FitParameter::TractionLoadTransfer if self.load_transfer.is_none() => {
                 Some("the scene declares no actuators.diff_drive.traction_load_transfer".into())
+            }
+            FitParameter::CommandLag if self.command_lag.is_none() => {
+                Some("the scene declares no actuators.diff_drive.command_lag".into())
             }
             FitParameter::TractionTorque | FitParameter::TractionLoadTransfer => {
                 match self.traction {
@@ -371,6 +385,7 @@ impl SceneParameters {
             .unwrap_or(0.0),
             FitParameter::TractionTorque => self.traction.unwrap_or(f64::INFINITY),
             FitParameter::TractionLoadTransfer => self.load_transfer.unwrap_or(0.0),
+            FitParameter::CommandLag => self.command_lag.unwrap_or(0.0),
         }
     }
 
@@ -399,7 +414,8 @@ impl SceneParameters {
     /// How far the parameter is moved to see its effect, and the size a change must reach to
     /// matter (the fit's parameter scaling): 1 mm of radius, 1 cm of track (and of its widening
     /// at 1 rad/s), a tenth of the robot's mass, 0.1 of μ, a tenth of the traction torque, 0.1
-    /// of its load transfer, 1 cm/s of slip speed, 1 mm/s of sideways creep per newton.
+    /// of its load transfer, 10 ms of command lag, 1 cm/s of slip speed, 1 mm/s of sideways
+    /// creep per newton.
     pub fn scale(&self, p: FitParameter, model: &Model) -> f64 {
         match p {
             FitParameter::TractionTorque => 0.1 * self.traction.unwrap_or(1.0),
@@ -407,7 +423,7 @@ impl SceneParameters {
             FitParameter::TrackOffset | FitParameter::TrackTurnGain => 1e-2,
             FitParameter::BaseMass => 0.1 * model.total_mass(),
             FitParameter::TurningFriction | FitParameter::TractionLoadTransfer => 0.1,
-            FitParameter::TyreSlipSpeed => 0.01,
+            FitParameter::TyreSlipSpeed | FitParameter::CommandLag => 0.01,
             // 1 mm/s of sideways slip under 1 N.
             FitParameter::LateralCreep => 1e-3,
         }

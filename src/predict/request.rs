@@ -47,6 +47,10 @@ pub struct PredictionRequest<'a> {
     /// measured efforts ([`crate::actuators::Actuators::integrals_from_efforts`]). Empty: every
     /// controller starts afresh, at zero.
     pub controller_integrals: &'a [f64],
+    /// The diff drive's lagged command (v [m/s], ω [rad/s]) at the start, where the scene
+    /// declares a `command_lag` ([`crate::actuators::CommandLag`] over the commands before
+    /// the start). None: the lag starts on the first command.
+    pub lagged_command: Option<[f64; 2]>,
 }
 
 /// Which samples of a prediction carry the propagated covariance.

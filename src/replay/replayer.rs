@@ -5,7 +5,7 @@ use super::ReplayError;
 use super::record::{EvaluationSettings, PredictionRecord, score, to_nanos};
 use super::series::{Nanos, Odometry, Recording, show_stamp};
 use super::start::{StartAssembler, StartState};
-use crate::actuators::{Actuators, Command};
+use crate::actuators::{Actuators, Command, CommandLag};
 use crate::predict::{
     CovarianceSamples, IntegrationOverrides, PredictionRequest, Predictor, Sample, Trajectory,
 };
@@ -130,7 +130,10 @@ impl<'a> Replayer<'a> {
         self.integrals.fill(0.0);
         if let Some(t_effort) = (start.measured.at).filter(|_| self.settings.integrals_from_efforts)
         {
-            let command = self.command(start, self.in_force_at(start, t_effort));
+            // The twist the wheel controllers followed then: under a lag, the lagged one.
+            let twist = (self.lagged_at(start, t_effort))
+                .unwrap_or_else(|| self.in_force_at(start, t_effort));
+            let command = self.command(start, twist);
             (self.actuators).integrals_from_efforts(
                 &command,
                 &start.measured.v,
@@ -160,6 +163,24 @@ impl<'a> Replayer<'a> {
             .map_or(start.hold_twist, |(_, c)| *c)
     }
 
+    /// Under a command lag, the drive's lagged command at `t0`, as the node keeps it: the
+    /// recorded commands before `t0` run through the lag, from the one in force 10 τ earlier
+    /// (e⁻¹⁰ of what came before is left); without a recorded one, the command in force.
+    fn lagged_at(&self, start: &StartState, t0: Nanos) -> Option<[f64; 2]> {
+        let tau = self.actuators.command_lag_s()?;
+        let commands = &self.recording.commands;
+        let from = t0 - to_nanos(10.0 * tau);
+        let seconds = |t: Nanos| (t - t0) as f64 * 1e-9;
+        let mut lag = CommandLag::new(tau);
+        if let Some((_, c)) = commands.at_or_before(from) {
+            lag.push(seconds(from), *c);
+        }
+        for (t, c) in commands.between(from, t0) {
+            lag.push(seconds(*t), *c);
+        }
+        lag.at(0.0).or(Some(self.in_force_at(start, t0)))
+    }
+
     /// The prediction from `t0` to `target`'s reference stamp under the recorded commands,
     /// its covariance read at `times` [s from t0] and the end; `max_error` overrides the
     /// scene's bound.
@@ -184,6 +205,7 @@ impl<'a> Replayer<'a> {
             start_covariance: (start.covariance.as_ref()).filter(|_| settings.propagate_covariance),
             covariance_samples: CovarianceSamples::At(times),
             controller_integrals: &self.integrals,
+            lagged_command: self.lagged_at(start, t0),
             integration: IntegrationOverrides {
                 error_estimate: (!settings.error_estimate).then_some(false),
                 max_error,

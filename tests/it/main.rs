@@ -20,6 +20,7 @@ mod planner_settings;
 mod properties_support;
 
 mod actuators_anti_windup;
+mod actuators_command_lag;
 mod algorithm_closed_forms;
 mod andrews;
 mod bundled_scenes;

@@ -13,7 +13,10 @@ drive a smoothed phase and then a phase of steps. One shorter drive carries a pa
 tool that the scene is not told of (payload_3kg.mcap: 3 kg at tool0, robot_mjcf.py), its arm
 held with the tool above the wheel axle (shoulder pitch −0.1, elbow −0.15 rad), where it loads
 the shoulder without tipping the robot off its wheels (at rest ~61 N on each wheel, ~34 N on
-the caster). Another runs on a slippery floor (slippery_floor.mcap: the tyres' μ 0.1). Topics:
+the caster). Another runs on a slippery floor (slippery_floor.mcap: the tyres' μ 0.1), and one
+pair on a drive that follows its commands late (command_lag.mcap, raw steps, and
+command_lag_smooth.mcap: a first-order lag of 0.15 s between cmd_vel and the wheel controllers,
+as a motor controller's own velocity loop gives). Topics:
 
     /cmd_vel            geometry_msgs/Twist (TwistStamped in validation_steps), 20 Hz
     /odom               nav_msgs/Odometry, 50 Hz: the true base pose and twist plus white noise
@@ -70,6 +73,7 @@ class Drive:
     payload_kg: float = 0.0
     arm_pose: dict = None  # {joint: rad} the arm's PD holds instead of the scene's initial pose
     tyre_mu: float = TYRE_MU  # the tyres' grip on the floor (robot_mjcf.py)
+    command_lag_s: float = 0.0  # τ of a first-order lag between cmd_vel and the wheels' PI
 
     @property
     def duration_s(self):
@@ -95,6 +99,14 @@ DRIVES = [
     # grip than the floor gives, so the wheels spin and the base lags and slides.
     Drive("slippery_floor", seed=55, phases=(("smoothed", 10.0),), stamped=False,
           bag_directory=False, tyre_mu=0.1),
+    # A drive whose motor controllers follow their commands through a first-order lag the
+    # scene does not know; raw steps, so that the lag shows at every one.
+    Drive("command_lag", seed=66, phases=(("steps", 20.0),), stamped=False,
+          bag_directory=False, command_lag_s=0.15),
+    # The same robot on another plan, smoothed: what a calibration on the drive above is
+    # scored on.
+    Drive("command_lag_smooth", seed=67, phases=(("smoothed", 10.0),), stamped=False,
+          bag_directory=False, command_lag_s=0.15),
 ]
 
 
@@ -156,7 +168,8 @@ def smooth(prev, target, dt):
 class Robot:
     """The MuJoCo model and its controllers, ticked at the control period."""
 
-    def __init__(self, scene_path, urdf_path, payload_kg=0.0, arm_pose=None, tyre_mu=TYRE_MU):
+    def __init__(self, scene_path, urdf_path, payload_kg=0.0, arm_pose=None, tyre_mu=TYRE_MU,
+                 command_lag_s=0.0):
         xml, self.effort, self.wheel_radius, self.base_height = mjcf(
             urdf_path, CONTROL_PERIOD_S / SIM_SUBSTEPS, payload_kg, tyre_mu)
         self.m = mujoco.MjModel.from_xml_string(xml)
@@ -166,6 +179,10 @@ class Robot:
         names = ["left_wheel_joint", "right_wheel_joint", *ARM_JOINTS]
         self.joints = [(n, self.m.joint(n).qposadr[0], self.m.joint(n).dofadr[0]) for n in names]
         self.integral = [0.0, 0.0]
+        # The lagged command (v, ω) and the factor it keeps of its distance to the command per
+        # tick: the lag's exact discrete form under a command held over the tick.
+        self.lagged = (0.0, 0.0)
+        self.lag_keep = math.exp(-CONTROL_PERIOD_S / command_lag_s) if command_lag_s > 0 else 0.0
         self.tau = np.zeros(len(names))
         self.d.qpos[2] = self.wheel_radius
         for n, iq, _ in self.joints:
@@ -175,7 +192,11 @@ class Robot:
 
     def tick(self, cmd):
         """One control tick under cmd = (v, ω), then the physics to the next tick."""
-        v, w = cmd
+        if self.lag_keep > 0.0:
+            v, w = self.lagged
+            self.lagged = tuple(c + (x - c) * self.lag_keep for x, c in zip(self.lagged, cmd))
+        else:
+            v, w = cmd
         targets = [(v - w * self.b / 2) / self.r, (v + w * self.b / 2) / self.r]
         for k in range(2):
             name, _, iv = self.joints[k]
@@ -248,7 +269,8 @@ def drive_ticks(drive, scene_path, urdf_path):
     robot runs the last one). The noise and the plan come from one generator seeded by the drive."""
     rng = np.random.default_rng(drive.seed)
     plan = command_plan(rng, drive.phases)
-    robot = Robot(scene_path, urdf_path, drive.payload_kg, drive.arm_pose, drive.tyre_mu)
+    robot = Robot(scene_path, urdf_path, drive.payload_kg, drive.arm_pose, drive.tyre_mu,
+                  drive.command_lag_s)
     for _ in range(int(SETTLE_S / CONTROL_PERIOD_S)):
         robot.tick((0.0, 0.0))
     cmd = (0.0, 0.0)

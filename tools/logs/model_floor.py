@@ -112,14 +112,18 @@ def run_drive(drive):
         if odom is not None:
             truth[k] = odom[0]
             if last_joints is not None and (k - ml.ODOM_PERIOD_TICKS) % EVERY_TICKS == 0:
-                starts.append((k, mujoco.MjData(robot.m), odom, last_joints, list(robot.integral)))
+                # The drive's command lag (command_lag.mcap) is the commands' before the start,
+                # which a predictor has as exactly as the simulator: every variant keeps it.
+                starts.append((k, mujoco.MjData(robot.m), odom, last_joints, list(robot.integral),
+                               robot.lagged))
                 mujoco.mj_copyData(starts[-1][1], robot.m, robot.d)
     out = []
     sim = template
-    for k0, state, odom, joints, integral in starts:
+    for k0, state, odom, joints, integral, lagged in starts:
         _, _, noisy_pose, noisy_twist = odom
         for variant in VARIANTS:
             mujoco.mj_copyData(sim.d, sim.m, state)
+            sim.lagged = lagged
             names, q, v, _ = joints
             for (name, iq, iv), qi, vi in zip(sim.joints, q, v):
                 sim.d.qpos[iq], sim.d.qvel[iv] = qi, vi

@@ -25,6 +25,7 @@ mod work;
 use std::time::{Duration, Instant};
 
 use constraint_dynamics::Scene;
+use constraint_dynamics::actuators::CommandLag;
 use constraint_dynamics::forces::ForceElements;
 use constraint_dynamics::predict::{ContactCheck, OffConstraints, Predictor};
 use constraint_dynamics::system::System;
@@ -65,6 +66,9 @@ pub struct PredictorNode {
     log: NodeLog,
     /// Latest (v, ω) command and when it arrived (ROS time: /clock under `use_sim_time`).
     last_command: Option<([f64; 2], Time)>,
+    /// The drive's lagged command over the commands received, where the scene declares a
+    /// `command_lag` (ROS time [s]).
+    command_lag: Option<CommandLag>,
     /// One WARN per reason a command is only partly used, per window.
     command_log: DropLog,
     /// The contacts' breaks at the last prediction's start, logged as they change.
@@ -142,6 +146,7 @@ impl NodeLogic for PredictorNode {
         let p = &params.node;
         let monitor = (p.monitor.enabled)
             .then(|| monitor::OnlineMonitor::new(&p.monitor, p.rate, robot.model().nv));
+        let command_lag = (predictor.config().actuators().command_lag_s()).map(CommandLag::new);
         Ok(PredictorNode {
             monitor,
             integrals: Default::default(),
@@ -151,6 +156,7 @@ impl NodeLogic for PredictorNode {
             params,
             log,
             last_command: None,
+            command_lag,
             command_log: DropLog::default(),
             break_log: contact_break::BreakLog::new(nc),
             slipping: Vec::new(),
@@ -196,6 +202,9 @@ impl NodeLogic for PredictorNode {
             );
         }
         self.last_command = finite.then_some(([t.linear.x, t.angular.z], now));
+        if let (Some(lag), Some((c, _))) = (&mut self.command_lag, self.last_command) {
+            lag.push(now.to_nanos() as f64 * 1e-9, c);
+        }
         if let (Some(m), Some((c, _))) = (&mut self.monitor, self.last_command) {
             m.command(now, c);
         }
@@ -213,7 +222,8 @@ impl NodeLogic for PredictorNode {
             // The command the controllers followed when the efforts were measured.
             let state = self.robot.state();
             let at = state.joint_states_at.unwrap_or_default();
-            let base = self.fresh_command(at).or_else(|| {
+            let lagged = (self.command_lag).and_then(|l| l.at(at.to_nanos() as f64 * 1e-9));
+            let base = lagged.or_else(|| self.fresh_command(at)).or_else(|| {
                 let fallback = self.params.node.command.fallback;
                 self.robot.fallback_twist(fallback, &state.v)
             });

@@ -102,6 +102,7 @@ impl PredictorNode {
                 true => self.integrals.get(),
                 false => &[],
             },
+            lagged_command: (self.command_lag).and_then(|l| l.at(now.to_nanos() as f64 * 1e-9)),
             ..PredictionRequest::new(&q, &v)
         };
         // The covariance on a second thread only where it is a large part of the period: a

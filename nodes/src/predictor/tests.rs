@@ -3,15 +3,21 @@
 use super::*;
 use crate::convert::time_plus;
 use crate::params::CommonParams;
+use constraint_dynamics::predict::PredictionRequest;
 
 pub(super) fn node(fallback: &str) -> PredictorNode {
-    let fallback = serde_yaml::from_str(fallback).unwrap();
-    let mut common = CommonParams::default();
-    common.model.scene_file = concat!(
+    let scene = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../params/suite_diff_drive.yaml"
-    )
-    .into();
+    );
+    node_on(scene, fallback)
+}
+
+/// The predictor on the scene file `scene`, its command's `fallback`.
+fn node_on(scene: &str, fallback: &str) -> PredictorNode {
+    let fallback = serde_yaml::from_str(fallback).unwrap();
+    let mut common = CommonParams::default();
+    common.model.scene_file = scene.into();
     let mut params = NodeParams::<PredictorParams> {
         common,
         node: PredictorParams::default(),
@@ -396,4 +402,60 @@ fn a_predicted_slip_is_a_diagnostics_warning() {
     let want = format!("slip at t=0.00 s on left_wheel_contact (friction used {used:.2} × μ)");
     assert_eq!(n.warnings(), std::slice::from_ref(&want));
     assert_eq!(value(&n, "predicted contact break"), want);
+}
+
+/// A drive that follows its commands through a lag (`actuators.diff_drive.command_lag`): the
+/// node runs every command it receives through the lag on the ROS clock, and predicts from the
+/// lagged command where the commands left it — 0.1 s after a step from rest to 0.5 m/s under
+/// τ = 0.2 s, 0.5 (1 − e^(−0.5)) m/s — as the core predicts from that lagged command.
+#[test]
+fn a_lagging_drive_is_predicted_from_where_the_commands_left_the_lag() {
+    let dir = std::env::temp_dir().join(format!("cd_predictor_lag_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let params_dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../params");
+    let suite = std::fs::read_to_string(format!("{params_dir}/suite_diff_drive.yaml")).unwrap();
+    let ki = "    ki: 20.0                     # [N·m/rad]\n";
+    assert!(suite.contains(ki), "the suite scene's diff drive moved");
+    let lagged = (suite.replace(ki, &format!("{ki}    command_lag: 0.2\n")))
+        .replace("urdf: ../urdf/", &format!("urdf: {params_dir}/../urdf/"));
+    let scene_file = dir.join("lagged.yaml");
+    std::fs::write(&scene_file, lagged).unwrap();
+    let mut n = node_on(&scene_file.display().to_string(), "stop");
+    let t0 = Time::from_nanos(1_000_000_000_000);
+    let twist = |x: f64| Twist {
+        linear: crate::msg::geometry_msgs::Vector3 { x, y: 0.0, z: 0.0 },
+        ..Default::default()
+    };
+    n.handle(PredictorInput::Command(twist(0.0)), t0, &mut |_| {});
+    let step = time_plus(t0, 1.0);
+    n.handle(PredictorInput::Command(twist(0.5)), step, &mut |_| {});
+    let out = tick(&mut n, time_plus(step, 0.1));
+
+    let scene = Scene::load(&scene_file).unwrap();
+    let mut core = Predictor::from_scene(&scene).unwrap();
+    let commands = [(
+        0.0,
+        constraint_dynamics::actuators::Command {
+            base_twist: Some([0.5, 0.0]),
+            ..Default::default()
+        },
+    )];
+    let mut x_at = |lagged: Option<[f64; 2]>| {
+        let request = PredictionRequest {
+            commands: &commands,
+            lagged_command: lagged,
+            ..PredictionRequest::new(&scene.q0, &scene.v0).horizon(1.0)
+        };
+        core.predict(&request).unwrap().samples.last().unwrap().q[0]
+    };
+    let lagged = 0.5 * (1.0 - (-0.5f64).exp());
+    let (expected, unlagged) = (x_at(Some([lagged, 0.0])), x_at(None));
+    let x = out.odom.pose.pose.position.x;
+    // The same prediction: achieved 0.
+    assert!((x - expected).abs() < 1e-12, "{x} m against {expected}");
+    assert!(
+        (x - unlagged).abs() > 0.01,
+        "{x} m, without the lag's start {unlagged}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
 }

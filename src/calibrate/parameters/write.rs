@@ -81,6 +81,14 @@ impl SceneParameters {
                     put(d, "traction_load_transfer", value.max(0.0));
                 }
             }
+            FitParameter::CommandLag => {
+                let drive = scene
+                    .get_mut("actuators")
+                    .and_then(|a| a.get_mut("diff_drive"));
+                if let Some(d) = drive {
+                    put(d, "command_lag", value.max(0.0));
+                }
+            }
         }
     }
 

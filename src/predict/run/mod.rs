@@ -75,6 +75,7 @@ impl Predictor {
             self.actuators.start_continuous(&q);
         }
         self.actuators.start_integrals(req.controller_integrals);
+        self.actuators.start_lag(req.lagged_command);
         self.ws.tau_act.iter_mut().for_each(|x| *x = 0.0);
         self.ws.companion_actuators.clone_from(&self.actuators);
         self.ws.tau_companion.iter_mut().for_each(|x| *x = 0.0);
