@@ -15,8 +15,9 @@ pub struct PredictArgs {
     /// Scene file (YAML).
     #[arg(long)]
     scene: PathBuf,
-    /// State file (JSON {"q": [...], "v": [...]}, printed coordinate order); default: the scene's
-    /// initial state.
+    /// State file (JSON {"q": [...], "v": [...]}, printed coordinate order, and where the scene
+    /// declares a command lag its state "lagged_command": [v, ω]); default: the scene's initial
+    /// state.
     #[arg(long)]
     state: Option<PathBuf>,
     /// Commands file: JSON list of {"t": s, "base_twist": [v, ω], "joint_velocity": {joint: rate},
@@ -188,8 +189,9 @@ pub fn run(a: PredictArgs) -> Result<Value> {
         s.adapt |= a.adapt;
         s.error_estimate &= !a.no_error_estimate;
     })?;
-    let (q, v, tau) = super::state::load(&scene, a.state.as_deref())?;
-    if tau.iter().any(|x| *x != 0.0) {
+    let start = super::state::load_start(&scene, a.state.as_deref())?;
+    let (q, v) = (start.q, start.v);
+    if start.tau.iter().any(|x| *x != 0.0) {
         return Err(Error::Invalid(
             "the state file's tau is not used by predict: give torques as forces.joint_torques \
              or actuators in the scene"
@@ -212,6 +214,7 @@ pub fn run(a: PredictArgs) -> Result<Value> {
         horizon: a.horizon,
         start_covariance: p0.as_ref(),
         forces: a.forces,
+        lagged_command: start.lagged_command,
         ..PredictionRequest::new(&q, &v)
     };
     let traj = p.predict(&request)?;

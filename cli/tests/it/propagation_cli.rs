@@ -381,3 +381,77 @@ fn predict_with_forces_takes_a_measured_state_off_the_constraints() {
     assert_eq!(samples[0]["lambda"].as_array().unwrap().len(), 4);
     assert!(samples[1]["velocity_residual"].as_f64().unwrap() < 1e-12);
 }
+
+/// A state file gives a command lag's state (`lagged_command`): from rest under 0.5 m/s, a lag
+/// of 0.2 s started at rest leaves the drive behind one started on the command, which is the
+/// scene without a lag to the last bit (the lag on its own command is the command). A state
+/// file that gives it to a scene without a lag is refused, naming the field.
+#[test]
+fn a_state_file_gives_the_command_lag_its_start() {
+    let dir = std::env::temp_dir().join(format!("cd_predict_lag_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let root = common::repo_dir();
+    let suite = root.join("params/suite_diff_drive.yaml");
+    let text = std::fs::read_to_string(&suite).unwrap();
+    let ki = "    ki: 20.0                     # [N·m/rad]\n";
+    assert!(text.contains(ki), "the suite scene's diff drive moved");
+    let urdf = format!("urdf: {}/", root.join("urdf").display());
+    let lagged_scene = dir.join("lagged.yaml");
+    let lagged = text.replace(ki, &format!("{ki}    command_lag: 0.2\n"));
+    std::fs::write(&lagged_scene, lagged.replace("urdf: ../urdf/", &urdf)).unwrap();
+    std::fs::write(
+        dir.join("commands.json"),
+        r#"[{"t": 0.0, "base_twist": [0.5, 0.0]}]"#,
+    )
+    .unwrap();
+    let state = |name: &str, lagged: &str| {
+        let body = format!(r#"{{"q": [0, 0, 0, 0, 0], "v": [0, 0, 0, 0, 0]{lagged}}}"#);
+        std::fs::write(dir.join(name), body).unwrap();
+        dir.join(name).display().to_string()
+    };
+    let (on_command, at_rest) = (
+        state("plain.json", ""),
+        state("rest.json", r#", "lagged_command": [0, 0]"#),
+    );
+    let x_at_horizon = |scene: &std::path::Path, state: &str| {
+        let (ok, v, err) = crate::run_cli(
+            Some(&dir),
+            &[
+                "predict",
+                "--scene",
+                &scene.display().to_string(),
+                "--state",
+                state,
+                "--commands",
+                "commands.json",
+                "--horizon",
+                "0.5",
+            ],
+        );
+        assert!(ok, "{err}");
+        let last = v["samples"].as_array().unwrap().last().unwrap().clone();
+        last["q"][0].as_f64().unwrap()
+    };
+    let unlagged = x_at_horizon(&suite, &on_command);
+    assert_eq!(x_at_horizon(&lagged_scene, &on_command), unlagged);
+    let behind = x_at_horizon(&lagged_scene, &at_rest);
+    assert!(
+        behind < unlagged - 0.05,
+        "{behind} m, on the command {unlagged} m"
+    );
+    let (ok, _, err) = crate::run_cli(
+        Some(&dir),
+        &[
+            "predict",
+            "--scene",
+            &suite.display().to_string(),
+            "--state",
+            &at_rest,
+        ],
+    );
+    assert!(
+        !ok && err.contains("lagged_command: the scene declares no"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
