@@ -68,6 +68,25 @@ fn figures(v: &Value) -> Vec<Figures> {
         .collect()
 }
 
+/// `evaluate` of `scene` on `bag` against the simulator's true pose at 1 s and 2 s, run from
+/// `dir`.
+fn true_pose_figures(dir: &std::path::Path, scene: &str, bag: &str) -> Vec<Figures> {
+    let args = [
+        "evaluate",
+        "--scene",
+        scene,
+        "--bag",
+        bag,
+        "--truth-topic",
+        "/ground_truth/odom",
+        "--horizons",
+        "1,2",
+    ];
+    let (ok, v, err) = run(dir, &args);
+    assert!(ok, "{scene} on {bag}: {err}");
+    figures(&v)
+}
+
 /// The predicted covariance is honest on a drive it was not fitted on, at 1 s and 2 s: at
 /// least 0.85 of the (x, y, yaw) errors inside its 95 % region, their mean NEES near χ²(3)'s 3
 /// (2 to 5: a skid's errors lie beyond a Gaussian's tails and weigh on a mean of 36 to 38), and
@@ -202,22 +221,8 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
             [(1.0, 7e-3, 7e-3, 1.6e-3), (2.0, 9.5e-3, 7.5e-3, 2.2e-3)],
         ),
     ] {
-        let (ok, after, err) = run(
-            &dir,
-            &[
-                "evaluate",
-                "--scene",
-                "calibrated.yaml",
-                "--bag",
-                &format!("{logs}/{bag}"),
-                "--truth-topic",
-                "/ground_truth/odom",
-                "--horizons",
-                "1,2",
-            ],
-        );
-        assert!(ok, "{bag}: {err}");
-        for (f, (bh, bp, by, bm)) in figures(&after).into_iter().zip(bounds) {
+        let after = true_pose_figures(&dir, "calibrated.yaml", &format!("{logs}/{bag}"));
+        for (f, (bh, bp, by, bm)) in after.into_iter().zip(bounds) {
             let (h, pos, yaw, median) = (
                 f.horizon_s,
                 f.worst_position_m,
@@ -238,24 +243,7 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
     // (tools/logs/model_floor.py). The skid's slide and turn sized on the calibration drive's
     // skids cover these.
     let steps = format!("{logs}/validation_steps");
-    let score = |scene: &str| {
-        let (ok, v, err) = run(
-            &dir,
-            &[
-                "evaluate",
-                "--scene",
-                scene,
-                "--bag",
-                &steps,
-                "--truth-topic",
-                "/ground_truth/odom",
-                "--horizons",
-                "1,2",
-            ],
-        );
-        assert!(ok, "{err}");
-        figures(&v)
-    };
+    let score = |scene: &str| true_pose_figures(&dir, scene, &steps);
     // (worst position [m], worst yaw [rad]) at 1 s and 2 s.
     let bounds = [(11.9e-3, 25.5e-3), (12.8e-3, 27.0e-3)];
     for ((before, after), (bp, by)) in score(&scene)
@@ -416,25 +404,8 @@ fn a_lagging_drive_is_fitted_its_lag() {
         &path("params/suite_mobile_manipulator.yaml"),
         "unlagged_cal.yaml",
     );
-    let score = |scene: &str| {
-        let bag = path("tests/data/logs/command_lag_smooth.mcap");
-        let (ok, v, err) = run(
-            &dir,
-            &[
-                "evaluate",
-                "--scene",
-                scene,
-                "--bag",
-                &bag,
-                "--truth-topic",
-                "/ground_truth/odom",
-                "--horizons",
-                "1,2",
-            ],
-        );
-        assert!(ok, "{err}");
-        figures(&v)
-    };
+    let smooth = path("tests/data/logs/command_lag_smooth.mcap");
+    let score = |scene: &str| true_pose_figures(&dir, scene, &smooth);
     // (worst position [m], worst yaw [rad]): achieved 3.9 mm and 7.5 mrad at 1 s, 5.4 mm and
     // 6.8 mrad at 2 s; without the lag 75 mm and 200 mrad, 153 mm and 310 mrad.
     let bounds = [(4.5e-3, 8.5e-3), (6e-3, 8e-3)];

@@ -6,11 +6,6 @@ use serde_yaml::Value;
 impl SceneParameters {
     /// Writes `value` of `p` into `scene`.
     pub fn set(&self, scene: &mut Value, p: FitParameter, value: f64) {
-        let put = |map: &mut Value, key: &str, x: f64| {
-            if let Some(m) = map.as_mapping_mut() {
-                m.insert(Value::from(key), Value::from(x));
-            }
-        };
         match p {
             FitParameter::TyreSlipSpeed => {
                 for t in tyres_mut(scene) {
@@ -66,29 +61,12 @@ impl SceneParameters {
                 }
             }
             FitParameter::TractionTorque => {
-                let drive = scene
-                    .get_mut("actuators")
-                    .and_then(|a| a.get_mut("diff_drive"));
-                if let Some(d) = drive {
-                    put(d, "traction_torque", value.max(1e-6));
-                }
+                put_drive(scene, "traction_torque", value.max(1e-6));
             }
             FitParameter::TractionLoadTransfer => {
-                let drive = scene
-                    .get_mut("actuators")
-                    .and_then(|a| a.get_mut("diff_drive"));
-                if let Some(d) = drive {
-                    put(d, "traction_load_transfer", value.max(0.0));
-                }
+                put_drive(scene, "traction_load_transfer", value.max(0.0));
             }
-            FitParameter::CommandLag => {
-                let drive = scene
-                    .get_mut("actuators")
-                    .and_then(|a| a.get_mut("diff_drive"));
-                if let Some(d) = drive {
-                    put(d, "command_lag", value.max(0.0));
-                }
-            }
+            FitParameter::CommandLag => put_drive(scene, "command_lag", value.max(0.0)),
         }
     }
 
@@ -182,5 +160,20 @@ fn set_noise(scene: &mut Value, field: &str, coordinates: &[String], sigma: f64)
         for c in coordinates {
             noise.insert(c.clone().into(), sigma.into());
         }
+    }
+}
+
+/// `actuators.diff_drive.KEY: value`, where the scene has a diff drive.
+fn put_drive(scene: &mut Value, key: &str, value: f64) {
+    let drive = (scene.get_mut("actuators")).and_then(|a| a.get_mut("diff_drive"));
+    if let Some(d) = drive {
+        put(d, key, value);
+    }
+}
+
+/// `key: x` in the mapping `map` (nothing where it is not a mapping).
+fn put(map: &mut Value, key: &str, x: f64) {
+    if let Some(m) = map.as_mapping_mut() {
+        m.insert(Value::from(key), Value::from(x));
     }
 }
