@@ -259,7 +259,7 @@ impl Actuators {
                         "actuators.diff_drive.command_lag = {tau}: must be finite and ≥ 0 [s]"
                     )));
                 }
-                a.lag_s = tau;
+                a.lag_s = if tau >= lag::MIN_LAG_S { tau } else { 0.0 };
             }
         }
         Ok(a)

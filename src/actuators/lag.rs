@@ -9,6 +9,10 @@
 //! commands before the start left ([`CommandLag`] over their history, as the nodes and the
 //! replay keep it), or, without a history, the first command's (the drive long at rest on it).
 
+/// The shortest lag [s] that is one: a shorter one (a calibrated value at the edge of 0) is the
+/// command itself, so that the lag's rate, (u − x)/τ, stays finite.
+pub const MIN_LAG_S: f64 = 1e-6;
+
 /// The lagged target `s` [s] into a segment that started at `from` under the target `to`.
 pub(super) fn value(from: f64, to: f64, tau: f64, s: f64) -> f64 {
     to + (from - to) * (-s / tau).exp()
@@ -36,8 +40,10 @@ pub struct CommandLag {
 }
 
 impl CommandLag {
-    /// A lag of time constant `tau_s` [s] (≤ 0: none, the command itself), no command yet.
+    /// A lag of time constant `tau_s` [s] (below [`MIN_LAG_S`]: none, the command itself), no
+    /// command yet.
     pub fn new(tau_s: f64) -> Self {
+        let tau_s = if tau_s >= MIN_LAG_S { tau_s } else { 0.0 };
         Self { tau_s, state: None }
     }
 
@@ -103,5 +109,10 @@ mod tests {
         none.push(0.0, [0.5, 0.1]);
         none.push(0.1, [1.0, 0.0]);
         assert_eq!(none.at(0.1), Some([1.0, 0.0]));
+        // Below a microsecond a lag is none: its rate (u − x)/τ would overflow.
+        let mut tiny = CommandLag::new(1e-300);
+        tiny.push(0.0, [0.5, 0.1]);
+        tiny.push(0.1, [1.0, 0.0]);
+        assert_eq!(tiny.at(0.1), Some([1.0, 0.0]));
     }
 }

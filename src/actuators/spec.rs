@@ -110,7 +110,7 @@ pub struct DiffDriveSpec {
     /// `command_lag:` τ [s] ≥ 0 (default none): the drive follows its commanded (v, ω) through
     /// a first-order lag of time constant τ before the wheel controllers see it — a motor
     /// controller's own velocity loop or a drive's smoothing the scene does not model
-    /// (docs/contacts.md).
+    /// (docs/propagation.md); below 1 µs it is none.
     #[serde(default)]
     pub command_lag: Option<f64>,
 }

@@ -111,10 +111,24 @@ fn continuous_controllers_follow_the_lag_itself() {
     assert!(diff < 5e-8, "continuous: {diff} from the 1 ms staircase");
 }
 
-/// A lag of 0 is no lag; a negative or non-finite one is refused, naming the key.
+/// A lag of 0, or below a microsecond, is no lag (its rate (u − x)/τ would overflow); a
+/// negative or non-finite one is refused, naming the key.
 #[test]
 fn a_lag_must_be_finite_and_not_negative() {
-    let (scene, _) = scene_and_arm(Hold::Continuous);
+    let (scene, arm) = scene_and_arm(Hold::Continuous);
+    let commands = [(
+        0.0,
+        Command {
+            base_twist: Some(TO),
+            ..arm
+        },
+    )];
+    let unlagged = pose_at_horizon(&scene, &commands, None);
+    for none in [0.0, 1e-300] {
+        let mut tiny = scene.clone();
+        tiny.file.actuators.diff_drive.as_mut().unwrap().command_lag = Some(none);
+        assert_eq!(pose_at_horizon(&tiny, &commands, Some(FROM)), unlagged);
+    }
     for bad in [-0.1, f64::NAN] {
         let mut bad_scene = scene.clone();
         bad_scene
