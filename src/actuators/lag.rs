@@ -48,10 +48,10 @@ impl CommandLag {
     }
 
     /// `command` in force from `t` [s] on. The first command is taken as long in force (the
-    /// lagged value starts on it); a time before the last one counts as the last one.
+    /// lagged value starts on it); a time before the last one (a simulation's clock started
+    /// again) restarts the lag's clock there, its lagged value kept.
     pub fn push(&mut self, t: f64, command: [f64; 2]) {
         let lagged = self.at(t).unwrap_or(command);
-        let t = self.state.map_or(t, |(t_last, _, _)| t.max(t_last));
         self.state = Some((t, command, lagged));
     }
 
@@ -109,6 +109,12 @@ mod tests {
         none.push(0.0, [0.5, 0.1]);
         none.push(0.1, [1.0, 0.0]);
         assert_eq!(none.at(0.1), Some([1.0, 0.0]));
+        // A clock that starts again (a looped log's /clock) restarts the lag there.
+        let mut looped = CommandLag::new(0.2);
+        looped.push(10.0, [1.0, 0.0]);
+        looped.push(0.0, [0.0, 0.0]);
+        let decayed = looped.at(0.2).unwrap();
+        assert!((decayed[0] - (-1.0f64).exp()).abs() < 1e-15);
         // Below a microsecond a lag is none: its rate (u − x)/τ would overflow.
         let mut tiny = CommandLag::new(1e-300);
         tiny.push(0.0, [0.5, 0.1]);
