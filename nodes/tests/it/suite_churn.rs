@@ -2,7 +2,7 @@
 //! each its own DDS participant with one node — created, one `~/get_constraint_forces` call
 //! (sent again after 1.5 s without a reply, as a client should while discovery settles),
 //! dropped — four at a time. Asserted: every call answered; the suite's RSS growth from its RSS
-//! after a warm-up of 50 within 5 MB, and over the second half within 2.5 MB (a per-participant
+//! after a warm-up of 50 within 5 MB, and over the second half within 3.5 MB (a per-participant
 //! leak shows there), each reading after the suite's heap trim (nodes/src/ros/heap.rs); the suite
 //! still serves and stops on SIGINT in under 1 s.
 //!
@@ -189,11 +189,14 @@ fn participant_churn_keeps_the_suite_bounded() {
     // owner above 0.2 kB in the heap, see docs/nodes.md); without the rustdds fixes
     // (patches/README.md) 24 MB. The second half — where a per-participant leak shows — is
     // checked on its own, its first reading taken like the last, after the departed
-    // participants' leases end (read earlier it is biased low): measured +0.6 to +1.6 MB over
-    // the second 500, and +0.94 MB for the second 1 000 of 2 000 participants; without the
-    // rustdds fixes 6.5 MB, and ~3 kB per participant without the attic's bound (rustdds kept
-    // the endpoints of every participant whose lease expired) or the per-Context status events
-    // (patches/ros2-client). The bar, 2.5 MB, sits between the two (docs/nodes.md).
+    // participants' leases end (read earlier it is biased low): measured +0.6 to +2.7 MB over
+    // the second 500 (RSS also grows in steps, not only per participant: the 2.7 MB came with a
+    // usual total of 4.2 MB, its reading at the half 1.5 MB below the usual one), and +0.94 MB for the second 1 000 of 2 000 participants; without the
+    // rustdds fixes 6.5 MB. The bar, 3.5 MB, sits between the two. The smaller leak of ~3 kB
+    // per participant (without the attic's bound, which kept the endpoints of every participant
+    // whose lease expired, or the per-Context status events of patches/ros2-client) is 1.5 MB
+    // over a half, inside the halves' spread: the total's bar catches it (3 MB more than the
+    // 3.0–4.5 MB measured). See docs/nodes.md.
     let half = half.expect("the churn passed its half");
     let second_half_mb = (settled as f64 - half.1 as f64) / 1024.0;
     println!(
@@ -207,8 +210,8 @@ fn participant_churn_keeps_the_suite_bounded() {
         "RSS grew {growth_mb:.2} MB over {n} participants (limit 5 MB)"
     );
     assert!(
-        second_half_mb < 2.5,
-        "RSS grew {second_half_mb:.2} MB over the last {} participants (limit 2.5 MB): a leak",
+        second_half_mb < 3.5,
+        "RSS grew {second_half_mb:.2} MB over the last {} participants (limit 3.5 MB): a leak",
         n - half.0
     );
     let stopped = stopped.unwrap_or_else(|| panic!("SIGINT: still running after 10 s:\n{log}"));
