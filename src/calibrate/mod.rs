@@ -86,15 +86,19 @@ pub struct FittedParameter {
     pub unit: &'static str,
     /// The scene's value.
     pub scene_value: f64,
-    /// The calibrated value (the scene's when not determined).
+    /// The calibrated value (the scene's when not fitted).
     pub value: f64,
     /// Its standard error, with the overlapping predictions' shared errors counted
     /// (least_squares.rs; absent where the recordings do not move the predictions at all
     /// along it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub std_error: Option<f64>,
-    /// Whether the recordings determine it: its change is at least twice its standard error.
-    /// Otherwise it stays at the scene's value.
+    /// Whether it was fitted: its change from the scene's value is at least twice its
+    /// standard error. Otherwise it stays at the scene's value.
+    pub fitted: bool,
+    /// Whether the recordings determine it: fitted, or its standard error below the size a
+    /// change must reach to matter (the fit's scale, [`SceneParameters::scale`]: the recordings
+    /// then confirm the scene's value). Neither where no standard error is known.
     pub determined: bool,
 }
 
@@ -113,7 +117,7 @@ pub struct Correlation {
 pub struct Calibration {
     /// The fitted values, in [`FitParameter::ALL`]'s order.
     pub parameters: Vec<FittedParameter>,
-    /// The correlations of the determined values' estimates, every pair: near ±1, the drives
+    /// The correlations of the fitted values' estimates, every pair: near ±1, the drives
     /// tell the two apart poorly and a change of one is largely taken up by the other.
     pub correlations: Vec<Correlation>,
     /// The fitted process noise (absent when not asked for).
@@ -287,16 +291,18 @@ pub fn calibrate(
         let scene_value = problem.places.value(source.yaml, p);
         let scale = problem.places.scale(p, &scene.model);
         let k = problem.fitted.iter().position(|f| f.0 == p);
+        let std_error = match k {
+            Some(k) => values.std_errors[k].map(|s| s * scale),
+            None => (values.dropped.iter()).find(|d| d.0 == p).and_then(|d| d.1),
+        };
         parameters.push(FittedParameter {
             name: p.name(),
             unit: p.unit(),
             scene_value,
             value: k.map_or(scene_value, |k| scene_value + scale * values.x[k]),
-            std_error: match k {
-                Some(k) => values.std_errors[k].map(|s| s * scale),
-                None => (values.dropped.iter()).find(|d| d.0 == p).and_then(|d| d.1),
-            },
-            determined: k.is_some(),
+            std_error,
+            fitted: k.is_some(),
+            determined: k.is_some() || std_error.is_some_and(|s| s < scale),
         });
     }
     let correlations = (values.correlations.iter())

@@ -67,13 +67,13 @@ def main():
     lines.append("Fitted on calibration.mcap against its `/odom` "
                  f"({cal['run_time_s']:.0f} s, {cal['replays']} replays of the drive):")
     lines.append("")
-    lines.append("| parameter | scene | calibrated | standard error | determined |")
+    lines.append("| parameter | scene | calibrated | standard error | fitted |")
     lines.append("|---|---|---|---|---|")
     for p in cal["parameters"]:
         se = p.get("std_error")
         lines.append(f"| `{p['name']}` [{p['unit']}] | {p['scene_value']:.5g} | "
                      f"{p['value']:.5g} | {'—' if se is None else f'{se:.2g}'} | "
-                     f"{'yes' if p['determined'] else 'no'} |")
+                     f"{'yes' if p['fitted'] else 'no, confirmed' if p['determined'] else 'no'} |")
     pn = cal.get("process_noise")
     if pn:
         joints = ", ".join(pn["joints"])

@@ -23,7 +23,7 @@ fn parameter(out: &Value, name: &str) -> Value {
 /// The simulated tyres roll 1.5 % short of the URDF's 5 cm; under load they also creep, so
 /// the effective radius lies between 1 and 2.5 % short.
 fn assert_radius_as_simulated(r: &Value) {
-    assert_eq!(r["determined"], true, "{r}");
+    assert_eq!(r["fitted"], true, "{r}");
     assert!(
         (0.04875..=0.0495).contains(&r["value"].as_f64().unwrap()),
         "{r}"
@@ -34,7 +34,7 @@ fn assert_radius_as_simulated(r: &Value) {
 /// steady arcs at 0.3 m/s, 1.68 to 2.46 (mm/s) per newton on each wheel (scrub_sweep.py); the
 /// fitted creep lies within one standard error of that range.
 fn assert_creep_as_simulated(creep: &Value) {
-    assert_eq!(creep["determined"], true, "{creep}");
+    assert_eq!(creep["fitted"], true, "{creep}");
     let se = creep["std_error"].as_f64().unwrap();
     assert!(
         (1.68e-3 - se..=2.46e-3 + se).contains(&creep["value"].as_f64().unwrap()),
@@ -137,7 +137,7 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
     // 4.0 mm wider, s/Ω² from 0.6 to 1.4 mm/(rad/s)² (tools/logs/scrub_sweep.py): at 1 rad/s
     // the fitted widening s₀ + k lies in that range.
     let gain = param("track_turn_gain");
-    assert_eq!(gain["determined"], true, "{gain}");
+    assert_eq!(gain["fitted"], true, "{gain}");
     let widening =
         param("track_offset")["value"].as_f64().unwrap() + gain["value"].as_f64().unwrap();
     assert!(
@@ -150,7 +150,7 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
     // 62 N: the torque cannot exceed μ N r = 0.8 · 62 N · 0.04925 m = 2.44 N·m, and weight moves
     // off the wheels onto the skid and caster when the robot pitches.
     let traction = param("traction_torque");
-    assert_eq!(traction["determined"], true, "{traction}");
+    assert_eq!(traction["fitted"], true, "{traction}");
     let t = traction["value"].as_f64().unwrap();
     assert!((1.2..=2.44).contains(&t), "{traction}");
     // The chassis is 17.5 % heavier than its URDF's 8 kg: 1.4 kg, which only the drive's hard
@@ -161,7 +161,7 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
     // the covariances it lands above the chassis's 1.4 kg, within four times it (the unweighted
     // fit, without process noise, makes it 6.5 kg).
     let m = param("base_mass");
-    assert_eq!(m["determined"], true, "{m}");
+    assert_eq!(m["fitted"], true, "{m}");
     let (mass, se) = (
         m["value"].as_f64().unwrap(),
         m["std_error"].as_f64().unwrap(),
@@ -267,8 +267,8 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
 
 /// A drive that cannot determine a parameter leaves it at the scene's value, says so and gives
 /// its standard error, while the others are still fitted. On the smooth drive (accelerations
-/// within 1 m/s², wheel-speed control) the chassis's extra 1.4 kg and a constant track offset do
-/// not show; the radius and the tyres' sideways creep do, the creep in the range the simulator's
+/// within 1 m/s², wheel-speed control) the chassis's extra 1.4 kg does not show, and a constant
+/// track offset does not move from the scene's 0 by twice its standard error; the radius and the tyres' sideways creep do, the creep in the range the simulator's
 /// own steady arcs give (tools/logs/scrub_sweep.py). The parameters go back one at a time: with
 /// the mass and the offset sent back together with the creep after the first fit, the creep
 /// would be lost as well.
@@ -295,12 +295,18 @@ fn a_smooth_drive_leaves_the_mass_at_the_scene_value() {
     let param = |name: &str| parameter(&out, name);
     for name in ["base_mass", "track_offset"] {
         let p = param(name);
-        assert_eq!(p["determined"], false, "{p}");
+        assert_eq!(p["fitted"], false, "{p}");
         assert_eq!(p["value"], p["scene_value"], "{p}");
         assert!(p["std_error"].as_f64().is_some_and(|s| s > 0.0), "{p}");
     }
     // The mass's standard error dwarfs the 1.4 kg the simulator adds.
     assert!(param("base_mass")["std_error"].as_f64().unwrap() > 1.4);
+    assert_eq!(param("base_mass")["determined"], false);
+    // The constant offset is not fitted, yet determined: the drive confirms the scene's 0
+    // within 0.70 mm, below the centimetre a track change must reach to matter.
+    let offset = param("track_offset");
+    assert_eq!(offset["determined"], true, "{offset}");
+    assert!(offset["std_error"].as_f64().unwrap() < 1e-3, "{offset}");
     let written = std::fs::read_to_string(dir.join("smooth.yaml")).unwrap();
     assert!(!written.contains("payload:"), "{written}");
     assert_radius_as_simulated(&param("rolling_radius"));
@@ -393,7 +399,7 @@ fn a_lagging_drive_is_fitted_its_lag() {
     let out = calibrate("lagged.yaml", "lagged_cal.yaml");
     // Fitted 0.1507 ± 0.0008 s.
     let lag = parameter(&out, "command_lag");
-    assert_eq!(lag["determined"], true, "{lag}");
+    assert_eq!(lag["fitted"], true, "{lag}");
     let (value, se) = (
         lag["value"].as_f64().unwrap(),
         lag["std_error"].as_f64().unwrap(),
