@@ -12,8 +12,10 @@
 //! horizon the monitor keeps, over its last `window` samples, the median position error
 //! |(dx, dy)| [m], yaw error |dyaw| [rad], the NEES eᵀ (P + R)⁻¹ e of e = (dx, dy, dyaw) with R
 //! the odometry's own covariance, and each joint's median signed position error [rad or m]
-//! and effort error [N·m or N] (measured − predicted). [`verdict`] turns these into a verdict
-//! with hysteresis (the poses and the efforts; the joint positions are reported).
+//! and effort error [N·m or N] (measured − predicted), and how the drive answers its commands
+//! (a lag and a travel and turn shortfall the model does not have, [`response`]). [`verdict`]
+//! turns these into a verdict with hysteresis (the poses, the efforts and the lag; the joint
+//! positions and the shortfalls are reported).
 //!
 //! Apart from the predictions, the monitor keeps the median over the last `slip_window`
 //! measured start states of how far each lay off the velocity constraints before its projection
@@ -24,9 +26,11 @@
 //! Everything is allocated at construction: recording a prediction and scoring a measurement
 //! allocate nothing.
 
+mod response;
 mod stats;
 pub mod verdict;
 
+pub use response::ResponseFit;
 pub use stats::{PlanarCovariance, PlanarPose, Window, nees, yaw_difference};
 pub use verdict::{Cause, Thresholds, Verdict};
 
@@ -65,6 +69,11 @@ pub struct PredictedSample<'a> {
     pub effort: &'a [f64],
     /// The joints' positions [rad or m], one per joint (NaN: not scored; or none).
     pub position: &'a [f64],
+    /// The base command held over the horizon (v [m/s], ω [rad/s]; NaN: none, the drive's
+    /// response not scored).
+    pub command: [f64; 2],
+    /// The base's measured velocity at the start (forward v [m/s], ω [rad/s]).
+    pub start_velocity: [f64; 2],
 }
 
 /// A measured odometry: time [s], pose, covariance and twist in the base frame (vx [m/s], vy
@@ -90,6 +99,9 @@ struct PendingPose {
     covariance: PlanarCovariance,
     /// Its command changed before it was due.
     command_changed: bool,
+    /// The command held and its gap to the start's measured velocity (v, ω).
+    command: [f64; 2],
+    gap: [f64; 2],
 }
 
 /// A ring of pending samples, ordered by due time, its joints in flat arrays beside it. The
@@ -139,6 +151,7 @@ struct Track {
     unmatched: usize,
     /// Predictions not scored: their command changed before they were due.
     command_changed: usize,
+    response: response::ResponseWindow,
 }
 
 /// One horizon's figures (NaN where there are no samples yet).
@@ -170,6 +183,9 @@ pub struct HorizonReport {
     pub unmatched: usize,
     /// Predictions not scored because their command changed before they were due.
     pub command_changed: usize,
+    /// How the drive answers its commands over the window (None below four predictions or
+    /// where the commands do not determine it).
+    pub response: Option<ResponseFit>,
 }
 
 /// The measured start states' velocity residual off the constraints.
@@ -219,6 +235,7 @@ impl PredictionMonitor {
                 position_joint: vec![Window::new(window); joints],
                 unmatched: 0,
                 command_changed: 0,
+                response: response::ResponseWindow::new(window),
             })
             .collect();
         let reports = Vec::with_capacity(settings.horizons.len());
@@ -250,6 +267,7 @@ impl PredictionMonitor {
             tr.position_joint.iter_mut().for_each(Window::clear);
             tr.unmatched = 0;
             tr.command_changed = 0;
+            tr.response.clear();
         }
         self.slip.clear();
         self.verdict = verdict::Hysteresis::default();
@@ -283,6 +301,8 @@ impl PredictionMonitor {
             pose: s.pose,
             covariance: s.covariance,
             command_changed: false,
+            command: s.command,
+            gap: [0, 1].map(|k| s.command[k] - s.start_velocity[k]),
         };
         for (from, to) in [(s.effort, &mut p.efforts), (s.position, &mut p.positions)] {
             let slot = &mut to[i * ne..(i + 1) * ne];
@@ -343,6 +363,16 @@ impl PredictionMonitor {
                 if let Some(n) = nees(e, &s) {
                     tr.nees.push(n);
                 }
+                tr.response.push(&response::ScoredResponse {
+                    error: e,
+                    // The predicted chord's heading, about which a turn's shortfall
+                    // moves the position only to second order.
+                    heading: due.pose[2] - 0.5 * due.command[1] * (due.t - due.start),
+                    covariance: &s,
+                    gap: due.gap,
+                    command: due.command,
+                    horizon: due.t - due.start,
+                });
             }
         }
     }
@@ -433,6 +463,7 @@ impl PredictionMonitor {
                 joint_position_worst: worst(&tr.position_joint, s),
                 unmatched: tr.unmatched,
                 command_changed: tr.command_changed,
+                response: tr.response.fit(),
             });
         }
         &self.reports
@@ -464,5 +495,7 @@ fn pose_back_along(pose: &PlanarPose, twist: &[f64; 3], lag: f64) -> PlanarPose 
     ]
 }
 
+#[cfg(test)]
+mod response_tests;
 #[cfg(test)]
 mod tests;

@@ -19,6 +19,7 @@ fn settings() -> MonitorSettings {
             nees: 9.0,
             effort: 2.0,
             slip: 0.05,
+            lag: 0.08,
             clear_ratio: 0.5,
         },
     }
@@ -88,6 +89,8 @@ fn drive(
                     covariance: P,
                     effort: &predicted_effort,
                     position: &predicted_position,
+                    command: [f64::NAN; 2],
+                    start_velocity: [f64::NAN; 2],
                 };
                 m.record(i, &sample);
             }
@@ -251,6 +254,8 @@ fn predictions_whose_command_changed_before_they_were_due_are_not_scored() {
                     covariance: P,
                     effort: &[0.0, 0.0],
                     position: &[],
+                    command: [f64::NAN; 2],
+                    start_velocity: [f64::NAN; 2],
                 };
                 m.record(i, &sample);
             }
@@ -441,6 +446,8 @@ fn joint_states_that_each_give_some_joints_score_every_joint() {
                     covariance: P,
                     effort: &predicted_e,
                     position: &predicted_q,
+                    command: [f64::NAN; 2],
+                    start_velocity: [f64::NAN; 2],
                 };
                 m.record(i, &sample);
             }

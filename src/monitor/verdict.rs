@@ -1,8 +1,10 @@
 //! The monitor's verdict: whether the model still matches what arrives, and if not, the likely
 //! cause — the efforts off while the odometry matches (a load the model does not have: a
 //! payload added without telling the node), the poses off beyond their covariance (the base
-//! does not move as modelled: a slippery floor, wrong wheel radius or track), or both; and the
-//! measured states off the velocity constraints (the wheels slip on the floor).
+//! does not move as modelled: a slippery floor, wrong wheel radius or track), or both; the
+//! poses off because the drive answers its commands later than its model (a lag,
+//! [`super::response`]); and the measured states off the velocity constraints (the wheels slip
+//! on the floor).
 
 use super::HorizonReport;
 
@@ -12,13 +14,17 @@ pub struct Thresholds {
     /// Samples a horizon's window needs before it may call anything (≥ 1).
     pub min_samples: usize,
     /// The median NEES above which the poses are off (χ²₃'s median is 2.37; its 99.9th
-    /// percentile 16.3).
+    /// percentile 16.3), and the mean NEES above which a lag is called (χ²₃'s mean is 3).
     pub nees: f64,
     /// The |median signed effort error| of a joint above which its efforts are off [N·m or N].
     pub effort: f64,
     /// The measured states' median velocity residual off the constraints above which the
     /// wheels are called slipping [m/s or rad/s].
     pub slip: f64,
+    /// The lag [s] beyond which the drive is called late (when the lag also exceeds three
+    /// standard errors, over at least `min_samples` predictions whose mean NEES exceeds
+    /// `nees`).
+    pub lag: f64,
     /// A called cause clears once its figure falls below this fraction of its threshold (in
     /// (0, 1]).
     pub clear_ratio: f64,
@@ -56,6 +62,20 @@ pub enum Cause {
     Slip {
         /// [m/s or rad/s]
         residual: f64,
+    },
+    /// The poses at `horizon` [s] follow the gap between each start's velocity and its
+    /// command: the drive closes it `lag_s` [s] later than its model (± `lag_std_error_s`).
+    /// Named before the others, whose figures it explains. Only the predictions started while
+    /// the drive catches up are off, so it shows in no median: it is called on its own.
+    Lag {
+        /// [s]
+        horizon: f64,
+        /// [s]
+        lag_s: f64,
+        /// [s]
+        lag_std_error_s: f64,
+        /// Mean NEES (a few predictions far off).
+        nees_mean: f64,
     },
     /// Both: the joint whose efforts are most off and its median error, the horizon whose
     /// poses are most off and its median NEES.
@@ -100,6 +120,17 @@ impl Cause {
                  median velocity residual off the constraints {residual:.3} m/s): the wheels \
                  slip, a slippery floor?"
             ),
+            Cause::Lag {
+                horizon,
+                lag_s,
+                lag_std_error_s,
+                nees_mean,
+            } => format!(
+                "the odometry is off the predictions at {horizon} s (mean NEES {nees_mean:.1}) \
+                 the way a late drive is: it reaches its commands {lag_s:.3} ± \
+                 {lag_std_error_s:.3} s later than the model (a motor controller's own lag? \
+                 declare actuators.diff_drive.command_lag)"
+            ),
             Cause::Both {
                 joint,
                 error,
@@ -124,6 +155,7 @@ pub(super) struct Hysteresis {
     poses: bool,
     efforts: bool,
     slip: bool,
+    lag: bool,
 }
 
 impl Hysteresis {
@@ -148,7 +180,7 @@ impl Hysteresis {
             .filter(|r| enough(r.effort_samples))
             .filter_map(|r| r.effort_worst.map(|(j, e)| (r.horizon, j, e)))
             .max_by(|a, b| a.2.abs().total_cmp(&b.2.abs()));
-        let before = (self.poses, self.efforts, self.slip);
+        let before = (self.poses, self.efforts, self.slip, self.lag);
         let nees = poses.map_or(0.0, |r| r.nees_median);
         self.poses = match self.poses {
             false => nees > t.nees,
@@ -164,7 +196,34 @@ impl Hysteresis {
             false => residual > t.slip,
             true => residual >= clear * t.slip,
         };
-        let changed = before != (self.poses, self.efforts, self.slip);
+        // The lag, read at the longest horizon with enough predictions fitted (where a lag
+        // has moved the poses furthest).
+        let late = reports
+            .iter()
+            .filter_map(|r| r.response.map(|f| (r, f)))
+            .filter(|(_, f)| enough(f.samples))
+            .max_by(|a, b| a.0.horizon.total_cmp(&b.0.horizon));
+        let lag = late.map_or(0.0, |(_, f)| match f.lag_s > 3.0 * f.lag_std_error_s {
+            true => f.lag_s,
+            false => 0.0,
+        });
+        // And only where it matters: the predictions off by more than their covariance on
+        // average (a lag moves a few of them far, which the mean NEES shows and no median).
+        let nees_mean = late.map_or(0.0, |(r, _)| r.nees_mean);
+        self.lag = match self.lag {
+            false => lag > t.lag && nees_mean > t.nees,
+            true => lag >= clear * t.lag && nees_mean >= clear * t.nees,
+        };
+        let changed = before != (self.poses, self.efforts, self.slip, self.lag);
+        if let (true, Some((r, f))) = (self.lag, late) {
+            let cause = Cause::Lag {
+                horizon: r.horizon,
+                lag_s: f.lag_s,
+                lag_std_error_s: f.lag_std_error_s,
+                nees_mean: r.nees_mean,
+            };
+            return (Some(cause), changed);
+        }
         let verdict = match (poses, efforts, self.poses, self.efforts) {
             (Some(p), Some((_, joint, error)), true, true) => Some(Cause::Both {
                 joint,

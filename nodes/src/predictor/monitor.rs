@@ -12,7 +12,7 @@
 use constraint_dynamics::model::Model;
 use constraint_dynamics::monitor::{
     HorizonReport, MeasuredOdometry, PlanarCovariance, PredictedSample, PredictionMonitor,
-    SlipReport, Verdict, yaw_difference,
+    ResponseFit, SlipReport, Verdict, yaw_difference,
 };
 use constraint_dynamics::predict::Trajectory;
 
@@ -39,6 +39,9 @@ pub struct OnlineMonitor {
     epoch: Option<i64>,
     /// The last odometry's stamp [s after epoch]: the start of the next prediction.
     odom_t: Option<f64>,
+    /// The last odometry's forward speed [m/s] and turn rate [rad/s]: a prediction's measured
+    /// start velocity.
+    odom_velocity: [f64; 2],
     /// Whether a joint state with positions, and one with efforts, came: predictions before
     /// them start from the scene's initial joints, and those are not scored.
     positions_seen: bool,
@@ -72,6 +75,7 @@ impl OnlineMonitor {
             core: PredictionMonitor::new(p.settings(rate), nv),
             epoch: None,
             odom_t: None,
+            odom_velocity: [f64::NAN; 2],
             positions_seen: false,
             efforts_seen: false,
             measured_position: vec![f64::NAN; nv],
@@ -179,6 +183,8 @@ impl OnlineMonitor {
                         true => &self.predicted_position,
                         false => &[],
                     },
+                    command: self.command.unwrap_or([f64::NAN; 2]),
+                    start_velocity: self.odom_velocity,
                 },
             );
         }
@@ -188,6 +194,7 @@ impl OnlineMonitor {
     pub fn odometry(&mut self, od: &Odometry) {
         let t = self.seconds(od.header.stamp);
         self.odom_t = Some(t);
+        self.odom_velocity = [od.twist.twist.linear.x, od.twist.twist.angular.z];
         let p = &od.pose.pose;
         let c = &od.pose.covariance;
         let tw = &od.twist.twist;
@@ -332,6 +339,10 @@ fn values(r: &HorizonReport, slip: &SlipReport, names: &[String]) -> Vec<KeyValu
     };
     let (joint, effort) = worst(r.effort_worst, 3);
     let (position_joint, position) = worst(r.joint_position_worst, 5);
+    let fit = |value: fn(&ResponseFit) -> f64, digits: usize| match &r.response {
+        Some(f) => format!("{:.digits$}", value(f)),
+        None => "nan".to_string(),
+    };
     vec![
         kv("horizon [s]", &format!("{h}")),
         kv("odometry samples", &r.odometry_samples.to_string()),
@@ -358,6 +369,19 @@ fn values(r: &HorizonReport, slip: &SlipReport, names: &[String]) -> Vec<KeyValu
         kv(
             "command changed (not scored)",
             &r.command_changed.to_string(),
+        ),
+        kv("drive lag beyond the model [s]", &fit(|f| f.lag_s, 4)),
+        kv(
+            "drive lag standard error [s]",
+            &fit(|f| f.lag_std_error_s, 4),
+        ),
+        kv(
+            "travel beyond the model [fraction of command x horizon]",
+            &fit(|f| f.travel_ratio, 4),
+        ),
+        kv(
+            "turn beyond the model [fraction of command x horizon]",
+            &fit(|f| f.turn_ratio, 4),
         ),
         kv("measured states (slip)", &slip.samples.to_string()),
         kv(

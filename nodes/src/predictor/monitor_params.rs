@@ -39,6 +39,10 @@ pub struct MonitorParams {
     /// projection: a rolling wheel's surface speed against the base's measured motion) above
     /// which the wheels are called slipping [m/s or rad/s] (> 0).
     pub slip_threshold: f64,
+    /// The lag [s] beyond which a drive whose odometry is off is called late: its pose errors
+    /// follow the gap between each start's velocity and its command, closed this much later
+    /// than the model closes it (> 0).
+    pub lag_threshold: f64,
     /// A called cause clears below this fraction of its threshold (in (0, 1]).
     pub clear_ratio: f64,
     /// A command whose v [m/s] or ω [rad/s] moves off the last by more than this changes what
@@ -62,6 +66,7 @@ impl Default for MonitorParams {
             effort_threshold: 2.0,
             slip_window: 10,
             slip_threshold: 0.05,
+            lag_threshold: 0.08,
             clear_ratio: 0.5,
             command_tolerance: vec![0.005, 0.01],
             motion_error: vec![0.02, 0.05],
@@ -102,6 +107,7 @@ impl MonitorParams {
             ));
         }
         positive("monitor.slip_threshold", self.slip_threshold)?;
+        positive("monitor.lag_threshold", self.lag_threshold)?;
         let pair = |name: &str, x: &[f64], what: &str| match x.len() == 2
             && x.iter().all(|x| x.is_finite() && *x >= 0.0)
         {
@@ -156,6 +162,7 @@ impl MonitorParams {
                 nees: self.nees_threshold,
                 effort: self.effort_threshold,
                 slip: self.slip_threshold,
+                lag: self.lag_threshold,
                 clear_ratio: self.clear_ratio,
             },
         }

@@ -21,6 +21,7 @@ fn recording_scoring_and_assessing_allocate_nothing() {
             nees: 9.0,
             effort: 2.0,
             slip: 0.05,
+            lag: 0.08,
             clear_ratio: 0.5,
         },
     };
@@ -38,6 +39,8 @@ fn recording_scoring_and_assessing_allocate_nothing() {
                     covariance: p,
                     effort: &effort,
                     position: &effort,
+                    command: [0.3, 0.0],
+                    start_velocity: [0.29, 0.0],
                 };
                 m.record(i, &s);
             }
