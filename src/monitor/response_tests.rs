@@ -11,18 +11,7 @@ const H: f64 = 1.0;
 fn settings() -> MonitorSettings {
     MonitorSettings {
         horizons: vec![H],
-        window: 50,
-        pending: 16,
-        max_lag: 0.05,
-        slip_window: 20,
-        thresholds: Thresholds {
-            min_samples: 20,
-            nees: 9.0,
-            effort: 2.0,
-            slip: 0.05,
-            lag: 0.08,
-            clear_ratio: 0.5,
-        },
+        ..super::tests::settings()
     }
 }
 

@@ -7,7 +7,7 @@ use crate::test_rng::Rng;
 const HORIZONS: [f64; 3] = [0.25, 0.5, 1.0];
 const WINDOW: usize = 50;
 
-fn settings() -> MonitorSettings {
+pub(super) fn settings() -> MonitorSettings {
     MonitorSettings {
         horizons: HORIZONS.to_vec(),
         window: WINDOW,
