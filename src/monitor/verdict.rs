@@ -6,7 +6,7 @@
 //! [`super::response`]); and the measured states off the velocity constraints (the wheels slip
 //! on the floor).
 
-use super::HorizonReport;
+use super::{HorizonReport, ResponseFit};
 
 /// When the verdict calls the model off.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,6 +54,9 @@ pub enum Cause {
         yaw: f64,
         /// Median NEES.
         nees: f64,
+        /// How the drive answers its commands at that horizon (over at least `min_samples`
+        /// predictions): its travel and turn shortfalls point at the radius and the track.
+        response: Option<ResponseFit>,
     },
     /// The measured states lie off the velocity constraints by a median ‖J v‖ of `residual`
     /// [m/s or rad/s]: the wheels turn faster or slower than the base moves over the floor.
@@ -109,12 +112,25 @@ impl Cause {
                 position,
                 yaw,
                 nees,
-            } => format!(
-                "the odometry is off the prediction at {horizon} s (median {:.1} mm, {:.1} mrad, \
-                 NEES {nees:.1} ≫ 3): a slippery floor or wrong wheel parameters (radius, track)?",
-                position * 1e3,
-                yaw * 1e3
-            ),
+                response,
+            } => {
+                let mut s = format!(
+                    "the odometry is off the prediction at {horizon} s (median {:.1} mm, {:.1} \
+                     mrad, NEES {nees:.1} ≫ 3): a slippery floor or wrong wheel parameters \
+                     (radius, track)?",
+                    position * 1e3,
+                    yaw * 1e3
+                );
+                if let Some(f) = response {
+                    s += &format!(
+                        " The base travels {:+.1} % and turns {:+.1} % of its commands beyond \
+                         the model (radius and track: calibrate)",
+                        f.travel_ratio * 100.0,
+                        f.turn_ratio * 100.0
+                    );
+                }
+                s
+            }
             Cause::Slip { residual } => format!(
                 "the wheels' speeds are off the base's measured motion (the measured states' \
                  median velocity residual off the constraints {residual:.3} m/s): the wheels \
@@ -237,6 +253,7 @@ impl Hysteresis {
                 position: p.position_median,
                 yaw: p.yaw_median,
                 nees: p.nees_median,
+                response: p.response.filter(|f| enough(f.samples)),
             }),
             (_, Some((horizon, joint, error)), _, true) => Some(Cause::Efforts {
                 joint,
