@@ -30,7 +30,7 @@ mod response;
 mod stats;
 pub mod verdict;
 
-pub use response::ResponseFit;
+pub use response::{ResponseFit, ResponseWindow, ScoredResponse};
 pub use stats::{PlanarCovariance, PlanarPose, Window, nees, yaw_difference};
 pub use verdict::{Cause, Thresholds, Verdict};
 
@@ -151,7 +151,7 @@ struct Track {
     unmatched: usize,
     /// Predictions not scored: their command changed before they were due.
     command_changed: usize,
-    response: response::ResponseWindow,
+    response: ResponseWindow,
 }
 
 /// One horizon's figures (NaN where there are no samples yet).
@@ -235,7 +235,7 @@ impl PredictionMonitor {
                 position_joint: vec![Window::new(window); joints],
                 unmatched: 0,
                 command_changed: 0,
-                response: response::ResponseWindow::new(window),
+                response: ResponseWindow::new(window),
             })
             .collect();
         let reports = Vec::with_capacity(settings.horizons.len());
@@ -363,7 +363,7 @@ impl PredictionMonitor {
                 if let Some(n) = nees(e, &s) {
                     tr.nees.push(n);
                 }
-                tr.response.push(&response::ScoredResponse {
+                tr.response.push(&ScoredResponse {
                     error: e,
                     // The predicted chord's heading, about which a turn's shortfall
                     // moves the position only to second order.

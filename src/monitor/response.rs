@@ -22,7 +22,7 @@
 use nalgebra::{Matrix3, Vector3};
 
 /// The fitted response over a horizon's window.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct ResponseFit {
     /// Predictions fitted.
     pub samples: usize,
@@ -43,7 +43,7 @@ type Rows = [[f64; 3]; 2];
 
 /// A ring of the last `capacity` predictions' rows.
 #[derive(Clone, Debug)]
-pub(super) struct ResponseWindow {
+pub struct ResponseWindow {
     rows: Vec<Rows>,
     next: usize,
     len: usize,
@@ -52,17 +52,24 @@ pub(super) struct ResponseWindow {
 /// What one scored prediction contributes: its pose error (measured − predicted: x, y [m],
 /// yaw [rad]), the heading its position error is resolved along [rad], the error's covariance (predicted plus measured),
 /// the gap to the command at its start (v [m/s], ω [rad/s]), the command, and its horizon [s].
-pub(super) struct ScoredResponse<'a> {
+pub struct ScoredResponse<'a> {
+    /// [m, m, rad]
     pub error: [f64; 3],
+    /// [rad]
     pub heading: f64,
+    /// [m², m·rad, rad²]
     pub covariance: &'a [[f64; 3]; 3],
+    /// [m/s, rad/s]
     pub gap: [f64; 2],
+    /// [m/s, rad/s]
     pub command: [f64; 2],
+    /// [s]
     pub horizon: f64,
 }
 
 impl ResponseWindow {
-    pub(super) fn new(capacity: usize) -> Self {
+    /// An empty window of `capacity` predictions (at least 1).
+    pub fn new(capacity: usize) -> Self {
         Self {
             rows: vec![[[0.0; 3]; 2]; capacity.max(1)],
             next: 0,
@@ -70,13 +77,14 @@ impl ResponseWindow {
         }
     }
 
-    pub(super) fn clear(&mut self) {
+    /// Forgets every prediction.
+    pub fn clear(&mut self) {
         self.next = 0;
         self.len = 0;
     }
 
     /// Adds a scored prediction (one with a non-finite or degenerate part is not taken).
-    pub(super) fn push(&mut self, s: &ScoredResponse) {
+    pub fn push(&mut self, s: &ScoredResponse) {
         let (sin, cos) = s.heading.sin_cos();
         let c = s.covariance;
         let along = cos * cos * c[0][0] + 2.0 * sin * cos * c[0][1] + sin * sin * c[1][1];
@@ -99,7 +107,7 @@ impl ResponseWindow {
 
     /// The least-squares (τ, k_v, k_ω) over the window; None below four predictions or where
     /// the rows do not determine all three.
-    pub(super) fn fit(&self) -> Option<ResponseFit> {
+    pub fn fit(&self) -> Option<ResponseFit> {
         if self.len < 4 {
             return None;
         }

@@ -8,6 +8,10 @@
 //! The predicted covariance is the node's: the propagated one, plus on each pose axis the
 //! integration error estimate and the floors in quadrature (nodes/src/predictor/mod.rs). Each
 //! prediction's NEES is taken against it plus the reference's own covariance (stats.rs).
+//!
+//! Per horizon, the predictions whose command held over the horizon also give the drive's
+//! response, as the node's monitor fits it (`monitor::ResponseWindow`): how much later than
+//! the model the drive reaches its commands, and how far it travels and turns beyond them.
 
 use super::ReplayError;
 use super::record::{EvaluationSettings, PredictionRecord, check_settings, to_nanos};
@@ -15,6 +19,7 @@ use super::replayer::{Replayer, Span};
 use super::series::{Nanos, Recording, show_stamp};
 use super::stats::{Coverage, Spread};
 use crate::Scene;
+use crate::monitor::{ResponseFit, ResponseWindow, ScoredResponse};
 use serde::Serialize;
 
 /// The figures of one horizon.
@@ -34,7 +39,16 @@ pub struct HorizonSummary {
     pub coverage: Coverage,
     /// Mean NEES (3 when the covariance is right).
     pub nees_mean: f64,
+    /// The drive's response over the predictions whose command held (absent where they do
+    /// not determine it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub response: Option<ResponseFit>,
 }
+
+/// A command that moves off the one at a start by more than this (v [m/s], ω [rad/s]) within
+/// the horizon leaves the prediction out of the response (the node's
+/// `monitor.command_tolerance` default).
+const COMMAND_TOLERANCE: [f64; 2] = [0.005, 0.01];
 
 /// An evaluation: the summary per horizon and every prediction.
 #[derive(Clone, Debug, Serialize)]
@@ -117,7 +131,51 @@ pub fn evaluate(
     for (_, r) in by_start {
         records.extend(r?);
     }
-    summarise(settings, starts.len(), records, (end - first) as f64 * 1e-9)
+    let mut evaluation = summarise(settings, starts.len(), records, (end - first) as f64 * 1e-9)?;
+    for h in &mut evaluation.horizons {
+        h.response = response(recording, &evaluation.records, h.horizon_s);
+    }
+    Ok(evaluation)
+}
+
+/// The drive's response at horizon `h` [s] over `records` (module documentation).
+fn response(recording: &Recording, records: &[PredictionRecord], h: f64) -> Option<ResponseFit> {
+    let origin = recording.origin();
+    let of_h = || records.iter().filter(|r| r.horizon_s == h);
+    let mut window = ResponseWindow::new(of_h().count());
+    for r in of_h() {
+        let t0 = origin + to_nanos(r.t0_s);
+        let (Some((_, command)), Some((_, odom))) = (
+            recording.commands.at_or_before(t0),
+            recording.odometry.at_or_before(t0),
+        ) else {
+            continue;
+        };
+        let later = recording.commands.between(t0, t0 + to_nanos(h));
+        let moved = |c: &[f64; 2]| (0..2).any(|k| (c[k] - command[k]).abs() > COMMAND_TOLERANCE[k]);
+        if later.iter().any(|(_, c)| moved(c)) {
+            continue;
+        }
+        let mut covariance = r.predicted_covariance;
+        for (row, reference) in covariance.iter_mut().zip(&r.reference_covariance) {
+            for (x, y) in row.iter_mut().zip(reference) {
+                *x += y;
+            }
+        }
+        let e = [0, 1].map(|k| r.reference[k] - r.predicted[k]);
+        window.push(&ScoredResponse {
+            error: [e[0], e[1], r.yaw_error_rad],
+            heading: r.predicted[2] - 0.5 * command[1] * h,
+            covariance: &covariance,
+            gap: [
+                command[0] - odom.twist.linear[0],
+                command[1] - odom.twist.angular[2],
+            ],
+            command: *command,
+            horizon: h,
+        });
+    }
+    window.fit()
 }
 
 /// A start's index and its predictions (or why it failed).
@@ -149,6 +207,7 @@ fn summarise(
             yaw_error_rad: Spread::of(&yaw),
             coverage: Coverage::of_overlapping(&nees, settings.every_s, h),
             nees_mean: nees.iter().sum::<f64>() / nees.len() as f64,
+            response: None,
         });
     }
     Ok(Evaluation {
