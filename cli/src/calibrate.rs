@@ -136,6 +136,19 @@ pub fn run(a: CalibrateArgs) -> Result<Value> {
     let report = a.replay.settings(a.report_horizons.clone());
     let before = figures(&scene, &recordings, &report)?;
     let after = figures(&calibrated, &recordings, &report)?;
+    let declares_lag =
+        (calibrated.file.actuators.diff_drive.as_ref()).is_some_and(|d| d.command_lag.is_some());
+    // Without a declared lag none of the fitted values can take one up, and the scene as
+    // given shows it most clearly; with one, what the fit left of it.
+    let advice: Vec<String> = (bags.iter().zip(before.iter().zip(&after)))
+        .filter_map(|(bag, (before, after))| match declares_lag {
+            false => lag_advice(bag, before, "as given", declares_lag),
+            true => lag_advice(bag, after, "as calibrated", declares_lag),
+        })
+        .collect();
+    for a in &advice {
+        eprintln!("calibrate: {a}");
+    }
     let per_bag: Vec<Value> = (bags.iter().zip(before).zip(after))
         .map(|((bag, before), after)| json!({"bag": bag, "before": before, "after": after}))
         .collect();
@@ -145,7 +158,37 @@ pub fn run(a: CalibrateArgs) -> Result<Value> {
     out["out"] = json!(a.out.display().to_string());
     out["reference_topic"] = json!(recordings.first().map(|r| r.reference.name.clone()));
     out["run_time_s"] = json!(began.elapsed().as_secs_f64());
+    out["advice"] = json!(advice);
     Ok(out)
+}
+
+/// The lag [s] beyond which a drive is called late (the predictor's `monitor.lag_threshold`
+/// default, docs/nodes.md).
+const LAG_WORTH_S: f64 = 0.08;
+
+/// Where a drive reaches its commands later than the scene `which` predicts it (the
+/// response at the longest horizon that has one, above [`LAG_WORTH_S`] and three standard
+/// errors, docs/logs.md): what the scene should declare. `figures` is evaluate's horizons.
+fn lag_advice(bag: &str, figures: &Value, which: &str, declares_lag: bool) -> Option<String> {
+    let (h, lag, se) = (figures.as_array()?.iter().rev()).find_map(|h| {
+        let r = &h["response"];
+        Some((
+            h["horizon_s"].as_f64()?,
+            r["lag_s"].as_f64()?,
+            r["lag_std_error_s"].as_f64()?,
+        ))
+    })?;
+    if !(lag > LAG_WORTH_S && lag > 3.0 * se) {
+        return None;
+    }
+    let what = match declares_lag {
+        false => "declare actuators.diff_drive.command_lag (an estimate) and calibrate again",
+        true => "its declared command_lag falls short: start the fit from a longer one",
+    };
+    Some(format!(
+        "{bag}: with the scene {which}, the drive reaches its commands {lag:.3} ± {se:.3} s \
+         later than the model at {h} s: {what}"
+    ))
 }
 
 #[cfg(test)]

@@ -128,6 +128,8 @@ fn calibrated_on_one_drive_the_scene_predicts_the_others_true_pose() {
         ],
     );
     assert!(ok, "{err}");
+    // A drive without a lag (its response at 1 s: 0.033 s) hears no advice to declare one.
+    assert_eq!(out["advice"], serde_json::json!([]), "{}", out["advice"]);
     let param = |name: &str| parameter(&out, name);
     let r = param("rolling_radius");
     assert_radius_as_simulated(&r);
@@ -406,9 +408,19 @@ fn a_lagging_drive_is_fitted_its_lag() {
     );
     assert!((value - 0.15).abs() <= 0.003 && se < 0.003, "{lag}");
     assert_radius_as_simulated(&parameter(&out, "rolling_radius"));
-    calibrate(
+    // The lag fitted, nothing left to advise.
+    assert_eq!(out["advice"], serde_json::json!([]), "{}", out["advice"]);
+    let unlagged = calibrate(
         &path("params/suite_mobile_manipulator.yaml"),
         "unlagged_cal.yaml",
+    );
+    // Without one, the calibrated drive still lags its model, and is told to declare a lag.
+    let advice = unlagged["advice"][0].as_str().unwrap_or_default();
+    println!("achieved advice: {advice}");
+    assert!(
+        advice.contains("declare actuators.diff_drive.command_lag"),
+        "{}",
+        unlagged["advice"]
     );
     let smooth = path("tests/data/logs/command_lag_smooth.mcap");
     let score = |scene: &str| true_pose_figures(&dir, scene, &smooth);
