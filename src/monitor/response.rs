@@ -5,12 +5,11 @@
 //! lets the model's controllers close the gap d = (u − v₀, ω_u − ω₀). A drive that follows
 //! its commands through a first-order lag τ the model does not have closes it τ later, so it
 //! ends about τ·d behind: along the predicted chord (the heading halfway through the
-//! predicted turn) the pose error is −τ·d_v, in yaw −τ·d_ω.
-//! A drive that travels or turns a fraction short of its model at any speed (worn tyres,
+//! predicted turn) the pose error is −τ·d_v, in yaw −τ·d_ω. A drive that travels or turns a fraction short of its model at any speed (worn tyres,
 //! scrub) leaves errors k_v·u·h and k_ω·ω_u·h over the horizon h instead, proportional to the
 //! command, not to the gap. Over the window, each scored prediction gives two rows, each
 //! divided by its error's standard deviation (the predicted covariance plus the odometry's,
-//! along the predicted heading and in yaw):
+//! along the chord and in yaw):
 //!
 //! e_s = −τ d_v + k_v u h,   e_ψ = −τ d_ω + k_ω ω_u h,
 //!
@@ -38,7 +37,7 @@ pub struct ResponseFit {
     pub turn_ratio: f64,
 }
 
-/// One prediction's rows: (e, −d, u·h) along the heading and in yaw, each over its σ.
+/// One prediction's rows: (e, −d, u·h) along the chord and in yaw, each over its σ.
 type Rows = [[f64; 3]; 2];
 
 /// A ring of the last `capacity` predictions' rows.
@@ -50,8 +49,9 @@ pub struct ResponseWindow {
 }
 
 /// What one scored prediction contributes: its pose error (measured − predicted: x, y [m],
-/// yaw [rad]), the heading its position error is resolved along [rad], the error's covariance (predicted plus measured),
-/// the gap to the command at its start (v [m/s], ω [rad/s]), the command, and its horizon [s].
+/// yaw [rad]), the heading its position error is resolved along (the predicted chord's)
+/// [rad], the error's covariance (predicted plus measured), the gap to the command at its
+/// start (v [m/s], ω [rad/s]), the command, and its horizon [s].
 pub struct ScoredResponse<'a> {
     /// [m, m, rad]
     pub error: [f64; 3],
