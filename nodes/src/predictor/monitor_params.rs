@@ -27,8 +27,8 @@ pub struct MonitorParams {
     /// The latest a measurement may arrive after a prediction's due time and still be its
     /// measurement [s] (> 0).
     pub max_lag: f64,
-    /// Median NEES of (x, y, yaw) above which the odometry is called off the model (> 0;
-    /// χ²₃'s median is 2.37).
+    /// Median NEES of (x, y, yaw) above which the odometry is called off the model, and the
+    /// mean NEES above which a lag is called (> 0; χ²₃'s median is 2.37, its mean 3).
     pub nees_threshold: f64,
     /// |Median effort error| of a joint above which its efforts are called off [N·m or N] (> 0).
     pub effort_threshold: f64,
@@ -39,9 +39,9 @@ pub struct MonitorParams {
     /// projection: a rolling wheel's surface speed against the base's measured motion) above
     /// which the wheels are called slipping [m/s or rad/s] (> 0).
     pub slip_threshold: f64,
-    /// The lag [s] beyond which a drive whose odometry is off is called late: its pose errors
-    /// follow the gap between each start's velocity and its command, closed this much later
-    /// than the model closes it (> 0).
+    /// The lag [s] beyond which the drive is called late: its pose errors follow the gap
+    /// between each start's velocity and its command, closed this much later than the model
+    /// closes it (> 0; with three standard errors and a mean NEES above `nees_threshold`).
     pub lag_threshold: f64,
     /// A called cause clears below this fraction of its threshold (in (0, 1]).
     pub clear_ratio: f64,
