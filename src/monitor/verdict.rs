@@ -145,7 +145,7 @@ impl Cause {
                 "the odometry is off the predictions at {horizon} s (mean NEES {nees_mean:.1}) \
                  the way a late drive is: it reaches its commands {lag_s:.3} ± \
                  {lag_std_error_s:.3} s later than the model (a motor controller's own lag? \
-                 declare actuators.diff_drive.command_lag)"
+                 declare actuators.diff_drive.command_lag, or lengthen it)"
             ),
             Cause::Both {
                 joint,
