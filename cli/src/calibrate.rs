@@ -142,8 +142,8 @@ pub fn run(a: CalibrateArgs) -> Result<Value> {
     // given shows it most clearly; with one, what the fit left of it.
     let advice: Vec<String> = (bags.iter().zip(before.iter().zip(&after)))
         .filter_map(|(bag, (before, after))| match declares_lag {
-            false => lag_advice(bag, before, "as given", declares_lag),
-            true => lag_advice(bag, after, "as calibrated", declares_lag),
+            false => lag_advice(bag, before, declares_lag),
+            true => lag_advice(bag, after, declares_lag),
         })
         .collect();
     for a in &advice {
@@ -166,10 +166,11 @@ pub fn run(a: CalibrateArgs) -> Result<Value> {
 /// default, docs/nodes.md).
 const LAG_WORTH_S: f64 = 0.08;
 
-/// Where a drive reaches its commands later than the scene `which` predicts it (the
-/// response at the longest horizon that has one, above [`LAG_WORTH_S`] and three standard
-/// errors, docs/logs.md): what the scene should declare. `figures` is evaluate's horizons.
-fn lag_advice(bag: &str, figures: &Value, which: &str, declares_lag: bool) -> Option<String> {
+/// Where a drive reaches its commands later than the scene predicts it (the response at the
+/// longest horizon that has one, above [`LAG_WORTH_S`] and three standard errors,
+/// docs/logs.md): what the scene should declare. `figures` is evaluate's horizons, of the
+/// scene as given where it declares no lag and as calibrated where it does.
+fn lag_advice(bag: &str, figures: &Value, declares_lag: bool) -> Option<String> {
     let (h, lag, se) = (figures.as_array()?.iter().rev()).find_map(|h| {
         let r = &h["response"];
         Some((
@@ -181,9 +182,15 @@ fn lag_advice(bag: &str, figures: &Value, which: &str, declares_lag: bool) -> Op
     if !(lag > LAG_WORTH_S && lag > 3.0 * se) {
         return None;
     }
-    let what = match declares_lag {
-        false => "declare actuators.diff_drive.command_lag (an estimate) and calibrate again",
-        true => "its declared command_lag falls short: start the fit from a longer one",
+    let (which, what) = match declares_lag {
+        false => (
+            "as given",
+            "declare actuators.diff_drive.command_lag (an estimate) and calibrate again",
+        ),
+        true => (
+            "as calibrated",
+            "its declared command_lag falls short: start the fit from a longer one",
+        ),
     };
     Some(format!(
         "{bag}: with the scene {which}, the drive reaches its commands {lag:.3} ± {se:.3} s \

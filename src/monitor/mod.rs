@@ -99,9 +99,9 @@ struct PendingPose {
     covariance: PlanarCovariance,
     /// Its command changed before it was due.
     command_changed: bool,
-    /// The command held and its gap to the start's measured velocity (v, ω).
+    /// The command held and the start's measured velocity (v, ω).
     command: [f64; 2],
-    gap: [f64; 2],
+    start_velocity: [f64; 2],
 }
 
 /// A ring of pending samples, ordered by due time, its joints in flat arrays beside it. The
@@ -302,7 +302,7 @@ impl PredictionMonitor {
             covariance: s.covariance,
             command_changed: false,
             command: s.command,
-            gap: [0, 1].map(|k| s.command[k] - s.start_velocity[k]),
+            start_velocity: s.start_velocity,
         };
         for (from, to) in [(s.effort, &mut p.efforts), (s.position, &mut p.positions)] {
             let slot = &mut to[i * ne..(i + 1) * ne];
@@ -365,12 +365,10 @@ impl PredictionMonitor {
                 }
                 tr.response.push(&ScoredResponse {
                     error: e,
-                    // The predicted chord's heading, about which a turn's shortfall
-                    // moves the position only to second order.
-                    heading: due.pose[2] - 0.5 * due.command[1] * (due.t - due.start),
+                    predicted_yaw: due.pose[2],
                     covariance: &s,
-                    gap: due.gap,
                     command: due.command,
+                    start_velocity: due.start_velocity,
                     horizon: due.t - due.start,
                 });
             }

@@ -5,11 +5,12 @@
 //! lets the model's controllers close the gap d = (u − v₀, ω_u − ω₀). A drive that follows
 //! its commands through a first-order lag τ the model does not have closes it τ later, so it
 //! ends about τ·d behind: along the predicted chord (the heading halfway through the
-//! predicted turn) the pose error is −τ·d_v, in yaw −τ·d_ω. A drive that travels or turns a fraction short of its model at any speed (worn tyres,
-//! scrub) leaves errors k_v·u·h and k_ω·ω_u·h over the horizon h instead, proportional to the
-//! command, not to the gap. Over the window, each scored prediction gives two rows, each
-//! divided by its error's standard deviation (the predicted covariance plus the odometry's,
-//! along the chord and in yaw):
+//! predicted turn, about which a turn's shortfall moves the position only to second order)
+//! the pose error is −τ·d_v, in yaw −τ·d_ω. A drive that travels or turns a fraction short
+//! of its model at any speed (worn tyres, scrub) leaves errors k_v·u·h and k_ω·ω_u·h over
+//! the horizon h instead, proportional to the command, not to the gap. Over the window, each
+//! scored prediction gives two rows, each divided by its error's standard deviation (the
+//! predicted covariance plus the odometry's, along the chord and in yaw):
 //!
 //! e_s = −τ d_v + k_v u h,   e_ψ = −τ d_ω + k_ω ω_u h,
 //!
@@ -49,20 +50,20 @@ pub struct ResponseWindow {
 }
 
 /// What one scored prediction contributes: its pose error (measured − predicted: x, y [m],
-/// yaw [rad]), the heading its position error is resolved along (the predicted chord's)
-/// [rad], the error's covariance (predicted plus measured), the gap to the command at its
-/// start (v [m/s], ω [rad/s]), the command, and its horizon [s].
+/// yaw [rad]), the predicted yaw at its end [rad], the error's covariance (predicted plus
+/// measured), the command it held and the measured velocity at its start (v [m/s], ω [rad/s]),
+/// and its horizon [s].
 pub struct ScoredResponse<'a> {
     /// [m, m, rad]
     pub error: [f64; 3],
     /// [rad]
-    pub heading: f64,
+    pub predicted_yaw: f64,
     /// [m², m·rad, rad²]
     pub covariance: &'a [[f64; 3]; 3],
     /// [m/s, rad/s]
-    pub gap: [f64; 2],
-    /// [m/s, rad/s]
     pub command: [f64; 2],
+    /// [m/s, rad/s]
+    pub start_velocity: [f64; 2],
     /// [s]
     pub horizon: f64,
 }
@@ -85,7 +86,8 @@ impl ResponseWindow {
 
     /// Adds a scored prediction (one with a non-finite or degenerate part is not taken).
     pub fn push(&mut self, s: &ScoredResponse) {
-        let (sin, cos) = s.heading.sin_cos();
+        let chord = s.predicted_yaw - 0.5 * s.command[1] * s.horizon;
+        let (sin, cos) = chord.sin_cos();
         let c = s.covariance;
         let along = cos * cos * c[0][0] + 2.0 * sin * cos * c[0][1] + sin * sin * c[1][1];
         let sigma = [along.sqrt(), c[2][2].sqrt()];
@@ -93,7 +95,7 @@ impl ResponseWindow {
         let mut rows = [[0.0; 3]; 2];
         for k in 0..2 {
             rows[k][0] = e[k] / sigma[k];
-            rows[k][1] = -s.gap[k] / sigma[k];
+            rows[k][1] = -(s.command[k] - s.start_velocity[k]) / sigma[k];
             rows[k][2] = s.command[k] * s.horizon / sigma[k];
         }
         if !(sigma.iter().all(|x| *x > 0.0) && rows.iter().flatten().all(|x| x.is_finite())) {

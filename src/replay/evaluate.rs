@@ -156,22 +156,15 @@ fn response(recording: &Recording, records: &[PredictionRecord], h: f64) -> Opti
         if later.iter().any(|(_, c)| moved(c)) {
             continue;
         }
-        let mut covariance = r.predicted_covariance;
-        for (row, reference) in covariance.iter_mut().zip(&r.reference_covariance) {
-            for (x, y) in row.iter_mut().zip(reference) {
-                *x += y;
-            }
-        }
+        let (p, rc) = (&r.predicted_covariance, &r.reference_covariance);
+        let covariance = [0, 1, 2].map(|i| [0, 1, 2].map(|j| p[i][j] + rc[i][j]));
         let e = [0, 1].map(|k| r.reference[k] - r.predicted[k]);
         window.push(&ScoredResponse {
             error: [e[0], e[1], r.yaw_error_rad],
-            heading: r.predicted[2] - 0.5 * command[1] * h,
+            predicted_yaw: r.predicted[2],
             covariance: &covariance,
-            gap: [
-                command[0] - odom.twist.linear[0],
-                command[1] - odom.twist.angular[2],
-            ],
             command: *command,
+            start_velocity: [odom.twist.linear[0], odom.twist.angular[2]],
             horizon: h,
         });
     }
