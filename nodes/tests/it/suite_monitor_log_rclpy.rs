@@ -3,8 +3,8 @@
 //! `nodes/tests/peers/replay_peer.py`): the peer reads a log of tests/data/logs/ (MuJoCo's
 //! mobile manipulator with a heavier chassis and worn, scrubbing tyres; odometry noise σ 2 mm,
 //! 2 mrad) with the `mcap` reader, decodes it with rclpy and publishes /odom, /joint_states
-//! and /cmd_vel at their recorded times with /clock, into the suite of params/default.yaml
-//! under use_sim_time, every `monitor.*` at its default.
+//! and /cmd_vel at their recorded times with /clock, at twice the recorded rate, into the suite
+//! of params/default.yaml under use_sim_time, every `monitor.*` at its default.
 //! - validation_smooth.mcap (20 s, a Nav2-like drive): no WARN from the monitor, every status
 //!   OK, and each horizon's medians (position, yaw, NEES) the same as those of an independent
 //!   computation within a factor 2 (NEES 3): the offline replay (`constraint_dynamics evaluate`'s
@@ -52,6 +52,9 @@ const WINDOW: usize = 50;
 const MIN_SAMPLES: usize = 20;
 const COMMAND_TOLERANCE: [f64; 2] = [0.005, 0.01];
 const MOTION_ERROR: [f64; 2] = [0.02, 0.05];
+/// Log seconds per wall second of the replay: the suite, on the log's time, predicts at 10 Hz
+/// of it (20 a wall second, about a tenth of a core with the covariance).
+const RATE: f64 = 2.0;
 const WARN: &str = "predictions off what arrives";
 
 fn replay(what: &str, log: &str, extra: &[String]) -> (Value, SuiteProcess) {
@@ -70,7 +73,12 @@ fn replay(what: &str, log: &str, extra: &[String]) -> (Value, SuiteProcess) {
         TEST,
     );
     let bag = repo_root().join("tests/data/logs").join(log);
-    let mut args = vec!["--bag".to_string(), bag.display().to_string()];
+    let mut args = vec![
+        "--bag".to_string(),
+        bag.display().to_string(),
+        "--rate".to_string(),
+        RATE.to_string(),
+    ];
     args.extend_from_slice(extra);
     let report = peer_report(&python, "replay_peer.py", &args, Duration::from_secs(45));
     if let Some(figures) = report["figures"].as_object() {

@@ -19,8 +19,11 @@ use serde_json::Value;
 
 const TEST: &str = "rclpy_drive_is_scored_and_an_unannounced_payload_named";
 
-/// The suite with a small window so a 25 s drive fills it at the rate a loaded machine
-/// achieves (≥ 2 Hz).
+/// The predictor's window: the peer drives until every horizon's window is full (a few seconds at
+/// 10 Hz), or 25 s at most, what fills it at the rate a loaded machine achieves (≥ 2 Hz).
+const WINDOW: usize = 20;
+
+/// The suite with a small window.
 fn suite(name: &str) -> SuiteProcess {
     SuiteProcess::spawn(
         env!("CARGO_BIN_EXE_constraint_dynamics_suite"),
@@ -35,7 +38,7 @@ fn suite(name: &str) -> SuiteProcess {
             "-p",
             "cd_predictor:covariance.propagate:=false",
             "-p",
-            "cd_predictor:monitor.window:=20",
+            &format!("cd_predictor:monitor.window:={WINDOW}"),
             "-p",
             "cd_predictor:monitor.min_samples:=10",
         ],
@@ -46,7 +49,12 @@ fn suite(name: &str) -> SuiteProcess {
 fn run(what: &str, payload: f64) -> (Value, SuiteProcess) {
     let python = peer_python(TEST);
     let suite = suite(TEST);
-    let args = ["--payload".to_string(), payload.to_string()];
+    let args = [
+        "--payload".to_string(),
+        payload.to_string(),
+        "--window".to_string(),
+        WINDOW.to_string(),
+    ];
     let report = peer_report(&python, "monitor_peer.py", &args, Duration::from_secs(90));
     if let Some(figures) = report["figures"].as_object() {
         for (k, v) in figures {

@@ -14,7 +14,8 @@ forward of tool0, so each pitch joint (arm_shoulder_pitch, arm_elbow, arm_wrist;
 M·g·D_X (the mass's horizontal lever is D_X from every one of them), the yaw joint nothing.
 
 Records every ~/prediction_residuals (diagnostic_msgs/DiagnosticArray, one status per horizon)
-for DURATION s and prints one JSON object on the last line: ok, errors, figures (messages, the
+until every horizon's window holds `--window N` odometry and effort samples (then a drive this
+steady changes its figures no more) and one second more, or for DURATION s at most, and prints one JSON object on the last line: ok, errors, figures (messages, the
 last status of each horizon, the highest level seen); exits 0 iff ok.
 """
 import json
@@ -40,6 +41,8 @@ D_X = 0.2  # the payload's lever forward of tool0 [m]
 ARM = ["arm_shoulder_yaw", "arm_shoulder_pitch", "arm_elbow", "arm_wrist"]
 DURATION = float(sys.argv[sys.argv.index("--duration") + 1]) if "--duration" in sys.argv else 25.0
 PAYLOAD = float(sys.argv[sys.argv.index("--payload") + 1]) if "--payload" in sys.argv else 0.0
+WINDOW = int(sys.argv[sys.argv.index("--window") + 1]) if "--window" in sys.argv else None
+HORIZONS = 3  # the statuses of a report: the predictor's three horizons
 ERRORS = []
 FIGURES = {}
 
@@ -101,6 +104,19 @@ class Peer(Node):
         self.js_pub.publish(arm)
 
 
+def windows_full(peer):
+    """Whether the last report's every horizon holds WINDOW odometry and effort samples."""
+    if WINDOW is None:
+        return False
+    with peer.lock:
+        last = peer.reports[-1] if peer.reports else None
+    if last is None or len(last.status) < HORIZONS:
+        return False
+    count = lambda s, key: next((int(kv.value) for kv in s.values if kv.key == key), 0)
+    return all(count(s, "odometry samples") >= WINDOW and count(s, "effort samples") >= WINDOW
+               for s in last.status)
+
+
 def main():
     rclpy.init()
     peer = Peer()
@@ -109,7 +125,10 @@ def main():
     spin = threading.Thread(target=ex.spin, daemon=True)
     spin.start()
     try:
-        time.sleep(DURATION)
+        end = time.monotonic() + DURATION
+        while time.monotonic() < end and not windows_full(peer):
+            time.sleep(0.1)
+        time.sleep(min(1.0, max(0.0, end - time.monotonic())))
         with peer.lock:
             reports = list(peer.reports)
         FIGURES["residual messages"] = len(reports)

@@ -3,14 +3,15 @@
 predictions (nodes/tests/it/suite_monitor_log_rclpy.rs).
 
     replay_peer.py --bag FILE.mcap [--topics /odom,/joint_states,/cmd_vel] [--limit S]
-                   [--payload-kg M --urdf URDF]
+                   [--rate R] [--payload-kg M --urdf URDF]
 
 The peer reads the rosbag2 MCAP file with the `mcap` package's reader (another reader than the
 suite's), decodes each message's CDR with rclpy (`rclpy.serialization.deserialize_message`, the
 type named by the message's schema) and publishes it on its recorded topic at its recorded log
 time, as `ros2 bag play --clock` does: /clock (rosgraph_msgs/Clock) carries the log time before
 every message, so a suite under use_sim_time runs on the log's time, whatever this machine's
-load. Wall time follows the log's time 1:1.
+load. The log's time runs at R times wall time (`--rate`, as `ros2 bag play --rate`; 1 by
+default).
 
 Before the replay the peer waits until the suite subscribes to every replayed topic and
 publishes ~/prediction_residuals, then 1.5 s for the predictor's command subscription to take
@@ -53,6 +54,7 @@ def arg(name, default):
 BAG = arg("--bag", None)
 TOPICS = arg("--topics", "/odom,/joint_states,/cmd_vel").split(",")
 LIMIT_S = float(arg("--limit", "inf"))  # replay at most this much of the log [s]
+RATE = float(arg("--rate", "1"))  # log seconds per wall second
 PAYLOAD_KG = float(arg("--payload-kg", "0"))
 URDF = arg("--urdf", None)
 G = 9.81
@@ -150,14 +152,15 @@ class Peer(Node):
 
 
 def replay(peer, log):
-    """Publishes the log at its recorded rate; returns the messages published per topic."""
+    """Publishes the log at RATE times its recorded rate; returns the messages published per
+    topic."""
     counts = {}
     t_first = log[0][0]
     start = time.monotonic()
     for t, topic, msg in log:
         if (t - t_first) * 1e-9 > LIMIT_S:
             break
-        delay = start + (t - t_first) * 1e-9 - time.monotonic()
+        delay = start + (t - t_first) * 1e-9 / RATE - time.monotonic()
         if delay > 0:
             time.sleep(delay)
         peer.clock(t)
