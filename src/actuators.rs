@@ -296,6 +296,18 @@ impl Actuators {
         (self.lag_s > 0.0).then_some(self.lag_s)
     }
 
+    /// The base command (v [m/s], ω [rad/s]) whose wheel targets are the drive's wheel speeds in
+    /// `v` (nv), through the drive's own `wheel_radius` and `wheel_separation`: where a lag
+    /// starts when no command history says where it is. The wheels' PI loops hold their speeds
+    /// on the lagged targets, so the speeds measure them. None without a diff drive or with a
+    /// wheel speed not finite.
+    pub fn drive_command_of_wheels(&self, v: &[f64]) -> Option<[f64; 2]> {
+        let (l, r, radius, b) = self.diff_drive?;
+        let (wl, wr) = (v[self.velocity[l].iv], v[self.velocity[r].iv]);
+        let command = [radius * (wl + wr) / 2.0, radius * (wr - wl) / b];
+        command.iter().all(|x| x.is_finite()).then_some(command)
+    }
+
     /// The diff drive's lagged command (v [m/s], ω [rad/s]) at a prediction's start, where the
     /// drive has a command lag ([`CommandLag::at`] over the commands before it); None: the
     /// lag starts on the first command. Called after the start of the controllers' model in

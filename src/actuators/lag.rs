@@ -6,8 +6,10 @@
 //! continuous ones read it (and its integral) at any time of a command segment.
 //!
 //! The lag's state at a prediction's start is not in the robot's state: it is what the
-//! commands before the start left ([`CommandLag`] over their history, as the nodes and the
-//! replay keep it), or, without a history, the first command's (the drive long at rest on it).
+//! commands before the start left ([`CommandLag`] over their history, as the predictor node and
+//! the replay keep it), the start's wheel speeds (a request without a history:
+//! [`super::Actuators::drive_command_of_wheels`]), or the first command's (the drive long at
+//! rest on it).
 
 /// The shortest lag [s] that is one: a shorter one (a calibrated value at the edge of 0) is the
 /// command itself, so that the lag's rate, (u − x)/τ, stays finite.

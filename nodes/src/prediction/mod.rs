@@ -1,12 +1,14 @@
 //! `cd_prediction`: a prediction on request (`~/predict`): from the latest state (or one the
 //! request gives), under a sequence of base commands, over a horizon, with the constraint forces
 //! at every sample if asked, and the propagated covariance at every sample if asked; and
-//! rollouts for sampling planners (`~/rollouts`): N command sequences, N trajectories.
+//! rollouts for sampling planners (`~/rollouts`): N command sequences, N trajectories. A drive
+//! that follows its commands late (`command_lag`) starts each from its wheels' speeds.
 
 pub mod params;
 mod rollouts;
 pub mod ros;
 
+use constraint_dynamics::actuators::Actuators;
 use constraint_dynamics::predict::{PredictionRequest, Predictor};
 use nalgebra::DMatrix;
 
@@ -203,6 +205,7 @@ impl PredictionNode {
             forces: req.with_forces,
             // μ where a contact declares none, N of a planar base's wheels: the parameters'.
             contact_limits: self.robot.contact_limits(common),
+            lagged_command: lag_start(self.predictor.config().actuators(), &v),
             ..PredictionRequest::new(&q, &v)
         };
         let traj = self
@@ -255,4 +258,13 @@ impl PredictionNode {
             joint_error_estimate_m: last.error_estimate_by_kind.map_or(0.0, |e| e.joint_m),
         })
     }
+}
+
+/// Where a request's command lag starts (a scene with `actuators.diff_drive.command_lag`): at
+/// the start's wheel speeds, the drive's lagged targets that its wheel loops track. A request
+/// carries no command history, and its first command is what a planner asks about, not what
+/// the drive already follows: started on it, the drive would answer it with no lag at all.
+fn lag_start(actuators: &Actuators, v: &[f64]) -> Option<[f64; 2]> {
+    actuators.command_lag_s()?;
+    actuators.drive_command_of_wheels(v)
 }

@@ -109,6 +109,7 @@ impl PredictionNode {
             },
             forces: req.with_forces,
             contact_limits: self.robot.contact_limits(common),
+            lagged_command: super::lag_start(self.rollout_predictor.config().actuators(), &v),
             ..PredictionRequest::new(&q, &v)
         };
         let trajectories = self

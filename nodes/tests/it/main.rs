@@ -16,6 +16,7 @@ mod fuzz_requests;
 mod golden_messages;
 mod large_replies;
 mod odometry_allocations;
+mod prediction_lag;
 mod rollout_settings;
 mod ros_smoke;
 mod suite_absurd_params;
