@@ -20,7 +20,8 @@ pub struct CalibrateArgs {
     bag: Vec<PathBuf>,
     /// What to fit, comma-separated: rolling_radius, track_offset, track_turn_gain, base_mass,
     /// turning_friction, traction_torque, traction_load_transfer, command_lag, tyre_slip_speed,
-    /// lateral_creep (default: every one the scene can take).
+    /// lateral_creep (default: every one the scene can take). command_lag on a scene that
+    /// declares none declares one, from the lag the drive's response shows.
     #[arg(long, value_delimiter = ',')]
     fit: Vec<String>,
     /// Do not fit the process noise (the scene's `uncertainty:` stays as it is).
@@ -82,7 +83,7 @@ pub fn run(a: CalibrateArgs) -> Result<Value> {
         .map(|n| FitParameter::parse(n.trim()).map_err(|e| Error::Invalid(format!("--fit: {e}"))))
         .collect::<Result<Vec<_>>>()?;
     let text = std::fs::read_to_string(&a.scene).map_err(io(&a.scene))?;
-    let yaml: serde_yaml::Value = serde_yaml::from_str(&text).map_err(|e| Error::Scene {
+    let mut yaml: serde_yaml::Value = serde_yaml::from_str(&text).map_err(|e| Error::Scene {
         file: a.scene.display().to_string(),
         message: e.to_string(),
     })?;
@@ -98,6 +99,18 @@ pub fn run(a: CalibrateArgs) -> Result<Value> {
     let recordings = (a.bag.iter())
         .map(|b| a.replay.read(b))
         .collect::<Result<Vec<_>>>()?;
+    let report = a.replay.settings(a.report_horizons.clone());
+    // The figures of the scene as given: first where a lag's start is read from them.
+    let mut before = None;
+    let mut lag_start = None;
+    if fit.contains(&FitParameter::CommandLag) {
+        let b = figures(&scene, &recordings, &report)?;
+        lag_start = declare_lag_to_fit(&mut yaml, &b);
+        before = Some(b);
+    }
+    if let Some(start) = &lag_start {
+        eprintln!("calibrate: {}", start["why"].as_str().unwrap_or_default());
+    }
     let source = SceneSource {
         yaml: &yaml,
         path: &a.scene,
@@ -133,8 +146,10 @@ pub fn run(a: CalibrateArgs) -> Result<Value> {
 
     // Before and after on every drive, read back as every other command reads a scene.
     let calibrated = super::state::load_scene(&a.out)?;
-    let report = a.replay.settings(a.report_horizons.clone());
-    let before = figures(&scene, &recordings, &report)?;
+    let before = match before {
+        Some(b) => b,
+        None => figures(&scene, &recordings, &report)?,
+    };
     let after = figures(&calibrated, &recordings, &report)?;
     let declares_lag =
         (calibrated.file.actuators.diff_drive.as_ref()).is_some_and(|d| d.command_lag.is_some());
@@ -159,7 +174,67 @@ pub fn run(a: CalibrateArgs) -> Result<Value> {
     out["reference_topic"] = json!(recordings.first().map(|r| r.reference.name.clone()));
     out["run_time_s"] = json!(began.elapsed().as_secs_f64());
     out["advice"] = json!(advice);
+    if let Some(start) = lag_start {
+        out["command_lag_start"] = start;
+    }
     Ok(out)
+}
+
+/// Where a fit of `command_lag` starts on a scene with a diff drive that declares none, when
+/// the drive's response (evaluate's, with the scene as given) shows no lag [s].
+const LAG_START_S: f64 = 0.05;
+
+/// Declares `actuators.diff_drive.command_lag` in `yaml` where `--fit command_lag` asks for one
+/// the scene lacks: at the lag the drives' responses show with the scene as given (`before`:
+/// evaluate's horizons per drive; the mean over the drives whose response at its longest
+/// horizon is a lag above three standard errors), or at [`LAG_START_S`]. Returns the start
+/// and why (the JSON's `command_lag_start`); None where the scene has no diff drive (the fit
+/// then names what is missing) or declares a lag already.
+fn declare_lag_to_fit(yaml: &mut serde_yaml::Value, before: &[Value]) -> Option<Value> {
+    let drive = yaml.get_mut("actuators")?.get_mut("diff_drive")?;
+    let drive = drive.as_mapping_mut()?;
+    if drive.contains_key("command_lag") {
+        return None;
+    }
+    let lags: Vec<f64> = (before.iter())
+        .filter_map(response_lag)
+        .filter(|(_, lag, se)| *lag > 0.0 && *lag > 3.0 * se)
+        .map(|(_, lag, _)| lag)
+        .collect();
+    let (start, why) = match lags.is_empty() {
+        true => (
+            LAG_START_S,
+            format!(
+                "the scene declares no actuators.diff_drive.command_lag and the drive's \
+                 response shows none: fitting one from {LAG_START_S} s"
+            ),
+        ),
+        false => {
+            let mean = lags.iter().sum::<f64>() / lags.len() as f64;
+            (
+                mean,
+                format!(
+                    "the scene declares no actuators.diff_drive.command_lag: fitting one from \
+                     {mean:.3} s, the lag of the drive's response with the scene as given"
+                ),
+            )
+        }
+    };
+    drive.insert("command_lag".into(), start.into());
+    Some(json!({"value_s": start, "why": why}))
+}
+
+/// The response at the longest horizon that has one (evaluate's horizons): (horizon [s],
+/// lag [s], its standard error [s]).
+fn response_lag(figures: &Value) -> Option<(f64, f64, f64)> {
+    (figures.as_array()?.iter().rev()).find_map(|h| {
+        let r = &h["response"];
+        Some((
+            h["horizon_s"].as_f64()?,
+            r["lag_s"].as_f64()?,
+            r["lag_std_error_s"].as_f64()?,
+        ))
+    })
 }
 
 /// The lag [s] beyond which a drive is called late (the predictor's `monitor.lag_threshold`
@@ -171,21 +246,15 @@ const LAG_WORTH_S: f64 = 0.08;
 /// docs/logs.md): what the scene should declare. `figures` is evaluate's horizons, of the
 /// scene as given where it declares no lag and as calibrated where it does.
 fn lag_advice(bag: &str, figures: &Value, declares_lag: bool) -> Option<String> {
-    let (h, lag, se) = (figures.as_array()?.iter().rev()).find_map(|h| {
-        let r = &h["response"];
-        Some((
-            h["horizon_s"].as_f64()?,
-            r["lag_s"].as_f64()?,
-            r["lag_std_error_s"].as_f64()?,
-        ))
-    })?;
+    let (h, lag, se) = response_lag(figures)?;
     if !(lag > LAG_WORTH_S && lag > 3.0 * se) {
         return None;
     }
     let (which, what) = match declares_lag {
         false => (
             "as given",
-            "declare actuators.diff_drive.command_lag (an estimate) and calibrate again",
+            "declare actuators.diff_drive.command_lag (an estimate), or add command_lag to \
+             --fit, and calibrate again",
         ),
         true => (
             "as calibrated",
