@@ -333,6 +333,9 @@ impl SceneParameters {
             FitParameter::TractionLoadTransfer if self.load_transfer.is_none() => {
                 Some("the scene declares no actuators.diff_drive.traction_load_transfer".into())
             }
+            FitParameter::CommandLag if self.traction.is_none() => {
+                Some("the scene has no actuators.diff_drive".into())
+            }
             FitParameter::CommandLag if self.command_lag.is_none() => {
                 Some("the scene declares no actuators.diff_drive.command_lag".into())
             }

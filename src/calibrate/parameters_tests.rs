@@ -80,3 +80,20 @@ fn lateral_creep_adds_sideways_tyres_at_the_contacts() {
     assert!(again.unavailable(FitParameter::TyreSlipSpeed).is_none());
     assert!(!again.tyres_carry_wheels());
 }
+
+/// A command lag needs a diff drive, and a declared lag to start from (the CLI declares one
+/// where `--fit` asks for it): each refusal says which is missing.
+#[test]
+fn a_command_lag_needs_a_diff_drive_and_a_declared_lag() {
+    let (scene, yaml, _) = bundled("fourbar");
+    let places = SceneParameters::new(&yaml, &scene.model).unwrap();
+    let why = places.unavailable(FitParameter::CommandLag).unwrap();
+    assert_eq!(why, "the scene has no actuators.diff_drive");
+    let (scene, yaml, _) = bundled("suite_mobile_manipulator");
+    let places = SceneParameters::new(&yaml, &scene.model).unwrap();
+    let why = places.unavailable(FitParameter::CommandLag).unwrap();
+    assert_eq!(
+        why,
+        "the scene declares no actuators.diff_drive.command_lag"
+    );
+}
