@@ -3,7 +3,9 @@
 //! (`evaluate`'s figures), and writes the calibrated scene.
 
 use super::evaluate::ReplayArgs;
-use constraint_dynamics::calibrate::{CalibrationSettings, FitParameter, SceneSource, calibrate};
+use constraint_dynamics::calibrate::{
+    CalibrationSettings, FitParameter, SceneParameters, SceneSource, calibrate,
+};
 use constraint_dynamics::replay::{EvaluationSettings, Recording, evaluate};
 use constraint_dynamics::{Error, Result};
 use serde_json::{Value, json};
@@ -20,8 +22,9 @@ pub struct CalibrateArgs {
     bag: Vec<PathBuf>,
     /// What to fit, comma-separated: rolling_radius, track_offset, track_turn_gain, base_mass,
     /// turning_friction, traction_torque, traction_load_transfer, command_lag, tyre_slip_speed,
-    /// lateral_creep (default: every one the scene can take). command_lag on a scene that
-    /// declares none declares one, from the lag the drive's response shows.
+    /// lateral_creep (default: every one the scene can take, which `default` names beside
+    /// others). command_lag on a scene that declares none declares one, from the lag the
+    /// drive's response shows: `--fit default,command_lag`.
     #[arg(long, value_delimiter = ',')]
     fit: Vec<String>,
     /// Do not fit the process noise (the scene's `uncertainty:` stays as it is).
@@ -79,8 +82,10 @@ fn figures(
 
 pub fn run(a: CalibrateArgs) -> Result<Value> {
     let began = Instant::now();
-    let fit = (a.fit.iter())
-        .map(|n| FitParameter::parse(n.trim()).map_err(|e| Error::Invalid(format!("--fit: {e}"))))
+    let mut fit = (a.fit.iter())
+        .map(|n| n.trim())
+        .filter(|n| *n != DEFAULT_SET)
+        .map(|n| FitParameter::parse(n).map_err(|e| Error::Invalid(format!("--fit: {e}"))))
         .collect::<Result<Vec<_>>>()?;
     let text = std::fs::read_to_string(&a.scene).map_err(io(&a.scene))?;
     let mut yaml: serde_yaml::Value = serde_yaml::from_str(&text).map_err(|e| Error::Scene {
@@ -89,6 +94,11 @@ pub fn run(a: CalibrateArgs) -> Result<Value> {
     })?;
     // Loading it as every command does first: the scene's own errors, as they read there.
     let scene = super::state::load_scene(&a.scene)?;
+    if a.fit.iter().any(|n| n.trim() == DEFAULT_SET) {
+        let places = SceneParameters::new(&yaml, &scene.model)
+            .map_err(|e| Error::Invalid(format!("{}: {e}", a.scene.display())))?;
+        fit.extend((FitParameter::ALL.into_iter()).filter(|p| places.unavailable(*p).is_none()));
+    }
     let urdf_rel = yaml
         .get("urdf")
         .and_then(|u| u.as_str())
@@ -180,6 +190,10 @@ pub fn run(a: CalibrateArgs) -> Result<Value> {
     Ok(out)
 }
 
+/// The `--fit` name of every parameter the scene as given can take (the default set), to
+/// name beside others.
+const DEFAULT_SET: &str = "default";
+
 /// Where a fit of `command_lag` starts on a scene with a diff drive that declares none, when
 /// the drive's response (evaluate's, with the scene as given) shows no lag [s].
 const LAG_START_S: f64 = 0.05;
@@ -253,8 +267,8 @@ fn lag_advice(bag: &str, figures: &Value, declares_lag: bool) -> Option<String> 
     let (which, what) = match declares_lag {
         false => (
             "as given",
-            "declare actuators.diff_drive.command_lag (an estimate), or add command_lag to \
-             --fit, and calibrate again",
+            "declare actuators.diff_drive.command_lag (an estimate) and calibrate again, or \
+             calibrate with --fit default,command_lag",
         ),
         true => (
             "as calibrated",

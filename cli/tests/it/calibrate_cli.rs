@@ -397,9 +397,20 @@ fn a_lagging_drive_is_fitted_its_lag() {
         v
     };
     // The scene's own set (the parameters it can take) and the lag.
-    let own = "rolling_radius,track_offset,track_turn_gain,base_mass,traction_torque,lateral_creep";
-    let with_lag = format!("{own},command_lag");
-    let out = calibrate("lagged_cal.yaml", &["--fit", &with_lag]);
+    let out = calibrate("lagged_cal.yaml", &["--fit", "default,command_lag"]);
+    let fitted: Vec<&str> = (out["parameters"].as_array().unwrap().iter())
+        .filter_map(|p| p["name"].as_str())
+        .collect();
+    let own = [
+        "rolling_radius",
+        "track_offset",
+        "track_turn_gain",
+        "base_mass",
+        "traction_torque",
+        "command_lag",
+        "lateral_creep",
+    ];
+    assert_eq!(fitted, own, "{}", out["parameters"]);
     // Started from the response's lag: the same as evaluate's on the scene as given.
     let evaluated = evaluate_json(&dir, &scene, &bag);
     let response_lag = (evaluated["horizons"].as_array().unwrap().iter().rev())
