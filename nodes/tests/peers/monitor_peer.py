@@ -15,8 +15,9 @@ M·g·D_X (the mass's horizontal lever is D_X from every one of them), the yaw j
 
 Records every ~/prediction_residuals (diagnostic_msgs/DiagnosticArray, one status per horizon)
 until every horizon's window holds `--window N` odometry and effort samples (then a drive this
-steady changes its figures no more) and one second more, or for DURATION s at most, and prints one JSON object on the last line: ok, errors, figures (messages, the
-last status of each horizon, the highest level seen); exits 0 iff ok.
+steady changes its figures no more) and one second more, or for DURATION s at most, and prints
+one JSON object on the last line: ok, errors, figures (messages, the last status of each
+horizon, the highest level seen); exits 0 iff ok.
 """
 import json
 import math
