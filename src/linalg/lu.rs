@@ -38,8 +38,10 @@ pub fn lu_in_place(a: &mut DMatrix<f64>, piv: &mut [usize]) -> bool {
         for c in k + 1..n {
             let col = &mut right[(c - k - 1) * ld..(c - k - 1) * ld + n];
             let akc = col[k];
-            for (x, &l) in col[k + 1..].iter_mut().zip(lk) {
-                if l != 0.0 {
+            // A zero above the pivot skips its column (the structured matrices' blocks); the
+            // inner loop itself is a branch-free axpy.
+            if akc != 0.0 {
+                for (x, &l) in col[k + 1..].iter_mut().zip(lk) {
                     *x -= l * akc;
                 }
             }

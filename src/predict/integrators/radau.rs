@@ -11,8 +11,8 @@
 //! Simplified Newton with one Jacobian J = ∂k/∂x = [[0, I], [∂q̈/∂q, ∂q̈/∂v]] at x_n, analytic
 //! where the right-hand side has derivatives (`Accel::accel_jacobian`). The Newton matrix
 //! `A⁻¹/h ⊗ I − I ⊗ J` is block-diagonalised by A⁻¹ = T Λ T⁻¹ (Λ: the real eigenvalue γ and the
-//! pair α ± iβ): one real n × n system and one 2n × 2n real system (the complex pair) per
-//! iteration, n = 2nv. The error estimate is Hairer's: `(γ/h − J)⁻¹ (f(x_n) + Σ d_i Z_i / h)`
+//! pair α ± iβ): one real and one complex system of n = 2nv rows per iteration, each reduced to
+//! its nv velocity rows through J's identity block (newton.rs). The error estimate is Hairer's: `(γ/h − J)⁻¹ (f(x_n) + Σ d_i Z_i / h)`
 //! (order 3), refined by one more evaluation after a rejection; the step size controller is his
 //! (with the predictive Gustafsson variant), and the Jacobian is kept while Newton converges
 //! fast (θ ≤ 1e-3) and the factorization while the step changes by less than 20 %.
@@ -22,13 +22,14 @@ mod newton;
 use super::radau_tableau::RadauCoefficients;
 use crate::algorithm::DENSE_EAGER_NV;
 use crate::error::{Error, Result};
-use crate::linalg::lu_solve;
 use crate::model::Model;
 use crate::predict::integrators::{
     Accel, JacobianScratch, StepOutcome, StepWorkspace, derivative, stage,
 };
 use nalgebra::DMatrix;
-use newton::{factor, jacobian, newton_update, stage_derivatives, starting_values, transform_back};
+use newton::{
+    factor, jacobian, newton_update, solve_real, stage_derivatives, starting_values, transform_back,
+};
 
 /// Newton iterations per step before the step is rejected (RADAU5's NIT).
 const MAX_NEWTON: usize = 7;
@@ -44,11 +45,16 @@ pub struct RadauWorkspace {
     co: RadauCoefficients,
     /// J = ∂k/∂x at the start of the step it was computed at (n × n).
     jac: DMatrix<f64>,
-    /// LU of γ/h − J (n × n) and of [[α/h − J, β/h], [−β/h, α/h − J]] (2n × 2n).
+    /// LU of the Newton systems reduced to the velocities (newton.rs `factor`): the real
+    /// shift's (nv × nv) and the complex one's real form (2nv × 2nv).
     e1: DMatrix<f64>,
     e2: DMatrix<f64>,
     piv1: Vec<usize>,
     piv2: Vec<usize>,
+    /// J_q r for the reduced solves, real and imaginary (2nv), and the complex solve's
+    /// right-hand side (2nv).
+    jq_r: Vec<f64>,
+    y2: Vec<f64>,
     /// Stage increments Z_i, transformed W_i = (T⁻¹ Z)_i, stage derivatives F_i (n each).
     z: [Vec<f64>; 3],
     w: [Vec<f64>; 3],
@@ -93,8 +99,10 @@ impl RadauWorkspace {
         let v3 = || [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
         let mut ws = Self {
             co: RadauCoefficients::new(),
-            piv1: vec![0; n],
-            piv2: vec![0; 2 * n],
+            piv1: vec![0; nv],
+            piv2: vec![0; n],
+            jq_r: vec![0.0; n],
+            y2: vec![0.0; n],
             z: v3(),
             w: v3(),
             f: v3(),
@@ -117,12 +125,12 @@ impl RadauWorkspace {
     }
 
     /// Size J and the two factorizations for n = 2 nv states when they are not: a large
-    /// model's are sized by its first Radau step (other methods never hold their 24 n² entries).
+    /// model's are sized by its first Radau step (other methods never hold their 9 nv² entries).
     fn size_matrices(&mut self, n: usize) {
         if self.jac.nrows() != n {
             self.jac = DMatrix::zeros(n, n);
-            self.e1 = DMatrix::zeros(n, n);
-            self.e2 = DMatrix::zeros(2 * n, 2 * n);
+            self.e1 = DMatrix::zeros(n / 2, n / 2);
+            self.e2 = DMatrix::zeros(n, n);
         }
     }
 
@@ -306,7 +314,7 @@ fn error_estimate<F: Accel>(
         ws.r1[k] = (d[0] * ws.z[0][k] + d[1] * ws.z[1][k] + d[2] * ws.z[2][k]) / h;
         ws.err[k] = ws.f0[k] + ws.r1[k];
     }
-    lu_solve(&ws.e1, &ws.piv1, &mut ws.err);
+    solve_err(ws);
     let mut e = scaled_norm(&ws.err, v, &ws.z[2], ws.tol);
     if e >= 1.0 && (ws.first || ws.rejected) {
         stage(model, q, v, &ws.err, &mut ws.qs, &mut ws.vs);
@@ -315,11 +323,18 @@ fn error_estimate<F: Accel>(
             for k in 0..n {
                 ws.err[k] = ws.f[0][k] + ws.r1[k];
             }
-            lu_solve(&ws.e1, &ws.piv1, &mut ws.err);
+            solve_err(ws);
             e = scaled_norm(&ws.err, v, &ws.z[2], ws.tol);
         }
     }
     Ok(e)
+}
+
+/// err ← (γ/h − J)⁻¹ err.
+fn solve_err(ws: &mut RadauWorkspace) {
+    let mut err = std::mem::take(&mut ws.err);
+    solve_real(ws, &mut err);
+    ws.err = err;
 }
 
 /// RMS of err / (atol + rtol max(|x_n|, |x_{n+1}|)) (1 for configuration rows; v_{n+1} =
