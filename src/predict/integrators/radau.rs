@@ -24,7 +24,7 @@ use crate::algorithm::DENSE_EAGER_NV;
 use crate::error::{Error, Result};
 use crate::model::Model;
 use crate::predict::integrators::{
-    Accel, JacobianScratch, StepOutcome, StepWorkspace, derivative, stage,
+    Accel, JacobianScratch, ShiftedFactor, StepOutcome, StepWorkspace, derivative, stage,
 };
 use nalgebra::DMatrix;
 use newton::{
@@ -45,14 +45,13 @@ pub struct RadauWorkspace {
     co: RadauCoefficients,
     /// J = ∂k/∂x at the start of the step it was computed at (n × n).
     jac: DMatrix<f64>,
-    /// LU of the Newton systems reduced to the velocities (newton.rs `factor`): the real
-    /// shift's (nv × nv) and the complex one's real form (2nv × 2nv).
-    e1: DMatrix<f64>,
+    /// The Newton systems reduced to the velocities (newton.rs `factor`): the real shift's,
+    /// and the LU of the complex one's real form (2nv × 2nv) with its pivots.
+    e1: ShiftedFactor,
     e2: DMatrix<f64>,
-    piv1: Vec<usize>,
     piv2: Vec<usize>,
-    /// J_q r for the reduced solves, real and imaginary (2nv), and the complex solve's
-    /// right-hand side (2nv).
+    /// J_q r for the complex solve, real and imaginary parts (2nv), and its right-hand side
+    /// (2nv).
     jq_r: Vec<f64>,
     y2: Vec<f64>,
     /// Stage increments Z_i, transformed W_i = (T⁻¹ Z)_i, stage derivatives F_i (n each).
@@ -99,7 +98,7 @@ impl RadauWorkspace {
         let v3 = || [vec![0.0; n], vec![0.0; n], vec![0.0; n]];
         let mut ws = Self {
             co: RadauCoefficients::new(),
-            piv1: vec![0; nv],
+            e1: ShiftedFactor::new(nv),
             piv2: vec![0; n],
             jq_r: vec![0.0; n],
             y2: vec![0.0; n],
@@ -125,11 +124,10 @@ impl RadauWorkspace {
     }
 
     /// Size J and the two factorizations for n = 2 nv states when they are not: a large
-    /// model's are sized by its first Radau step (other methods never hold their 9 nv² entries).
+    /// model's are sized by its first Radau step (other methods never hold their 8 nv² entries).
     fn size_matrices(&mut self, n: usize) {
         if self.jac.nrows() != n {
             self.jac = DMatrix::zeros(n, n);
-            self.e1 = DMatrix::zeros(n / 2, n / 2);
             self.e2 = DMatrix::zeros(n, n);
         }
     }

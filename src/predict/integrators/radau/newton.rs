@@ -32,23 +32,21 @@ pub(super) fn jacobian<F: Accel>(
     Ok(())
 }
 
-/// Factors the Newton systems `(γ/h) I − J` and `σ I − J`, σ = (α − iβ)/h (the complex pair:
-/// its real 2n × 2n form is [[α/h − J, β/h], [−β/h, α/h − J]]).
-///
-/// J = [[0, I], [J_q, J_v]] (the first nv rows are q̇ = v), so `(s I − J) (x, y) = (r, p)`
-/// gives x = (r + y)/s and `(s² I − s J_v − J_q) y = s p + J_q r`: only an nv × nv system is
-/// factored per shift, RADAU5's reduction for second-order systems (its M1 = M2 option,
-/// Hairer & Wanner IV.8). The real shift's is factored as it is, the complex one's as the real
-/// 2nv × 2nv form of S = S_r + i S_i, [[S_r, −S_i], [S_i, S_r]]: 8 times fewer operations
-/// than the full forms.
+/// Factors the Newton systems `(γ/h) I − J` and `σ I − J`, σ = (α − iβ)/h (the complex pair: its
+/// real 2n × 2n form is [[α/h − J, β/h], [−β/h, α/h − J]]), each through its Schur complement on
+/// the velocity rows, as RADAU5 does for second-order systems (its M1 option, Hairer & Wanner
+/// IV.8). The real one is `(γ/h)(I − (h/γ) J)`, the linearly implicit steps' `ShiftedFactor`
+/// (shifted.rs). The complex one is its counterpart for a complex shift: J = [[0, I], [J_q, J_v]],
+/// so `(σ I − J) (x, y) = (r, p)` gives x = (r + y)/σ and `(σ² I − σ J_v − J_q) y = σ p + J_q r`,
+/// an nv × nv complex system factored in its real 2nv × 2nv form [[S_r, −S_i], [S_i, S_r]].
+/// Together 8 times fewer operations than the full forms.
 pub(super) fn factor(ws: &mut RadauWorkspace, h: f64) -> Result<()> {
     let nv = ws.jac.nrows() / 2;
-    let (g, al, be) = (ws.co.gamma / h, ws.co.alpha / h, ws.co.beta / h);
+    let (al, be) = (ws.co.alpha / h, ws.co.beta / h);
     for c in 0..nv {
         for r in 0..nv {
             let (jq, jv) = (ws.jac[(nv + r, c)], ws.jac[(nv + r, nv + c)]);
             let diag = if r == c { 1.0 } else { 0.0 };
-            ws.e1[(r, c)] = g * g * diag - g * jv - jq;
             // σ² = α² − β² − 2iαβ; −σ J_v = −α J_v + iβ J_v.
             let re = (al * al - be * be) * diag - al * jv - jq;
             let im = -2.0 * al * be * diag + be * jv;
@@ -58,7 +56,7 @@ pub(super) fn factor(ws: &mut RadauWorkspace, h: f64) -> Result<()> {
             ws.e2[(nv + r, c)] = im;
         }
     }
-    if !(lu_in_place(&mut ws.e1, &mut ws.piv1) && lu_in_place(&mut ws.e2, &mut ws.piv2)) {
+    if !(ws.e1.factor(&ws.jac, h / ws.co.gamma) && lu_in_place(&mut ws.e2, &mut ws.piv2)) {
         return Err(Error::StepTooLarge {
             message: format!("the Radau IIA Newton matrix is singular at h = {h} s"),
         });
@@ -68,25 +66,16 @@ pub(super) fn factor(ws: &mut RadauWorkspace, h: f64) -> Result<()> {
 }
 
 /// `b ← ((γ/h) I − J)⁻¹ b` (n = 2nv) with the factor of [`factor`].
-pub(super) fn solve_real(ws: &mut RadauWorkspace, b: &mut [f64]) {
-    let nv = ws.piv1.len();
-    let g = ws.co.gamma / ws.factor_h;
-    let (r, p) = b.split_at_mut(nv);
-    let jq_r = &mut ws.jq_r[..nv];
-    jq_times(&ws.jac, r, jq_r);
-    for k in 0..nv {
-        p[k] = g * p[k] + jq_r[k];
-    }
-    lu_solve(&ws.e1, &ws.piv1, p);
-    for k in 0..nv {
-        r[k] = (r[k] + p[k]) / g;
-    }
+pub(super) fn solve_real(ws: &RadauWorkspace, b: &mut [f64]) {
+    let g = ws.factor_h / ws.co.gamma;
+    b.iter_mut().for_each(|x| *x *= g);
+    ws.e1.solve(b);
 }
 
 /// `b ← (real form of σ I − J)⁻¹ b` (2n = 4nv: the real parts, then the imaginary ones, each
 /// q rows then v rows) with the factor of [`factor`].
 pub(super) fn solve_complex(ws: &mut RadauWorkspace, b: &mut [f64]) {
-    let nv = ws.piv1.len();
+    let nv = ws.piv2.len() / 2;
     let h = ws.factor_h;
     let (al, be) = (ws.co.alpha / h, ws.co.beta / h);
     let (re, im) = b.split_at_mut(2 * nv);
