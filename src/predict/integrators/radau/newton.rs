@@ -208,3 +208,54 @@ pub(super) fn transform_back(ws: &mut RadauWorkspace) {
     let t = ws.co.t;
     apply3(&t, &ws.w, &mut ws.z);
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_rng::Rng;
+    use nalgebra::{Complex, DMatrix, DVector};
+
+    /// The reduced solves against the full shifted systems solved by nalgebra's LU (the real one
+    /// over 2nv rows, the complex one in complex arithmetic), for a stiff J at a step of 1 ms:
+    /// achieved 4e-16 and 5e-16 of the solution.
+    #[test]
+    fn the_reduced_solves_match_the_full_shifted_systems() {
+        let (nq, nv, h) = (7, 7, 1e-3);
+        let mut rng = Rng(0x5eed);
+        let mut ws = RadauWorkspace::new(nq, nv);
+        ws.size_matrices(2 * nv);
+        for i in 0..nv {
+            ws.jac[(i, nv + i)] = 1.0;
+            for j in 0..2 * nv {
+                // Stiffness up to 1e6 /s², damping up to 1e3 /s.
+                let scale = if j < nv { 1e6 } else { 1e3 };
+                ws.jac[(nv + i, j)] = scale * rng.normal();
+            }
+        }
+        factor(&mut ws, h).unwrap();
+        let n = 2 * nv;
+        let (g, al, be) = (ws.co.gamma / h, ws.co.alpha / h, ws.co.beta / h);
+
+        let b: Vec<f64> = (0..n).map(|_| rng.normal()).collect();
+        let full = DMatrix::identity(n, n) * g - &ws.jac;
+        let want = full.lu().solve(&DVector::from_vec(b.clone())).unwrap();
+        let mut got = b;
+        solve_real(&ws, &mut got);
+        let err = (DVector::from_vec(got) - &want).amax() / want.amax();
+        assert!(err < 1e-14, "real shift: relative error {err:e}");
+
+        let b: Vec<f64> = (0..2 * n).map(|_| rng.normal()).collect();
+        let sigma = Complex::new(al, -be);
+        let jc = ws.jac.map(|x| Complex::new(x, 0.0));
+        let full = DMatrix::identity(n, n) * sigma - jc;
+        let rhs = DVector::from_fn(n, |k, _| Complex::new(b[k], b[n + k]));
+        let want = full.lu().solve(&rhs).unwrap();
+        let mut got = b;
+        solve_complex(&mut ws, &mut got);
+        let err = (0..n)
+            .map(|k| (Complex::new(got[k], got[n + k]) - want[k]).norm())
+            .fold(0.0, f64::max)
+            / want.iter().map(|z| z.norm()).fold(0.0, f64::max);
+        assert!(err < 1e-14, "complex shift: relative error {err:e}");
+    }
+}
