@@ -22,8 +22,8 @@ sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.dirname(HERE))
 import make_logs as ml  # noqa: E402
 from doc_block import block_args, emit_block  # noqa: E402
-from step_spread import (LOGS, SMOOTH_SEEDS, STEPS_SEEDS, cli, drive, scored,  # noqa: E402
-                         span)
+from step_spread import (LOGS, SMOOTH_SEEDS, STEPS_SEEDS, cli, drive,  # noqa: E402
+                         group_cells)
 
 DOC = os.path.join(ml.REPO, "docs", "logs.md")
 BEGIN = "<!-- soft_floor:begin -->"
@@ -54,17 +54,7 @@ def main():
                   ("validation_steps", [os.path.join(LOGS, "validation_steps")]),
                   (f"{len(smooth)} fresh smoothed", smooth),
                   (f"{len(steps)} fresh steps", steps)]
-        rows = []
-        for name, bags in groups:
-            s = [scored(out, b) for b in bags]
-            cells = []
-            for h in (1.0, 2.0):
-                cells.append(f"{span([x[h][0] for x in s], '{:.1f}')} mm, "
-                             f"{span([x[h][1] for x in s], '{:.0f}')} mrad, "
-                             f"{span([x[h][2] for x in s], '{:.1f}')} mrad")
-            cov = " / ".join(span([x[h][3] for x in s], "{:.2f}") for h in (1.0, 2.0))
-            nees = " / ".join(span([x[h][4] for x in s], "{:.1f}") for h in (1.0, 2.0))
-            rows.append(f"| {name} | {cells[0]} | {cells[1]} | {cov} | {nees} |")
+        rows = [f"| {name} | {group_cells(out, bags)} |" for name, bags in groups]
     pn = cal["process_noise"]
     head = (f"Calibrated on calibration.mcap (60 s) in {cal['run_time_s']:.0f} s on "
             f"{os.cpu_count()} cores, {cal['replays']} replays: {fitted_values(cal)}; yaw slip "

@@ -68,6 +68,20 @@ def span(values, fmt):
         f"{fmt.format(lo)}–{fmt.format(hi)}"
 
 
+def group_cells(scene, bags):
+    """`scene` scored on `bags`, as table cells: at 1 s and at 2 s the worst position, worst
+    and median yaw; the coverage p95 and the mean NEES at 1 s / 2 s (ranges over the bags)."""
+    s = [scored(scene, b) for b in bags]
+    cells = []
+    for h in (1.0, 2.0):
+        cells.append(f"{span([x[h][0] for x in s], '{:.1f}')} mm, "
+                     f"{span([x[h][1] for x in s], '{:.0f}')} mrad, "
+                     f"{span([x[h][2] for x in s], '{:.1f}')} mrad")
+    cov = " / ".join(span([x[h][3] for x in s], "{:.2f}") for h in (1.0, 2.0))
+    nees = " / ".join(span([x[h][4] for x in s], "{:.1f}") for h in (1.0, 2.0))
+    return f"{cells[0]} | {cells[1]} | {cov} | {nees}"
+
+
 def main():
     args = block_args(__doc__)
     with tempfile.TemporaryDirectory() as tmp:
@@ -95,16 +109,7 @@ def main():
                       (f"{len(smooth)} fresh smoothed", smooth),
                       (f"{len(steps)} fresh steps", steps)]
             for name, bags in groups:
-                s = [scored(out, b) for b in bags]
-                cells = []
-                for h in (1.0, 2.0):
-                    cells.append(f"{span([x[h][0] for x in s], '{:.1f}')} mm, "
-                                 f"{span([x[h][1] for x in s], '{:.0f}')} mrad, "
-                                 f"{span([x[h][2] for x in s], '{:.1f}')} mrad")
-                cov = " / ".join(span([x[h][3] for x in s], "{:.2f}") for h in (1.0, 2.0))
-                nees = " / ".join(span([x[h][4] for x in s], "{:.1f}") for h in (1.0, 2.0))
-                rows.append(f"| {label} | {fitted} | {name} | {cells[0]} | {cells[1]} | {cov} "
-                            f"| {nees} |")
+                rows.append(f"| {label} | {fitted} | {name} | {group_cells(out, bags)} |")
                 label = fitted = ""
     lines = ["<!-- written by .venv-logs/bin/python tools/logs/step_spread.py: do not edit -->",
              "",
