@@ -12,10 +12,11 @@
 //! where the right-hand side has derivatives (`Accel::accel_jacobian`). The Newton matrix
 //! `A⁻¹/h ⊗ I − I ⊗ J` is block-diagonalised by A⁻¹ = T Λ T⁻¹ (Λ: the real eigenvalue γ and the
 //! pair α ± iβ): one real and one complex system of n = 2nv rows per iteration, each reduced to
-//! its nv velocity rows through J's identity block (newton.rs). The error estimate is Hairer's: `(γ/h − J)⁻¹ (f(x_n) + Σ d_i Z_i / h)`
-//! (order 3), refined by one more evaluation after a rejection; the step size controller is his
-//! (with the predictive Gustafsson variant), and the Jacobian is kept while Newton converges
-//! fast (θ ≤ 1e-3) and the factorization while the step changes by less than 20 %.
+//! its nv velocity rows through J's identity block (newton.rs). The error estimate is Hairer's:
+//! `(γ/h − J)⁻¹ (f(x_n) + Σ d_i Z_i / h)` (order 3), refined by one more evaluation after a
+//! rejection; the step size controller is his (with the predictive Gustafsson variant), and the
+//! Jacobian is kept while Newton converges fast (θ ≤ 1e-3) and the factorization while the step
+//! changes by less than 20 %.
 
 mod newton;
 
