@@ -97,7 +97,7 @@ pub fn run(a: CalibrateArgs) -> Result<Value> {
     if a.fit.iter().any(|n| n.trim() == DEFAULT_SET) {
         let places = SceneParameters::new(&yaml, &scene.model)
             .map_err(|e| Error::Invalid(format!("{}: {e}", a.scene.display())))?;
-        fit.extend((FitParameter::ALL.into_iter()).filter(|p| places.unavailable(*p).is_none()));
+        fit.extend(places.available());
     }
     let urdf_rel = yaml
         .get("urdf")

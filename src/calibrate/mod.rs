@@ -184,9 +184,7 @@ pub fn calibrate(
     let places =
         SceneParameters::new(source.yaml, &scene.model).map_err(CalibrationError::Scene)?;
     let asked: Vec<FitParameter> = if settings.fit.is_empty() {
-        (FitParameter::ALL.into_iter())
-            .filter(|p| places.unavailable(*p).is_none())
-            .collect()
+        places.available()
     } else {
         let mut asked = settings.fit.clone();
         asked.sort();

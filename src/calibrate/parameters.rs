@@ -303,6 +303,14 @@ impl SceneParameters {
         })
     }
 
+    /// Every parameter this scene can take, in [`FitParameter::ALL`]'s order: what a fit
+    /// asked for none fits (the CLI's `--fit default`).
+    pub fn available(&self) -> Vec<FitParameter> {
+        (FitParameter::ALL.into_iter())
+            .filter(|p| self.unavailable(*p).is_none())
+            .collect()
+    }
+
     /// Why `p` cannot be fitted on this scene, if it cannot.
     pub fn unavailable(&self, p: FitParameter) -> Option<String> {
         match p {

@@ -1615,9 +1615,7 @@ impl Writer {
           seq_num, self.my_topic_name
         );
         // TODO: Should we send a GAP message then?
-        for (sn, f) in &requested[i..i + run] {
-          reader_proxy.mark_frag_sent(*sn, f);
-        }
+        mark_frags_sent(reader_proxy, &requested[i..i + run]);
         i += run;
         continue;
       };
@@ -1644,9 +1642,7 @@ impl Writer {
       let num_frags = u32::try_from(data_size.div_ceil(FRAGMENT_SIZE)).unwrap_or(u32::MAX);
       if first > num_frags {
         // A request beyond the sample's end: nothing to send for it.
-        for (sn, f) in &requested[i..i + run] {
-          reader_proxy.mark_frag_sent(*sn, f);
-        }
+        mark_frags_sent(reader_proxy, &requested[i..i + run]);
         i += run;
         continue;
       }
@@ -1683,9 +1679,7 @@ impl Writer {
         TrafficClass::Control,
       );
 
-      for (sn, f) in &requested[i..i + count as usize] {
-        reader_proxy.mark_frag_sent(*sn, f);
-      }
+      mark_frags_sent(reader_proxy, &requested[i..i + count as usize]);
       round_bytes += count as usize * FRAGMENT_SIZE;
       i += count as usize;
     }
@@ -2638,6 +2632,17 @@ impl<'a> Iterator for FragmentationIter<'a> {
 // -------------------------------------------------------------------------------------
 // -------------------------------------------------------------------------------------
 // -------------------------------------------------------------------------------------
+
+// Marks `frags` (of one sample) sent to the reader: answered, or found to need
+// no answer.
+fn mark_frags_sent(
+  reader_proxy: &mut RtpsReaderProxy,
+  frags: &[(SequenceNumber, FragmentNumber)],
+) {
+  for (sn, f) in frags {
+    reader_proxy.mark_frag_sent(*sn, f);
+  }
+}
 
 #[cfg(test)]
 mod tests {
