@@ -15,7 +15,6 @@
 use super::Problem;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
-use std::cell::Cell;
 
 /// A replay that failed for a trial value (e.g. a radius the model refuses) counts as an error
 /// this many times its kind's RMS: the step is rejected and the trust region shrinks.
@@ -28,14 +27,11 @@ const STEP: f64 = 0.05;
 pub(super) struct Fit<'a> {
     pub problem: &'a Problem<'a>,
     pub x: DVector<f64>,
-    /// Residual vectors computed (replays of every recording).
-    pub evaluations: Cell<usize>,
 }
 
 impl Fit<'_> {
     /// The residuals at scaled offsets `x`; `None` if the replay fails.
     pub fn residuals_at(&self, x: &DVector<f64>) -> Option<DVector<f64>> {
-        self.evaluations.set(self.evaluations.get() + 1);
         self.problem.residuals(x.as_slice()).ok()
     }
 
@@ -86,17 +82,13 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Fit<'_> {
     }
 }
 
-/// The minimum near scaled offsets `x0`: (scaled offsets, termination as text, replays).
+/// The minimum near scaled offsets `x0`: (scaled offsets, termination as text).
 pub(super) fn minimize(
     problem: &Problem,
     x0: DVector<f64>,
     max_iterations: usize,
-) -> (DVector<f64>, String, usize) {
-    let fit = Fit {
-        problem,
-        x: x0,
-        evaluations: Cell::new(0),
-    };
+) -> (DVector<f64>, String) {
+    let fit = Fit { problem, x: x0 };
     // ftol 1e-4: a relative change of the cost below that is below what the recordings'
     // noise determines; the crate's default (30 ε) would spend replays on round-off.
     let lm = LevenbergMarquardt::new()
@@ -105,11 +97,7 @@ pub(super) fn minimize(
         .with_gtol(1e-8)
         .with_patience(max_iterations.max(1));
     let (fit, report) = lm.minimize(fit);
-    (
-        fit.x.clone(),
-        format!("{:?}", report.termination),
-        fit.evaluations.get(),
-    )
+    (fit.x.clone(), format!("{:?}", report.termination))
 }
 
 /// The fitted values' covariance, in scaled units, and which of them the recordings move at

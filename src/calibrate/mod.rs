@@ -2,15 +2,15 @@
 //! (docs/logs.md). ROS-free: a log reader fills the [`Recording`]s.
 //!
 //! - `parameters.rs`: what can be fitted and where it goes in the scene file;
-//! - `problem.rs`: the residuals, the replayed predictions' errors at trial values, and
-//!   where the fit starts;
+//! - `problem.rs`: the residuals, the replayed predictions' errors at trial values (the last
+//!   few kept: a weighted round starts where the last fit ended), and where the fit starts;
 //! - `least_squares.rs`: Levenberg–Marquardt on the replayed predictions' errors, and the
 //!   fitted values' covariance (standard errors and correlations, the overlapping
 //!   predictions' shared errors counted);
 //! - `noise.rs`: the process noise that makes the predicted covariance cover what the model
 //!   still misses;
-//! - `noise_basis.rs`: the noise's trials scored from one replay per term, the covariance
-//!   being linear in the terms' variances;
+//! - `noise_basis.rs`: the noise's trials scored from one replay per term they move, the
+//!   covariance being linear in the terms' variances;
 //! - `weighting.rs`: once the noise is known, the fit again with each prediction's error
 //!   weighed by its own predicted covariance, and the noise sized again.
 //!
@@ -216,6 +216,8 @@ pub fn calibrate(
         whitening: None,
         starts: Vec::new(),
         count: 0,
+        replayed: Default::default(),
+        replays: Default::default(),
     };
     // The normalisation: each kind's RMS per horizon at the scene's values.
     let (starts, base): (Vec<_>, Vec<_>) = problem.errors_by_start(&[])?.into_iter().unzip();
@@ -238,11 +240,12 @@ pub fn calibrate(
     let before = rms(&problem.residuals(&[])?);
 
     let mut values = fit_values(&mut problem, &scene.model, asked.clone(), None, settings)?;
-    let mut replays = 1 + values.replays;
+    // The noise's replays; the fit's are counted by the problem.
+    let mut replays = 0;
     let mut yaml = problem.yaml_at(values.x.as_slice());
     let mut process_noise = None;
     if settings.fit_process_noise {
-        let mut noise = noise::fit(&problem, &mut yaml, settings, None)?;
+        let (mut noise, mut covariances) = noise::fit(&problem, &mut yaml, settings, None)?;
         replays += noise.replays;
         // With the process noise known, the predictions' own covariances weigh their errors
         // (weighting.rs): fit again from the values found, size the noise again, and repeat
@@ -253,17 +256,17 @@ pub fn calibrate(
         } else {
             WEIGHTED_ROUNDS
         } {
-            let Some(whitening) = weighting::whitening(&problem, &yaml, &noise)? else {
+            let Some(whitening) =
+                weighting::whitening(&noise, &covariances).filter(|w| 3 * w.len() == problem.count)
+            else {
                 break;
             };
-            replays += 1;
             problem.whitening = Some(whitening);
             let from: Vec<(FitParameter, f64)> = (problem.fitted.iter().zip(values.x.iter()))
                 .map(|(f, x)| (f.0, *x))
                 .collect();
             let kept = from.iter().map(|f| f.0).collect();
             let mut weighted = fit_values(&mut problem, &scene.model, kept, Some(&from), settings)?;
-            replays += weighted.replays;
             weighted.dropped.extend(values.dropped);
             let settled = (problem.fitted.iter().zip(weighted.x.iter()))
                 .zip(&weighted.std_errors)
@@ -275,12 +278,15 @@ pub fn calibrate(
             problem.whitening = None;
             yaml = problem.yaml_at(values.x.as_slice());
             let kept = [noise.saturation_slip, noise.saturation_turn];
-            noise = noise::fit(&problem, &mut yaml, settings, Some(kept))?;
+            (noise, covariances) = noise::fit(&problem, &mut yaml, settings, Some(kept))?;
             replays += noise.replays;
             if settled {
                 break;
             }
         }
+        // What is reported is scored by a replay under the values found, not by the sum.
+        noise::rescore(&problem, &yaml, settings, &mut noise)?;
+        replays += 1;
         process_noise = Some(noise);
     }
     let after = rms(&problem.residuals(values.x.as_slice())?);
@@ -314,7 +320,7 @@ pub fn calibrate(
         correlations,
         process_noise,
         residual_rms: [before, after],
-        replays,
+        replays: replays + problem.replays.get(),
         termination: values.termination,
         scene: yaml,
     })
@@ -332,8 +338,6 @@ struct Values {
     correlations: Vec<(usize, usize, f64)>,
     /// The parameters sent back to the scene's value, with their standard error [their unit].
     dropped: Vec<(FitParameter, Option<f64>)>,
-    /// Replays it took.
-    replays: usize,
 }
 
 /// Fits `fitted` from `from` (their scaled offsets; else from [`start`]); while the
@@ -348,7 +352,6 @@ fn fit_values(
     settings: &CalibrationSettings,
 ) -> Result<Values, CalibrationError> {
     let mut dropped: Vec<(FitParameter, Option<f64>)> = Vec::new();
-    let mut replays = 0;
     loop {
         problem.fitted = fitted
             .iter()
@@ -364,7 +367,6 @@ fn fit_values(
                 std_errors: Vec::new(),
                 correlations: Vec::new(),
                 dropped,
-                replays,
             });
         }
         let x0 = match from {
@@ -372,25 +374,18 @@ fn fit_values(
                 fitted.len(),
                 (fitted.iter()).map(|p| from.iter().find(|f| f.0 == *p).map_or(0.0, |f| f.1)),
             ),
-            None => {
-                let (x0, n) = start(problem)?;
-                replays += n;
-                x0
-            }
+            None => start(problem)?,
         };
-        let (x, termination, n) = least_squares::minimize(problem, x0, settings.max_iterations);
-        replays += n;
+        let (x, termination) = least_squares::minimize(problem, x0, settings.max_iterations);
         let fit = least_squares::Fit {
             problem,
             x: x.clone(),
-            evaluations: std::cell::Cell::new(0),
         };
         let (Some(j), Some(r)) = (fit.jacobian_at(&x), fit.residuals_at(&x)) else {
             return Err(CalibrationError::Scene(
                 "the replay fails at the fitted values".into(),
             ));
         };
-        replays += fit.evaluations.get();
         let spread = least_squares::spread(&j, &r, &problem.starts, problem.lags());
         let std_errors = spread.std_errors();
         // The weakest parameter goes back to the scene's value alone, and the others are
@@ -422,7 +417,6 @@ fn fit_values(
                 std_errors,
                 correlations,
                 dropped,
-                replays,
             });
         }
         for (k, f) in problem.fitted.iter().enumerate() {
@@ -442,7 +436,6 @@ fn fit_values(
                 std_errors: Vec::new(),
                 correlations: Vec::new(),
                 dropped,
-                replays,
             });
         }
     }

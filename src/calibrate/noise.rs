@@ -26,12 +26,13 @@
 //! On a scene with tyres σ_τ is not fitted: the tyres' grip rejects a wheel's own noise
 //! ([`TYRES_REJECT_NOISE`]).
 //!
-//! Every trial is scored from one replay per term (noise_basis.rs); the values found are
-//! replayed once more and scored as `evaluate` would.
+//! Every trial is scored from one replay per term it moves (noise_basis.rs); the calibration's
+//! last values are replayed once more and scored as `evaluate` would ([`rescore`]).
 
-use super::noise_basis::{NoiseBasis, Scored, TERMS, Terms};
+use super::noise_basis::{NoiseBasis, Scored, TERMS, Terms, replayed};
 use super::{CalibrationError, CalibrationSettings, Problem};
-use crate::replay::{EvaluationSettings, stats::Coverage};
+use crate::replay::{EvaluationSettings, evaluate, stats::Coverage};
+use nalgebra::Matrix3;
 use search::{most_likely_skid, most_likely_slip, smallest_sigma};
 use serde::Serialize;
 use serde_yaml::Value;
@@ -94,12 +95,15 @@ struct Score {
 /// Fits the process noise for the scene `yaml` (the fitted one) and writes it in; the skid's
 /// slide and turn [σ_k, σ_t] searched for, or kept at `kept_skid` where given: the weighted
 /// rounds keep them, so that the weights they set do not move them in turn (docs/logs.md).
+/// Its coverages and log score are the sum's (noise_basis.rs; [`rescore`] replays them). With
+/// it, every prediction's pose covariance plus its reference's under the noise found, in
+/// [`Problem::errors`]' order: the weights of a weighted round (weighting.rs).
 pub(super) fn fit(
     problem: &Problem,
     yaml: &mut Value,
     settings: &CalibrationSettings,
     kept_skid: Option<[f64; 2]>,
-) -> Result<ProcessNoise, CalibrationError> {
+) -> Result<(ProcessNoise, Vec<Matrix3<f64>>), CalibrationError> {
     let replay = EvaluationSettings {
         propagate_covariance: true,
         ..settings.replay.clone()
@@ -112,52 +116,29 @@ pub(super) fn fit(
         (problem.places).set_skid_turn(yaml, turn);
         (problem.places).set_yaw_slip(yaml, slip);
     };
-    // Every trial scored by the sum of the basis's covariances (noise_basis.rs).
-    let mut basis = NoiseBasis::new(problem, yaml, &write, replay)?;
-    let horizons = basis.horizons();
-    let summary = move |scored: Vec<Scored>| {
-        let (mut nees, mut log_score) = (Vec::new(), 0.0);
-        let (mut saturated, mut unsaturated) = (vec![vec![]; horizons], vec![vec![]; horizons]);
-        for p in scored {
-            log_score += 0.5 * p.nees + p.half_log_det;
-            nees.push(p.nees);
-            if p.saturated {
-                saturated[p.horizon].push(p.nees);
-            } else {
-                unsaturated[p.horizon].push(p.nees);
-            }
-        }
-        // A subset's coverage at the horizon where it is least.
-        let least = |by_horizon: &[Vec<f64>]| {
-            (by_horizon.iter())
-                .filter(|n| !n.is_empty())
-                .map(|n| Coverage::of(n).p95)
-                .fold(1.0, f64::min)
-        };
-        Score {
-            coverage_p95: if nees.is_empty() {
-                0.0
-            } else {
-                Coverage::of(&nees).p95
-            },
-            unsaturated_coverage_p95: least(&unsaturated),
-            saturated_coverage_p95: least(&saturated),
-            saturated: saturated.iter().map(Vec::len).sum(),
-            log_score: log_score / nees.len().max(1) as f64,
-        }
-    };
-    // [σ_τ, σ_k, σ_t, σ_s].
-    let mut score =
-        |terms: Terms| -> Result<Score, CalibrationError> { Ok(summary(basis.score(terms)?)) };
-    let target = settings.target_coverage_p95;
     let joints = problem.places.wheel_joints().to_vec();
-    let s0 = score([0.0; TERMS])?;
     let tyres = problem.places.tyres_carry_wheels();
-    let (mut sigma, mut slide, mut turn, mut s) = (0.0, 0.0, 0.0, s0);
+    let searches_sigma = !(joints.is_empty() || tyres);
+    // Every trial scored by the sum of the basis's covariances (noise_basis.rs), from a base
+    // replay with a kept skid pair in it where no search of σ_τ scores trials without it: no
+    // trial then moves the pair, and its two replays are saved.
+    let at = match kept_skid {
+        Some([slide, turn]) if !searches_sigma => [0.0, slide, turn, 0.0],
+        _ => [0.0; TERMS],
+    };
+    let mut basis = NoiseBasis::new(problem, yaml, &write, replay, at)?;
+    let horizons = basis.horizons();
+    // [σ_τ, σ_k, σ_t, σ_s].
+    let mut score = |terms: Terms| -> Result<Score, CalibrationError> {
+        Ok(summary(basis.score(terms)?, horizons))
+    };
+    let target = settings.target_coverage_p95;
+    let s0 = score(at)?;
+    let (mut sigma, [_, mut slide, mut turn, _], mut s) = (0.0, at, s0);
     if !(s0.unsaturated_coverage_p95 >= target && s0.saturated_coverage_p95 >= target) {
         // σ_τ on the predictions only it acts on; then the skid's pair, beside it, on those
         // through a saturation.
-        if !(joints.is_empty() || tyres) {
+        if searches_sigma {
             (sigma, s) = smallest_sigma(|sigma| score([sigma, 0.0, 0.0, 0.0]), target)?;
         }
         if s.saturated > 0 {
@@ -174,14 +155,13 @@ pub(super) fn fit(
     }
     let mut slip = 0.0;
     if problem.places.base_yaw().is_some() {
-        (slip, _) = most_likely_slip(|slip| score([sigma, slide, turn, slip]), s)?;
+        (slip, s) = most_likely_slip(|slip| score([sigma, slide, turn, slip]), s)?;
     }
     let terms = [sigma, slide, turn, slip];
-    // What is reported is scored by a replay under the values found, not by the sum.
-    let s = summary(basis.replayed(terms)?);
+    let covariances = basis.covariances(terms)?;
     let replays = basis.replays;
     write(yaml, terms);
-    Ok(ProcessNoise {
+    let noise = ProcessNoise {
         joints,
         effort_noise: sigma,
         saturation_slip_coordinates: problem.places.base_horizontal().to_vec(),
@@ -196,7 +176,71 @@ pub(super) fn fit(
         log_score: s.log_score,
         replays,
         not_fitted: tyres.then_some(TYRES_REJECT_NOISE),
-    })
+    };
+    Ok((noise, covariances))
+}
+
+/// The coverages and log score of `scored`, over `horizons` fit horizons.
+fn summary(scored: Vec<Scored>, horizons: usize) -> Score {
+    let (mut nees, mut log_score) = (Vec::new(), 0.0);
+    let (mut saturated, mut unsaturated) = (vec![vec![]; horizons], vec![vec![]; horizons]);
+    for p in scored {
+        log_score += 0.5 * p.nees + p.half_log_det;
+        nees.push(p.nees);
+        if p.saturated {
+            saturated[p.horizon].push(p.nees);
+        } else {
+            unsaturated[p.horizon].push(p.nees);
+        }
+    }
+    // A subset's coverage at the horizon where it is least.
+    let least = |by_horizon: &[Vec<f64>]| {
+        (by_horizon.iter())
+            .filter(|n| !n.is_empty())
+            .map(|n| Coverage::of(n).p95)
+            .fold(1.0, f64::min)
+    };
+    Score {
+        coverage_p95: if nees.is_empty() {
+            0.0
+        } else {
+            Coverage::of(&nees).p95
+        },
+        unsaturated_coverage_p95: least(&unsaturated),
+        saturated_coverage_p95: least(&saturated),
+        saturated: saturated.iter().map(Vec::len).sum(),
+        log_score: log_score / nees.len().max(1) as f64,
+    }
+}
+
+/// Replays the scene `yaml` (the fitted values and `noise` written in) and states `noise`'s
+/// coverages and log score as that replay has them, not as the sum does.
+pub(super) fn rescore(
+    problem: &Problem,
+    yaml: &Value,
+    settings: &CalibrationSettings,
+    noise: &mut ProcessNoise,
+) -> Result<(), CalibrationError> {
+    let replay = EvaluationSettings {
+        propagate_covariance: true,
+        ..settings.replay.clone()
+    };
+    let scene = problem.source.build(yaml)?;
+    let mut records = Vec::new();
+    for recording in problem.recordings {
+        records.extend(evaluate(&scene, recording, &replay)?.records);
+    }
+    let s = summary(
+        replayed(&records, &replay.horizons_s),
+        replay.horizons_s.len(),
+    );
+    noise.coverage_p95 = s.coverage_p95;
+    noise.unsaturated_coverage_p95 = s.unsaturated_coverage_p95;
+    noise.saturated_coverage_p95 = s.saturated_coverage_p95;
+    noise.saturated_predictions = s.saturated;
+    noise.log_score = s.log_score;
+    noise.replays += 1;
+    Ok(())
 }
 
 #[path = "noise_search.rs"]

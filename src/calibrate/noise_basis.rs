@@ -4,10 +4,13 @@
 //! their integration error estimates, their saturations and the floors do not depend on them,
 //! and the covariance is propagated linearly along the fixed trajectory (docs/propagation.md)
 //! with the terms' variances entering additively. So a prediction's pose covariance is
-//! P(σ) = P₀ + Σᵢ (σᵢ / uᵢ)² Rᵢ, where P₀ is the covariance without process noise (the start's
-//! propagated, the error estimate, the floors, the reference's own) and Rᵢ what term i adds at
-//! its unit value uᵢ. One replay without noise and one per term used give every trial's NEES
-//! and log score by this sum; the fit's last values are replayed once more and scored directly.
+//! P(σ) = P(β) + Σᵢ ((σᵢ² − βᵢ²) / uᵢ²) Rᵢ, where P(β) is the covariance at the basis's own
+//! terms β (none, or the skid's pair a weighted round keeps; with the start's propagated, the
+//! error estimate, the floors and the reference's own) and Rᵢ what term i adds at its unit
+//! value uᵢ. One replay at β and one per term a trial moves off β give every trial's NEES and
+//! log score by this sum, and the sum's covariances at the values found are what the next
+//! weighted round weighs by; the calibration's last values are replayed once more and scored
+//! directly ([`replayed`]).
 
 use super::{CalibrationError, Problem};
 use crate::replay::{EvaluationSettings, PredictionRecord, evaluate};
@@ -51,6 +54,8 @@ pub(super) struct NoiseBasis<'a> {
     yaml: Value,
     write: &'a dyn Fn(&mut Value, Terms),
     replay: EvaluationSettings,
+    /// The terms the base replay ran at (β).
+    at: Terms,
     predictions: Vec<Prediction>,
     per_unit: [Option<Vec<Matrix3<f64>>>; TERMS],
     /// Replays of every recording it took.
@@ -58,29 +63,29 @@ pub(super) struct NoiseBasis<'a> {
 }
 
 impl<'a> NoiseBasis<'a> {
-    /// Replays `problem`'s recordings under the scene `yaml` with every term at 0 (`write`
+    /// Replays `problem`'s recordings under the scene `yaml` with the terms at `at` (`write`
     /// sets the terms in a scene file).
     pub fn new(
         problem: &'a Problem<'a>,
         yaml: &Value,
         write: &'a dyn Fn(&mut Value, Terms),
         replay: EvaluationSettings,
+        at: Terms,
     ) -> Result<Self, CalibrationError> {
         let mut basis = NoiseBasis {
             problem,
             yaml: yaml.clone(),
             write,
             replay,
+            at,
             predictions: Vec::new(),
             per_unit: Default::default(),
             replays: 0,
         };
-        let records = basis.records([0.0; TERMS])?;
+        let records = basis.records(at)?;
         basis.predictions = (records.iter())
             .map(|r| Prediction {
-                horizon: (basis.replay.horizons_s.iter())
-                    .position(|&h| h == r.horizon_s)
-                    .unwrap_or(0),
+                horizon: horizon_index(&basis.replay.horizons_s, r),
                 saturated: r.saturated_s > 0.0,
                 error: Vector3::new(
                     r.reference[0] - r.predicted[0],
@@ -113,29 +118,9 @@ impl<'a> NoiseBasis<'a> {
 
     /// Every prediction scored with `terms` by the sum.
     pub fn score(&mut self, terms: Terms) -> Result<Vec<Scored>, CalibrationError> {
-        for (i, &t) in terms.iter().enumerate() {
-            if t != 0.0 && self.per_unit[i].is_none() {
-                let mut unit = [0.0; TERMS];
-                unit[i] = UNITS[i];
-                let records = self.records(unit)?;
-                if records.len() != self.predictions.len() {
-                    return Err(changed());
-                }
-                let added = (records.iter().zip(&self.predictions))
-                    .map(|(r, p)| total(r) - p.base)
-                    .collect();
-                self.per_unit[i] = Some(added);
-            }
-        }
-        let weights = std::array::from_fn::<f64, TERMS, _>(|i| (terms[i] / UNITS[i]).powi(2));
-        Ok((self.predictions.iter().enumerate())
-            .map(|(n, p)| {
-                let mut c = p.base;
-                for (w, added) in weights.iter().zip(&self.per_unit) {
-                    if let (true, Some(added)) = (*w != 0.0, added) {
-                        c += *w * added[n];
-                    }
-                }
+        let covariances = self.covariances(terms)?;
+        Ok((self.predictions.iter().zip(covariances))
+            .map(|(p, c)| {
                 let (nees, half_log_det) = match (0.5 * (c + c.transpose())).cholesky() {
                     Some(l) => (
                         p.error.dot(&l.solve(&p.error)),
@@ -153,21 +138,58 @@ impl<'a> NoiseBasis<'a> {
             .collect())
     }
 
-    /// Every prediction scored with `terms` by a replay under them.
-    pub fn replayed(&mut self, terms: Terms) -> Result<Vec<Scored>, CalibrationError> {
-        let records = self.records(terms)?;
-        if records.len() != self.predictions.len() {
-            return Err(changed());
+    /// Every prediction's pose covariance plus its reference's with `terms`, by the sum
+    /// (replaying each term it moves off the base's once).
+    pub fn covariances(&mut self, terms: Terms) -> Result<Vec<Matrix3<f64>>, CalibrationError> {
+        for (i, &t) in terms.iter().enumerate() {
+            if t != self.at[i] && self.per_unit[i].is_none() {
+                // The base's terms with term i's variance grown by its unit's.
+                let mut unit = self.at;
+                unit[i] = self.at[i].hypot(UNITS[i]);
+                let records = self.records(unit)?;
+                if records.len() != self.predictions.len() {
+                    return Err(changed());
+                }
+                let added = (records.iter().zip(&self.predictions))
+                    .map(|(r, p)| total(r) - p.base)
+                    .collect();
+                self.per_unit[i] = Some(added);
+            }
         }
-        Ok((records.iter().zip(&self.predictions))
-            .map(|(r, p)| Scored {
-                horizon: p.horizon,
-                saturated: p.saturated,
-                nees: r.nees,
-                half_log_det: 0.5 * total(r).determinant().max(f64::MIN_POSITIVE).ln(),
+        let weights = std::array::from_fn::<f64, TERMS, _>(|i| {
+            (terms[i].powi(2) - self.at[i].powi(2)) / UNITS[i].powi(2)
+        });
+        Ok((self.predictions.iter().enumerate())
+            .map(|(n, p)| {
+                let mut c = p.base;
+                for (w, added) in weights.iter().zip(&self.per_unit) {
+                    if let (true, Some(added)) = (*w != 0.0, added) {
+                        c += *w * added[n];
+                    }
+                }
+                c
             })
             .collect())
     }
+}
+
+/// Every prediction of a replay's `records` (at the fit's `horizons_s`) scored as the replay
+/// has it.
+pub(super) fn replayed(records: &[PredictionRecord], horizons_s: &[f64]) -> Vec<Scored> {
+    (records.iter())
+        .map(|r| Scored {
+            horizon: horizon_index(horizons_s, r),
+            saturated: r.saturated_s > 0.0,
+            nees: r.nees,
+            half_log_det: 0.5 * total(r).determinant().max(f64::MIN_POSITIVE).ln(),
+        })
+        .collect()
+}
+
+fn horizon_index(horizons_s: &[f64], r: &PredictionRecord) -> usize {
+    (horizons_s.iter())
+        .position(|&h| h == r.horizon_s)
+        .unwrap_or(0)
 }
 
 /// A record's predicted covariance plus its reference's.

@@ -5,6 +5,8 @@ use super::{CalibrationError, FitParameter, SceneParameters, SceneSource};
 use crate::replay::{EvaluationSettings, Recording, evaluate};
 use nalgebra::{DVector, Matrix3, Vector3};
 use serde_yaml::Value;
+use std::cell::{Cell, RefCell};
+use std::collections::VecDeque;
 
 /// A prediction's start: (recording, the start's rank in it).
 pub(super) type Start = (usize, usize);
@@ -28,6 +30,39 @@ pub(crate) struct Problem<'a> {
     /// Per residual row, its prediction's start: (recording, the start's rank in it).
     pub(super) starts: Vec<Start>,
     pub(super) count: usize,
+    /// The errors of the scenes replayed last, by the fitted values' bits: a weighted round
+    /// starts where the last fit ended, and its first residuals and Jacobian are that fit's
+    /// last ones under new weights, which the errors do not depend on.
+    pub(super) replayed: RefCell<ErrorCache>,
+    /// Replays of every recording so far.
+    pub(super) replays: Cell<usize>,
+}
+
+/// The fitted values a replay ran at: each parameter with its value's bits.
+type Values = Vec<(FitParameter, u64)>;
+
+/// The errors of recently replayed fitted values (at most [`ErrorCache::CAPACITY`]).
+#[derive(Default)]
+pub(crate) struct ErrorCache {
+    entries: VecDeque<(Values, Vec<(Start, HorizonError)>)>,
+}
+
+impl ErrorCache {
+    /// A Jacobian's columns with its centre, and a few more.
+    const CAPACITY: usize = 24;
+
+    fn get(&self, key: &Values) -> Option<&Vec<(Start, HorizonError)>> {
+        (self.entries.iter())
+            .find(|(k, _)| k == key)
+            .map(|(_, e)| e)
+    }
+
+    fn insert(&mut self, key: Values, errors: Vec<(Start, HorizonError)>) {
+        if self.entries.len() == Self::CAPACITY {
+            self.entries.pop_front();
+        }
+        self.entries.push_back((key, errors));
+    }
 }
 
 impl Problem<'_> {
@@ -54,7 +89,21 @@ impl Problem<'_> {
         &self,
         x: &[f64],
     ) -> Result<Vec<(Start, HorizonError)>, CalibrationError> {
+        let key: Values = (self.fitted.iter().zip(x))
+            .map(|((p, value, scale), xi)| (*p, (value + scale * xi).to_bits()))
+            .collect();
+        if let Some(errors) = self.replayed.borrow().get(&key) {
+            return Ok(errors.clone());
+        }
+        let errors = self.replay_errors(x)?;
+        self.replayed.borrow_mut().insert(key, errors.clone());
+        Ok(errors)
+    }
+
+    /// The replays' errors at `x` (module documentation).
+    fn replay_errors(&self, x: &[f64]) -> Result<Vec<(Start, HorizonError)>, CalibrationError> {
         let scene = self.source.build(&self.yaml_at(x))?;
+        self.replays.set(self.replays.get() + 1);
         let mut out = Vec::new();
         for (n, recording) in self.recordings.iter().enumerate() {
             let mut t0s: Vec<f64> = Vec::new();
@@ -117,14 +166,13 @@ impl Problem<'_> {
     }
 }
 
-/// Where the fit starts (scaled offsets) and the replays it took to find out: the scene's
+/// Where the fit starts (scaled offsets): the scene's
 /// values, except where the scene's value is an edge with no slope to follow, where the start
 /// is the best of a coarse scan. A clamp (the traction torque) only acts below where it is, and
 /// one the drives never reach changes nothing: scanned down to a quarter of its value. A rigid
 /// contact (no sideways creep) is the edge of `lateral_creep`: scanned up to 4 mm/s per newton.
-pub(super) fn start(problem: &Problem) -> Result<(DVector<f64>, usize), CalibrationError> {
+pub(super) fn start(problem: &Problem) -> Result<DVector<f64>, CalibrationError> {
     let mut x0 = DVector::zeros(problem.fitted.len());
-    let mut replays = 0;
     for (k, (p, value, scale)) in problem.fitted.iter().enumerate() {
         let tried: Vec<f64> = match p {
             FitParameter::TractionTorque => [1.0, 0.8, 0.6, 0.45, 0.35, 0.25]
@@ -138,7 +186,6 @@ pub(super) fn start(problem: &Problem) -> Result<(DVector<f64>, usize), Calibrat
         for xk in tried {
             let mut x = x0.clone();
             x[k] = xk;
-            replays += 1;
             let cost = problem.residuals(x.as_slice())?.norm_squared();
             if cost < best.0 {
                 best = (cost, x[k]);
@@ -146,5 +193,5 @@ pub(super) fn start(problem: &Problem) -> Result<(DVector<f64>, usize), Calibrat
         }
         x0[k] = best.1;
     }
-    Ok((x0, replays))
+    Ok(x0)
 }

@@ -10,20 +10,17 @@
 //! predictions' NEES: generalized least squares, the weights held through a fit and taken again
 //! from the new values and noise between fits until the values settle (`WEIGHTED_ROUNDS`).
 
-use super::{CalibrationError, Problem, ProcessNoise};
-use crate::replay::{EvaluationSettings, evaluate};
+use super::ProcessNoise;
 use nalgebra::Matrix3;
-use serde_yaml::Value;
 
-/// Per prediction, in the order [`Problem::errors`] gives them, L⁻¹ of its pose covariance
-/// under the scene `yaml` (fitted values and `noise` written in); None when the fit keeps no
-/// process noise (the weights would be the odometry's and the integration's alone) or a
-/// covariance is not positive definite.
+/// Per prediction, in the order [`Problem::errors`](super::Problem::errors) gives them, L⁻¹ of
+/// its pose covariance plus its reference's, `covariances` (the noise fit's replay under the
+/// fitted values and `noise`); None when the fit keeps no process noise (the weights would be
+/// the odometry's and the integration's alone) or a covariance is not positive definite.
 pub(super) fn whitening(
-    problem: &Problem,
-    yaml: &Value,
     noise: &ProcessNoise,
-) -> Result<Option<Vec<Matrix3<f64>>>, CalibrationError> {
+    covariances: &[Matrix3<f64>],
+) -> Option<Vec<Matrix3<f64>>> {
     if [
         noise.effort_noise,
         noise.saturation_slip,
@@ -33,27 +30,9 @@ pub(super) fn whitening(
     .iter()
     .all(|&s| s == 0.0)
     {
-        return Ok(None);
+        return None;
     }
-    let replay = EvaluationSettings {
-        propagate_covariance: true,
-        error_estimate: true,
-        ..problem.replay.clone()
-    };
-    let scene = problem.source.build(yaml)?;
-    let mut out = Vec::new();
-    for recording in problem.recordings {
-        let ev = evaluate(&scene, recording, &replay)?;
-        for r in &ev.records {
-            let p = Matrix3::from(r.predicted_covariance) + Matrix3::from(r.reference_covariance);
-            let Some(l) = (0.5 * (p + p.transpose())).cholesky() else {
-                return Ok(None);
-            };
-            let Some(inv) = l.l().try_inverse() else {
-                return Ok(None);
-            };
-            out.push(inv);
-        }
-    }
-    Ok((3 * out.len() == problem.count).then_some(out))
+    (covariances.iter())
+        .map(|p| (0.5 * (p + p.transpose())).cholesky()?.l().try_inverse())
+        .collect()
 }
