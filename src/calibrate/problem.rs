@@ -39,25 +39,25 @@ pub(crate) struct Problem<'a> {
 }
 
 /// The fitted values a replay ran at: each parameter with its value's bits.
-type Values = Vec<(FitParameter, u64)>;
+type FittedBits = Vec<(FitParameter, u64)>;
 
 /// The errors of recently replayed fitted values (at most [`ErrorCache::CAPACITY`]).
 #[derive(Default)]
 pub(crate) struct ErrorCache {
-    entries: VecDeque<(Values, Vec<(Start, HorizonError)>)>,
+    entries: VecDeque<(FittedBits, Vec<(Start, HorizonError)>)>,
 }
 
 impl ErrorCache {
     /// A Jacobian's columns with its centre, and a few more.
     const CAPACITY: usize = 24;
 
-    fn get(&self, key: &Values) -> Option<&Vec<(Start, HorizonError)>> {
+    fn get(&self, key: &FittedBits) -> Option<&Vec<(Start, HorizonError)>> {
         (self.entries.iter())
             .find(|(k, _)| k == key)
             .map(|(_, e)| e)
     }
 
-    fn insert(&mut self, key: Values, errors: Vec<(Start, HorizonError)>) {
+    fn insert(&mut self, key: FittedBits, errors: Vec<(Start, HorizonError)>) {
         if self.entries.len() == Self::CAPACITY {
             self.entries.pop_front();
         }
@@ -89,7 +89,7 @@ impl Problem<'_> {
         &self,
         x: &[f64],
     ) -> Result<Vec<(Start, HorizonError)>, CalibrationError> {
-        let key: Values = (self.fitted.iter().zip(x))
+        let key: FittedBits = (self.fitted.iter().zip(x))
             .map(|((p, value, scale), xi)| (*p, (value + scale * xi).to_bits()))
             .collect();
         if let Some(errors) = self.replayed.borrow().get(&key) {
